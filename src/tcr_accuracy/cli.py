@@ -18,7 +18,7 @@ from . import __version__
 EXIT_OK, EXIT_ANALYSIS, EXIT_INPUT = 0, 1, 2
 
 
-class _Parser(argparse.ArgumentParser):
+class Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one line and exit code 2."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
@@ -26,7 +26,7 @@ class _Parser(argparse.ArgumentParser):
         sys.exit(EXIT_INPUT)
 
 
-def _add_robot_arguments(parser: argparse.ArgumentParser) -> None:
+def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default=None, metavar="URDF|NAME",
                         help="URDF file or example-robot-data name (ur3, ur5, ur10, panda, z1, xarm7); "
                              "default: the built-in shield-machine tool-changer")
@@ -35,8 +35,8 @@ def _add_robot_arguments(parser: argparse.ArgumentParser) -> None:
                              "flange frame for named robots, the single leaf link of a URDF)")
 
 
-def _joint_values_si(robot, values, source="--q"):
-    """CLI joint values (deg for revolute, mm for prismatic) to SI, validated."""
+def joint_values_si(robot, values, source="--q"):
+    """CLI joint values (deg for revolute, mm for prismatic) to SI, validated; None: working pose."""
     import numpy as np
 
     if values is None:
@@ -50,7 +50,7 @@ def _joint_values_si(robot, values, source="--q"):
     return robot.check_joint_values(values / robot.display_scale, source=source)
 
 
-def _format_q(robot, q) -> str:
+def format_joint_values(robot, q) -> str:
     return ", ".join(f"{n} = {v * s:.6g} {u}" for n, v, s, u in
                      zip(robot.joint_names, q, robot.display_scale, robot.display_units))
 
@@ -65,7 +65,7 @@ def _pose_parser(sub) -> None:
                     "degrees, prismatic joints in millimetres, in URDF joint order. Without --q, "
                     "the robot's working pose (the seed paper's for the tool-changer).",
     )
-    _add_robot_arguments(p)
+    add_robot_arguments(p)
     p.add_argument("--q", nargs="+", type=float, metavar="VALUE",
                    help="joint values: revolute [deg], prismatic [mm]")
     p.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE",
@@ -81,7 +81,7 @@ def _run_pose(args) -> int:
     from .robot import load_robot
 
     robot = load_robot(args.robot, args.tool)
-    q = _joint_values_si(robot, args.q)
+    q = joint_values_si(robot, args.q)
     pose = tcp_poses(robot, q)
     position, rotation = pose.position[0], pose.rotation[0]
     rpy = pin.rpy.matrixToRpy(rotation)
@@ -97,10 +97,10 @@ def _run_pose(args) -> int:
         "euler_zyx_rad": euler_zyx(rotation[None])[0].tolist(),
     }
     if args.json is not None:
-        _emit_json(payload, args.json)
+        emit_json(payload, args.json)
         if args.json == "-":
             return EXIT_OK
-    print(f"{robot.name}: TCP frame '{robot.tool_frame}' at {_format_q(robot, q)}")
+    print(f"{robot.name}: TCP frame '{robot.tool_frame}' at {format_joint_values(robot, q)}")
     print("  position [mm]: x = {:.4f}, y = {:.4f}, z = {:.4f}".format(*(position * 1000)))
     print("  roll, pitch, yaw [deg]: {:.4f}, {:.4f}, {:.4f}".format(*np.degrees(rpy)))
     print("  rotation matrix:")
@@ -109,7 +109,7 @@ def _run_pose(args) -> int:
     return EXIT_OK
 
 
-def _emit_json(payload: dict, target: str) -> None:
+def emit_json(payload: dict, target: str) -> None:
     text = json.dumps(payload, indent=2, allow_nan=False) + "\n"
     if target == "-":
         sys.stdout.write(text)
@@ -150,7 +150,7 @@ def _run_demo(args) -> int:
     robot = load_robot()
     q = robot.working_pose
     pose = tcp_poses(robot, q)
-    print(f"Built-in tool-changer (5R + 1P) at the seed's working pose: {_format_q(robot, q)}")
+    print(f"Built-in tool-changer (5R + 1P) at the seed's working pose: {format_joint_values(robot, q)}")
     print("  TCP position [mm]: x = {:.3f}, y = {:.3f}, z = {:.3f}".format(*(pose.position[0] * 1000)))
     budget = seed_budget(robot, "table2")
     result = run_monte_carlo(budget, q, args.samples, np.random.default_rng(args.seed))
@@ -172,18 +172,28 @@ def _run_demo(args) -> int:
 
 # ---------------------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(
+    parser = Parser(
         prog="tcr-accuracy",
         description="Motion accuracy of serial robots on Pinocchio: kinematics with error "
                     "screws, Monte Carlo accuracy, sim-to-real gap diagnosis, compensation.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     sub.required = True
-    for add in COMMANDS:
+    for add in COMMANDS + _topic_commands():
         add(sub)
     return parser
 
+
+def _topic_commands():
+    """Subcommands that live in their own ``cli_<topic>`` modules (each has ``add_parsers``)."""
+    import importlib
+
+    return [importlib.import_module(f".{name}", __package__).add_parsers for name in TOPIC_MODULES]
+
+
+#: Modules holding further subcommands, one per topic; each defines add_parsers(sub).
+TOPIC_MODULES: list[str] = []
 
 COMMANDS = [_pose_parser, _demo_parser]
 
