@@ -24,11 +24,12 @@ def test_linear_error_along_one_joint_gives_half_slope_squared_times_h_squared()
     i, k = np.triu_indices(60, 1)
     h = np.abs(q[i, 0] - q[k, 0])
     edges = np.linspace(h.min(), h.max(), 11)
+    expected = []
     for b, (lo, hi) in enumerate(zip(edges[:-1], edges[1:])):
         inside = (h >= lo) & ((h < hi) if b < 9 else (h <= hi))
         if inside.any():
-            expected = a**2 * np.mean(h[inside] ** 2) / 2
-            assert expected in pytest.approx(list(emp.semivariance[:, 0]), rel=1e-12)
+            expected.append(a**2 * np.mean(h[inside] ** 2) / 2)
+    np.testing.assert_allclose(emp.semivariance[:, 0], expected, rtol=1e-12)
 
 
 def test_white_noise_is_flat_at_unit_variance():
@@ -36,8 +37,9 @@ def test_white_noise_is_flat_at_unit_variance():
     q = rng.uniform(-1, 1, (400, 6))
     e = rng.normal(size=(400, 3))
     emp = empirical_semivariogram(q, e, n_bins=8)
-    busy = emp.counts > 500
-    np.testing.assert_allclose(emp.semivariance[busy], 1.0, atol=0.12)
+    busy = emp.counts > 4000  # far bins hold pairs of few points: correlated, noisy
+    assert busy.sum() >= 4
+    np.testing.assert_allclose(emp.semivariance[busy], 1.0, atol=0.1)
 
 
 def test_per_joint_semivariogram_finds_the_joint_the_error_depends_on():
