@@ -372,6 +372,15 @@ def axis_deflection_directions(robot: RobotModel, j: int, error_model: ErrorMode
     return out
 
 
+def drive_source(robot: RobotModel, j: int, error_model: ErrorModel, std: float) -> ErrorSource:
+    """A normal drive error of joint j with the given spread [rad or m]."""
+    name = robot.joint_names[j]
+    direction = np.zeros(error_model.size)
+    direction[error_model.index(f"{name}.drive")] = 1.0
+    unit = "rad" if robot.joint_kinds[j] == REVOLUTE else "m"
+    return ErrorSource(f"{name} drive", "drive", direction, unit, std=std)
+
+
 def seed_budget(robot: RobotModel, preset: str) -> ErrorBudget:
     """The seed paper's error distributions as an :class:`ErrorBudget`.
 
@@ -391,12 +400,9 @@ def seed_budget(robot: RobotModel, preset: str) -> ErrorBudget:
             if direction is not None:
                 sources.append(ErrorSource(f"{name} link length", "link_length", direction, "m",
                                            std=SEED_TABLE1["link_length"]))
-        for j, name in enumerate(robot.joint_names):
-            d = np.zeros(error_model.size)
-            d[error_model.index(f"{name}.drive")] = 1.0
+        for j in range(robot.n_joints):
             std = SEED_TABLE1["drive_revolute" if kinds[j] == REVOLUTE else "drive_prismatic"]
-            sources.append(ErrorSource(f"{name} drive", "drive", d, "rad" if kinds[j] == REVOLUTE else "m",
-                                       std=std))
+            sources.append(drive_source(robot, j, error_model, std))
         for j, name in enumerate(robot.joint_names):
             if kinds[j] != REVOLUTE:
                 continue
@@ -416,11 +422,8 @@ def seed_budget(robot: RobotModel, preset: str) -> ErrorBudget:
             if direction is not None:
                 sources.append(ErrorSource(f"l{j + 1} link length", "link_length", direction, "m",
                                            std=SEED_TABLE2["link_length"][j]))
-        for j, name in enumerate(robot.joint_names):
-            d = np.zeros(error_model.size)
-            d[error_model.index(f"{name}.drive")] = 1.0
-            sources.append(ErrorSource(f"{name} drive", "drive", d, "rad" if kinds[j] == REVOLUTE else "m",
-                                       std=SEED_TABLE2["drive"][j]))
+        for j in range(robot.n_joints):
+            sources.append(drive_source(robot, j, error_model, SEED_TABLE2["drive"][j]))
     else:
         raise InputError(f"--preset {preset}: unknown preset (known: table1, table2)")
     return ErrorBudget(error_model, sources, name=preset)
