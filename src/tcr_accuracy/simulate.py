@@ -179,12 +179,12 @@ NON_NEGATIVE = ("compliance", "backlash", "clearance")
 DOMINANT_CANDIDATES = ("compliance", "backlash", "thermal", "transmission", "encoder_scale")
 
 
-def effect_class(name: str) -> type[Effect]:
+def effect_class(name: str, source: str = "scenario") -> type[Effect]:
     if name in EFFECTS:
         return EFFECTS[name]
     if name in OUTSIDE_VOCABULARY:
         return OUTSIDE_VOCABULARY[name]
-    raise InputError(f"unknown effect {name!r}; effects: {', '.join(EFFECTS)}; outside the vocabulary "
+    raise InputError(f"{source}: unknown effect {name!r}; effects: {', '.join(EFFECTS)}; outside the vocabulary "
                      f"(simulate only): {', '.join(OUTSIDE_VOCABULARY)}")
 
 
@@ -254,7 +254,7 @@ def scenario_from_dict(data: dict, source: str = "<scenario>") -> Scenario:
     if not isinstance(effects, dict):
         raise InputError(f"{source}: effects: a mapping effect name -> settings")
     for name, spec in effects.items():
-        effect_class(name)  # raises for unknown names
+        effect_class(name, source)  # raises for unknown names
         if spec is not None and not isinstance(spec, dict):
             raise InputError(f"{source}: effects.{name}: settings must be a mapping (or empty)")
     ctx = data.get("context") or {}
@@ -311,7 +311,7 @@ def resolve_effect(robot: RobotModel, name: str, spec: dict, rng: np.random.Gene
     joints has no length-valued joint offsets) instead of raising.
     Returns (effect, params, tcp_rms_m or None).
     """
-    cls = effect_class(name)
+    cls = effect_class(name, source)
     where = f"{source}: effects.{name}"
     options = dict(spec.get("options") or {})
     mass_spread = options.pop("link_mass_spread", None)
