@@ -44,7 +44,10 @@ from .kinematics import TcpPoses, tcp_poses
 from .measurements import REFERENCE_TEMPERATURE_C, MeasurementContext
 from .robot import REVOLUTE, JointLimitWarning, RobotModel
 
-STANDARD_GRAVITY = 9.80665  # [m/s^2]
+#: skew(p)_ij = -eps_ijk p_k
+_LEVI_CIVITA = np.zeros((3, 3, 3))
+_LEVI_CIVITA[0, 1, 2] = _LEVI_CIVITA[1, 2, 0] = _LEVI_CIVITA[2, 0, 1] = 1.0
+_LEVI_CIVITA[0, 2, 1] = _LEVI_CIVITA[2, 1, 0] = _LEVI_CIVITA[1, 0, 2] = -1.0
 
 
 @dataclass(frozen=True)
@@ -327,19 +330,40 @@ def gravity_torque(robot: RobotModel, q: np.ndarray, payload_kg=0.0, link_mass_f
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     payload = np.broadcast_to(np.asarray(payload_kg, dtype=float), (q.shape[0],))
-    arm = gravity_model(robot, link_mass_factors)
-    with_unit = gravity_model(robot, link_mass_factors, payload_kg=1.0)
+    factors = None if link_mass_factors is None else np.asarray(link_mass_factors, dtype=float)
+    key = (id(robot.model), _digest(q), _digest(payload), None if factors is None else _digest(factors))
+    cached = _GRAVITY_CACHE.get(key)
+    if cached is not None and cached[0] is robot.model:
+        return cached[1].copy()
+    arm = gravity_model(robot, factors)
+    with_unit = gravity_model(robot, factors, payload_kg=1.0)
     d_arm, d_unit = arm.createData(), with_unit.createData()
     out = np.empty_like(q)
     any_payload = bool(np.any(payload != 0))
+    plain_q = robot.model.nq == robot.n_joints
     for i, qi in enumerate(q):
-        qp = robot.to_pinocchio_q(qi)
+        qp = qi if plain_q else robot.to_pinocchio_q(qi)
         g_arm = pin.computeGeneralizedGravity(arm, d_arm, qp)
         tau = g_arm
         if any_payload:
             tau = g_arm + payload[i] * (pin.computeGeneralizedGravity(with_unit, d_unit, qp) - g_arm)
         out[i] = -_v_to_joints(robot, tau)
+    if len(_GRAVITY_CACHE) >= 8:
+        _GRAVITY_CACHE.pop(next(iter(_GRAVITY_CACHE)))
+    _GRAVITY_CACHE[key] = (robot.model, out.copy())
     return out
+
+
+#: The last few gravity torque batches: compliance and backlash, perturb and Jacobian, all
+#: ask for the same rows during a fit. Keyed by the model's identity and the inputs' bytes.
+_GRAVITY_CACHE: dict = {}
+
+
+def _digest(a: np.ndarray) -> bytes:
+    import hashlib
+
+    a = np.ascontiguousarray(a)
+    return hashlib.blake2b(a.tobytes() + str(a.shape).encode(), digest_size=16).digest()
 
 
 def _v_to_joints(robot: RobotModel, v: np.ndarray) -> np.ndarray:
@@ -774,30 +798,32 @@ def pose_jacobians(robot: RobotModel, q, x=None) -> tuple[np.ndarray, np.ndarray
     tool_chain = pin.Jexp6(pin.Motion(parts.tool))
     base_xi = pin.Motion(parts.base)
     base_chain = pin.exp6(base_xi).action @ pin.Jexp6(base_xi)  # left Jacobian = Ad(exp) Jr
-    eye = np.eye(3)
+    regressors = np.empty((n, 6, 6 * nj))
+    rotations = np.empty((n, 3, 3))
+    positions = np.empty((n, 3))
     for i in range(n):
         qp = q[i] if plain_q else work.to_pinocchio_q(q[i])
         pin.computeJointJacobians(model, data, qp)
         pin.updateFramePlacements(model, data)
-        rot = data.oMf[frame_id].rotation
-        regressor = pin.computeFrameKinematicRegressor(model, data, frame_id, pin.LOCAL)
-        frame_jac = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)
-        jq[i] = frame_jac[:, idx_v]
-        for j in range(nj):
-            block = regressor[:, 6 * j:6 * j + 6]
-            jx[i, :3, 6 * j:6 * j + 6] = rot @ block[:3] @ placement_chain[j]
-            jx[i, 3:, 6 * j:6 * j + 6] = rot @ block[3:] @ placement_chain[j]
-        jx[i, :, em.drive_slice] = jq[i]
-        pos = data.oMf[frame_id].translation
-        base = np.zeros((6, 6))
-        base[:3, :3] = eye
-        base[:3, 3:] = -pin.skew(pos)
-        base[3:, 3:] = eye
-        jx[i, :, em.base_slice] = base @ base_chain
-        tool = np.zeros((6, 6))
-        tool[:3, :3] = rot
-        tool[3:, 3:] = rot
-        jx[i, :, em.tool_slice] = tool @ tool_chain
+        rotations[i] = data.oMf[frame_id].rotation
+        positions[i] = data.oMf[frame_id].translation
+        regressors[i] = pin.computeFrameKinematicRegressor(model, data, frame_id, pin.LOCAL)
+        jq[i] = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)[:, idx_v]
+    # LOCAL (TCP frame) -> base-frame axes, then chain each placement block with its exp6 derivative
+    aligned = (rotations[:, None] @ regressors.reshape(n, 2, 3, 6 * nj)).reshape(n, 6, nj, 6)
+    chain = np.stack(placement_chain)  # (nj, 6, 6)
+    jx[:, :, em.placement_slice] = (aligned.transpose(0, 2, 1, 3) @ chain).transpose(0, 2, 1, 3).reshape(
+        n, 6, 6 * nj)
+    jx[:, :, em.drive_slice] = jq
+    base = np.zeros((n, 6, 6))
+    base[:, :3, :3] = np.eye(3)
+    base[:, :3, 3:] = -np.einsum("nk,ikj->nij", positions, _LEVI_CIVITA)  # -skew(p)
+    base[:, 3:, 3:] = np.eye(3)
+    jx[:, :, em.base_slice] = base @ base_chain
+    tool = np.zeros((n, 6, 6))
+    tool[:, :3, :3] = rotations
+    tool[:, 3:, 3:] = rotations
+    jx[:, :, em.tool_slice] = tool @ tool_chain
     return jq, jx
 
 
@@ -826,9 +852,22 @@ def prediction_jacobian(robot: RobotModel, effects: Sequence[Effect], params_lis
         if not effect.stochastic:
             maps = effect.parameter_jacobian(params, q, context)
             if maps.dq is not None:
-                block += np.einsum("nrj,njk->nrk", jq, maps.dq)
+                block += jq @ maps.dq  # (N, r, n) @ (N, n, k)
             if maps.x is not None:
-                spec = "nrp,pk->nrk" if maps.x.ndim == 2 else "nrp,npk->nrk"
-                block += np.einsum(spec, jx, maps.x)
+                block += jx @ maps.x  # (N, r, p) @ (p, k) or (N, p, k)
         blocks.append(block)
     return np.concatenate(blocks, axis=2) if blocks else np.zeros((q.shape[0], rows, 0))
+
+
+def split_parameters(effects: Sequence[Effect], flat) -> list[np.ndarray]:
+    """One flat vector (K,) of all effects' parameters -> one (k_e,) array per effect."""
+    flat = np.asarray(flat, dtype=float)
+    sizes = [e.n_params for e in effects]
+    if flat.shape != (sum(sizes),):
+        raise InputError(f"{flat.size} parameter values for effects with {sum(sizes)} parameters")
+    return np.split(flat, np.cumsum(sizes)[:-1]) if effects else []
+
+
+def parameter_names(effects: Sequence[Effect]) -> list[str]:
+    """Names of all effects' parameters, in the order of prediction_jacobian's columns."""
+    return [name for effect in effects for name in effect.parameter_names()]
