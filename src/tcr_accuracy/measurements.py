@@ -198,14 +198,19 @@ def read_measurements(path: str | Path, robot: RobotModel, *, min_rows: int = 1,
         Naming the file, row and column at fault.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such measurement file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read as UTF-8 text ({exc})") from None
+    text = read_user_text(path, "measurement file")
     return parse_measurements(text, robot, source=str(path), min_rows=min_rows,
                               require_position=require_position, check_units=check_units)
+
+
+def read_user_text(path: Path, what: str) -> str:
+    """A user's UTF-8 text file (a byte-order mark is dropped), or one InputError line."""
+    try:
+        return Path(path).read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such {what}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: cannot read {what} as UTF-8 text ({exc})") from None
 
 
 def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", min_rows: int = 1,
@@ -494,5 +499,5 @@ def write_measurements(path: str | Path, robot: RobotModel, mset: MeasurementSet
 __all__ = [
     "MeasurementContext", "MeasurementSet", "MeasurementWarning", "REFERENCE_TEMPERATURE_C",
     "allowed_columns", "format_measurements", "measurement_columns", "parse_measurements",
-    "read_measurements", "write_measurements",
+    "read_measurements", "read_user_text", "write_measurements",
 ]

@@ -61,7 +61,7 @@ from scipy.spatial.transform import Rotation
 from .effects import EFFECTS, Effect, EffectOutput, predict_poses, prediction_jacobian, typical_payload_kg
 from .exceptions import InputError
 from .kinematics import tcp_poses
-from .measurements import REFERENCE_TEMPERATURE_C, MeasurementContext, MeasurementSet
+from .measurements import REFERENCE_TEMPERATURE_C, MeasurementContext, MeasurementSet, read_user_text
 from .robot import RobotModel
 
 DEFAULT_NOISE_M = 2e-5  # laser tracker, 0.02 mm per axis
@@ -229,12 +229,7 @@ def load_scenario(path: str | Path) -> Scenario:
     import yaml
 
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such scenario file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read scenario ({exc})") from None
+    text = read_user_text(path, "scenario file")
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
