@@ -18,6 +18,7 @@ from tcr_accuracy.effects import (
     JointOffsets,
     Thermal,
     Transmission,
+    display_value,
     gravity_torque,
     predict_poses,
     predict_positions,
@@ -261,3 +262,10 @@ def test_effects_leave_the_nominal_model_untouched(tool_changer):
     for a, b in zip(before, tool_changer.joint_placements):
         assert a.isApprox(b, 0.0)
     assert math.isclose(tool_changer.model.inertias[6].mass, 60.0)
+
+
+def test_display_units():
+    assert display_value(math.radians(0.05), "rad") == (pytest.approx(0.05), "deg")
+    assert display_value(2.5e-4, "m") == (pytest.approx(0.25), "mm")
+    assert display_value(math.radians(0.02) / 1e3, "rad/Nm") == (pytest.approx(0.02), "deg/kNm")
+    assert display_value(1.2e-5, "1/K") == (pytest.approx(12.0), "ppm/K")

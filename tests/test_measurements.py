@@ -182,3 +182,10 @@ def test_allowed_columns_for_example_robot(ur5):
     assert "shoulder_pan_joint_rad" in cols and "shoulder_pan_joint_deg" in cols
     assert "shoulder_pan_joint_mm" not in cols and "shoulder_pan_joint_dir" in cols
     assert math.isclose(len(cols), 6 * 2 + 6 + 4 + 2 + 6)
+
+
+def test_semicolon_files_get_a_hint(tool_changer, tmp_path):
+    header, rows = _good_rows(tool_changer)
+    path = tmp_path / "excel.csv"
+    path.write_text(";".join(header) + "\n" + ";".join(map(str, rows[0])) + "\n")
+    assert "separated by ';'" in _error(path, tool_changer)

@@ -871,3 +871,20 @@ def split_parameters(effects: Sequence[Effect], flat) -> list[np.ndarray]:
 def parameter_names(effects: Sequence[Effect]) -> list[str]:
     """Names of all effects' parameters, in the order of prediction_jacobian's columns."""
     return [name for effect in effects for name in effect.parameter_names()]
+
+
+#: SI parameter unit -> (display unit, factor) for reports and exported YAML.
+DISPLAY_UNITS: dict[str, tuple[str, float]] = {
+    "m": ("mm", 1e3),
+    "rad": ("deg", 180.0 / math.pi),
+    "rad/Nm": ("deg/kNm", 180.0 / math.pi * 1e3),
+    "m/N": ("mm/kN", 1e6),
+    "1/K": ("ppm/K", 1e6),
+    "1": ("ppm", 1e6),
+}
+
+
+def display_value(value: float, unit: str) -> tuple[float, str]:
+    """An SI parameter value in its display unit: (2e-4, "rad") -> (0.01146, "deg")."""
+    label, factor = DISPLAY_UNITS.get(unit, (unit, 1.0))
+    return float(value) * factor, label

@@ -221,6 +221,9 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
     if not lines:
         raise InputError(f"{source}: empty measurement file (no header row)")
     header_line, header_text = lines[0]
+    if ";" in header_text and "," not in header_text:
+        raise InputError(f"{source}: row {header_line}: columns are separated by ';'; "
+                         "a measurement CSV uses commas (and '.' for decimals)")
     header = [h.strip() for h in next(csv.reader(io.StringIO(header_text)))]
     columns = _resolve_columns(header, robot, source, header_line, require_position)
 

@@ -101,6 +101,7 @@ class Unmodelled(Effect):
     """
 
     name = "unmodelled"
+    analytic_jacobian = False  # finite differences of perturb (base class)
 
     def parameter_names(self):
         return ["unmodelled.amplitude"]
@@ -136,6 +137,7 @@ class LinkBending(Effect):
     """
 
     name = "link_bending"
+    analytic_jacobian = False  # finite differences of perturb (base class)
 
     def parameter_names(self):
         return ["link_bending.tip"]
