@@ -24,8 +24,8 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from .errors import ErrorModel
-from .kinematics import euler_zyx, tcp_poses
+from .errors import ErrorBudget, ErrorModel
+from .kinematics import euler_zyx, tcp_chain_soa, tcp_poses
 
 #: Default chunk of samples processed at once (cache-friendly; part of the seeding contract).
 CHUNK = 20_000
@@ -208,20 +208,89 @@ class ChunkTask:
     chunk: int
 
 
+def sample_rows(sampler, n: int, rng: np.random.Generator) -> list:
+    """n error vectors as a list of n_params rows: (n,) arrays, or 0.0 for unused parameters.
+
+    For an :class:`~tcr_accuracy.errors.ErrorBudget` the normal sources are drawn in
+    one ``standard_normal((n_normal, n))`` call (then the other sources in order, with
+    their own ``sample``), and each parameter row is built only from the sources
+    that touch it (the budget matrix is sparse: a link length or a drive error moves
+    one or a few parameters), so no (n, n_params) array is formed and transposed.
+    The values follow the budget's distributions exactly; the random stream is this
+    function's own (it is not ``budget.sample``'s). Any other sampler:
+    ``sampler.sample(n, rng)``, transposed.
+    """
+    if isinstance(sampler, ErrorBudget):
+        matrix = sampler.matrix
+        sources = sampler.sources
+        values: list = [None] * len(sources)
+        normal = [i for i, src in enumerate(sources) if src.distribution == "normal"]
+        if normal:
+            z = rng.standard_normal((len(normal), n))
+            for row, i in enumerate(normal):
+                values[i] = z[row]
+        for i, src in enumerate(sources):
+            if values[i] is None:
+                values[i] = src.sample(n, rng)
+        rows: list = [0.0] * matrix.shape[0]
+        for k in np.flatnonzero(np.any(matrix != 0.0, axis=1)):
+            row = None
+            for i in np.flatnonzero(matrix[k]):
+                src = sources[i]
+                if src.distribution == "normal":  # value = mean + std z
+                    term = (matrix[k, i] * src.std) * values[i]
+                    if src.mean != 0.0:
+                        term += matrix[k, i] * src.mean
+                else:
+                    term = matrix[k, i] * values[i]
+                row = term if row is None else row + term
+            rows[k] = row
+        return rows
+    x = np.asarray(sampler.sample(n, rng), dtype=float)
+    return list(np.ascontiguousarray(x.T))
+
+
+def error_rows(nominal_position: np.ndarray, nominal_euler: np.ndarray, rot: np.ndarray,
+               pos: np.ndarray) -> np.ndarray:
+    """(8, N) values of :data:`STAT_COLUMNS` from the engine's (9, N) rotations and (3, N) positions."""
+    out = np.empty((len(STAT_COLUMNS), pos.shape[1]))
+    np.subtract(pos, nominal_position[:, None], out=out[:3])
+    dx, dy, dz = out[0], out[1], out[2]
+    np.sqrt(dx * dx + dy * dy + dz * dz, out=out[3])
+    # ZYX Euler angles, as kinematics.euler_zyx, on the rows of R
+    r00, r10, r20, r21, r22 = rot[0], rot[3], rot[6], rot[7], rot[8]
+    np.arctan2(r10, r00, out=out[4])
+    np.arctan2(-r20, np.hypot(r21, r22), out=out[5])
+    np.arctan2(r21, r22, out=out[6])
+    angles = out[4:7]
+    angles -= nominal_euler[:, None]
+    angles += np.pi
+    np.mod(angles, 2 * np.pi, out=angles)
+    angles -= np.pi
+    px, py, pz = pos
+    np.sqrt(px * px + py * py + pz * pz, out=out[7])
+    out[7] -= np.linalg.norm(nominal_position)
+    return out
+
+
 def run_chunk(task: ChunkTask, index: int, size: int, seed: np.random.SeedSequence) -> ChunkSummary:
-    """Sample and evaluate one chunk; pure function of its arguments."""
+    """Sample and evaluate one chunk; a pure function of its arguments."""
     rng = np.random.default_rng(seed)
     sampler = task.sampler
-    x = sampler.sample(size, rng)
-    poses = tcp_poses(sampler.error_model.robot, task.q, x, sampler.error_model)
-    values = error_columns(task.nominal_position, task.nominal_euler, poses.position, poses.rotation)
+    rows = sample_rows(sampler, size, rng)
+    rot, pos = tcp_chain_soa(sampler.error_model.robot, task.q, rows, sampler.error_model)
+    values = error_rows(task.nominal_position, task.nominal_euler, rot, pos)
     keep = max(0, min(size, task.keep_cloud - index * task.chunk))
+    mean = values.mean(axis=1)
+    centred = values - mean[:, None]
+    stats = RunningStats(count=size, mean_=mean, m2=np.einsum("kn,kn->k", centred, centred),
+                         minimum=values.min(axis=1), maximum=values.max(axis=1))
     return ChunkSummary(
         index=index,
-        stats=RunningStats.of(values),
-        inside_position=(values[:, 3:4] < task.tolerances[None, :]).sum(axis=0),
-        inside_angle=(np.abs(values[:, 4:7]) < task.angle_tolerance).sum(axis=0),
-        cloud=values[:keep, :3].copy(),
+        stats=stats,
+        inside_position=(values[3][None, :] < task.tolerances[:, None]).sum(axis=1),
+        inside_angle=(np.abs(values[4:7]) < task.angle_tolerance).sum(axis=1),
+        cloud=values[:3, :keep].T.copy(),
     )
 
 
