@@ -42,21 +42,40 @@ class FirstOrder:
     mean : (6,) expected TCP displacement (linear [m], rotation vector [rad]), J mu_x
     covariance : (6, 6) J Sigma_x J^T
     jacobian : (6, n_params) from :func:`~tcr_accuracy.kinematics.error_jacobian`
+    euler_covariance : (3, 3) first-order covariance of the ZYX Euler angle errors [rad^2]
     """
 
     mean: np.ndarray
     covariance: np.ndarray
     jacobian: np.ndarray
+    euler_covariance: np.ndarray
+
+    @property
+    def euler_std(self) -> np.ndarray:
+        """(3,) standard deviations of the ZYX Euler angle errors (about z, y, x) [rad]."""
+        return np.sqrt(np.maximum(np.diag(self.euler_covariance), 0.0))
 
     @property
     def position_std(self) -> np.ndarray:
         """(3,) standard deviations of dx, dy, dz [m]."""
-        return np.sqrt(np.diag(self.covariance)[:3])
+        return np.sqrt(np.maximum(np.diag(self.covariance)[:3], 0.0))
 
     @property
     def rotation_std(self) -> np.ndarray:
         """(3,) standard deviations of the rotation vector's components [rad]."""
-        return np.sqrt(np.diag(self.covariance)[3:])
+        return np.sqrt(np.maximum(np.diag(self.covariance)[3:], 0.0))
+
+
+def euler_zyx_rate_matrix(rotation: np.ndarray) -> np.ndarray:
+    """(3, 3) M with omega = M d(a, b, c) for R = Rz(a) Ry(b) Rx(c), omega in the base frame.
+
+    Its inverse maps a small rotation vector (base frame) to the ZYX Euler angle errors.
+    """
+    a = np.arctan2(rotation[1, 0], rotation[0, 0])
+    b = np.arctan2(-rotation[2, 0], np.hypot(rotation[2, 1], rotation[2, 2]))
+    return np.array([[0.0, -np.sin(a), np.cos(a) * np.cos(b)],
+                     [0.0, np.cos(a), np.sin(a) * np.cos(b)],
+                     [1.0, 0.0, -np.sin(b)]])
 
 
 def first_order(sampler, q: np.ndarray) -> FirstOrder:
@@ -65,7 +84,10 @@ def first_order(sampler, q: np.ndarray) -> FirstOrder:
     em = sampler.error_model
     jac = error_jacobian(em.robot, np.asarray(q, dtype=float), em)
     cov_x = sampler.parameter_covariance()
-    return FirstOrder(mean=jac @ sampler.parameter_mean(), covariance=jac @ cov_x @ jac.T, jacobian=jac)
+    cov = jac @ cov_x @ jac.T
+    to_euler = np.linalg.inv(euler_zyx_rate_matrix(tcp_poses(em.robot, q).rotation[0]))
+    return FirstOrder(mean=jac @ sampler.parameter_mean(), covariance=cov, jacobian=jac,
+                      euler_covariance=to_euler @ cov[3:, 3:] @ to_euler.T)
 
 
 # ---------------------------------------------------------------------------------------
