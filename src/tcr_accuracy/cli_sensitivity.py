@@ -17,9 +17,12 @@ PRESETS = ("table1", "table2", "clearance")
 
 def _add_common(p) -> None:
     add_robot_arguments(p)
-    p.add_argument("--preset", choices=PRESETS, default="table2",
-                   help="error distributions: the seed's Table 1, Table 2 or Table 4 (joint clearance); "
-                        "default table2")
+    source = p.add_mutually_exclusive_group()
+    source.add_argument("--preset", choices=PRESETS, default=None,
+                        help="error distributions: the seed's Table 1, Table 2 or Table 4 (joint clearance); "
+                             "default table2")
+    source.add_argument("--config", default=None, metavar="FILE",
+                        help="TOML or YAML file of error distributions (as for 'montecarlo --config')")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE",
                    help="write JSON (SI units, unit-suffixed keys) to FILE, or to stdout without FILE")
@@ -82,14 +85,12 @@ def add_parsers(sub) -> None:
 
 
 # ---------------------------------------------------------------------------------------
-def _sampler(robot, preset: str):
-    from .errors import seed_budget
+def _sampler(robot, args):
+    """The error sampler of --preset or --config, and a label for reports."""
+    from .cli_montecarlo import sampler_from_args
 
-    if preset == "clearance":
-        from .clearance import ClearanceModel
-
-        return ClearanceModel.from_robot(robot)
-    return seed_budget(robot, preset)
+    sampler = sampler_from_args(robot, args.preset, args.config)
+    return sampler, args.preset or ("table2" if args.config is None else f"config {args.config}")
 
 
 def _progress(total: int, desc: str, quiet: bool):
@@ -125,7 +126,7 @@ def _run_sensitivity(args) -> int:
         raise InputError(f"--sobol-samples {n}: must be a power of two >= 2 (e.g. 512, 1024, 4096)")
     robot = load_robot(args.robot, args.tool)
     q = joint_values_si(robot, args.q)
-    sampler = _sampler(robot, args.preset)
+    sampler, label = _sampler(robot, args)
     sweeps = seed_sweeps(robot, q)
     clearance = None
     if any(k == "revolute" for k in robot.joint_kinds):
@@ -140,7 +141,7 @@ def _run_sensitivity(args) -> int:
         close()
 
     payload = {
-        "robot": robot.name, "preset": args.preset, "joint_names": robot.joint_names,
+        "robot": robot.name, "preset": label, "joint_names": robot.joint_names,
         "joint_values_si": q.tolist(),
         "sweeps": {key: _sweep_json(r) for key, r in sweeps.items()},
         "clearance_sweeps": {key: _sweep_json(r) for key, r in (clearance or {}).items()},
@@ -160,7 +161,7 @@ def _run_sensitivity(args) -> int:
         if args.json == "-":
             return EXIT_OK
 
-    print(f"{robot.name}, preset {args.preset}, at {format_joint_values(robot, q)}")
+    print(f"{robot.name}, preset {label}, at {format_joint_values(robot, q)}")
     print("\nOne at a time (seed Fig. 7-9): TCP error with one source at its largest swept value")
     _print_sweep(sweeps["link_length"], "link length +0.06 mm", -1)
     _print_sweep(sweeps["joint_angle"], "joint angle +0.1 deg", -1)
@@ -255,7 +256,7 @@ def _run_tolerance(args) -> int:
         raise InputError(f"--samples {args.samples}: need at least 10")
     robot = load_robot(args.robot, args.tool)
     q = joint_values_si(robot, args.q)
-    sampler = _sampler(robot, args.preset)
+    sampler, label = _sampler(robot, args)
     inputs = random_inputs(sampler)
     known = sorted({g for g, ok in zip(inputs.groups, inputs.scalable) if ok})
     groups = None
@@ -264,7 +265,7 @@ def _run_tolerance(args) -> int:
         unknown = [g for g in groups if g not in known]
         if unknown or not groups:
             raise InputError(f"--groups {args.groups}: unknown group {', '.join(unknown) or '(none given)'} "
-                             f"(groups of preset {args.preset}: {', '.join(known)})")
+                             f"(groups of {label}: {', '.join(known)})")
     tol = args.target_tol * 1e-3
     main = allocate_tolerance(sampler, q, tol, args.target_prob, groups=groups, n_samples=args.samples,
                               rng=np.random.default_rng(args.seed))
@@ -278,7 +279,7 @@ def _run_tolerance(args) -> int:
                 per_group[g] = str(exc)
 
     payload = {
-        "robot": robot.name, "preset": args.preset, "joint_names": robot.joint_names,
+        "robot": robot.name, "preset": label, "joint_names": robot.joint_names,
         "joint_values_si": q.tolist(), "tolerance_m": tol, "target_probability": args.target_prob,
         "n_samples": args.samples, "seed": args.seed, **_allocation_json(main),
     }
@@ -291,7 +292,7 @@ def _run_tolerance(args) -> int:
             return EXIT_OK
 
     what = ", ".join(main.scaled_groups) if main.scaled_groups else "all"
-    print(f"{robot.name}, preset {args.preset}, at {format_joint_values(robot, q)}")
+    print(f"{robot.name}, preset {label}, at {format_joint_values(robot, q)}")
     print(f"Target P(|dP| < {args.target_tol:g} mm) >= {args.target_prob:g}; {args.samples} samples, seed {args.seed}")
     print(f"  with the preset's spreads:  P = {main.nominal_probability:.4f}")
     print(f"  largest factor on the spreads ({what}): {main.factor:.6g}  (P = {main.achieved_probability:.4f})")
@@ -337,7 +338,7 @@ def _run_trajectory(args) -> int:
         if args.steps < 2:
             raise InputError(f"--steps {args.steps}: need at least 2")
         traj = tool_change_motion(robot, n_steps=args.steps)
-    sampler = _sampler(robot, args.preset)
+    sampler, label = _sampler(robot, args)
     update, close = _progress(len(traj), "trajectory", args.quiet)
     try:
         bands = trajectory_error_bands(sampler, traj, args.samples, np.random.default_rng(args.seed),
@@ -345,7 +346,7 @@ def _run_trajectory(args) -> int:
     finally:
         close()
     payload = {
-        "robot": robot.name, "preset": args.preset, "trajectory": traj.source, "n_samples": args.samples,
+        "robot": robot.name, "preset": label, "trajectory": traj.source, "n_samples": args.samples,
         "seed": args.seed, "joint_names": robot.joint_names, "quantiles": list(bands.quantiles),
         "time_s": traj.time.tolist(), "joint_values_si": traj.q.tolist(),
         "nominal_position_m": bands.nominal_position.tolist(),
@@ -361,13 +362,13 @@ def _run_trajectory(args) -> int:
 
         payload["plots"] = [str(plot_trajectory_bands(bands, Path(args.plots) / "trajectory_error_bands.png",
                                                       f"TCP position error along {traj.source}, preset "
-                                                      f"{args.preset}, {args.samples} samples"))]
+                                                      f"{label}, {args.samples} samples"))]
     if args.json is not None:
         emit_json(payload, args.json)
         if args.json == "-":
             return EXIT_OK
     lo, hi = bands.quantiles
-    print(f"{robot.name}, preset {args.preset}: {traj.source}, {len(traj)} steps over "
+    print(f"{robot.name}, preset {label}: {traj.source}, {len(traj)} steps over "
           f"{traj.time[-1] - traj.time[0]:g} s, {args.samples} as-built robots, seed {args.seed}")
     print(f"  {'t [s]':>7s} {'std dx':>8s} {'std dy':>8s} {'std dz':>8s} {'(1st order)':>26s} "
           f"{f'|dP| {hi * 100:g} %':>11s}   all [mm]")
