@@ -15,8 +15,11 @@ from .cli import EXIT_OK, add_robot_arguments, emit_json, format_joint_values, j
 PRESETS = ("table1", "table2", "clearance")
 
 
-def _add_common(p) -> None:
+def _add_common(p, pose: bool = False) -> None:
     add_robot_arguments(p)
+    if pose:
+        p.add_argument("--q", nargs="+", type=float, metavar="VALUE",
+                       help="joint values: revolute [deg], prismatic [mm] (default: the working pose)")
     source = p.add_mutually_exclusive_group()
     source.add_argument("--preset", choices=PRESETS, default=None,
                         help="error distributions: the seed's Table 1, Table 2 or Table 4 (joint clearance); "
@@ -38,9 +41,7 @@ def add_parsers(sub) -> None:
                     "first-order and total Sobol indices (SALib) of every source of the --preset "
                     "for dx, dy, dz, |dP| and the attitude errors.",
     )
-    _add_common(p)
-    p.add_argument("--q", nargs="+", type=float, metavar="VALUE",
-                   help="joint values: revolute [deg], prismatic [mm] (default: the working pose)")
+    _add_common(p, pose=True)
     p.add_argument("--sobol-samples", type=int, default=1024, metavar="N",
                    help="SALib base sample size, a power of two (model runs: N x (sources + 2)); default 1024")
     p.add_argument("--plots", default=None, metavar="DIR", help="write PNG plots of the sweeps and indices to DIR")
@@ -53,9 +54,7 @@ def add_parsers(sub) -> None:
                     "from a fixed-seed Monte Carlo with common random numbers. Prints the "
                     "allowed spreads in mm and deg.",
     )
-    _add_common(p)
-    p.add_argument("--q", nargs="+", type=float, metavar="VALUE",
-                   help="joint values: revolute [deg], prismatic [mm] (default: the working pose)")
+    _add_common(p, pose=True)
     p.add_argument("--target-tol", type=float, default=0.25, metavar="MM",
                    help="position tolerance T on |dP| [mm] (default 0.25)")
     p.add_argument("--target-prob", type=float, default=0.95, metavar="P",
