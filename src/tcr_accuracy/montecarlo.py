@@ -15,6 +15,14 @@ single-process run.
 Statistic columns (:data:`STAT_COLUMNS`): ``dx, dy, dz`` position error in the base
 frame [m], ``norm`` = |dP| [m], the ZYX Euler angle errors [rad], and ``dp`` the
 signed radial error [m] (see :func:`radial_error`).
+
+About the seed's "Delta p" row (Tables 3 and 5): it cannot be |dP| (its minimum is
+negative), nor any fixed linear combination of dx, dy, dz with unit-norm weights
+(Table 3's mean, 0.0112 mm, is 14 standard errors from zero while the component
+means are below 3e-4 mm, so such a combination could reach at most 4.6e-4 mm), nor
+|dP| minus its mean (Table 3's tails are nearly symmetric, -3.5 / +4.2 std, where a
+centred norm gives about -1.9 / +5.3). We report ``dp`` as the signed radial error,
+which has the seed row's sign behaviour and is defined independently of the frame.
 """
 
 from __future__ import annotations

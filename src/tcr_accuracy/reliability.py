@@ -20,7 +20,9 @@ P(|dP| > T), each with its own limits:
    density ratios ``k^r exp(-|y|^2 (1 - 1/k^2) / 2)`` over only those r directions, so
    the estimate is unbiased for the true model and its weights stay tame in any
    number of sources. The interval is the normal one on the weighted mean
-   (reported with the effective sample size that backs it).
+   (reported with the effective sample size that backs it). It needs sources that
+   are functions of independent scalars (an ErrorBudget); the joint clearance model
+   (nonlinear in s and theta) gets the other two.
 """
 
 from __future__ import annotations
