@@ -225,6 +225,25 @@ def test_tolerance_allocation_of_one_group_linear_gaussian_closed_form(tool_chan
         allocate_tolerance(budget, q, 0.01e-3, prob, groups=["link_length"], n_samples=2000)
 
 
+@pytest.mark.parametrize("prob", [0.5, 0.9, 0.95])
+def test_tolerance_factor_is_the_largest_that_meets_the_target(tool_changer, prob):
+    """On the fixed draws, the returned factor meets the target and 0.1 ppm more does not."""
+    q = tool_changer.working_pose
+    budget = seed_budget(tool_changer, "table2")
+    result = allocate_tolerance(budget, q, 0.25e-3, prob, n_samples=3000, rng=np.random.default_rng(4))
+    assert result.achieved_probability >= prob
+    rng = np.random.default_rng(4)  # the same uniform draws, recomputed here by plain Monte Carlo
+    from tcr_accuracy.kinematics import pose_error
+    from tcr_accuracy.sensitivity import random_inputs
+
+    values = random_inputs(budget).values_from_unit(rng.uniform(size=(3000, len(budget.sources))))
+    nominal = tcp_poses(tool_changer, q)
+    for f, meets in ((result.factor, True), (result.factor * (1 + 1e-7), False)):
+        x = (values * f) @ budget.matrix.T
+        p = np.mean(pose_error(nominal, tcp_poses(tool_changer, q, x, budget.error_model)).position_norm <= 0.25e-3)
+        assert (p >= prob) == meets
+
+
 @pytest.mark.parametrize("tol, prob, match", [(0.0, 0.95, "tolerance"), (-1e-3, 0.95, "tolerance"),
                                               (0.25e-3, 1.0, "probability"), (0.25e-3, 0.0, "probability")])
 def test_tolerance_allocation_rejects_bad_targets(tool_changer, tol, prob, match):

@@ -171,12 +171,13 @@ def _run_sensitivity(args) -> int:
           f"{indices.conf_level * 100:g} % intervals), ranked by total index of |dP|:")
     k = indices.outputs.index("norm")
     kx = [indices.outputs.index(o) for o in ("dx", "dy", "dz")]
-    print(f"  {'source':26s} {'group':16s} {'S1 |dP|':>16s} {'ST |dP|':>16s}   {'ST dx':>6s} {'ST dy':>6s} "
+    w = max(26, *(len(n) for n in indices.source_names))
+    print(f"  {'source':{w}s} {'group':16s} {'S1 |dP|':>16s} {'ST |dP|':>16s}   {'ST dx':>6s} {'ST dy':>6s} "
           f"{'ST dz':>6s}   {'linear S1 dx/dy/dz':>20s}")
     for i in indices.ranking("norm"):
         st = " ".join(f"{indices.total_order[c, i]:6.3f}" for c in kx)
         lin = "/".join("   -" if np.isnan(v) else f"{v:.3f}" for v in indices.linear_share[:, i])
-        print(f"  {indices.source_names[i]:26s} {indices.groups[i]:16s} "
+        print(f"  {indices.source_names[i]:{w}s} {indices.groups[i]:16s} "
               f"{indices.first_order[k, i]:7.3f} +- {indices.first_order_conf[k, i]:5.3f} "
               f"{indices.total_order[k, i]:7.3f} +- {indices.total_order_conf[k, i]:5.3f}   {st}   {lin:>20s}")
     if args.plots:
@@ -200,11 +201,12 @@ def _index_entry(indices, k: int, i: int) -> dict:
 def _print_sweep(result, label: str, column: int) -> None:
     import numpy as np
 
+    w = max(8, *(len(n) for n in result.source_names))
     print(f"  {label}:")
-    print(f"    {'source':8s} {'dx [mm]':>9s} {'dy [mm]':>9s} {'dz [mm]':>9s} {'|dP| [mm]':>10s} {'angle [deg]':>12s}")
+    print(f"    {'source':{w}s} {'dx [mm]':>9s} {'dy [mm]':>9s} {'dz [mm]':>9s} {'|dP| [mm]':>10s} {'angle [deg]':>12s}")
     for k, name in enumerate(result.source_names):
         e = result.errors[k, column]
-        print(f"    {name:8s} {e[0] * 1e3:9.4f} {e[1] * 1e3:9.4f} {e[2] * 1e3:9.4f} {e[3] * 1e3:10.4f} "
+        print(f"    {name:{w}s} {e[0] * 1e3:9.4f} {e[1] * 1e3:9.4f} {e[2] * 1e3:9.4f} {e[3] * 1e3:10.4f} "
               f"{np.degrees(e[7]):12.6f}")
 
 
@@ -295,10 +297,11 @@ def _run_tolerance(args) -> int:
     print(f"Target P(|dP| < {args.target_tol:g} mm) >= {args.target_prob:g}; {args.samples} samples, seed {args.seed}")
     print(f"  with the preset's spreads:  P = {main.nominal_probability:.4f}")
     print(f"  largest factor on the spreads ({what}): {main.factor:.6g}  (P = {main.achieved_probability:.4f})")
-    print(f"  {'source':26s} {'group':16s} {'std now':>14s} {'std allowed':>14s}")
+    w = max(26, *(len(s.name) for s in main.spreads))
+    print(f"  {'source':{w}s} {'group':16s} {'std now':>14s} {'std allowed':>14s}")
     for s in main.spreads:
         scale, unit = (1e3, "mm") if s.unit == "m" else (180.0 / math.pi, "deg")
-        print(f"  {s.name:26s} {s.group:16s} {s.nominal_std * scale:10.5g} {unit:3s} {s.allowed_std * scale:10.5g} {unit:3s}")
+        print(f"  {s.name:{w}s} {s.group:16s} {s.nominal_std * scale:10.5g} {unit:3s} {s.allowed_std * scale:10.5g} {unit:3s}")
     if args.per_group:
         print("  each group alone (the others at their spreads):")
         for g, a in per_group.items():

@@ -556,6 +556,10 @@ def allocate_tolerance(sampler, q: np.ndarray, tolerance: float, probability: fl
     while lo > 0.0 and excess(lo) >= 0:
         lo = lo / 4.0 if lo > 1e-12 else 0.0
     factor = float(brentq(excess, lo, hi, xtol=1e-14, rtol=1e-10))
+    for _ in range(60):  # brentq may land a hair above the crossing: step to the side that meets the target
+        if excess(factor) <= 0:
+            break
+        factor *= 1.0 - 1e-9
     spreads = [ScaledSpread(s.name, s.group, s.unit, math.sqrt(s.variance),
                             math.sqrt(s.variance) * (factor if ok else 1.0))
                for s, ok in zip(inputs.sources, scaled) if ok]
