@@ -1,10 +1,12 @@
 """Batched forward kinematics of nominal and perturbed robots, and TCP pose errors.
 
 The engine works on whole batches in numpy, not one Pinocchio call per sample:
-rotations are kept as (3, 3, N) and translations as (3, N) arrays ("structure of
-arrays") so that every operation runs over contiguous length-N vectors. Pinocchio
-computes one pose at a time; Monte Carlo needs millions, which is why this part is
-written by hand. ``tcp_poses_pinocchio`` is the plain per-sample Pinocchio path,
+the running rotation and translation are kept entry by entry ("structure of
+arrays"), each entry a Python float when it is the same for every sample or a
+contiguous length-N vector when it is not. At a fixed pose the nominal transforms
+fold into constants and only the error factors cost vector operations, and exact
+zeros and ones in a factor are skipped (see ``_chain``). Pinocchio computes one pose
+at a time; Monte Carlo needs millions, which is why this part is written by hand. ``tcp_poses_pinocchio`` is the plain per-sample Pinocchio path,
 kept as the reference the engine is tested and benchmarked against.
 
 Shapes: N samples on axis 0 of every input and output. Joint values q are
