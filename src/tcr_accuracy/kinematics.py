@@ -100,49 +100,6 @@ def exp6_batch(twist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return rot, p
 
 
-def _compose(ra, pa, rb, pb):
-    """(ra, pa) * (rb, pb) for batched or constant (3, 3)/(3,) right factors."""
-    if rb.ndim == 2:
-        r = np.einsum("ijn,jk->ikn", ra, rb)
-        p = pa + np.einsum("ijn,j->in", ra, pb)
-    else:
-        r = np.einsum("ijn,jkn->ikn", ra, rb)
-        p = pa + np.einsum("ijn,jn->in", ra, pb)
-    return r, p
-
-
-def _rotate_about_axis(r: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """r * Rot(axis, angle) for a constant unit axis (3,) and angles (N,)."""
-    k = int(np.argmax(np.abs(axis)))
-    if abs(abs(axis[k]) - 1.0) < 1e-15:  # a coordinate axis: only two columns change
-        i, j = (k + 1) % 3, (k + 2) % 3
-        sign = np.sign(axis[k])
-        c, s = np.cos(angle), sign * np.sin(angle)
-        out = np.empty_like(r)
-        out[:, k] = r[:, k]
-        out[:, i] = c * r[:, i] + s * r[:, j]
-        out[:, j] = c * r[:, j] - s * r[:, i]
-        return out
-    twist = np.zeros((angle.shape[0], 6))
-    twist[:, 3:] = np.outer(angle, axis)
-    rot, _ = exp6_batch(twist)
-    return np.einsum("ijn,jkn->ikn", r, rot)
-
-
-def _apply_twist(r, p, twist: np.ndarray):
-    """(r, p) * exp6(twist) for twists (N, 6), skipping parts that are zero everywhere."""
-    rot_part = twist[:, 3:]
-    if not rot_part.any():  # a pure translation: exp6 = (I, v)
-        return r, p + np.einsum("ijn,nj->in", r, twist[:, :3])
-    nonzero = np.flatnonzero(np.any(twist != 0.0, axis=0))
-    if len(nonzero) == 1:  # a rotation about one coordinate axis of the frame
-        axis = np.zeros(3)
-        axis[nonzero[0] - 3] = 1.0
-        return _rotate_about_axis(r, axis, rot_part[:, nonzero[0] - 3]), p
-    rot, trans = exp6_batch(twist)
-    return _compose(r, p, rot, trans)
-
-
 def _broadcast(q: np.ndarray, x: np.ndarray | None, n_joints: int, n_params: int | None):
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if q.shape[1] != n_joints:
