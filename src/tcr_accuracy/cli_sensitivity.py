@@ -92,7 +92,7 @@ def _sampler(robot, args):
     return sampler, args.preset or ("table2" if args.config is None else f"config {args.config}")
 
 
-def _progress(total: int, desc: str, quiet: bool):
+def _progress(total: int | None, desc: str, quiet: bool):
     """A tqdm bar on stderr (off with --quiet or when stderr is not a terminal) as a callback."""
     from tqdm import tqdm
 
@@ -268,16 +268,21 @@ def _run_tolerance(args) -> int:
             raise InputError(f"--groups {args.groups}: unknown group {', '.join(unknown) or '(none given)'} "
                              f"(groups of {label}: {', '.join(known)})")
     tol = args.target_tol * 1e-3
-    main = allocate_tolerance(sampler, q, tol, args.target_prob, groups=groups, n_samples=args.samples,
-                              rng=np.random.default_rng(args.seed))
-    per_group = {}
-    if args.per_group:
-        for g in known:
-            try:
-                per_group[g] = allocate_tolerance(sampler, q, tol, args.target_prob, groups=[g],
-                                                  n_samples=args.samples, rng=np.random.default_rng(args.seed))
-            except AnalysisError as exc:
-                per_group[g] = str(exc)
+    update, close = _progress(None, "tolerance (Monte Carlo runs)", args.quiet)
+    try:
+        main = allocate_tolerance(sampler, q, tol, args.target_prob, groups=groups, n_samples=args.samples,
+                                  rng=np.random.default_rng(args.seed), progress=update)
+        per_group = {}
+        if args.per_group:
+            for g in known:
+                try:
+                    per_group[g] = allocate_tolerance(sampler, q, tol, args.target_prob, groups=[g],
+                                                      n_samples=args.samples, rng=np.random.default_rng(args.seed),
+                                                      progress=update)
+                except AnalysisError as exc:
+                    per_group[g] = str(exc)
+    finally:
+        close()
 
     payload = {
         "robot": robot.name, "preset": label, "joint_names": robot.joint_names,

@@ -491,7 +491,8 @@ class _CommonRandomNumbers:
 
 def allocate_tolerance(sampler, q: np.ndarray, tolerance: float, probability: float,
                        groups: Sequence[str] | None = None, n_samples: int = 50_000,
-                       rng: np.random.Generator | None = None) -> ToleranceAllocation:
+                       rng: np.random.Generator | None = None,
+                       progress: Callable[[int], None] | None = None) -> ToleranceAllocation:
     """Largest factor on the spreads such that ``P(|dP| < tolerance) >= probability``.
 
     The probability is estimated on ``n_samples`` fixed draws (common random numbers):
@@ -515,6 +516,8 @@ def allocate_tolerance(sampler, q: np.ndarray, tolerance: float, probability: fl
         their spreads. Default: every input.
     n_samples : int
     rng : numpy Generator
+    progress : callable, optional
+        Called with 1 after each Monte Carlo evaluation (about 15 to 30 in all).
     """
     from scipy.optimize import brentq
 
@@ -538,7 +541,10 @@ def allocate_tolerance(sampler, q: np.ndarray, tolerance: float, probability: fl
     k = math.ceil(probability * n_samples)
 
     def excess(s: float) -> float:
-        return float(np.partition(crn.norms(s), k - 1)[k - 1]) - tolerance
+        value = float(np.partition(crn.norms(s), k - 1)[k - 1]) - tolerance
+        if progress is not None:
+            progress(1)
+        return value
 
     nominal_probability = float(np.mean(crn.norms(1.0) < tolerance))
     at_zero = excess(0.0)
