@@ -5,11 +5,13 @@ Three views of the same question, from local to global:
 * **Sweeps** (the seed's control-variable method, its Fig. 7-9 and 13-16): one error
   source at a time is set to a list of signed values, every other source at zero, and
   the TCP position and attitude errors are recorded. Exact (no linearisation).
-* **Sobol indices**: variance-based global sensitivity of the TCP error to every source
-  of an :class:`~tcr_accuracy.errors.ErrorBudget` at once, first order S1 and total ST
-  with bootstrap confidence intervals, from SALib (Saltelli sampling, Jansen/Saltelli
-  estimators). SALib samples the unit hypercube; each column is mapped through the
-  source's inverse CDF (:meth:`ErrorSource.ppf`), so any distribution works.
+* **Sobol indices**: variance-based global sensitivity of the TCP error to every random
+  input at once (the sources of an :class:`~tcr_accuracy.errors.ErrorBudget`, or the
+  d, s, theta, w_x, w_y of each joint of a
+  :class:`~tcr_accuracy.clearance.ClearanceModel`), first order S1 and total ST with
+  bootstrap confidence intervals, from SALib (Saltelli sampling; Saltelli 2010 estimator
+  for S1, Jansen for ST). SALib samples the unit hypercube; each column is mapped through
+  the input's inverse CDF (:meth:`ErrorSource.ppf`), so any distribution works.
 * **Tolerance allocation**: the largest factor by which all spreads (or those of some
   groups) can be multiplied while ``P(|dP| < T) >= p`` still holds, found by root
   finding on a Monte Carlo with common random numbers (the same uniform draws for every
