@@ -174,3 +174,19 @@ def test_bands_reject_too_few_samples(tool_changer):
     traj = JointTrajectory(np.array([0.0]), tool_changer.working_pose[None], "one pose")
     with pytest.raises(InputError, match="at least 2 samples"):
         trajectory_error_bands(seed_budget(tool_changer, "table2"), traj, 1, np.random.default_rng(0))
+
+
+def test_source_contributions_closed_form_and_sum(tool_changer):
+    """Joint 1 turns about the vertical base axis, so its drive error moves the TCP by
+    (-p_y, p_x, 0) per radian: its std contribution is (|p_y|, |p_x|, 0) sigma_1. The
+    independent contributions add up in quadrature to the first-order std."""
+    budget = seed_budget(tool_changer, "table2")
+    traj = tool_change_motion(tool_changer, n_steps=7)
+    bands = trajectory_error_bands(budget, traj, 50, np.random.default_rng(0))
+    k = bands.source_names.index("j1 drive")
+    sigma = math.radians(0.3)
+    p = bands.nominal_position
+    np.testing.assert_allclose(bands.contributions[:, k, :],
+                               np.column_stack([np.abs(p[:, 1]), np.abs(p[:, 0]), np.zeros(len(p))]) * sigma,
+                               atol=1e-12)
+    np.testing.assert_allclose(np.sqrt((bands.contributions**2).sum(axis=1)), bands.first_order_std, rtol=1e-12)

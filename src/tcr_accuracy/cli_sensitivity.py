@@ -361,15 +361,22 @@ def _run_trajectory(args) -> int:
         "lower_m": bands.lower.tolist(), "upper_m": bands.upper.tolist(),
         "norm_mean_m": bands.norm_mean.tolist(), "norm_upper_m": bands.norm_upper.tolist(),
         "first_order_std_m": bands.first_order_std.tolist(),
+        "contributions_std_m": {name: bands.contributions[:, k, :].tolist()
+                                for k, name in enumerate(bands.source_names)},
     }
     if args.plots:
         from pathlib import Path
 
-        from .plots_sensitivity import plot_trajectory_bands
+        from .plots_sensitivity import plot_trajectory_bands, plot_trajectory_contributions
 
-        payload["plots"] = [str(plot_trajectory_bands(bands, Path(args.plots) / "trajectory_error_bands.png",
+        folder = Path(args.plots)
+        payload["plots"] = [str(plot_trajectory_bands(bands, folder / "trajectory_error_bands.png",
                                                       f"TCP position error along {traj.source}, preset "
                                                       f"{label}, {args.samples} samples"))]
+        if bands.source_names:
+            payload["plots"].append(str(plot_trajectory_contributions(
+                bands, folder / "trajectory_contributions.png",
+                f"First-order std of each error source along {traj.source}, preset {label}")))
     if args.json is not None:
         emit_json(payload, args.json)
         if args.json == "-":
@@ -386,6 +393,15 @@ def _run_trajectory(args) -> int:
               f"{bands.norm_upper[i] * 1e3:11.4f}")
     i = int(np.argmax(bands.norm_upper))
     print(f"  largest {hi * 100:g} % quantile of |dP|: {bands.norm_upper[i] * 1e3:.4f} mm at t = {traj.time[i]:g} s")
+    if bands.source_names:
+        print("  largest first-order contributions (std [mm] of each source alone):")
+        for i in np.unique([0, len(traj) // 2, len(traj) - 1]):
+            parts = []
+            for c, axis in enumerate("xyz"):
+                top = np.argsort(-bands.contributions[i, :, c])[:3]
+                parts.append(f"{axis}: " + ", ".join(f"{bands.source_names[k]} {bands.contributions[i, k, c] * 1e3:.3f}"
+                                                     for k in top if bands.contributions[i, k, c] > 0))
+            print(f"    t = {traj.time[i]:g} s  " + " | ".join(parts))
     if args.plots:
         print(f"plots: {', '.join(payload['plots'])}")
     return EXIT_OK

@@ -122,5 +122,26 @@ def plot_trajectory_bands(bands: TrajectoryErrorBands, path: str | Path, title: 
     return save_figure(fig, path)
 
 
-__all__ = ["plot_sweep", "plot_sobol", "plot_trajectory_bands", "save_figure", "OUTPUTS",
+def plot_trajectory_contributions(bands: TrajectoryErrorBands, path: str | Path, title: str = "",
+                                  top: int = 6) -> Path:
+    """First-order std of dx, dy, dz caused by each of the ``top`` largest sources, against time."""
+    plt = _pyplot()
+    t = bands.trajectory.time
+    peak = bands.contributions.max(axis=(0, 2))
+    shown = [k for k in np.argsort(-peak)[:top] if peak[k] > 0]
+    fig, axes = plt.subplots(3, 1, figsize=(10, 8.5), sharex=True)
+    for c, (ax, name) in enumerate(zip(axes, ("dx", "dy", "dz"))):
+        for i, k in enumerate(shown):
+            ax.plot(t, bands.contributions[:, k, c] * 1e3, linestyle=("-", "--", ":")[i % 3],
+                    label=bands.source_names[k])
+        ax.set_ylabel(f"std of {name} [mm]")
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=8, loc="upper left")
+    axes[-1].set_xlabel("time [s]")
+    fig.suptitle(title or "First-order contribution of each error source")
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+__all__ = ["plot_sweep", "plot_sobol", "plot_trajectory_bands", "plot_trajectory_contributions", "save_figure", "OUTPUTS",
            "POSITION_OUTPUTS", "ATTITUDE_OUTPUTS"]

@@ -15,7 +15,7 @@ from __future__ import annotations
 import csv
 import math
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
@@ -217,6 +217,12 @@ class TrajectoryErrorBands:
     first_order_std : ndarray of shape (T, 3)
         Standard deviation predicted by the error Jacobian [m].
     n_samples : int
+    source_names : list of str, length n_sources
+        The sources of an error budget (empty for other samplers).
+    contributions : ndarray of shape (T, n_sources, 3)
+        First-order standard deviation of dx, dy, dz caused by each source alone,
+        ``|J a_k| std_k`` [m]: which error dominates which axis when (seed Fig. 18).
+        Shape (T, 0, 3) for samplers that are not linear error budgets.
     """
 
     trajectory: JointTrajectory
@@ -230,6 +236,8 @@ class TrajectoryErrorBands:
     norm_upper: np.ndarray
     first_order_std: np.ndarray
     n_samples: int
+    source_names: list[str] = field(default_factory=list)
+    contributions: np.ndarray | None = None
 
 
 def trajectory_error_bands(budget: ErrorBudget, trajectory: JointTrajectory, n_samples: int,
@@ -278,14 +286,22 @@ def trajectory_error_bands(budget: ErrorBudget, trajectory: JointTrajectory, n_s
         if progress is not None:
             progress(b)
     cov = budget.parameter_covariance()
+    linear = isinstance(budget, ErrorBudget)
+    if linear:
+        per_source_std = np.sqrt([s.variance for s in budget.sources])
+        matrix = budget.matrix
     first_order = np.empty((n_steps, 3))
+    contributions = np.zeros((n_steps, len(budget.sources) if linear else 0, 3))
     with warnings.catch_warnings():  # limits were reported once when the trajectory was made
         warnings.simplefilter("ignore", JointLimitWarning)
         for t in range(n_steps):
             jac = error_jacobian(robot, q[t], em)[:3]
             first_order[t] = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", jac, cov, jac), 0.0))
+            if linear:
+                contributions[t] = (np.abs(jac @ matrix) * per_source_std).T
     return TrajectoryErrorBands(
         trajectory=trajectory, nominal_position=nominal, mean=mean, std=std, lower=lower, upper=upper,
         quantiles=(float(lo_q), float(hi_q)), norm_mean=norm_mean, norm_upper=norm_upper,
         first_order_std=first_order, n_samples=n_samples,
+        source_names=budget.source_names if linear else [], contributions=contributions,
     )
