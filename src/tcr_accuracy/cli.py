@@ -193,7 +193,11 @@ def _topic_commands():
 
 
 #: Modules holding further subcommands, one per topic; each defines add_parsers(sub).
-TOPIC_MODULES: list[str] = ["cli_simulate"]
+TOPIC_MODULES: list[str] = [
+    "cli_montecarlo",
+    "cli_sensitivity",
+    "cli_simulate",
+]
 
 COMMANDS = [_pose_parser, _demo_parser]
 
