@@ -5,17 +5,20 @@ meshcat's ``meshcat-server`` binds its ZeroMQ socket to 127.0.0.1 but its web se
 ``address="127.0.0.1"`` so the scene is never reachable from another machine. It also
 serves the page of :mod:`tcr_accuracy.viewer` (meshcat's viewer plus the legend) at
 ``/view``. The page's HTML is read from stdin; ``zmq_url=`` and ``web_url=`` lines on
-stdout tell the parent where to connect, as meshcat's own server does.
+stdout tell the parent where to connect, as meshcat's own server does. The server stops
+when its parent process is gone.
 """
 
 from __future__ import annotations
 
+import os
 import sys
 
 HOST = "127.0.0.1"
 
 
 def main() -> int:
+    import tornado.ioloop
     import tornado.web
     from meshcat.servers.zmqserver import (
         VIEWER_HTML,
@@ -47,6 +50,13 @@ def main() -> int:
             ])
 
     bridge = LocalBridge(host=HOST)
+    parent = os.getppid()
+
+    def stop_when_orphaned() -> None:  # the parent died without stopping us
+        if os.getppid() != parent:
+            bridge.ioloop.stop()
+
+    tornado.ioloop.PeriodicCallback(stop_when_orphaned, 1000).start()
     print(f"zmq_url={bridge.zmq_url}", flush=True)
     print(f"web_url=http://{HOST}:{bridge.fileserver_port}/view", flush=True)
     bridge.run()

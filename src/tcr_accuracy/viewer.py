@@ -31,6 +31,7 @@ colour a point cloud are shown as given, with the unit in their label.
 
 from __future__ import annotations
 
+import atexit
 import base64
 import html
 import json
@@ -506,6 +507,12 @@ class Scene:
         position = np.asarray(position_m, dtype=float).reshape(3)
         self._camera = (target, position)
 
+    def recorded_commands(self) -> list[dict]:
+        """The meshcat commands of the scene as dicts (``type``, ``path``, ...), in replay order."""
+        import umsgpack
+
+        return [umsgpack.unpackb(c) for c in self._window.packed_commands()]
+
     # -- output ----------------------------------------------------------------------
     def _view_target(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(target, camera position) [m]: the one set, or one framing everything drawn."""
@@ -700,10 +707,13 @@ class LiveView:
         if zmq_url is None or web_url is None:
             process.kill()
             process.wait()
+            process.stdout.close()
             from .exceptions import AnalysisError
 
             raise AnalysisError("the meshcat server did not start")
-        return cls(process, zmq_url, web_url)
+        live = cls(process, zmq_url, web_url)
+        atexit.register(live.close)
+        return live
 
     def replay(self, window: _RecordingWindow) -> None:
         import zmq
@@ -721,6 +731,7 @@ class LiveView:
             socket.close(linger=0)
 
     def close(self) -> None:
+        """Stop the server (it ends with this process anyway)."""
         if self.process.poll() is None:
             self.process.terminate()
             try:
@@ -728,6 +739,8 @@ class LiveView:
             except subprocess.TimeoutExpired:
                 self.process.kill()
                 self.process.wait()
+        if self.process.stdout is not None:
+            self.process.stdout.close()
 
     def __enter__(self) -> "LiveView":
         return self
