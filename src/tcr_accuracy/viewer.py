@@ -261,7 +261,7 @@ class Scene:
 
     # -- content ---------------------------------------------------------------------
     def add_robot(self, robot: RobotModel, q, name: str = "robot", color=None,
-                  opacity: float = 1.0) -> None:
+                  opacity: float = 1.0, *, include_base: bool = True) -> None:
         """Draw the robot's URDF visuals at joint values q.
 
         Parameters
@@ -277,6 +277,9 @@ class Scene:
             Paint every body in this colour (default: the URDF's materials).
         opacity : float
             1 opaque; below 1 a transparent "ghost".
+        include_base : bool
+            Draw the bodies fixed to the base (a ghost without base error would only
+            repaint the nominal robot's pedestal).
         """
         import pinocchio as pin
         from pinocchio.visualize import MeshcatVisualizer
@@ -285,6 +288,9 @@ class Scene:
         if not 0.0 < opacity <= 1.0:
             raise InputError(f"{name}: opacity {opacity} is outside (0, 1]")
         geometry = visual_geometry(robot)
+        if not include_base:
+            for obj in [o for o in geometry.geometryObjects if o.parentJoint == 0]:
+                geometry.removeGeometryObject(obj.name)
         if color is not None or opacity < 1.0:
             for obj in geometry.geometryObjects:
                 rgba = np.array(obj.meshColor, dtype=float)
@@ -310,7 +316,8 @@ class Scene:
 
     def add_point_cloud(self, points_m, values, name: str, label: str, *, cmap: str = "viridis",
                         vmin: float | None = None, vmax: float | None = None,
-                        center_m=None, magnify: float = 1.0, size_m: float | None = None) -> ColorBar:
+                        center_m=None, magnify: float = 1.0, size_m: float | None = None,
+                        center_label: str = "its centre") -> ColorBar:
         """Points coloured by a value, with a colour bar in the legend.
 
         Parameters
@@ -333,6 +340,8 @@ class Scene:
             is written in the legend.
         magnify : float
             Magnification about ``center_m`` (1: true positions).
+        center_label : str
+            What the centre is, for the legend ("the nominal TCP").
         size_m : float, optional
             Point size [m] (default: 1/60 of the cloud's drawn extent, at least 2 mm).
         """
@@ -364,7 +373,7 @@ class Scene:
                                            for t in np.linspace(0.0, 1.0, 11)))
         self.color_bars.append(bar)
         if magnify != 1.0:
-            self.legend.append(LegendEntry(f"{name}: magnified x {magnify:g} about its centre"))
+            self.legend.append(LegendEntry(f"{name}: magnified x {magnify:g} about {center_label}"))
         return bar
 
     @staticmethod
@@ -418,12 +427,14 @@ class Scene:
         if magnify is None:
             magnify = auto_magnification(float(error.position_norm[worst]))
         self.add_point_cloud(actual.position, error.position_norm * 1000.0, name, "TCP error |dP| [mm]",
-                             center_m=nominal.position[0], magnify=magnify)
+                             center_m=nominal.position[0], magnify=magnify, center_label="the nominal TCP")
         self.add_points(nominal.position, f"{name}_nominal", COLORS["nominal_tcp"], size_m=0.02,
                         label="nominal TCP")
         if ghost:
             as_built = error_model.perturbed_robot(magnify * x[worst], name="as_built")
-            self.add_robot(as_built, q, f"{name}_worst_as_built", color=COLORS["as_built"], opacity=0.35)
+            base_error = bool(np.any(x[worst][error_model.base_slice]))
+            self.add_robot(as_built, q, f"{name}_worst_as_built", color=COLORS["as_built"], opacity=0.35,
+                           include_base=base_error)
             self.legend[-1] = LegendEntry(
                 f"as-built robot of the worst sample (|dP| = {error.position_norm[worst] * 1000:.3g} mm), "
                 f"errors x {magnify:g}", COLORS["as_built"])
