@@ -250,6 +250,15 @@ def test_report_write_failure_keeps_the_old_index_and_leaves_no_temporary_files(
     assert not [p.name for p in out.iterdir() if p.name.startswith(".")]
 
 
+def test_report_is_byte_identical_for_the_same_content_and_source_date(tmp_path, monkeypatch):
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
+    first = _sample_report().write(tmp_path / "a").parent
+    second = _sample_report().write(tmp_path / "b").parent
+    for name in ("index.html", "report.md", "figure-1.png", "scene-1.html"):
+        assert (first / name).read_bytes() == (second / name).read_bytes(), name
+    assert "Written 2023-11-14 22:13:20 UTC" in (first / "index.html").read_text(encoding="utf-8")
+
+
 def test_report_rejects_bad_tables_and_figures(tmp_path):
     report = Report("bad")
     with pytest.raises(InputError, match="row 2 has 1 values for 2 columns"):
@@ -286,3 +295,19 @@ def test_view_command_bad_input_is_one_line_and_exit_2(argv, message, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
+
+
+def test_view_arguments_plug_into_another_command(tmp_path, capsys, tool_changer):
+    import argparse
+
+    from tcr_accuracy.cli_view import add_view_arguments, emit_view
+
+    parser = argparse.ArgumentParser()
+    add_view_arguments(parser)
+    scene = Scene("other command")
+    scene.add_robot(tool_changer, tool_changer.working_pose, "nominal")
+    emit_view(scene, parser.parse_args([]))  # no --view: nothing written
+    assert not list(tmp_path.iterdir()) and capsys.readouterr().out == ""
+    emit_view(scene, parser.parse_args(["--view", str(tmp_path / "v.html")]))
+    assert "robot: nominal" in (tmp_path / "v.html").read_text(encoding="utf-8")
+    assert parser.parse_args(["--view"]).view == "view.html"

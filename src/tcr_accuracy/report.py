@@ -122,7 +122,12 @@ class Report:
     def __init__(self, title: str, *, command: str | list[str] | None = None):
         self.title = title
         self.command = command if isinstance(command, str) else command_line(command)
-        self.created = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+        # SOURCE_DATE_EPOCH (the reproducible-builds convention) pins the date, so that two
+        # runs with the same --seed write byte-identical reports
+        epoch = os.environ.get("SOURCE_DATE_EPOCH")
+        when = datetime.fromtimestamp(int(epoch), timezone.utc) if epoch and epoch.isdigit() \
+            else datetime.now(timezone.utc)
+        self.created = when.strftime("%Y-%m-%d %H:%M:%S UTC")
         self.items: list = []
         self._n_figures = 0
         self._n_scenes = 0
