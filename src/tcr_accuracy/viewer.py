@@ -299,7 +299,7 @@ class Scene:
                 rgba[3] = opacity
                 obj.meshColor = rgba
                 obj.overrideMaterial = True  # meshes keep their own material otherwise
-        viz_class = _PaintedMeshcatVisualizer() if color is not None or opacity < 1.0 else MeshcatVisualizer
+        viz_class = _painted_visualizer_class() if color is not None or opacity < 1.0 else MeshcatVisualizer
         viz = viz_class(robot.model, None, geometry)
         viz.initViewer(viewer=self.vis)
         viz.loadViewerModel(rootNodeName=_node(name))
@@ -634,7 +634,7 @@ class Scene:
         return live
 
 
-def _PaintedMeshcatVisualizer():
+def _painted_visualizer_class():
     """Pinocchio's MeshcatVisualizer, loading meshes as plain geometry with our material.
 
     Pinocchio sends meshes as meshcat "mesh file objects", and meshcat's browser side
