@@ -197,6 +197,7 @@ TOPIC_MODULES: list[str] = [
     "cli_montecarlo",
     "cli_sensitivity",
     "cli_simulate",
+    "cli_view",
 ]
 
 COMMANDS = [_pose_parser, _demo_parser]
