@@ -306,3 +306,17 @@ def test_cli_sensitivity_json(tmp_path):
     assert set(norm_rank[:2]) == {"j1 drive", "j2 drive"}
     dx = data["sobol"]["outputs"]["dx"]["sources"]
     assert dx[0]["name"] == "j1 drive" and dx[0]["linear_S1"] == pytest.approx(0.987, abs=0.005)
+
+
+def test_sweep_and_sobol_plots_are_written_whole(tool_changer, tmp_path):
+    from tcr_accuracy.plots_sensitivity import POSITION_OUTPUTS, plot_sobol, plot_sweep
+
+    q = tool_changer.working_pose
+    sweep = seed_sweeps(tool_changer, q)["joint_angle"]
+    idx = sobol_indices(seed_budget(tool_changer, "table2"), q, n_base=64, outputs=("dx", "dy", "dz", "norm"),
+                        num_resamples=10)
+    files = [plot_sweep(sweep, POSITION_OUTPUTS, "t", "joint angle error [deg]", tmp_path / "out" / "sweep.png"),
+             plot_sobol(idx, tmp_path / "out" / "sobol.png")]
+    for f in files:
+        assert f.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f.stat().st_size > 10_000
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["sobol.png", "sweep.png"]
