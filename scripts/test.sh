@@ -1,0 +1,13 @@
+#!/usr/bin/env bash
+# Install what the test suite needs and run it: the README's test command, and what CI runs.
+# Needs Python 3.10+ with pip; installs Debian's chromium + chromium-driver (headless browser
+# tests) when missing, as root or through sudo.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+if ! command -v chromium >/dev/null 2>&1 || ! command -v chromedriver >/dev/null 2>&1; then
+    SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+    $SUDO apt-get update -q
+    $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium chromium-driver
+fi
+python3 -m pip install ".[test]"
+python3 -m pytest "$@"
