@@ -281,7 +281,10 @@ def test_view_command_writes_a_static_page_with_the_error_cloud(tmp_path, capsys
     assert code == 0
     page = out.read_text(encoding="utf-8")
     assert "TCP error |dP| [mm]" in page and "40 samples of the seed&#x27;s table2 errors, seed 2" in page
-    assert "3D view written to" in capsys.readouterr().out
+    captured = capsys.readouterr()
+    assert "3D view written to" in captured.err and captured.out == ""  # a status line, on stderr
+    assert main(["view", "--html", str(out), "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
 
 
 @pytest.mark.parametrize("argv, message", [

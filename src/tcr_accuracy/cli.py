@@ -35,6 +35,33 @@ def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
                              "flange frame for named robots, the single leaf link of a URDF)")
 
 
+def seed_value(text: str) -> int:
+    """argparse type of ``--seed``: an integer >= 0 (what numpy's SeedSequence accepts)."""
+    try:
+        seed = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if seed < 0:
+        raise argparse.ArgumentTypeError(f"{seed}: seeds are integers >= 0")
+    return seed
+
+
+def add_quiet_argument(parser: argparse.ArgumentParser) -> None:
+    """``--quiet``: no progress bars and no status lines on stderr (results are still printed)."""
+    parser.add_argument("--quiet", action="store_true",
+                        help="no progress bars and no status lines on stderr (results still print)")
+
+
+def status(args, message: str) -> None:
+    """A status line (which file was written, ...) on stderr, unless ``--quiet``.
+
+    Results go to stdout; what a run did besides goes here, so that ``--json -`` output
+    stays pure JSON and ``--quiet`` leaves only the results.
+    """
+    if not getattr(args, "quiet", False):
+        sys.stderr.write(message.rstrip("\n") + "\n")
+
+
 def joint_values_si(robot, values, source="--q"):
     """CLI joint values (deg for revolute, mm for prismatic) to SI, validated; None: working pose."""
     import numpy as np
@@ -70,6 +97,7 @@ def _pose_parser(sub) -> None:
                    help="joint values: revolute [deg], prismatic [mm]")
     p.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE",
                    help="write JSON (SI units, unit-suffixed keys) to FILE, or to stdout without FILE")
+    add_quiet_argument(p)
     p.set_defaults(run=_run_pose)
 
 
@@ -132,7 +160,8 @@ def _demo_parser(sub) -> None:
                     "(Jacobian) prediction, and the reliability P(|dP| < T).",
     )
     p.add_argument("--samples", type=int, default=20_000, help="Monte Carlo samples (default 20000)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
+    add_quiet_argument(p)
     p.set_defaults(run=_run_demo)
 
 

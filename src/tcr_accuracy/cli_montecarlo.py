@@ -6,9 +6,9 @@ Heavy imports live inside the run function so that ``--help`` stays instant.
 from __future__ import annotations
 
 import math
-import sys
 
-from .cli import EXIT_OK, add_robot_arguments, emit_json, format_joint_values, joint_values_si
+from .cli import add_robot_arguments, format_joint_values, joint_values_si, seed_value
+from .cli_output import add_output_arguments, progress_bar
 
 PRESETS = ("table1", "table2", "clearance")
 
@@ -36,7 +36,7 @@ def add_parsers(sub) -> None:
     source.add_argument("--config", default=None, metavar="FILE",
                         help="TOML or YAML file of error distributions (see README, 'Monte Carlo')")
     p.add_argument("--samples", type=int, default=20_000, help="Monte Carlo samples (default 20000)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
     p.add_argument("--q", nargs="+", type=float, metavar="VALUE",
                    help="joint values: revolute [deg], prismatic [mm] (default: working pose)")
     p.add_argument("--tol", nargs="+", type=float, default=[0.15, 0.25], metavar="MM",
@@ -47,16 +47,15 @@ def add_parsers(sub) -> None:
                    help="importance samples per tolerance for the tail P(|dP| > T) (default 20000; 0: skip)")
     p.add_argument("--chunk", type=int, default=None, metavar="N",
                    help="samples per chunk (default 20000; part of the random stream)")
-    p.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE",
-                   help="write JSON (keys in README, 'Monte Carlo') to FILE, or to stdout without FILE")
-    p.add_argument("--plots", default=None, metavar="DIR",
-                   help="write cloud_3d.png and projection_density.png to DIR")
+    add_output_arguments(p, view=True, json_help="write JSON (keys in README, 'Monte Carlo') to FILE, or to "
+                                                 "stdout without FILE")
+    p.add_argument("--view-samples", type=int, default=2000, metavar="N",
+                   help="samples drawn for the 3D view's TCP error cloud (default 2000)")
     cluster = p.add_mutually_exclusive_group()
     cluster.add_argument("--dask", default=None, metavar="ADDRESS",
                          help="run the chunks on the Dask scheduler at ADDRESS (e.g. tcp://host:8786)")
     cluster.add_argument("--workers", type=int, default=None, metavar="N",
                          help="run the chunks on a local Dask cluster of N processes (1 thread each)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=_run_montecarlo)
 
 
@@ -76,6 +75,8 @@ def _check_args(args) -> None:
         raise InputError(f"--chunk {args.chunk}: must be >= 1")
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers {args.workers}: must be >= 1")
+    if args.view_samples < 1:
+        raise InputError(f"--view-samples {args.view_samples}: need at least 1")
 
 
 def sampler_from_args(robot, preset: str | None, config: str | None):
@@ -92,14 +93,6 @@ def sampler_from_args(robot, preset: str | None, config: str | None):
     from .errors import seed_budget
 
     return seed_budget(robot, preset)
-
-
-def _progress(total: int, quiet: bool):
-    from tqdm import tqdm
-
-    bar = tqdm(total=total, desc="monte carlo", unit="sample", unit_scale=True, file=sys.stderr,
-               leave=False, disable=quiet or not sys.stderr.isatty())
-    return bar.update, bar.close
 
 
 def _client(args):
@@ -136,19 +129,21 @@ def _tol_key(t_mm: float) -> str:
 def _run_montecarlo(args) -> int:
     import numpy as np
 
+    from .cli_output import RunOutput
     from .montecarlo import CHUNK, STAT_COLUMNS, run_monte_carlo
     from .errors import ErrorBudget
     from .reliability import binomial_interval, first_order, gaussian_exceedance, importance_exceedance
     from .robot import load_robot
 
     _check_args(args)
+    out = RunOutput(args, "Monte Carlo accuracy of the TCP")
     robot = load_robot(args.robot, args.tool)
     q = joint_values_si(robot, args.q)
     sampler = sampler_from_args(robot, args.preset, args.config)
     tolerances_m = np.array(args.tol) * 1e-3
     chunk = args.chunk or CHUNK
     client, close_client = _client(args)
-    update, close_bar = _progress(args.samples, args.quiet)
+    update, close_bar = progress_bar(args.samples, "monte carlo", args.quiet, unit="sample", unit_scale=True)
     try:
         result = run_monte_carlo(sampler, q, args.samples, args.seed, position_tolerances=tolerances_m,
                                  angle_tolerance=args.angle_tol, chunk=chunk, progress=update, client=client)
@@ -207,24 +202,42 @@ def _run_montecarlo(args) -> int:
                               zip(("d_alpha_z", "d_beta_y", "d_gamma_x"), result.angle_reliability)},
         "tail_position": tails,
     }
-    if args.plots is not None:
-        from .plots_montecarlo import write_montecarlo_plots
+    from .plots_montecarlo import write_montecarlo_plots
 
-        payload["plots"] = write_montecarlo_plots(result, args.plots, label=sampler.name)
-    if args.json is not None:
-        emit_json(payload, args.json)
-        if args.json == "-":
-            return EXIT_OK
-    _print_report(robot, q, sampler, args, result, payload)
-    return EXIT_OK
+    _report_tables(out, robot, q, sampler, args, result, payload)
+    out.add_plots(lambda folder: write_montecarlo_plots(result, folder, label=sampler.name),
+                  {"cloud_3d.png": "TCP position error cloud (seed Fig. 6 and 12)",
+                   "projection_density.png": "Projection densities of the TCP position error on the xy, xz "
+                                             "and yz planes"})
+    if out.scene_wanted:
+        out.set_scene(*_scene(robot, q, sampler, args))
+    return out.finish(payload, lambda: _print_report(robot, q, sampler, args, result, payload))
 
 
-def _print_report(robot, q, sampler, args, result, payload) -> None:
+def _scene(robot, q, sampler, args):
+    """The robot at q with a TCP error cloud of --view-samples fresh draws, coloured by |dP|."""
+    import numpy as np
+
+    from .viewer import Scene
+
+    scene = Scene(f"{robot.name}: Monte Carlo of {sampler.name}")
+    scene.add_robot(robot, q, "nominal")
+    x = sampler.sample(args.view_samples, np.random.default_rng([args.seed, 2]))
+    magnify = scene.add_tcp_error_cloud(robot, q, x, sampler.error_model)
+    scene.add_note(f"{args.view_samples} samples of {sampler.name} (seed {args.seed}, drawn for this view); "
+                   f"errors magnified x {magnify:g} about the nominal TCP")
+    return scene, f"TCP error cloud at the pose, |dP| magnified x {magnify:g}"
+
+
+def _setup_lines(robot, q, sampler, args, result, payload) -> list[str]:
     source = f"--config {args.config}" if args.config else f"preset {payload['preset']}"
-    print(f"Monte Carlo of {source} ({sampler.name}): {result.n_samples} samples, seed {args.seed}")
-    print(f"  {robot.name}, TCP '{robot.tool_frame}' at {format_joint_values(robot, q)}")
-    print("  nominal TCP [mm]: x = {:.3f}, y = {:.3f}, z = {:.3f}".format(*payload["nominal_position_mm"]))
-    print(f"\n  {'error':17s} {'mean':>11s} {'std':>11s} {'max':>11s} {'min':>11s} {'1st-order std':>14s}")
+    return [f"Monte Carlo of {source} ({sampler.name}): {result.n_samples} samples, seed {args.seed}",
+            f"  {robot.name}, TCP '{robot.tool_frame}' at {format_joint_values(robot, q)}",
+            "  nominal TCP [mm]: x = {:.3f}, y = {:.3f}, z = {:.3f}".format(*payload["nominal_position_mm"])]
+
+
+def _stat_rows(payload) -> list[tuple]:
+    """(label with unit, {mean, std, max, min}, first-order std or None) of the seed's Table 3/5."""
     rows = [("dp [mm]", payload["stats_mm"]["dp"], None),
             ("dx [mm]", payload["stats_mm"]["dx"], payload["first_order_std_mm"]["dx"]),
             ("dy [mm]", payload["stats_mm"]["dy"], payload["first_order_std_mm"]["dy"]),
@@ -233,7 +246,33 @@ def _print_report(robot, q, sampler, args, result, payload) -> None:
     rows += [(f"{label} [rad]", payload["stats_rad"][key], payload["first_order_std_rad"][key])
              for label, key in (("d_alpha (z)", "d_alpha_z"), ("d_beta (y)", "d_beta_y"),
                                 ("d_gamma (x)", "d_gamma_x"))]
-    for label, e, fo in rows:
+    return rows
+
+
+def _report_tables(out, robot, q, sampler, args, result, payload) -> None:
+    out.add_text("\n\n".join(line.strip() for line in _setup_lines(robot, q, sampler, args, result, payload)),
+                 heading="Setup")
+    out.add_table("TCP error statistics (seed Table 3 and 5)", ["error", "mean", "std", "max", "min", "1st-order std"],
+                  [(label, e["mean"], e["std"], e["max"], e["min"], fo) for label, e, fo in _stat_rows(payload)],
+                  note="dp = " + DP_DEFINITION)
+    rel = [(f"|dP| < {t} mm", payload["reliability_position"][t], *payload["reliability_position_ci95"][t])
+           for t in payload["reliability_position"]]
+    rel += [(f"|{k}| < {args.angle_tol:g} rad", p, None, None) for k, p in payload["reliability_angle"].items()]
+    out.add_table("Reliability, Eq. (25)", ["event", "probability", "95% CI low", "95% CI high"], rel,
+                  note="exact binomial (Clopper-Pearson) intervals on the Monte Carlo counts")
+    tails = []
+    for key, tail in payload["tail_position"].items():
+        tails.append((key, tail["monte_carlo"], *tail["monte_carlo_ci95"], tail["first_order"],
+                      tail.get("importance_sampling"), *tail.get("importance_sampling_ci95", (None, None))))
+    out.add_table("Tail P(|dP| > T)", ["T", "Monte Carlo", "MC 95% low", "MC 95% high", "first-order Gaussian",
+                                       "importance sampling", "IS 95% low", "IS 95% high"], tails,
+                  units=["mm", "", "", "", "", "", "", ""])
+
+
+def _print_report(robot, q, sampler, args, result, payload) -> None:
+    print("\n".join(_setup_lines(robot, q, sampler, args, result, payload)))
+    print(f"\n  {'error':17s} {'mean':>11s} {'std':>11s} {'max':>11s} {'min':>11s} {'1st-order std':>14s}")
+    for label, e, fo in _stat_rows(payload):
         fo_text = f"{fo:14.4e}" if fo is not None else f"{'':14s}"
         print(f"  {label:17s} {e['mean']:11.4e} {e['std']:11.4e} {e['max']:11.4e} {e['min']:11.4e} {fo_text}")
     print("  dp = " + DP_DEFINITION)
@@ -253,5 +292,3 @@ def _print_report(robot, q, sampler, args, result, payload) -> None:
             ilo, ihi = tail["importance_sampling_ci95"]
             text += f" | {tail['importance_sampling']:.3e} [{ilo:.2e}, {ihi:.2e}]"
         print(text)
-    if "plots" in payload:
-        print("\n  plots: " + ", ".join(payload["plots"]))

@@ -8,14 +8,14 @@ imports live inside the run functions so that ``--help`` stays instant.
 from __future__ import annotations
 
 import math
-import sys
 
-from .cli import EXIT_OK, add_robot_arguments, emit_json, format_joint_values, joint_values_si
+from .cli import add_robot_arguments, format_joint_values, joint_values_si, seed_value
+from .cli_output import RunOutput, add_output_arguments, progress_bar
 
 PRESETS = ("table1", "table2", "clearance")
 
 
-def _add_common(p, pose: bool = False) -> None:
+def _add_common(p, pose: bool = False, plots: bool = True, view: bool = False) -> None:
     add_robot_arguments(p)
     if pose:
         p.add_argument("--q", nargs="+", type=float, metavar="VALUE",
@@ -26,10 +26,8 @@ def _add_common(p, pose: bool = False) -> None:
                              "default table2")
     source.add_argument("--config", default=None, metavar="FILE",
                         help="TOML or YAML file of error distributions (as for 'montecarlo --config')")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE",
-                   help="write JSON (SI units, unit-suffixed keys) to FILE, or to stdout without FILE")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
+    add_output_arguments(p, plots=plots, view=view)
 
 
 def add_parsers(sub) -> None:
@@ -44,7 +42,6 @@ def add_parsers(sub) -> None:
     _add_common(p, pose=True)
     p.add_argument("--sobol-samples", type=int, default=1024, metavar="N",
                    help="SALib base sample size, a power of two (model runs: N x (sources + 2)); default 1024")
-    p.add_argument("--plots", default=None, metavar="DIR", help="write PNG plots of the sweeps and indices to DIR")
     p.set_defaults(run=_run_sensitivity)
 
     p = sub.add_parser(
@@ -54,7 +51,7 @@ def add_parsers(sub) -> None:
                     "from a fixed-seed Monte Carlo with common random numbers. Prints the "
                     "allowed spreads in mm and deg.",
     )
-    _add_common(p, pose=True)
+    _add_common(p, pose=True, plots=False)
     p.add_argument("--target-tol", type=float, default=0.25, metavar="MM",
                    help="position tolerance T on |dP| [mm] (default 0.25)")
     p.add_argument("--target-prob", type=float, default=0.95, metavar="P",
@@ -75,11 +72,10 @@ def add_parsers(sub) -> None:
                     "t_s) or, without --file, the built-in tool-change motion of the tool-changer "
                     "(stowed pose to the working pose, then the telescopic arm extends).",
     )
-    _add_common(p)
+    _add_common(p, view=True)
     p.add_argument("--file", default=None, metavar="CSV", help="joint trajectory CSV file")
     p.add_argument("--samples", type=int, default=2000, help="Monte Carlo samples (default 2000)")
     p.add_argument("--steps", type=int, default=121, help="time steps of the built-in motion (default 121)")
-    p.add_argument("--plots", default=None, metavar="DIR", help="write the error-band plot (PNG) to DIR")
     p.set_defaults(run=_run_trajectory)
 
 
@@ -90,15 +86,6 @@ def _sampler(robot, args):
 
     sampler = sampler_from_args(robot, args.preset, args.config)
     return sampler, args.preset or ("table2" if args.config is None else f"config {args.config}")
-
-
-def _progress(total: int | None, desc: str, quiet: bool):
-    """A tqdm bar on stderr (off with --quiet or when stderr is not a terminal) as a callback."""
-    from tqdm import tqdm
-
-    bar = tqdm(total=total, desc=desc, file=sys.stderr, leave=False,
-               disable=quiet or not sys.stderr.isatty())
-    return bar.update, bar.close
 
 
 def _si_series(result):
@@ -113,8 +100,6 @@ def _sweep_json(result) -> dict:
 
 
 def _run_sensitivity(args) -> int:
-    import numpy as np
-
     from .exceptions import InputError
     from .robot import load_robot
     from .sensitivity import (OUTPUT_UNITS, OUTPUTS, clearance_sweeps, random_inputs, seed_sweeps,
@@ -123,6 +108,7 @@ def _run_sensitivity(args) -> int:
     n = args.sobol_samples
     if n < 2 or n & (n - 1):
         raise InputError(f"--sobol-samples {n}: must be a power of two >= 2 (e.g. 512, 1024, 4096)")
+    out = RunOutput(args, "Sensitivity of the TCP error to each error source")
     robot = load_robot(args.robot, args.tool)
     q = joint_values_si(robot, args.q)
     sampler, label = _sampler(robot, args)
@@ -133,7 +119,7 @@ def _run_sensitivity(args) -> int:
 
         clearance = clearance_sweeps(ClearanceModel.from_robot(robot), q)
     n_inputs = len(random_inputs(sampler).sources)
-    update, close = _progress(n * (n_inputs + 2), "Sobol", args.quiet)
+    update, close = progress_bar(n * (n_inputs + 2), "Sobol", args.quiet)
     try:
         indices = sobol_indices(sampler, q, n_base=n, seed=args.seed, progress=update)
     finally:
@@ -153,36 +139,69 @@ def _run_sensitivity(args) -> int:
             } for k, o in enumerate(indices.outputs)},
         },
     }
-    if args.plots:
-        payload["plots"] = _sensitivity_plots(args.plots, sweeps, clearance, indices)
-    if args.json is not None:
-        emit_json(payload, args.json)
-        if args.json == "-":
-            return EXIT_OK
+    shown = _shown_sweeps(sweeps, clearance)
+    out.add_text(f"{robot.name}, preset {label}, at {format_joint_values(robot, q)}", heading="Setup")
+    for title, result in shown:
+        out.add_table(f"One at a time (seed Fig. 7-9): {title}", SWEEP_COLUMNS, _sweep_rows(result, -1),
+                      note="TCP error with this source alone at its largest swept value")
+    out.add_table(_sobol_title(indices), SOBOL_COLUMNS, _sobol_rows(indices))
+    out.add_plots(lambda folder: _sensitivity_plots(folder, sweeps, clearance, indices))
+    return out.finish(payload, lambda: _print_sensitivity(robot, q, label, shown, indices))
 
-    print(f"{robot.name}, preset {label}, at {format_joint_values(robot, q)}")
-    print("\nOne at a time (seed Fig. 7-9): TCP error with one source at its largest swept value")
-    _print_sweep(sweeps["link_length"], "link length +0.06 mm", -1)
-    _print_sweep(sweeps["joint_angle"], "joint angle +0.1 deg", -1)
+
+#: Columns of the one-at-a-time tables (printed and in the report).
+SWEEP_COLUMNS = ("source", "dx [mm]", "dy [mm]", "dz [mm]", "|dP| [mm]", "angle [deg]")
+#: Columns of the Sobol table.
+SOBOL_COLUMNS = ("source", "group", "S1 |dP|", "+-", "ST |dP|", "+-", "ST dx", "ST dy", "ST dz", "linear S1 dx/dy/dz")
+
+
+def _shown_sweeps(sweeps, clearance) -> list[tuple[str, object]]:
+    shown = [("link length +0.06 mm", sweeps["link_length"]), ("joint angle +0.1 deg", sweeps["joint_angle"])]
     if clearance:
-        _print_sweep(clearance["radial_u"], "clearance rod s = +0.5 mm along u (theta = 0)", -1)
-        _print_sweep(clearance["deflection_v"], "clearance deflection w_y = +0.087 rad", -1)
-    print(f"\nSobol indices (SALib, N = {n}, {indices.n_evaluations} model runs, "
-          f"{indices.conf_level * 100:g} % intervals), ranked by total index of |dP|:")
+        shown += [("clearance rod s = +0.5 mm along u (theta = 0)", clearance["radial_u"]),
+                  ("clearance deflection w_y = +0.087 rad", clearance["deflection_v"])]
+    return shown
+
+
+def _sweep_rows(result, column: int) -> list[tuple]:
+    """One row per source: dx, dy, dz, |dP| [mm] and the attitude error angle [deg] at one swept value."""
+    e = result.errors[:, column]
+    return [(name, *(e[k, :4] * 1e3), math.degrees(e[k, 7])) for k, name in enumerate(result.source_names)]
+
+
+def _sobol_title(indices) -> str:
+    return (f"Sobol indices (SALib, N = {indices.n_base}, {indices.n_evaluations} model runs, "
+            f"{indices.conf_level * 100:g} % intervals), ranked by total index of |dP|")
+
+
+def _sobol_rows(indices) -> list[tuple]:
     k = indices.outputs.index("norm")
     kx = [indices.outputs.index(o) for o in ("dx", "dy", "dz")]
+    rows = []
+    for i in indices.ranking("norm"):
+        lin = "/".join("-" if math.isnan(v) else f"{v:.3f}" for v in indices.linear_share[:, i])
+        rows.append((indices.source_names[i], indices.groups[i], indices.first_order[k, i],
+                     indices.first_order_conf[k, i], indices.total_order[k, i], indices.total_order_conf[k, i],
+                     *(indices.total_order[c, i] for c in kx), lin))
+    return rows
+
+
+def _print_sensitivity(robot, q, label, shown, indices) -> None:
+    print(f"{robot.name}, preset {label}, at {format_joint_values(robot, q)}")
+    print("\nOne at a time (seed Fig. 7-9): TCP error with one source at its largest swept value")
+    for title, result in shown:
+        w = max(8, *(len(n) for n in result.source_names))
+        print(f"  {title}:")
+        print(f"    {'source':{w}s} {'dx [mm]':>9s} {'dy [mm]':>9s} {'dz [mm]':>9s} {'|dP| [mm]':>10s} {'angle [deg]':>12s}")
+        for name, dx, dy, dz, norm, angle in _sweep_rows(result, -1):
+            print(f"    {name:{w}s} {dx:9.4f} {dy:9.4f} {dz:9.4f} {norm:10.4f} {angle:12.6f}")
+    print(f"\n{_sobol_title(indices)}:")
     w = max(26, *(len(n) for n in indices.source_names))
     print(f"  {'source':{w}s} {'group':16s} {'S1 |dP|':>16s} {'ST |dP|':>16s}   {'ST dx':>6s} {'ST dy':>6s} "
           f"{'ST dz':>6s}   {'linear S1 dx/dy/dz':>20s}")
-    for i in indices.ranking("norm"):
-        st = " ".join(f"{indices.total_order[c, i]:6.3f}" for c in kx)
-        lin = "/".join("   -" if np.isnan(v) else f"{v:.3f}" for v in indices.linear_share[:, i])
-        print(f"  {indices.source_names[i]:{w}s} {indices.groups[i]:16s} "
-              f"{indices.first_order[k, i]:7.3f} +- {indices.first_order_conf[k, i]:5.3f} "
-              f"{indices.total_order[k, i]:7.3f} +- {indices.total_order_conf[k, i]:5.3f}   {st}   {lin:>20s}")
-    if args.plots:
-        print(f"\nplots: {', '.join(payload['plots'])}")
-    return EXIT_OK
+    for name, group, s1, s1c, st, stc, stx, sty, stz, lin in _sobol_rows(indices):
+        print(f"  {name:{w}s} {group:16s} {s1:7.3f} +- {s1c:5.3f} {st:7.3f} +- {stc:5.3f}   "
+              f"{stx:6.3f} {sty:6.3f} {stz:6.3f}   {lin:>20s}")
 
 
 def _index_entry(indices, k: int, i: int) -> dict:
@@ -196,18 +215,6 @@ def _index_entry(indices, k: int, i: int) -> dict:
     if output in ("dx", "dy", "dz"):
         entry["linear_S1"] = num(indices.linear_share[("dx", "dy", "dz").index(output), i])
     return entry
-
-
-def _print_sweep(result, label: str, column: int) -> None:
-    import numpy as np
-
-    w = max(8, *(len(n) for n in result.source_names))
-    print(f"  {label}:")
-    print(f"    {'source':{w}s} {'dx [mm]':>9s} {'dy [mm]':>9s} {'dz [mm]':>9s} {'|dP| [mm]':>10s} {'angle [deg]':>12s}")
-    for k, name in enumerate(result.source_names):
-        e = result.errors[k, column]
-        print(f"    {name:{w}s} {e[0] * 1e3:9.4f} {e[1] * 1e3:9.4f} {e[2] * 1e3:9.4f} {e[3] * 1e3:10.4f} "
-              f"{np.degrees(e[7]):12.6f}")
 
 
 def _sensitivity_plots(folder, sweeps, clearance, indices) -> list[str]:
@@ -255,6 +262,7 @@ def _run_tolerance(args) -> int:
         raise InputError(f"--target-prob {args.target_prob}: the probability must lie strictly between 0 and 1")
     if args.samples < 10:
         raise InputError(f"--samples {args.samples}: need at least 10")
+    out = RunOutput(args, "Tolerance allocation")
     robot = load_robot(args.robot, args.tool)
     q = joint_values_si(robot, args.q)
     sampler, label = _sampler(robot, args)
@@ -268,7 +276,7 @@ def _run_tolerance(args) -> int:
             raise InputError(f"--groups {args.groups}: unknown group {', '.join(unknown) or '(none given)'} "
                              f"(groups of {label}: {', '.join(known)})")
     tol = args.target_tol * 1e-3
-    update, close = _progress(None, "tolerance (Monte Carlo runs)", args.quiet)
+    update, close = progress_bar(None, "tolerance (Monte Carlo runs)", args.quiet)
     try:
         main = allocate_tolerance(sampler, q, tol, args.target_prob, groups=groups, n_samples=args.samples,
                                   rng=np.random.default_rng(args.seed), progress=update)
@@ -292,29 +300,48 @@ def _run_tolerance(args) -> int:
     if args.per_group:
         payload["per_group"] = {g: (_allocation_json(a) if not isinstance(a, str) else {"error": a})
                                 for g, a in per_group.items()}
-    if args.json is not None:
-        emit_json(payload, args.json)
-        if args.json == "-":
-            return EXIT_OK
+    head = _tolerance_head(robot, q, label, args, main)
+    out.add_text("\n\n".join(head), heading="Setup and result")
+    out.add_table("Allowed spreads (standard deviations)", ["source", "group", "std now", "std allowed", "unit"],
+                  _spread_rows(main))
+    if args.per_group:
+        out.add_table("Each group alone (the others at their spreads)", ["group", "largest factor"],
+                      [(g, a if isinstance(a, str) else a.factor) for g, a in per_group.items()],
+                      float_format="{:.6g}")
+    return out.finish(payload, lambda: _print_tolerance(head, main, per_group if args.per_group else None))
 
+
+def _tolerance_head(robot, q, label, args, main) -> list[str]:
     what = ", ".join(main.scaled_groups) if main.scaled_groups else "all"
-    print(f"{robot.name}, preset {label}, at {format_joint_values(robot, q)}")
-    print(f"Target P(|dP| < {args.target_tol:g} mm) >= {args.target_prob:g}; {args.samples} samples, seed {args.seed}")
-    print(f"  with the preset's spreads:  P = {main.nominal_probability:.4f}")
-    print(f"  largest factor on the spreads ({what}): {main.factor:.6g}  (P = {main.achieved_probability:.4f})")
+    return [f"{robot.name}, preset {label}, at {format_joint_values(robot, q)}",
+            f"Target P(|dP| < {args.target_tol:g} mm) >= {args.target_prob:g}; {args.samples} samples, "
+            f"seed {args.seed}",
+            f"  with the preset's spreads:  P = {main.nominal_probability:.4f}",
+            f"  largest factor on the spreads ({what}): {main.factor:.6g}  (P = {main.achieved_probability:.4f})"]
+
+
+def _spread_rows(allocation) -> list[tuple]:
+    """(source, group, std now, std allowed, unit) in mm or deg."""
+    rows = []
+    for s in allocation.spreads:
+        scale, unit = (1e3, "mm") if s.unit == "m" else (180.0 / math.pi, "deg")
+        rows.append((s.name, s.group, s.nominal_std * scale, s.allowed_std * scale, unit))
+    return rows
+
+
+def _print_tolerance(head, main, per_group) -> None:
+    print("\n".join(head))
     w = max(26, *(len(s.name) for s in main.spreads))
     print(f"  {'source':{w}s} {'group':16s} {'std now':>14s} {'std allowed':>14s}")
-    for s in main.spreads:
-        scale, unit = (1e3, "mm") if s.unit == "m" else (180.0 / math.pi, "deg")
-        print(f"  {s.name:{w}s} {s.group:16s} {s.nominal_std * scale:10.5g} {unit:3s} {s.allowed_std * scale:10.5g} {unit:3s}")
-    if args.per_group:
+    for name, group, now, allowed, unit in _spread_rows(main):
+        print(f"  {name:{w}s} {group:16s} {now:10.5g} {unit:3s} {allowed:10.5g} {unit:3s}")
+    if per_group is not None:
         print("  each group alone (the others at their spreads):")
         for g, a in per_group.items():
             if isinstance(a, str):
                 print(f"    {g:16s} impossible: {a}")
             else:
                 print(f"    {g:16s} factor {a.factor:.6g}")
-    return EXIT_OK
 
 
 def _allocation_json(a) -> dict:
@@ -338,6 +365,7 @@ def _run_trajectory(args) -> int:
 
     if args.samples < 2:
         raise InputError(f"--samples {args.samples}: need at least 2")
+    out = RunOutput(args, "TCP error along a trajectory")
     robot = load_robot(args.robot, args.tool)
     if args.file:
         traj = read_trajectory_csv(args.file, robot)
@@ -346,7 +374,7 @@ def _run_trajectory(args) -> int:
             raise InputError(f"--steps {args.steps}: need at least 2")
         traj = tool_change_motion(robot, n_steps=args.steps)
     sampler, label = _sampler(robot, args)
-    update, close = _progress(len(traj), "trajectory", args.quiet)
+    update, close = progress_bar(len(traj), "trajectory", args.quiet)
     try:
         bands = trajectory_error_bands(sampler, traj, args.samples, np.random.default_rng(args.seed),
                                        progress=update)
@@ -364,44 +392,106 @@ def _run_trajectory(args) -> int:
         "contributions_std_m": {name: bands.contributions[:, k, :].tolist()
                                 for k, name in enumerate(bands.source_names)},
     }
-    if args.plots:
-        from pathlib import Path
+    head = (f"{robot.name}, preset {label}: {traj.source}, {len(traj)} steps over "
+            f"{traj.time[-1] - traj.time[0]:g} s, {args.samples} as-built robots, seed {args.seed}")
+    hi = bands.quantiles[1]
+    out.add_text(head, heading="Setup")
+    out.add_table("TCP position error along the trajectory (seed Fig. 18)",
+                  ["t", "std dx", "std dy", "std dz", "1st-order std dx", "1st-order std dy", "1st-order std dz",
+                   f"|dP| {hi * 100:g} % quantile"], _band_rows(bands), units=["s"] + ["mm"] * 7)
+    if bands.source_names:
+        out.add_table("Largest first-order contributions (std of each source alone)", ["t", "axis", "sources"],
+                      _contribution_rows(bands), units=["s", "", "mm"])
+    out.add_plots(lambda folder: _trajectory_plots(folder, bands, label, args.samples),
+                  {"trajectory_error_bands.png": "Monte Carlo error bands of dx, dy, dz over time",
+                   "trajectory_contributions.png": "First-order contribution of each error source over time"})
+    if out.scene_wanted:
+        out.set_scene(_trajectory_scene(robot, bands, label), "Robot along the trajectory, TCP path coloured "
+                      f"by the {hi * 100:g} % quantile of |dP|")
+    return out.finish(payload, lambda: _print_trajectory(head, bands))
 
-        from .plots_sensitivity import plot_trajectory_bands, plot_trajectory_contributions
 
-        folder = Path(args.plots)
-        payload["plots"] = [str(plot_trajectory_bands(bands, folder / "trajectory_error_bands.png",
-                                                      f"TCP position error along {traj.source}, preset "
-                                                      f"{label}, {args.samples} samples"))]
-        if bands.source_names:
-            payload["plots"].append(str(plot_trajectory_contributions(
-                bands, folder / "trajectory_contributions.png",
-                f"First-order std of each error source along {traj.source}, preset {label}")))
-    if args.json is not None:
-        emit_json(payload, args.json)
-        if args.json == "-":
-            return EXIT_OK
-    lo, hi = bands.quantiles
-    print(f"{robot.name}, preset {label}: {traj.source}, {len(traj)} steps over "
-          f"{traj.time[-1] - traj.time[0]:g} s, {args.samples} as-built robots, seed {args.seed}")
+def _shown_steps(n_steps: int, most: int = 11):
+    import numpy as np
+
+    return np.unique(np.linspace(0, n_steps - 1, min(n_steps, most)).round().astype(int))
+
+
+def _band_rows(bands) -> list[tuple]:
+    """t [s], std of dx, dy, dz, their first-order std and the |dP| quantile [mm] at up to 11 steps."""
+    t = bands.trajectory.time
+    return [(t[i], *(bands.std[i] * 1e3), *(bands.first_order_std[i] * 1e3), bands.norm_upper[i] * 1e3)
+            for i in _shown_steps(len(t))]
+
+
+def _contribution_rows(bands) -> list[tuple]:
+    """(t [s], axis, the three largest sources with their std [mm]) at the start, middle and end."""
+    import numpy as np
+
+    t = bands.trajectory.time
+    rows = []
+    for i in np.unique([0, len(t) // 2, len(t) - 1]):
+        for c, axis in enumerate("xyz"):
+            top = np.argsort(-bands.contributions[i, :, c])[:3]
+            rows.append((t[i], axis, ", ".join(f"{bands.source_names[k]} {bands.contributions[i, k, c] * 1e3:.3f}"
+                                              for k in top if bands.contributions[i, k, c] > 0)))
+    return rows
+
+
+def _print_trajectory(head: str, bands) -> None:
+    import numpy as np
+
+    hi = bands.quantiles[1]
+    print(head)
     print(f"  {'t [s]':>7s} {'std dx':>8s} {'std dy':>8s} {'std dz':>8s} {'(1st order)':>26s} "
           f"{f'|dP| {hi * 100:g} %':>11s}   all [mm]")
-    rows = np.unique(np.linspace(0, len(traj) - 1, min(len(traj), 11)).round().astype(int))
-    for i in rows:
-        s, f = bands.std[i] * 1e3, bands.first_order_std[i] * 1e3
-        print(f"  {traj.time[i]:7.2f} {s[0]:8.4f} {s[1]:8.4f} {s[2]:8.4f}   ({f[0]:7.4f} {f[1]:7.4f} {f[2]:7.4f}) "
-              f"{bands.norm_upper[i] * 1e3:11.4f}")
+    for t, sx, sy, sz, fx, fy, fz, norm in _band_rows(bands):
+        print(f"  {t:7.2f} {sx:8.4f} {sy:8.4f} {sz:8.4f}   ({fx:7.4f} {fy:7.4f} {fz:7.4f}) {norm:11.4f}")
     i = int(np.argmax(bands.norm_upper))
-    print(f"  largest {hi * 100:g} % quantile of |dP|: {bands.norm_upper[i] * 1e3:.4f} mm at t = {traj.time[i]:g} s")
+    print(f"  largest {hi * 100:g} % quantile of |dP|: {bands.norm_upper[i] * 1e3:.4f} mm at "
+          f"t = {bands.trajectory.time[i]:g} s")
     if bands.source_names:
         print("  largest first-order contributions (std [mm] of each source alone):")
-        for i in np.unique([0, len(traj) // 2, len(traj) - 1]):
-            parts = []
-            for c, axis in enumerate("xyz"):
-                top = np.argsort(-bands.contributions[i, :, c])[:3]
-                parts.append(f"{axis}: " + ", ".join(f"{bands.source_names[k]} {bands.contributions[i, k, c] * 1e3:.3f}"
-                                                     for k in top if bands.contributions[i, k, c] > 0))
-            print(f"    t = {traj.time[i]:g} s  " + " | ".join(parts))
-    if args.plots:
-        print(f"plots: {', '.join(payload['plots'])}")
-    return EXIT_OK
+        rows = _contribution_rows(bands)
+        for k in range(0, len(rows), 3):
+            print(f"    t = {rows[k][0]:g} s  " + " | ".join(f"{axis}: {text}" for _, axis, text in rows[k:k + 3]))
+
+
+def _trajectory_plots(folder, bands, label: str, n_samples: int) -> list[str]:
+    from pathlib import Path
+
+    from .plots_sensitivity import plot_trajectory_bands, plot_trajectory_contributions
+
+    folder, source = Path(folder), bands.trajectory.source
+    files = [plot_trajectory_bands(bands, folder / "trajectory_error_bands.png",
+                                   f"TCP position error along {source}, preset {label}, {n_samples} samples")]
+    if bands.source_names:
+        files.append(plot_trajectory_contributions(
+            bands, folder / "trajectory_contributions.png",
+            f"First-order std of each error source along {source}, preset {label}"))
+    return [str(f) for f in files]
+
+
+def _trajectory_scene(robot, bands, label: str):
+    """The robot at the start, middle and end of the motion, and the nominal TCP path whose
+    markers are coloured by the upper quantile of |dP| at each step."""
+    from .viewer import LegendEntry, Scene
+
+    traj = bands.trajectory
+    scene = Scene(f"{robot.name}: {traj.source}, preset {label}")
+    n = len(traj)
+    for name, i in (("start", 0), ("middle", n // 2)):
+        if 0 < n - 1 - i:
+            scene.add_robot(robot, traj.q[i], f"robot_{name}", color=(0.55, 0.57, 0.62), opacity=0.3,
+                            include_base=False)
+            scene.legend[-1] = LegendEntry(f"robot at t = {traj.time[i]:g} s ({name}), 30 % opaque",
+                                           scene.legend[-1].color)
+    scene.add_robot(robot, traj.q[-1], "robot_end")
+    scene.legend[-1] = LegendEntry(f"robot at t = {traj.time[-1]:g} s (end)")
+    scene.add_trajectory(bands.nominal_position, "tcp_path")
+    scene.legend[-1] = LegendEntry("nominal TCP path", scene.legend[-1].color)
+    hi = bands.quantiles[1]
+    scene.add_point_cloud(bands.nominal_position, bands.norm_upper * 1e3, "tcp_error_band",
+                          f"|dP| {hi * 100:g} % quantile [mm] along the path", size_m=0.02)
+    scene.add_note(f"{bands.n_samples} as-built robots; the markers sit on the nominal TCP path (true scale)")
+    return scene

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .cli import EXIT_OK, add_robot_arguments
+from .cli import EXIT_OK, add_quiet_argument, add_robot_arguments, seed_value, status
 
 
 def add_parsers(sub) -> None:
@@ -29,12 +29,13 @@ def add_parsers(sub) -> None:
     p.add_argument("--noise-mm", type=float, default=None,
                    help="tracker noise, std per axis [mm] (default: the scenario's, else 0.02)")
     p.add_argument("--orientation", action="store_true", help="also write measured orientations (qw..qz)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
     p.add_argument("--unit", choices=("mm", "m"), default="mm",
                    help="CSV units: mm (joints in deg/mm) or m (rad/m) (default mm)")
     p.add_argument("--out", required=True, metavar="CSV", help="measurement CSV to write")
     p.add_argument("--truth", metavar="FILE", default=None,
                    help="write the hidden truth here (.yaml/.yml or JSON); keep it from the diagnosis")
+    add_quiet_argument(p)
     p.set_defaults(run=_run_simulate)
 
 
@@ -80,5 +81,5 @@ def _run_simulate(args) -> int:
     print(f"{robot.name}: {len(mset)} simulated measurements -> {args.out} "
           f"(hidden effects: {names}; noise {truth['noise_m'] * 1e3:.4g} mm)")
     if args.truth:
-        print(f"  hidden truth -> {args.truth}")
+        status(args, f"hidden truth written to {args.truth}")
     return EXIT_OK

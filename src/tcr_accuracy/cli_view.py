@@ -7,13 +7,16 @@ Other commands add the same output options with two calls::
     ...
     scene = Scene(title); scene.add_robot(robot, q, "nominal"); ...
     emit_view(scene, args)              # writes and/or serves what was asked
+
+(the analysis commands do it through :class:`tcr_accuracy.cli_output.RunOutput`).
 """
 
 from __future__ import annotations
 
 import argparse
 
-from .cli import EXIT_OK, add_robot_arguments, format_joint_values, joint_values_si
+from .cli import (EXIT_OK, add_quiet_argument, add_robot_arguments, format_joint_values, joint_values_si,
+                  seed_value, status)
 
 DEFAULT_VIEW_FILE = "view.html"
 
@@ -41,24 +44,38 @@ def add_view_arguments(parser: argparse.ArgumentParser, *, always: bool = False)
 
 def emit_view(scene, args) -> None:
     """Write and/or serve a :class:`~tcr_accuracy.viewer.Scene` as the arguments ask."""
+    write_view(scene, args)
+    serve_view(scene, args)
+
+
+def write_view(scene, args):
+    """The static page of ``--view [HTML]`` (``--html`` for ``view``), if asked; returns its path or None."""
     html_file = getattr(args, "html", None) or getattr(args, "view", None)
     if html_file is None and not args.serve and hasattr(args, "html"):
         html_file = DEFAULT_VIEW_FILE
-    if html_file is not None:
-        path = scene.write_static_html(html_file)
-        print(f"3D view written to {path} (open it in a browser; no server needed)")
-    if args.serve:
-        import time
+    if html_file is None:
+        return None
+    path = scene.write_static_html(html_file)
+    status(args, f"3D view written to {path} (open it in a browser; no server needed)")
+    return path
 
-        live = scene.serve(open_browser=args.open)
-        print(f"3D view served at {live.url} (localhost only); Ctrl-C to stop", flush=True)
-        try:
-            while live.process.poll() is None:
-                time.sleep(0.5)
-        except KeyboardInterrupt:
-            pass
-        finally:
-            live.close()
+
+def serve_view(scene, args) -> None:
+    """With ``--serve``: serve the scene on 127.0.0.1 until Ctrl-C (or the server ends)."""
+    if not args.serve:
+        return
+    import time
+
+    live = scene.serve(open_browser=args.open)
+    # the URL is what the user came for: on stdout even with --quiet
+    print(f"3D view served at {live.url} (localhost only); Ctrl-C to stop", flush=True)
+    try:
+        while live.process.poll() is None:
+            time.sleep(0.5)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        live.close()
 
 
 def add_parsers(sub) -> None:
@@ -76,11 +93,12 @@ def add_parsers(sub) -> None:
     p.add_argument("--error-preset", choices=("table1", "table2"), default=None,
                    help="add a TCP error cloud sampled from the seed's Table 1 or Table 2 errors")
     p.add_argument("--samples", type=int, default=1000, help="error samples for the cloud (default 1000)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
     p.add_argument("--magnify", type=float, default=None,
                    help="magnification of the error cloud (default: a round factor that draws "
                         "the largest error about 0.8 m long)")
     add_view_arguments(p, always=True)
+    add_quiet_argument(p)
     p.set_defaults(run=_run_view)
 
 

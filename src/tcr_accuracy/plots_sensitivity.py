@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .exceptions import InputError
 from .sensitivity import OUTPUTS, SobolIndices, SweepResult
 from .trajectory import TrajectoryErrorBands
 
@@ -43,12 +44,18 @@ def _scale(unit_or_output: str) -> float:
 def save_figure(fig, path: str | Path) -> Path:
     """Write a figure as PNG through a temporary file and a rename (no half-written files)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".png")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".png")
+    except OSError as exc:
+        _pyplot().close(fig)
+        raise InputError(f"{path}: cannot write the plot ({exc.strerror})") from None
     os.close(fd)
     try:
         fig.savefig(tmp, format="png", dpi=110)
         os.replace(tmp, path)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write the plot ({exc.strerror})") from None
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)

@@ -391,6 +391,7 @@ def sobol_indices(sampler, q: np.ndarray, n_base: int = 1024, seed: int = 0,
         raise InputError("Sobol indices: the error budget has no sources")
     problem = {"num_vars": d, "names": [f"x{k}" for k in range(d)], "bounds": [[0.0, 1.0]] * d}
     u = sobol_sample.sample(problem, n_base, calc_second_order=False, seed=seed)
+    bootstrap_seed = int(np.random.SeedSequence([seed, 1]).generate_state(1)[0]) | 1
     robot, em = inputs.error_model.robot, inputs.error_model
     nominal = tcp_poses(robot, q)
     cols = [OUTPUTS.index(o) for o in outputs]
@@ -407,8 +408,10 @@ def sobol_indices(sampler, q: np.ndarray, n_base: int = 1024, seed: int = 0,
         # an output the inputs cannot move (e.g. an angle under pure translations): no indices
         if variance[k] <= 1e-24 * max(1e-300, float(np.mean(y[:, k] ** 2))):
             continue
+        # SALib reads ``if seed:``, so seed 0 would give unseeded bootstrap intervals: pass
+        # a never-zero seed derived from ours (odd), so that every seed repeats exactly
         res = sobol_analyze.analyze(problem, y[:, k], calc_second_order=False, num_resamples=num_resamples,
-                                    conf_level=conf_level, seed=seed)
+                                    conf_level=conf_level, seed=bootstrap_seed)
         s1[k], s1c[k], st[k], stc[k] = res["S1"], res["S1_conf"], res["ST"], res["ST_conf"]
     return SobolIndices(
         source_names=inputs.names, groups=inputs.groups, outputs=tuple(outputs),
