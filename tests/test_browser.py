@@ -172,3 +172,26 @@ def test_report_shows_its_tables_and_its_3d_view(chromium, tmp_path, views, tool
     assert ["pin", __import__("importlib.metadata").metadata.version("pin")] in tables.tables[1]
     image = _screenshot(chromium, tmp_path, index, "report", size=(1000, 1100))
     assert _paint_fraction(image) > 0.002, "the 3D view inside the report did not render"
+
+
+def test_montecarlo_report_shows_its_statistics_and_its_cloud(chromium, tmp_path, capsys):
+    import json
+
+    from tcr_accuracy.cli import main
+
+    out = tmp_path / "mc"
+    assert main(["montecarlo", "--samples", "4000", "--tail-samples", "0", "--seed", "1", "--quiet",
+                 "--out", str(out), "--json", str(tmp_path / "mc.json")]) == 0
+    capsys.readouterr()
+    data = json.loads((tmp_path / "mc.json").read_text())
+    tables = _Tables()
+    tables.feed(_dom(chromium, tmp_path, out / "index.html"))
+    stats = next(t for t in tables.tables if t and t[0][:3] == ["error", "mean", "std"])
+    rows = {r[0]: r for r in stats[1:]}
+    assert set(rows) >= {"dp [mm]", "dx [mm]", "dy [mm]", "dz [mm]", "|dP| [mm]", "d_alpha (z) [rad]"}
+    for key, label in (("dx", "dx [mm]"), ("norm", "|dP| [mm]")):  # the JSON's numbers, 4 digits
+        assert float(rows[label][2]) == pytest.approx(data["stats_mm"][key]["std"], rel=1e-3)
+    # the report's 3D view (its own page, shown in an iframe) draws the robot and the cloud
+    image = _legend_free(_screenshot(chromium, tmp_path, out / "scene-1.html", "mc-scene"))
+    assert _paint_fraction(image) > 0.01, "the robot is not on the report's 3D view"
+    assert _viridis_pixels(image) > 150, "the TCP error cloud is not on the report's 3D view"

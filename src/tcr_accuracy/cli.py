@@ -242,6 +242,7 @@ def main(argv: list[str] | None = None) -> int:
 
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # the command as typed, for reports
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("default", UserWarning)

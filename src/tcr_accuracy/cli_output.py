@@ -87,7 +87,7 @@ class RunOutput:
         if getattr(args, "out", None) is not None:
             from .report import Report
 
-            self.report = Report(title)
+            self.report = Report(title, command=getattr(args, "argv", None))
 
     @property
     def scene_wanted(self) -> bool:
