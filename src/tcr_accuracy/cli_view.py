@@ -14,6 +14,7 @@ Other commands add the same output options with two calls::
 from __future__ import annotations
 
 import argparse
+import sys
 
 from .cli import (EXIT_OK, add_quiet_argument, add_robot_arguments, format_joint_values, joint_values_si,
                   seed_value, status)
@@ -67,8 +68,9 @@ def serve_view(scene, args) -> None:
     import time
 
     live = scene.serve(open_browser=args.open)
-    # the URL is what the user came for: on stdout even with --quiet
-    print(f"3D view served at {live.url} (localhost only); Ctrl-C to stop", flush=True)
+    # on stderr (stdout may be --json -), and even with --quiet: the URL is what was asked for
+    sys.stderr.write(f"3D view served at {live.url} (localhost only); Ctrl-C to stop\n")
+    sys.stderr.flush()
     try:
         while live.process.poll() is None:
             time.sleep(0.5)
