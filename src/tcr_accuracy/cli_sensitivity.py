@@ -192,7 +192,8 @@ def _print_sensitivity(robot, q, label, shown, indices) -> None:
     for title, result in shown:
         w = max(8, *(len(n) for n in result.source_names))
         print(f"  {title}:")
-        print(f"    {'source':{w}s} {'dx [mm]':>9s} {'dy [mm]':>9s} {'dz [mm]':>9s} {'|dP| [mm]':>10s} {'angle [deg]':>12s}")
+        print(f"    {'source':{w}s} {'dx [mm]':>9s} {'dy [mm]':>9s} {'dz [mm]':>9s} {'|dP| [mm]':>10s} "
+              f"{'angle [deg]':>12s}")
         for name, dx, dy, dz, norm, angle in _sweep_rows(result, -1):
             print(f"    {name:{w}s} {dx:9.4f} {dy:9.4f} {dz:9.4f} {norm:10.4f} {angle:12.6f}")
     print(f"\n{_sobol_title(indices)}:")
