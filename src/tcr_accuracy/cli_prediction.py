@@ -1,0 +1,245 @@
+"""Commands ``predict`` and ``compensate``: the remaining error from measurements, and
+joint commands that correct it (the second seed).
+
+Input: measurement CSVs with one row per pose, joint columns named after the URDF
+joints with a unit suffix (``<joint>_deg`` or ``_rad`` for revolute, ``_mm`` or ``_m``
+for prismatic joints) and, for training data, the measured TCP position
+``x_mm, y_mm, z_mm`` (or ``_m``). The error is measured minus nominal TCP position.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from .cli import EXIT_OK, add_robot_arguments, emit_json
+
+#: names of prediction.METHODS, repeated here so that --help does not import scikit-learn
+#: (a test checks that the two lists agree)
+METHODS = ("kriging", "kriging-pf", "gp", "idw-joint", "idw-cartesian", "mlp-cartesian", "calibration",
+           "calibration+gp")
+
+JOINT_UNITS = {"revolute": {"deg": 0.017453292519943295, "rad": 1.0}, "prismatic": {"mm": 1e-3, "m": 1.0}}
+
+
+def add_parsers(sub) -> None:
+    p = sub.add_parser(
+        "predict", help="predict the TCP error at given joint values from measured poses",
+        description="Fit an error predictor to measured poses (--train) and predict the TCP "
+                    "position error (real minus nominal) at the joint values of --query.",
+    )
+    _common(p, METHODS)
+    p.add_argument("--query", required=True, metavar="CSV", help="joint values to predict at (CSV)")
+    p.add_argument("--out", metavar="CSV", help="write predictions: the query joints and ex_mm, ey_mm, ez_mm")
+    p.set_defaults(run=_run_predict)
+
+    c = sub.add_parser(
+        "compensate", help="corrected joint commands so the predicted real TCP lands on target",
+        description="Fit an error predictor to measured poses (--train), then for every target "
+                    "(joint values whose nominal TCP is where the tool should go) search the "
+                    "joint command whose predicted real TCP reaches it (cyclic search, IK steps).",
+    )
+    _common(c, METHODS)
+    c.add_argument("--targets", required=True, metavar="CSV", help="target joint values (CSV)")
+    c.add_argument("--threshold-mm", type=float, default=0.001,
+                   help="stop when the predicted miss is below this [mm] (default 0.001)")
+    c.add_argument("--max-iter", type=int, default=20, help="most compensation cycles (default 20)")
+    c.add_argument("--out", metavar="CSV", help="write compensated joint values (same units as --targets)")
+    c.set_defaults(run=_run_compensate)
+
+
+def _common(p: argparse.ArgumentParser, methods) -> None:
+    add_robot_arguments(p)
+    p.add_argument("--train", required=True, metavar="CSV", help="measured poses: joints and x/y/z (CSV)")
+    p.add_argument("--method", default="gp", choices=methods,
+                   help="predictor (default gp; kriging-pf is the seed's method)")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the stochastic methods (default 0)")
+    p.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE",
+                   help="write a JSON summary to FILE, or to stdout without FILE")
+
+
+# ---------------------------------------------------------------------------------------
+# Minimal measurement CSV reader (to be replaced by measurements.read_measurements)
+# ---------------------------------------------------------------------------------------
+def read_joint_csv(path: str, robot, *, need_positions: bool):
+    """Read joint values (N, n) [SI], positions (N, 3) [m] or None, and the joint units.
+
+    Raises InputError naming the file, row and column of the first problem.
+    """
+    import csv
+    import math
+
+    import numpy as np
+
+    from .exceptions import InputError
+
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            rows = list(csv.reader(fh))
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    if not rows:
+        raise InputError(f"{path}: empty file, expected a header row")
+    header = [h.strip() for h in rows[0]]
+    columns, scales, units = [], [], []
+    for name, kind in zip(robot.joint_names, robot.joint_kinds):
+        found = [(f"{name}_{u}", s, u) for u, s in JOINT_UNITS[kind].items() if f"{name}_{u}" in header]
+        if len(found) != 1:
+            wanted = " or ".join(f"{name}_{u}" for u in JOINT_UNITS[kind])
+            what = "no column" if not found else "more than one column"
+            raise InputError(f"{path}: {what} for joint {name}: expected {wanted} (header: {', '.join(header)})")
+        columns.append(header.index(found[0][0]))
+        scales.append(found[0][1])
+        units.append(found[0][2])
+    pos_cols, pos_scale = None, None
+    for suffix, scale in (("mm", 1e-3), ("m", 1.0)):
+        names = [f"{a}_{suffix}" for a in "xyz"]
+        if all(n in header for n in names):
+            pos_cols, pos_scale = [header.index(n) for n in names], scale
+            break
+    if need_positions and pos_cols is None:
+        raise InputError(f"{path}: needs measured TCP positions in columns x_mm, y_mm, z_mm (or x_m, y_m, z_m)")
+    data = rows[1:]
+    if not data:
+        raise InputError(f"{path}: no data rows")
+    q = np.empty((len(data), len(columns)))
+    pos = np.empty((len(data), 3)) if pos_cols is not None else None
+    for r, row in enumerate(data):
+        line = r + 2
+        for target, cols, scale in ((q, columns, scales), (pos, pos_cols, None)):
+            if target is None:
+                continue
+            for c, col in enumerate(cols):
+                if col >= len(row) or row[col].strip() == "":
+                    raise InputError(f"{path}: row {line}, column {header[col]}: missing value")
+                try:
+                    value = float(row[col])
+                except ValueError:
+                    raise InputError(f"{path}: row {line}, column {header[col]}: not a number ({row[col]!r})") from None
+                if not math.isfinite(value):
+                    raise InputError(f"{path}: row {line}, column {header[col]}: non-finite value ({row[col]})")
+                target[r, c] = value * (scale[c] if scale is not None else pos_scale)
+    return q, pos, units
+
+
+def _write_csv_atomically(path: str, header: list[str], rows) -> None:
+    import io
+    from pathlib import Path
+
+    from .asbuilt import write_text_atomically
+
+    buf = io.StringIO()
+    buf.write(",".join(header) + "\n")
+    for row in rows:
+        buf.write(",".join(f"{v:.9g}" for v in row) + "\n")
+    write_text_atomically(Path(path), buf.getvalue())
+
+
+def _check_training(path: str, q, n_joints: int) -> None:
+    import numpy as np
+
+    from .exceptions import InputError
+
+    if q.shape[0] <= n_joints:
+        raise InputError(f"{path}: {q.shape[0]} training poses for {n_joints} joints; need at least "
+                         f"{n_joints + 1} (the seed used 160 for 6)")
+    _, first, inverse, counts = np.unique(q, axis=0, return_index=True, return_inverse=True,
+                                          return_counts=True)
+    if (counts > 1).any():
+        group = int(np.flatnonzero(counts > 1)[0])
+        rows = np.flatnonzero(inverse.ravel() == group)[:2] + 2
+        raise InputError(f"{path}: rows {rows[0]} and {rows[1]} have the same joint values (a singular "
+                         "kriging covariance); average repeated measurements of a pose into one row")
+
+
+def _fit(args):
+    import warnings
+
+    import numpy as np
+    from sklearn.exceptions import ConvergenceWarning
+
+    from .kinematics import tcp_poses
+    from .prediction import make_predictor
+    from .robot import load_robot
+
+    robot = load_robot(args.robot, args.tool)
+    q, pos, _ = read_joint_csv(args.train, robot, need_positions=True)
+    _check_training(args.train, q, robot.n_joints)
+    errors = pos - tcp_poses(robot, q).position
+    estimator = make_predictor(args.method, robot, random_state=args.seed)
+    with warnings.catch_warnings():
+        # scikit-learn's optimisers warn at their iteration caps; the fit is still usable
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        estimator.fit(q, errors)
+    return robot, q, errors, estimator
+
+
+def _run_predict(args) -> int:
+    import numpy as np
+
+    from .exceptions import AnalysisError
+
+    robot, q_train, _, estimator = _fit(args)
+    q, _, units = read_joint_csv(args.query, robot, need_positions=False)
+    pred = np.asarray(estimator.predict(q)).reshape(-1, 3)
+    if not np.all(np.isfinite(pred)):
+        raise AnalysisError(f"method {args.method} predicted non-finite errors")
+    norm = np.linalg.norm(pred, axis=1)
+    if args.out:
+        scale = [1.0 / JOINT_UNITS[k][u] for k, u in zip(robot.joint_kinds, units)]
+        header = [f"{n}_{u}" for n, u in zip(robot.joint_names, units)] + ["ex_mm", "ey_mm", "ez_mm", "e_norm_mm"]
+        _write_csv_atomically(args.out, header, np.hstack([q * scale, pred * 1e3, norm[:, None] * 1e3]))
+    payload = {
+        "robot": robot.name, "method": args.method, "n_train": int(q_train.shape[0]), "n_query": int(q.shape[0]),
+        "predicted_error_mean_mm": float(norm.mean() * 1e3), "predicted_error_max_mm": float(norm.max() * 1e3),
+        "predicted_errors_mm": (pred * 1e3).tolist(),
+    }
+    if args.json is not None:
+        emit_json(payload, args.json)
+        if args.json == "-":
+            return EXIT_OK
+    print(f"{robot.name}: {args.method} fitted to {q_train.shape[0]} measured poses ({args.train})")
+    print(f"  predicted |error| at {q.shape[0]} query poses: mean {norm.mean() * 1e3:.4f} mm, "
+          f"max {norm.max() * 1e3:.4f} mm" + (f"; written to {args.out}" if args.out else ""))
+    return EXIT_OK
+
+
+def _run_compensate(args) -> int:
+    import numpy as np
+
+    from .compensation import compensate_joints
+    from .exceptions import InputError
+
+    if args.threshold_mm <= 0:
+        raise InputError(f"--threshold-mm {args.threshold_mm}: must be > 0")
+    if args.max_iter < 1:
+        raise InputError(f"--max-iter {args.max_iter}: must be >= 1")
+    robot, q_train, _, estimator = _fit(args)
+    q, _, units = read_joint_csv(args.targets, robot, need_positions=False)
+    result = compensate_joints(robot, estimator, q, threshold=args.threshold_mm * 1e-3, max_iter=args.max_iter)
+    failed = np.flatnonzero(~result.converged)
+    if failed.size:
+        rows = ", ".join(str(i + 2) for i in failed[:10]) + (" ..." if failed.size > 10 else "")
+        raise InputError(f"{args.targets}: {failed.size} target(s) not reachable within the joint limits or "
+                         f"{args.max_iter} cycles (rows {rows}; predicted miss up to "
+                         f"{result.predicted_miss[failed].max() * 1e3:.4g} mm)")
+    scale = np.array([1.0 / JOINT_UNITS[k][u] for k, u in zip(robot.joint_kinds, units)])
+    dq = (result.q - q) * scale
+    if args.out:
+        header = ([f"{n}_{u}" for n, u in zip(robot.joint_names, units)]
+                  + [f"d{n}_{u}" for n, u in zip(robot.joint_names, units)] + ["predicted_miss_mm"])
+        _write_csv_atomically(args.out, header, np.hstack([result.q * scale, dq, result.predicted_miss[:, None] * 1e3]))
+    payload = {
+        "robot": robot.name, "method": args.method, "n_train": int(q_train.shape[0]), "n_targets": int(q.shape[0]),
+        "threshold_mm": args.threshold_mm, "iterations_max": int(result.iterations.max()),
+        "predicted_miss_max_mm": float(result.predicted_miss.max() * 1e3),
+        "joint_units": units, "compensated_joints": (result.q * scale).tolist(),
+    }
+    if args.json is not None:
+        emit_json(payload, args.json)
+        if args.json == "-":
+            return EXIT_OK
+    print(f"{robot.name}: {args.method} fitted to {q_train.shape[0]} measured poses ({args.train})")
+    print(f"  {q.shape[0]} targets compensated in at most {result.iterations.max()} cycles; largest joint "
+          f"correction {np.abs(dq).max():.4g} ({', '.join(sorted(set(units)))}); predicted miss below "
+          f"{result.predicted_miss.max() * 1e3:.2g} mm" + (f"; written to {args.out}" if args.out else ""))
+    return EXIT_OK
