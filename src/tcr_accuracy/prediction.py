@@ -176,7 +176,7 @@ class JointKriging(MultiOutputMixin, RegressorMixin, BaseEstimator):
         if self.weights is None:
             return np.ones((n_out, d))
         w = np.asarray(self.weights, dtype=float)
-        if w.ndim == 1:
+        if w.ndim == 1 and w.size == d:
             w = np.broadcast_to(w, (n_out, d))
         if w.shape != (n_out, d) or not np.all(np.isfinite(w)) or np.any(w < 0):
             raise InputError(f"weights: expected non-negative values of shape ({d},) or ({n_out}, {d}), "
@@ -254,11 +254,16 @@ class JointKriging(MultiOutputMixin, RegressorMixin, BaseEstimator):
         Xs = (X - self.x_mean_) / np.where(self.x_std_ > 0, self.x_std_, 1.0)
         out = np.empty((X.shape[0], self.alpha_.shape[0]))
         for k in range(self.alpha_.shape[0]):
-            w = self.weights_[k]
-            a, b = Xs * w, self.X_train_std_ * w
-            # |a - b|^2 = |a|^2 + |b|^2 - 2 a.b: one matrix product instead of a (m, n, d) array
-            sq = np.maximum((a**2).sum(1)[:, None] + (b**2).sum(1)[None, :] - 2.0 * a @ b.T, 0.0)
-            out[:, k] = np.exp(-3.0 * sq / self.range_[k] ** 2) @ self.alpha_[k]
+            # scale so that exp(arg) is the covariance: arg = -3 |w (x - x')|^2 / r^2, written as
+            # 2 a.b - |a|^2 - |b|^2 so the (m, n) work is one BLAS product and in-place passes
+            scale = self.weights_[k] * np.sqrt(3.0) / self.range_[k]
+            a, b = Xs * scale, self.X_train_std_ * scale
+            arg = a @ (2.0 * b.T)
+            arg -= (a**2).sum(1)[:, None]
+            arg -= (b**2).sum(1)[None, :]
+            np.minimum(arg, 0.0, out=arg)
+            np.exp(arg, out=arg)
+            out[:, k] = arg @ self.alpha_[k]
         out = self.y_mean_ + out * np.where(self.y_std_ > 0, self.y_std_, 0.0)
         return out[:, 0] if self._y_1d else out
 

@@ -249,13 +249,15 @@ def _dls(robot, positions, rotations, q, tol_p, tol_r, max_iter, damping, max_st
 # Stratified sparse subset
 # ---------------------------------------------------------------------------------------
 def stratified_subset(q_dense: np.ndarray, n: int, rng: np.random.Generator,
-                      n_bins: int | None = None) -> np.ndarray:
+                      n_bins: int | None = None, swap_passes: int = 3) -> np.ndarray:
     """Indices of n rows of q_dense (N, n_joints) spread uniformly along every joint.
 
     Each joint's range over the dense set is cut into ``n_bins`` (default n) equal-width
-    bins; points are picked one at a time, each time the candidate whose bins (one
-    per joint) hold the fewest picks so far, ties broken at random. With a dense set
-    covering the bins this is a Latin-hypercube pick among reachable configurations.
+    bins. Points are picked one at a time: the candidate that lands in the most joint
+    bins still empty, then in the least crowded ones, ties broken at random. Swap
+    passes then exchange a picked point for an unpicked one whenever that fills more
+    empty bins than it empties. With a dense set covering the bins this is a
+    Latin-hypercube pick among reachable configurations.
 
     Returns
     -------
@@ -275,13 +277,30 @@ def stratified_subset(q_dense: np.ndarray, n: int, rng: np.random.Generator,
     chosen = np.empty(n, dtype=int)
     cols = np.arange(n_joints)
     for k in range(n):
-        load = counts[cols, bins].sum(axis=1)  # (N,) picks already in this point's bins
-        load[taken] = np.inf
-        best = np.flatnonzero(load == load.min())
+        load = counts[cols, bins]  # (N, n_joints) picks already in each of the point's bins
+        score = (load == 0).sum(axis=1) * (n + 1.0) * n_joints - load.sum(axis=1)
+        score[taken] = -np.inf
+        best = np.flatnonzero(score == score.max())
         pick = best[rng.integers(best.size)]
         chosen[k] = pick
         taken[pick] = True
         counts[cols, bins[pick]] += 1
+    for _ in range(swap_passes):
+        swapped = False
+        for k in rng.permutation(n):
+            out = chosen[k]
+            counts[cols, bins[out]] -= 1
+            loss = int((counts[cols, bins[out]] == 0).sum())  # bins that empty without it
+            gain = (counts[cols, bins] == 0).sum(axis=1)
+            gain[taken] = -1
+            cand = int(np.argmax(gain))
+            if gain[cand] > loss:
+                taken[out], taken[cand] = False, True
+                chosen[k] = cand
+                swapped = True
+            counts[cols, bins[chosen[k]]] += 1
+        if not swapped:
+            break
     return chosen
 
 
