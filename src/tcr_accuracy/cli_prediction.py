@@ -193,13 +193,19 @@ def _run_predict(args) -> int:
         "predicted_error_mean_mm": float(norm.mean() * 1e3), "predicted_error_max_mm": float(norm.max() * 1e3),
         "predicted_errors_mm": (pred * 1e3).tolist(),
     }
+    return _report(args, robot, q_train, payload,
+                   f"predicted |error| at {q.shape[0]} query poses: mean {norm.mean() * 1e3:.4f} mm, "
+                   f"max {norm.max() * 1e3:.4f} mm")
+
+
+def _report(args, robot, q_train, payload: dict, line: str) -> int:
+    """JSON to a file or stdout (then nothing else on stdout), and the human summary."""
     if args.json is not None:
         emit_json(payload, args.json)
         if args.json == "-":
             return EXIT_OK
     print(f"{robot.name}: {args.method} fitted to {q_train.shape[0]} measured poses ({args.train})")
-    print(f"  predicted |error| at {q.shape[0]} query poses: mean {norm.mean() * 1e3:.4f} mm, "
-          f"max {norm.max() * 1e3:.4f} mm" + (f"; written to {args.out}" if args.out else ""))
+    print(f"  {line}" + (f"; written to {args.out}" if args.out else ""))
     return EXIT_OK
 
 
@@ -234,12 +240,7 @@ def _run_compensate(args) -> int:
         "predicted_miss_max_mm": float(result.predicted_miss.max() * 1e3),
         "joint_units": units, "compensated_joints": (result.q * scale).tolist(),
     }
-    if args.json is not None:
-        emit_json(payload, args.json)
-        if args.json == "-":
-            return EXIT_OK
-    print(f"{robot.name}: {args.method} fitted to {q_train.shape[0]} measured poses ({args.train})")
-    print(f"  {q.shape[0]} targets compensated in at most {result.iterations.max()} cycles; largest joint "
-          f"correction {np.abs(dq).max():.4g} ({', '.join(sorted(set(units)))}); predicted miss below "
-          f"{result.predicted_miss.max() * 1e3:.2g} mm" + (f"; written to {args.out}" if args.out else ""))
-    return EXIT_OK
+    return _report(args, robot, q_train, payload,
+                   f"{q.shape[0]} targets compensated in at most {result.iterations.max()} cycles; largest joint "
+                   f"correction {np.abs(dq).max():.4g} ({', '.join(sorted(set(units)))}); predicted miss below "
+                   f"{result.predicted_miss.max() * 1e3:.2g} mm")

@@ -39,6 +39,7 @@ from sklearn.neural_network import MLPRegressor
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 from sklearn.utils.validation import check_is_fitted, validate_data
+from threadpoolctl import threadpool_limits
 
 from .errors import ErrorModel
 from .exceptions import InputError
@@ -51,6 +52,9 @@ SEED_INITIAL_WEIGHTS = np.array([
     [1.5, 2.0, 0.5, 0.5, 0.5, 1.5],
     [1.5, 0.5, 2.0, 1.0, 1.5, 0.5],
 ])
+
+
+_CHUNK = 1024  # query rows per block in JointKriging.predict (keeps the block in cache)
 
 
 def _check_enough_points(n_samples: int, n_features: int, who: str) -> None:
@@ -150,7 +154,10 @@ class JointKriging(MultiOutputMixin, RegressorMixin, BaseEstimator):
             w = start[k]
             hist = None
             if self.weight_search == "particle_filter":
-                w, hist = self._particle_filter(sq, Ys[:, k], w, vg.range_, rng)
+                # thousands of small (n x n) factorisations: BLAS threads only add overhead
+                # (as scikit-learn's KMeans does, limit them for the loop)
+                with threadpool_limits(limits=1, user_api="blas"):
+                    w, hist = self._particle_filter(sq, Ys[:, k], w, vg.range_, rng)
             weights.append(w)
             history.append(hist)
             kmat = self._cov(sq, w, vg.range_) + self.regularization * np.eye(n)
@@ -252,18 +259,25 @@ class JointKriging(MultiOutputMixin, RegressorMixin, BaseEstimator):
         check_is_fitted(self, "alpha_")
         X = validate_data(self, X, reset=False)
         Xs = (X - self.x_mean_) / np.where(self.x_std_ > 0, self.x_std_, 1.0)
-        out = np.empty((X.shape[0], self.alpha_.shape[0]))
+        m, n = X.shape[0], self.X_train_std_.shape[0]
+        out = np.empty((m, self.alpha_.shape[0]))
+        buffer = np.empty((min(m, _CHUNK), n))
         for k in range(self.alpha_.shape[0]):
             # scale so that exp(arg) is the covariance: arg = -3 |w (x - x')|^2 / r^2, written as
-            # 2 a.b - |a|^2 - |b|^2 so the (m, n) work is one BLAS product and in-place passes
+            # 2 a.b - |a|^2 - |b|^2 so that the (m, n) work is one BLAS product and in-place
+            # passes over cache-sized chunks
             scale = self.weights_[k] * np.sqrt(3.0) / self.range_[k]
             a, b = Xs * scale, self.X_train_std_ * scale
-            arg = a @ (2.0 * b.T)
-            arg -= (a**2).sum(1)[:, None]
-            arg -= (b**2).sum(1)[None, :]
-            np.minimum(arg, 0.0, out=arg)
-            np.exp(arg, out=arg)
-            out[:, k] = arg @ self.alpha_[k]
+            a_sq, b_sq, b2 = (a**2).sum(1), (b**2).sum(1), 2.0 * b.T
+            for start in range(0, m, _CHUNK):
+                stop = min(start + _CHUNK, m)
+                arg = buffer[: stop - start]
+                np.matmul(a[start:stop], b2, out=arg)
+                arg -= a_sq[start:stop, None]
+                arg -= b_sq
+                np.minimum(arg, 0.0, out=arg)
+                np.exp(arg, out=arg)
+                out[start:stop, k] = arg @ self.alpha_[k]
         out = self.y_mean_ + out * np.where(self.y_std_ > 0, self.y_std_, 0.0)
         return out[:, 0] if self._y_1d else out
 
