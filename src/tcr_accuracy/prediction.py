@@ -46,14 +46,6 @@ from .exceptions import InputError
 from .kinematics import error_jacobian, tcp_poses
 from .semivariogram import empirical_semivariogram, fit_gaussian_variogram, standardize
 
-#: the second seed's starting weights for a six-joint arm, per error axis (its Section 3.2)
-SEED_INITIAL_WEIGHTS = np.array([
-    [0.5, 0.5, 1.5, 0.5, 2.0, 0.5],
-    [1.5, 2.0, 0.5, 0.5, 0.5, 1.5],
-    [1.5, 0.5, 2.0, 1.0, 1.5, 0.5],
-])
-
-
 _CHUNK = 1024  # query rows per block in JointKriging.predict (keeps the block in cache)
 
 
@@ -112,8 +104,8 @@ class JointKriging(MultiOutputMixin, RegressorMixin, BaseEstimator):
     """
 
     def __init__(self, *, weights=None, regularization=1e-4, n_bins=20, weight_search=None,
-                 n_particles=30, max_iter=20, sigma_init=0.3, random_fraction=0.2, tol=0.0,
-                 patience=5, random_state=None):
+                 n_particles=60, max_iter=40, sigma_init=0.3, random_fraction=0.2, tol=0.0,
+                 patience=10, random_state=None):
         self.weights = weights
         self.regularization = regularization
         self.n_bins = n_bins
