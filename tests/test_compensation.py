@@ -9,7 +9,7 @@ from tcr_accuracy.cli import main
 from tcr_accuracy.compensation import compensate_joints
 from tcr_accuracy.kinematics import tcp_poses
 from tcr_accuracy.prediction import JointKriging
-from tcr_accuracy.realrobot import make_stand_in_robot
+from tcr_accuracy.realrobot import gravity_torques, make_stand_in_robot, model_with_payload
 from tcr_accuracy.sampling import TaskWorkspace, sample_task_workspace
 
 UR5_REF = np.array([0.3, -1.2, 1.5, -1.9, -1.57, 0.4])
@@ -32,6 +32,21 @@ class Constant:
 
     def predict(self, q):
         return np.tile(self.error, (len(q), 1))
+
+
+def test_payload_torque_is_the_jacobian_transpose_of_its_weight(tool_changer):
+    """Static torques of a point mass at the TCP: tau = J^T (0, 0, m g), by Pinocchio's Jacobian."""
+    import pinocchio as pin
+
+    q = TC_REF + np.array([0.2, -0.1, 0.3, 0.1, -0.4, 0.5])
+    extra = (gravity_torques(model_with_payload(tool_changer, 150.0), tool_changer, q)
+             - gravity_torques(model_with_payload(tool_changer, 0.0), tool_changer, q))[0]
+    model, data = tool_changer.model, tool_changer.model.createData()
+    pin.computeJointJacobians(model, data, tool_changer.to_pinocchio_q(q))
+    pin.updateFramePlacements(model, data)
+    jac = pin.getFrameJacobian(model, data, tool_changer.tool_frame_id, pin.LOCAL_WORLD_ALIGNED)[:3]
+    np.testing.assert_allclose(extra, jac.T @ np.array([0.0, 0.0, 150.0 * 9.81]), rtol=1e-9, atol=1e-6)
+    assert np.abs(extra).max() > 1000.0  # N m: the cutter loads the shoulder
 
 
 @pytest.mark.parametrize("robot_name", ["ur5", "tool_changer"])

@@ -196,3 +196,17 @@ def test_pcc_is_numpy_corrcoef_of_the_pair_distances(ur5):
 
 def test_cli_method_list_matches_the_estimators():
     assert cli_prediction.METHODS == METHODS
+
+
+def test_semivariogram_and_similarity_plots_are_written_whole(ur5, tmp_path):
+    from tcr_accuracy.plots_prediction import plot_semivariograms, plot_similarity
+
+    rng = np.random.default_rng(6)
+    q = UR5_REF + rng.uniform(-0.1, 0.1, (40, 6))
+    p = tcp_poses(ur5, q).position
+    e = 1e-3 * np.sin(3 * q[:, :3])
+    figure = plot_semivariograms(q, e, tmp_path / "sv.png", joint_names=ur5.joint_names)
+    scatter = plot_similarity({"a": (pair_distances(q, p, e), spatial_similarity(q, p, e))}, tmp_path / "s.png")
+    for path in (figure, scatter):
+        assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["s.png", "sv.png"]  # no temporary files left

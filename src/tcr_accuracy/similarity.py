@@ -77,4 +77,4 @@ def spatial_similarity(q: np.ndarray, positions: np.ndarray, errors: np.ndarray,
     joint = pearsonr(d.error, d.joint)
     cart = pearsonr(d.error, d.cartesian)
     return SimilarityResult(float(joint.statistic), float(joint.pvalue), float(cart.statistic),
-                            float(cart.pvalue), q.shape[0] if hasattr(q, "shape") else len(q), d.error.size)
+                            float(cart.pvalue), int(np.shape(q)[0]), d.error.size)
