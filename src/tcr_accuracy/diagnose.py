@@ -171,6 +171,7 @@ class Diagnosis:
     notes: list
     semivariograms: list = field(default_factory=list)
     eliminated: list = field(default_factory=list)
+    n_fits: int = 0
     effect_parameters: dict = field(default_factory=dict)  # effect -> full (k,) vector [SI]
     registration: tuple = (np.eye(3), np.zeros(3))  # (R, t): tracker = R robot + t
 
@@ -211,6 +212,7 @@ class Diagnosis:
             "parameter_units": self.parameter_units,
             "tracker_transform": self.tracker_transform.tolist(),
             "notes": list(self.notes),
+            "n_fits": self.n_fits,
         }
 
 
@@ -293,6 +295,7 @@ class _Engine:
         self.folds = folds  # list of (train, test)
         self._full_cache: dict = {}
         self._last: dict = {}
+        self.n_fits = 0
 
     def columns(self, effects):
         basis = np.concatenate([self.bases[e].basis[:, :, self.keep[e]] for e in effects], axis=2)
@@ -306,6 +309,7 @@ class _Engine:
 
     def fit(self, basis, g, scale, rows, start=None):
         """Scaled parameters phi (theta = phi * scale) minimising the position residual on rows."""
+        self.n_fits += 1
         b, gr, target, q = basis[rows], g[rows] * scale, self.target[rows], self.q[rows]
         jac = gr.reshape(-1, gr.shape[2])
         bs = b * scale
@@ -882,6 +886,7 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, s
         heldout_residual=final["heldout_residual"], gap_residual=gap_residual, q=obs.q,
         nominal_position=nominal, gravity_torque=tau, notes=notes, semivariograms=semis,
         effect_parameters=full_parameters, registration=(rot, trans), eliminated=eliminated,
+        n_fits=engine.n_fits,
     )
 
 
