@@ -193,7 +193,7 @@ def _topic_commands():
 
 
 #: Modules holding further subcommands, one per topic; each defines add_parsers(sub).
-TOPIC_MODULES: list[str] = ["cli_prediction"]
+TOPIC_MODULES: list[str] = ["cli_simulate", "cli_diagnose", "cli_prediction"]
 
 COMMANDS = [_pose_parser, _demo_parser]
 

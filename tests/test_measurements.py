@@ -1,0 +1,191 @@
+"""Measurement CSV: round trips, and every bad file stopped with file, row and column named."""
+
+import math
+
+import numpy as np
+import pytest
+
+from tcr_accuracy.exceptions import InputError
+from tcr_accuracy.kinematics import tcp_poses
+from tcr_accuracy.measurements import (
+    MeasurementContext,
+    MeasurementSet,
+    MeasurementWarning,
+    allowed_columns,
+    read_measurements,
+    write_measurements,
+)
+
+from conftest import random_joint_values
+
+
+def _mset(robot, n=12, seed=0, **extra):
+    rng = np.random.default_rng(seed)
+    q = random_joint_values(robot, n, rng)
+    position = tcp_poses(robot, q).position + [1.2, -0.4, 0.3]  # a tracker frame off the base
+    return MeasurementSet(robot.joint_names, q, position, **extra)
+
+
+def _write_rows(path, header, rows):
+    path.write_text(",".join(header) + "\n" + "".join(",".join(map(str, r)) + "\n" for r in rows))
+    return path
+
+
+def _good_rows(robot, n=6, seed=1):
+    """Header and rows (deg, mm) of a valid file for the tool-changer."""
+    rng = np.random.default_rng(seed)
+    q = random_joint_values(robot, n, rng)
+    p = tcp_poses(robot, q).position * 1e3
+    header = [f"{j}_{u}" for j, u in zip(robot.joint_names, robot.display_units)] + ["x_mm", "y_mm", "z_mm"]
+    rows = [list(q[i] * robot.display_scale) + list(p[i]) for i in range(n)]
+    return header, rows
+
+
+@pytest.mark.parametrize("unit", ["mm", "m"])
+def test_round_trip_keeps_every_column(tool_changer, tmp_path, unit):
+    rng = np.random.default_rng(3)
+    n = 12
+    quat = rng.normal(size=(n, 4))
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    direction = rng.choice([-1.0, 1.0], size=(n, 6))
+    direction[:, 0] = 0.0  # no j1_dir column
+    original = _mset(tool_changer, n, quaternion=quat, payload_kg=rng.choice([0.0, 150.0], n),
+                     temperature_c=rng.uniform(10, 30, n), direction=direction)
+    path = tmp_path / "m.csv"
+    write_measurements(path, tool_changer, original, unit=unit)
+    header = path.read_text().splitlines()[0].split(",")
+    assert "j1_dir" not in header and "j2_dir" in header
+    assert ("x_mm" in header) == (unit == "mm") and ("j4_mm" in header) == (unit == "mm")
+    back = read_measurements(path, tool_changer)
+    np.testing.assert_allclose(back.q, original.q, atol=1e-10)
+    np.testing.assert_allclose(back.position, original.position, atol=1e-9)
+    np.testing.assert_allclose(back.quaternion, original.quaternion, atol=1e-11)
+    np.testing.assert_allclose(back.payload_kg, original.payload_kg)
+    np.testing.assert_allclose(back.temperature_c, original.temperature_c, atol=1e-9)
+    np.testing.assert_array_equal(back.direction, direction)
+    np.testing.assert_array_equal(back.rows, np.arange(2, 2 + n))  # header is row 1
+
+
+def test_context_defaults_when_columns_are_absent(tool_changer, tmp_path):
+    path = tmp_path / "m.csv"
+    write_measurements(path, tool_changer, _mset(tool_changer, 5))
+    ctx = read_measurements(path, tool_changer).context()
+    np.testing.assert_array_equal(ctx.payload_kg, np.zeros(5))
+    np.testing.assert_array_equal(ctx.temperature_c, np.full(5, 20.0))
+    np.testing.assert_array_equal(ctx.direction, np.zeros((5, 6)))
+    sub = ctx.subset([0, 3])
+    assert isinstance(sub, MeasurementContext) and len(sub) == 2
+
+
+def test_comments_are_skipped_and_rows_count_file_lines(tool_changer, tmp_path):
+    header, rows = _good_rows(tool_changer)
+    path = tmp_path / "m.csv"
+    path.write_text("# tracker session 3\n" + ",".join(header) + "\n"
+                    + "".join(",".join(map(str, r)) + "\n" for r in rows))
+    mset = read_measurements(path, tool_changer)
+    assert list(mset.rows) == list(range(3, 3 + len(rows)))
+
+
+def _error(path, robot, **kw):
+    with pytest.raises(InputError) as info:
+        read_measurements(path, robot, **kw)
+    return str(info.value)
+
+
+def test_non_numeric_and_non_finite_cells_name_file_row_column(tool_changer, tmp_path):
+    header, rows = _good_rows(tool_changer)
+    for bad, expected in (("abc", "'abc' is not a number"), ("nan", "non-finite"), ("inf", "non-finite"),
+                          ("", "empty cell")):
+        rows_bad = [list(r) for r in rows]
+        rows_bad[3][2] = bad
+        path = _write_rows(tmp_path / "bad.csv", header, rows_bad)
+        msg = _error(path, tool_changer)
+        assert str(path) in msg and "row 5" in msg and "column j3_deg" in msg and expected in msg
+
+
+def test_missing_and_unknown_columns(tool_changer, tmp_path):
+    header, rows = _good_rows(tool_changer)
+    path = _write_rows(tmp_path / "a.csv", header[:2] + header[3:], [r[:2] + r[3:] for r in rows])
+    msg = _error(path, tool_changer)
+    assert str(path) in msg and "row 1" in msg and "j3_deg or j3_rad" in msg
+    path = _write_rows(tmp_path / "b.csv", header + ["humidity"], [r + [40] for r in rows])
+    msg = _error(path, tool_changer)
+    assert "unknown column 'humidity'" in msg and "payload_kg" in msg and "j6_dir" in msg
+    path = _write_rows(tmp_path / "c.csv", header[:-1], [r[:-1] for r in rows])
+    assert "missing position column z_mm" in _error(path, tool_changer)
+    # a prismatic joint cannot be in degrees
+    path = _write_rows(tmp_path / "d.csv", [h.replace("j4_mm", "j4_deg") for h in header], rows)
+    assert "unknown column 'j4_deg'" in _error(path, tool_changer)
+    path = _write_rows(tmp_path / "e.csv", header + ["qw", "qx"], [r + [1, 0] for r in rows])
+    assert "missing qy, qz" in _error(path, tool_changer)
+
+
+def test_direction_must_be_plus_or_minus_one(tool_changer, tmp_path):
+    header, rows = _good_rows(tool_changer)
+    rows = [r + [1] for r in rows]
+    rows[2][-1] = 0.5
+    path = _write_rows(tmp_path / "d.csv", header + ["j2_dir"], rows)
+    msg = _error(path, tool_changer)
+    assert "row 4" in msg and "column j2_dir" in msg and "+1 or -1" in msg
+
+
+def test_exact_copies_are_errors_and_repeated_poses_warn(tool_changer, tmp_path):
+    header, rows = _good_rows(tool_changer)
+    copy = rows + [list(rows[1])]
+    msg = _error(_write_rows(tmp_path / "dup.csv", header, copy), tool_changer)
+    assert "row 8 repeats row 3" in msg
+    repeat = rows + [list(rows[1][:6]) + [rows[1][6] + 0.01, rows[1][7], rows[1][8]]]
+    with pytest.warns(MeasurementWarning, match="row 8 has the same joint values and context as row 3"):
+        read_measurements(_write_rows(tmp_path / "rep.csv", header, repeat), tool_changer)
+
+
+def test_too_few_rows(tool_changer, tmp_path):
+    header, rows = _good_rows(tool_changer, n=6)
+    msg = _error(_write_rows(tmp_path / "few.csv", header, rows), tool_changer, min_rows=40)
+    assert "6 measurement rows, at least 40" in msg
+
+
+def test_quaternion_must_be_unit(tool_changer, tmp_path):
+    header, rows = _good_rows(tool_changer)
+    rows = [r + [1, 0, 0, 0] for r in rows]
+    rows[4][-4] = 1.2
+    msg = _error(_write_rows(tmp_path / "q.csv", header + ["qw", "qx", "qy", "qz"], rows), tool_changer)
+    assert "row 6" in msg and "quaternion norm is 1.2" in msg
+
+
+def test_tracker_in_metres_labelled_mm_is_caught(tool_changer, tmp_path):
+    header, rows = _good_rows(tool_changer, n=20)
+    rows = [r[:6] + [v / 1000 for v in r[6:]] for r in rows]
+    msg = _error(_write_rows(tmp_path / "u.csv", header, rows), tool_changer)
+    assert "x_mm, y_mm, z_mm" in msg and "name the columns x_m, y_m, z_m" in msg
+
+
+def test_degrees_labelled_rad_are_caught(tool_changer, tmp_path):
+    header, rows = _good_rows(tool_changer, n=20)
+    header = [h.replace("_deg", "_rad") for h in header]
+    msg = _error(_write_rows(tmp_path / "r.csv", header, rows), tool_changer)
+    assert "rad is more than a full turn" in msg and "_deg" in msg and "row " in msg
+
+
+def test_values_outside_limits_warn_once_per_joint(tool_changer, tmp_path):
+    header, rows = _good_rows(tool_changer, n=20)
+    rows[5][1] = 80.0  # j2 limit is 75 deg
+    rows[9][1] = 85.0
+    rows = [r[:6] + list(tcp_poses(tool_changer, np.array(r[:6]) / tool_changer.display_scale).position[0] * 1e3)
+            for r in rows]
+    with pytest.warns(MeasurementWarning, match=r"row 7, column j2_deg: 2 value\(s\) outside"):
+        read_measurements(_write_rows(tmp_path / "l.csv", header, rows), tool_changer)
+
+
+def test_allowed_columns_for_example_robot(ur5):
+    cols = allowed_columns(ur5)
+    assert "shoulder_pan_joint_rad" in cols and "shoulder_pan_joint_deg" in cols
+    assert "shoulder_pan_joint_mm" not in cols and "shoulder_pan_joint_dir" in cols
+    assert math.isclose(len(cols), 6 * 2 + 6 + 4 + 2 + 6)
+
+
+def test_semicolon_files_get_a_hint(tool_changer, tmp_path):
+    header, rows = _good_rows(tool_changer)
+    path = tmp_path / "excel.csv"
+    path.write_text(";".join(header) + "\n" + ";".join(map(str, rows[0])) + "\n")
+    assert "separated by ';'" in _error(path, tool_changer)
