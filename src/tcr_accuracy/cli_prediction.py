@@ -1,10 +1,11 @@
 """Commands ``predict`` and ``compensate``: the remaining error from measurements, and
 joint commands that correct it (the second seed).
 
-Input: measurement CSVs with one row per pose, joint columns named after the URDF
-joints with a unit suffix (``<joint>_deg`` or ``_rad`` for revolute, ``_mm`` or ``_m``
-for prismatic joints) and, for training data, the measured TCP position
-``x_mm, y_mm, z_mm`` (or ``_m``). The error is measured minus nominal TCP position.
+Input: measurement CSVs in the shared format (:mod:`tcr_accuracy.measurements`): joint
+columns ``<joint>_deg|_rad|_mm|_m`` and, for training data, the measured TCP position
+``x_mm, y_mm, z_mm`` (or ``_m``). The error is measured minus nominal TCP position, so
+positions in a tracker frame other than the base frame make the frame offset part of
+the predicted error. Output joint values are in degrees and millimetres.
 """
 
 from __future__ import annotations
@@ -17,9 +18,6 @@ from .cli import EXIT_OK, add_robot_arguments, emit_json
 #: (a test checks that the two lists agree)
 METHODS = ("kriging", "kriging-pf", "gp", "idw-joint", "idw-cartesian", "mlp-cartesian", "calibration",
            "calibration+gp")
-
-JOINT_UNITS = {"revolute": {"deg": 0.017453292519943295, "rad": 1.0}, "prismatic": {"mm": 1e-3, "m": 1.0}}
-
 
 def add_parsers(sub) -> None:
     p = sub.add_parser(
@@ -43,7 +41,7 @@ def add_parsers(sub) -> None:
     c.add_argument("--threshold-mm", type=float, default=0.001,
                    help="stop when the predicted miss is below this [mm] (default 0.001)")
     c.add_argument("--max-iter", type=int, default=20, help="most compensation cycles (default 20)")
-    c.add_argument("--out", metavar="CSV", help="write compensated joint values (same units as --targets)")
+    c.add_argument("--out", metavar="CSV", help="write compensated joint values [deg, mm]")
     c.set_defaults(run=_run_compensate)
 
 
@@ -57,68 +55,13 @@ def _common(p: argparse.ArgumentParser, methods) -> None:
                    help="write a JSON summary to FILE, or to stdout without FILE")
 
 
-# ---------------------------------------------------------------------------------------
-# Minimal measurement CSV reader (to be replaced by measurements.read_measurements)
-# ---------------------------------------------------------------------------------------
 def read_joint_csv(path: str, robot, *, need_positions: bool):
-    """Read joint values (N, n) [SI], positions (N, 3) [m] or None, and the joint units.
+    """Joint values (N, n) [SI] and measured positions (N, 3) [m] (None for a pose list),
+    read and validated by :func:`tcr_accuracy.measurements.read_measurements`."""
+    from .measurements import read_measurements
 
-    Raises InputError naming the file, row and column of the first problem.
-    """
-    import csv
-    import math
-
-    import numpy as np
-
-    from .exceptions import InputError
-
-    try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            rows = list(csv.reader(fh))
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
-    if not rows:
-        raise InputError(f"{path}: empty file, expected a header row")
-    header = [h.strip() for h in rows[0]]
-    columns, scales, units = [], [], []
-    for name, kind in zip(robot.joint_names, robot.joint_kinds):
-        found = [(f"{name}_{u}", s, u) for u, s in JOINT_UNITS[kind].items() if f"{name}_{u}" in header]
-        if len(found) != 1:
-            wanted = " or ".join(f"{name}_{u}" for u in JOINT_UNITS[kind])
-            what = "no column" if not found else "more than one column"
-            raise InputError(f"{path}: {what} for joint {name}: expected {wanted} (header: {', '.join(header)})")
-        columns.append(header.index(found[0][0]))
-        scales.append(found[0][1])
-        units.append(found[0][2])
-    pos_cols, pos_scale = None, None
-    for suffix, scale in (("mm", 1e-3), ("m", 1.0)):
-        names = [f"{a}_{suffix}" for a in "xyz"]
-        if all(n in header for n in names):
-            pos_cols, pos_scale = [header.index(n) for n in names], scale
-            break
-    if need_positions and pos_cols is None:
-        raise InputError(f"{path}: needs measured TCP positions in columns x_mm, y_mm, z_mm (or x_m, y_m, z_m)")
-    data = rows[1:]
-    if not data:
-        raise InputError(f"{path}: no data rows")
-    q = np.empty((len(data), len(columns)))
-    pos = np.empty((len(data), 3)) if pos_cols is not None else None
-    for r, row in enumerate(data):
-        line = r + 2
-        for target, cols, scale in ((q, columns, scales), (pos, pos_cols, None)):
-            if target is None:
-                continue
-            for c, col in enumerate(cols):
-                if col >= len(row) or row[col].strip() == "":
-                    raise InputError(f"{path}: row {line}, column {header[col]}: missing value")
-                try:
-                    value = float(row[col])
-                except ValueError:
-                    raise InputError(f"{path}: row {line}, column {header[col]}: not a number ({row[col]!r})") from None
-                if not math.isfinite(value):
-                    raise InputError(f"{path}: row {line}, column {header[col]}: non-finite value ({row[col]})")
-                target[r, c] = value * (scale[c] if scale is not None else pos_scale)
-    return q, pos, units
+    mset = read_measurements(path, robot, require_position=need_positions)
+    return mset.q, (mset.position if need_positions else None)
 
 
 def _write_csv_atomically(path: str, header: list[str], rows) -> None:
@@ -162,7 +105,7 @@ def _fit(args):
     from .robot import load_robot
 
     robot = load_robot(args.robot, args.tool)
-    q, pos, _ = read_joint_csv(args.train, robot, need_positions=True)
+    q, pos = read_joint_csv(args.train, robot, need_positions=True)
     _check_training(args.train, q, robot.n_joints)
     errors = pos - tcp_poses(robot, q).position
     estimator = make_predictor(args.method, robot, random_state=args.seed)
@@ -179,13 +122,13 @@ def _run_predict(args) -> int:
     from .exceptions import AnalysisError
 
     robot, q_train, _, estimator = _fit(args)
-    q, _, units = read_joint_csv(args.query, robot, need_positions=False)
+    q, _ = read_joint_csv(args.query, robot, need_positions=False)
+    units, scale = robot.display_units, robot.display_scale
     pred = np.asarray(estimator.predict(q)).reshape(-1, 3)
     if not np.all(np.isfinite(pred)):
         raise AnalysisError(f"method {args.method} predicted non-finite errors")
     norm = np.linalg.norm(pred, axis=1)
     if args.out:
-        scale = [1.0 / JOINT_UNITS[k][u] for k, u in zip(robot.joint_kinds, units)]
         header = [f"{n}_{u}" for n, u in zip(robot.joint_names, units)] + ["ex_mm", "ey_mm", "ez_mm", "e_norm_mm"]
         _write_csv_atomically(args.out, header, np.hstack([q * scale, pred * 1e3, norm[:, None] * 1e3]))
     payload = {
@@ -220,7 +163,8 @@ def _run_compensate(args) -> int:
     if args.max_iter < 1:
         raise InputError(f"--max-iter {args.max_iter}: must be >= 1")
     robot, q_train, _, estimator = _fit(args)
-    q, _, units = read_joint_csv(args.targets, robot, need_positions=False)
+    q, _ = read_joint_csv(args.targets, robot, need_positions=False)
+    units, scale = robot.display_units, robot.display_scale
     result = compensate_joints(robot, estimator, q, threshold=args.threshold_mm * 1e-3, max_iter=args.max_iter)
     failed = np.flatnonzero(~result.converged)
     if failed.size:
@@ -228,7 +172,6 @@ def _run_compensate(args) -> int:
         raise InputError(f"{args.targets}: {failed.size} target(s) not reachable within the joint limits or "
                          f"{args.max_iter} cycles (rows {rows}; predicted miss up to "
                          f"{result.predicted_miss[failed].max() * 1e3:.4g} mm)")
-    scale = np.array([1.0 / JOINT_UNITS[k][u] for k, u in zip(robot.joint_kinds, units)])
     dq = (result.q - q) * scale
     if args.out:
         header = ([f"{n}_{u}" for n, u in zip(robot.joint_names, units)]
