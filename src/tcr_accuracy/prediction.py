@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, qr
-from scipy.linalg.lapack import dpotrf, dpotri
+from scipy.linalg.lapack import dpotrf, dtrtri
 from scipy.optimize import least_squares
 from sklearn.base import BaseEstimator, MultiOutputMixin, RegressorMixin, TransformerMixin, clone
 from sklearn.compose import TransformedTargetRegressor
@@ -196,17 +196,17 @@ class JointKriging(MultiOutputMixin, RegressorMixin, BaseEstimator):
     def _loo_rmse(self, sq, e, w, range_) -> float:
         n = e.size
         kmat = self._cov(sq, w, range_) + max(self.regularization, 1e-10) * np.eye(n)
-        # K^-1 from its Cholesky factor (LAPACK potrf + potri: a third of a general inverse)
-        chol, info = dpotrf(kmat, lower=True)
+        chol, info = dpotrf(kmat, lower=True, overwrite_a=True)  # K = L L^T (LAPACK)
         if info != 0:
             return np.inf
-        kinv, info = dpotri(chol, lower=True)
+        linv, info = dtrtri(chol, lower=True)
         if info != 0:
             return np.inf
-        kinv = np.tril(kinv) + np.tril(kinv, -1).T
+        # K^-1 = L^-T L^-1: its diagonal is the column sums of squares of L^-1
+        kinv_diag = np.einsum("ij,ij->j", linv, linv)
+        alpha = linv.T @ (linv @ e)
         # leave-one-out residuals of a linear smoother in closed form: (K^-1 e)_i / (K^-1)_ii
-        loo = (kinv @ e) / np.diag(kinv)
-        value = float(np.sqrt(np.mean(loo**2)))
+        value = float(np.sqrt(np.mean((alpha / kinv_diag) ** 2)))
         return value if np.isfinite(value) else np.inf
 
     def _particle_filter(self, sq, e, w_init, range_, rng):
