@@ -227,6 +227,8 @@ TOPIC_MODULES: list[str] = [
     "cli_sensitivity",
     "cli_simulate",
     "cli_view",
+    "cli_diagnose",
+    "cli_prediction",
 ]
 
 COMMANDS = [_pose_parser, _demo_parser]

@@ -1,0 +1,147 @@
+"""Blind benchmark of ``diagnose``: hidden effects drawn at random, judged against the truth.
+
+For each scenario (seeded): a robot (the tool-changer or an example-robot-data arm),
+a random scenario with realistic magnitudes (``simulate.random_scenario``: frames and
+geometry always, one or two dominant effects from the vocabulary, sometimes an effect
+outside the vocabulary, sometimes joint clearance), train and test measurements from
+one simulation (so both see the same robot), the train rows written to a CSV and read
+back, ``diagnose`` run on that file alone, and only then the comparison with the truth:
+
+* named right: ``primary_effect`` is the scenario's dominant effect;
+* held-out RMS after diagnosis over the noise floor, on the k-fold held-out train rows
+  and on the separate test rows (predicted by the fitted model);
+* for scenarios hiding an effect outside the vocabulary: ``structure_remains``.
+
+Usage::
+
+    PYTHONPATH=src python scripts/blind_benchmark.py --scenarios 40 --json blind.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from tcr_accuracy.asbuilt import write_text_atomically
+from tcr_accuracy.diagnose import diagnose
+from tcr_accuracy.measurements import read_measurements, write_measurements
+from tcr_accuracy.robot import load_robot
+from tcr_accuracy.simulate import random_scenario, simulate_measurements
+
+
+def run_scenario(robot, index: int, rng: np.random.Generator, *, n_train: int, n_test: int, folds: int,
+                 outside: str | None, clearance: bool, workdir: Path) -> dict:
+    scenario = random_scenario(robot, rng, outside=outside, clearance=clearance)
+    mset, truth = simulate_measurements(robot, scenario, n_train + n_test, rng)
+    train, test = mset.subset(np.arange(n_train)), mset.subset(np.arange(n_train, n_train + n_test))
+    path = workdir / f"scenario_{index:03d}.csv"
+    write_measurements(path, robot, train)
+    measured = read_measurements(path, robot)  # the diagnosis sees this file only
+    start = time.perf_counter()
+    result = diagnose(robot, measured, folds=folds, seed=index, tracker_noise=scenario["noise_m"])
+    seconds = time.perf_counter() - start
+    # --- only now look at the truth -------------------------------------------------
+    predicted = result.predict(robot, test.q, test.context())
+    test_rms = float(np.sqrt(np.mean(np.sum((predicted - test.position) ** 2, axis=1))))
+    floor = result.noise_floor
+    dominant = scenario["dominant"][0]
+    in_vocab = not scenario["outside_vocabulary"]
+    return {
+        "index": index,
+        "robot": robot.name,
+        "hidden": sorted(truth["effects"]),
+        "dominant": dominant,
+        "dominant_all": scenario["dominant"],
+        "outside_vocabulary": scenario["outside_vocabulary"],
+        "clearance": clearance,
+        "primary_effect": result.primary_effect,
+        "selected_effects": result.selected_effects,
+        "named_right": result.primary_effect == dominant,
+        "gap_rms_mm": result.gap.rms * 1e3,
+        "heldout_rms_mm": result.steps[-1].heldout.rms * 1e3,
+        "test_rms_mm": test_rms * 1e3,
+        "noise_floor_mm": floor * 1e3,
+        "heldout_over_noise": result.steps[-1].heldout.rms / floor,
+        "test_over_noise": test_rms / floor,
+        "structure_remains": result.structure_remains,
+        "structure_p_value": result.structure["p_value"],
+        "structure_gain": result.structure["gain_over_null"],
+        "extra_scatter": result.scatter["detected"],
+        "in_vocabulary": in_vocab,
+        "seconds": seconds,
+        "notes": scenario.get("notes", {}),
+    }
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--scenarios", type=int, default=40)
+    parser.add_argument("--robots", default="tool_changer,ur5", help="comma-separated robot names")
+    parser.add_argument("--n-train", type=int, default=400)
+    parser.add_argument("--n-test", type=int, default=200)
+    parser.add_argument("--folds", type=int, default=5)
+    parser.add_argument("--outside-every", type=int, default=5,
+                        help="every k-th scenario also hides an effect outside the vocabulary (0: never)")
+    parser.add_argument("--clearance-every", type=int, default=0,
+                        help="every k-th scenario also hides joint clearance (0: never)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", default=None, metavar="FILE")
+    args = parser.parse_args(argv)
+    robots = [load_robot(None if name == "tool_changer" else name) for name in args.robots.split(",")]
+    rng = np.random.default_rng(args.seed)
+    rows = []
+    outsides = ("unmodelled", "link_bending")
+    print(f"{'#':>3s} {'robot':12s} {'dominant':14s} {'primary':14s} {'ok':3s} {'gap':>7s} {'held':>7s} "
+          f"{'test':>7s} {'/noise':>6s} {'struct':6s} {'outside':12s} {'s':>5s}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(args.scenarios):
+            robot = robots[i % len(robots)]
+            outside = (outsides[(i // args.outside_every) % 2]
+                       if args.outside_every and i % args.outside_every == args.outside_every - 1 else None)
+            clearance = bool(args.clearance_every and i % args.clearance_every == args.clearance_every - 1)
+            row = run_scenario(robot, i, np.random.default_rng(rng.integers(2**63)), n_train=args.n_train,
+                               n_test=args.n_test, folds=args.folds, outside=outside, clearance=clearance,
+                               workdir=Path(tmp))
+            rows.append(row)
+            print(f"{i:3d} {row['robot']:12s} {row['dominant']:14s} {str(row['primary_effect']):14s} "
+                  f"{'yes' if row['named_right'] else 'NO':3s} {row['gap_rms_mm']:7.3f} {row['heldout_rms_mm']:7.4f} "
+                  f"{row['test_rms_mm']:7.4f} {row['test_over_noise']:6.2f} "
+                  f"{'yes' if row['structure_remains'] else 'no':6s} {','.join(row['outside_vocabulary']) or '-':12s} "
+                  f"{row['seconds']:5.1f}", flush=True)
+    summary = summarise(rows)
+    print()
+    for key, value in summary.items():
+        print(f"{key}: {value}")
+    if args.json:
+        write_text_atomically(Path(args.json), json.dumps({**summary, "scenarios": rows}, indent=2) + "\n")
+    return 0
+
+
+def summarise(rows: list) -> dict:
+    inside = [r for r in rows if r["in_vocabulary"] and not r["clearance"]]
+    outside = [r for r in rows if not r["in_vocabulary"]]
+    return {
+        "n_scenarios": len(rows),
+        "share_named_right": float(np.mean([r["named_right"] for r in rows])) if rows else math.nan,
+        "share_named_right_in_vocabulary": float(np.mean([r["named_right"] for r in inside])) if inside else None,
+        "median_rms_over_noise": float(np.median([r["test_over_noise"] for r in inside])) if inside else None,
+        "median_heldout_over_noise": float(np.median([r["heldout_over_noise"] for r in inside])) if inside else None,
+        "share_within_1_5_noise": float(np.mean([r["test_over_noise"] <= 1.5 for r in inside])) if inside else None,
+        "n_outside_vocabulary": len(outside),
+        "share_outside_structure_remains": (float(np.mean([r["structure_remains"] for r in outside]))
+                                            if outside else None),
+        "share_inside_structure_remains": (float(np.mean([r["structure_remains"] for r in inside]))
+                                           if inside else None),
+        "median_seconds": float(np.median([r["seconds"] for r in rows])) if rows else None,
+    }
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,267 @@
+"""``tcr-accuracy diagnose``: the sim-to-real gap of a robot from tracker measurements.
+
+Edge layer: reads the CSV, runs :func:`tcr_accuracy.diagnose.diagnose`, prints the
+summary (mm, labelled), writes JSON, the Markdown/HTML report with plots, and the
+as-built URDF with the non-geometric effects' parameters in YAML next to it.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+from .cli import EXIT_OK, add_robot_arguments, emit_json
+
+
+def add_parsers(sub) -> None:
+    p = sub.add_parser(
+        "diagnose", help="where the sim-to-real gap lies, which effect causes it, how far it shrinks",
+        description="Fit the tracker frame, break the remaining TCP error down over the workspace, "
+                    "rank the effects of the vocabulary by k-fold held-out error (forward selection "
+                    "with a paired significance test, then backward elimination), check "
+                    "identifiability, and say whether structure remains. Units: mm and deg in what "
+                    "is printed, SI in the YAML.",
+    )
+    p.add_argument("measurements", metavar="MEASUREMENTS.csv", help="measurement CSV (see README)")
+    add_robot_arguments(p)
+    p.add_argument("--effects", default=None, metavar="LIST",
+                   help="comma-separated effects to consider (default: the whole vocabulary; frames is "
+                        "always in)")
+    p.add_argument("--folds", type=int, default=5, help="k of the k-fold cross-validation (default 5)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the fold split and permutation tests")
+    p.add_argument("--noise-mm", type=float, default=0.02,
+                   help="tracker noise, std per axis [mm] (default 0.02); noise floor = sqrt(3) x this")
+    p.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE",
+                   help="write the results as JSON to FILE (or stdout without FILE)")
+    p.add_argument("--report", default=None, metavar="DIR", help="write report.md, report.html and plots to DIR")
+    p.add_argument("--as-built-urdf", default=None, metavar="FILE",
+                   help="write the calibrated URDF to FILE and the other effects' parameters to "
+                        "FILE with suffix .effects.yaml")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, no printed summary")
+    p.set_defaults(run=_run_diagnose)
+
+
+def _run_diagnose(args) -> int:
+    import numpy as np
+
+    from .diagnose import VOCABULARY, diagnose
+    from .exceptions import InputError
+    from .measurements import read_measurements
+    from .robot import load_robot
+
+    if args.folds < 2:
+        raise InputError(f"--folds {args.folds}: need at least 2")
+    if not (args.noise_mm > 0 and math.isfinite(args.noise_mm)):
+        raise InputError(f"--noise-mm {args.noise_mm}: must be a positive number")
+    effects = None
+    if args.effects:
+        effects = [e.strip() for e in args.effects.split(",") if e.strip()]
+        unknown = [e for e in effects if e not in VOCABULARY]
+        if unknown:
+            raise InputError(f"--effects: unknown {', '.join(unknown)} (vocabulary: {', '.join(VOCABULARY)})")
+    robot = load_robot(args.robot, args.tool)
+    measurements = read_measurements(args.measurements, robot, min_rows=max(3 * args.folds, 12))
+    bar = None
+    if not args.quiet and sys.stderr.isatty():
+        from tqdm import tqdm
+
+        bar = tqdm(desc="diagnose", file=sys.stderr, bar_format="{desc}: {postfix} [{elapsed}]")
+    try:
+        result = diagnose(robot, measurements, effects=effects, folds=args.folds, seed=args.seed,
+                          tracker_noise=args.noise_mm * 1e-3,
+                          progress=(lambda m: bar.set_postfix_str(m)) if bar else None)
+    finally:
+        if bar is not None:
+            bar.close()
+    payload = jsonable({"measurements": str(args.measurements), **result.to_dict()})
+    if args.json is not None:
+        emit_json(payload, args.json)
+    if args.as_built_urdf:
+        write_as_built(robot, result, Path(args.as_built_urdf))
+    if args.report:
+        write_report(robot, result, Path(args.report), str(args.measurements))
+    if not args.quiet and args.json != "-":
+        print(format_summary(robot, result, str(args.measurements)))
+    del np
+    return EXIT_OK
+
+
+def jsonable(value):
+    """Plain JSON types; non-finite floats become None."""
+    import numpy as np
+
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
+# ---------------------------------------------------------------------------------------
+# Printed summary
+# ---------------------------------------------------------------------------------------
+def format_summary(robot, d, source: str) -> str:
+    mm = 1e3
+    out = [f"Diagnosis of {source}: {d.n_measurements} measurements of {robot.name}, "
+           f"{d.folds}-fold cross-validation"]
+    out.append(f"\n1. Gap after fitting the tracker frame and TCP offset (frames): "
+               f"mean {d.gap.mean * mm:.4f} mm, RMS {d.gap.rms * mm:.4f} mm, max {d.gap.max * mm:.4f} mm")
+    out.append("\n2. Where it lies (residual after frames)")
+    axes = d.where["per_axis"]
+    out.append("   per axis RMS [mm]: " + ", ".join(f"{a} {axes[a]['rms_mm']:.4f}" for a in "xyz"))
+    strongest = _strongest(d.where)
+    if strongest:
+        out.append("   strongest links: " + "; ".join(strongest))
+    out.append("   varies most along (per-joint semivariogram, lowest nugget ratio): "
+               + ", ".join(f"{j} ({min(d.where['semivariogram_nugget_ratio'][j]):.2f})"
+                           for j in d.where["varies_along"]))
+    out.append("\n3. Which effect: each effect added to frames alone (held-out RMS [mm], gain, paired z)")
+    for name, c in d.candidates.items():
+        if c.get("tried"):
+            out.append(f"   {name:14s} {c['heldout_rms_mm_with_frames']:9.4f} {c['gain_mm']:+9.4f} "
+                       f"z = {c['z']:6.1f}  ({c['n_parameters']} identifiable parameters)")
+        else:
+            out.append(f"   {name:14s} not tried: {c['why']}")
+    ident = d.identifiability
+    removed = [(e, r) for e, info in ident["effects"].items() for r in info["removed"]]
+    out.append(f"   identifiability: {ident.get('rank', 0)} parameters kept, condition number "
+               f"{ident.get('condition_number', float('nan')):.3g}; {len(removed)} removed, e.g.:")
+    for e, r in removed[:6]:
+        out.append(f"     {r['parameter']}: {r['reason']}")
+    out.append("\n4. How far it shrinks (k-fold held-out) [mm]")
+    out.append(f"   {'step':18s} {'params':>6s} {'train RMS':>10s} {'mean':>9s} {'RMS':>9s} {'max':>9s}")
+    for i, s in enumerate(d.steps):
+        label = s.effect if i == 0 else "+" + s.effect
+        out.append(f"   {label:18s} {s.n_parameters:6d} {s.train_rms * mm:10.4f} {s.heldout.mean * mm:9.4f} "
+                   f"{s.heldout.rms * mm:9.4f} {s.heldout.max * mm:9.4f}")
+    if d.leave_one_out:
+        out.append("   leave one out of the chosen set: " + "; ".join(
+            f"without {r['dropped']} {r['heldout_rms_mm']:.4f} (+{r['increase_mm']:.4f})" for r in d.leave_one_out))
+    for e in d.eliminated:
+        out.append(f"   dropped again in backward elimination: {e['effect']} (z = {e['z']:.1f})")
+    out.append(f"   primary effect: {d.primary_effect or 'none beyond frames'}")
+    final = d.steps[-1].heldout.rms
+    out.append(f"   final held-out RMS {final * mm:.4f} mm = {final / d.noise_floor:.2f} x the noise floor "
+               f"{d.noise_floor * mm:.4f} mm (tracker {d.tracker_noise * mm:.4f} mm per axis)")
+    st = d.structure
+    out.append(f"   structure remains: {'YES' if st['remains'] else 'no'} (k-NN share {st['gain_over_null']:+.3f} "
+               f"beyond chance, z = {st['z']:.1f}; ridge on joint features share {st['ridge_explained_share']:+.3f}, "
+               f"z = {st['ridge_z']:.1f}; limits: share > {st['min_explained']}, p < {st['alpha']})")
+    sc = d.scatter
+    out.append(f"   random scatter beyond the tracker: {'YES' if sc['detected'] else 'no'} "
+               f"(estimated {sc['estimated_noise_per_axis_mm']:.4f} mm per axis, ratio {sc['ratio']:.2f})")
+    if st["remains"]:
+        out.append("   -> something the vocabulary does not express is still in the data: the fit is not the "
+                   "whole story")
+    for note in d.notes:
+        out.append(f"   note: {note}")
+    return "\n".join(out)
+
+
+def _strongest(where: dict) -> list:
+    links = []
+    for group, label in (("joints", "joint"), ("gravity_torque", "gravity torque")):
+        for name, info in where.get(group, {}).items():
+            if "correlation_xyz" not in info:
+                continue
+            corr = info["correlation_xyz"]
+            c = int(max(range(3), key=lambda k: abs(corr[k])))
+            links.append((abs(corr[c]), f"{label} {name} vs {'xyz'[c]}: r = {corr[c]:+.2f}, "
+                                        f"binned spread {info['spread_mm']:.3f} mm"))
+    for key in ("payload_kg", "temperature_c"):
+        if key in where:
+            corr = where[key]["correlation_xyz"]
+            c = int(max(range(3), key=lambda k: abs(corr[k])))
+            links.append((abs(corr[c]), f"{key} vs {'xyz'[c]}: r = {corr[c]:+.2f}"))
+    for name, info in where.get("approach_direction", {}).items():
+        links.append((0.0, f"approach direction {name}: +/- differ by {info['difference_norm_mm']:.4f} mm"))
+    links.sort(key=lambda t: -t[0])
+    return [text for _, text in links[:4]]
+
+
+# ---------------------------------------------------------------------------------------
+# As-built model
+# ---------------------------------------------------------------------------------------
+def write_as_built(robot, d, path: Path) -> tuple[Path, Path]:
+    import yaml
+
+    from .asbuilt import as_built_urdf, write_text_atomically
+    from .diagnose import GEOMETRIC
+    from .errors import ErrorModel
+
+    text, tool_frame = as_built_urdf(robot, d.as_built_x, ErrorModel(robot), name=f"{robot.name}_as_built")
+    write_text_atomically(path, text)
+    side = path.with_name(path.stem + ".effects.yaml")
+    doc = {
+        "robot": robot.name,
+        "urdf": path.name,
+        "tool_frame": tool_frame,
+        "units": "SI (m, rad, rad/Nm, m/N, 1/K)",
+        "note": "geometric effects (frames' TCP offset, joint offsets, geometry) are built into the URDF; "
+                "the tracker frame is not part of the robot and is given separately",
+        "tracker_from_base": [[float(v) for v in row] for row in d.tracker_transform],
+        "selected_effects": list(d.selected_effects),
+        "effects": {e: {"parameters": {k: float(v) for k, v in p.items()},
+                        "units": dict(d.parameter_units.get(e, {}))}
+                    for e, p in d.parameters.items() if e not in GEOMETRIC},
+        "geometric_parameters_in_urdf": {e: {k: float(v) for k, v in p.items()}
+                                         for e, p in d.parameters.items() if e in GEOMETRIC},
+    }
+    write_text_atomically(side, yaml.safe_dump(doc, sort_keys=False))
+    return path, side
+
+
+# ---------------------------------------------------------------------------------------
+# Report
+# ---------------------------------------------------------------------------------------
+def write_report(robot, d, directory: Path, source: str) -> Path:
+    """report.md, report.html and the PNGs, built in a temporary folder and renamed into place."""
+    import html
+    import shutil
+    import tempfile
+
+    from .plots_diagnose import write_plots
+
+    directory = Path(directory)
+    directory.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{directory.name}.", dir=directory.parent))
+    try:
+        plots = write_plots(d, robot, tmp)
+        summary = format_summary(robot, d, source)
+        md = [f"# Sim-to-real gap diagnosis: {robot.name}", "", f"Measurements: `{source}`", "",
+              "```", summary, "```", ""]
+        for label, png in plots.items():
+            md += [f"## {label}", "", f"![{label}]({png.name})", ""]
+        (tmp / "report.md").write_text("\n".join(md), encoding="utf-8")
+        body = [f"<h1>Sim-to-real gap diagnosis: {html.escape(robot.name)}</h1>",
+                f"<p>Measurements: <code>{html.escape(source)}</code></p>",
+                f"<pre>{html.escape(summary)}</pre>"]
+        for label, png in plots.items():
+            body += [f"<h2>{html.escape(label)}</h2>", f'<img src="{png.name}" alt="{html.escape(label)}">']
+        page = ("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>Diagnosis</title>"
+                "<style>body{font-family:sans-serif;max-width:1000px;margin:auto}img{max-width:100%}"
+                "pre{background:#f4f4f4;padding:8px;overflow-x:auto}</style></head><body>\n"
+                + "\n".join(body) + "\n</body></html>\n")
+        (tmp / "report.html").write_text(page, encoding="utf-8")
+        if directory.exists():
+            old = directory.with_name(f".{directory.name}.old")
+            if old.exists():
+                shutil.rmtree(old)
+            directory.rename(old)
+            tmp.rename(directory)
+            shutil.rmtree(old)
+        else:
+            tmp.rename(directory)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return directory

@@ -1,0 +1,167 @@
+"""diagnose against hidden simulated truths it never sees.
+
+The measurements come from ``simulate`` (effects applied to the Pinocchio model,
+tracker noise added); the diagnosis gets the measurement set only (or the CSV file for
+the CLI) and is judged on what the scenario hid.
+"""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from tcr_accuracy.diagnose import diagnose
+from tcr_accuracy.effects import predict_positions
+from tcr_accuracy.exceptions import InputError
+from tcr_accuracy.kinematics import tcp_poses
+from tcr_accuracy.measurements import write_measurements
+from tcr_accuracy.robot import load_robot
+from tcr_accuracy.simulate import simulate_measurements
+
+from conftest import REPO
+
+FRAMES = {"base_mm": {"dx": 1250.0, "dy": -830.0, "dz": -410.0}, "base_deg": {"rz": 35.0},
+          "tool_mm": {"dx": 0.8, "dy": -0.5, "dz": 1.2}}
+NOISE = 2e-5
+
+
+def _simulate(robot, effects, n, seed, context=None):
+    scenario = {"effects": effects, "noise_mm": NOISE * 1e3,
+                "context": context or {"payload_kg": 150, "payload_fraction": 0.5, "directions": "random"}}
+    return simulate_measurements(robot, scenario, n, np.random.default_rng(seed))
+
+
+@pytest.fixture(scope="module")
+def compliance_case(tool_changer):
+    effects = {
+        "frames": FRAMES,
+        "geometry": {"spread_mm": 0.05, "spread_mrad": 0.05},
+        "compliance": {"compliance_deg_per_knm": {"j2": 0.012, "j3": 0.02, "j5": 0.03},
+                       "compliance_mm_per_kn": {"j4": 0.05}},
+    }
+    mset, truth = _simulate(tool_changer, effects, 260, seed=11)
+    train = mset.subset(np.arange(200))
+    test = mset.subset(np.arange(200, 260))
+    result = diagnose(tool_changer, train, folds=3, seed=1, tracker_noise=NOISE)
+    return result, truth, test
+
+
+def test_compliance_dominant_is_named_and_the_gap_shrinks_to_the_noise(compliance_case, tool_changer):
+    result, truth, test = compliance_case
+    assert result.primary_effect == "compliance"
+    assert "compliance" in result.selected_effects
+    assert result.gap.rms > 10 * result.noise_floor  # there was a gap to explain
+    final = result.steps[-1].heldout.rms
+    assert final < 1.5 * result.noise_floor
+    # the fitted model predicts measurements it never saw to the noise floor
+    predicted = result.predict(tool_changer, test.q, test.context())
+    rms = np.sqrt(np.mean(np.sum((predicted - test.position) ** 2, axis=1)))
+    assert rms < 1.5 * result.noise_floor
+    # and recovers the hidden compliances of the two heavily loaded joints within 10 %
+    hidden = truth["effects"]["compliance"]["parameters"]
+    fitted = result.parameters["compliance"]
+    for joint in ("j2", "j3"):
+        name = f"compliance.{joint}"
+        assert fitted[name] == pytest.approx(hidden[name], rel=0.1)
+    assert not result.structure_remains
+
+
+def test_identifiability_names_duplicated_parameters(compliance_case, tool_changer):
+    result, _, _ = compliance_case
+    removed = {r["parameter"]: r for info in result.identifiability["effects"].values() for r in info["removed"]}
+    # j1 turns about the base z axis: its offset is a rotation of the tracker frame
+    assert "joint_offsets.j1" in removed
+    assert "frames.base.rz" in removed["joint_offsets.j1"]["duplicates"]
+    # a placement twist about a revolute joint's own axis is that joint's offset
+    # (parentMjoint exp(r axis) R(q) = parentMjoint R(q + r)); the axes are read off the model
+    for j, (name, kind) in enumerate(zip(tool_changer.joint_names, tool_changer.joint_kinds)):
+        if kind != "revolute" or f"joint_offsets.{name}" in removed:
+            continue
+        axis = "xyz"[int(np.argmax(np.abs(tool_changer.motion_axes[j][3:])))]
+        entry = removed[f"geometry.{name}.r{axis}"]
+        assert f"joint_offsets.{name}" in entry["duplicates"]
+    # nothing kept is a duplicate: the kept identification Jacobian is well conditioned
+    assert result.identifiability["condition_number"] < 1e4
+    kept = {n for p in result.parameters.values() for n in p}
+    assert not kept & set(removed)
+
+
+def test_out_of_vocabulary_effect_leaves_structure(tool_changer):
+    effects = {"frames": FRAMES, "geometry": {"spread_mm": 0.1, "spread_mrad": 0.1},
+               "unmodelled": {"amplitude_mm": 0.6}}
+    mset, _ = _simulate(tool_changer, effects, 200, seed=5)
+    result = diagnose(tool_changer, mset, folds=3, seed=2, tracker_noise=NOISE,
+                      effects=["joint_offsets", "geometry", "compliance", "transmission"])
+    assert result.steps[-1].heldout.rms > 2 * result.noise_floor
+    assert result.structure_remains
+
+
+def test_clearance_shows_as_scatter_without_structure(tool_changer):
+    effects = {"frames": FRAMES, "geometry": {"spread_mm": 0.1, "spread_mrad": 0.1},
+               "clearance": {"axial_mm": 0.03, "radial_mm": 0.03, "tilt_mrad": 0.03}}
+    mset, _ = _simulate(tool_changer, effects, 200, seed=6)
+    result = diagnose(tool_changer, mset, folds=3, seed=3, tracker_noise=NOISE,
+                      effects=["joint_offsets", "geometry", "clearance"])
+    assert result.scatter["detected"]
+    assert result.scatter["ratio"] > 1.5
+    assert not result.structure_remains
+    assert result.scatter.get("named") == "clearance"
+
+
+def test_geometry_only_as_built_urdf_reproduces_the_robot(tmp_path, ur5):
+    """Export and reload: the as-built URDF plus the tracker frame predict the measurements."""
+    effects = {"frames": {"spread_mm": {"base": 20.0, "tool": 1.0}, "spread_mrad": {"base": 5.0}},
+               "geometry": {"spread_mm": 0.3, "spread_mrad": 0.3},
+               "joint_offsets": {"spread_deg": 0.05}}
+    mset, _ = _simulate(ur5, effects, 150, seed=8, context={"directions": "none"})
+    csv = tmp_path / "meas.csv"
+    write_measurements(csv, ur5, mset)
+    urdf = tmp_path / "asbuilt.urdf"
+    out = tmp_path / "out.json"
+    proc = subprocess.run([sys.executable, "-m", "tcr_accuracy", "diagnose", str(csv), "--robot", "ur5",
+                           "--effects", "joint_offsets,geometry,compliance", "--folds", "3", "--quiet",
+                           "--json", str(out), "--as-built-urdf", str(urdf), "--report", str(tmp_path / "rep")],
+                          capture_output=True, text=True, cwd=REPO, timeout=300,
+                          env={"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin", "MPLBACKEND": "Agg"})
+    assert proc.returncode == 0, proc.stderr
+    payload = json.loads(out.read_text())
+    for key in ("gap", "steps", "selected_effects", "primary_effect", "leave_one_out", "where", "noise_floor_mm",
+                "identifiability", "structure_remains"):
+        assert key in payload
+    assert {"effect", "train_rms_mm", "heldout_rms_mm", "heldout_mean_mm", "heldout_max_mm"} <= set(payload["steps"][0])
+    assert "compliance" not in payload["selected_effects"]  # not hidden: not chosen
+    for name in ("report.md", "report.html", "steps.png", "semivariograms.png"):
+        assert (tmp_path / "rep" / name).is_file()
+    side = tmp_path / "asbuilt.effects.yaml"
+    import yaml
+
+    doc = yaml.safe_load(side.read_text())
+    tracker = np.array(doc["tracker_from_base"])
+    asbuilt = load_robot(str(urdf), doc["tool_frame"])
+    position = tcp_poses(asbuilt, mset.q).position @ tracker[:3, :3].T + tracker[:3, 3]
+    rms = np.sqrt(np.mean(np.sum((position - mset.position) ** 2, axis=1)))
+    assert rms < 1.5 * np.sqrt(3) * NOISE
+    nominal = predict_positions(ur5, [], [], mset.q)
+    assert np.sqrt(np.mean(np.sum((nominal @ tracker[:3, :3].T + tracker[:3, 3] - mset.position) ** 2,
+                                  axis=1))) > 10 * rms
+
+
+def test_cli_bad_csv_exits_2_with_one_line(tmp_path):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("j1_deg,j2_deg,j3_deg,j4_mm,j5_deg,j6_deg,x_mm,y_mm,z_mm\n"
+                   "1,2,3,4,5,6,100,200,300\n1,2,abc,4,5,6,100,200,300\n")
+    proc = subprocess.run([sys.executable, "-m", "tcr_accuracy", "diagnose", str(bad), "--quiet"],
+                          capture_output=True, text=True, cwd=REPO,
+                          env={"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"})
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1
+    assert "bad.csv" in lines[0] and "row 3" in lines[0] and "j3_deg" in lines[0]
+
+
+def test_too_few_measurements_is_an_input_error(tool_changer):
+    mset, _ = _simulate(tool_changer, {"frames": FRAMES}, 8, seed=1)
+    with pytest.raises(InputError, match="too few"):
+        diagnose(tool_changer, mset, folds=5)

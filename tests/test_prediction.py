@@ -1,0 +1,212 @@
+"""Error predictors against closed forms and hidden simulated truths."""
+
+import warnings
+
+import numpy as np
+import pytest
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.utils.estimator_checks import check_estimator
+
+from tcr_accuracy import cli_prediction
+from tcr_accuracy.exceptions import InputError
+from tcr_accuracy.kinematics import tcp_poses
+from tcr_accuracy.prediction import (
+    METHODS,
+    GeometricCalibration,
+    InverseDistanceWeighting,
+    JointKriging,
+    ResidualCorrected,
+    make_gaussian_process,
+)
+from tcr_accuracy.realrobot import make_stand_in_robot
+from tcr_accuracy.similarity import pair_distances, spatial_similarity
+
+UR5_REF = np.array([0.3, -1.2, 1.5, -1.9, -1.57, 0.4])
+
+
+@pytest.fixture(scope="module")
+def hidden_geometry(ur5):
+    """A UR5 with hidden geometric errors only (no payload, no compliance, no noise)."""
+    real = make_stand_in_robot(ur5, np.random.default_rng(7), payload_kg=0.0, noise_m=0.0)
+    real.compliance[:] = 0.0
+    rng = np.random.default_rng(8)
+    q_train = UR5_REF + rng.uniform(-0.3, 0.3, (120, 6))
+    q_test = UR5_REF + rng.uniform(-0.25, 0.25, (60, 6))
+    return ur5, real, q_train, real.true_errors(q_train), q_test, real.true_errors(q_test)
+
+
+def _rms(a):
+    return float(np.sqrt(np.mean(np.sum(np.asarray(a) ** 2, axis=1))))
+
+
+def test_kriging_interpolates_training_points_exactly_without_regularization():
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-1, 1, (50, 4))
+    Y = np.column_stack([np.sin(2 * X[:, 0]) + X[:, 1], np.cos(X[:, 2] * X[:, 3]), X[:, 0] ** 2])
+    model = JointKriging(regularization=0.0, weights=[1.0, 2.0, 0.5, 1.0]).fit(X, Y)
+    np.testing.assert_allclose(model.predict(X), Y, atol=1e-8)
+
+
+def test_kriging_prediction_is_the_seed_equations_by_hand():
+    """Eq. 15-18 written out: standardise, C_ij = exp(-3 |w (qi - qj)|^2 / r^2), w = (C + lambda I)^-1 c."""
+    rng = np.random.default_rng(1)
+    X = rng.uniform(-1, 1, (30, 3))
+    y = np.sin(3 * X[:, 0]) + X[:, 2]
+    w = np.array([1.5, 0.5, 1.0])
+    lam = 1e-3
+    model = JointKriging(weights=w, regularization=lam).fit(X, y)
+    r = model.range_[0]
+    xs = (X - X.mean(0)) / X.std(0)
+    ys = (y - y.mean()) / y.std()
+    q = rng.uniform(-1, 1, (5, 3))
+    qs = (q - X.mean(0)) / X.std(0)
+    cov = np.exp(-3 * (((xs[:, None, :] - xs[None, :, :]) * w) ** 2).sum(-1) / r**2)
+    c = np.exp(-3 * (((qs[:, None, :] - xs[None, :, :]) * w) ** 2).sum(-1) / r**2)
+    expected = y.mean() + y.std() * (c @ np.linalg.solve(cov + lam * np.eye(30), ys))
+    np.testing.assert_allclose(model.predict(q), expected, rtol=1e-9, atol=1e-12)
+
+
+def test_leave_one_out_closed_form_matches_refitting_without_each_point():
+    rng = np.random.default_rng(2)
+    X = rng.uniform(-1, 1, (25, 3))
+    e = rng.normal(size=25)
+    model = JointKriging(regularization=1e-3)
+    sq = ((X.T[:, :, None] - X.T[:, None, :]) ** 2)
+    w, r = np.array([1.0, 0.7, 1.3]), 1.2
+    closed = model._loo_rmse(sq, e, w, r)
+    residuals = []
+    for i in range(25):
+        keep = np.arange(25) != i
+        cov = np.exp(-3 * np.tensordot(w**2, sq[:, keep][:, :, keep], axes=1) / r**2) + 1e-3 * np.eye(24)
+        c = np.exp(-3 * np.tensordot(w**2, sq[:, i, keep], axes=1) / r**2)
+        residuals.append(e[i] - c @ np.linalg.solve(cov, e[keep]))
+    assert closed == pytest.approx(np.sqrt(np.mean(np.square(residuals))), rel=1e-8)
+
+
+def test_particle_filter_finds_the_joints_the_error_depends_on():
+    rng = np.random.default_rng(3)
+    X = rng.uniform(-1, 1, (120, 5))
+    y = np.sin(2.5 * X[:, 0]) + 0.5 * np.cos(3 * X[:, 1])  # joints 2, 3, 4 are irrelevant
+    model = JointKriging(weight_search="particle_filter", n_particles=24, max_iter=15, random_state=0).fit(X, y)
+    w = model.weights_[0]
+    assert w[:2].min() > 2 * w[2:].max()
+    history = model.search_history_[0]
+    assert history[-1] < history[0] and all(b <= a for a, b in zip(history, history[1:]))
+    x_test = rng.uniform(-1, 1, (200, 5))
+    y_test = np.sin(2.5 * x_test[:, 0]) + 0.5 * np.cos(3 * x_test[:, 1])
+    plain = JointKriging().fit(X, y)
+    assert np.abs(model.predict(x_test) - y_test).mean() < 0.7 * np.abs(plain.predict(x_test) - y_test).mean()
+
+
+def test_predictors_beat_the_mean_on_a_hidden_geometric_error_field(hidden_geometry):
+    robot, real, q_train, e_train, q_test, e_test = hidden_geometry
+    baseline = _rms(e_test - e_train.mean(0))
+    assert baseline > 1e-4  # an error field varying by a tenth of a millimetre and more
+    kriging = JointKriging(weight_search="particle_filter", n_particles=16, max_iter=8, random_state=0)
+    for model, factor in ((kriging, 8), (make_gaussian_process(6, random_state=0), 8),
+                          (GeometricCalibration(robot=robot), 1000)):
+        with warnings.catch_warnings():
+            # noise-free data: the GP's white-noise level runs to its lower bound, as it should
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            model.fit(q_train, e_train)
+        assert _rms(model.predict(q_test) - e_test) < baseline / factor, type(model).__name__
+
+
+def test_calibration_recovers_the_hidden_error_and_reports_identifiable_parameters(hidden_geometry):
+    robot, real, q_train, e_train, q_test, e_test = hidden_geometry
+    model = GeometricCalibration(robot=robot).fit(q_train, e_train)
+    assert 20 <= len(model.identifiable_) < real.error_model.size  # position data cannot see everything
+    assert _rms(model.predict(q_test) - e_test) < 1e-7
+
+
+def test_residual_corrected_adds_a_model_of_what_calibration_leaves(ur5):
+    real = make_stand_in_robot(ur5, np.random.default_rng(9), payload_kg=5.0, noise_m=0.0)
+    rng = np.random.default_rng(10)
+    q_train = UR5_REF + rng.uniform(-0.3, 0.3, (100, 6))
+    q_test = UR5_REF + rng.uniform(-0.25, 0.25, (40, 6))
+    e_train, e_test = real.true_errors(q_train), real.true_errors(q_test)
+    calibration = GeometricCalibration(robot=ur5).fit(q_train, e_train)
+    stacked = ResidualCorrected(base=GeometricCalibration(robot=ur5), residual=JointKriging()).fit(q_train, e_train)
+    assert _rms(stacked.predict(q_test) - e_test) < 0.7 * _rms(calibration.predict(q_test) - e_test)
+    np.testing.assert_allclose(stacked.base_.x_, calibration.x_, atol=1e-12)
+
+
+def test_idw_matches_the_closed_form_and_returns_training_values_on_hits():
+    X = np.array([[0.0], [1.0], [3.0]])
+    y = np.array([0.0, 1.0, 5.0])
+    model = InverseDistanceWeighting(power=2).fit(X, y)
+    q = 0.25
+    w = 1 / np.abs(q - X[:, 0]) ** 2  # standardising rescales all distances alike
+    assert model.predict([[q]])[0] == pytest.approx(w @ y / w.sum(), rel=1e-12)
+    np.testing.assert_array_equal(model.predict(X), y)
+
+
+@pytest.mark.parametrize("estimator", [
+    JointKriging(),
+    JointKriging(weight_search="particle_filter", n_particles=6, max_iter=2, random_state=0),
+    InverseDistanceWeighting(),
+    ResidualCorrected(base=InverseDistanceWeighting(), residual=JointKriging()),
+], ids=["kriging", "kriging-pf", "idw", "residual-corrected"])
+def test_scikit_learn_estimator_checks(estimator):
+    """All of scikit-learn's estimator checks pass. Excluded: check_array_api_input, which
+    scikit-learn itself skips unless SCIPY_ARRAY_API is set. GeometricCalibration and the
+    TcpFeatures pipelines are not run here: their inputs must be one robot's joint values,
+    while the generic checks feed random feature counts."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # SkipTestWarning for the array-API check, asserted below
+        results = check_estimator(estimator, on_fail=None)
+    bad = [(r["check_name"], r["status"], str(r["exception"])[:200]) for r in results
+           if r["status"] != "passed" and r["check_name"] != "check_array_api_input"]
+    assert not bad
+    assert len(results) > 40
+
+
+def test_bad_input_is_a_clear_input_error():
+    rng = np.random.default_rng(4)
+    with pytest.raises(InputError, match="more training points than joints, got n_samples = 6 for 6 joints"):
+        JointKriging().fit(rng.normal(size=(6, 6)), rng.normal(size=(6, 3)))
+    X = rng.normal(size=(20, 3))
+    X[7] = X[2]
+    with pytest.raises(InputError, match="duplicate or nearly identical joint vectors.*row 2 appears 2 times"):
+        JointKriging(regularization=0.0).fit(X, rng.normal(size=(20, 3)))
+    with pytest.raises(InputError, match="weights"):
+        JointKriging(weights=[1.0, 2.0]).fit(rng.normal(size=(20, 3)), rng.normal(size=20))
+
+
+def test_pcc_is_numpy_corrcoef_of_the_pair_distances(ur5):
+    rng = np.random.default_rng(5)
+    q = UR5_REF + rng.uniform(-0.1, 0.1, (30, 6))
+    p = tcp_poses(ur5, q).position
+    e = rng.normal(size=(30, 3)) * 1e-4 + 1e-3 * q[:, :3]
+    res = spatial_similarity(q, p, e)
+    # independent distances by explicit loops
+    dq, dp, de = [], [], []
+    for i in range(30):
+        for k in range(i + 1, 30):
+            dq.append(np.linalg.norm(q[i] - q[k]))
+            dp.append(np.linalg.norm(p[i] - p[k]))
+            de.append(np.linalg.norm(e[i] - e[k]))
+    assert res.pcc_joint == pytest.approx(np.corrcoef(de, dq)[0, 1], rel=1e-10)
+    assert res.pcc_cartesian == pytest.approx(np.corrcoef(de, dp)[0, 1], rel=1e-10)
+    assert res.n_pairs == 435
+    std = pair_distances(q, p, e, standardise_joints=True)
+    qs = (q - q.mean(0)) / q.std(0)
+    assert std.joint[0] == pytest.approx(np.linalg.norm(qs[0] - qs[1]), rel=1e-12)
+
+
+def test_cli_method_list_matches_the_estimators():
+    assert cli_prediction.METHODS == METHODS
+
+
+def test_semivariogram_and_similarity_plots_are_written_whole(ur5, tmp_path):
+    from tcr_accuracy.plots_prediction import plot_semivariograms, plot_similarity
+
+    rng = np.random.default_rng(6)
+    q = UR5_REF + rng.uniform(-0.1, 0.1, (40, 6))
+    p = tcp_poses(ur5, q).position
+    e = 1e-3 * np.sin(3 * q[:, :3])
+    figure = plot_semivariograms(q, e, tmp_path / "sv.png", joint_names=ur5.joint_names)
+    scatter = plot_similarity({"a": (pair_distances(q, p, e), spatial_similarity(q, p, e))}, tmp_path / "s.png")
+    for path in (figure, scatter):
+        assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["s.png", "sv.png"]  # no temporary files left
