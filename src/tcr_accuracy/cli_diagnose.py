@@ -153,7 +153,9 @@ def format_summary(robot, d, source: str) -> str:
     out.append(f"   final held-out RMS {final * mm:.4f} mm = {final / d.noise_floor:.2f} x the noise floor "
                f"{d.noise_floor * mm:.4f} mm (tracker {d.tracker_noise * mm:.4f} mm per axis)")
     st = d.structure
-    out.append(f"   structure remains: {'YES' if st['remains'] else 'no'} (k-NN share {st['gain_over_null']:+.3f} "
+    along = ", ".join(robot.joint_names[j] for j in st.get("along_joints", []))
+    out.append(f"   structure remains: {'YES' if st['remains'] else 'no'} (k-NN along {along}: share "
+               f"{st['gain_over_null']:+.3f} "
                f"beyond chance, z = {st['z']:.1f}; ridge on joint features share {st['ridge_explained_share']:+.3f}, "
                f"z = {st['ridge_z']:.1f}; limits: share > {st['min_explained']}, p < {st['alpha']})")
     sc = d.scatter
