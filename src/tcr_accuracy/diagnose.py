@@ -693,6 +693,19 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, s
     progress : callable(str), optional
         Called with a short message as the work advances (the CLI's progress bar).
     """
+    # The least-squares problems here are small (3N x ~60): multi-threaded BLAS only adds
+    # synchronisation, and on a shared machine it was 50-100x slower than one thread.
+    # threadpoolctl (a scikit-learn dependency) limits it for the duration of the call.
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _diagnose(robot, measurements, effects=effects, folds=folds, seed=seed,
+                         tracker_noise=tracker_noise, selection_z=selection_z,
+                         min_relative_gain=min_relative_gain, rank_tol=rank_tol, progress=progress)
+
+
+def _diagnose(robot, measurements, *, effects, folds, seed, tracker_noise, selection_z, min_relative_gain,
+              rank_tol, progress) -> Diagnosis:
     from sklearn.model_selection import KFold
 
     obs = observations_from(measurements)
