@@ -726,6 +726,8 @@ def _diagnose(robot, measurements, *, effects, folds, seed, tracker_noise, selec
             raise InputError(f"--effects: unknown effect(s) {', '.join(unknown)} (vocabulary: {', '.join(VOCABULARY)})")
     em = ErrorModel(robot)
     notes: list = []
+    if getattr(measurements, "quaternion", None) is not None:
+        notes.append("orientation columns were read; the fit uses the measured positions only")
 
     # 1. register the tracker frame, then work in the robot's base frame
     say("registering the tracker frame")
