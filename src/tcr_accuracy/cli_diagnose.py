@@ -121,9 +121,17 @@ def format_summary(robot, d, source: str) -> str:
     strongest = _strongest(d.where)
     if strongest:
         out.append("   strongest links: " + "; ".join(strongest))
-    out.append("   varies most along (per-joint semivariogram, lowest nugget ratio): "
-               + ", ".join(f"{j} ({min(d.where['semivariogram_nugget_ratio'][j]):.2f})"
-                           for j in d.where["varies_along"]))
+    along = d.where["along_joints"]
+    out.append("   along single joints (share of the residual variance its k-NN along that joint predicts; "
+               "short-lag semivariance, 1 = none): " + ", ".join(
+                   f"{j} {a['knn_explained_share']:+.2f} ({min(a['short_lag_semivariance_xyz']):.2f})"
+                   for j, a in along.items()))
+    out.append("   varies most along: " + (", ".join(d.where["varies_along"]) or
+                                           "no single joint (the error depends on several together)"))
+    pairs = [p for p in d.where.get("along_joint_pairs", []) if p["knn_explained_share"] > 0.05][:3]
+    if pairs:
+        out.append("   joint pairs it varies along (k-NN share): " + ", ".join(
+            f"{'+'.join(p['joints'])} {p['knn_explained_share']:+.2f}" for p in pairs))
     out.append("\n3. Which effect: each effect added to frames alone (held-out RMS [mm], gain, paired z)")
     for name, c in d.candidates.items():
         if c.get("tried"):

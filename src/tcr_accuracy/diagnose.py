@@ -520,15 +520,41 @@ def where_analysis(robot: RobotModel, q: np.ndarray, nominal: np.ndarray, residu
                                    "mean_plus_minus_minus_mm": (diff * 1e3).tolist(),
                                    "difference_norm_mm": float(np.linalg.norm(diff) * 1e3)}
         where["approach_direction"] = direction
-    # per-joint semivariograms: along which joints does the error vary?
+    # along which joints does the error vary? Per-joint semivariograms (standardised:
+    # 1 = no similarity) at short lag, and the share of the residual variance that the
+    # k nearest neighbours along that joint alone predict (out of sample: self excluded)
+    from sklearn.neighbors import NearestNeighbors
+
     semis = per_joint_semivariograms(q, residual, n_bins=12, rng=rng)
-    ratios = {}
+    centred = residual - residual.mean(axis=0)
+    total = float(np.sum(centred**2)) or 1.0
+    along = {}
     for j, name in enumerate(robot.joint_names):
         if np.std(q[:, j]) == 0:
             continue
-        ratios[name] = [_nugget_ratio(semis[j], c) for c in range(3)]
-    where["semivariogram_nugget_ratio"] = ratios
-    where["varies_along"] = sorted(ratios, key=lambda n: min(ratios[n]))[:3]
+        s = semis[j]
+        short = s.lags <= np.quantile(s.lags, 0.25)
+        gamma_short = (s.semivariance[short] * s.counts[short, None]).sum(axis=0) / s.counts[short].sum()
+        k = min(10, q.shape[0] - 1)
+        idx = NearestNeighbors(n_neighbors=k + 1).fit(q[:, [j]]).kneighbors(q[:, [j]], return_distance=False)[:, 1:]
+        share = 1.0 - float(np.sum((centred - centred[idx].mean(axis=1)) ** 2)) / total
+        along[name] = {"short_lag_semivariance_xyz": gamma_short.tolist(), "knn_explained_share": share}
+    where["along_joints"] = along
+    where["varies_along"] = [n for n in sorted(along, key=lambda n: -along[n]["knn_explained_share"])
+                             if along[n]["knn_explained_share"] > 0.05][:3]
+    qs, _, _ = standardize(q)
+    names = [n for n in robot.joint_names if n in along]
+    pairs = []
+    for a in range(len(names)):
+        for b in range(a + 1, len(names)):
+            cols = [robot.joint_names.index(names[a]), robot.joint_names.index(names[b])]
+            k = min(10, q.shape[0] - 1)
+            idx = NearestNeighbors(n_neighbors=k + 1).fit(qs[:, cols]).kneighbors(
+                qs[:, cols], return_distance=False)[:, 1:]
+            share = 1.0 - float(np.sum((centred - centred[idx].mean(axis=1)) ** 2)) / total
+            pairs.append({"joints": [names[a], names[b]], "knn_explained_share": share})
+    pairs.sort(key=lambda r: -r["knn_explained_share"])
+    where["along_joint_pairs"] = pairs
     return where, semis
 
 
