@@ -64,6 +64,10 @@ def run_scenario(robot, index: int, rng: np.random.Generator, *, n_train: int, n
         "primary_effect": result.primary_effect,
         "selected_effects": result.selected_effects,
         "named_right": result.primary_effect == dominant,
+        "named_a_dominant": result.primary_effect in scenario["dominant"],
+        "truth_tcp_rms_mm": {e: round(v["tcp_rms_m"] * 1e3, 4) for e, v in truth["effects"].items()
+                             if "tcp_rms_m" in v},
+        "leave_one_out_increase_mm": {r["dropped"]: round(r["increase_mm"], 4) for r in result.leave_one_out},
         "gap_rms_mm": result.gap.rms * 1e3,
         "heldout_rms_mm": result.steps[-1].heldout.rms * 1e3,
         "test_rms_mm": test_rms * 1e3,
@@ -131,6 +135,7 @@ def summarise(rows: list) -> dict:
         "n_scenarios": len(rows),
         "share_named_right": float(np.mean([r["named_right"] for r in rows])) if rows else math.nan,
         "share_named_right_in_vocabulary": float(np.mean([r["named_right"] for r in inside])) if inside else None,
+        "share_named_a_dominant": float(np.mean([r["named_a_dominant"] for r in rows])) if rows else math.nan,
         "median_rms_over_noise": float(np.median([r["test_over_noise"] for r in inside])) if inside else None,
         "median_heldout_over_noise": float(np.median([r["heldout_over_noise"] for r in inside])) if inside else None,
         "share_within_1_5_noise": float(np.mean([r["test_over_noise"] <= 1.5 for r in inside])) if inside else None,

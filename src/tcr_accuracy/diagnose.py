@@ -288,19 +288,34 @@ def _register(nominal: np.ndarray, measured: np.ndarray) -> tuple[np.ndarray, np
 class _Engine:
     """Linearised effects over one data set; fits and k-fold held-out errors."""
 
-    def __init__(self, robot, em, q, target, bases, keep, folds):
+    def __init__(self, robot, em, q, target, bases, folds, rank_tol=1e-6, min_motion=0.0):
         self.robot, self.em, self.q, self.target = robot, em, q, target
         self.bases = bases  # name -> _EffectBasis
-        self.keep = keep  # name -> kept column indices
         self.folds = folds  # list of (train, test)
+        self.rank_tol, self.min_motion = rank_tol, min_motion
         self._full_cache: dict = {}
-        self._last: dict = {}
+        self._keep_cache: dict = {}
+        self._last: dict = {}  # effect -> last fitted full-length scaled parameters
         self.n_fits = 0
 
+    def identify(self, effects) -> tuple[dict, dict]:
+        """Identifiable columns of each effect *within this set* (vocabulary order), and the report.
+
+        Per set, not once for the whole vocabulary: an effect that is not in the model
+        must not take columns away from one that is (sin q of transmission against s q of
+        encoder_scale, say).
+        """
+        key = tuple(effects)
+        if key not in self._keep_cache:
+            self._keep_cache[key] = identifiability({e: self.bases[e] for e in effects}, list(effects),
+                                                    self.rank_tol, self.min_motion)
+        return self._keep_cache[key]
+
     def columns(self, effects):
-        basis = np.concatenate([self.bases[e].basis[:, :, self.keep[e]] for e in effects], axis=2)
-        g = np.concatenate([self.bases[e].g[:, :, self.keep[e]] for e in effects], axis=2)
-        scale = np.concatenate([self.bases[e].scales[self.keep[e]] for e in effects])
+        keep = self.identify(effects)[0]
+        basis = np.concatenate([self.bases[e].basis[:, :, keep[e]] for e in effects], axis=2)
+        g = np.concatenate([self.bases[e].g[:, :, keep[e]] for e in effects], axis=2)
+        scale = np.concatenate([self.bases[e].scales[keep[e]] for e in effects])
         return basis, g, scale
 
     def predict(self, basis, theta, rows):
@@ -336,19 +351,22 @@ class _Engine:
             return self._full_cache[key]
         basis, g, scale = self.columns(effects)
         every = np.arange(self.q.shape[0])
+        keep = self.identify(effects)[0]
         # warm start: each effect's last fitted values, zeros for an effect new to the model
-        start = np.concatenate([self._last.get(e, np.zeros(self.keep[e].size)) for e in effects])
+        start = np.concatenate([self._last.get(e, np.zeros(len(self.bases[e].names)))[keep[e]] for e in effects])
         phi, train_res = self.fit(basis, g, scale, every, start=start)
         offset = 0
         for e in effects:
-            self._last[e] = phi[offset:offset + self.keep[e].size]
-            offset += self.keep[e].size
+            full = np.zeros(len(self.bases[e].names))
+            full[keep[e]] = phi[offset:offset + keep[e].size]
+            self._last[e] = full
+            offset += keep[e].size
         oof = np.empty_like(self.target)
         for train, test in self.folds:
             phi_k, _ = self.fit(basis, g, scale, train, start=phi)
             oof[test] = self.predict(basis, phi_k * scale, test) - self.target[test]
         result = {"phi": phi, "scale": scale, "train_residual": train_res, "heldout_residual": oof,
-                  "n_parameters": int(scale.size)}
+                  "n_parameters": int(scale.size), "keep": keep}
         self._full_cache[key] = result
         return result
 
@@ -792,20 +810,22 @@ def _diagnose(robot, measurements, *, effects, folds, seed, tracker_noise, selec
     # a TCP offset of centimetres changes which directions duplicate one another:
     # linearise about the frames-only fit, not the nominal model
     frames = bases["frames"]
-    all_frames = {"frames": np.arange(len(frames.names))}
-    pre = _Engine(robot, em, obs.q, target, bases, all_frames, [])
+    pre = _Engine(robot, em, obs.q, target, {"frames": frames}, [], rank_tol=0.0)
     phi, _ = pre.fit(*pre.columns(["frames"]), np.arange(n))
     x_frames = frames.basis[0] @ (phi * frames.scales)
     jac_x = _position_jacobians(robot, obs.q, x_frames)
     for b in bases.values():
         b.relinearise(jac_x)
-    keep, ident = identifiability(bases, order, rank_tol, min_motion=0.1 * tracker_noise)
-    for name in order:
-        if keep[name].size == 0 and name != "frames":
-            candidates[name] = {"tried": False, "why": "no identifiable parameter on these data"}
     kfold = KFold(n_splits=folds, shuffle=True, random_state=int(rng.integers(2**31 - 1)))
     split = [(np.asarray(a), np.asarray(b)) for a, b in kfold.split(np.arange(n))]
-    engine = _Engine(robot, em, obs.q, target, bases, keep, split)
+    engine = _Engine(robot, em, obs.q, target, bases, split, rank_tol, min_motion=0.1 * tracker_noise)
+    _, ident_all = engine.identify(order)
+    testable = []
+    for name in order:
+        if name != "frames" and engine.identify(("frames", name))[0][name].size == 0:
+            candidates[name] = {"tried": False, "why": "no identifiable parameter on these data (beyond frames)"}
+        elif name != "frames":
+            testable.append(name)
 
     # 2. gap after frames
     say("fitting frames")
@@ -817,7 +837,7 @@ def _diagnose(robot, measurements, *, effects, folds, seed, tracker_noise, selec
                   ErrorStats.of(result["heldout_residual"]), None)]
 
     # 3. forward selection on held-out error
-    pool = [e for e in order if e != "frames" and keep[e].size > 0]
+    pool = list(testable)
     first_gain: dict = {}
     while pool:
         trials = {}
@@ -899,6 +919,8 @@ def _diagnose(robot, measurements, *, effects, folds, seed, tracker_noise, selec
 
     # fitted parameters, as-built geometry, tracker frame
     theta = final["phi"] * final["scale"]
+    keep, ident = engine.identify(tuple(_ordered(selected)))
+    ident = {**ident, "all_effects": ident_all}
     parameters, units, full_parameters = {}, {}, {}
     as_built = np.zeros(em.size)
     offset = 0
