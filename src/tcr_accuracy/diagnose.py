@@ -307,8 +307,28 @@ class _Engine:
         """
         key = tuple(effects)
         if key not in self._keep_cache:
-            self._keep_cache[key] = identifiability({e: self.bases[e] for e in effects}, list(effects),
-                                                    self.rank_tol, self.min_motion)
+            # vocabulary convention: geometry is what frames and joint offsets cannot
+            # express, so joint-axis rotations stay joint offsets even when joint_offsets
+            # is not (yet) in the model
+            order = list(effects)
+            borrowed = "geometry" in order and "joint_offsets" not in order and "joint_offsets" in self.bases
+            if borrowed:
+                order = _ordered(order + ["joint_offsets"])
+            keep, report = identifiability({e: self.bases[e] for e in order}, order, self.rank_tol,
+                                           self.min_motion)
+            if borrowed:
+                keep.pop("joint_offsets")
+                report["effects"].pop("joint_offsets")
+                report["note"] = "geometry excludes rotations about the joint axes (the joint_offsets effect)"
+                cols = [(self.bases[e].g * self.bases[e].scales)[:, :, keep[e]].reshape(-1, keep[e].size)
+                        for e in effects]
+                mat = np.concatenate(cols, axis=1)
+                mat = mat / np.linalg.norm(mat, axis=0)
+                sv = np.linalg.svd(mat, compute_uv=False)
+                report["rank"] = int(mat.shape[1])
+                report["condition_number"] = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
+                report["smallest_singular_value"] = float(sv[-1])
+            self._keep_cache[key] = (keep, report)
         return self._keep_cache[key]
 
     def columns(self, effects):
