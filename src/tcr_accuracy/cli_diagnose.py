@@ -141,10 +141,15 @@ def format_summary(robot, d, source: str) -> str:
             out.append(f"   {name:14s} not tried: {c['why']}")
     ident = d.identifiability
     removed = [(e, r) for e, info in ident["effects"].items() for r in info["removed"]]
-    out.append(f"   identifiability: {ident.get('rank', 0)} parameters kept, condition number "
+    everything = ident.get("all_effects", {})
+    out.append(f"   identifiability of the final model: {ident.get('rank', 0)} parameters kept, condition number "
                f"{ident.get('condition_number', float('nan')):.3g}; {len(removed)} removed, e.g.:")
     for e, r in removed[:6]:
         out.append(f"     {r['parameter']}: {r['reason']}")
+    if everything:
+        n_removed = sum(len(i["removed"]) for i in everything["effects"].values())
+        out.append(f"   (whole vocabulary in one model: {everything.get('rank', 0)} identifiable, {n_removed} removed, "
+                   f"condition number {everything.get('condition_number', float('nan')):.3g})")
     out.append("\n4. How far it shrinks (k-fold held-out) [mm]")
     out.append(f"   {'step':18s} {'params':>6s} {'train RMS':>10s} {'mean':>9s} {'RMS':>9s} {'max':>9s}")
     for i, s in enumerate(d.steps):
