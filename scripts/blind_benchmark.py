@@ -67,6 +67,8 @@ def run_scenario(robot, index: int, rng: np.random.Generator, *, n_train: int, n
         "named_a_dominant": result.primary_effect in scenario["dominant"],
         "truth_tcp_rms_mm": {e: round(v["tcp_rms_m"] * 1e3, 4) for e, v in truth["effects"].items()
                              if "tcp_rms_m" in v},
+        "contribution_mm": {e: round(v * 1e3, 4) for e, v in result.contribution.items()},
+        "first_step_gain_mm": {e: round(c["gain_mm"], 4) for e, c in result.candidates.items() if c.get("tried")},
         "leave_one_out_increase_mm": {r["dropped"]: round(r["increase_mm"], 4) for r in result.leave_one_out},
         "gap_rms_mm": result.gap.rms * 1e3,
         "heldout_rms_mm": result.steps[-1].heldout.rms * 1e3,

@@ -172,6 +172,7 @@ class Diagnosis:
     semivariograms: list = field(default_factory=list)
     eliminated: list = field(default_factory=list)
     n_fits: int = 0
+    contribution: dict = field(default_factory=dict)  # effect -> RMS TCP motion of its fit beyond frames [m]
     effect_parameters: dict = field(default_factory=dict)  # effect -> full (k,) vector [SI]
     registration: tuple = (np.eye(3), np.zeros(3))  # (R, t): tracker = R robot + t
 
@@ -213,6 +214,7 @@ class Diagnosis:
             "tracker_transform": self.tracker_transform.tolist(),
             "notes": list(self.notes),
             "n_fits": self.n_fits,
+            "contribution_mm": {e: v * 1e3 for e, v in self.contribution.items()},
         }
 
 
@@ -954,6 +956,15 @@ def _diagnose(robot, measurements, *, effects, folds, seed, tracker_noise, selec
         units[e] = {b.names[k]: b.units[k] for k in keep[e]}
         if e in GEOMETRIC:
             as_built += b.basis[0] @ full
+    # how much of the gap each chosen effect accounts for: the TCP motion its fitted
+    # parameters cause, after taking out what a rigid frame change could absorb
+    frames_cols = bases["frames"].g.reshape(-1, len(bases["frames"].names))
+    contribution = {}
+    for e in chosen:
+        x_e = bases[e].basis @ full_parameters[e]
+        motion = (tcp_poses(robot, obs.q, x_e, em).position - nominal).ravel()
+        rigid = frames_cols @ np.linalg.lstsq(frames_cols, motion, rcond=None)[0]
+        contribution[e] = float(np.sqrt(np.mean((motion - rigid) ** 2) * 3))
     base_twist = as_built[em.base_slice].copy()
     as_built[em.base_slice] = 0.0  # the base twist belongs to the tracker frame, not the robot
     tracker = np.eye(4)
@@ -969,7 +980,7 @@ def _diagnose(robot, measurements, *, effects, folds, seed, tracker_noise, selec
         heldout_residual=final["heldout_residual"], gap_residual=gap_residual, q=obs.q,
         nominal_position=nominal, gravity_torque=tau, notes=notes, semivariograms=semis,
         effect_parameters=full_parameters, registration=(rot, trans), eliminated=eliminated,
-        n_fits=engine.n_fits,
+        n_fits=engine.n_fits, contribution=contribution,
     )
 
 
