@@ -15,17 +15,19 @@ the nominal model is a :class:`~tcr_accuracy.robot.RobotModel`. Steps:
 3. **Which effect.** Every effect of :mod:`tcr_accuracy.effects` is a parametric model
    on top of the nominal kinematics. Its parameters map linearly (checked) onto joint
    offsets ``dq`` and error-screw vectors ``x`` for each pose; the identification
-   Jacobian is Pinocchio's error Jacobian (:func:`~tcr_accuracy.kinematics.error_jacobian`)
-   chained with that map. Identifiability: columns are scaled by the effects'
-   ``parameter_scales`` and normalised, then taken effect by effect in vocabulary
-   order; each effect's block is projected off the columns already kept and reduced by
-   QR with column pivoting (as FIGAROH does); columns whose pivot falls below
-   ``rank_tol`` are named and removed, with the parameters they duplicate. Fits are
-   nonlinear least squares (scipy ``least_squares``, exact batched forward kinematics
-   as residual, the chained Jacobian as ``jac``), warm-started from the full-data fit.
-   Effects enter by forward selection on k-fold held-out error; an effect is accepted
-   only when a one-sided paired test on the per-measurement held-out squared errors
-   (z > ``selection_z``) says the cut is larger than the noise explains.
+   Jacobian is Pinocchio's error Jacobian (``effects.pose_jacobians``, taken at the
+   frames-only fit) chained with that map. Identifiability, for every candidate model:
+   columns at the parameters' typical scales are taken effect by effect in vocabulary
+   order, each block projected off the columns already kept and reduced by QR with
+   column pivoting (as FIGAROH does); a column whose own part moves the TCP less than a
+   tenth of the tracker noise is named and removed, with the parameters it duplicates.
+   Fits are nonlinear least squares (scipy ``least_squares``, exact batched forward
+   kinematics as residual, the chained Jacobian as ``jac``) after one Gauss-Newton step
+   from a warm start. Effects enter by forward selection on k-fold held-out error only
+   when a one-sided paired test on the per-measurement held-out squared errors gives
+   z > ``selection_z``; backward elimination then drops any chosen effect whose removal
+   no longer costs held-out error by the same test. The primary effect is the chosen one
+   whose removal raises the held-out RMS most (leave-one-out table).
 4. **How far it shrinks.** Held-out mean/RMS/max after each step, the leave-one-out
    table over the chosen set, the final residual next to the noise floor, whether
    spatial structure remains in joint space (k-NN prediction of the residual against a
