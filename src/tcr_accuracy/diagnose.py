@@ -487,17 +487,24 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
 def _binned(values: np.ndarray, residual: np.ndarray, n_bins: int = 5) -> dict:
     """Quantile bins of values (N,): count, mean residual vector and RMS norm per bin [mm]."""
     finite = np.isfinite(values)
-    edges = np.unique(np.quantile(values[finite], np.linspace(0, 1, n_bins + 1)))
-    if edges.size < 2:
-        return {"bins": [], "spread_mm": 0.0}
-    which = np.clip(np.searchsorted(edges, values, side="right") - 1, 0, edges.size - 2)
+    levels = np.unique(values[finite])
+    if levels.size <= n_bins:  # a few distinct values (payload on/off): one bin each
+        if levels.size < 2:
+            return {"bins": [], "spread_mm": 0.0}
+        edges = None
+        which = np.searchsorted(levels, values)
+    else:
+        edges = np.unique(np.quantile(values[finite], np.linspace(0, 1, n_bins + 1)))
+        which = np.clip(np.searchsorted(edges, values, side="right") - 1, 0, edges.size - 2)
     bins = []
-    for b in range(edges.size - 1):
+    n_out = levels.size if edges is None else edges.size - 1
+    for b in range(n_out):
         sel = which == b
         if not sel.any():
             continue
         r = residual[sel]
-        bins.append({"low": float(edges[b]), "high": float(edges[b + 1]), "count": int(sel.sum()),
+        low, high = (levels[b], levels[b]) if edges is None else (edges[b], edges[b + 1])
+        bins.append({"low": float(low), "high": float(high), "count": int(sel.sum()),
                      "mean_mm": (r.mean(axis=0) * 1e3).tolist(),
                      "rms_mm": float(np.sqrt(np.mean(np.sum(r**2, axis=1))) * 1e3)})
     means = np.array([b["mean_mm"] for b in bins])
