@@ -43,8 +43,6 @@ def add_parsers(sub) -> None:
 
 
 def _run_diagnose(args) -> int:
-    import numpy as np
-
     from .diagnose import VOCABULARY, diagnose
     from .exceptions import InputError
     from .measurements import read_measurements
@@ -83,7 +81,6 @@ def _run_diagnose(args) -> int:
         write_report(robot, result, Path(args.report), str(args.measurements))
     if not args.quiet and args.json != "-":
         print(format_summary(robot, result, str(args.measurements)))
-    del np
     return EXIT_OK
 
 
