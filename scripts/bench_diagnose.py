@@ -53,9 +53,12 @@ def plain_fit(robot, result, mset, effect_names) -> tuple[float, float]:
             offset += size
         return (predict_positions(robot, effects, params, mset.q, context) - target).ravel()
 
-    start = time.perf_counter()
-    fit = least_squares(residual, np.zeros(scales.size), jac="2-point", method="lm")
-    seconds = time.perf_counter() - start
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):  # same BLAS setting as diagnose
+        start = time.perf_counter()
+        fit = least_squares(residual, np.zeros(scales.size), jac="2-point", method="lm")
+        seconds = time.perf_counter() - start
     return seconds, float(np.sqrt(np.mean(fit.fun.reshape(-1, 3) ** 2) * 3))
 
 

@@ -43,8 +43,6 @@ def add_parsers(sub) -> None:
 
 
 def _run_diagnose(args) -> int:
-    import numpy as np
-
     from .diagnose import VOCABULARY, diagnose
     from .exceptions import InputError
     from .measurements import read_measurements
@@ -83,7 +81,6 @@ def _run_diagnose(args) -> int:
         write_report(robot, result, Path(args.report), str(args.measurements))
     if not args.quiet and args.json != "-":
         print(format_summary(robot, result, str(args.measurements)))
-    del np
     return EXIT_OK
 
 
@@ -121,9 +118,17 @@ def format_summary(robot, d, source: str) -> str:
     strongest = _strongest(d.where)
     if strongest:
         out.append("   strongest links: " + "; ".join(strongest))
-    out.append("   varies most along (per-joint semivariogram, lowest nugget ratio): "
-               + ", ".join(f"{j} ({min(d.where['semivariogram_nugget_ratio'][j]):.2f})"
-                           for j in d.where["varies_along"]))
+    along = d.where["along_joints"]
+    out.append("   along single joints (share of the residual variance its k-NN along that joint predicts; "
+               "short-lag semivariance, 1 = none): " + ", ".join(
+                   f"{j} {a['knn_explained_share']:+.2f} ({min(a['short_lag_semivariance_xyz']):.2f})"
+                   for j, a in along.items()))
+    out.append("   varies most along: " + (", ".join(d.where["varies_along"]) or
+                                           "no single joint (the error depends on several together)"))
+    pairs = [p for p in d.where.get("along_joint_pairs", []) if p["knn_explained_share"] > 0.05][:3]
+    if pairs:
+        out.append("   joint pairs it varies along (k-NN share): " + ", ".join(
+            f"{'+'.join(p['joints'])} {p['knn_explained_share']:+.2f}" for p in pairs))
     out.append("\n3. Which effect: each effect added to frames alone (held-out RMS [mm], gain, paired z)")
     for name, c in d.candidates.items():
         if c.get("tried"):
@@ -133,10 +138,15 @@ def format_summary(robot, d, source: str) -> str:
             out.append(f"   {name:14s} not tried: {c['why']}")
     ident = d.identifiability
     removed = [(e, r) for e, info in ident["effects"].items() for r in info["removed"]]
-    out.append(f"   identifiability: {ident.get('rank', 0)} parameters kept, condition number "
+    everything = ident.get("all_effects", {})
+    out.append(f"   identifiability of the final model: {ident.get('rank', 0)} parameters kept, condition number "
                f"{ident.get('condition_number', float('nan')):.3g}; {len(removed)} removed, e.g.:")
     for e, r in removed[:6]:
         out.append(f"     {r['parameter']}: {r['reason']}")
+    if everything:
+        n_removed = sum(len(i["removed"]) for i in everything["effects"].values())
+        out.append(f"   (whole vocabulary in one model: {everything.get('rank', 0)} identifiable, {n_removed} removed, "
+                   f"condition number {everything.get('condition_number', float('nan')):.3g})")
     out.append("\n4. How far it shrinks (k-fold held-out) [mm]")
     out.append(f"   {'step':18s} {'params':>6s} {'train RMS':>10s} {'mean':>9s} {'RMS':>9s} {'max':>9s}")
     for i, s in enumerate(d.steps):
@@ -153,7 +163,9 @@ def format_summary(robot, d, source: str) -> str:
     out.append(f"   final held-out RMS {final * mm:.4f} mm = {final / d.noise_floor:.2f} x the noise floor "
                f"{d.noise_floor * mm:.4f} mm (tracker {d.tracker_noise * mm:.4f} mm per axis)")
     st = d.structure
-    out.append(f"   structure remains: {'YES' if st['remains'] else 'no'} (k-NN share {st['gain_over_null']:+.3f} "
+    along = ", ".join(robot.joint_names[j] for j in st.get("along_joints", []))
+    out.append(f"   structure remains: {'YES' if st['remains'] else 'no'} (k-NN along {along}: share "
+               f"{st['gain_over_null']:+.3f} "
                f"beyond chance, z = {st['z']:.1f}; ridge on joint features share {st['ridge_explained_share']:+.3f}, "
                f"z = {st['ridge_z']:.1f}; limits: share > {st['min_explained']}, p < {st['alpha']})")
     sc = d.scatter

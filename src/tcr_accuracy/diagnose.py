@@ -15,17 +15,19 @@ the nominal model is a :class:`~tcr_accuracy.robot.RobotModel`. Steps:
 3. **Which effect.** Every effect of :mod:`tcr_accuracy.effects` is a parametric model
    on top of the nominal kinematics. Its parameters map linearly (checked) onto joint
    offsets ``dq`` and error-screw vectors ``x`` for each pose; the identification
-   Jacobian is Pinocchio's error Jacobian (:func:`~tcr_accuracy.kinematics.error_jacobian`)
-   chained with that map. Identifiability: columns are scaled by the effects'
-   ``parameter_scales`` and normalised, then taken effect by effect in vocabulary
-   order; each effect's block is projected off the columns already kept and reduced by
-   QR with column pivoting (as FIGAROH does); columns whose pivot falls below
-   ``rank_tol`` are named and removed, with the parameters they duplicate. Fits are
-   nonlinear least squares (scipy ``least_squares``, exact batched forward kinematics
-   as residual, the chained Jacobian as ``jac``), warm-started from the full-data fit.
-   Effects enter by forward selection on k-fold held-out error; an effect is accepted
-   only when a one-sided paired test on the per-measurement held-out squared errors
-   (z > ``selection_z``) says the cut is larger than the noise explains.
+   Jacobian is Pinocchio's error Jacobian (``effects.pose_jacobians``, taken at the
+   frames-only fit) chained with that map. Identifiability, for every candidate model:
+   columns at the parameters' typical scales are taken effect by effect in vocabulary
+   order, each block projected off the columns already kept and reduced by QR with
+   column pivoting (as FIGAROH does); a column whose own part moves the TCP less than a
+   tenth of the tracker noise is named and removed, with the parameters it duplicates.
+   Fits are nonlinear least squares (scipy ``least_squares``, exact batched forward
+   kinematics as residual, the chained Jacobian as ``jac``) after one Gauss-Newton step
+   from a warm start. Effects enter by forward selection on k-fold held-out error only
+   when a one-sided paired test on the per-measurement held-out squared errors gives
+   z > ``selection_z``; backward elimination then drops any chosen effect whose removal
+   no longer costs held-out error by the same test. The primary effect is the chosen one
+   whose removal raises the held-out RMS most (leave-one-out table).
 4. **How far it shrinks.** Held-out mean/RMS/max after each step, the leave-one-out
    table over the chosen set, the final residual next to the noise floor, whether
    spatial structure remains in joint space (k-NN prediction of the residual against a
@@ -172,6 +174,7 @@ class Diagnosis:
     semivariograms: list = field(default_factory=list)
     eliminated: list = field(default_factory=list)
     n_fits: int = 0
+    contribution: dict = field(default_factory=dict)  # effect -> RMS TCP motion of its fit beyond frames [m]
     effect_parameters: dict = field(default_factory=dict)  # effect -> full (k,) vector [SI]
     registration: tuple = (np.eye(3), np.zeros(3))  # (R, t): tracker = R robot + t
 
@@ -213,6 +216,7 @@ class Diagnosis:
             "tracker_transform": self.tracker_transform.tolist(),
             "notes": list(self.notes),
             "n_fits": self.n_fits,
+            "contribution_mm": {e: v * 1e3 for e, v in self.contribution.items()},
         }
 
 
@@ -288,19 +292,54 @@ def _register(nominal: np.ndarray, measured: np.ndarray) -> tuple[np.ndarray, np
 class _Engine:
     """Linearised effects over one data set; fits and k-fold held-out errors."""
 
-    def __init__(self, robot, em, q, target, bases, keep, folds):
+    def __init__(self, robot, em, q, target, bases, folds, rank_tol=1e-6, min_motion=0.0):
         self.robot, self.em, self.q, self.target = robot, em, q, target
         self.bases = bases  # name -> _EffectBasis
-        self.keep = keep  # name -> kept column indices
         self.folds = folds  # list of (train, test)
+        self.rank_tol, self.min_motion = rank_tol, min_motion
         self._full_cache: dict = {}
-        self._last: dict = {}
+        self._keep_cache: dict = {}
+        self._last: dict = {}  # effect -> last fitted full-length scaled parameters
         self.n_fits = 0
 
+    def identify(self, effects) -> tuple[dict, dict]:
+        """Identifiable columns of each effect *within this set* (vocabulary order), and the report.
+
+        Per set, not once for the whole vocabulary: an effect that is not in the model
+        must not take columns away from one that is (sin q of transmission against s q of
+        encoder_scale, say).
+        """
+        key = tuple(effects)
+        if key not in self._keep_cache:
+            # vocabulary convention: geometry is what frames and joint offsets cannot
+            # express, so joint-axis rotations stay joint offsets even when joint_offsets
+            # is not (yet) in the model
+            order = list(effects)
+            borrowed = "geometry" in order and "joint_offsets" not in order and "joint_offsets" in self.bases
+            if borrowed:
+                order = _ordered(order + ["joint_offsets"])
+            keep, report = identifiability({e: self.bases[e] for e in order}, order, self.rank_tol,
+                                           self.min_motion)
+            if borrowed:
+                keep.pop("joint_offsets")
+                report["effects"].pop("joint_offsets")
+                report["note"] = "geometry excludes rotations about the joint axes (the joint_offsets effect)"
+                cols = [(self.bases[e].g * self.bases[e].scales)[:, :, keep[e]].reshape(-1, keep[e].size)
+                        for e in effects]
+                mat = np.concatenate(cols, axis=1)
+                mat = mat / np.linalg.norm(mat, axis=0)
+                sv = np.linalg.svd(mat, compute_uv=False)
+                report["rank"] = int(mat.shape[1])
+                report["condition_number"] = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
+                report["smallest_singular_value"] = float(sv[-1])
+            self._keep_cache[key] = (keep, report)
+        return self._keep_cache[key]
+
     def columns(self, effects):
-        basis = np.concatenate([self.bases[e].basis[:, :, self.keep[e]] for e in effects], axis=2)
-        g = np.concatenate([self.bases[e].g[:, :, self.keep[e]] for e in effects], axis=2)
-        scale = np.concatenate([self.bases[e].scales[self.keep[e]] for e in effects])
+        keep = self.identify(effects)[0]
+        basis = np.concatenate([self.bases[e].basis[:, :, keep[e]] for e in effects], axis=2)
+        g = np.concatenate([self.bases[e].g[:, :, keep[e]] for e in effects], axis=2)
+        scale = np.concatenate([self.bases[e].scales[keep[e]] for e in effects])
         return basis, g, scale
 
     def predict(self, basis, theta, rows):
@@ -336,19 +375,22 @@ class _Engine:
             return self._full_cache[key]
         basis, g, scale = self.columns(effects)
         every = np.arange(self.q.shape[0])
+        keep = self.identify(effects)[0]
         # warm start: each effect's last fitted values, zeros for an effect new to the model
-        start = np.concatenate([self._last.get(e, np.zeros(self.keep[e].size)) for e in effects])
+        start = np.concatenate([self._last.get(e, np.zeros(len(self.bases[e].names)))[keep[e]] for e in effects])
         phi, train_res = self.fit(basis, g, scale, every, start=start)
         offset = 0
         for e in effects:
-            self._last[e] = phi[offset:offset + self.keep[e].size]
-            offset += self.keep[e].size
+            full = np.zeros(len(self.bases[e].names))
+            full[keep[e]] = phi[offset:offset + keep[e].size]
+            self._last[e] = full
+            offset += keep[e].size
         oof = np.empty_like(self.target)
         for train, test in self.folds:
             phi_k, _ = self.fit(basis, g, scale, train, start=phi)
             oof[test] = self.predict(basis, phi_k * scale, test) - self.target[test]
         result = {"phi": phi, "scale": scale, "train_residual": train_res, "heldout_residual": oof,
-                  "n_parameters": int(scale.size)}
+                  "n_parameters": int(scale.size), "keep": keep}
         self._full_cache[key] = result
         return result
 
@@ -445,17 +487,24 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
 def _binned(values: np.ndarray, residual: np.ndarray, n_bins: int = 5) -> dict:
     """Quantile bins of values (N,): count, mean residual vector and RMS norm per bin [mm]."""
     finite = np.isfinite(values)
-    edges = np.unique(np.quantile(values[finite], np.linspace(0, 1, n_bins + 1)))
-    if edges.size < 2:
-        return {"bins": [], "spread_mm": 0.0}
-    which = np.clip(np.searchsorted(edges, values, side="right") - 1, 0, edges.size - 2)
+    levels = np.unique(values[finite])
+    if levels.size <= n_bins:  # a few distinct values (payload on/off): one bin each
+        if levels.size < 2:
+            return {"bins": [], "spread_mm": 0.0}
+        edges = None
+        which = np.searchsorted(levels, values)
+    else:
+        edges = np.unique(np.quantile(values[finite], np.linspace(0, 1, n_bins + 1)))
+        which = np.clip(np.searchsorted(edges, values, side="right") - 1, 0, edges.size - 2)
     bins = []
-    for b in range(edges.size - 1):
+    n_out = levels.size if edges is None else edges.size - 1
+    for b in range(n_out):
         sel = which == b
         if not sel.any():
             continue
         r = residual[sel]
-        bins.append({"low": float(edges[b]), "high": float(edges[b + 1]), "count": int(sel.sum()),
+        low, high = (levels[b], levels[b]) if edges is None else (edges[b], edges[b + 1])
+        bins.append({"low": float(low), "high": float(high), "count": int(sel.sum()),
                      "mean_mm": (r.mean(axis=0) * 1e3).tolist(),
                      "rms_mm": float(np.sqrt(np.mean(np.sum(r**2, axis=1))) * 1e3)})
     means = np.array([b["mean_mm"] for b in bins])
@@ -520,15 +569,41 @@ def where_analysis(robot: RobotModel, q: np.ndarray, nominal: np.ndarray, residu
                                    "mean_plus_minus_minus_mm": (diff * 1e3).tolist(),
                                    "difference_norm_mm": float(np.linalg.norm(diff) * 1e3)}
         where["approach_direction"] = direction
-    # per-joint semivariograms: along which joints does the error vary?
+    # along which joints does the error vary? Per-joint semivariograms (standardised:
+    # 1 = no similarity) at short lag, and the share of the residual variance that the
+    # k nearest neighbours along that joint alone predict (out of sample: self excluded)
+    from sklearn.neighbors import NearestNeighbors
+
     semis = per_joint_semivariograms(q, residual, n_bins=12, rng=rng)
-    ratios = {}
+    centred = residual - residual.mean(axis=0)
+    total = float(np.sum(centred**2)) or 1.0
+    along = {}
     for j, name in enumerate(robot.joint_names):
         if np.std(q[:, j]) == 0:
             continue
-        ratios[name] = [_nugget_ratio(semis[j], c) for c in range(3)]
-    where["semivariogram_nugget_ratio"] = ratios
-    where["varies_along"] = sorted(ratios, key=lambda n: min(ratios[n]))[:3]
+        s = semis[j]
+        short = s.lags <= np.quantile(s.lags, 0.25)
+        gamma_short = (s.semivariance[short] * s.counts[short, None]).sum(axis=0) / s.counts[short].sum()
+        k = min(10, q.shape[0] - 1)
+        idx = NearestNeighbors(n_neighbors=k + 1).fit(q[:, [j]]).kneighbors(q[:, [j]], return_distance=False)[:, 1:]
+        share = 1.0 - float(np.sum((centred - centred[idx].mean(axis=1)) ** 2)) / total
+        along[name] = {"short_lag_semivariance_xyz": gamma_short.tolist(), "knn_explained_share": share}
+    where["along_joints"] = along
+    where["varies_along"] = [n for n in sorted(along, key=lambda n: -along[n]["knn_explained_share"])
+                             if along[n]["knn_explained_share"] > 0.05][:3]
+    qs, _, _ = standardize(q)
+    names = [n for n in robot.joint_names if n in along]
+    pairs = []
+    for a in range(len(names)):
+        for b in range(a + 1, len(names)):
+            cols = [robot.joint_names.index(names[a]), robot.joint_names.index(names[b])]
+            k = min(10, q.shape[0] - 1)
+            idx = NearestNeighbors(n_neighbors=k + 1).fit(qs[:, cols]).kneighbors(
+                qs[:, cols], return_distance=False)[:, 1:]
+            share = 1.0 - float(np.sum((centred - centred[idx].mean(axis=1)) ** 2)) / total
+            pairs.append({"joints": [names[a], names[b]], "knn_explained_share": share})
+    pairs.sort(key=lambda r: -r["knn_explained_share"])
+    where["along_joint_pairs"] = pairs
     return where, semis
 
 
@@ -693,6 +768,19 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, s
     progress : callable(str), optional
         Called with a short message as the work advances (the CLI's progress bar).
     """
+    # The least-squares problems here are small (3N x ~60): multi-threaded BLAS only adds
+    # synchronisation, and on a shared machine it was 50-100x slower than one thread.
+    # threadpoolctl (a scikit-learn dependency) limits it for the duration of the call.
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _diagnose(robot, measurements, effects=effects, folds=folds, seed=seed,
+                         tracker_noise=tracker_noise, selection_z=selection_z,
+                         min_relative_gain=min_relative_gain, rank_tol=rank_tol, progress=progress)
+
+
+def _diagnose(robot, measurements, *, effects, folds, seed, tracker_noise, selection_z, min_relative_gain,
+              rank_tol, progress) -> Diagnosis:
     from sklearn.model_selection import KFold
 
     obs = observations_from(measurements)
@@ -713,6 +801,8 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, s
             raise InputError(f"--effects: unknown effect(s) {', '.join(unknown)} (vocabulary: {', '.join(VOCABULARY)})")
     em = ErrorModel(robot)
     notes: list = []
+    if getattr(measurements, "quaternion", None) is not None:
+        notes.append("orientation columns were read; the fit uses the measured positions only")
 
     # 1. register the tracker frame, then work in the robot's base frame
     say("registering the tracker frame")
@@ -751,20 +841,22 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, s
     # a TCP offset of centimetres changes which directions duplicate one another:
     # linearise about the frames-only fit, not the nominal model
     frames = bases["frames"]
-    all_frames = {"frames": np.arange(len(frames.names))}
-    pre = _Engine(robot, em, obs.q, target, bases, all_frames, [])
+    pre = _Engine(robot, em, obs.q, target, {"frames": frames}, [], rank_tol=0.0)
     phi, _ = pre.fit(*pre.columns(["frames"]), np.arange(n))
     x_frames = frames.basis[0] @ (phi * frames.scales)
     jac_x = _position_jacobians(robot, obs.q, x_frames)
     for b in bases.values():
         b.relinearise(jac_x)
-    keep, ident = identifiability(bases, order, rank_tol, min_motion=0.1 * tracker_noise)
-    for name in order:
-        if keep[name].size == 0 and name != "frames":
-            candidates[name] = {"tried": False, "why": "no identifiable parameter on these data"}
     kfold = KFold(n_splits=folds, shuffle=True, random_state=int(rng.integers(2**31 - 1)))
     split = [(np.asarray(a), np.asarray(b)) for a, b in kfold.split(np.arange(n))]
-    engine = _Engine(robot, em, obs.q, target, bases, keep, split)
+    engine = _Engine(robot, em, obs.q, target, bases, split, rank_tol, min_motion=0.1 * tracker_noise)
+    _, ident_all = engine.identify(order)
+    testable = []
+    for name in order:
+        if name != "frames" and engine.identify(("frames", name))[0][name].size == 0:
+            candidates[name] = {"tried": False, "why": "no identifiable parameter on these data (beyond frames)"}
+        elif name != "frames":
+            testable.append(name)
 
     # 2. gap after frames
     say("fitting frames")
@@ -776,7 +868,7 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, s
                   ErrorStats.of(result["heldout_residual"]), None)]
 
     # 3. forward selection on held-out error
-    pool = [e for e in order if e != "frames" and keep[e].size > 0]
+    pool = list(testable)
     first_gain: dict = {}
     while pool:
         trials = {}
@@ -858,6 +950,8 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, s
 
     # fitted parameters, as-built geometry, tracker frame
     theta = final["phi"] * final["scale"]
+    keep, ident = engine.identify(tuple(_ordered(selected)))
+    ident = {**ident, "all_effects": ident_all}
     parameters, units, full_parameters = {}, {}, {}
     as_built = np.zeros(em.size)
     offset = 0
@@ -871,6 +965,15 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, s
         units[e] = {b.names[k]: b.units[k] for k in keep[e]}
         if e in GEOMETRIC:
             as_built += b.basis[0] @ full
+    # how much of the gap each chosen effect accounts for: the TCP motion its fitted
+    # parameters cause, after taking out what a rigid frame change could absorb
+    frames_cols = bases["frames"].g.reshape(-1, len(bases["frames"].names))
+    contribution = {}
+    for e in chosen:
+        x_e = bases[e].basis @ full_parameters[e]
+        motion = (tcp_poses(robot, obs.q, x_e, em).position - nominal).ravel()
+        rigid = frames_cols @ np.linalg.lstsq(frames_cols, motion, rcond=None)[0]
+        contribution[e] = float(np.sqrt(np.mean((motion - rigid) ** 2) * 3))
     base_twist = as_built[em.base_slice].copy()
     as_built[em.base_slice] = 0.0  # the base twist belongs to the tracker frame, not the robot
     tracker = np.eye(4)
@@ -886,7 +989,7 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, s
         heldout_residual=final["heldout_residual"], gap_residual=gap_residual, q=obs.q,
         nominal_position=nominal, gravity_torque=tau, notes=notes, semivariograms=semis,
         effect_parameters=full_parameters, registration=(rot, trans), eliminated=eliminated,
-        n_fits=engine.n_fits,
+        n_fits=engine.n_fits, contribution=contribution,
     )
 
 

@@ -140,6 +140,49 @@ def plot_semivariograms(diagnosis, robot, path: Path) -> Path:
     return _save(fig, path)
 
 
+def plot_regions(diagnosis, path: Path) -> Path:
+    """Workspace octants, radius and height bins, and the context columns that were measured."""
+    plt = _pyplot()
+    where = diagnosis.where
+    panels = [("octants", None), ("radius", "radius [m]"), ("height", "height z [m]")]
+    panels += [(k, label) for k, label in (("payload_kg", "payload [kg]"), ("temperature_c", "temperature [degC]"))
+               if k in where]
+    if where.get("approach_direction"):
+        panels.append(("approach_direction", None))
+    cols = min(3, len(panels))
+    rows = int(np.ceil(len(panels) / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(3.4 * cols, 2.9 * rows), squeeze=False)
+    flat = axes.ravel()
+    for ax in flat[len(panels):]:
+        ax.axis("off")
+    for ax, (key, label) in zip(flat, panels):
+        if key == "octants":
+            regions = where["octants"]["regions"]
+            ax.bar([r["region"] for r in regions], [r["rms_mm"] for r in regions])
+            ax.set_ylabel("RMS |e| [mm]")
+            ax.tick_params(axis="x", rotation=60, labelsize=6)
+            ax.set_title("octants around the median TCP", fontsize=8)
+        elif key == "approach_direction":
+            info = where["approach_direction"]
+            ax.bar(list(info), [v["difference_norm_mm"] for v in info.values()])
+            ax.set_ylabel("|mean(+) - mean(-)| [mm]")
+            ax.set_title("approach direction", fontsize=8)
+        else:
+            bins = where[key]["bins"]
+            centres = [0.5 * (b["low"] + b["high"]) for b in bins]
+            if not bins:
+                continue
+            means = np.array([b["mean_mm"] for b in bins])
+            for c in range(3):
+                ax.plot(centres, means[:, c], marker="o", ms=3, label="xyz"[c])
+            ax.set_xlabel(label)
+            ax.set_ylabel("binned mean error [mm]")
+            ax.legend(fontsize=7)
+    fig.suptitle("Residual after frames over the workspace and the context")
+    fig.tight_layout()
+    return _save(fig, path)
+
+
 def write_plots(diagnosis, robot, directory: Path) -> dict:
     """All figures into directory; returns {label: Path}."""
     directory = Path(directory)
@@ -148,5 +191,6 @@ def write_plots(diagnosis, robot, directory: Path) -> dict:
         "Residual per axis": plot_axes(diagnosis, directory / "axes.png"),
         "Against joint values": plot_joints(diagnosis, robot, directory / "joints.png"),
         "Against gravity torque": plot_gravity(diagnosis, robot, directory / "gravity.png"),
+        "Workspace regions and context": plot_regions(diagnosis, directory / "regions.png"),
         "Per-joint semivariograms": plot_semivariograms(diagnosis, robot, directory / "semivariograms.png"),
     }
