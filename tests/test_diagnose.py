@@ -127,7 +127,7 @@ def test_geometry_only_as_built_urdf_reproduces_the_robot(tmp_path, ur5):
     out = tmp_path / "out.json"
     proc = subprocess.run([sys.executable, "-m", "tcr_accuracy", "diagnose", str(csv), "--robot", "ur5",
                            "--effects", "joint_offsets,geometry,compliance", "--folds", "3", "--quiet",
-                           "--json", str(out), "--as-built-urdf", str(urdf), "--report", str(tmp_path / "rep")],
+                           "--json", str(out), "--as-built-urdf", str(urdf), "--out", str(tmp_path / "rep")],
                           capture_output=True, text=True, cwd=REPO, timeout=300,
                           env={"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin", "MPLBACKEND": "Agg"})
     assert proc.returncode == 0, proc.stderr
@@ -137,7 +137,7 @@ def test_geometry_only_as_built_urdf_reproduces_the_robot(tmp_path, ur5):
         assert key in payload
     assert {"effect", "train_rms_mm", "heldout_rms_mm", "heldout_mean_mm", "heldout_max_mm"} <= set(payload["steps"][0])
     assert "compliance" not in payload["selected_effects"]  # not hidden: not chosen
-    for name in ("report.md", "report.html", "steps.png", "semivariograms.png"):
+    for name in ("report.md", "index.html", "figure-1.png", "scene-1.html"):
         assert (tmp_path / "rep" / name).is_file()
     side = tmp_path / "asbuilt.effects.yaml"
     import yaml

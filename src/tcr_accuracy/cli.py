@@ -150,56 +150,6 @@ def emit_json(payload: dict, target: str) -> None:
 
 
 # ---------------------------------------------------------------------------------------
-# demo: the main job on the built-in tool-changer
-# ---------------------------------------------------------------------------------------
-def _demo_parser(sub) -> None:
-    p = sub.add_parser(
-        "demo", help="the main job on the built-in tool-changer",
-        description="TCP pose at the seed paper's working pose and a short accuracy summary: "
-                    "Monte Carlo of the seed's Table 2 error sources next to the first-order "
-                    "(Jacobian) prediction, and the reliability P(|dP| < T).",
-    )
-    p.add_argument("--samples", type=int, default=20_000, help="Monte Carlo samples (default 20000)")
-    p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
-    add_quiet_argument(p)
-    p.set_defaults(run=_run_demo)
-
-
-def _run_demo(args) -> int:
-    import numpy as np
-
-    from .errors import seed_budget
-    from .exceptions import InputError
-    from .kinematics import error_jacobian, tcp_poses
-    from .montecarlo import run_monte_carlo
-    from .robot import load_robot
-
-    if args.samples < 2:
-        raise InputError(f"--samples {args.samples}: need at least 2")
-    robot = load_robot()
-    q = robot.working_pose
-    pose = tcp_poses(robot, q)
-    print(f"Built-in tool-changer (5R + 1P) at the seed's working pose: {format_joint_values(robot, q)}")
-    print("  TCP position [mm]: x = {:.3f}, y = {:.3f}, z = {:.3f}".format(*(pose.position[0] * 1000)))
-    budget = seed_budget(robot, "table2")
-    result = run_monte_carlo(budget, q, args.samples, np.random.default_rng(args.seed))
-    jac = error_jacobian(robot, q, budget.error_model)
-    first_order_std = np.sqrt(np.diag(jac[:3] @ budget.parameter_covariance() @ jac[:3].T))
-    s = result.stats
-    print(f"\nMonte Carlo of the seed's Table 2 error sources: {args.samples} samples, seed {args.seed}")
-    print(f"  {'':10s} {'mean':>9s} {'std':>9s} {'min':>9s} {'max':>9s} {'1st-order std':>14s}")
-    for k, name in enumerate(("dx", "dy", "dz", "|dP|")):
-        fo = f"{first_order_std[k] * 1000:14.4f}" if k < 3 else f"{'':14s}"
-        print(f"  {name + ' [mm]':10s} {s.mean[k] * 1000:9.4f} {s.std[k] * 1000:9.4f} "
-              f"{s.minimum[k] * 1000:9.4f} {s.maximum[k] * 1000:9.4f} {fo}")
-    for t, p in zip(result.position_tolerances, result.position_reliability):
-        print(f"  P(|dP| < {t * 1000:.2f} mm) = {p:.4f}")
-    print("\n  The seed reports std 0.14 / 0.08 / 0.14 mm and P(|dP| < 0.25 mm) = 0.9503 for these")
-    print("  inputs; its Table 2 drive spreads (0.3 deg at 1.7 m reach) give millimetres instead.")
-    return EXIT_OK
-
-
-# ---------------------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(
         prog="tcr-accuracy",
@@ -223,6 +173,7 @@ def _topic_commands():
 
 #: Modules holding further subcommands, one per topic; each defines add_parsers(sub).
 TOPIC_MODULES: list[str] = [
+    "cli_demo",
     "cli_montecarlo",
     "cli_sensitivity",
     "cli_simulate",
@@ -231,7 +182,7 @@ TOPIC_MODULES: list[str] = [
     "cli_prediction",
 ]
 
-COMMANDS = [_pose_parser, _demo_parser]
+COMMANDS = [_pose_parser]
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:

@@ -11,7 +11,8 @@ import math
 import sys
 from pathlib import Path
 
-from .cli import EXIT_OK, add_robot_arguments, emit_json
+from .cli import add_robot_arguments
+from .cli_output import RunOutput, add_output_arguments
 
 
 def add_parsers(sub) -> None:
@@ -32,13 +33,10 @@ def add_parsers(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the fold split and permutation tests")
     p.add_argument("--noise-mm", type=float, default=0.02,
                    help="tracker noise, std per axis [mm] (default 0.02); noise floor = sqrt(3) x this")
-    p.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE",
-                   help="write the results as JSON to FILE (or stdout without FILE)")
-    p.add_argument("--report", default=None, metavar="DIR", help="write report.md, report.html and plots to DIR")
     p.add_argument("--as-built-urdf", default=None, metavar="FILE",
                    help="write the calibrated URDF to FILE and the other effects' parameters to "
                         "FILE with suffix .effects.yaml")
-    p.add_argument("--quiet", action="store_true", help="no progress bar, no printed summary")
+    add_output_arguments(p, view=True)
     p.set_defaults(run=_run_diagnose)
 
 
@@ -46,6 +44,7 @@ def _run_diagnose(args) -> int:
     from .diagnose import VOCABULARY, diagnose
     from .exceptions import InputError
     from .measurements import read_measurements
+    from .plots_diagnose import write_plots
     from .robot import load_robot
 
     if args.folds < 2:
@@ -59,29 +58,28 @@ def _run_diagnose(args) -> int:
         if unknown:
             raise InputError(f"--effects: unknown {', '.join(unknown)} (vocabulary: {', '.join(VOCABULARY)})")
     robot = load_robot(args.robot, args.tool)
+    out = RunOutput(args, f"Sim-to-real gap diagnosis: {robot.name}")
     measurements = read_measurements(args.measurements, robot, min_rows=max(3 * args.folds, 12))
-    bar = None
-    if not args.quiet and sys.stderr.isatty():
-        from tqdm import tqdm
+    from tqdm import tqdm
 
-        bar = tqdm(desc="diagnose", file=sys.stderr, bar_format="{desc}: {postfix} [{elapsed}]")
+    bar = tqdm(desc="diagnose", file=sys.stderr, bar_format="{desc}: {postfix} [{elapsed}]",
+               disable=args.quiet or not sys.stderr.isatty())
     try:
         result = diagnose(robot, measurements, effects=effects, folds=args.folds, seed=args.seed,
-                          tracker_noise=args.noise_mm * 1e-3,
-                          progress=(lambda m: bar.set_postfix_str(m)) if bar else None)
+                          tracker_noise=args.noise_mm * 1e-3, progress=bar.set_postfix_str)
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     payload = jsonable({"measurements": str(args.measurements), **result.to_dict()})
-    if args.json is not None:
-        emit_json(payload, args.json)
+    source = str(args.measurements)
+    _report_tables(out, robot, result, source)
+    out.add_plots(lambda folder: list(write_plots(result, robot, folder).values()), PLOT_CAPTIONS)
+    if out.scene_wanted:
+        out.set_scene(_scene(robot, result, measurements),
+                      "Measured TCP points (base frame) and the gap to the nominal model, magnified; "
+                      "nominal robot and the calibrated as-built robot (geometric errors magnified)")
     if args.as_built_urdf:
         write_as_built(robot, result, Path(args.as_built_urdf))
-    if args.report:
-        write_report(robot, result, Path(args.report), str(args.measurements))
-    if not args.quiet and args.json != "-":
-        print(format_summary(robot, result, str(args.measurements)))
-    return EXIT_OK
+    return out.finish(payload, lambda: print(format_summary(robot, result, source)))
 
 
 def jsonable(value):
@@ -233,47 +231,77 @@ def write_as_built(robot, d, path: Path) -> tuple[Path, Path]:
 
 
 # ---------------------------------------------------------------------------------------
-# Report
+# Report tables and 3D view (the report itself is written by cli_output.RunOutput)
 # ---------------------------------------------------------------------------------------
-def write_report(robot, d, directory: Path, source: str) -> Path:
-    """report.md, report.html and the PNGs, built in a temporary folder and renamed into place."""
-    import html
-    import shutil
-    import tempfile
+PLOT_CAPTIONS = {
+    "steps.png": "How far the gap shrinks: held-out RMS after each step of the forward selection",
+    "axes.png": "Residual after fitting the tracker frame, per axis",
+    "joints.png": "Residual after the tracker frame against each joint value",
+    "gravity.png": "Residual after the tracker frame against the gravity torque of each joint",
+    "semivariograms.png": "Per-joint semivariograms of the residual (along which joints it varies)",
+}
 
-    from .plots_diagnose import write_plots
 
-    directory = Path(directory)
-    directory.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{directory.name}.", dir=directory.parent))
-    try:
-        plots = write_plots(d, robot, tmp)
-        summary = format_summary(robot, d, source)
-        md = [f"# Sim-to-real gap diagnosis: {robot.name}", "", f"Measurements: `{source}`", "",
-              "```", summary, "```", ""]
-        for label, png in plots.items():
-            md += [f"## {label}", "", f"![{label}]({png.name})", ""]
-        (tmp / "report.md").write_text("\n".join(md), encoding="utf-8")
-        body = [f"<h1>Sim-to-real gap diagnosis: {html.escape(robot.name)}</h1>",
-                f"<p>Measurements: <code>{html.escape(source)}</code></p>",
-                f"<pre>{html.escape(summary)}</pre>"]
-        for label, png in plots.items():
-            body += [f"<h2>{html.escape(label)}</h2>", f'<img src="{png.name}" alt="{html.escape(label)}">']
-        page = ("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>Diagnosis</title>"
-                "<style>body{font-family:sans-serif;max-width:1000px;margin:auto}img{max-width:100%}"
-                "pre{background:#f4f4f4;padding:8px;overflow-x:auto}</style></head><body>\n"
-                + "\n".join(body) + "\n</body></html>\n")
-        (tmp / "report.html").write_text(page, encoding="utf-8")
-        if directory.exists():
-            old = directory.with_name(f".{directory.name}.old")
-            if old.exists():
-                shutil.rmtree(old)
-            directory.rename(old)
-            tmp.rename(directory)
-            shutil.rmtree(old)
+def _report_tables(out, robot, d, source: str) -> None:
+    mm = 1e3
+    out.add_text(f"{d.n_measurements} measurements of {robot.name} from {source}, {d.folds}-fold "
+                 "cross-validation. Every held-out figure comes from measurements not used for that fit.",
+                 heading="Data")
+    out.add_table("1. Gap after fitting only the tracker frame and TCP offset", ["statistic", "value"],
+                  [("mean", d.gap.mean * mm), ("RMS", d.gap.rms * mm), ("max", d.gap.max * mm)],
+                  units=["", "mm"])
+    axes = d.where["per_axis"]
+    out.add_table("2. Where it lies: residual per axis", ["axis", "RMS"],
+                  [(a, axes[a]["rms_mm"]) for a in "xyz"], units=["", "mm"],
+                  note="strongest links: " + "; ".join(_strongest(d.where)))
+    rows = []
+    for name, c in d.candidates.items():
+        if c.get("tried"):
+            rows.append((name, c["heldout_rms_mm_with_frames"], c["gain_mm"], c["z"], c["n_parameters"]))
         else:
-            tmp.rename(directory)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return directory
+            rows.append((name, "not tried", c["why"], "", ""))
+    out.add_table("3. Which effect: each effect added to frames alone",
+                  ["effect", "held-out RMS", "gain", "paired z", "identifiable parameters"], rows,
+                  units=["", "mm", "mm", "", ""])
+    out.add_table("4. How far it shrinks (k-fold held-out)",
+                  ["step", "parameters", "train RMS", "held-out mean", "held-out RMS", "held-out max"],
+                  [(s.effect if i == 0 else "+" + s.effect, s.n_parameters, s.train_rms * mm, s.heldout.mean * mm,
+                    s.heldout.rms * mm, s.heldout.max * mm) for i, s in enumerate(d.steps)],
+                  units=["", "", "mm", "mm", "mm", "mm"],
+                  note=f"primary effect: {d.primary_effect or 'none beyond frames'}; final held-out RMS = "
+                       f"{d.steps[-1].heldout.rms / d.noise_floor:.2f} x the noise floor "
+                       f"{d.noise_floor * mm:.4f} mm; structure remains: "
+                       f"{'YES' if d.structure['remains'] else 'no'}")
+    if d.leave_one_out:
+        out.add_table("Leave one out of the chosen set", ["dropped", "held-out RMS", "increase"],
+                      [(r["dropped"], r["heldout_rms_mm"], r["increase_mm"]) for r in d.leave_one_out],
+                      units=["", "mm", "mm"])
+    out.add_text(format_summary(robot, d, source), heading="Full printed summary")
+
+
+def _scene(robot, d, measurements):
+    """Nominal robot, the calibrated as-built robot as a ghost, measured points and the gap."""
+    import numpy as np
+
+    from .errors import ErrorModel
+    from .viewer import Scene, auto_magnification
+
+    context = measurements.context()
+    model_final = d.predict(robot, d.q, context)
+    measured = model_final - d.final_residual  # in the robot's base frame
+    nominal_model = measured + d.gap_residual  # the model with the tracker frame only
+    gap = np.linalg.norm(d.gap_residual, axis=1)
+    magnify = auto_magnification(float(gap.max()), drawn_m=0.15)
+    scene = Scene(f"{robot.name}: sim-to-real gap")
+    q_show = robot.working_pose
+    scene.add_robot(robot, q_show, name="nominal robot")
+    em = ErrorModel(robot)
+    as_built = em.perturbed_robot(magnify * np.asarray(d.as_built_x))
+    scene.add_robot(as_built, q_show, name=f"as-built robot, geometric errors x {magnify:g}",
+                    color=(0.85, 0.2, 0.2), opacity=0.35, include_base=False)
+    scene.add_point_cloud(measured, gap * 1e3, name="measured",
+                          label="gap after the tracker frame |dP| [mm]")
+    scene.add_error_segments(measured, nominal_model, magnify=magnify, name="gap",
+                             start_label="measured", end_label="nominal model")
+    scene.add_note(f"{d.n_measurements} measurements; segments and the as-built ghost magnified x {magnify:g}")
+    return scene

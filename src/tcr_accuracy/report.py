@@ -54,6 +54,12 @@ class _Table:
 
 
 @dataclass(frozen=True)
+class _Links:
+    heading: str
+    links: tuple[tuple[str, str], ...]  # (label, relative href)
+
+
+@dataclass(frozen=True)
 class _Figure:
     filename: str
     png: bytes
@@ -166,6 +172,10 @@ class Report:
             formatted.append(tuple(_cell(v, float_format) for v in row))
         self.items.append(_Table(str(title), tuple(columns), tuple(formatted), note))
 
+    def add_links(self, heading: str, links) -> None:
+        """A list of links (label, relative href), e.g. to the reports of sub-runs."""
+        self.items.append(_Links(str(heading), tuple((str(label), str(href)) for label, href in links)))
+
     def add_figure(self, figure, caption: str, *, dpi: int = 110) -> str:
         """A plot: a matplotlib ``Figure`` (saved as PNG now) or the path of a PNG file.
 
@@ -219,6 +229,10 @@ class Report:
                 body.append(f'<table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>')
                 if item.note:
                     body.append(f'<p class="note">{esc(item.note)}</p>')
+            elif isinstance(item, _Links):
+                body.append(f"<h2>{esc(item.heading)}</h2>")
+                body.append("<ul>" + "".join(f'<li><a href="{esc(href)}">{esc(label)}</a></li>'
+                                             for label, href in item.links) + "</ul>")
             elif isinstance(item, _Figure):
                 body.append(f'<figure><img src="{esc(item.filename)}" alt="{esc(item.caption)}">'
                             f"<figcaption>{esc(item.caption)}</figcaption></figure>")
@@ -255,6 +269,8 @@ class Report:
                 out.append("")
                 if item.note:
                     out += [item.note, ""]
+            elif isinstance(item, _Links):
+                out += [f"## {item.heading}", ""] + [f"- [{label}]({href})" for label, href in item.links] + [""]
             elif isinstance(item, _Figure):
                 out += [f"![{item.caption}]({item.filename})", "", f"*{item.caption}*", ""]
             elif isinstance(item, _Scene):
