@@ -131,7 +131,7 @@ def run(argv, capsys):
 def test_cli_predict_writes_predictions_close_to_the_hidden_error(measured, tool_changer, capsys):
     out_csv = measured["dir"] / "pred.csv"
     code, out, err = run(["predict", "--train", measured["train"], "--query", measured["query"],
-                          "--method", "kriging", "--out", str(out_csv), "--json", str(measured["dir"] / "p.json")],
+                          "--method", "kriging", "--csv", str(out_csv), "--json", str(measured["dir"] / "p.json")],
                          capsys)
     assert code == 0, err
     rows = np.loadtxt(out_csv, delimiter=",", skiprows=1)
@@ -147,7 +147,7 @@ def test_cli_predict_writes_predictions_close_to_the_hidden_error(measured, tool
 def test_cli_compensate_writes_joints_that_reach_the_targets(measured, tool_changer, capsys):
     out_csv = measured["dir"] / "comp.csv"
     code, out, err = run(["compensate", "--train", measured["train"], "--targets", measured["query"],
-                          "--method", "kriging", "--out", str(out_csv)], capsys)
+                          "--method", "kriging", "--csv", str(out_csv)], capsys)
     assert code == 0, err
     q_comp = np.loadtxt(out_csv, delimiter=",", skiprows=1)[:, :6] / tool_changer.display_scale
     target = tcp_poses(tool_changer, measured["q_query"]).position
@@ -176,12 +176,12 @@ def test_cli_bad_inputs_are_one_line_exit_2_and_write_nothing(measured, tool_cha
         (["predict", "--train", measured["query"], "--query", measured["query"]], "missing position columns"),
     ]
     for argv, message in cases:
-        out_csv = d / "never.csv"
-        code, out, err = run(argv + ["--out", str(out_csv)], capsys)
+        out_csv, report = d / "never.csv", d / "never_report"
+        code, out, err = run(argv + ["--csv", str(out_csv), "--out", str(report)], capsys)
         assert code == 2, (argv, err)
         last = err.splitlines()[-1]  # a repeated pose also warns first, on its own line
         assert message in last and last.startswith("tcr-accuracy predict: error:"), err
-        assert not out_csv.exists()
+        assert not out_csv.exists() and not report.exists()
     # a target the compensation cannot reach: j4 at the end of its stroke and the arm stretched
     # straight, while the hidden error of this robot asks for a longer reach
     far = TC_REF.copy()
@@ -189,5 +189,100 @@ def test_cli_bad_inputs_are_one_line_exit_2_and_write_nothing(measured, tool_cha
     targets = _write(d / "far.csv", tool_changer, np.vstack([TC_REF, far]))
     out_csv = d / "never.csv"
     code, out, err = run(["compensate", "--train", measured["train"], "--targets", targets, "--method", "kriging",
-                          "--out", str(out_csv)], capsys)
+                          "--csv", str(out_csv)], capsys)
     assert code == 2 and "not reachable" in err and "rows 3;" in err and not out_csv.exists()
+
+
+# ---------------------------------------------------------------------------------------
+# report, view, plots (the shared output options of cli_output)
+# ---------------------------------------------------------------------------------------
+def _report_tables(index):
+    from test_cli_outputs import _tables
+
+    return _tables(index)
+
+
+def test_cli_predict_report_view_and_csv_agree_with_the_json(measured, tool_changer, capsys):
+    d = measured["dir"] / "predict_outputs"
+    d.mkdir()
+    code, out, err = run(["predict", "--train", measured["train"], "--query", measured["query"], "--method", "kriging",
+                          "--csv", str(d / "p.csv"), "--json", str(d / "p.json"), "--out", str(d / "report"),
+                          "--view", str(d / "view.html")], capsys)
+    assert code == 0, err
+    data = json.loads((d / "p.json").read_text())
+    csv = np.loadtxt(d / "p.csv", delimiter=",", skiprows=1)
+    pred = np.array(data["predicted_errors_mm"])
+    np.testing.assert_allclose(csv[:, 6:9], pred, rtol=1e-8, atol=1e-12)
+    tables = _report_tables(d / "report" / "index.html")
+    stats = {r[0]: [float(v) for v in r[1:]] for r in tables["Predicted error at the query poses"][1:]}
+    norm = np.linalg.norm(pred, axis=1)
+    assert stats["mean"][0] == pytest.approx(data["predicted_error_mean_mm"], rel=1e-3)
+    assert stats["max"][0] == pytest.approx(norm.max(), rel=1e-3)
+    assert stats["max"][3] == pytest.approx(np.abs(pred[:, 2]).max(), rel=1e-3)
+    per_pose = tables["Predicted error per query pose"]
+    assert len(per_pose) == 1 + 8 and per_pose[0][-1] == "|e| [mm]"
+    for row, p in zip(per_pose[1:], pred):
+        assert [float(v) for v in row[-4:-1]] == pytest.approx(p, rel=1e-3, abs=1e-6)
+    predictor = dict(tables["Predictor"][1:])
+    assert predictor["method"] == "kriging" and predictor["training poses"] == "60"
+    page = (d / "report" / "index.html").read_text(encoding="utf-8")
+    assert page.count('<img src="figure-') == 1 and 'iframe src="scene-1.html"' in page
+    view = (d / "view.html").read_text(encoding="utf-8")
+    assert "predicted TCP error |e| [mm]" in view and "segments magnified x " in view
+    assert "<script>" in view and "127.0.0.1" not in view  # self-contained, no server
+    assert "report written to" in err and "predictions written to" in err
+
+
+def test_cli_compensate_report_shows_before_and_after_of_the_json(measured, tool_changer, capsys):
+    d = measured["dir"] / "compensate_outputs"
+    code, out, err = run(["compensate", "--train", measured["train"], "--targets", measured["query"],
+                          "--method", "kriging", "--json", str(d.with_suffix(".json")), "--out", str(d),
+                          "--plots", str(d.with_name("comp_plots")), "--quiet"], capsys)
+    assert code == 0 and err == ""
+    data = json.loads(d.with_suffix(".json").read_text())
+    tables = _report_tables(d / "index.html")
+    rows = {r[0]: [float(v) for v in r[1:]]
+            for r in tables["Predicted error at the targets, before and after compensation"][1:]}
+    assert rows["uncompensated (target joints)"] == pytest.approx(
+        [data["predicted_error_before_mean_mm"], data["predicted_error_before_max_mm"]], rel=1e-3)
+    assert rows["compensated"] == pytest.approx([data["predicted_miss_mean_mm"], data["predicted_miss_max_mm"]],
+                                                rel=1e-3)
+    # independent check of "before": the uncompensated command's predicted error is the hidden
+    # error of the real robot, to the accuracy of the kriging fit
+    truth = np.linalg.norm(measured["real"].true_errors(measured["q_query"]), axis=1) * 1e3
+    assert data["predicted_error_before_mean_mm"] == pytest.approx(truth.mean(), rel=0.1)
+    assert data["predicted_miss_max_mm"] < 0.001 <= data["predicted_error_before_max_mm"]
+    cycles = {int(r[0]): int(r[1]) for r in tables["Convergence"][1:]}
+    assert cycles == {int(k): v for k, v in data["cycles_targets"].items()} and sum(cycles.values()) == 8
+    assert data["n_converged"] == 8
+    assert (d.with_name("comp_plots") / "compensation.png").read_bytes().startswith(b"\x89PNG")
+    scene = (d / "scene-1.html").read_text(encoding="utf-8")
+    assert "predicted real TCP, uncompensated command" in scene and "compensated command" in scene
+    assert scene.count("target TCP") == 1
+
+
+@pytest.mark.parametrize("command, function", [("predict", "plot_predicted_errors"),
+                                               ("compensate", "plot_compensation")])
+def test_cli_a_failure_mid_run_leaves_no_csv_report_json_or_view(command, function, measured, tmp_path,
+                                                                  monkeypatch, capsys):
+    from tcr_accuracy import plots_prediction
+
+    def boom(*args, **kwargs):
+        raise RuntimeError("plot failed")
+
+    monkeypatch.setattr(plots_prediction, function, boom)
+    source = "--query" if command == "predict" else "--targets"
+    with pytest.raises(RuntimeError, match="plot failed"):
+        main([command, "--train", measured["train"], source, measured["query"], "--method", "idw-joint", "--quiet",
+              "--csv", str(tmp_path / "o.csv"), "--out", str(tmp_path / "report"), "--json", str(tmp_path / "o.json"),
+              "--view", str(tmp_path / "view.html")])
+    assert sorted(p.name for p in tmp_path.rglob("*")) == []
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--csv", "/nonexistent-folder/p.csv"], "--csv /nonexistent-folder/p.csv: the folder /nonexistent-folder"),
+    (["--open"], "--open needs --serve"),
+])
+def test_cli_bad_output_options_are_one_line_exit_2(extra, message, measured, capsys):
+    code, out, err = run(["predict", "--train", measured["train"], "--query", measured["query"], *extra], capsys)
+    assert code == 2 and message in err and err.count("\n") == 1

@@ -4,6 +4,9 @@
   second seed's Figs. 4-7).
 * :func:`plot_semivariograms` -- semivariance of the standardised x, y, z error against
   joint distance with the fitted Gaussian model, overall and along each joint (its Fig. 10).
+* :func:`plot_predicted_errors` -- the predicted error at each query pose (``predict``).
+* :func:`plot_compensation` -- the predicted error at the targets before and after
+  compensation (``compensate``).
 
 Every figure is written through a temporary file and a rename.
 """
@@ -30,6 +33,7 @@ def _figure(n_rows: int, n_cols: int, size):
 
 def _save(plt, fig, path) -> Path:
     path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
     fig.tight_layout()
     fig.savefig(tmp, dpi=110)
@@ -78,4 +82,47 @@ def plot_semivariograms(q: np.ndarray, errors: np.ndarray, path, n_bins: int = 2
         ax.set_xlabel("distance along the joint (standardised)")
         ax.set_ylabel("semivariance")
         ax.legend(fontsize=6)
+    return _save(plt, fig, path)
+
+
+def plot_predicted_errors(errors: np.ndarray, path) -> Path:
+    """errors (N, 3) [m]: components and magnitude per query pose, and a histogram of |e| [mm]."""
+    e = np.asarray(errors, dtype=float).reshape(-1, 3) * 1e3
+    norm = np.linalg.norm(e, axis=1)
+    rows = np.arange(len(e)) + 2  # CSV row numbers (row 1 is the header)
+    marker = "o" if len(e) <= 200 else None
+    plt, fig, axes = _figure(1, 2, (11, 3.8))
+    ax = axes[0, 0]
+    for k, axis in enumerate("xyz"):
+        ax.plot(rows, e[:, k], marker=marker, ms=3, lw=0.8, label=f"e{axis}")
+    ax.plot(rows, norm, marker=marker, ms=3, lw=1.4, color="black", label="|e|")
+    ax.set_xlabel("query CSV row")
+    ax.set_ylabel("predicted error [mm]")
+    ax.legend(fontsize=7)
+    ax = axes[0, 1]
+    ax.hist(norm, bins=min(40, max(5, len(norm) // 4)), color="tab:orange")
+    ax.set_xlabel("predicted |e| [mm]")
+    ax.set_ylabel("query poses")
+    ax.set_title(f"mean {norm.mean():.4g} mm, max {norm.max():.4g} mm", fontsize=9)
+    return _save(plt, fig, path)
+
+
+def plot_compensation(before: np.ndarray, after: np.ndarray, path) -> Path:
+    """before, after (N,) predicted |target - real TCP| [m]; histograms on a log axis [mm]."""
+    b, a = np.asarray(before, dtype=float) * 1e3, np.asarray(after, dtype=float) * 1e3
+    values = np.concatenate([b, a])
+    positive = values[values > 0]
+    lo = positive.min() if positive.size else 1e-6
+    hi = max(values.max(), lo * 10)
+    bins = np.logspace(np.log10(lo) - 0.1, np.log10(hi) + 0.1, 40)
+    plt, fig, axes = _figure(1, 1, (8, 3.8))
+    ax = axes[0, 0]
+    ax.hist(np.maximum(b, bins[0]), bins=bins, alpha=0.7, color="tab:orange",
+            label=f"uncompensated: mean {b.mean():.4g} mm, max {b.max():.4g} mm")
+    ax.hist(np.maximum(a, bins[0]), bins=bins, alpha=0.7, color="tab:green",
+            label=f"compensated: mean {a.mean():.2g} mm, max {a.max():.2g} mm")
+    ax.set_xscale("log")
+    ax.set_xlabel("predicted |target - real TCP| [mm]")
+    ax.set_ylabel("targets")
+    ax.legend(fontsize=7)
     return _save(plt, fig, path)
