@@ -20,7 +20,7 @@ FUZZ = settings(max_examples=100, deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.too_slow])
 
 
-def check(text: str) -> None:
+def assert_reads_or_refuses_in_one_line(text: str) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MeasurementWarning)
         warnings.simplefilter("ignore", JointLimitWarning)
@@ -38,13 +38,13 @@ def check(text: str) -> None:
 
 
 def test_the_valid_head_of_the_demo_file_reads():
-    check("\n".join(VALID_LINES))
+    assert_reads_or_refuses_in_one_line("\n".join(VALID_LINES))
 
 
 @FUZZ
 @given(st.text(max_size=400))
 def test_arbitrary_text(text):
-    check(text)
+    assert_reads_or_refuses_in_one_line(text)
 
 
 @FUZZ
@@ -57,7 +57,7 @@ def test_one_cell_replaced(row, col, cell):
     cells = lines[row].split(",")
     cells[col % len(cells)] = cell
     lines[row] = ",".join(cells)
-    check("\n".join(lines))
+    assert_reads_or_refuses_in_one_line("\n".join(lines))
 
 
 @FUZZ
@@ -70,10 +70,10 @@ def test_columns_dropped_or_header_mangled(drop, mangle):
     out = [[r[c] for c in keep] for r in rows]
     if mangle:
         out[0] = [h.upper() for h in out[0]]
-    check("\n".join(",".join(r) for r in out))
+    assert_reads_or_refuses_in_one_line("\n".join(",".join(r) for r in out))
 
 
 @FUZZ
 @given(st.binary(max_size=300))
 def test_random_bytes_decoded_leniently(blob):
-    check(blob.decode("utf-8", errors="replace"))
+    assert_reads_or_refuses_in_one_line(blob.decode("utf-8", errors="replace"))
