@@ -173,8 +173,9 @@ def test_values_outside_limits_warn_once_per_joint(tool_changer, tmp_path):
     rows[9][1] = 85.0
     rows = [r[:6] + list(tcp_poses(tool_changer, np.array(r[:6]) / tool_changer.display_scale).position[0] * 1e3)
             for r in rows]
-    with pytest.warns(MeasurementWarning, match=r"row 7, column j2_deg: 2 value\(s\) outside"):
+    with pytest.warns(MeasurementWarning, match=r"row 7, column j2_deg: 2 value\(s\) outside") as record:
         read_measurements(_write_rows(tmp_path / "l.csv", header, rows), tool_changer)
+    assert sum("outside" in str(w.message) for w in record) == 1  # once for the joint, not per row
 
 
 def test_allowed_columns_for_example_robot(ur5):

@@ -69,8 +69,9 @@ def test_read_csv_errors_name_file_row_and_column(tool_changer, tmp_path, text, 
 
 def test_read_csv_warns_once_outside_limits(tool_changer, tmp_path):
     path = _write(tmp_path, HEADER + "\n0,1,100,0.1,4,5,6\n1,1,100,0.1,4,5,6\n")
-    with pytest.warns(JointLimitWarning, match="row 2: joint j2 = 100 deg .*2 rows outside"):
+    with pytest.warns(JointLimitWarning, match="row 2: joint j2 = 100 deg .*2 rows outside") as record:
         read_trajectory_csv(path, tool_changer)
+    assert sum(issubclass(w.category, JointLimitWarning) for w in record) == 1  # once, not per row
 
 
 def test_cli_bad_trajectory_file_one_line_exit_2(tmp_path, capsys):
