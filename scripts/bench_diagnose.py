@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from tcr_accuracy.asbuilt import write_text_atomically
+from tcr_accuracy.atomic import write_text_atomically
 from tcr_accuracy.diagnose import diagnose
 from tcr_accuracy.effects import make_effect, predict_positions
 from tcr_accuracy.robot import load_robot

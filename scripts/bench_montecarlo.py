@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tcr_accuracy.asbuilt import write_text_atomically
+from tcr_accuracy.atomic import write_text_atomically
 from tcr_accuracy.errors import seed_budget
 from tcr_accuracy.kinematics import tcp_chain_soa, tcp_poses_pinocchio
 from tcr_accuracy.montecarlo import run_monte_carlo, sample_rows

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tcr_accuracy.asbuilt import write_text_atomically
+from tcr_accuracy.atomic import write_text_atomically
 from tcr_accuracy.diagnose import diagnose
 from tcr_accuracy.measurements import read_measurements, write_measurements
 from tcr_accuracy.robot import load_robot

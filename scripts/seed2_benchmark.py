@@ -29,7 +29,7 @@ import numpy as np
 from sklearn.exceptions import ConvergenceWarning
 from threadpoolctl import threadpool_limits
 
-from tcr_accuracy.asbuilt import write_text_atomically
+from tcr_accuracy.atomic import write_text_atomically
 from tcr_accuracy.compensation import compensate_joints
 from tcr_accuracy.kinematics import tcp_poses
 from tcr_accuracy.prediction import METHODS, make_predictor

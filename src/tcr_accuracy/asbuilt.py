@@ -10,7 +10,6 @@ attaches it; when the TCP is the frame of a moving link, a fixed child link name
 
 from __future__ import annotations
 
-from pathlib import Path
 from xml.etree import ElementTree
 
 import numpy as np
@@ -83,15 +82,3 @@ def _fixed_joint_for_frame(root: ElementTree.Element, frame: str) -> ElementTree
         if joint.get("name") == frame or (child is not None and child.get("link") == frame):
             return joint
     return None
-
-
-def write_text_atomically(path: Path, text: str) -> None:
-    """Write text to path through a temporary file and a rename: never half a file."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        tmp.replace(path)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise InputError(f"{path}: cannot write ({exc.strerror})") from None

@@ -144,7 +144,7 @@ def emit_json(payload: dict, target: str) -> None:
     else:
         from pathlib import Path
 
-        from .asbuilt import write_text_atomically
+        from .atomic import write_text_atomically
 
         write_text_atomically(Path(target), text)
 

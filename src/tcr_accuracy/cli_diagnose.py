@@ -204,7 +204,8 @@ def _strongest(where: dict) -> list:
 def write_as_built(robot, d, path: Path) -> tuple[Path, Path]:
     import yaml
 
-    from .asbuilt import as_built_urdf, write_text_atomically
+    from .asbuilt import as_built_urdf
+    from .atomic import write_text_atomically
     from .diagnose import GEOMETRIC
     from .errors import ErrorModel
 

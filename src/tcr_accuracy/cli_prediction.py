@@ -90,7 +90,7 @@ def _check_csv_target(path: str | None) -> None:
 def _write_csv_atomically(args, what: str, header: list[str], rows) -> None:
     import io
 
-    from .asbuilt import write_text_atomically
+    from .atomic import write_text_atomically
 
     if args.csv is None:
         return

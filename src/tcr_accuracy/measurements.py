@@ -494,7 +494,7 @@ def format_measurements(robot: RobotModel, mset: MeasurementSet, unit: str = "mm
 def write_measurements(path: str | Path, robot: RobotModel, mset: MeasurementSet, unit: str = "mm",
                        comment: str | None = None) -> None:
     """Write a measurement CSV atomically (temporary file + rename)."""
-    from .asbuilt import write_text_atomically
+    from .atomic import write_text_atomically
 
     write_text_atomically(Path(path), format_measurements(robot, mset, unit, comment))
 

@@ -6,27 +6,11 @@ figure is saved to a temporary name and renamed, so no half-written file is left
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig, path: Path) -> Path:
-    tmp = path.with_name(f".{path.name}.tmp")
-    fig.savefig(tmp, dpi=110, format="png")
-    os.replace(tmp, path)
-    _pyplot().close(fig)
-    return path
+from .plots_common import pyplot, save_figure
 
 
 def _binned_means(values, residual, n_bins=8):
@@ -44,7 +28,7 @@ def _binned_means(values, residual, n_bins=8):
 
 
 def plot_steps(diagnosis, path: Path) -> Path:
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 3.6))
     labels = [s.effect if i == 0 else f"+{s.effect}" for i, s in enumerate(diagnosis.steps)]
     rms = [s.heldout.rms * 1e3 for s in diagnosis.steps]
@@ -59,11 +43,11 @@ def plot_steps(diagnosis, path: Path) -> Path:
     ax.set_title("How far the gap shrinks (k-fold held-out)")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_axes(diagnosis, path: Path) -> Path:
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(9, 3))
     for c, ax in enumerate(axes):
         ax.hist(diagnosis.gap_residual[:, c] * 1e3, bins=30, alpha=0.6, label="after frames")
@@ -73,11 +57,11 @@ def plot_axes(diagnosis, path: Path) -> Path:
     axes[0].legend(fontsize=7)
     fig.suptitle("Residual per axis")
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def _versus(diagnosis, values, names, units, path: Path, title: str) -> Path:
-    plt = _pyplot()
+    plt = pyplot()
     n = values.shape[1]
     cols = min(3, n)
     rows = int(np.ceil(n / cols))
@@ -100,7 +84,7 @@ def _versus(diagnosis, values, names, units, path: Path, title: str) -> Path:
     axes[0][0].legend(fontsize=7, title="binned mean", title_fontsize=7)
     fig.suptitle(title)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_joints(diagnosis, robot, path: Path) -> Path:
@@ -116,7 +100,7 @@ def plot_gravity(diagnosis, robot, path: Path) -> Path:
 
 
 def plot_semivariograms(diagnosis, robot, path: Path) -> Path:
-    plt = _pyplot()
+    plt = pyplot()
     semis = diagnosis.semivariograms
     n = len(semis)
     cols = min(3, n)
@@ -137,12 +121,12 @@ def plot_semivariograms(diagnosis, robot, path: Path) -> Path:
     axes[0][0].legend(fontsize=7)
     fig.suptitle("Per-joint semivariograms of the residual after frames (low at small lag = varies along it)")
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_regions(diagnosis, path: Path) -> Path:
     """Workspace octants, radius and height bins, and the context columns that were measured."""
-    plt = _pyplot()
+    plt = pyplot()
     where = diagnosis.where
     panels = [("octants", None), ("radius", "radius [m]"), ("height", "height z [m]")]
     panels += [(k, label) for k, label in (("payload_kg", "payload [kg]"), ("temperature_c", "temperature [degC]"))
@@ -180,7 +164,7 @@ def plot_regions(diagnosis, path: Path) -> Path:
             ax.legend(fontsize=7)
     fig.suptitle("Residual after frames over the workspace and the context")
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def write_plots(diagnosis, robot, directory: Path) -> dict:

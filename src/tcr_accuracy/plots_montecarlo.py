@@ -2,7 +2,7 @@
 
 An edge module (matplotlib, Agg backend): draws a :class:`~tcr_accuracy.montecarlo.
 MonteCarloResult` like the seed's Fig. 6 and Fig. 12, in mm, and writes PNG files
-atomically (through :func:`~tcr_accuracy.plots_sensitivity.save_figure`).
+atomically (through :func:`~tcr_accuracy.plots_common.save_figure`).
 """
 
 from __future__ import annotations
@@ -12,23 +12,14 @@ from pathlib import Path
 import numpy as np
 
 from .montecarlo import MonteCarloResult
-from .plots_sensitivity import save_figure
+from .plots_common import pyplot, save_figure
 
 _PROJECTIONS = (("xy", 0, 1), ("xz", 0, 2), ("yz", 1, 2))
 
 
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 def plot_cloud_3d(result: MonteCarloResult, path, title: str = "", max_points: int = 5000) -> Path:
     """3-D scatter of the TCP position errors [mm] (at most max_points of the kept cloud)."""
-    plt = _pyplot()
+    plt = pyplot()
     cloud = result.cloud[:max_points] * 1e3
     fig = plt.figure(figsize=(6.4, 5.6))
     ax = fig.add_subplot(projection="3d")
@@ -45,7 +36,7 @@ def plot_cloud_3d(result: MonteCarloResult, path, title: str = "", max_points: i
 
 def plot_projection_densities(result: MonteCarloResult, path, title: str = "", bins: int = 60) -> Path:
     """Three panels: the density of the position errors projected on the xy, xz and yz planes."""
-    plt = _pyplot()
+    plt = pyplot()
     cloud = result.cloud * 1e3
     fig, axes = plt.subplots(1, 3, figsize=(14.0, 4.4))
     for ax, (name, i, j) in zip(axes, _PROJECTIONS):

@@ -13,33 +13,18 @@ Every figure is written through a temporary file and a rename.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
+from .plots_common import pyplot, save_figure
 from .semivariogram import empirical_semivariogram, fit_gaussian_variogram, per_joint_semivariograms
 
 
 def _figure(n_rows: int, n_cols: int, size):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, axes = plt.subplots(n_rows, n_cols, figsize=size, squeeze=False)
     return plt, fig, axes
-
-
-def _save(plt, fig, path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    fig.tight_layout()
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    os.replace(tmp, path)
-    return path
 
 
 def plot_similarity(scenarios: dict, path) -> Path:
@@ -53,7 +38,7 @@ def plot_similarity(scenarios: dict, path) -> Path:
             ax.set_xlabel(name)
             ax.set_ylabel("De [mm]")
             ax.set_title(f"{label}: PCC = {pcc:.3f}", fontsize=9)
-    return _save(plt, fig, path)
+    return save_figure(fig, path, tight=True)
 
 
 def plot_semivariograms(q: np.ndarray, errors: np.ndarray, path, n_bins: int = 20,
@@ -82,7 +67,7 @@ def plot_semivariograms(q: np.ndarray, errors: np.ndarray, path, n_bins: int = 2
         ax.set_xlabel("distance along the joint (standardised)")
         ax.set_ylabel("semivariance")
         ax.legend(fontsize=6)
-    return _save(plt, fig, path)
+    return save_figure(fig, path, tight=True)
 
 
 def plot_predicted_errors(errors: np.ndarray, path) -> Path:
@@ -104,7 +89,7 @@ def plot_predicted_errors(errors: np.ndarray, path) -> Path:
     ax.set_xlabel("predicted |e| [mm]")
     ax.set_ylabel("query poses")
     ax.set_title(f"mean {norm.mean():.4g} mm, max {norm.max():.4g} mm", fontsize=9)
-    return _save(plt, fig, path)
+    return save_figure(fig, path, tight=True)
 
 
 def plot_compensation(before: np.ndarray, after: np.ndarray, path) -> Path:
@@ -125,4 +110,4 @@ def plot_compensation(before: np.ndarray, after: np.ndarray, path) -> Path:
     ax.set_xlabel("predicted |target - real TCP| [mm]")
     ax.set_ylabel("targets")
     ax.legend(fontsize=7)
-    return _save(plt, fig, path)
+    return save_figure(fig, path, tight=True)

@@ -6,13 +6,11 @@ An edge module: it draws results computed elsewhere and writes PNG files atomica
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from .exceptions import InputError
+from .plots_common import pyplot, save_figure
 from .sensitivity import OUTPUTS, SobolIndices, SweepResult
 from .trajectory import TrajectoryErrorBands
 
@@ -25,15 +23,6 @@ POSITION_OUTPUTS = ("dx", "dy", "dz", "norm")
 ATTITUDE_OUTPUTS = ("d_alpha_z", "d_beta_y", "d_gamma_x", "rotation_angle")
 
 
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 def _scale(unit_or_output: str) -> float:
     """SI -> display factor (m -> mm, rad -> deg)."""
     if unit_or_output in ("m", "dx", "dy", "dz", "norm"):
@@ -41,31 +30,9 @@ def _scale(unit_or_output: str) -> float:
     return 180.0 / np.pi
 
 
-def save_figure(fig, path: str | Path) -> Path:
-    """Write a figure as PNG through a temporary file and a rename (no half-written files)."""
-    path = Path(path)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".png")
-    except OSError as exc:
-        _pyplot().close(fig)
-        raise InputError(f"{path}: cannot write the plot ({exc.strerror})") from None
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format="png", dpi=110)
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise InputError(f"{path}: cannot write the plot ({exc.strerror})") from None
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        _pyplot().close(fig)
-    return path
-
-
 def plot_sweep(result: SweepResult, outputs, title: str, xlabel: str, path: str | Path) -> Path:
     """One panel per output, one curve per source: TCP error against the swept value."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(10, 7.5))
     xs = result.values * _scale(result.unit)
     for ax, name in zip(axes.ravel(), outputs):
@@ -85,7 +52,7 @@ def plot_sweep(result: SweepResult, outputs, title: str, xlabel: str, path: str 
 
 def plot_sobol(indices: SobolIndices, path: str | Path, outputs=POSITION_OUTPUTS, top: int = 12) -> Path:
     """Bars of S1 and ST (with confidence intervals) for the most influential inputs."""
-    plt = _pyplot()
+    plt = pyplot()
     shown = [o for o in outputs if o in indices.outputs]
     fig, axes = plt.subplots(len(shown), 1, figsize=(10, 2.6 * len(shown) + 0.8), squeeze=False)
     for ax, name in zip(axes[:, 0], shown):
@@ -109,7 +76,7 @@ def plot_sobol(indices: SobolIndices, path: str | Path, outputs=POSITION_OUTPUTS
 
 def plot_trajectory_bands(bands: TrajectoryErrorBands, path: str | Path, title: str = "") -> Path:
     """dx, dy, dz against time: Monte Carlo mean, quantile band, +-2 first-order std."""
-    plt = _pyplot()
+    plt = pyplot()
     t = bands.trajectory.time
     lo, hi = bands.quantiles
     fig, axes = plt.subplots(3, 1, figsize=(10, 8.5), sharex=True)
@@ -132,7 +99,7 @@ def plot_trajectory_bands(bands: TrajectoryErrorBands, path: str | Path, title: 
 def plot_trajectory_contributions(bands: TrajectoryErrorBands, path: str | Path, title: str = "",
                                   top: int = 6) -> Path:
     """First-order std of dx, dy, dz caused by each of the ``top`` largest sources, against time."""
-    plt = _pyplot()
+    plt = pyplot()
     t = bands.trajectory.time
     peak = bands.contributions.max(axis=(0, 2))
     shown = [k for k in np.argsort(-peak)[:top] if peak[k] > 0]
@@ -150,5 +117,5 @@ def plot_trajectory_contributions(bands: TrajectoryErrorBands, path: str | Path,
     return save_figure(fig, path)
 
 
-__all__ = ["plot_sweep", "plot_sobol", "plot_trajectory_bands", "plot_trajectory_contributions", "save_figure", "OUTPUTS",
+__all__ = ["plot_sweep", "plot_sobol", "plot_trajectory_bands", "plot_trajectory_contributions", "OUTPUTS",
            "POSITION_OUTPUTS", "ATTITUDE_OUTPUTS"]

@@ -27,12 +27,12 @@ import os
 import platform
 import shlex
 import sys
-import tempfile
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
 from . import __version__
+from .atomic import write_bytes_atomically
 from .exceptions import InputError
 
 #: Distributions whose versions every report lists (when installed).
@@ -295,30 +295,13 @@ class Report:
             raise InputError(f"{out_dir}: not a folder")
         for item in self.items:
             if isinstance(item, _Figure):
-                _write_atomically(out_dir / item.filename, item.png)
+                write_bytes_atomically(out_dir / item.filename, item.png)
             elif isinstance(item, _Scene):
-                _write_atomically(out_dir / item.filename, item.page.encode("utf-8"))
-        _write_atomically(out_dir / "report.md", self.markdown().encode("utf-8"))
+                write_bytes_atomically(out_dir / item.filename, item.page.encode("utf-8"))
+        write_bytes_atomically(out_dir / "report.md", self.markdown().encode("utf-8"))
         index = out_dir / "index.html"
-        _write_atomically(index, self.html().encode("utf-8"))
+        write_bytes_atomically(index, self.html().encode("utf-8"))
         return index
-
-
-def _write_atomically(path: Path, data: bytes) -> None:
-    """Temporary file in the same folder, flushed to disk, then renamed over path."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException as exc:  # Ctrl-C included: never leave the temporary file behind
-        Path(tmp).unlink(missing_ok=True)
-        if isinstance(exc, OSError):
-            raise InputError(f"{path}: cannot write ({exc.strerror})") from None
-        raise
 
 
 _CSS = """

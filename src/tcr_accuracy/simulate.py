@@ -686,7 +686,7 @@ def write_truth(path: str | Path, truth: dict) -> None:
 
     import yaml
 
-    from .asbuilt import write_text_atomically
+    from .atomic import write_text_atomically
 
     path = Path(path)
     if path.suffix.lower() in (".yaml", ".yml"):

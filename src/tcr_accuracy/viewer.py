@@ -611,7 +611,7 @@ class Scene:
 
     def write_static_html(self, path) -> Path:
         """Write :meth:`static_html` to path atomically (temporary file + rename)."""
-        from .asbuilt import write_text_atomically
+        from .atomic import write_text_atomically
 
         path = Path(path)
         write_text_atomically(path, self.static_html())
