@@ -239,6 +239,8 @@ PLOT_CAPTIONS = {
     "axes.png": "Residual after fitting the tracker frame, per axis",
     "joints.png": "Residual after the tracker frame against each joint value",
     "gravity.png": "Residual after the tracker frame against the gravity torque of each joint",
+    "regions.png": "Residual after the tracker frame over the workspace (octants, radius, height) and against "
+                   "payload, temperature and approach direction",
     "semivariograms.png": "Per-joint semivariograms of the residual (along which joints it varies)",
 }
 
