@@ -6,27 +6,23 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from tcr_accuracy.effects import (
-    EFFECTS,
-    Backlash,
-    Clearance,
-    Compliance,
-    Effect,
-    EncoderScale,
-    Frames,
-    Geometry,
-    JointOffsets,
-    Thermal,
-    Transmission,
-    display_value,
-    gravity_torque,
-    predict_poses,
-    predict_positions,
-    prediction_jacobian,
-)
+from tcr_accuracy.context import MeasurementContext
+from tcr_accuracy.effects import Effect, effect_classes, predict_poses, predict_positions, prediction_jacobian
+from tcr_accuracy.effects.backlash import Backlash
+from tcr_accuracy.effects.clearance import Clearance
+from tcr_accuracy.effects.compliance import Compliance
+from tcr_accuracy.effects.encoder_scale import EncoderScale
+from tcr_accuracy.effects.frames import Frames
+from tcr_accuracy.effects.geometry import Geometry
+from tcr_accuracy.effects.joint_offsets import JointOffsets
+from tcr_accuracy.effects.thermal import Thermal
+from tcr_accuracy.effects.transmission import Transmission
 from tcr_accuracy.errors import ErrorModel
+from tcr_accuracy.gravity import gravity_torque
 from tcr_accuracy.kinematics import pose_error, tcp_poses, tcp_poses_pinocchio
-from tcr_accuracy.measurements import MeasurementContext
+from tcr_accuracy.units import display_value
+
+EFFECTS = effect_classes()
 from tcr_accuracy.robot import robot_from_urdf_text
 from tcr_accuracy.tool_changer import ToolChangerDimensions, tool_changer_urdf
 

@@ -8,12 +8,12 @@ import pytest
 import yaml
 
 from tcr_accuracy.cli import main
-from tcr_accuracy.effects import EFFECTS, prediction_jacobian
+from tcr_accuracy.effects import effect_classes, prediction_jacobian
 from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.kinematics import tcp_poses
 from tcr_accuracy.measurements import allowed_columns, read_measurements
 from tcr_accuracy.simulate import (
-    DOMINANT_CANDIDATES,
+    dominant_candidates,
     load_scenario,
     random_scenario,
     resolve_effect,
@@ -103,7 +103,7 @@ def test_unmodelled_effect_leaves_structure_the_vocabulary_cannot_fit(tool_chang
     spec = {"effects": {"unmodelled": {"amplitude_mm": 0.5}}}
     mset, _ = simulate_measurements(tool_changer, spec, 400, np.random.default_rng(6), noise_m=0.0)
     ctx = mset.context()
-    effects = [EFFECTS[k](tool_changer) for k in list(EFFECTS)[:-1]]
+    effects = [cls(tool_changer) for cls in list(effect_classes().values())[:-1]]
     jac = prediction_jacobian(tool_changer, effects, [e.zeros() for e in effects], mset.q, ctx)
     gap = (mset.position - tcp_poses(tool_changer, mset.q).position).reshape(-1)
     a = jac.reshape(-1, jac.shape[2])
@@ -116,13 +116,13 @@ def test_unmodelled_effect_leaves_structure_the_vocabulary_cannot_fit(tool_chang
 def test_random_scenario_makes_the_dominant_effect_dominate(tool_changer):
     rng = np.random.default_rng(7)
     scenario = random_scenario(tool_changer, rng, outside="unmodelled")
-    assert 1 <= len(scenario["dominant"]) <= 2 and set(scenario["dominant"]) <= set(DOMINANT_CANDIDATES)
+    assert 1 <= len(scenario["dominant"]) <= 2 and set(scenario["dominant"]) <= set(dominant_candidates())
     assert {"frames", "geometry", "joint_offsets", "unmodelled"} <= set(scenario["effects"])
     assert scenario["outside_vocabulary"] == ["unmodelled"]
     mset, truth = simulate_measurements(tool_changer, scenario, 300, rng)
     # judged independently here: TCP displacement left after the best rigid frame fit
     ctx = mset.context()
-    frames = EFFECTS["frames"](tool_changer)
+    frames = effect_classes()["frames"](tool_changer)
     fj = prediction_jacobian(tool_changer, [frames], [frames.zeros()], mset.q, ctx).reshape(-1, 9)
 
     def after_frames(names):

@@ -41,7 +41,8 @@ def add_parsers(sub) -> None:
 
 
 def _run_diagnose(args) -> int:
-    from .diagnose import VOCABULARY, diagnose
+    from .diagnose import diagnose
+    from .effects import vocabulary
     from .exceptions import InputError
     from .measurements import read_measurements
     from .plots_diagnose import write_plots
@@ -54,9 +55,9 @@ def _run_diagnose(args) -> int:
     effects = None
     if args.effects:
         effects = [e.strip() for e in args.effects.split(",") if e.strip()]
-        unknown = [e for e in effects if e not in VOCABULARY]
+        unknown = [e for e in effects if e not in vocabulary()]
         if unknown:
-            raise InputError(f"--effects: unknown {', '.join(unknown)} (vocabulary: {', '.join(VOCABULARY)})")
+            raise InputError(f"--effects: unknown {', '.join(unknown)} (vocabulary: {', '.join(vocabulary())})")
     robot = load_robot(args.robot, args.tool)
     out = RunOutput(args, f"Sim-to-real gap diagnosis: {robot.name}")
     measurements = read_measurements(args.measurements, robot, min_rows=max(3 * args.folds, 12))
@@ -206,7 +207,7 @@ def write_as_built(robot, d, path: Path) -> tuple[Path, Path]:
 
     from .asbuilt import as_built_urdf
     from .atomic import write_text_atomically
-    from .diagnose import GEOMETRIC
+    from .effects import effect_class
     from .errors import ErrorModel
 
     text, tool_frame = as_built_urdf(robot, d.as_built_x, ErrorModel(robot), name=f"{robot.name}_as_built")
@@ -223,9 +224,9 @@ def write_as_built(robot, d, path: Path) -> tuple[Path, Path]:
         "selected_effects": list(d.selected_effects),
         "effects": {e: {"parameters": {k: float(v) for k, v in p.items()},
                         "units": dict(d.parameter_units.get(e, {}))}
-                    for e, p in d.parameters.items() if e not in GEOMETRIC},
+                    for e, p in d.parameters.items() if not effect_class(e).geometric},
         "geometric_parameters_in_urdf": {e: {k: float(v) for k, v in p.items()}
-                                         for e, p in d.parameters.items() if e in GEOMETRIC},
+                                         for e, p in d.parameters.items() if effect_class(e).geometric},
     }
     write_text_atomically(side, yaml.safe_dump(doc, sort_keys=False))
     return path, side

@@ -15,7 +15,7 @@ the nominal model is a :class:`~tcr_accuracy.robot.RobotModel`. Steps:
 3. **Which effect.** Every effect of :mod:`tcr_accuracy.effects` is a parametric model
    on top of the nominal kinematics. Its parameters map linearly (checked) onto joint
    offsets ``dq`` and error-screw vectors ``x`` for each pose; the identification
-   Jacobian is Pinocchio's error Jacobian (``effects.pose_jacobians``, taken at the
+   Jacobian is Pinocchio's error Jacobian (``kinematics.error_jacobians``, taken at the
    frames-only fit) chained with that map. Identifiability, for every candidate model:
    columns at the parameters' typical scales are taken effect by effect in vocabulary
    order, each block projected off the columns already kept and reduced by QR with
@@ -50,23 +50,14 @@ from scipy import linalg, stats
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from .effects import EFFECTS, gravity_torque, make_effect, pose_jacobians, predict_positions
+from .context import CONTEXT_FIELDS, MeasurementContext
+from .effects import effect_class, make_effect, predict_positions, vocabulary
 from .errors import ErrorModel
 from .exceptions import AnalysisError, InputError
-from .kinematics import tcp_poses
-from .measurements import MeasurementContext
+from .gravity import gravity_torque
+from .kinematics import error_jacobians, tcp_poses
 from .robot import JointLimitWarning, RobotModel
 from .semivariogram import empirical_semivariogram, fit_gaussian_variogram, per_joint_semivariograms, standardize
-
-#: The shared effect vocabulary, in the order identifiability is resolved.
-VOCABULARY = ("frames", "joint_offsets", "geometry", "compliance", "backlash", "thermal",
-              "transmission", "encoder_scale", "clearance")
-#: Context column of an effect -> the measured field it comes from.
-NEEDS = {"temperature_c": "temperature_c", "payload_kg": "payload_kg", "<joint>_dir": "direction"}
-#: Effects that mean nothing without their context column (others fall back to defaults).
-REQUIRES_CONTEXT = ("thermal",)
-#: Effects whose fitted parameters are pure geometry and go into the as-built URDF.
-GEOMETRIC = ("frames", "joint_offsets", "geometry")
 
 
 # ---------------------------------------------------------------------------------------
@@ -264,7 +255,7 @@ class _EffectBasis:
 
 def _instantiate_effects(robot: RobotModel, names):
     """Adapter over :mod:`tcr_accuracy.effects`: effect objects by name."""
-    return [make_effect(name, robot) for name in names if name in EFFECTS]
+    return [make_effect(name, robot) for name in names]
 
 
 # ---------------------------------------------------------------------------------------
@@ -274,7 +265,7 @@ def _position_jacobians(robot: RobotModel, q: np.ndarray, x: np.ndarray | None =
     """Error Jacobians (N, 3, p_em) of the TCP position at error vector x (Pinocchio)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", JointLimitWarning)
-        _, jx = pose_jacobians(robot, q, x)
+        _, jx = error_jacobians(robot, q, x)
     return np.ascontiguousarray(jx[:, :3])
 
 
@@ -794,11 +785,12 @@ def _diagnose(robot, measurements, *, effects, folds, seed, tracker_noise, selec
         raise InputError(f"{n} measurements are too few to diagnose with {folds}-fold cross-validation "
                          f"(need at least {max(3 * folds, 12)})")
     rng = np.random.default_rng(seed)
-    names = [e for e in VOCABULARY if effects is None or e in effects or e == "frames"]
+    words = vocabulary()
+    names = [e for e in words if effects is None or e in effects or e == "frames"]
     if effects is not None:
-        unknown = [e for e in effects if e not in VOCABULARY]
+        unknown = [e for e in effects if e not in words]
         if unknown:
-            raise InputError(f"--effects: unknown effect(s) {', '.join(unknown)} (vocabulary: {', '.join(VOCABULARY)})")
+            raise InputError(f"--effects: unknown effect(s) {', '.join(unknown)} (vocabulary: {', '.join(words)})")
     em = ErrorModel(robot)
     notes: list = []
     if getattr(measurements, "quaternion", None) is not None:
@@ -810,7 +802,7 @@ def _diagnose(robot, measurements, *, effects, folds, seed, tracker_noise, selec
     rot, trans = _register(nominal, obs.position)
     target = (obs.position - trans) @ rot  # R^T (p - t), row-wise
     jac_x = _position_jacobians(robot, obs.q)
-    tau = gravity_torque(robot, obs.q, obs.context.payload_kg)
+    tau = gravity_torque(robot, obs.q, obs.context.payload_kg, outside_q=obs.context.outside_q)
 
     # effects as linear maps, and which can be tried at all
     say("building effect models")
@@ -822,8 +814,8 @@ def _diagnose(robot, measurements, *, effects, folds, seed, tracker_noise, selec
             stochastic.append(effect.name)
             candidates[effect.name] = {"tried": False, "why": "stochastic: tested as extra scatter, not fitted"}
             continue
-        missing = [c for c in effect.context_columns if c in NEEDS and NEEDS[c] not in obs.measured]
-        if missing and effect.name in REQUIRES_CONTEXT:
+        missing = [c for c in effect.context_columns if c in CONTEXT_FIELDS and CONTEXT_FIELDS[c] not in obs.measured]
+        if missing and effect.requires_context:
             candidates[effect.name] = {"tried": False, "why": f"needs the {', '.join(missing)} column"}
             continue
         try:
@@ -837,7 +829,7 @@ def _diagnose(robot, measurements, *, effects, folds, seed, tracker_noise, selec
         bases[effect.name] = basis
     if "frames" not in bases:
         raise AnalysisError("the frames effect could not be built")
-    order = [e for e in VOCABULARY if e in bases]
+    order = _ordered(bases)
     # a TCP offset of centimetres changes which directions duplicate one another:
     # linearise about the frames-only fit, not the nominal model
     frames = bases["frames"]
@@ -963,7 +955,7 @@ def _diagnose(robot, measurements, *, effects, folds, seed, tracker_noise, selec
         parameters[e] = {b.names[k]: full[k] for k in keep[e]}
         full_parameters[e] = full
         units[e] = {b.names[k]: b.units[k] for k in keep[e]}
-        if e in GEOMETRIC:
+        if effect_class(e).geometric:
             as_built += b.basis[0] @ full
     # how much of the gap each chosen effect accounts for: the TCP motion its fitted
     # parameters cause, after taking out what a rigid frame change could absorb
@@ -994,4 +986,5 @@ def _diagnose(robot, measurements, *, effects, folds, seed, tracker_noise, selec
 
 
 def _ordered(effects) -> list:
-    return [e for e in VOCABULARY if e in effects]
+    """The effects in vocabulary order."""
+    return [e for e in vocabulary() if e in effects]

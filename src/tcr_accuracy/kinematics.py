@@ -475,38 +475,87 @@ def pose_error(nominal: TcpPoses, actual: TcpPoses) -> PoseError:
 # First-order sensitivity of the TCP to the error parameters
 # ---------------------------------------------------------------------------------------
 def error_jacobian(robot: RobotModel, q: np.ndarray, error_model: ErrorModel | None = None) -> np.ndarray:
-    """d(TCP pose)/dx at x = 0, shape (6, n_params).
+    """d(TCP pose)/dx at x = 0 for one pose q (n_joints,), shape (6, n_params).
 
     Rows are the TCP's linear displacement (base-frame axes, at the TCP point) then its
-    rotation vector (base frame), as in Pinocchio's LOCAL_WORLD_ALIGNED. Placement
-    columns come from Pinocchio's frame kinematic regressor, drive columns from the
-    frame Jacobian; base and tool columns are adjoint maps.
+    rotation vector (base frame), as in Pinocchio's LOCAL_WORLD_ALIGNED: one row of
+    :func:`error_jacobians`.
     """
-    error_model = error_model or ErrorModel(robot)
     q = robot.check_joint_values(np.asarray(q, dtype=float), source="q")
-    model, data = robot.model, robot.model.createData()
+    return error_jacobians(robot, q[None], None, error_model)[1][0]
+
+
+#: skew(p)_ij = -eps_ijk p_k
+_LEVI_CIVITA = np.zeros((3, 3, 3))
+_LEVI_CIVITA[0, 1, 2] = _LEVI_CIVITA[1, 2, 0] = _LEVI_CIVITA[2, 0, 1] = 1.0
+_LEVI_CIVITA[0, 2, 1] = _LEVI_CIVITA[2, 1, 0] = _LEVI_CIVITA[1, 0, 2] = -1.0
+
+
+def error_jacobians(robot: RobotModel, q, x=None, error_model: ErrorModel | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """TCP Jacobians with respect to joint offsets and error parameters, per row (batched).
+
+    Parameters
+    ----------
+    q : (N, n_joints) actual joint values [SI] (commanded plus joint-side offsets)
+    x : (n_error_params,) or (N, n_error_params), optional
+        Error vector the Jacobians are taken at; rows are averaged (the derivatives
+        change with x only to second order, so thermal's small per-row spread is
+        neglected).
+
+    Returns
+    -------
+    jq : (N, 6, n_joints) d(TCP)/d(q), jx : (N, 6, n_error_params) d(TCP)/d(x).
+    Rows: TCP displacement in base-frame axes, then rotation vector, as Pinocchio's
+    LOCAL_WORLD_ALIGNED. From Pinocchio's frame Jacobian and frame kinematic regressor
+    of the perturbed model, chained with the derivative of ``exp6`` (``pin.Jexp6``) at x.
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    em = error_model or ErrorModel(robot)
+    x_mean = np.zeros(em.size) if x is None else np.atleast_2d(np.asarray(x, dtype=float)).mean(axis=0)
+    parts = em.split(x_mean)
+    work = em.perturbed_robot(x_mean) if x_mean.any() else robot
+    model, data = work.model, work.model.createData()
     frame_id = robot.tool_frame_id
-    qp = robot.to_pinocchio_q(q)
-    pin.computeJointJacobians(model, data, qp)
-    pin.updateFramePlacements(model, data)
-    oMtool = data.oMf[frame_id]
-    jac = np.zeros((6, error_model.size))
-    # regressor of the TCP w.r.t. placement twists, in the LOCAL TCP frame
-    regressor_local = pin.computeFrameKinematicRegressor(model, data, frame_id, pin.LOCAL)
-    to_aligned = np.zeros((6, 6))
-    to_aligned[:3, :3] = oMtool.rotation
-    to_aligned[3:, 3:] = oMtool.rotation
-    jac[:, error_model.placement_slice] = to_aligned @ regressor_local
-    frame_jac = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)
-    for j in range(1, model.njoints):
-        jac[:, error_model.drive_slice.start + j - 1] = frame_jac[:, model.joints[j].idx_v]
-    # base twist (left, base frame): TCP point moves by v + w x p, rotates by w
-    p = oMtool.translation
-    base = np.zeros((6, 6))
-    base[:3, :3] = np.eye(3)
-    base[:3, 3:] = -pin.skew(p)
-    base[3:, 3:] = np.eye(3)
-    jac[:, error_model.base_slice] = base
-    # tool twist (right, TCP frame): linear and angular parts rotate into base axes
-    jac[:, error_model.tool_slice] = to_aligned
-    return jac
+    n, nj, p = q.shape[0], robot.n_joints, em.size
+    jq = np.empty((n, 6, nj))
+    jx = np.zeros((n, 6, p))
+    idx_v = [model.joints[j].idx_v for j in range(1, model.njoints)]
+    plain_q = model.nq == nj
+    # right Jacobians of exp6 at the current twists: exp6(xi + d) = exp6(xi) exp6(Jr d)
+    axes = robot.motion_axes
+    placement_chain = []
+    for j in range(nj):
+        jr = pin.Jexp6(pin.Motion(parts.placement[j]))
+        drive = pin.exp6(axes[j] * parts.drive[j]).inverse().action
+        placement_chain.append(drive @ jr)
+    tool_chain = pin.Jexp6(pin.Motion(parts.tool))
+    base_xi = pin.Motion(parts.base)
+    base_chain = pin.exp6(base_xi).action @ pin.Jexp6(base_xi)  # left Jacobian = Ad(exp) Jr
+    regressors = np.empty((n, 6, 6 * nj))
+    rotations = np.empty((n, 3, 3))
+    positions = np.empty((n, 3))
+    for i in range(n):
+        qp = q[i] if plain_q else work.to_pinocchio_q(q[i])
+        pin.computeJointJacobians(model, data, qp)
+        pin.updateFramePlacements(model, data)
+        rotations[i] = data.oMf[frame_id].rotation
+        positions[i] = data.oMf[frame_id].translation
+        regressors[i] = pin.computeFrameKinematicRegressor(model, data, frame_id, pin.LOCAL)
+        jq[i] = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)[:, idx_v]
+    # LOCAL (TCP frame) -> base-frame axes, then chain each placement block with its exp6 derivative
+    aligned = (rotations[:, None] @ regressors.reshape(n, 2, 3, 6 * nj)).reshape(n, 6, nj, 6)
+    chain = np.stack(placement_chain)  # (nj, 6, 6)
+    jx[:, :, em.placement_slice] = (aligned.transpose(0, 2, 1, 3) @ chain).transpose(0, 2, 1, 3).reshape(
+        n, 6, 6 * nj)
+    jx[:, :, em.drive_slice] = jq
+    base = np.zeros((n, 6, 6))
+    base[:, :3, :3] = np.eye(3)
+    base[:, :3, 3:] = -np.einsum("nk,ikj->nij", positions, _LEVI_CIVITA)  # -skew(p)
+    base[:, 3:, 3:] = np.eye(3)
+    jx[:, :, em.base_slice] = base @ base_chain
+    tool = np.zeros((n, 6, 6))
+    tool[:, :3, :3] = rotations
+    tool[:, 3:, 3:] = rotations
+    jx[:, :, em.tool_slice] = tool @ tool_chain
+    return jq, jx

@@ -30,18 +30,16 @@ from pathlib import Path
 
 import numpy as np
 
+from .context import REFERENCE_TEMPERATURE_C, MeasurementContext
 from .exceptions import InputError
-from .robot import REVOLUTE, RobotModel
-
-#: Reference temperature of the nominal model [degC]: the temperature the URDF's
-#: dimensions hold at, used when a file has no ``temperature_c`` column.
-REFERENCE_TEMPERATURE_C = 20.0
+from .robot import RobotModel
+from .units import JOINT_COLUMN_UNITS as _JOINT_UNITS
+from .units import POSITION_UNITS as _POSITION_UNITS
+from .units import REVOLUTE
 
 #: Largest |quaternion norm - 1| accepted before normalising.
 QUATERNION_TOLERANCE = 1e-3
 
-_JOINT_UNITS = {REVOLUTE: {"deg": math.pi / 180.0, "rad": 1.0}, "prismatic": {"mm": 1e-3, "m": 1.0}}
-_POSITION_UNITS = {"mm": 1e-3, "m": 1.0}
 QUATERNION_COLUMNS = ("qw", "qx", "qy", "qz")
 CONTEXT_COLUMNS = ("payload_kg", "temperature_c")
 
@@ -53,44 +51,6 @@ class MeasurementWarning(UserWarning):
 # ---------------------------------------------------------------------------------------
 # Containers
 # ---------------------------------------------------------------------------------------
-@dataclass
-class MeasurementContext:
-    """Per-row conditions the effects may depend on (SI, degC).
-
-    Attributes
-    ----------
-    payload_kg : ndarray of shape (N,)
-        Payload at the TCP [kg]; 0 when unknown.
-    temperature_c : ndarray of shape (N,)
-        Arm temperature [degC]; the reference temperature when unknown.
-    direction : ndarray of shape (N, n_joints)
-        Approach direction of each joint, +1 or -1, and 0 where not given (effects
-        then derive it, e.g. backlash from the sign of the gravity torque).
-    rng : numpy.random.Generator or None
-        Random source for stochastic effects (clearance) when simulating.
-    """
-
-    payload_kg: np.ndarray
-    temperature_c: np.ndarray
-    direction: np.ndarray
-    rng: np.random.Generator | None = None
-
-    @classmethod
-    def defaults(cls, n_rows: int, n_joints: int, *, payload_kg: float = 0.0,
-                 temperature_c: float = REFERENCE_TEMPERATURE_C) -> "MeasurementContext":
-        """Context of N rows with a constant payload and temperature and no directions."""
-        return cls(np.full(n_rows, float(payload_kg)), np.full(n_rows, float(temperature_c)),
-                   np.zeros((n_rows, n_joints)))
-
-    def __len__(self) -> int:
-        return self.payload_kg.shape[0]
-
-    def subset(self, rows) -> "MeasurementContext":
-        """The context of some rows (index array or boolean mask)."""
-        return MeasurementContext(self.payload_kg[rows], self.temperature_c[rows],
-                                  self.direction[rows], self.rng)
-
-
 @dataclass
 class MeasurementSet:
     """Measurements of one robot, SI units.

@@ -5,11 +5,19 @@ Conventions, stated once:
 
 * Joint values ("q") are one number per 1-DoF joint of the chain from the base to
   the TCP, in SI units: rad for revolute joints, m for prismatic ones. Joints of
-  the URDF that do not carry the TCP (a gripper's fingers, another arm) are locked
-  at zero and left out of the model.
+  the URDF that do not carry the TCP (a gripper's fingers, another arm, a head) are
+  left out of the kinematic chain (``model``) but kept in ``full_model``, where their
+  masses load the chain: gravity torques are computed on the whole tree, with those
+  joints at measured values (:class:`~tcr_accuracy.context.MeasurementContext`'s
+  ``outside_q``) or at their neutral value.
 * ``model.jointPlacements[j]`` is ``parentMjoint`` at q = 0; the TCP frame's
   placement is ``jointMtool``.
-* Continuous joints are read as unbounded revolute joints.
+* Continuous joints are read as unbounded revolute joints; their limits are NaN.
+* URDF allows a link and a joint of the same name (``torso_0`` the link and
+  ``torso_0`` the joint); frames are therefore looked up with their type, links first.
+* A URDF ``<mimic>`` joint stays an ordinary joint of the model (so its offset can
+  be fitted like any other); where its value is not given, it follows its rule
+  ``q = multiplier * q_source + offset`` (:attr:`RobotModel.mimic`).
 """
 
 from __future__ import annotations
@@ -19,6 +27,7 @@ import re
 import sys
 import warnings
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -26,10 +35,8 @@ import numpy as np
 import pinocchio as pin
 
 from .exceptions import InputError
-from .tool_changer import WORKING_POSE, tool_changer_urdf
-
-REVOLUTE = "revolute"
-PRISMATIC = "prismatic"
+from .tool_changer import DISC_CUTTER_MASS, WORKING_POSE, tool_changer_urdf
+from .units import JOINT_DISPLAY, PRISMATIC, REVOLUTE
 
 #: Robots of example-robot-data loadable by name: (URDF path under robots/, TCP frame).
 EXAMPLE_ROBOTS: dict[str, tuple[str, str]] = {
@@ -44,19 +51,29 @@ EXAMPLE_ROBOTS: dict[str, tuple[str, str]] = {
 BUILTIN_NAME = "tool_changer"
 
 
+@dataclass(frozen=True)
+class Mimic:
+    """A URDF ``<mimic>`` rule: ``q = multiplier * q[joint] + offset`` [SI]."""
+
+    joint: str
+    multiplier: float = 1.0
+    offset: float = 0.0
+
+
 @dataclass
 class RobotModel:
-    """A serial chain from the base to a TCP frame.
+    """A serial chain from the base to a TCP frame, inside the robot's whole kinematic tree.
 
     Attributes
     ----------
     model : pin.Model
-        Pinocchio model holding only the joints that move the TCP. Never changed
-        in place by this package: perturbations build a new ``RobotModel``.
+        Pinocchio model holding only the joints that move the TCP (the other joints
+        locked at their neutral value). Never changed in place by this package:
+        perturbations build a new ``RobotModel``.
     tool_frame : str
         Name of the TCP frame.
     name : str
-        Short name for reports (file stem, example-robot-data name, ``tool_changer``).
+        Short name for reports (the URDF's robot name, example-robot-data name, ``tool_changer``).
     urdf_text : str
         The URDF the model was built from (kept for export and the viewer).
     urdf_path : Path or None
@@ -65,6 +82,17 @@ class RobotModel:
         Folders in which ``package://`` mesh paths are resolved.
     working_pose : ndarray of shape (n_joints,)
         A representative pose [rad, m] (the seed's pose for the tool-changer, zero otherwise).
+    full_model : pin.Model or None
+        Every joint of the URDF (None: the same as ``model``). Gravity uses it.
+    chain_joint_ids : tuple of int
+        ``full_model`` joint index of each chain joint, in chain order.
+    tool_frame_id : int
+        Index of the TCP frame in ``model.frames`` (found by name and type).
+    mimic : dict of str to Mimic
+        URDF ``<mimic>`` rules, by joint name (chain or outside joints).
+    payload_kg : float or None
+        The payload an analysis assumes by default [kg] (the 150 kg disc cutter of the
+        tool-changer); None: a fifth of the moving links' mass (:attr:`typical_payload_kg`).
     """
 
     model: pin.Model
@@ -74,37 +102,60 @@ class RobotModel:
     urdf_path: Path | None = None
     package_dirs: list[str] = field(default_factory=list)
     working_pose: np.ndarray | None = None
+    full_model: pin.Model | None = None
+    chain_joint_ids: tuple = ()
+    tool_frame_id: int = -1
+    mimic: dict = field(default_factory=dict)
+    payload_kg: float | None = None
 
     def __post_init__(self) -> None:
         if self.working_pose is None:
             self.working_pose = np.zeros(self.n_joints)
+        if self.full_model is None:
+            self.full_model = self.model
+            self.chain_joint_ids = tuple(range(1, self.model.njoints))
+        if self.tool_frame_id < 0:
+            self.tool_frame_id = find_frame(self.model, self.tool_frame)
 
-    # -- structure -------------------------------------------------------------------
-    @property
-    def tool_frame_id(self) -> int:
-        return self.model.getFrameId(self.tool_frame)
-
+    # -- structure (the model never changes in place, so these are computed once) -----
     @property
     def n_joints(self) -> int:
         return self.model.njoints - 1
 
-    @property
+    @cached_property
     def joint_names(self) -> list[str]:
         return list(self.model.names)[1:]
 
-    @property
+    @cached_property
     def joint_kinds(self) -> list[str]:
         return [_joint_kind(self.model.joints[j]) for j in range(1, self.model.njoints)]
 
+    @cached_property
+    def outside_joint_names(self) -> list[str]:
+        """1-DoF joints of the URDF that do not move the TCP (full-model order)."""
+        chain = set(self.chain_joint_ids)
+        full = self.full_model
+        return [full.names[j] for j in range(1, full.njoints) if j not in chain and full.joints[j].nv == 1]
+
+    @cached_property
+    def outside_joint_kinds(self) -> list[str]:
+        full = self.full_model
+        return [_joint_kind(full.joints[full.getJointId(n)]) for n in self.outside_joint_names]
+
     @property
     def lower_limits(self) -> np.ndarray:
-        """(n_joints,) lower joint limits [rad or m]; -inf where unbounded."""
+        """(n_joints,) lower joint limits [rad or m]; NaN where unbounded."""
         return self._limits(self.model.lowerPositionLimit)
 
     @property
     def upper_limits(self) -> np.ndarray:
-        """(n_joints,) upper joint limits [rad or m]; +inf where unbounded."""
+        """(n_joints,) upper joint limits [rad or m]; NaN where unbounded."""
         return self._limits(self.model.upperPositionLimit)
+
+    def joint_bounds(self, unbounded: float = math.pi) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper), each (n_joints,) [rad or m], with +-``unbounded`` where a joint has no limit."""
+        lo, hi = self.lower_limits, self.upper_limits
+        return np.where(np.isnan(lo), -unbounded, lo), np.where(np.isnan(hi), unbounded, hi)
 
     def _limits(self, pin_limits: np.ndarray) -> np.ndarray:
         out = np.empty(self.n_joints)
@@ -115,7 +166,7 @@ class RobotModel:
         out[~np.isfinite(out) | (np.abs(out) > 1e30)] = math.nan
         return out
 
-    @property
+    @cached_property
     def motion_axes(self) -> np.ndarray:
         """(n_joints, 6) joint motion twists (v, w) in each joint's own frame.
 
@@ -128,7 +179,30 @@ class RobotModel:
         for j in range(1, self.model.njoints):
             jac = pin.getJointJacobian(self.model, data, j, pin.LOCAL)
             axes[j - 1] = jac[:, self.model.joints[j].idx_v]
+        axes.setflags(write=False)
         return axes
+
+    def joint_axis(self, j: int) -> np.ndarray:
+        """(3,) unit axis of chain joint j in its own frame (rotation axis or sliding direction)."""
+        motion = self.motion_axes[j]
+        return motion[3:] if self.joint_kinds[j] == REVOLUTE else motion[:3]
+
+    def axis_perpendiculars(self, j: int) -> tuple[np.ndarray, np.ndarray]:
+        """Two unit vectors across joint j's axis, (u, v) with u x v = axis, in the joint's frame.
+
+        Coordinate axes when the joint axis is one (z -> (x, y), x -> (y, z), y -> (z, x)),
+        so parameters named after them read naturally.
+        """
+        axis = self.joint_axis(j)
+        k = int(np.argmax(np.abs(axis)))
+        if abs(abs(axis[k]) - 1.0) < 1e-12:
+            sign = math.copysign(1.0, axis[k])
+            u = np.eye(3)[(k + 1) % 3]
+            return u, sign * np.eye(3)[(k + 2) % 3]
+        helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
+        u = np.cross(axis, helper)
+        u /= np.linalg.norm(u)
+        return u, np.cross(axis, u)
 
     @property
     def joint_placements(self) -> list[pin.SE3]:
@@ -139,6 +213,14 @@ class RobotModel:
     def tool_placement(self) -> pin.SE3:
         """``jointMtool``: the TCP frame in its parent joint's frame (a copy)."""
         return pin.SE3(self.model.frames[self.tool_frame_id].placement)
+
+    @cached_property
+    def typical_payload_kg(self) -> float:
+        """The payload an analysis assumes by default [kg]: ``payload_kg`` if the robot has one
+        (the tool-changer's disc cutter), else a fifth of the moving links' mass."""
+        if self.payload_kg is not None:
+            return float(self.payload_kg)
+        return 0.2 * sum(self.model.inertias[j].mass for j in range(1, self.model.njoints))
 
     # -- joint values ----------------------------------------------------------------
     def to_pinocchio_q(self, q: np.ndarray) -> np.ndarray:
@@ -152,6 +234,33 @@ class RobotModel:
             else:  # unbounded revolute stored as (cos, sin)
                 out[joint.idx_q] = math.cos(q[j - 1])
                 out[joint.idx_q + 1] = math.sin(q[j - 1])
+        return out
+
+    def full_configurations(self, q: np.ndarray, outside_q: np.ndarray | None = None) -> np.ndarray:
+        """``full_model`` configurations (N, nq_full) from chain joints q (N, n_joints) [SI] and
+        the outside joints' values (N, n_outside) (None: neutral, or the mimic rule)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        full = self.full_model
+        out = np.tile(pin.neutral(full), (q.shape[0], 1))
+        values = dict(zip(self.chain_joint_ids, q.T))
+        names = self.outside_joint_names
+        if outside_q is not None:
+            outside_q = np.atleast_2d(np.asarray(outside_q, dtype=float))
+            for k, name in enumerate(names):
+                values[full.getJointId(name)] = outside_q[:, k]
+        else:
+            for name in names:
+                rule = self.mimic.get(name)
+                if rule is not None and rule.joint in self.joint_names:
+                    source = q[:, self.joint_names.index(rule.joint)]
+                    values[full.getJointId(name)] = rule.multiplier * source + rule.offset
+        for jid, column in values.items():
+            joint = full.joints[jid]
+            if joint.nq == 1:
+                out[:, joint.idx_q] = column
+            else:
+                out[:, joint.idx_q] = np.cos(column)
+                out[:, joint.idx_q + 1] = np.sin(column)
         return out
 
     def check_joint_values(self, q: np.ndarray, *, source: str = "--q") -> np.ndarray:
@@ -182,16 +291,37 @@ class RobotModel:
     @property
     def display_units(self) -> list[str]:
         """Units used at the edges: 'deg' for revolute joints, 'mm' for prismatic ones."""
-        return ["deg" if k == REVOLUTE else "mm" for k in self.joint_kinds]
+        return [JOINT_DISPLAY[k][0] for k in self.joint_kinds]
 
     @property
     def display_scale(self) -> np.ndarray:
         """(n_joints,) factors from SI joint values to display units."""
-        return np.array([180.0 / math.pi if k == REVOLUTE else 1000.0 for k in self.joint_kinds])
+        return np.array([JOINT_DISPLAY[k][1] for k in self.joint_kinds])
+
+    # -- visuals -----------------------------------------------------------------------
+    def visual_model(self) -> pin.GeometryModel:
+        """Pinocchio's visual ``GeometryModel`` attached to ``model``'s joints (bodies of the
+        locked joints at their neutral pose); meshes resolved through ``package_dirs``.
+
+        Raises
+        ------
+        InputError
+            The URDF's visuals cannot be read (missing mesh file, ...).
+        """
+        try:
+            geometry = pin.buildGeomFromUrdfString(self.full_model, self.urdf_text, pin.GeometryType.VISUAL,
+                                                   package_dirs=list(self.package_dirs))
+        except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
+            raise InputError(f"{self.name}: cannot read the URDF visuals ({exc})") from None
+        chain = set(self.chain_joint_ids)
+        locked = [j for j in range(1, self.full_model.njoints) if j not in chain]
+        if not locked:
+            return geometry
+        return reduce_model(self.full_model, locked, geometry)[1]
 
     # -- copies ----------------------------------------------------------------------
     def with_model(self, model: pin.Model, name: str | None = None) -> "RobotModel":
-        """A new RobotModel sharing everything but the Pinocchio model."""
+        """A new RobotModel sharing everything but the (chain) Pinocchio model."""
         return RobotModel(
             model=model,
             tool_frame=self.tool_frame,
@@ -200,18 +330,85 @@ class RobotModel:
             urdf_path=self.urdf_path,
             package_dirs=list(self.package_dirs),
             working_pose=np.array(self.working_pose),
+            full_model=self.full_model,
+            chain_joint_ids=self.chain_joint_ids,
+            tool_frame_id=self.tool_frame_id,
+            mimic=dict(self.mimic),
+            payload_kg=self.payload_kg,
         )
+
+
+#: Which frame a name means when a link, a joint or a fixed joint share it: links first.
+_FRAME_PREFERENCE = (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT,
+                     pin.FrameType.JOINT, pin.FrameType.SENSOR)
+
+
+def find_frame(model: pin.Model, name: str, source: str = "the model") -> int:
+    """Index of frame ``name`` in ``model.frames``: a link's frame if there is one, else an
+    operational frame, a fixed joint's or a joint's (URDF lets a link and a joint share a name).
+
+    Raises
+    ------
+    InputError
+        No frame has that name; the message lists the frames there are.
+    """
+    matches = [i for i, f in enumerate(model.frames) if f.name == name]
+    if not matches:
+        names = sorted({f.name for f in model.frames if f.name != "universe"})
+        raise InputError(f"--tool {name}: no such frame in {source} (frames: {', '.join(names)})")
+    return min(matches, key=lambda i: _FRAME_PREFERENCE.index(model.frames[i].type)
+               if model.frames[i].type in _FRAME_PREFERENCE else len(_FRAME_PREFERENCE))
+
+
+def reduce_model(full: pin.Model, locked: list[int], geometry: pin.GeometryModel | None = None,
+                 q_locked: np.ndarray | None = None):
+    """``pin.buildReducedModel`` that also works when frames share a name.
+
+    Pinocchio looks frames up by name inside the reduction and stops when a link and a
+    joint share one (legal URDF). Each duplicate is renamed for the call and restored in
+    the result, so frame names stay those of the URDF.
+
+    Returns the reduced model, or (model, geometry) when ``geometry`` is given.
+    """
+    q_locked = pin.neutral(full) if q_locked is None else q_locked
+    counts: dict = {}
+    for f in full.frames:
+        counts[f.name] = counts.get(f.name, 0) + 1
+    work = full
+    renamed: dict = {}
+    if any(c > 1 for c in counts.values()):
+        work = pin.Model(full)
+        for i, f in enumerate(work.frames):
+            if counts[f.name] > 1 and f.type != pin.FrameType.JOINT:
+                renamed[f"{f.name}\x00{i}"] = f.name
+                frame = work.frames[i]
+                frame.name = f"{f.name}\x00{i}"
+                work.frames[i] = frame
+    if geometry is None:
+        reduced = pin.buildReducedModel(work, locked, q_locked)
+    else:
+        reduced, geometry = pin.buildReducedModel(work, geometry, locked, q_locked)
+    for i, f in enumerate(reduced.frames):
+        if f.name in renamed:
+            frame = reduced.frames[i]
+            frame.name = renamed[f.name]
+            reduced.frames[i] = frame
+    return reduced if geometry is None else (reduced, geometry)
 
 
 class JointLimitWarning(UserWarning):
     """A joint value lies outside the URDF limits (the analysis still runs)."""
 
 
+_REVOLUTE_JOINT = re.compile(r"JointModel(R[XYZ]|RUB[XYZ]|RevoluteUnaligned|RevoluteUnboundedUnaligned)$")
+_PRISMATIC_JOINT = re.compile(r"JointModel(P[XYZ]|PrismaticUnaligned)$")
+
+
 def _joint_kind(joint: pin.JointModel) -> str:
     short = joint.shortname()
-    if short.startswith("JointModelR"):
+    if _REVOLUTE_JOINT.match(short):
         return REVOLUTE
-    if short.startswith("JointModelP"):
+    if _PRISMATIC_JOINT.match(short):
         return PRISMATIC
     raise InputError(
         f"joint type {short} is not supported: tcr-accuracy handles serial chains of "
@@ -289,11 +486,13 @@ def load_robot(source: str | Path | None = None, tool: str | None = None) -> Rob
     package_dirs: list[str] = []
     urdf_path: Path | None = None
     working_pose = None
+    payload_kg = None
     if source is None or str(source) == BUILTIN_NAME:
         text = tool_changer_urdf()
         name = BUILTIN_NAME
         tool = tool or "tool"
         working_pose = WORKING_POSE.copy()
+        payload_kg = DISC_CUTTER_MASS
         label = "built-in tool_changer"
     elif Path(source).is_file():
         urdf_path = Path(source).resolve()
@@ -303,6 +502,7 @@ def load_robot(source: str | Path | None = None, tool: str | None = None) -> Rob
         label = str(source)
         if urdf_path.stem == "tool_changer":
             working_pose = WORKING_POSE.copy()
+            payload_kg = DISC_CUTTER_MASS
     elif str(source).lower() in EXAMPLE_ROBOTS:
         share = example_robot_data_dir()
         rel, default_tool = EXAMPLE_ROBOTS[str(source).lower()]
@@ -319,7 +519,7 @@ def load_robot(source: str | Path | None = None, tool: str | None = None) -> Rob
         )
     return robot_from_urdf_text(
         text, tool, name=name, source=label, urdf_path=urdf_path,
-        package_dirs=package_dirs, working_pose=working_pose,
+        package_dirs=package_dirs, working_pose=working_pose, payload_kg=payload_kg,
     )
 
 
@@ -332,6 +532,7 @@ def robot_from_urdf_text(
     urdf_path: Path | None = None,
     package_dirs: list[str] | None = None,
     working_pose: np.ndarray | None = None,
+    payload_kg: float | None = None,
 ) -> RobotModel:
     """Build a :class:`RobotModel` from URDF text (see :func:`load_robot`)."""
     root = parse_urdf_xml(text, source)
@@ -341,22 +542,16 @@ def robot_from_urdf_text(
         full = pin.buildModelFromXML(text)
     except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
         raise InputError(f"{source}: Pinocchio cannot build a model from this URDF ({exc})") from None
-    if not full.existFrame(tool):
-        names = sorted({f.name for f in full.frames if f.name != "universe"})
-        raise InputError(
-            f"--tool {tool}: no such frame in {source} (frames: {', '.join(names)})"
-        )
-    frame = full.frames[full.getFrameId(tool)]
+    frame_id = find_frame(full, tool, source)
+    frame = full.frames[frame_id]
     chain = set(full.supports[frame.parentJoint])
     locked = [j for j in range(1, full.njoints) if j not in chain]
-    if locked:
-        model = pin.buildReducedModel(full, locked, pin.neutral(full))
-    else:
-        model = full
+    model = reduce_model(full, locked) if locked else full
     if model.njoints <= 1:
         raise InputError(f"--tool {tool}: no joint moves this frame in {source}")
     for j in range(1, model.njoints):
         _joint_kind(model.joints[j])  # raises for unsupported kinds
+    tool_frame_id = next(i for i, f in enumerate(model.frames) if f.name == tool and f.type == frame.type)
     robot = RobotModel(
         model=model,
         tool_frame=tool,
@@ -365,8 +560,31 @@ def robot_from_urdf_text(
         urdf_path=urdf_path,
         package_dirs=list(package_dirs or []),
         working_pose=working_pose,
+        full_model=full,
+        chain_joint_ids=tuple(full.getJointId(n) for n in list(model.names)[1:]),
+        tool_frame_id=tool_frame_id,
+        mimic=_mimic_rules(root, source),
+        payload_kg=payload_kg,
     )
     return robot
+
+
+def _mimic_rules(root: ElementTree.Element, source: str) -> dict:
+    """URDF ``<mimic joint=... multiplier=... offset=...>`` rules by joint name."""
+    rules = {}
+    for joint in root.findall("joint"):
+        mimic = joint.find("mimic")
+        if mimic is None:
+            continue
+        try:
+            rule = Mimic(mimic.get("joint", ""), float(mimic.get("multiplier", 1.0)), float(mimic.get("offset", 0.0)))
+        except ValueError:
+            raise InputError(f"{source}: joint {joint.get('name')}: <mimic> multiplier/offset is not a number") \
+                from None
+        if not (math.isfinite(rule.multiplier) and math.isfinite(rule.offset)) or not rule.joint:
+            raise InputError(f"{source}: joint {joint.get('name')}: <mimic> needs a joint and finite numbers")
+        rules[joint.get("name")] = rule
+    return rules
 
 
 def _single_leaf_link(root: ElementTree.Element, source: str) -> str:

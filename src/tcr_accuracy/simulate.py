@@ -42,10 +42,12 @@ is a scenario. An effect with no values is drawn around its typical scales.
 Units: m, mm, um, rad, mrad, urad, deg, arcsec, per_k, ppm_per_k, ppm, rad_per_nm,
 urad_per_nm, deg_per_knm, m_per_n, um_per_n, mm_per_kn; no suffix = dimensionless.
 
-Besides the vocabulary (:data:`~tcr_accuracy.effects.EFFECTS`), two effects *outside*
-it can be hidden, to check that a diagnosis reports structure it cannot explain:
+Besides the vocabulary (:func:`~tcr_accuracy.effects.vocabulary`), the registered effects
+*outside* it can be hidden, to check that a diagnosis reports structure it cannot explain:
 ``unmodelled`` (a smooth distortion of one link that depends on several joints at once)
 and ``link_bending`` (the longest link sagging as a beam, a translation without rotation).
+Everything simulate needs to know about an effect (sign constraints, whether it may be
+drawn as the dominant one and how) it reads from the effect's class.
 """
 
 from __future__ import annotations
@@ -55,139 +57,28 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 from scipy.spatial.transform import Rotation
 
-from .effects import EFFECTS, Effect, EffectOutput, predict_poses, prediction_jacobian, typical_payload_kg
+from .context import REFERENCE_TEMPERATURE_C, MeasurementContext
+from .effects import Effect, effect_class, effect_classes, predict_poses, prediction_jacobian
 from .exceptions import InputError
 from .kinematics import tcp_poses
-from .measurements import REFERENCE_TEMPERATURE_C, MeasurementContext, MeasurementSet, read_user_text
+from .measurements import MeasurementSet, read_user_text
 from .robot import RobotModel
+from .units import SUFFIXES, split_suffix
 
 DEFAULT_NOISE_M = 2e-5  # laser tracker, 0.02 mm per axis
 DEFAULT_ORIENTATION_NOISE_RAD = 5e-5
 
-#: unit suffix -> (SI unit, factor to SI)
-UNITS: dict[str, tuple[str, float]] = {
-    "m": ("m", 1.0), "mm": ("m", 1e-3), "um": ("m", 1e-6),
-    "rad": ("rad", 1.0), "mrad": ("rad", 1e-3), "urad": ("rad", 1e-6),
-    "deg": ("rad", math.pi / 180.0), "arcsec": ("rad", math.pi / 180.0 / 3600.0),
-    "per_k": ("1/K", 1.0), "ppm_per_k": ("1/K", 1e-6), "ppm": ("1", 1e-6),
-    "rad_per_nm": ("rad/Nm", 1.0), "urad_per_nm": ("rad/Nm", 1e-6),
-    "deg_per_knm": ("rad/Nm", math.pi / 180.0 / 1000.0),
-    "m_per_n": ("m/N", 1.0), "um_per_n": ("m/N", 1e-6), "mm_per_kn": ("m/N", 1e-6),
-}
+
+def outside_vocabulary() -> tuple[str, ...]:
+    """Effects simulate can hide although no diagnosis can name them."""
+    return tuple(n for n, c in effect_classes(vocabulary_only=False).items() if not c.in_vocabulary)
 
 
-# ---------------------------------------------------------------------------------------
-# Effects outside the vocabulary (simulation only; diagnose never sees these classes)
-# ---------------------------------------------------------------------------------------
-def _longest_link(robot: RobotModel) -> int:
-    """Index of the joint whose placement carries the longest link (after the first)."""
-    lengths = [np.linalg.norm(pl.translation) for pl in robot.joint_placements]
-    if len(lengths) > 1:
-        lengths[0] = -1.0  # the pedestal trades with the base frame; bend an arm link
-    return int(np.argmax(lengths))
-
-
-class Unmodelled(Effect):
-    """A smooth distortion of the longest link that depends on three joints at once.
-
-    The distal joint of the longest link is shifted (translation in its own frame) by
-    ``A * (sin(2 q_a + q_b), sin(q_b - 2 q_c + 0.5), cos(3 q_a - q_c))`` with a, b, c the
-    first three joints. No effect of the vocabulary has this shape: the distortion
-    moves a joint placement with a mix of other joints' angles. Parameter
-    ``unmodelled.amplitude`` [m].
-    """
-
-    name = "unmodelled"
-    analytic_jacobian = False  # finite differences of perturb (base class)
-
-    def parameter_names(self):
-        return ["unmodelled.amplitude"]
-
-    def parameter_units(self):
-        return ["m"]
-
-    def parameter_scales(self):
-        return np.array([3e-4])
-
-    def perturb(self, params, q, context):
-        (amplitude,) = self.check_params(params)
-        q = np.atleast_2d(q)
-        n = self.robot.n_joints
-        a, b, c = 0, 1 % n, 2 % n
-        shift = amplitude * np.stack([np.sin(2 * q[:, a] + q[:, b]), np.sin(q[:, b] - 2 * q[:, c] + 0.5),
-                                      np.cos(3 * q[:, a] - q[:, c])], axis=1)
-        em = self.error_model
-        x = np.zeros((q.shape[0], em.size))
-        start = em.index(f"{self.robot.joint_names[_longest_link(self.robot)]}.dx")
-        x[:, start:start + 3] = shift
-        return EffectOutput(x=x)
-
-
-class LinkBending(Effect):
-    """The longest link sags under gravity like a cantilever: its far end drops.
-
-    The distal joint of the longest link moves, without turning, by ``A cos(e)`` in the
-    direction of gravity's component perpendicular to the link, e = the link's elevation
-    above the horizontal. Parameter ``link_bending.tip`` [m]: the drop with the link
-    horizontal. Joint compliance turns the distal frames as well; a bending beam
-    translates them, so the vocabulary explains this only in part.
-    """
-
-    name = "link_bending"
-    analytic_jacobian = False  # finite differences of perturb (base class)
-
-    def parameter_names(self):
-        return ["link_bending.tip"]
-
-    def parameter_units(self):
-        return ["m"]
-
-    def parameter_scales(self):
-        return np.array([5e-4])
-
-    def perturb(self, params, q, context):
-        (tip,) = self.check_params(params)
-        q = np.atleast_2d(q)
-        robot = self.robot
-        k = _longest_link(robot)
-        model = robot.model
-        data = model.createData()
-        parent = model.parents[k + 1]
-        placement = robot.joint_placements[k]
-        g = model.gravity.linear / np.linalg.norm(model.gravity.linear)
-        em = self.error_model
-        x = np.zeros((q.shape[0], em.size))
-        start = em.index(f"{robot.joint_names[k]}.dx")
-        for i, qi in enumerate(q):
-            pin.forwardKinematics(model, data, robot.to_pinocchio_q(qi))
-            frame = data.oMi[parent] * placement  # the link's distal end, before its joint moves
-            link = data.oMi[parent].rotation @ placement.translation
-            u = link / np.linalg.norm(link)
-            drop = g - (g @ u) * u  # gravity across the link; |drop| = cos(elevation)
-            x[i, start:start + 3] = frame.rotation.T @ (tip * drop)
-        return EffectOutput(x=x)
-
-
-#: Effects simulate can hide although no diagnosis can name them.
-OUTSIDE_VOCABULARY: dict[str, type[Effect]] = {"unmodelled": Unmodelled, "link_bending": LinkBending}
-
-#: Effects whose parameters are magnitudes (drawn values are taken as |value|).
-NON_NEGATIVE = ("compliance", "backlash", "clearance")
-
-#: Effects random_scenario may make dominant.
-DOMINANT_CANDIDATES = ("compliance", "backlash", "thermal", "transmission", "encoder_scale")
-
-
-def effect_class(name: str, source: str = "scenario") -> type[Effect]:
-    if name in EFFECTS:
-        return EFFECTS[name]
-    if name in OUTSIDE_VOCABULARY:
-        return OUTSIDE_VOCABULARY[name]
-    raise InputError(f"{source}: unknown effect {name!r}; effects: {', '.join(EFFECTS)}; outside the vocabulary "
-                     f"(simulate only): {', '.join(OUTSIDE_VOCABULARY)}")
+def dominant_candidates() -> tuple[str, ...]:
+    """Effects random_scenario may make dominant (``dominant_candidate`` on the class)."""
+    return tuple(n for n, c in effect_classes().items() if c.dominant_candidate)
 
 
 # ---------------------------------------------------------------------------------------
@@ -251,7 +142,7 @@ def scenario_from_dict(data: dict, source: str = "<scenario>") -> Scenario:
     if not isinstance(effects, dict):
         raise InputError(f"{source}: effects: a mapping effect name -> settings")
     for name, spec in effects.items():
-        effect_class(name, source)  # raises for unknown names
+        effect_class(name, source=source)  # raises for unknown names
         if spec is not None and not isinstance(spec, dict):
             raise InputError(f"{source}: effects.{name}: settings must be a mapping (or empty)")
     ctx = data.get("context") or {}
@@ -284,17 +175,6 @@ def _number(value, where: str) -> float:
     return out
 
 
-def _split_unit(key: str) -> tuple[str, str | None]:
-    """'offsets_deg' -> ('offsets', 'deg'); the longest known unit suffix wins."""
-    best = None
-    for unit in UNITS:
-        if key.endswith("_" + unit) and (best is None or len(unit) > len(best)):
-            best = unit
-    if best is None:
-        return key, None
-    return key[: -len(best) - 1], best
-
-
 def _selected(sub: str, selector: str) -> bool:
     parts, sel = sub.split("."), str(selector).split(".")
     return parts[: len(sel)] == sel or parts[-len(sel):] == sel
@@ -308,7 +188,7 @@ def resolve_effect(robot: RobotModel, name: str, spec: dict, rng: np.random.Gene
     joints has no length-valued joint offsets) instead of raising.
     Returns (effect, params, tcp_rms_m or None).
     """
-    cls = effect_class(name, source)
+    cls = effect_class(name, source=source)
     where = f"{source}: effects.{name}"
     options = dict(spec.get("options") or {})
     mass_spread = options.pop("link_mass_spread", None)
@@ -317,7 +197,10 @@ def resolve_effect(robot: RobotModel, name: str, spec: dict, rng: np.random.Gene
         options["link_mass_factors"] = np.clip(1.0 + spread * rng.standard_normal(robot.n_joints), 0.1, None)
     if "link_mass_factors" in options:
         options["link_mass_factors"] = np.asarray(options["link_mass_factors"], dtype=float)
-    effect = cls(robot, **options)
+    try:
+        effect = cls(robot, **options)
+    except TypeError as exc:  # an option the effect does not have (misspelt?)
+        raise InputError(f"{where}.options: {exc}") from None
     names = effect.parameter_names()
     subs = [n[len(name) + 1:] for n in names]
     units = effect.parameter_units()
@@ -339,8 +222,8 @@ def resolve_effect(robot: RobotModel, name: str, spec: dict, rng: np.random.Gene
                                      f"(parameters: {', '.join(names)})")
                 values[names.index(pname)] = _number(v, f"{where}.parameters.{pname}")
             continue
-        label, unit = _split_unit(key)
-        dim, factor = UNITS[unit] if unit else ("1", 1.0)
+        label, unit = split_suffix(key)
+        dim, factor = SUFFIXES[unit] if unit else ("1", 1.0)
         target = spreads if label == "spread" else values
         matching = [k for k, u in enumerate(units) if u == dim]
         if not matching and lenient:
@@ -362,27 +245,20 @@ def resolve_effect(robot: RobotModel, name: str, spec: dict, rng: np.random.Gene
             target[matching] = _number(value, f"{where}.{key}") * factor
     if np.any(spreads < 0):
         raise InputError(f"{where}: spreads must be >= 0")
-    if name in NON_NEGATIVE and np.any(values < 0):
+    if cls.non_negative and np.any(values < 0):
         raise InputError(f"{where}: {name} parameters cannot be negative")
     draw = np.isnan(values)
     if np.all(draw) and np.all(np.isnan(spreads)):
         spreads = effect.parameter_scales()  # no values at all: around the typical scales
     spreads = np.where(np.isnan(spreads), 0.0, spreads)
     drawn = spreads[draw] * rng.standard_normal(int(draw.sum()))
-    values[draw] = np.abs(drawn) if name in NON_NEGATIVE else drawn + 0.0  # no -0.0
+    values[draw] = np.abs(drawn) if cls.non_negative else drawn + 0.0  # no -0.0
     return effect, values, tcp_rms
 
 
 # ---------------------------------------------------------------------------------------
 # Sampling poses and context
 # ---------------------------------------------------------------------------------------
-def joint_bounds(robot: RobotModel, span: float = math.pi) -> tuple[np.ndarray, np.ndarray]:
-    """(lo, hi) sampling bounds: the limits, unbounded joints within +-span."""
-    lo = np.where(np.isnan(robot.lower_limits), -span, robot.lower_limits)
-    hi = np.where(np.isnan(robot.upper_limits), span, robot.upper_limits)
-    return lo, hi
-
-
 def sample_poses(robot: RobotModel, n: int, rng: np.random.Generator, box=None) -> np.ndarray:
     """(n, n_joints) joint values uniform within the limits.
 
@@ -390,7 +266,7 @@ def sample_poses(robot: RobotModel, n: int, rng: np.random.Generator, box=None) 
         [[xmin, xmax], [ymin, ymax], [zmin, zmax]] [m]: keep only poses whose nominal
         TCP lies inside (rejection sampling).
     """
-    lo, hi = joint_bounds(robot)
+    lo, hi = robot.joint_bounds()
     if box is None:
         return rng.uniform(lo, hi, size=(n, robot.n_joints))
     box = np.asarray(box, dtype=float)
@@ -413,7 +289,7 @@ def sample_poses(robot: RobotModel, n: int, rng: np.random.Generator, box=None) 
 
 def draw_context(robot: RobotModel, spec: ContextSpec, n: int, rng: np.random.Generator) -> MeasurementContext:
     """Per-row payload, temperature and approach directions as the spec says."""
-    payload_mass = typical_payload_kg(robot) if spec.payload_kg is None else float(spec.payload_kg)
+    payload_mass = robot.typical_payload_kg if spec.payload_kg is None else float(spec.payload_kg)
     payload = np.where(rng.uniform(size=n) < spec.payload_fraction, payload_mass, 0.0)
     temperature = float(spec.temperature_c) + float(spec.temperature_spread_c) * rng.uniform(-1.0, 1.0, n)
     if spec.directions == "random":
@@ -492,7 +368,7 @@ def simulate_measurements(robot: RobotModel, scenario: Scenario | dict, n: int, 
                 raise InputError(f"{scenario.source}: effects.{name}: zero TCP displacement, cannot scale "
                                  "to tcp_rms_mm")
             params = params * (tcp_rms / rms)  # every effect is linear in its parameters
-        hidden.append(HiddenEffect(effect, params, name in EFFECTS))
+        hidden.append(HiddenEffect(effect, params, effect.in_vocabulary))
     poses = predict_poses(robot, [h.effect for h in hidden], [h.params for h in hidden], q, context)
     position = poses.position + noise * rng.standard_normal((n, 3))
     quaternion = None
@@ -571,7 +447,7 @@ def random_scenario(robot: RobotModel, rng: np.random.Generator, dominant: list[
     Parameters
     ----------
     dominant : list of str, optional
-        Effects to make dominant; default one or two drawn from DOMINANT_CANDIDATES.
+        Effects to make dominant; default one or two drawn from :func:`dominant_candidates`.
     n_dominant : int, optional
         How many to draw when dominant is None (default 1 or 2 at random).
     outside : str, optional
@@ -585,15 +461,15 @@ def random_scenario(robot: RobotModel, rng: np.random.Generator, dominant: list[
     dict: a scenario with explicit SI parameters, plus ``dominant`` (ordered, largest
     first) and ``notes``.
     """
+    candidates = dominant_candidates()
     if dominant is None:
         k = n_dominant if n_dominant is not None else int(rng.integers(1, 3))
-        dominant = list(rng.choice(DOMINANT_CANDIDATES, size=k, replace=False))
+        dominant = list(rng.choice(candidates, size=k, replace=False))
     for name in dominant:
-        if name not in EFFECTS or name in ("frames", "clearance"):
-            raise InputError(f"dominant effect {name!r}: choose from {', '.join(DOMINANT_CANDIDATES)}")
-    if outside is not None and outside not in OUTSIDE_VOCABULARY:
-        raise InputError(f"outside effect {outside!r}: choose from {', '.join(OUTSIDE_VOCABULARY)}")
-    deg = math.pi / 180.0
+        if name not in candidates:
+            raise InputError(f"dominant effect {name!r}: choose from {', '.join(candidates)}")
+    if outside is not None and outside not in outside_vocabulary():
+        raise InputError(f"outside effect {outside!r}: choose from {', '.join(outside_vocabulary())}")
     u = rng.uniform
     specs: dict[str, dict] = {
         "frames": {"spread_mm": {"base": 20.0, "tool": 1.0}, "spread_mrad": {"base": 5.0}},
@@ -601,19 +477,7 @@ def random_scenario(robot: RobotModel, rng: np.random.Generator, dominant: list[
         "joint_offsets": {"spread_deg": u(0.01, 0.05), "spread_mm": u(0.01, 0.05)},
     }
     for name in dominant:
-        if name == "compliance":
-            # each joint turned by a similar angle under its typical torque, then scaled
-            pattern = EFFECTS["compliance"](robot).parameter_scales() * np.exp(0.5 * rng.standard_normal(robot.n_joints))
-            specs[name] = {"parameters": {f"compliance.{j}": float(c) for j, c in zip(robot.joint_names, pattern)},
-                           "tcp_rms_mm": u(0.5, 3.0), "options": {"link_mass_spread": 0.05}}
-        elif name == "backlash":
-            specs[name] = {"backlash_deg": float(u(0.01, 0.05)), "backlash_mm": float(u(0.01, 0.05))}
-        elif name == "thermal":
-            specs[name] = {"alpha_per_k": float(u(1.0e-5, 2.4e-5))}
-        elif name == "transmission":
-            specs[name] = {"spread_deg": float(u(0.005, 0.02))}
-        elif name == "encoder_scale":
-            specs[name] = {"spread_ppm": float(u(100.0, 500.0))}
+        specs[name] = effect_class(name)(robot).dominant_spec(rng)
     if clearance:
         specs["clearance"] = {"axial_mm": 0.005, "radial_mm": 0.005, "tilt_mrad": 0.005}
     context = {"payload_fraction": 0.5, "temperature_spread_c": 10.0, "directions": "random"}
@@ -625,11 +489,8 @@ def random_scenario(robot: RobotModel, rng: np.random.Generator, dominant: list[
     resolved = {}
     for name, spec in specs.items():
         effect, params, tcp_rms = resolve_effect(robot, name, spec, rng, "random_scenario", lenient=True)
-        if name == "backlash":  # one band width per joint, drawn in the range, not a single value
-            lo_hi = np.where(np.array(effect.parameter_units()) == "rad", deg, 1e-3)
-            params = lo_hi * u(0.01, 0.05, size=effect.n_params)
-        if name == "encoder_scale":
-            params = rng.choice([-1.0, 1.0], effect.n_params) * u(1e-4, 5e-4, size=effect.n_params)
+        if name in dominant:
+            params = effect.finish_dominant(params, rng)
         if tcp_rms is not None:
             sig = _signature(robot, effect, params, q_ref, ctx_ref)
             params = params * tcp_rms / max(float(np.sqrt(np.mean(np.sum(sig**2, axis=1)))), 1e-300)
@@ -661,7 +522,7 @@ def random_scenario(robot: RobotModel, rng: np.random.Generator, dominant: list[
                 resolved[name] = (resolved[name][0], resolved[name][1] * grow)
             notes["dominant_factor"] = grow
     if outside is not None:
-        effect = OUTSIDE_VOCABULARY[outside](robot)
+        effect = effect_class(outside)(robot)
         params = effect.parameter_scales()
         sig = _signature(robot, effect, params, q_ref, ctx_ref)
         target = after_frames([order[0]])

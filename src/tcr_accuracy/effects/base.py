@@ -1,0 +1,336 @@
+"""The interface every effect shares, and the registry that is nothing but the classes.
+
+An effect is one class, in one module of this package, deriving from :class:`Effect`
+(or :class:`LinearEffect`). Defining the class registers it: ``diagnose``, ``simulate``,
+the CLI and the reports read everything they need from the class itself:
+
+==========================  ===========================================================
+class attribute             meaning
+==========================  ===========================================================
+``name``                    the vocabulary word (``compliance``); parameters are ``<name>.*``
+``order``                   position in the vocabulary: identifiability takes effects in
+                            this order (what an earlier effect explains, a later one cannot)
+``summary``                 one line for reports and ``--help``
+``geometric``               its fitted parameters are pure geometry (go into an as-built URDF)
+``context_columns``         CSV context it reads (``payload_kg``, ``temperature_c``,
+                            ``<joint>_dir``)
+``requires_context``        meaningless without those columns (not tried when absent)
+``non_negative``            its parameters are magnitudes (simulate draws |value|)
+``stochastic``              random scatter, not a bias (tested, never fitted)
+``dominant_candidate``      ``random_scenario`` may make it the dominant hidden effect
+                            (then :meth:`Effect.dominant_spec` says how it is drawn)
+``in_vocabulary``           False for effects only ``simulate`` can hide (a diagnosis must
+                            admit what it cannot name)
+==========================  ===========================================================
+
+Options are explicit keyword-only arguments of the class's ``__init__`` (a misspelt
+option fails); :attr:`Effect.options` lists those that differ from their defaults.
+
+What an effect does: ``perturb(params, q, context)`` gives joint-side offsets ``dq``
+(N, n_joints) and/or error vectors ``x`` (N, n_error_params) of
+:class:`~tcr_accuracy.errors.ErrorModel`, i.e. it acts on the Pinocchio model's joint
+values and joint placements, never on output positions; ``parameter_jacobian`` gives
+their derivatives in the parameters (exact for linear effects).
+"""
+
+from __future__ import annotations
+
+import abc
+import inspect
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from ..context import MeasurementContext
+from ..errors import ErrorModel
+from ..exceptions import InputError
+from ..robot import RobotModel
+from ..units import REVOLUTE
+
+
+@dataclass(frozen=True)
+class EffectOutput:
+    """What an effect does to the model for N joint vectors.
+
+    dq : ndarray of shape (N, n_joints) or None
+        Offsets added to the commanded joint values [rad, m].
+    x : ndarray of shape (N, n_error_params) or None
+        Geometric error vectors (layout of :class:`~tcr_accuracy.errors.ErrorModel`).
+    """
+
+    dq: np.ndarray | None = None
+    x: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class EffectJacobian:
+    """Derivatives of an effect's output with respect to its k parameters.
+
+    dq : ndarray of shape (N, n_joints, k) or None
+    x : ndarray of shape (N, n_error_params, k), or (n_error_params, k) when the same
+        for every row, or None
+    """
+
+    dq: np.ndarray | None = None
+    x: np.ndarray | None = None
+
+
+#: name -> class, filled by Effect.__init_subclass__ (the classes are the registry).
+_REGISTRY: dict[str, type["Effect"]] = {}
+
+
+class Effect(abc.ABC):
+    """One effect: its parameters and how it perturbs the model.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The nominal robot (never modified). Subclasses add their options as
+        keyword-only arguments.
+    """
+
+    name: ClassVar[str]
+    order: ClassVar[float] = 100.0
+    summary: ClassVar[str] = ""
+    geometric: ClassVar[bool] = False
+    context_columns: ClassVar[tuple[str, ...]] = ()
+    requires_context: ClassVar[bool] = False
+    non_negative: ClassVar[bool] = False
+    stochastic: ClassVar[bool] = False
+    dominant_candidate: ClassVar[bool] = False
+    in_vocabulary: ClassVar[bool] = True
+    #: False when parameter_jacobian falls back to finite differences.
+    analytic_jacobian: ClassVar[bool] = True
+
+    def __init_subclass__(cls, **kwargs) -> None:
+        super().__init_subclass__(**kwargs)
+        if "name" not in cls.__dict__ or inspect.isabstract(cls):
+            return
+        known = _REGISTRY.get(cls.name)
+        if known is not None and known.__qualname__ != cls.__qualname__:
+            raise TypeError(f"effect name {cls.name!r} is taken by {known.__module__}.{known.__qualname__}")
+        _REGISTRY[cls.name] = cls
+
+    def __init__(self, robot: RobotModel) -> None:
+        self.robot = robot
+
+    @property
+    def options(self) -> dict:
+        """The keyword options this instance was built with, where they differ from the default."""
+        out = {}
+        for name, parameter in inspect.signature(type(self).__init__).parameters.items():
+            if parameter.kind is not inspect.Parameter.KEYWORD_ONLY:
+                continue
+            value = getattr(self, name)
+            default = parameter.default
+            same = (value is None and default is None) if (value is None or default is None) else \
+                np.array_equal(np.asarray(value, dtype=object), np.asarray(default, dtype=object))
+            if not same:
+                out[name] = value
+        return out
+
+    def __repr__(self) -> str:
+        opts = ", ".join(f"{k}={v!r}" for k, v in self.options.items() if k != "rng")
+        return f"{type(self).__name__}({self.robot.name}{', ' + opts if opts else ''})"
+
+    # -- parameters ----------------------------------------------------------------------
+    @abc.abstractmethod
+    def parameter_names(self) -> list[str]:
+        """Names ``<effect>.<...>`` of the k parameters."""
+
+    @abc.abstractmethod
+    def parameter_units(self) -> list[str]:
+        """SI unit of each parameter (``m``, ``rad``, ``rad/Nm``, ``m/N``, ``1/K``, ``1``)."""
+
+    @abc.abstractmethod
+    def parameter_scales(self) -> np.ndarray:
+        """(k,) typical magnitude of each parameter [SI]: fit scaling, simulate defaults."""
+
+    @property
+    def n_params(self) -> int:
+        return len(self.parameter_names())
+
+    def zeros(self) -> np.ndarray:
+        return np.zeros(self.n_params)
+
+    def check_params(self, params) -> np.ndarray:
+        params = np.asarray(params, dtype=float).reshape(-1)
+        if params.shape != (self.n_params,):
+            raise InputError(f"effect {self.name}: {params.size} parameter values given, it has "
+                             f"{self.n_params} ({', '.join(self.parameter_names()[:4])}, ...)")
+        if not np.all(np.isfinite(params)):
+            raise InputError(f"effect {self.name}: non-finite parameter value")
+        return params
+
+    @property
+    def error_model(self) -> ErrorModel:
+        em = self.__dict__.get("_error_model")
+        if em is None:
+            em = self.__dict__["_error_model"] = ErrorModel(self.robot)
+        return em
+
+    # -- how simulate draws it -----------------------------------------------------------
+    def dominant_spec(self, rng: np.random.Generator) -> dict:
+        """Scenario settings (as in a scenario YAML) of a realistic dominant draw.
+
+        Only for ``dominant_candidate`` effects; ``random_scenario`` calls it.
+        """
+        raise NotImplementedError(f"effect {self.name} is not a dominant candidate")
+
+    def finish_dominant(self, params: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Last touch on the parameters resolved from :meth:`dominant_spec` (default: as they are)."""
+        return params
+
+    # -- what it does --------------------------------------------------------------------
+    @abc.abstractmethod
+    def perturb(self, params, q: np.ndarray, context: MeasurementContext) -> EffectOutput:
+        """Joint offsets and/or error vectors for commanded joints q (N, n) [SI]."""
+
+    def parameter_jacobian(self, params, q: np.ndarray, context: MeasurementContext) -> EffectJacobian:
+        """d(dq)/d(params) (N, n, k) and d(x)/d(params) (N, p, k) at params.
+
+        Fallback: central finite differences of :meth:`perturb` (step 1e-3 of each
+        parameter's scale). Linear effects override this with their exact maps.
+        """
+        params = self.check_params(params)
+        q = np.atleast_2d(q)
+        steps = 1e-3 * self.parameter_scales()
+        n, nj, p = q.shape[0], self.robot.n_joints, self.error_model.size
+        ddq = np.zeros((n, nj, self.n_params))
+        dx = np.zeros((n, p, self.n_params))
+        for k, h in enumerate(steps):
+            e = np.zeros(self.n_params)
+            e[k] = h
+            plus, minus = self.perturb(params + e, q, context), self.perturb(params - e, q, context)
+            if plus.dq is not None:
+                ddq[:, :, k] = (plus.dq - minus.dq) / (2 * h)
+            if plus.x is not None:
+                dx[:, :, k] = (plus.x - minus.x) / (2 * h)
+        return EffectJacobian(ddq, dx)
+
+
+class LinearEffect(Effect):
+    """An effect linear in its parameters: perturb = parameter_jacobian @ params."""
+
+    @abc.abstractmethod
+    def parameter_jacobian(self, params, q, context) -> EffectJacobian:  # noqa: D102
+        ...
+
+    def perturb(self, params, q, context) -> EffectOutput:
+        params = self.check_params(params)
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        jac = self.parameter_jacobian(params, q, context)
+        dq = None if jac.dq is None else jac.dq @ params
+        x = None
+        if jac.x is not None:
+            x = jac.x @ params
+            if x.ndim == 1:
+                x = np.broadcast_to(x, (q.shape[0], x.size))
+        return EffectOutput(dq=dq, x=x)
+
+
+class PerJointEffect(LinearEffect):
+    """A joint-side effect with one parameter per joint: ``dq_j = p_j * signal_j(q, context)``.
+
+    Subclasses give the per-joint signal (N, n_joints) and the unit of each parameter.
+    """
+
+    def parameter_names(self):
+        return [f"{self.name}.{n}" for n in self.robot.joint_names]
+
+    @abc.abstractmethod
+    def signal(self, q: np.ndarray, context: MeasurementContext) -> np.ndarray:
+        """(N, n_joints) d(dq_j)/d(p_j)."""
+
+    def parameter_jacobian(self, params, q, context):
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        s = self.signal(q, context)
+        n = self.robot.n_joints
+        ddq = np.zeros((s.shape[0], n, n))
+        ddq[:, np.arange(n), np.arange(n)] = s
+        return EffectJacobian(dq=ddq)
+
+
+def joint_unit(kind: str) -> str:
+    """SI unit of a joint value of this kind."""
+    return "rad" if kind == REVOLUTE else "m"
+
+
+# ---------------------------------------------------------------------------------------
+# The registry: read-only views of the classes
+# ---------------------------------------------------------------------------------------
+def effect_classes(*, vocabulary_only: bool = True) -> dict[str, type[Effect]]:
+    """Registered effect classes by name, in vocabulary order (``order``, then name)."""
+    classes = sorted(_REGISTRY.values(), key=lambda c: (c.order, c.name))
+    return {c.name: c for c in classes if c.in_vocabulary or not vocabulary_only}
+
+
+def vocabulary() -> tuple[str, ...]:
+    """The effect vocabulary: names of the registered in-vocabulary effects, in order."""
+    return tuple(effect_classes())
+
+
+def effect_class(name: str, *, vocabulary_only: bool = False, source: str = "effect") -> type[Effect]:
+    """The class registered under ``name``, or one InputError line listing the names there are."""
+    classes = effect_classes(vocabulary_only=vocabulary_only)
+    if name in classes:
+        return classes[name]
+    inside = [n for n, c in classes.items() if c.in_vocabulary]
+    outside = [n for n, c in classes.items() if not c.in_vocabulary]
+    hint = f"; outside the vocabulary (simulate only): {', '.join(outside)}" if outside else ""
+    raise InputError(f"{source}: unknown effect {name!r}; effects: {', '.join(inside)}{hint}")
+
+
+def make_effect(name: str, robot: RobotModel, **options) -> Effect:
+    """An effect by name, with its options checked against its keyword arguments."""
+    cls = effect_class(name, source="effect")
+    accepted = [p for p, spec in inspect.signature(cls.__init__).parameters.items()
+                if spec.kind is inspect.Parameter.KEYWORD_ONLY]
+    unknown = sorted(set(options) - set(accepted))
+    if unknown:
+        raise InputError(f"effect {name}: unknown option(s) {', '.join(unknown)} "
+                         f"(options: {', '.join(accepted) or 'none'})")
+    return cls(robot, **options)
+
+
+def unregister(name: str) -> None:
+    """Remove an effect class from the registry (tests that plug in a toy effect)."""
+    _REGISTRY.pop(name, None)
+
+
+@contextmanager
+def plugged_in(cls: type[Effect]):
+    """Keep ``cls`` registered inside the block only (it registered itself when defined)."""
+    _REGISTRY[cls.name] = cls
+    try:
+        yield cls
+    finally:
+        unregister(cls.name)
+
+
+def reference_poses(robot: RobotModel, n: int = 64) -> np.ndarray:
+    """(n, n_joints) fixed, reproducible poses spread inside the limits (unbounded: +-pi).
+
+    Effects size their typical parameters on these, so a scale never depends on the data.
+    """
+    lo, hi = robot.joint_bounds()
+    u = np.random.default_rng(20240501).uniform(size=(n, robot.n_joints))
+    return lo + (hi - lo) * u
+
+
+def loaded_joint_scales(robot: RobotModel, rms_load: np.ndarray, revolute_target: float,
+                        prismatic_target: float) -> np.ndarray:
+    """Per-joint compliance scales that turn a joint by a target under its RMS load.
+
+    ``rms_load`` (n_joints, ...) is the RMS gravity load a joint (or each axis of it)
+    carries over the reference poses; unloaded entries (below 1e-6 of the largest) get
+    the median of the others' scales.
+    """
+    kinds = np.array([k == REVOLUTE for k in robot.joint_kinds])
+    target = np.where(kinds, revolute_target, prismatic_target).reshape((-1,) + (1,) * (rms_load.ndim - 1))
+    loaded = rms_load > 1e-6 * max(float(rms_load.max()), 1e-300)
+    scales = np.where(loaded, target / np.where(loaded, rms_load, 1.0), np.nan)
+    fill = np.nanmedian(scales) if loaded.any() else 1e-6
+    return np.where(loaded, scales, fill)

@@ -1,0 +1,61 @@
+"""``compliance``: joints that give under the gravity torque they carry (arm, payload, other arms)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..context import context_column
+from ..gravity import gravity_torque
+from ..units import REVOLUTE
+from .base import PerJointEffect, loaded_joint_scales, reference_poses
+
+
+class Compliance(PerJointEffect):
+    """Joint elasticity under gravity and payload: ``dq_j = c_j * tau_g,j(q, payload)``.
+
+    ``tau_g`` is the torque gravity exerts on each joint (:func:`~tcr_accuracy.gravity.gravity_torque`,
+    on the robot's whole tree, the payload a point mass at the TCP and the joints outside
+    the TCP chain at their measured values), so a positive compliance lets the arm sag the
+    way gravity pulls. Parameters ``compliance.<joint>`` = 1/k_j [rad/Nm, or m/N for a
+    prismatic joint]. Context: ``payload_kg`` per row. ``link_mass_factors``
+    (n_joints,): the real link masses relative to the URDF's (simulate draws them; a fit
+    uses the URDF's).
+    """
+
+    name = "compliance"
+    order = 30.0
+    summary = "joint elasticity about each axis under gravity and payload"
+    context_columns = ("payload_kg",)
+    non_negative = True
+    dominant_candidate = True
+
+    def __init__(self, robot, *, link_mass_factors=None) -> None:
+        super().__init__(robot)
+        self.link_mass_factors = link_mass_factors
+
+    def parameter_units(self):
+        return ["rad/Nm" if k == REVOLUTE else "m/N" for k in self.robot.joint_kinds]
+
+    def parameter_scales(self):
+        """Compliances that turn each joint by 0.01 deg (or 0.05 mm) under a typical torque.
+
+        The typical torque is the RMS gravity torque over a fixed set of poses inside the
+        limits with the robot's typical payload; joints gravity never loads get the median
+        of the others' scales.
+        """
+        tau = gravity_torque(self.robot, reference_poses(self.robot), self.robot.typical_payload_kg,
+                             self.link_mass_factors)
+        return loaded_joint_scales(self.robot, np.sqrt(np.mean(tau**2, axis=0)), math.radians(0.01), 5e-5)
+
+    def signal(self, q, context):
+        payload = context_column(context, "payload_kg", q.shape[0], 0.0)
+        outside = None if context is None else context.outside_q
+        return gravity_torque(self.robot, q, payload, self.link_mass_factors, outside)
+
+    def dominant_spec(self, rng):
+        # each joint turned by a similar angle under its typical torque, then scaled
+        pattern = self.parameter_scales() * np.exp(0.5 * rng.standard_normal(self.robot.n_joints))
+        return {"parameters": {f"compliance.{j}": float(c) for j, c in zip(self.robot.joint_names, pattern)},
+                "tcp_rms_mm": rng.uniform(0.5, 3.0), "options": {"link_mass_spread": 0.05}}

@@ -1,0 +1,31 @@
+"""``encoder_scale``: a gear ratio that is not quite what the controller assumes."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .base import PerJointEffect
+
+
+class EncoderScale(PerJointEffect):
+    """Gear ratio (scale) error: ``dq_j = s_j q_j``. Parameters ``encoder_scale.<joint>`` [1]."""
+
+    name = "encoder_scale"
+    order = 70.0
+    summary = "gear ratio (scale) error per joint"
+    dominant_candidate = True
+
+    def parameter_units(self):
+        return ["1"] * self.n_params
+
+    def parameter_scales(self):
+        return np.full(self.n_params, 3e-4)
+
+    def signal(self, q, context):
+        return q
+
+    def dominant_spec(self, rng):
+        return {"spread_ppm": float(rng.uniform(100.0, 500.0))}
+
+    def finish_dominant(self, params, rng):
+        return rng.choice([-1.0, 1.0], self.n_params) * rng.uniform(1e-4, 5e-4, size=self.n_params)

@@ -1,0 +1,50 @@
+"""``frames``: the tracker's frame and the TCP offset, which every measurement carries."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import PLACEMENT_COMPONENTS
+from .base import EffectJacobian, LinearEffect
+
+
+class Frames(LinearEffect):
+    """Unknown base (tracker) frame and TCP offset.
+
+    Parameters: ``frames.base.dx .. rz`` (a twist applied on the left of the whole
+    chain: the measurement frame relative to the robot's base) and ``frames.tool.dx,
+    dy, dz`` (the TCP offset in the TCP frame), plus ``frames.tool.rx, ry, rz`` with
+    ``tool_rotation=True`` (only identifiable when orientation is measured).
+    Exact for large base transforms: the twist goes through ``exp6``.
+    """
+
+    name = "frames"
+    order = 0.0
+    summary = "tracker frame and TCP offset"
+    geometric = True
+
+    def __init__(self, robot, *, tool_rotation: bool = False) -> None:
+        super().__init__(robot)
+        self.tool_rotation = tool_rotation
+
+    def _tool_components(self) -> tuple[str, ...]:
+        return PLACEMENT_COMPONENTS if self.tool_rotation else PLACEMENT_COMPONENTS[:3]
+
+    def parameter_names(self):
+        return ([f"frames.base.{c}" for c in PLACEMENT_COMPONENTS]
+                + [f"frames.tool.{c}" for c in self._tool_components()])
+
+    def parameter_units(self):
+        return ["m" if n.split(".")[-1].startswith("d") else "rad" for n in self.parameter_names()]
+
+    def parameter_scales(self):
+        # the tracker sits anywhere: centimetres and degrees; the TCP offset: a millimetre
+        scales = {"base.d": 1e-2, "base.r": 1e-2, "tool.d": 1e-3, "tool.r": 1e-3}
+        return np.array([scales[".".join(n.split(".")[1:])[:6]] for n in self.parameter_names()])
+
+    def parameter_jacobian(self, params, q, context):
+        em = self.error_model
+        cols = [em.index(n[len("frames."):]) for n in self.parameter_names()]
+        dx = np.zeros((em.size, len(cols)))
+        dx[cols, np.arange(len(cols))] = 1.0
+        return EffectJacobian(x=dx)

@@ -1,0 +1,54 @@
+"""``geometry``: error screws on the joint placements (link lengths, offsets, axis tilts)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import PLACEMENT_COMPONENTS
+from ..exceptions import InputError
+from .base import EffectJacobian, LinearEffect
+
+
+class Geometry(LinearEffect):
+    """Error screws on every joint placement: ``parentMjoint <- parentMjoint * exp6(xi_j)``.
+
+    Parameters ``geometry.<joint>.<dx|dy|dz|rx|ry|rz>`` [m, rad], the twist components
+    in the joint's own frame (link lengths, offsets, axis misalignments). All 6n are
+    listed; many are not identifiable from TCP positions (a rotation about a revolute
+    joint's own axis is a joint offset; a translation along it can be moved to the next
+    placement; the first placement trades against the base frame), so a fit prunes them
+    with a rank-revealing QR of its Jacobian. ``components``: a list of
+    ``"<joint>.<c>"`` to keep a subset.
+    """
+
+    name = "geometry"
+    order = 20.0
+    summary = "error screws on the joint placements"
+    geometric = True
+
+    def __init__(self, robot, *, components=None) -> None:
+        super().__init__(robot)
+        self.components = components
+
+    def parameter_names(self):
+        names = [f"geometry.{j}.{c}" for j in self.robot.joint_names for c in PLACEMENT_COMPONENTS]
+        if self.components is not None:
+            keep = {f"geometry.{k}" for k in self.components}
+            unknown = keep - set(names)
+            if unknown:
+                raise InputError(f"geometry: unknown components {sorted(unknown)}")
+            names = [n for n in names if n in keep]
+        return names
+
+    def parameter_units(self):
+        return ["m" if n.split(".")[-1].startswith("d") else "rad" for n in self.parameter_names()]
+
+    def parameter_scales(self):
+        return np.full(self.n_params, 2e-4)  # 0.2 mm, 0.2 mrad
+
+    def parameter_jacobian(self, params, q, context):
+        em = self.error_model
+        cols = [em.index(n[len("geometry."):]) for n in self.parameter_names()]
+        dx = np.zeros((em.size, len(cols)))
+        dx[cols, np.arange(len(cols))] = 1.0
+        return EffectJacobian(x=dx)

@@ -1,0 +1,78 @@
+"""``thermal``: links that grow with the arm's temperature."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..context import REFERENCE_TEMPERATURE_C, context_column
+from .base import EffectJacobian, LinearEffect
+
+
+class Thermal(LinearEffect):
+    """Links growing with temperature: every placement translation scaled by 1 + alpha (T - T_ref).
+
+    A placement ``(R, t)`` becomes ``(R, t (1 + alpha dT))`` through the twist
+    ``v = alpha dT R^T t`` on the right (exact: a pure translation). The TCP frame's
+    offset grows the same way. Parameters: ``thermal.alpha`` [1/K] for the whole arm, or
+    with ``per_link=True`` one ``thermal.alpha.<joint>`` per placement that has a length
+    (and ``thermal.alpha.tool``). ``reference_temperature_c``: where the URDF holds
+    (default 20 degC). Context: ``temperature_c`` per row.
+    """
+
+    name = "thermal"
+    order = 50.0
+    summary = "links growing with temperature"
+    context_columns = ("temperature_c",)
+    requires_context = True
+    dominant_candidate = True
+
+    def __init__(self, robot, *, per_link: bool = False,
+                 reference_temperature_c: float = REFERENCE_TEMPERATURE_C) -> None:
+        super().__init__(robot)
+        self.per_link = per_link
+        self.reference_temperature_c = reference_temperature_c
+
+    def _links(self) -> list[tuple[str, int | None]]:
+        """(label, joint index or None for the tool) of every placement with a length."""
+        links = [(n, j) for j, (n, pl) in enumerate(zip(self.robot.joint_names, self.robot.joint_placements))
+                 if np.linalg.norm(pl.translation) > 1e-9]
+        if np.linalg.norm(self.robot.tool_placement.translation) > 1e-9:
+            links.append(("tool", None))
+        return links
+
+    def parameter_names(self):
+        if self.per_link:
+            return [f"thermal.alpha.{label}" for label, _ in self._links()]
+        return ["thermal.alpha"]
+
+    def parameter_units(self):
+        return ["1/K"] * self.n_params
+
+    def parameter_scales(self):
+        return np.full(self.n_params, 1.2e-5)  # steel
+
+    def growth_directions(self) -> np.ndarray:
+        """(n_error_params, k): d(x)/d(alpha dT) for each parameter."""
+        em = self.error_model
+        links = self._links()
+        out = np.zeros((em.size, len(links) if self.per_link else 1))
+        for k, (label, j) in enumerate(links):
+            col = k if self.per_link else 0
+            if j is None:
+                tool = self.robot.tool_placement
+                out[em.tool_slice.start:em.tool_slice.start + 3, col] = tool.rotation.T @ tool.translation
+            else:
+                pl = self.robot.joint_placements[j]
+                start = em.index(f"{label}.dx")
+                out[start:start + 3, col] = pl.rotation.T @ pl.translation
+        return out
+
+    def parameter_jacobian(self, params, q, context):
+        q = np.atleast_2d(q)
+        t_ref = float(self.reference_temperature_c)
+        temperature = context_column(context, "temperature_c", q.shape[0], t_ref)
+        d_t = temperature - t_ref
+        return EffectJacobian(x=d_t[:, None, None] * self.growth_directions()[None])
+
+    def dominant_spec(self, rng):
+        return {"alpha_per_k": float(rng.uniform(1.0e-5, 2.4e-5))}

@@ -1,0 +1,53 @@
+"""``transmission``: periodic gear error, harmonics of each joint angle."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..units import REVOLUTE
+from .base import EffectJacobian, LinearEffect
+
+
+class Transmission(LinearEffect):
+    """Periodic gear error per revolute joint, first and second harmonic of the joint angle.
+
+    ``dq_j = a1 sin(q_j) + b1 cos(q_j) + a2 sin(2 q_j) + b2 cos(2 q_j)``. Parameters
+    ``transmission.<joint>.a1, b1, a2, b2`` [rad]. Prismatic joints have none (their
+    period is not a joint angle). ``harmonics``: which harmonics (default (1, 2)).
+    """
+
+    name = "transmission"
+    order = 60.0
+    summary = "periodic gear error (harmonics of each joint angle)"
+    dominant_candidate = True
+
+    def __init__(self, robot, *, harmonics=(1, 2)) -> None:
+        super().__init__(robot)
+        self.harmonics = harmonics
+
+    def _terms(self):
+        harmonics = tuple(self.harmonics)
+        return [(j, name, h, trig) for j, (name, kind) in enumerate(zip(self.robot.joint_names, self.robot.joint_kinds))
+                if kind == REVOLUTE for h in harmonics for trig in ("a", "b")]
+
+    def parameter_names(self):
+        return [f"transmission.{name}.{trig}{h}" for _, name, h, trig in self._terms()]
+
+    def parameter_units(self):
+        return ["rad"] * self.n_params
+
+    def parameter_scales(self):
+        return np.full(self.n_params, math.radians(0.01))
+
+    def parameter_jacobian(self, params, q, context):
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        terms = self._terms()
+        ddq = np.zeros((q.shape[0], self.robot.n_joints, len(terms)))
+        for k, (j, _, h, trig) in enumerate(terms):
+            ddq[:, j, k] = np.sin(h * q[:, j]) if trig == "a" else np.cos(h * q[:, j])
+        return EffectJacobian(dq=ddq)
+
+    def dominant_spec(self, rng):
+        return {"spread_deg": float(rng.uniform(0.005, 0.02))}

@@ -1,0 +1,74 @@
+"""Units, stated once: SI inside, degrees and millimetres only at the edges.
+
+The bottom of the package (imports nothing of it). Every table that turns a unit suffix
+into an SI factor, or an SI value into what a report shows, lives here:
+
+* :data:`SUFFIXES`: a key or column suffix (``_mm``, ``_deg``, ``_ppm_per_k``) -> its SI
+  unit and the factor to SI; scenario files, budget files and CSV columns read it.
+* :data:`JOINT_COLUMN_UNITS`, :data:`POSITION_UNITS`: the suffixes a joint or a position
+  column may carry.
+* :data:`DISPLAY_UNITS`, :func:`display_value`: an SI parameter value in the unit a
+  report prints (rad -> deg, m -> mm, rad/Nm -> deg/kNm, ...).
+"""
+
+from __future__ import annotations
+
+import math
+
+REVOLUTE = "revolute"
+PRISMATIC = "prismatic"
+
+DEG = math.pi / 180.0
+
+#: suffix -> (SI unit, factor to SI)
+SUFFIXES: dict[str, tuple[str, float]] = {
+    "m": ("m", 1.0), "mm": ("m", 1e-3), "um": ("m", 1e-6),
+    "rad": ("rad", 1.0), "mrad": ("rad", 1e-3), "urad": ("rad", 1e-6),
+    "deg": ("rad", math.pi / 180.0), "arcsec": ("rad", math.pi / 180.0 / 3600.0),
+    "per_k": ("1/K", 1.0), "ppm_per_k": ("1/K", 1e-6), "ppm": ("1", 1e-6),
+    "rad_per_nm": ("rad/Nm", 1.0), "urad_per_nm": ("rad/Nm", 1e-6),
+    "deg_per_knm": ("rad/Nm", math.pi / 180.0 / 1000.0),
+    "m_per_n": ("m/N", 1.0), "um_per_n": ("m/N", 1e-6), "mm_per_kn": ("m/N", 1e-6),
+}
+
+
+def suffixes_of(si_unit: str) -> dict[str, float]:
+    """Every suffix of one SI unit with its factor: ``suffixes_of("m")`` -> {m: 1, mm: 1e-3, um: 1e-6}."""
+    return {suffix: factor for suffix, (unit, factor) in SUFFIXES.items() if unit == si_unit}
+
+
+def split_suffix(key: str) -> tuple[str, str | None]:
+    """``'offsets_deg'`` -> ``('offsets', 'deg')``; the longest known suffix wins, None if none."""
+    best = None
+    for unit in SUFFIXES:
+        if key.endswith("_" + unit) and (best is None or len(unit) > len(best)):
+            best = unit
+    if best is None:
+        return key, None
+    return key[: -len(best) - 1], best
+
+
+#: Suffixes of a joint column, by joint kind -> factor to SI (rad or m).
+JOINT_COLUMN_UNITS: dict[str, dict[str, float]] = {REVOLUTE: {"deg": DEG, "rad": 1.0},
+                                                   PRISMATIC: {"mm": 1e-3, "m": 1.0}}
+#: Suffixes of a measured position column -> factor to m.
+POSITION_UNITS: dict[str, float] = {"mm": 1e-3, "m": 1.0}
+
+#: What the edges show for a joint value of each kind: (unit label, factor from SI).
+JOINT_DISPLAY: dict[str, tuple[str, float]] = {REVOLUTE: ("deg", 180.0 / math.pi), PRISMATIC: ("mm", 1000.0)}
+
+#: SI parameter unit -> (display unit, factor) for reports and exported YAML.
+DISPLAY_UNITS: dict[str, tuple[str, float]] = {
+    "m": ("mm", 1e3),
+    "rad": ("deg", 180.0 / math.pi),
+    "rad/Nm": ("deg/kNm", 180.0 / math.pi * 1e3),
+    "m/N": ("mm/kN", 1e6),
+    "1/K": ("ppm/K", 1e6),
+    "1": ("ppm", 1e6),
+}
+
+
+def display_value(value: float, unit: str) -> tuple[float, str]:
+    """An SI parameter value in its display unit: (2e-4, "rad") -> (0.01146, "deg")."""
+    label, factor = DISPLAY_UNITS.get(unit, (unit, 1.0))
+    return float(value) * factor, label
