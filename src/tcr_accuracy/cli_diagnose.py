@@ -31,8 +31,9 @@ def add_parsers(sub) -> None:
                         "always in)")
     p.add_argument("--folds", type=int, default=5, help="k of the k-fold cross-validation (default 5)")
     p.add_argument("--seed", type=int, default=0, help="seed of the fold split and permutation tests")
-    p.add_argument("--noise-mm", type=float, default=0.02,
-                   help="tracker noise, std per axis [mm] (default 0.02); noise floor = sqrt(3) x this")
+    p.add_argument("--noise-mm", type=float, default=None,
+                   help="the instrument's noise, std per axis [mm]; noise floor = sqrt(3) x this (default: "
+                        "estimated from repeated poses, else from the final residual, and said which)")
     p.add_argument("--as-built-urdf", default=None, metavar="FILE",
                    help="write the calibrated URDF to FILE and the other effects' parameters to "
                         "FILE with suffix .effects.yaml")
@@ -50,7 +51,7 @@ def _run_diagnose(args) -> int:
 
     if args.folds < 2:
         raise InputError(f"--folds {args.folds}: need at least 2")
-    if not (args.noise_mm > 0 and math.isfinite(args.noise_mm)):
+    if args.noise_mm is not None and not (args.noise_mm > 0 and math.isfinite(args.noise_mm)):
         raise InputError(f"--noise-mm {args.noise_mm}: must be a positive number")
     effects = None
     if args.effects:
@@ -67,7 +68,8 @@ def _run_diagnose(args) -> int:
                disable=args.quiet or not sys.stderr.isatty())
     try:
         result = diagnose(robot, measurements, effects=effects, folds=args.folds, seed=args.seed,
-                          tracker_noise=args.noise_mm * 1e-3, progress=bar.set_postfix_str)
+                          tracker_noise=None if args.noise_mm is None else args.noise_mm * 1e-3,
+                          progress=bar.set_postfix_str)
     finally:
         bar.close()
     payload = jsonable({"measurements": str(args.measurements), **result.to_dict()})
@@ -153,14 +155,22 @@ def format_summary(robot, d, source: str) -> str:
         out.append(f"   {label:18s} {s.n_parameters:6d} {s.train_rms * mm:10.4f} {s.heldout.mean * mm:9.4f} "
                    f"{s.heldout.rms * mm:9.4f} {s.heldout.max * mm:9.4f}")
     if d.leave_one_out:
-        out.append("   leave one out of the chosen set: " + "; ".join(
-            f"without {r['dropped']} {r['heldout_rms_mm']:.4f} (+{r['increase_mm']:.4f})" for r in d.leave_one_out))
+        out.append("   leave one out of the chosen set (held-out RMS without it; the others refitted and free to "
+                   "take its place / held to their own parameters):")
+        for r in d.leave_one_out:
+            out.append(f"     without {r['dropped']:18s} {r['heldout_rms_mm']:9.4f} ({r['increase_mm']:+.4f})  /  "
+                       f"{r['own_share_heldout_rms_mm']:9.4f} ({r['own_share_increase_mm']:+.4f})")
     for e in d.eliminated:
         out.append(f"   dropped again in backward elimination: {e['effect']} (z = {e['z']:.1f})")
-    out.append(f"   primary effect: {d.primary_effect or 'none beyond frames'}")
+    out.append(f"   primary effect: {d.primary_effect or 'none beyond frames'}"
+               + (" (the largest own share)" if d.primary_effect else ""))
     final = d.steps[-1].heldout.rms
+    noise = d.noise
+    source = "tracker" if noise is None or noise.source == "given" else f"estimated from the {noise.source}"
     out.append(f"   final held-out RMS {final * mm:.4f} mm = {final / d.noise_floor:.2f} x the noise floor "
-               f"{d.noise_floor * mm:.4f} mm (tracker {d.tracker_noise * mm:.4f} mm per axis)")
+               f"{d.noise_floor * mm:.4f} mm ({source} {d.tracker_noise * mm:.4f} mm per axis)")
+    if noise is not None and noise.source != "given":
+        out.append(f"   noise: {noise.detail}")
     st = d.structure
     along = ", ".join(robot.joint_names[j] for j in st.get("along_joints", []))
     out.append(f"   structure remains: {'YES' if st['remains'] else 'no'} (k-NN along {along}: share "
@@ -168,8 +178,18 @@ def format_summary(robot, d, source: str) -> str:
                f"beyond chance, z = {st['z']:.1f}; ridge on joint features share {st['ridge_explained_share']:+.3f}, "
                f"z = {st['ridge_z']:.1f}; limits: share > {st['min_explained']}, p < {st['alpha']})")
     sc = d.scatter
-    out.append(f"   random scatter beyond the tracker: {'YES' if sc['detected'] else 'no'} "
-               f"(estimated {sc['estimated_noise_per_axis_mm']:.4f} mm per axis, ratio {sc['ratio']:.2f})")
+    if sc.get("tested", True):
+        out.append(f"   random scatter beyond the tracker: {'YES' if sc['detected'] else 'no'} "
+                   f"(estimated {sc['estimated_noise_per_axis_mm']:.4f} mm per axis, ratio {sc['ratio']:.2f})")
+    else:
+        out.append(f"   random scatter beyond the instrument: not tested ({sc['why']})")
+    if d.orientation:
+        o = d.orientation
+        out.append(f"   orientation (held-out): mean {o['heldout_mean_deg']:.4f} deg, RMS {o['heldout_rms_deg']:.4f} deg, "
+                   f"max {o['heldout_max_deg']:.4f} deg (weight {o['weight_m_per_rad'] * 1e3:.4g} mm/rad)")
+    for frame, stats in d.heldout_by_frame.items():
+        out.append(f"   measured frame {frame}: held-out mean {stats.mean * mm:.4f} mm, RMS {stats.rms * mm:.4f} mm, "
+                   f"max {stats.max * mm:.4f} mm")
     if st["remains"]:
         out.append("   -> something the vocabulary does not express is still in the data: the fit is not the "
                    "whole story")
@@ -277,9 +297,16 @@ def _report_tables(out, robot, d, source: str) -> None:
                        f"{d.noise_floor * mm:.4f} mm; structure remains: "
                        f"{'YES' if d.structure['remains'] else 'no'}")
     if d.leave_one_out:
-        out.add_table("Leave one out of the chosen set", ["dropped", "held-out RMS", "increase"],
-                      [(r["dropped"], r["heldout_rms_mm"], r["increase_mm"]) for r in d.leave_one_out],
-                      units=["", "mm", "mm"])
+        out.add_table("Leave one out of the chosen set",
+                      ["dropped", "held-out RMS (others refitted)", "increase", "held-out RMS (own share)",
+                       "increase (own share)"],
+                      [(r["dropped"], r["heldout_rms_mm"], r["increase_mm"], r["own_share_heldout_rms_mm"],
+                        r["own_share_increase_mm"]) for r in d.leave_one_out],
+                      units=["", "mm", "mm", "mm", "mm"],
+                      note="others refitted: the remaining effects may take the dropped one's place (backward "
+                           "elimination uses this); own share: they keep the parameters they have in the final "
+                           "model, so an effect is not credited with what a later one of the vocabulary duplicates. "
+                           "The primary effect has the largest own share.")
     out.add_text(format_summary(robot, d, source), heading="Full printed summary")
 
 

@@ -499,9 +499,8 @@ def error_jacobians(robot: RobotModel, q, x=None, error_model: ErrorModel | None
     ----------
     q : (N, n_joints) actual joint values [SI] (commanded plus joint-side offsets)
     x : (n_error_params,) or (N, n_error_params), optional
-        Error vector the Jacobians are taken at; rows are averaged (the derivatives
-        change with x only to second order, so thermal's small per-row spread is
-        neglected).
+        Error vector(s) the Jacobians are taken at: one for every row, or one per row
+        (effects that depend on the pose, such as lateral compliance, give each row its own).
 
     Returns
     -------
@@ -512,50 +511,79 @@ def error_jacobians(robot: RobotModel, q, x=None, error_model: ErrorModel | None
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     em = error_model or ErrorModel(robot)
-    x_mean = np.zeros(em.size) if x is None else np.atleast_2d(np.asarray(x, dtype=float)).mean(axis=0)
-    parts = em.split(x_mean)
-    work = em.perturbed_robot(x_mean) if x_mean.any() else robot
-    model, data = work.model, work.model.createData()
-    frame_id = robot.tool_frame_id
     n, nj, p = q.shape[0], robot.n_joints, em.size
+    xs = None if x is None else np.atleast_2d(np.asarray(x, dtype=float))
+    per_row = xs is not None and xs.shape[0] > 1 and bool(np.any(xs != xs[0]))
+    if not per_row:
+        x_mean = np.zeros(em.size) if xs is None else xs.mean(axis=0)
+        work = em.perturbed_robot(x_mean) if x_mean.any() else robot
+        rows = [(range(n), work.model, _exp6_chains(robot, em, x_mean))]
+    else:
+        # one model copy, its placements rewritten per row
+        model = pin.Model(robot.model)
+        rows = [([i], model, _exp6_chains(robot, em, xs[i]), xs[i]) for i in range(n)]
     jq = np.empty((n, 6, nj))
     jx = np.zeros((n, 6, p))
-    idx_v = [model.joints[j].idx_v for j in range(1, model.njoints)]
-    plain_q = model.nq == nj
-    # right Jacobians of exp6 at the current twists: exp6(xi + d) = exp6(xi) exp6(Jr d)
-    axes = robot.motion_axes
-    placement_chain = []
-    for j in range(nj):
-        jr = pin.Jexp6(pin.Motion(parts.placement[j]))
-        drive = pin.exp6(axes[j] * parts.drive[j]).inverse().action
-        placement_chain.append(drive @ jr)
-    tool_chain = pin.Jexp6(pin.Motion(parts.tool))
-    base_xi = pin.Motion(parts.base)
-    base_chain = pin.exp6(base_xi).action @ pin.Jexp6(base_xi)  # left Jacobian = Ad(exp) Jr
+    frame_id = robot.tool_frame_id
+    plain_q = robot.model.nq == nj
+    idx_v = [robot.model.joints[j].idx_v for j in range(1, robot.model.njoints)]
     regressors = np.empty((n, 6, 6 * nj))
     rotations = np.empty((n, 3, 3))
     positions = np.empty((n, 3))
-    for i in range(n):
-        qp = q[i] if plain_q else work.to_pinocchio_q(q[i])
-        pin.computeJointJacobians(model, data, qp)
-        pin.updateFramePlacements(model, data)
-        rotations[i] = data.oMf[frame_id].rotation
-        positions[i] = data.oMf[frame_id].translation
-        regressors[i] = pin.computeFrameKinematicRegressor(model, data, frame_id, pin.LOCAL)
-        jq[i] = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)[:, idx_v]
+    chains = np.empty((n, nj, 6, 6))
+    base_chains = np.empty((n, 6, 6))
+    tool_chains = np.empty((n, 6, 6))
+    data = None
+    for block in rows:
+        indices, model, (chain, base_chain, tool_chain) = block[:3]
+        if per_row:
+            placements, tool = em.perturbed_placements(block[3])
+            for j, placement in enumerate(placements):
+                model.jointPlacements[j + 1] = placement
+            frame = model.frames[frame_id]
+            frame.placement = tool
+            model.frames[frame_id] = frame
+        if data is None or not per_row:
+            data = model.createData()
+        for i in indices:
+            qp = q[i] if plain_q else robot.to_pinocchio_q(q[i])
+            pin.computeJointJacobians(model, data, qp)
+            pin.updateFramePlacements(model, data)
+            rotations[i] = data.oMf[frame_id].rotation
+            positions[i] = data.oMf[frame_id].translation
+            regressors[i] = pin.computeFrameKinematicRegressor(model, data, frame_id, pin.LOCAL)
+            jq[i] = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)[:, idx_v]
+            chains[i], base_chains[i], tool_chains[i] = chain, base_chain, tool_chain
     # LOCAL (TCP frame) -> base-frame axes, then chain each placement block with its exp6 derivative
     aligned = (rotations[:, None] @ regressors.reshape(n, 2, 3, 6 * nj)).reshape(n, 6, nj, 6)
-    chain = np.stack(placement_chain)  # (nj, 6, 6)
-    jx[:, :, em.placement_slice] = (aligned.transpose(0, 2, 1, 3) @ chain).transpose(0, 2, 1, 3).reshape(
-        n, 6, 6 * nj)
+    if per_row:
+        placement = np.einsum("nijk,njkl->nijl", aligned, chains)
+    else:
+        placement = (aligned.transpose(0, 2, 1, 3) @ chains[0]).transpose(0, 2, 1, 3)
+    jx[:, :, em.placement_slice] = placement.reshape(n, 6, 6 * nj)
     jx[:, :, em.drive_slice] = jq
     base = np.zeros((n, 6, 6))
     base[:, :3, :3] = np.eye(3)
     base[:, :3, 3:] = -np.einsum("nk,ikj->nij", positions, _LEVI_CIVITA)  # -skew(p)
     base[:, 3:, 3:] = np.eye(3)
-    jx[:, :, em.base_slice] = base @ base_chain
+    jx[:, :, em.base_slice] = base @ (base_chains if per_row else base_chains[0])
     tool = np.zeros((n, 6, 6))
     tool[:, :3, :3] = rotations
     tool[:, 3:, 3:] = rotations
-    jx[:, :, em.tool_slice] = tool @ tool_chain
+    jx[:, :, em.tool_slice] = tool @ (tool_chains if per_row else tool_chains[0])
     return jq, jx
+
+
+def _exp6_chains(robot: RobotModel, em: ErrorModel, x: np.ndarray):
+    """Right Jacobians of exp6 at the twists of x (exp6(xi + d) = exp6(xi) exp6(Jr d)):
+    per joint (nj, 6, 6) with the drive offset folded in, the base's left Jacobian and the tool's."""
+    parts = em.split(x)
+    axes = robot.motion_axes
+    chain = np.empty((robot.n_joints, 6, 6))
+    for j in range(robot.n_joints):
+        jr = pin.Jexp6(pin.Motion(parts.placement[j]))
+        drive = pin.exp6(axes[j] * parts.drive[j]).inverse().action
+        chain[j] = drive @ jr
+    base_xi = pin.Motion(parts.base)
+    base_chain = pin.exp6(base_xi).action @ pin.Jexp6(base_xi)  # left Jacobian = Ad(exp) Jr
+    return chain, base_chain, pin.Jexp6(pin.Motion(parts.tool))

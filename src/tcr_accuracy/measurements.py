@@ -34,6 +34,7 @@ from .context import REFERENCE_TEMPERATURE_C, MeasurementContext
 from .exceptions import InputError
 from .robot import RobotModel
 from .units import JOINT_COLUMN_UNITS as _JOINT_UNITS
+from .units import JOINT_DISPLAY
 from .units import POSITION_UNITS as _POSITION_UNITS
 from .units import REVOLUTE
 
@@ -72,6 +73,10 @@ class MeasurementSet:
     direction : ndarray of shape (N, n_joints) or None
         Approach directions +1/-1, 0 for joints without a ``<joint>_dir`` column;
         None when the file has no direction column at all.
+    outside_q : ndarray of shape (N, n_outside) or None
+        Values [rad, m] of the robot's joints that do not move the TCP
+        (``robot.outside_joint_names``: another arm, a head), for the gravity torques;
+        None when the file has none of their columns and no mimic rule sets them.
     source : str
         Where the rows came from (file path or a label).
     rows : ndarray of shape (N,)
@@ -87,6 +92,7 @@ class MeasurementSet:
     direction: np.ndarray | None = None
     source: str = "<memory>"
     rows: np.ndarray | None = None
+    outside_q: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.q = np.atleast_2d(np.asarray(self.q, dtype=float))
@@ -107,6 +113,7 @@ class MeasurementSet:
                            else np.full(n, float(reference_temperature_c))),
             direction=self.direction.copy() if self.direction is not None else np.zeros((n, nj)),
             rng=rng,
+            outside_q=None if self.outside_q is None else self.outside_q.copy(),
         )
 
     def subset(self, rows) -> "MeasurementSet":
@@ -117,20 +124,30 @@ class MeasurementSet:
         return replace(self, q=self.q[rows], position=self.position[rows],
                        quaternion=pick(self.quaternion), payload_kg=pick(self.payload_kg),
                        temperature_c=pick(self.temperature_c), direction=pick(self.direction),
-                       rows=self.rows[rows])
+                       rows=self.rows[rows], outside_q=pick(self.outside_q))
 
 
 # ---------------------------------------------------------------------------------------
 # Reading
 # ---------------------------------------------------------------------------------------
+def _all_joints(robot: RobotModel) -> list[tuple[str, str]]:
+    """(name, kind) of every joint a row may give: the chain's, then those outside it."""
+    return (list(zip(robot.joint_names, robot.joint_kinds))
+            + list(zip(robot.outside_joint_names, robot.outside_joint_kinds)))
+
+
 def allowed_columns(robot: RobotModel) -> list[str]:
-    """Every column name a measurement file for this robot may have."""
+    """Every column name a measurement file for this robot may have.
+
+    Columns of joints that do not move the TCP (another arm, a head) are allowed: a joint
+    log has every joint, and their masses load the chain (gravity torques).
+    """
     cols = []
-    for name, kind in zip(robot.joint_names, robot.joint_kinds):
+    for name, kind in _all_joints(robot):
         cols += [f"{name}_{u}" for u in _JOINT_UNITS[kind]]
     cols += [f"{a}_{u}" for u in _POSITION_UNITS for a in "xyz"]
     cols += list(QUATERNION_COLUMNS) + list(CONTEXT_COLUMNS)
-    cols += [f"{name}_dir" for name in robot.joint_names]
+    cols += [f"{name}_dir" for name, _ in _all_joints(robot)]
     return cols
 
 
@@ -211,20 +228,33 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
     def column(name):
         return values[:, header.index(name)]
 
-    # joints
-    q = np.empty((len(rows), robot.n_joints))
-    for j, (name, col, unit) in enumerate(columns["joints"]):
+    # joints: the chain's into q, the others into outside_q (gravity only); a joint
+    # without a column but with a URDF <mimic> rule follows its source joint
+    si: dict[str, np.ndarray] = {}
+    kinds = dict(_all_joints(robot))
+    for name, col, unit in columns["joints"] + [(n, c, u) for _, n, c, u in columns["outside"]]:
+        if col is None:
+            continue
         raw = column(col)
-        if robot.joint_kinds[j] == REVOLUTE and unit == "rad":
+        if kinds[name] == REVOLUTE and unit == "rad":
             bad = np.flatnonzero(np.abs(raw) > 2 * math.pi + 1e-9)
-            if len(bad) and np.isfinite(robot.lower_limits[j]):
+            if len(bad) and (name not in robot.joint_names
+                             or np.isfinite(robot.lower_limits[robot.joint_names.index(name)])):
                 r = bad[0]
                 raise InputError(
                     f"{source}: row {rows[r]}, column {col}: {raw[r]:g} rad is more than a full turn; "
                     f"if the column holds degrees, name it {name}_deg"
                 )
-        q[:, j] = raw * _JOINT_UNITS[robot.joint_kinds[j]][unit]
+        si[name] = raw * _JOINT_UNITS[kinds[name]][unit]
+    for name in [n for n, _ in _all_joints(robot) if n not in si and n in robot.mimic]:
+        rule = robot.mimic[name]
+        if rule.joint in si:
+            si[name] = rule.multiplier * si[rule.joint] + rule.offset
+    q = np.stack([si[name] for name in robot.joint_names], axis=1)
     _warn_outside_limits(robot, q, rows, columns["joints"], source)
+    outside_q = None
+    if any(name in si for name in robot.outside_joint_names):
+        outside_q = np.stack([si.get(name, np.zeros(len(rows))) for name in robot.outside_joint_names], axis=1)
 
     position = None
     if columns["position"] is not None:
@@ -267,7 +297,7 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
         joint_names=list(robot.joint_names), q=q,
         position=position if position is not None else np.full((len(rows), 3), np.nan),
         quaternion=quaternion, payload_kg=payload, temperature_c=temperature, direction=direction,
-        source=source, rows=rows,
+        source=source, rows=rows, outside_q=outside_q,
     )
     _check_duplicates(mset, values, header, source)
     if check_units and position is not None:
@@ -287,17 +317,29 @@ def _resolve_columns(header, robot, source, line_no, require_position):
         if name not in allowed:
             raise InputError(f"{source}: row {line_no}: unknown column {name!r}; allowed columns for "
                              f"{robot.name}: {', '.join(allowed)}")
-    joints = []
-    for name, kind in zip(robot.joint_names, robot.joint_kinds):
+    def given(name, kind):
         present = [u for u in _JOINT_UNITS[kind] if f"{name}_{u}" in seen]
-        if not present:
-            options = " or ".join(f"{name}_{u}" for u in _JOINT_UNITS[kind])
-            raise InputError(f"{source}: row {line_no}: missing joint column {options} "
-                             f"({kind} joint {name})")
         if len(present) > 1:
             raise InputError(f"{source}: row {line_no}: joint {name} is given twice "
                              f"({', '.join(f'{name}_{u}' for u in present)}); keep one")
-        joints.append((name, f"{name}_{present[0]}", present[0]))
+        return present[0] if present else None
+
+    units_given = {name: given(name, kind) for name, kind in _all_joints(robot)}
+    joints = []
+    for name, kind in zip(robot.joint_names, robot.joint_kinds):
+        unit = units_given[name]
+        if unit is None:
+            rule = robot.mimic.get(name)
+            if rule is not None and units_given.get(rule.joint) is not None:
+                joints.append((name, None, None))  # follows its <mimic> source
+                continue
+            options = " or ".join(f"{name}_{u}" for u in _JOINT_UNITS[kind])
+            hint = f" (its <mimic> source {rule.joint} has no column either)" if rule is not None else ""
+            raise InputError(f"{source}: row {line_no}: missing joint column {options} "
+                             f"({kind} joint {name}){hint}")
+        joints.append((name, f"{name}_{unit}", unit))
+    outside = [(k, name, f"{name}_{units_given[name]}", units_given[name])
+               for k, name in enumerate(robot.outside_joint_names) if units_given[name] is not None]
     position = None
     units = [u for u in _POSITION_UNITS if any(f"{a}_{u}" in seen for a in "xyz")]
     if len(units) > 1:
@@ -315,8 +357,10 @@ def _resolve_columns(header, robot, source, line_no, require_position):
         missing = [c for c in QUATERNION_COLUMNS if c not in seen]
         raise InputError(f"{source}: row {line_no}: orientation needs all of qw, qx, qy, qz; "
                          f"missing {', '.join(missing)}")
+    # directions of joints outside the chain are allowed (a joint log has them) and not used
     directions = [(j, f"{name}_dir") for j, name in enumerate(robot.joint_names) if f"{name}_dir" in seen]
-    return {"joints": joints, "position": position, "quaternion": bool(quats), "directions": directions}
+    return {"joints": joints, "outside": outside, "position": position, "quaternion": bool(quats),
+            "directions": directions}
 
 
 def _warn_outside_limits(robot, q, rows, joint_columns, source):
@@ -327,7 +371,8 @@ def _warn_outside_limits(robot, q, rows, joint_columns, source):
         r = int(np.argmax(outside[:, j]))
         scale, unit = robot.display_scale[j], robot.display_units[j]
         warnings.warn(
-            f"{source}: row {rows[r]}, column {joint_columns[j][1]}: {int(outside[:, j].sum())} value(s) "
+            f"{source}: row {rows[r]}, column {joint_columns[j][1] or joint_columns[j][0] + ' (mimic)'}: "
+            f"{int(outside[:, j].sum())} value(s) "
             f"outside the limits [{lo[j] * scale:.6g}, {hi[j] * scale:.6g}] {unit} of joint "
             f"{robot.joint_names[j]} (first: {q[r, j] * scale:.6g} {unit})",
             MeasurementWarning, stacklevel=3,
@@ -345,7 +390,8 @@ def _check_duplicates(mset, values, header, source):
                              "(a copy-paste?); remove one")
         full[key] = k
     ctx_cols = [c for c, name in enumerate(header) if name in CONTEXT_COLUMNS or name.endswith("_dir")]
-    pose = np.concatenate([mset.q, values[:, ctx_cols]], axis=1)
+    blocks = [mset.q, values[:, ctx_cols]] + ([mset.outside_q] if mset.outside_q is not None else [])
+    pose = np.concatenate(blocks, axis=1)
     seen = {}
     repeats = []
     for k in range(len(rows)):
@@ -405,6 +451,8 @@ def measurement_columns(robot: RobotModel, mset: MeasurementSet, unit: str = "mm
         raise InputError(f"unit {unit!r}: use 'mm' (deg, mm columns) or 'm' (rad, m columns)")
     joint_unit = {REVOLUTE: "deg" if unit == "mm" else "rad", "prismatic": unit}
     cols = [f"{n}_{joint_unit[k]}" for n, k in zip(robot.joint_names, robot.joint_kinds)]
+    if mset.outside_q is not None:
+        cols += [f"{n}_{joint_unit[k]}" for n, k in zip(robot.outside_joint_names, robot.outside_joint_kinds)]
     cols += [f"{a}_{unit}" for a in "xyz"]
     if mset.quaternion is not None:
         cols += list(QUATERNION_COLUMNS)
@@ -425,7 +473,12 @@ def format_measurements(robot: RobotModel, mset: MeasurementSet, unit: str = "mm
         raise InputError(f"measurement set joints {mset.joint_names} are not the robot's {robot.joint_names}")
     factor = 1e3 if unit == "mm" else 1.0
     joint_scale = robot.display_scale if unit == "mm" else np.ones(robot.n_joints)
-    blocks = [mset.q * joint_scale, mset.position * factor]
+    blocks = [mset.q * joint_scale]
+    if mset.outside_q is not None:
+        outside_scale = (np.array([JOINT_DISPLAY[k][1] for k in robot.outside_joint_kinds]) if unit == "mm"
+                         else np.ones(len(robot.outside_joint_names)))
+        blocks.append(mset.outside_q * outside_scale)
+    blocks.append(mset.position * factor)
     if mset.quaternion is not None:
         blocks.append(mset.quaternion)
     if mset.payload_kg is not None:

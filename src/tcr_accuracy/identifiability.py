@@ -1,0 +1,86 @@
+"""Which parameters the measurements can tell apart: pivoted QR of the identification Jacobian.
+
+Used by the diagnosis (per candidate model) and by the geometric calibration estimator.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import linalg
+
+
+def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: float = 0.0) -> tuple[dict, dict]:
+    """Kept columns per effect and a report of what was removed and why.
+
+    Each parameter's column of the identification Jacobian (N poses x 3 rows) is taken
+    at the parameter's typical scale, so its RMS norm over the poses is the TCP motion
+    that parameter causes at its typical size. Effects are taken in ``order``; each
+    block is projected off the span already kept and reduced by QR with column pivoting
+    (as FIGAROH does): the pivot is the motion of the part of the column that no earlier
+    column explains. A column is unidentifiable when that independent motion is below
+    ``min_motion`` [m RMS] (the measurements cannot resolve it) or below ``rank_tol``
+    times the column's own motion (a numerical duplicate).
+    """
+    kept_q = None  # orthonormal basis of the kept span, (3N, r)
+    kept_cols, kept_names = [], []  # normalised kept columns and names, for naming duplicates
+    keep: dict = {}
+    report: dict = {"rank_tol": rank_tol, "min_motion_mm": min_motion * 1e3, "effects": {}}
+    for name in order:
+        b = bases[name]
+        n_pose = max(b.g.shape[0], 1)
+        cols = (b.g * b.scales).reshape(-1, len(b.names))
+        norms = np.linalg.norm(cols, axis=0)
+        proj = cols if kept_q is None else cols - kept_q @ (kept_q.T @ cols)
+        removed, kept_local = [], []
+        qmat, rmat, piv = linalg.qr(proj, mode="economic", pivoting=True)
+        diag = np.abs(np.diag(rmat))
+        independent = np.zeros(len(b.names))
+        independent[piv[:diag.size]] = diag
+        rank = 0
+        for k in range(diag.size):
+            col = piv[k]
+            if diag[k] / math.sqrt(n_pose) > min_motion and diag[k] > rank_tol * norms[col]:
+                rank += 1
+            else:
+                break
+        kept_local = sorted(piv[:rank].tolist())
+        unit_all = cols / np.where(norms > 0, norms, 1.0)
+        mat = np.stack(kept_cols + [unit_all[:, k] for k in kept_local], axis=1) if (kept_cols or kept_local) \
+            else np.zeros((cols.shape[0], 0))
+        span_names = kept_names + [b.names[k] for k in kept_local]
+        for k in piv[rank:]:
+            motion = norms[k] / math.sqrt(n_pose)
+            if motion < 1e-12:
+                removed.append({"parameter": b.names[k], "reason": "does not move the TCP position",
+                                "duplicates": []})
+                continue
+            dup = []
+            if mat.shape[1]:
+                coef = np.linalg.lstsq(mat, unit_all[:, k], rcond=None)[0]
+                dup = [span_names[t] for t in np.argsort(-np.abs(coef))[:3] if abs(coef[t]) > 1e-2]
+            free = independent[k] / math.sqrt(n_pose)
+            if free < 1e-3 * motion and dup:
+                reason = "linear combination of " + ", ".join(dup)
+            else:
+                reason = (f"only {free * 1e6:.3g} um RMS of its {motion * 1e6:.3g} um TCP motion (at its typical "
+                          f"size) is its own: below what the measurements resolve"
+                          + (f"; the rest duplicates {', '.join(dup)}" if dup else ""))
+            removed.append({"parameter": b.names[k], "reason": reason, "duplicates": dup})
+        if rank:
+            new_q = qmat[:, :rank]
+            kept_q = new_q if kept_q is None else np.hstack([kept_q, new_q])
+            kept_cols += [unit_all[:, k] for k in kept_local]
+            kept_names += [b.names[k] for k in kept_local]
+        keep[name] = np.asarray(kept_local, dtype=int)
+        report["effects"][name] = {"n_parameters": len(b.names), "n_identifiable": len(kept_local),
+                                   "removed": removed}
+    if kept_cols:
+        mat = np.stack(kept_cols, axis=1)
+        sv = np.linalg.svd(mat, compute_uv=False)
+        report["rank"] = int(mat.shape[1])
+        report["condition_number"] = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
+        report["smallest_singular_value"] = float(sv[-1])
+    return keep, report
+
