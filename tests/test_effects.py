@@ -20,13 +20,13 @@ from tcr_accuracy.effects.transmission import Transmission
 from tcr_accuracy.errors import ErrorModel
 from tcr_accuracy.gravity import gravity_torque
 from tcr_accuracy.kinematics import pose_error, tcp_poses, tcp_poses_pinocchio
-from tcr_accuracy.units import display_value
-
-EFFECTS = effect_classes()
 from tcr_accuracy.robot import robot_from_urdf_text
 from tcr_accuracy.tool_changer import ToolChangerDimensions, tool_changer_urdf
+from tcr_accuracy.units import display_value
 
 from conftest import random_joint_values
+
+EFFECTS = effect_classes()
 
 # A planar two-link arm: both joints turn about y, links along x, point-like masses.
 L1, L2, A1, A2, M1, M2 = 0.8, 0.6, 0.35, 0.25, 12.0, 7.0

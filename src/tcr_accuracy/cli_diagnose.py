@@ -45,7 +45,7 @@ def _run_diagnose(args) -> int:
     from .diagnose import diagnose
     from .effects import vocabulary
     from .exceptions import InputError
-    from .measurements import read_measurements
+    from .measurements import measured_frames, read_measurements
     from .plots_diagnose import write_plots
     from .robot import load_robot
 
@@ -59,15 +59,26 @@ def _run_diagnose(args) -> int:
         unknown = [e for e in effects if e not in vocabulary()]
         if unknown:
             raise InputError(f"--effects: unknown {', '.join(unknown)} (vocabulary: {', '.join(vocabulary())})")
-    robot = load_robot(args.robot, args.tool)
+    min_rows = max(3 * args.folds, 12)
+    frames = measured_frames(args.measurements)
+    if frames:  # several measured frames per row: one chain each, their shared parameters fitted once
+        if args.tool is not None and args.tool not in frames:
+            raise InputError(f"--tool {args.tool}: {args.measurements} measures {', '.join(frames)}")
+        order = [args.tool] + [f for f in frames if f != args.tool] if args.tool else frames
+        robots = [load_robot(args.robot, f) for f in order]
+        parts = [(r, read_measurements(args.measurements, r, min_rows=min_rows, frame=f))
+                 for r, f in zip(robots, order)]
+        robot, measurements, data = robots[0], parts[0][1], parts
+    else:
+        robot = load_robot(args.robot, args.tool)
+        measurements = data = read_measurements(args.measurements, robot, min_rows=min_rows)
     out = RunOutput(args, f"Sim-to-real gap diagnosis: {robot.name}")
-    measurements = read_measurements(args.measurements, robot, min_rows=max(3 * args.folds, 12))
     from tqdm import tqdm
 
     bar = tqdm(desc="diagnose", file=sys.stderr, bar_format="{desc}: {postfix} [{elapsed}]",
                disable=args.quiet or not sys.stderr.isatty())
     try:
-        result = diagnose(robot, measurements, effects=effects, folds=args.folds, seed=args.seed,
+        result = diagnose(robot, data, effects=effects, folds=args.folds, seed=args.seed,
                           tracker_noise=None if args.noise_mm is None else args.noise_mm * 1e-3,
                           progress=bar.set_postfix_str)
     finally:
@@ -185,8 +196,9 @@ def format_summary(robot, d, source: str) -> str:
         out.append(f"   random scatter beyond the instrument: not tested ({sc['why']})")
     if d.orientation:
         o = d.orientation
-        out.append(f"   orientation (held-out): mean {o['heldout_mean_deg']:.4f} deg, RMS {o['heldout_rms_deg']:.4f} deg, "
-                   f"max {o['heldout_max_deg']:.4f} deg (weight {o['weight_m_per_rad'] * 1e3:.4g} mm/rad)")
+        out.append(f"   orientation (held-out): mean {o['heldout_mean_deg']:.4f} deg, "
+                   f"RMS {o['heldout_rms_deg']:.4f} deg, max {o['heldout_max_deg']:.4f} deg "
+                   f"(weight {o['weight_m_per_rad'] * 1e3:.4g} mm/rad)")
     for frame, stats in d.heldout_by_frame.items():
         out.append(f"   measured frame {frame}: held-out mean {stats.mean * mm:.4f} mm, RMS {stats.rms * mm:.4f} mm, "
                    f"max {stats.max * mm:.4f} mm")
@@ -241,6 +253,9 @@ def write_as_built(robot, d, path: Path) -> tuple[Path, Path]:
         "note": "geometric effects (frames' TCP offset, joint offsets, geometry) are built into the URDF; "
                 "the tracker frame is not part of the robot and is given separately",
         "tracker_from_base": [[float(v) for v in row] for row in d.tracker_transform],
+        **({"measured_frames": list(d.frames_measured),
+            "chain_in_urdf": f"the URDF is the chain to {d.frames_measured[0]}; the other frames' TCP offsets "
+                             "are among the parameters"} if len(d.frames_measured) > 1 else {}),
         "selected_effects": list(d.selected_effects),
         "effects": {e: {"parameters": {k: float(v) for k, v in p.items()},
                         "units": dict(d.parameter_units.get(e, {}))}

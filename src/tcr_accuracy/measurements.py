@@ -152,7 +152,8 @@ def allowed_columns(robot: RobotModel) -> list[str]:
 
 
 def read_measurements(path: str | Path, robot: RobotModel, *, min_rows: int = 1,
-                      require_position: bool = True, check_units: bool = True) -> MeasurementSet:
+                      require_position: bool = True, check_units: bool = True,
+                      frame: str | None = None) -> MeasurementSet:
     """Read and validate a measurement CSV (see the module docstring for the columns).
 
     Parameters
@@ -168,6 +169,9 @@ def read_measurements(path: str | Path, robot: RobotModel, *, min_rows: int = 1,
         Compare the spread of the measured positions with that of the nominal model's
         TCP at the same joint values, to catch a file in metres labelled mm (or the
         reverse) and joint values in the wrong unit.
+    frame : str, optional
+        For a file measuring several frames per row (``<frame>.x_mm`` ... columns, see
+        :func:`measured_frames`): the one to read; the robot's TCP must be that frame.
 
     Raises
     ------
@@ -177,7 +181,7 @@ def read_measurements(path: str | Path, robot: RobotModel, *, min_rows: int = 1,
     path = Path(path)
     text = read_user_text(path, "measurement file")
     return parse_measurements(text, robot, source=str(path), min_rows=min_rows,
-                              require_position=require_position, check_units=check_units)
+                              require_position=require_position, check_units=check_units, frame=frame)
 
 
 def read_user_text(path: Path, what: str) -> str:
@@ -190,9 +194,17 @@ def read_user_text(path: Path, what: str) -> str:
         raise InputError(f"{path}: cannot read {what} as UTF-8 text ({exc})") from None
 
 
-def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", min_rows: int = 1,
-                       require_position: bool = True, check_units: bool = True) -> MeasurementSet:
-    """:func:`read_measurements` on CSV text already in memory."""
+#: Column suffixes a measured frame's columns carry after ``<frame>.``
+FRAME_COLUMNS = tuple(f"{a}_{u}" for u in _POSITION_UNITS for a in "xyz") + QUATERNION_COLUMNS
+
+
+def _frame_of(column: str) -> str | None:
+    """``right_marker.x_mm`` -> ``right_marker``; None for any other column."""
+    prefix, dot, rest = column.rpartition(".")
+    return prefix if dot and prefix and rest in FRAME_COLUMNS else None
+
+
+def _header(text: str, source: str) -> tuple[list[tuple[int, str]], list[str], int]:
     lines = [(i + 1, line) for i, line in enumerate(text.splitlines())
              if line.strip() and not line.lstrip().startswith("#")]
     if not lines:
@@ -201,8 +213,36 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
     if ";" in header_text and "," not in header_text:
         raise InputError(f"{source}: row {header_line}: columns are separated by ';'; "
                          "a measurement CSV uses commas (and '.' for decimals)")
-    header = [h.strip() for h in next(csv.reader(io.StringIO(header_text)))]
-    columns = _resolve_columns(header, robot, source, header_line, require_position)
+    return lines, [h.strip() for h in next(csv.reader(io.StringIO(header_text)))], header_line
+
+
+def measured_frames(path: str | Path) -> list[str]:
+    """Frames a measurement file measures as ``<frame>.x_mm ...`` columns (empty: the TCP's ``x_mm``)."""
+    text = read_user_text(Path(path), "measurement file")
+    _, header, _ = _header(text, str(path))
+    return list(dict.fromkeys(f for f in map(_frame_of, header) if f is not None))
+
+
+def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", min_rows: int = 1,
+                       require_position: bool = True, check_units: bool = True,
+                       frame: str | None = None) -> MeasurementSet:
+    """:func:`read_measurements` on CSV text already in memory."""
+    lines, header, header_line = _header(text, source)
+    # a file may measure several frames per row: <frame>.x_mm ...; read one of them
+    frames = list(dict.fromkeys(f for f in map(_frame_of, header) if f is not None))
+    if frames:
+        plain = [h for h in header if h in FRAME_COLUMNS]
+        if plain:
+            raise InputError(f"{source}: row {header_line}: column {plain[0]} next to per-frame columns "
+                             f"({frames[0]}.x_mm ...); name every measured frame's columns <frame>.x_mm")
+        if frame is None:
+            raise InputError(f"{source}: measures several frames ({', '.join(frames)}); read one with frame=...")
+        if frame not in frames:
+            raise InputError(f"{source}: no columns {frame}.x_mm ... (frames measured: {', '.join(frames)})")
+    logical = [h if _frame_of(h) is None else (h.rpartition(".")[2] if _frame_of(h) == frame else "")
+               for h in header]
+    columns = _resolve_columns(header, robot, source, header_line, require_position, logical)
+    shown, header = header, logical  # messages name the file's columns; the reading uses their meaning
 
     n_cols = len(header)
     values = np.empty((len(lines) - 1, n_cols))
@@ -217,9 +257,9 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
                 value = float(cell)
             except ValueError:
                 what = "an empty cell" if not cell else f"{cell!r} is not a number"
-                raise InputError(f"{source}: row {line_no}, column {header[c]}: {what}") from None
+                raise InputError(f"{source}: row {line_no}, column {shown[c]}: {what}") from None
             if not math.isfinite(value):
-                raise InputError(f"{source}: row {line_no}, column {header[c]}: non-finite value {cell!r}")
+                raise InputError(f"{source}: row {line_no}, column {shown[c]}: non-finite value {cell!r}")
             values[k, c] = value
         rows[k] = line_no
     if len(rows) < min_rows:
@@ -305,15 +345,18 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
     return mset
 
 
-def _resolve_columns(header, robot, source, line_no, require_position):
+def _resolve_columns(header, robot, source, line_no, require_position, logical):
     allowed = allowed_columns(robot)
     seen = set()
-    for c, name in enumerate(header):
+    for c, (name, meaning) in enumerate(zip(header, logical)):
         if not name:
             raise InputError(f"{source}: row {line_no}, column {c + 1}: empty column name in the header")
         if name in seen:
             raise InputError(f"{source}: row {line_no}: column {name} appears twice in the header")
-        seen.add(name)
+        if not meaning:  # another measured frame's column: read and checked, not used here
+            continue
+        seen.add(meaning)
+        name = meaning
         if name not in allowed:
             raise InputError(f"{source}: row {line_no}: unknown column {name!r}; allowed columns for "
                              f"{robot.name}: {', '.join(allowed)}")
@@ -514,6 +557,6 @@ def write_measurements(path: str | Path, robot: RobotModel, mset: MeasurementSet
 
 __all__ = [
     "MeasurementContext", "MeasurementSet", "MeasurementWarning", "REFERENCE_TEMPERATURE_C",
-    "allowed_columns", "format_measurements", "measurement_columns", "parse_measurements",
+    "allowed_columns", "format_measurements", "measured_frames", "measurement_columns", "parse_measurements",
     "read_measurements", "read_user_text", "write_measurements",
 ]
