@@ -5,15 +5,8 @@ import pinocchio as pin
 import pytest
 
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.kinematics import tcp_poses
-from tcr_accuracy.sampling import (
-    TaskWorkspace,
-    euler_zyx_of,
-    inverse_kinematics,
-    rotation_from_euler_zyx,
-    sample_task_workspace,
-    stratified_subset,
-)
+from tcr_accuracy.kinematics import euler_zyx, rotation_from_euler_zyx, tcp_poses
+from tcr_accuracy.sampling import TaskWorkspace, inverse_kinematics, sample_task_workspace, stratified_subset
 
 UR5_REF = np.array([0.3, -1.2, 1.5, -1.9, -1.57, 0.4])
 TC_REF = np.array([np.radians(15), np.radians(30), np.radians(-10), 0.2, np.radians(20), 0.0])
@@ -33,7 +26,7 @@ def test_euler_zyx_is_rz_ry_rx_by_hand():
 
     rot = rotation_from_euler_zyx(np.array([[a, b, c]]))[0]
     np.testing.assert_allclose(rot, rz(a) @ ry(b) @ rx(c), atol=1e-14)
-    np.testing.assert_allclose(euler_zyx_of(rot[None])[0], [a, b, c], atol=1e-12)
+    np.testing.assert_allclose(euler_zyx(rot[None])[0], [a, b, c], atol=1e-12)
 
 
 def test_ik_reaches_full_poses_on_ur5_checked_by_forward_kinematics(ur5):
@@ -112,7 +105,7 @@ def test_sample_task_workspace_on_ur5_stays_in_the_box(ur5):
     assert sample.n_failed == 300 - len(sample.dense_q)
     pose = tcp_poses(ur5, sample.q)
     assert np.all(pose.position >= ws.position_low - 1e-6) and np.all(pose.position <= ws.position_high + 1e-6)
-    euler = euler_zyx_of(pose.rotation)
+    euler = euler_zyx(pose.rotation)
     above_low = np.mod(euler - ws.euler_low + 1e-6, 2 * np.pi)  # angles wrap at +-pi
     assert np.all(above_low <= ws.euler_high - ws.euler_low + 2e-6)
 

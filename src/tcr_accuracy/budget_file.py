@@ -55,9 +55,10 @@ from .errors import (
 )
 from .exceptions import InputError
 from .robot import REVOLUTE, RobotModel
+from .units import suffixes_of
 
-LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6}
-ANGLE_UNITS = {"rad": 1.0, "mrad": 1e-3, "deg": math.pi / 180.0}
+LENGTH_UNITS = suffixes_of("m")
+ANGLE_UNITS = suffixes_of("rad")
 FIELDS = ("mean", "std", "low", "high")
 SOURCE_GROUPS = ("link_length", "drive", "axis_deflection", "placement", "base", "tool")
 CLEARANCE_KEYS = {"axial_std": LENGTH_UNITS, "radial_std": LENGTH_UNITS, "deflection_std": ANGLE_UNITS}

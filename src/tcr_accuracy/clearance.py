@@ -58,20 +58,6 @@ class ClearanceSample:
     deflection_v: np.ndarray  # w_y [rad], about v
 
 
-def _perpendicular_pair(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(u, v) unit vectors with (u, v, axis) right-handed; coordinate axes when possible."""
-    axis = axis / np.linalg.norm(axis)
-    k = int(np.argmax(np.abs(axis)))
-    if abs(abs(axis[k]) - 1.0) < 1e-12:
-        u = np.eye(3)[(k + 1) % 3]
-    else:
-        helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
-        u = np.cross(helper, axis)
-        u /= np.linalg.norm(u)
-    v = np.cross(axis, u)
-    return u, v
-
-
 def _inverse_left_jacobian_apply(w: np.ndarray, t: np.ndarray) -> np.ndarray:
     """J(w)^-1 t for rotation vectors w (n, 3) and vectors t (n, 3), batched.
 
@@ -145,11 +131,11 @@ class ClearanceModel:
 
     def frames(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Joint axis a, and perpendicular u, v, each (k, 3), in each joint's frame."""
-        axes = np.array([self.robot.motion_axes[j][3:] for j in self.joints]).reshape(-1, 3)
-        pairs = [_perpendicular_pair(a) for a in axes]
+        axes = np.array([self.robot.joint_axis(j) for j in self.joints]).reshape(-1, 3)
+        pairs = [self.robot.axis_perpendiculars(j) for j in self.joints]
         u = np.array([p[0] for p in pairs]).reshape(-1, 3)
         v = np.array([p[1] for p in pairs]).reshape(-1, 3)
-        return axes / np.linalg.norm(axes, axis=1, keepdims=True), u, v
+        return axes, u, v
 
     # -- sampling ------------------------------------------------------------------
     def sample_components(self, n: int, rng: np.random.Generator) -> ClearanceSample:

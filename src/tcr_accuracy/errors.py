@@ -353,15 +353,7 @@ def link_length_direction(robot: RobotModel, j: int, error_model: ErrorModel) ->
 def axis_deflection_directions(robot: RobotModel, j: int, error_model: ErrorModel
                                ) -> list[tuple[str, np.ndarray]]:
     """Two (label, direction) pairs tilting joint j's axis about the perpendicular axes."""
-    axis = robot.motion_axes[j][3:] if robot.joint_kinds[j] == REVOLUTE else robot.motion_axes[j][:3]
-    # two unit vectors perpendicular to the axis, coordinate axes when the axis is one
-    basis = np.eye(3)
-    candidates = [e for e in basis if abs(float(e @ axis)) < 1e-12]
-    if len(candidates) < 2:
-        helper = basis[int(np.argmin(np.abs(axis)))]
-        u = np.cross(axis, helper)
-        u /= np.linalg.norm(u)
-        candidates = [u, np.cross(axis, u)]
+    candidates = robot.axis_perpendiculars(j)
     out = []
     start = error_model.index(f"{robot.joint_names[j]}.rx")
     for u in candidates[:2]:

@@ -444,13 +444,27 @@ def tcp_poses_pinocchio(robot: RobotModel, q: np.ndarray, x: np.ndarray | None =
 def euler_zyx(rotation: np.ndarray) -> np.ndarray:
     """ZYX Euler angles (about z, then y, then x): R = Rz(a) Ry(b) Rx(c).
 
-    rotation : (N, 3, 3) -> (N, 3) columns (a, b, c) [rad].
+    rotation : (N, 3, 3) -> (N, 3) columns (a, b, c) [rad]. The one home of the package's
+    Euler convention (:func:`euler_zyx_entries` is the same on structure-of-arrays rows,
+    :func:`rotation_from_euler_zyx` its inverse).
     """
     rotation = np.asarray(rotation)
-    a = np.arctan2(rotation[:, 1, 0], rotation[:, 0, 0])
-    b = np.arctan2(-rotation[:, 2, 0], np.hypot(rotation[:, 2, 1], rotation[:, 2, 2]))
-    c = np.arctan2(rotation[:, 2, 1], rotation[:, 2, 2])
-    return np.stack([a, b, c], axis=1)
+    return euler_zyx_entries(rotation[:, 0, 0], rotation[:, 1, 0], rotation[:, 2, 0], rotation[:, 2, 1],
+                             rotation[:, 2, 2]).T
+
+
+def euler_zyx_entries(r00, r10, r20, r21, r22, out: np.ndarray | None = None) -> np.ndarray:
+    """(3, N) ZYX Euler angles from five entries of the rotations (each (N,)), into ``out`` if given."""
+    out = np.empty((3, np.shape(r00)[0])) if out is None else out
+    np.arctan2(r10, r00, out=out[0])
+    np.arctan2(-r20, np.hypot(r21, r22), out=out[1])
+    np.arctan2(r21, r22, out=out[2])
+    return out
+
+
+def rotation_from_euler_zyx(euler: np.ndarray) -> np.ndarray:
+    """ZYX Euler angles (N, 3) (a, b, c) [rad] -> rotations (N, 3, 3), R = Rz(a) Ry(b) Rx(c)."""
+    return Rotation.from_euler("ZYX", np.atleast_2d(euler)).as_matrix()
 
 
 def _wrap(angle: np.ndarray) -> np.ndarray:

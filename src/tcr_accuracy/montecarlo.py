@@ -33,7 +33,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from .errors import ErrorBudget, ErrorModel
-from .kinematics import euler_zyx, tcp_chain_soa, tcp_poses
+from .kinematics import euler_zyx, euler_zyx_entries, tcp_chain_soa, tcp_poses
 
 #: Default chunk of samples processed at once (cache-friendly; part of the seeding contract).
 CHUNK = 20_000
@@ -265,11 +265,7 @@ def error_rows(nominal_position: np.ndarray, nominal_euler: np.ndarray, rot: np.
     np.subtract(pos, nominal_position[:, None], out=out[:3])
     dx, dy, dz = out[0], out[1], out[2]
     np.sqrt(dx * dx + dy * dy + dz * dz, out=out[3])
-    # ZYX Euler angles, as kinematics.euler_zyx, on the rows of R
-    r00, r10, r20, r21, r22 = rot[0], rot[3], rot[6], rot[7], rot[8]
-    np.arctan2(r10, r00, out=out[4])
-    np.arctan2(-r20, np.hypot(r21, r22), out=out[5])
-    np.arctan2(r21, r22, out=out[6])
+    euler_zyx_entries(rot[0], rot[3], rot[6], rot[7], rot[8], out=out[4:7])  # on the rows of R
     angles = out[4:7]
     angles -= nominal_euler[:, None]
     angles += np.pi

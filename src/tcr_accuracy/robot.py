@@ -200,7 +200,7 @@ class RobotModel:
             u = np.eye(3)[(k + 1) % 3]
             return u, sign * np.eye(3)[(k + 2) % 3]
         helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
-        u = np.cross(axis, helper)
+        u = np.cross(helper, axis)
         u /= np.linalg.norm(u)
         return u, np.cross(axis, u)
 

@@ -21,10 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-from scipy.spatial.transform import Rotation
-
 from .exceptions import InputError
-from .kinematics import tcp_poses
+from .kinematics import euler_zyx, rotation_from_euler_zyx, tcp_poses
 from .robot import RobotModel
 
 
@@ -56,7 +54,7 @@ class TaskWorkspace:
         """A workspace centred on the nominal TCP pose at q_ref (n_joints,)."""
         pose = tcp_poses(robot, q_ref)
         centre = pose.position[0]
-        euler = euler_zyx_of(pose.rotation)[0]
+        euler = euler_zyx(pose.rotation)[0]
         half_size = np.broadcast_to(np.asarray(half_size_m, dtype=float), (3,))
         half_angle = np.broadcast_to(np.asarray(half_angle_rad, dtype=float), (3,))
         return cls(centre - half_size, centre + half_size, euler - half_angle, euler + half_angle)
@@ -66,16 +64,6 @@ class TaskWorkspace:
         positions = rng.uniform(self.position_low, self.position_high, (n, 3))
         euler = rng.uniform(self.euler_low, self.euler_high, (n, 3))
         return positions, rotation_from_euler_zyx(euler)
-
-
-def rotation_from_euler_zyx(euler: np.ndarray) -> np.ndarray:
-    """ZYX Euler angles (N, 3) (a, b, c) [rad] -> rotations (N, 3, 3), R = Rz(a) Ry(b) Rx(c)."""
-    return Rotation.from_euler("ZYX", np.atleast_2d(euler)).as_matrix()
-
-
-def euler_zyx_of(rotation: np.ndarray) -> np.ndarray:
-    """Rotations (N, 3, 3) -> ZYX Euler angles (N, 3) (a, b, c) [rad]."""
-    return Rotation.from_matrix(np.asarray(rotation).reshape(-1, 3, 3)).as_euler("ZYX")
 
 
 # ---------------------------------------------------------------------------------------
@@ -101,12 +89,6 @@ class IkResult:
     @property
     def n_failed(self) -> int:
         return int((~self.success).sum())
-
-
-def _limits(robot: RobotModel) -> tuple[np.ndarray, np.ndarray]:
-    lo = np.where(np.isnan(robot.lower_limits), -np.inf, robot.lower_limits)
-    hi = np.where(np.isnan(robot.upper_limits), np.inf, robot.upper_limits)
-    return lo, hi
 
 
 def inverse_kinematics(robot: RobotModel, positions: np.ndarray, rotations: np.ndarray | None = None,
@@ -158,7 +140,7 @@ def inverse_kinematics(robot: RobotModel, positions: np.ndarray, rotations: np.n
         raise InputError(f"IK: orientation must be 'exact' or 'best_effort', got {orientation!r}")
     result = _dls(robot, positions, rotations, q, tol_position, tol_rotation, max_iter, damping, max_step,
                   orientation)
-    lo, hi = _limits(robot)
+    lo, hi = robot.joint_bounds(np.inf)
     for _ in range(restarts):
         failed = np.flatnonzero(~result.success)
         if failed.size == 0:
@@ -185,7 +167,7 @@ def _dls(robot, positions, rotations, q, tol_p, tol_r, max_iter, damping, max_st
     model, data = robot.model, robot.model.createData()
     fid = robot.tool_frame_id
     n_targets, n = q.shape
-    lo, hi = _limits(robot)
+    lo, hi = robot.joint_bounds(np.inf)
     full = rotations is not None
     active = np.ones(n_targets, dtype=bool)
     pos_err = np.full(n_targets, np.inf)

@@ -24,10 +24,11 @@ import numpy as np
 from .errors import ErrorBudget
 from .exceptions import InputError
 from .kinematics import error_jacobian, tcp_poses
-from .robot import PRISMATIC, REVOLUTE, JointLimitWarning, RobotModel
+from .robot import JointLimitWarning, RobotModel
+from .units import JOINT_COLUMN_UNITS, PRISMATIC
 
 #: Joint column suffixes and their factor to SI, per joint kind.
-UNIT_SUFFIXES = {REVOLUTE: {"deg": math.pi / 180.0, "rad": 1.0}, PRISMATIC: {"mm": 1e-3, "m": 1.0}}
+UNIT_SUFFIXES = JOINT_COLUMN_UNITS
 TIME_COLUMN = "t_s"
 
 

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
+from ..clearance import ClearanceModel
 from ..exceptions import InputError
 from ..units import REVOLUTE
 from .base import Effect, EffectOutput
@@ -18,8 +17,8 @@ class Clearance(Effect):
     moves in its bearing: an axial shift ``d ~ N(0, axial)`` along the joint axis, a
     radial shift of length ``s ~ N(0, radial)`` in a uniformly random direction
     perpendicular to the axis, and a tilt of the axis about the two perpendicular
-    directions, each ``~ N(0, tilt)``. These form the twist on the joint placement (in
-    the joint frame). Parameters: the spreads ``clearance.axial`` [m],
+    directions, each ``~ N(0, tilt)``: the exact model the Monte Carlo samples
+    (:class:`~tcr_accuracy.clearance.ClearanceModel`, ``Trans * Rot`` on the placement). Parameters: the spreads ``clearance.axial`` [m],
     ``clearance.radial`` [m], ``clearance.tilt`` [rad], shared by the joints with play.
     ``joints``: names (default every revolute joint, as the seed); ``rng``: a numpy
     Generator (else ``context.rng`` is used).
@@ -55,50 +54,23 @@ class Clearance(Effect):
             raise InputError(f"clearance: unknown joints {unknown} (joints: {', '.join(self.robot.joint_names)})")
         return [self.robot.joint_names.index(n) for n in self.joints]
 
-    def _frames(self, j: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Unit axis and two perpendicular unit vectors of joint j (its own frame)."""
-        axis = self.robot.joint_axis(j)
-        helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
-        u = np.cross(axis, helper)
-        u /= np.linalg.norm(u)
-        return axis, u, np.cross(axis, u)
+    def model(self, params) -> ClearanceModel:
+        """The exact clearance model of the Monte Carlo (:class:`~tcr_accuracy.clearance.ClearanceModel`)
+        with these spreads."""
+        axial, radial, tilt = self.check_params(params)
+        return ClearanceModel(self.error_model, tuple(self.joint_indices()), axial_std=float(axial),
+                              radial_std=float(radial), deflection_std=float(tilt), name="clearance")
 
     def perturb(self, params, q, context) -> EffectOutput:
-        params = self.check_params(params)
         q = np.atleast_2d(q)
         rng = self.rng or (context.rng if context is not None else None)
         if rng is None:
             raise InputError("clearance: a random generator is needed (option rng= or context.rng)")
-        axial, radial, tilt = params
-        em = self.error_model
-        n = q.shape[0]
-        x = np.zeros((n, em.size))
-        for j in self.joint_indices():
-            axis, u, w = self._frames(j)
-            d = axial * rng.standard_normal(n)
-            s = radial * rng.standard_normal(n)
-            theta = rng.uniform(0.0, 2 * math.pi, n)
-            tu, tw = tilt * rng.standard_normal(n), tilt * rng.standard_normal(n)
-            start = em.index(f"{self.robot.joint_names[j]}.dx")
-            x[:, start:start + 3] = (d[:, None] * axis + (s * np.cos(theta))[:, None] * u
-                                     + (s * np.sin(theta))[:, None] * w)
-            x[:, start + 3:start + 6] = tu[:, None] * u + tw[:, None] * w
-        return EffectOutput(x=x)
+        return EffectOutput(x=self.model(params).sample(q.shape[0], rng))
 
     def twist_covariance(self, params) -> np.ndarray:
-        """(n_error_params, n_error_params) covariance of the x that perturb draws.
+        """(n_error_params, n_error_params) covariance of the (linearised) x that perturb draws.
 
-        Radial shift: s cos(theta), s sin(theta) each have variance radial^2 / 2.
         Push it through the TCP Jacobian (d TCP / d x) to get the scatter at the TCP.
         """
-        axial, radial, tilt = self.check_params(params)
-        em = self.error_model
-        cov = np.zeros((em.size, em.size))
-        for j in self.joint_indices():
-            axis, u, w = self._frames(j)
-            start = em.index(f"{self.robot.joint_names[j]}.dx")
-            t = slice(start, start + 3)
-            r = slice(start + 3, start + 6)
-            cov[t, t] = axial**2 * np.outer(axis, axis) + radial**2 / 2 * (np.outer(u, u) + np.outer(w, w))
-            cov[r, r] = tilt**2 * (np.outer(u, u) + np.outer(w, w))
-        return cov
+        return self.model(params).parameter_covariance()
