@@ -70,6 +70,8 @@ def run_scenario(robot, index: int, rng: np.random.Generator, *, n_train: int, n
         "contribution_mm": {e: round(v * 1e3, 4) for e, v in result.contribution.items()},
         "first_step_gain_mm": {e: round(c["gain_mm"], 4) for e, c in result.candidates.items() if c.get("tried")},
         "leave_one_out_increase_mm": {r["dropped"]: round(r["increase_mm"], 4) for r in result.leave_one_out},
+        "leave_one_out_own_share_increase_mm": {r["dropped"]: round(r["own_share_increase_mm"], 4)
+                                                for r in result.leave_one_out},
         "gap_rms_mm": result.gap.rms * 1e3,
         "heldout_rms_mm": result.steps[-1].heldout.rms * 1e3,
         "test_rms_mm": test_rms * 1e3,

@@ -144,10 +144,10 @@ def format_summary(robot, d, source: str) -> str:
     out.append("\n3. Which effect: each effect added to frames alone (held-out RMS [mm], gain, paired z)")
     for name, c in d.candidates.items():
         if c.get("tried"):
-            out.append(f"   {name:14s} {c['heldout_rms_mm_with_frames']:9.4f} {c['gain_mm']:+9.4f} "
+            out.append(f"   {name:18s} {c['heldout_rms_mm_with_frames']:9.4f} {c['gain_mm']:+9.4f} "
                        f"z = {c['z']:6.1f}  ({c['n_parameters']} identifiable parameters)")
         else:
-            out.append(f"   {name:14s} not tried: {c['why']}")
+            out.append(f"   {name:18s} not tried: {c['why']}")
     ident = d.identifiability
     removed = [(e, r) for e, info in ident["effects"].items() for r in info["removed"]]
     everything = ident.get("all_effects", {})

@@ -270,15 +270,18 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, s
     progress : callable(str), optional
         Called with a short message as the work advances (the CLI's progress bar).
     """
-    # The least-squares problems here are small (3N x ~60): multi-threaded BLAS only adds
-    # synchronisation, and on a shared machine it was 50-100x slower than one thread.
-    # threadpoolctl (a scikit-learn dependency) limits it for the duration of the call.
+    return GapDiagnosis(effects=effects, folds=folds, seed=seed, tracker_noise=tracker_noise,
+                        selection_z=selection_z, min_relative_gain=min_relative_gain, rank_tol=rank_tol,
+                        orientation_weight=orientation_weight).fit(robot, measurements, progress).result_
+
+
+def _one_blas_thread():
+    """The least-squares problems here are small (3N x ~60): multi-threaded BLAS only adds
+    synchronisation, and on a shared machine it was 50-100x slower than one thread.
+    threadpoolctl (a scikit-learn dependency) limits it for the duration of a call."""
     from threadpoolctl import threadpool_limits
 
-    with threadpool_limits(limits=1, user_api="blas"):
-        return GapDiagnosis(effects=effects, folds=folds, seed=seed, tracker_noise=tracker_noise,
-                            selection_z=selection_z, min_relative_gain=min_relative_gain, rank_tol=rank_tol,
-                            orientation_weight=orientation_weight).fit(robot, measurements, progress).result_
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 class GapDiagnosis:
@@ -329,6 +332,10 @@ class GapDiagnosis:
     # -- the pipeline ------------------------------------------------------------------
     def fit(self, robot: RobotModel, measurements, progress=None) -> "GapDiagnosis":
         """Run the diagnosis on ``measurements`` of ``robot`` (see :func:`diagnose`)."""
+        with _one_blas_thread():
+            return self._fit(robot, measurements, progress)
+
+    def _fit(self, robot, measurements, progress) -> "GapDiagnosis":
         from sklearn.model_selection import KFold
 
         frames = self._check(robot, measurements)
@@ -479,11 +486,33 @@ class GapDiagnosis:
             frames_measured=[p.label for p in parts], heldout_by_frame=by_frame, orientation=orientation,
         )
         self.robot_ = robot
+        self.engine_ = engine
         self.selected_effects_ = selected
         self.primary_effect_ = primary
         self.parameters_ = parameters
         self.noise_ = noise
         return self
+
+    def ladder(self, effects) -> list[Step]:
+        """The shrink table along a given order of effects (``frames`` first), on the same data,
+        folds and identifiability as the fit: e.g. to set the diagnosis next to a published
+        calibration ladder. Effects that could not be fitted on these data raise InputError."""
+        if not hasattr(self, "engine_"):
+            raise AnalysisError("GapDiagnosis.ladder: call fit first")
+        engine = self.engine_
+        sequence = ["frames"] + [e for e in effects if e != "frames"]
+        missing = [e for e in sequence if e not in engine.bases]
+        if missing:
+            raise InputError(f"ladder: {', '.join(missing)} cannot be fitted on these data")
+        steps, previous = [], None
+        for k, effect in enumerate(sequence):
+            with _one_blas_thread():
+                r = engine.evaluate(ordered(sequence[:k + 1]))
+            z = None if previous is None else paired_z(previous["heldout_residual"], r["heldout_residual"])
+            steps.append(Step(effect, tuple(ordered(sequence[:k + 1])), r["n_parameters"],
+                              ErrorStats.of(r["train_residual"]).rms, ErrorStats.of(r["heldout_residual"]), z))
+            previous = r
+        return steps
 
     def predict(self, q: np.ndarray, context: MeasurementContext | None = None) -> np.ndarray:
         """(N, 3) TCP positions [m] in the tracker frame that the fitted model predicts at q (N, n)."""
