@@ -2,6 +2,7 @@
 
 import json
 import math
+import os
 import subprocess
 import sys
 
@@ -77,6 +78,85 @@ def test_broken_urdf_file_exit_code_2(tmp_path, capsys):
     path.write_text("<robot name='x'><link name='a'></robot>")
     code, _, err = run(["pose", "--robot", str(path)], capsys)
     assert code == 2 and str(path) in err and err.count("\n") == 1
+
+
+# ---------------------------------------------------------------------------------------
+# Unexpected errors: one line naming the command and the exception, exit 1; --debug traces
+# ---------------------------------------------------------------------------------------
+def _raise(exc):
+    def fail(*args, **kwargs):
+        raise exc
+
+    return fail
+
+
+CSV = REPO / "src" / "tcr_accuracy" / "data" / "tool_changer_cutter.csv"
+
+
+@pytest.mark.parametrize("argv, module, function, exc, words", [
+    (["pose"], "tcr_accuracy.kinematics", "tcp_poses",
+     ValueError("shapes (6,) and (7,)\nnot aligned"), ["tcr-accuracy pose", "ValueError", "shapes (6,) and (7,) not aligned"]),
+    (["diagnose", str(CSV)], "tcr_accuracy.diagnose", "diagnose",
+     np.linalg.LinAlgError("SVD did not converge"), ["tcr-accuracy diagnose", "LinAlgError", "SVD did not converge"]),
+    (["montecarlo", "--samples", "1000000000"], "tcr_accuracy.montecarlo", "run_monte_carlo",
+     MemoryError("Unable to allocate 22.4 GiB for an array with shape (1000000000, 3)"),
+     ["tcr-accuracy montecarlo", "out of memory", "MemoryError", "22.4 GiB", "fewer samples"]),
+    # demo runs montecarlo through main(); the outer command reports the inner failure
+    (["demo", "--samples", "100"], "tcr_accuracy.montecarlo", "run_monte_carlo",
+     KeyError("dx"), ["tcr-accuracy demo", "KeyError", "'dx'"]),
+])
+def test_an_unexpected_error_is_one_line_and_exit_code_1(argv, module, function, exc, words,
+                                                         tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(f"{module}.{function}", _raise(exc))
+    monkeypatch.chdir(tmp_path)  # demo writes its report folder in the working directory
+    code, out, err = run([*argv, "--quiet"], capsys)
+    assert code == 1
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    for word in words:
+        assert word in err, (word, err)
+    assert "--debug" in err  # the way to the traceback
+
+
+@pytest.mark.parametrize("where", ["before", "after"])
+def test_debug_before_or_after_the_command_prints_the_traceback(where, monkeypatch, capsys):
+    monkeypatch.setattr("tcr_accuracy.kinematics.tcp_poses", _raise(RuntimeError("boom in the kinematics")))
+    argv = ["--debug", "pose"] if where == "before" else ["pose", "--debug"]
+    code, out, err = run(argv, capsys)
+    assert code == 1
+    assert err.startswith("Traceback (most recent call last):"), err
+    assert "in _run_pose" in err and "RuntimeError: boom in the kinematics" in err
+    assert err.splitlines()[-1] == "tcr-accuracy pose: unexpected error: RuntimeError: boom in the kinematics"
+
+
+def test_debug_keeps_the_exit_code_of_bad_input(capsys):
+    code, out, err = run(["pose", "--q", "1", "2", "--debug"], capsys)
+    assert code == 2 and "Traceback" in err
+    assert err.splitlines()[-1].startswith("tcr-accuracy pose: error: --q: expected 6 joint values")
+
+
+def test_interrupt_and_closed_pipe_keep_their_exit_codes(monkeypatch, capsys):
+    monkeypatch.setattr("tcr_accuracy.kinematics.tcp_poses", _raise(KeyboardInterrupt()))
+    code, out, err = run(["pose"], capsys)
+    assert (code, err) == (130, "tcr-accuracy: interrupted\n")
+    monkeypatch.setattr("tcr_accuracy.kinematics.tcp_poses", _raise(BrokenPipeError()))
+    code, out, err = run(["pose"], capsys)
+    assert (code, err) == (0, "")  # `tcr-accuracy ... | head` closed the pipe: not an error
+
+
+def test_unexpected_error_through_the_console_entry_point_has_no_traceback(tmp_path):
+    """As a user runs it: a fresh interpreter, the exit status the shell sees."""
+    script = ("import sys, tcr_accuracy.kinematics as k\n"
+              "def fail(*a, **kw): raise ZeroDivisionError('float division by zero')\n"
+              "k.tcp_poses = fail\n"
+              "from tcr_accuracy.cli import main\n"
+              "sys.exit(main(sys.argv[1:]))\n")
+    for debug in ([], ["--debug"]):
+        done = subprocess.run([sys.executable, "-c", script, "pose", *debug], capture_output=True, text=True,
+                              cwd=REPO, timeout=120, env={**os.environ, "PYTHONPATH": str(REPO / "src")})
+        assert done.returncode == 1
+        assert ("Traceback" in done.stderr) == bool(debug), done.stderr
+        assert done.stderr.splitlines()[-1].startswith(
+            "tcr-accuracy pose: unexpected error: ZeroDivisionError: float division by zero")
 
 
 def test_console_entry_point_runs_as_a_module():
