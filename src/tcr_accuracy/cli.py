@@ -215,7 +215,8 @@ def main(argv: list[str] | None = None) -> int:
     global _depth
 
     argv = list(sys.argv[1:] if argv is None else argv)
-    debug = "--debug" in argv[: argv.index("--")] if "--" in argv else "--debug" in argv
+    # read before parsing too, so that a failure while building the parser is traced as well
+    debug = "--debug" in argv
     command = next((a for a in argv if not a.startswith("-")), None)
     _depth += 1
     try:
