@@ -25,3 +25,58 @@ def random_joint_values(robot, n, rng, span=np.pi):
     lo = np.where(np.isnan(robot.lower_limits), -span, np.maximum(robot.lower_limits, -span))
     hi = np.where(np.isnan(robot.upper_limits), span, np.minimum(robot.upper_limits, span))
     return rng.uniform(lo, hi, size=(n, robot.n_joints))
+
+
+# ---------------------------------------------------------------------------------------
+# The tool-changer's forward kinematics by hand, for tests that need an independent path
+# ---------------------------------------------------------------------------------------
+#: Joints of robots/tool_changer.urdf as written there: name, kind, origin xyz in the
+#: parent link [m] (all origins have rpy = 0), axis. The TCP frame 'tool' sits at j6's
+#: child link origin with identity rotation.
+TOOL_CHANGER_JOINTS = [
+    ("j1", "revolute", (0.0, 0.0, 0.315), (0.0, 0.0, 1.0)),
+    ("j2", "revolute", (0.0, 0.0, 0.21), (1.0, 0.0, 0.0)),
+    ("j3", "revolute", (0.0, 0.796, 0.0), (1.0, 0.0, 0.0)),
+    ("j4", "prismatic", (0.0, 0.56, 0.0), (0.0, 1.0, 0.0)),
+    ("j5", "revolute", (0.0, 0.24, 0.0), (1.0, 0.0, 0.0)),
+    ("j6", "revolute", (0.0, 0.165, 0.0), (0.0, 0.0, 1.0)),
+]
+
+
+def _rotation_about(axis, angle):
+    """Rodrigues' formula written out: R = I + sin(a) K + (1 - cos(a)) K^2, K = [axis]x."""
+    x, y, z = axis
+    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
+
+
+def tool_changer_tcp_by_hand(q, link_errors=None, drive_errors=None):
+    """base_M_tool (4, 4) of the tool-changer as a product of homogeneous matrices.
+
+    Parameters
+    ----------
+    q : array-like of shape (6,)
+        Joint values [rad, m].
+    link_errors : array-like of shape (6,), optional
+        Length errors [m] of the six links (the joint origins' offsets), each along its
+        own offset, as the seed's Table 2 link lengths l1..l6.
+    drive_errors : array-like of shape (6,), optional
+        Drive offsets [rad, m] added to q.
+
+    Uses numpy only: no Pinocchio and nothing from tcr_accuracy.
+    """
+    link_errors = np.zeros(6) if link_errors is None else np.asarray(link_errors, float)
+    drive_errors = np.zeros(6) if drive_errors is None else np.asarray(drive_errors, float)
+    out = np.eye(4)
+    for i, (_, kind, origin, axis) in enumerate(TOOL_CHANGER_JOINTS):
+        origin = np.asarray(origin)
+        placement = np.eye(4)
+        placement[:3, 3] = origin + link_errors[i] * origin / np.linalg.norm(origin)
+        motion = np.eye(4)
+        value = q[i] + drive_errors[i]
+        if kind == "revolute":
+            motion[:3, :3] = _rotation_about(axis, value)
+        else:
+            motion[:3, 3] = np.asarray(axis) * value
+        out = out @ placement @ motion
+    return out

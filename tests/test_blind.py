@@ -1,38 +1,49 @@
-"""A small blind benchmark: random hidden scenarios, diagnosis on the CSV alone, then the truth."""
+"""A small blind benchmark: random hidden scenarios, diagnosis on the CSV alone, then the truth.
 
-import importlib.util
+``scripts/blind_benchmark.py`` runs as a user runs it, in its own interpreter: it draws
+each scenario's hidden effects, writes the measurements to a CSV, diagnoses that file
+alone, and only then reads the truth. The test judges its JSON by what the benchmark
+promises (README "Benchmarks"): the hidden dominant effect is named and the fitted model
+reaches the noise floor when every hidden effect is in the vocabulary; structure is
+flagged when an effect outside the vocabulary is hidden.
+"""
+
 import json
+import os
+import subprocess
+import sys
 
 from conftest import REPO
 
-
-def _benchmark_module():
-    spec = importlib.util.spec_from_file_location("blind_benchmark", REPO / "scripts" / "blind_benchmark.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+SCENARIOS, OUTSIDE_EVERY = 3, 3
 
 
-def test_small_blind_benchmark(tmp_path, capsys):
-    bench = _benchmark_module()
+def test_small_blind_benchmark(tmp_path):
     out = tmp_path / "blind.json"
-    code = bench.main(["--scenarios", "3", "--n-train", "160", "--n-test", "60", "--folds", "3",
-                       "--outside-every", "3", "--seed", "4", "--json", str(out)])
-    assert code == 0
-    result = json.loads(out.read_text())
-    assert {"share_named_right", "median_rms_over_noise", "scenarios"} <= set(result)
-    rows = result["scenarios"]
-    assert [r["robot"] for r in rows] == ["tool_changer", "ur5", "tool_changer"]
-    inside = [r for r in rows if r["in_vocabulary"]]
-    outside = [r for r in rows if not r["in_vocabulary"]]
-    assert len(inside) == 2 and len(outside) == 1
+    done = subprocess.run(
+        [sys.executable, str(REPO / "scripts" / "blind_benchmark.py"), "--scenarios", str(SCENARIOS),
+         "--n-train", "160", "--n-test", "60", "--folds", "3", "--outside-every", str(OUTSIDE_EVERY),
+         "--seed", "4", "--json", str(out)],
+        capture_output=True, text=True, cwd=tmp_path, timeout=600,
+        env={**os.environ, "PYTHONPATH": str(REPO / "src")})
+    assert done.returncode == 0, done.stderr
+    assert "share_named_right" in done.stdout  # the printed summary
+    rows = json.loads(out.read_text())["scenarios"]
+    assert len(rows) == SCENARIOS
+    inside = [r for r in rows if not r["outside_vocabulary"]]
+    outside = [r for r in rows if r["outside_vocabulary"]]
+    assert len(outside) == SCENARIOS // OUTSIDE_EVERY and inside  # --outside-every was applied
+    for r in rows:
+        # the truth really hid what the row says (dominant and outside effects among the hidden)
+        assert r["dominant"] in r["hidden"] and set(r["outside_vocabulary"]) <= set(r["hidden"]), r
     for r in inside:
         # judged against the hidden truth: the dominant effect is named, the fitted model
-        # predicts unseen measurements to the noise floor, and no structure is claimed
-        assert r["named_right"], r
+        # predicts the unseen test rows to the noise floor, and no structure is claimed
+        assert r["primary_effect"] == r["dominant"], r
         assert r["test_over_noise"] < 1.5, r
         assert not r["structure_remains"], r
-    # an effect outside the vocabulary: the diagnosis must not claim a fit
-    assert outside[0]["structure_remains"], outside[0]
-    assert outside[0]["test_over_noise"] > 1.5
-    assert "share_named_right" in capsys.readouterr().out
+    for r in outside:
+        # an effect outside the vocabulary: no model reaches the noise floor and the
+        # diagnosis says so instead of claiming a fit
+        assert r["test_over_noise"] > 1.5, r
+        assert r["structure_remains"], r

@@ -272,10 +272,10 @@ def test_cli_a_failure_mid_run_leaves_no_csv_report_json_or_view(command, functi
 
     monkeypatch.setattr(plots_prediction, function, boom)
     source = "--query" if command == "predict" else "--targets"
-    with pytest.raises(RuntimeError, match="plot failed"):
-        main([command, "--train", measured["train"], source, measured["query"], "--method", "idw-joint", "--quiet",
-              "--csv", str(tmp_path / "o.csv"), "--out", str(tmp_path / "report"), "--json", str(tmp_path / "o.json"),
-              "--view", str(tmp_path / "view.html")])
+    code = main([command, "--train", measured["train"], source, measured["query"], "--method", "idw-joint", "--quiet",
+                 "--csv", str(tmp_path / "o.csv"), "--out", str(tmp_path / "report"), "--json", str(tmp_path / "o.json"),
+                 "--view", str(tmp_path / "view.html")])
+    assert code == 1 and "RuntimeError: plot failed" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.rglob("*")) == []
 
 

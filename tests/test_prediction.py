@@ -7,11 +7,9 @@ import pytest
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.estimator_checks import check_estimator
 
-from tcr_accuracy import cli_prediction
 from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.kinematics import tcp_poses
 from tcr_accuracy.prediction import (
-    METHODS,
     GeometricCalibration,
     InverseDistanceWeighting,
     JointKriging,
@@ -192,10 +190,6 @@ def test_pcc_is_numpy_corrcoef_of_the_pair_distances(ur5):
     std = pair_distances(q, p, e, standardise_joints=True)
     qs = (q - q.mean(0)) / q.std(0)
     assert std.joint[0] == pytest.approx(np.linalg.norm(qs[0] - qs[1]), rel=1e-12)
-
-
-def test_cli_method_list_matches_the_estimators():
-    assert cli_prediction.METHODS == METHODS
 
 
 def test_semivariogram_and_similarity_plots_are_written_whole(ur5, tmp_path):

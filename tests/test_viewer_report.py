@@ -2,7 +2,8 @@
 
 Body placements are compared with the TCP pose of the batched numpy engine (an independent
 path from Pinocchio's geometry placements), point clouds with the closed-form
-magnification, report tables with the values put in.
+magnification and, for the TCP error cloud, with the TCP multiplied out by hand from the
+URDF's numbers (conftest), report tables with the values put in.
 """
 
 import base64
@@ -19,11 +20,13 @@ matplotlib.use("Agg")
 
 from tcr_accuracy import report as report_module
 from tcr_accuracy.cli import main
-from tcr_accuracy.errors import seed_budget
+from tcr_accuracy.errors import ErrorModel, seed_budget
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.kinematics import pose_error, tcp_poses
+from tcr_accuracy.kinematics import tcp_poses
 from tcr_accuracy.report import Report
 from tcr_accuracy.viewer import Scene, auto_magnification, visual_geometry
+
+from conftest import TOOL_CHANGER_JOINTS, tool_changer_tcp_by_hand
 
 #: In the built-in tool-changer the end-effector box is centred 0.05 m along +y of the
 #: TCP frame (tcr_accuracy.tool_changer._link_geometry), and the TCP sits at j6's origin.
@@ -137,17 +140,32 @@ def test_auto_magnification_draws_the_largest_error_at_most_0_8_m():
 
 
 def test_tcp_error_cloud_matches_the_kinematics(tool_changer):
+    """The drawn cloud against the TCP multiplied out by hand (conftest), magnified by the
+    documented rule: 1, 2 or 5 x 10^k, the largest error drawn at most 0.8 m long."""
     robot, q = tool_changer, tool_changer.working_pose
-    budget = seed_budget(robot, "table2")
-    x = budget.sample(30, np.random.default_rng(11))
+    em = ErrorModel(robot)
+    rng = np.random.default_rng(11)
+    n = 30
+    # link length and drive errors of the seed's Table 2 kind, written into x by name
+    link_errors = rng.normal(0.0, 0.2e-3, (n, 6))  # [m]
+    drive_errors = rng.normal(0.0, np.radians(0.3), (n, 6))  # [rad]; j4's is metres
+    drive_errors[:, 3] = rng.normal(0.0, 0.25e-3, n)
+    x = np.zeros((n, em.size))
+    for i, (joint, _, origin, _) in enumerate(TOOL_CHANGER_JOINTS):
+        x[:, em.index(f"{joint}.{'dz' if origin[2] else 'dy'}")] = link_errors[:, i]
+        x[:, em.index(f"{joint}.drive")] = drive_errors[:, i]
     scene = Scene("cloud")
-    magnify = scene.add_tcp_error_cloud(robot, q, x, budget.error_model)
-    nominal = tcp_poses(robot, q)
-    actual = tcp_poses(robot, q, x, budget.error_model)
-    error = pose_error(nominal, actual)
-    assert magnify == auto_magnification(error.position_norm.max())
+    magnify = scene.add_tcp_error_cloud(robot, q, x, em)
+
+    nominal = tool_changer_tcp_by_hand(q)[:3, 3]
+    actual = np.array([tool_changer_tcp_by_hand(q, dl, dq)[:3, 3] for dl, dq in zip(link_errors, drive_errors)])
+    largest = np.linalg.norm(actual - nominal, axis=1).max()
+    assert 1e-3 < largest < 0.1  # millimetres to centimetres: magnified, not left at 1
+    factors = sorted(m * 10.0**k for k in range(8) for m in (1, 2, 5))
+    assert magnify in factors and magnify * largest <= 0.8
+    assert factors[factors.index(magnify) + 1] * largest > 0.8  # and the largest such factor
     drawn = _positions(_object(scene, "/meshcat/tcp_cloud"))
-    np.testing.assert_allclose(drawn, nominal.position + magnify * error.position, atol=1e-5)
+    np.testing.assert_allclose(drawn, nominal + magnify * (actual - nominal), atol=1e-5)  # float32
 
 
 def test_static_html_is_one_self_contained_file(tmp_path, tool_changer):
