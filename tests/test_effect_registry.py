@@ -30,7 +30,7 @@ class ElbowDroop(LinearEffect):
     name = "elbow_droop"
     order = 65.0
     summary = "toy: elbow turned by cos(q1 - q2)"
-    dominant_candidate = True
+    dominant_candidate = 6
 
     def __init__(self, robot, *, joint: int = 2) -> None:
         super().__init__(robot)

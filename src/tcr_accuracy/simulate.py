@@ -77,8 +77,9 @@ def outside_vocabulary() -> tuple[str, ...]:
 
 
 def dominant_candidates() -> tuple[str, ...]:
-    """Effects random_scenario may make dominant (``dominant_candidate`` on the class)."""
-    return tuple(n for n, c in effect_classes().items() if c.dominant_candidate)
+    """Effects random_scenario may make dominant, in their draw order (``dominant_candidate``)."""
+    ranked = [(c.dominant_candidate, n) for n, c in effect_classes().items() if c.dominant_candidate is not None]
+    return tuple(n for _, n in sorted(ranked))
 
 
 # ---------------------------------------------------------------------------------------

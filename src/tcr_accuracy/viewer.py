@@ -161,36 +161,16 @@ class _RecordingWindow:
 def visual_geometry(robot: RobotModel):
     """Pinocchio's visual ``GeometryModel`` of the robot, attached to ``robot.model``'s joints.
 
-    The full URDF is read (meshes with ``package://`` paths resolved through
-    ``robot.package_dirs``) and reduced to the TCP chain like the kinematic model, so the
-    geometry fits ``robot.model`` and any as-built copy of it.
+    The robot builds it from its own URDF and whole-tree model (``RobotModel.visual_model``):
+    the bodies of joints outside the TCP chain (another arm, a head) are drawn at their
+    neutral pose, and the geometry fits ``robot.model`` and any as-built copy of it.
 
     Raises
     ------
     InputError
         The URDF's visuals cannot be read (missing mesh file, ...).
     """
-    import pinocchio as pin
-
-    try:
-        full = pin.buildModelFromXML(robot.urdf_text)
-        geometry = pin.buildGeomFromUrdfString(full, robot.urdf_text, pin.GeometryType.VISUAL,
-                                               package_dirs=list(robot.package_dirs))
-    except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
-        raise InputError(f"{robot.name}: cannot read the URDF visuals ({exc})") from None
-    frame = full.frames[full.getFrameId(robot.tool_frame)]
-    chain = set(full.supports[frame.parentJoint])
-    locked = [j for j in range(1, full.njoints) if j not in chain]
-    if locked:
-        reduced, geometry = pin.buildReducedModel(full, geometry, locked, pin.neutral(full))
-    else:
-        reduced = full
-    if list(reduced.names) != list(robot.model.names):
-        raise InputError(
-            f"{robot.name}: the URDF's joints ({', '.join(list(reduced.names)[1:])}) do not match "
-            f"the model's ({', '.join(robot.joint_names)})"
-        )
-    return geometry
+    return robot.visual_model()
 
 
 # ---------------------------------------------------------------------------------------
@@ -288,6 +268,9 @@ class Scene:
         if not 0.0 < opacity <= 1.0:
             raise InputError(f"{name}: opacity {opacity} is outside (0, 1]")
         geometry = visual_geometry(robot)
+        if geometry.ngeoms == 0:  # a URDF without <visual> elements: draw the kinematic skeleton
+            self._add_skeleton(robot, q, name, color, opacity)
+            return
         if not include_base:
             for obj in [o for o in geometry.geometryObjects if o.parentJoint == 0]:
                 geometry.removeGeometryObject(obj.name)
@@ -313,6 +296,36 @@ class Scene:
         swatch = tuple(color) if color is not None else None
         suffix = f", {round(opacity * 100)} % opaque" if opacity < 1.0 else ""
         self.legend.append(LegendEntry(f"robot: {name}{suffix}", swatch))
+
+    def _add_skeleton(self, robot: RobotModel, q, name: str, color, opacity: float) -> None:
+        """Joint origins as spheres joined by links (parent to child) and the TCP, for a URDF
+        that has no visuals (point-mass models such as calibration data sets ship)."""
+        import pinocchio as pin
+
+        model = robot.model
+        data = model.createData()
+        pin.forwardKinematics(model, data, robot.to_pinocchio_q(q))
+        pin.updateFramePlacements(model, data)
+        origins = np.array([data.oMi[j].translation for j in range(model.njoints)])
+        tool = data.oMf[robot.tool_frame_id].translation
+        segments = [(origins[model.parents[j]], origins[j]) for j in range(1, model.njoints)]
+        segments.append((origins[model.frames[robot.tool_frame_id].parentJoint], tool))
+        rgb = tuple(color) if color is not None else (0.35, 0.38, 0.45)
+        mg = self._mg
+        node = self.vis[_node(name)]
+        pairs = np.array([p for segment in segments for p in segment], dtype=np.float32)
+        node["links"].set_object(mg.LineSegments(mg.PointsGeometry(pairs.T), mg.LineBasicMaterial(
+            color=_rgb_int(rgb), linewidth=4, transparent=opacity < 1.0, opacity=opacity)))
+        reach = float(np.max(np.linalg.norm(origins - origins[0], axis=1), initial=0.0)) or 1.0
+        for j, origin in enumerate(list(origins[1:]) + [tool]):
+            sphere = node[f"joint_{j}"]
+            sphere.set_object(mg.Sphere(0.02 * reach), mg.MeshLambertMaterial(
+                color=_rgb_int(rgb), transparent=opacity < 1.0, opacity=opacity))
+            sphere.set_transform(_translation(origin))
+        self._bounds.add(np.vstack([origins, tool[None]]))
+        suffix = f", {round(opacity * 100)} % opaque" if opacity < 1.0 else ""
+        self.legend.append(LegendEntry(f"robot: {name} (skeleton: the URDF has no visuals){suffix}",
+                                       rgb if color is not None else None))
 
     def add_point_cloud(self, points_m, values, name: str, label: str, *, cmap: str = "viridis",
                         vmin: float | None = None, vmax: float | None = None,

@@ -28,7 +28,7 @@ class Backlash(PerJointEffect):
     summary = "dead band per joint, on the side of gravity or of the approach"
     context_columns = ("payload_kg", "<joint>_dir")
     non_negative = True
-    dominant_candidate = True
+    dominant_candidate = 2
 
     def __init__(self, robot, *, link_mass_factors=None) -> None:
         super().__init__(robot)

@@ -17,8 +17,10 @@ class attribute             meaning
 ``requires_context``        meaningless without those columns (not tried when absent)
 ``non_negative``            its parameters are magnitudes (simulate draws |value|)
 ``stochastic``              random scatter, not a bias (tested, never fitted)
-``dominant_candidate``      ``random_scenario`` may make it the dominant hidden effect
-                            (then :meth:`Effect.dominant_spec` says how it is drawn)
+``dominant_candidate``      ``random_scenario`` may make it the dominant hidden effect (then
+                            :meth:`Effect.dominant_spec` says how it is drawn): its place in
+                            the draw (1, 2, ...; fixed so that a seed keeps drawing the
+                            same scenarios when effects are added), or None
 ``in_vocabulary``           False for effects only ``simulate`` can hide (a diagnosis must
                             admit what it cannot name)
 ==========================  ===========================================================
@@ -99,7 +101,7 @@ class Effect(abc.ABC):
     requires_context: ClassVar[bool] = False
     non_negative: ClassVar[bool] = False
     stochastic: ClassVar[bool] = False
-    dominant_candidate: ClassVar[bool] = False
+    dominant_candidate: ClassVar[int | None] = None
     in_vocabulary: ClassVar[bool] = True
     #: False when parameter_jacobian falls back to finite differences.
     analytic_jacobian: ClassVar[bool] = True

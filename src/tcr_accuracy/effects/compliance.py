@@ -29,7 +29,7 @@ class Compliance(PerJointEffect):
     summary = "joint elasticity about each axis under gravity and payload"
     context_columns = ("payload_kg",)
     non_negative = True
-    dominant_candidate = True
+    dominant_candidate = 1
 
     def __init__(self, robot, *, link_mass_factors=None) -> None:
         super().__init__(robot)

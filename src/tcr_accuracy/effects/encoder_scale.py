@@ -11,9 +11,9 @@ class EncoderScale(PerJointEffect):
     """Gear ratio (scale) error: ``dq_j = s_j q_j``. Parameters ``encoder_scale.<joint>`` [1]."""
 
     name = "encoder_scale"
-    order = 70.0
+    order = 55.0
     summary = "gear ratio (scale) error per joint"
-    dominant_candidate = True
+    dominant_candidate = 5
 
     def parameter_units(self):
         return ["1"] * self.n_params

@@ -24,7 +24,7 @@ class Thermal(LinearEffect):
     summary = "links growing with temperature"
     context_columns = ("temperature_c",)
     requires_context = True
-    dominant_candidate = True
+    dominant_candidate = 3
 
     def __init__(self, robot, *, per_link: bool = False,
                  reference_temperature_c: float = REFERENCE_TEMPERATURE_C) -> None:

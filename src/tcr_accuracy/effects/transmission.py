@@ -21,7 +21,7 @@ class Transmission(LinearEffect):
     name = "transmission"
     order = 60.0
     summary = "periodic gear error (harmonics of each joint angle)"
-    dominant_candidate = True
+    dominant_candidate = 4
 
     def __init__(self, robot, *, harmonics=(1, 2)) -> None:
         super().__init__(robot)
