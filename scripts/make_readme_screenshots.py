@@ -24,7 +24,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from tcr_accuracy.errors import seed_budget  # noqa: E402
-from tcr_accuracy.kinematics import error_jacobian, pose_error, tcp_poses  # noqa: E402
+from tcr_accuracy.jacobians import error_jacobian  # noqa: E402
+from tcr_accuracy.kinematics import pose_error, tcp_poses  # noqa: E402
 from tcr_accuracy.report import Report  # noqa: E402
 from tcr_accuracy.robot import load_robot  # noqa: E402
 from tcr_accuracy.viewer import Scene  # noqa: E402

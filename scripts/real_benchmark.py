@@ -84,7 +84,7 @@ def discover(data: Path) -> list[tuple[str, dict | None, str]]:
 def _guess(folder: Path) -> tuple[dict | None, str]:
     """One CSV and one URDF: the measured frame is the CSV's <frame>.x_mm prefix or a leaf link."""
     from tcr_accuracy.measurements import measured_frames
-    from tcr_accuracy.robot import parse_urdf_xml
+    from tcr_accuracy.urdf import parse_urdf_xml
 
     csvs, urdfs = sorted(folder.glob("*.csv")), sorted(folder.glob("*.urdf"))
     if len(csvs) != 1 or len(urdfs) != 1:

@@ -20,7 +20,8 @@ from scipy import optimize, stats
 
 from tcr_accuracy.clearance import ClearanceModel
 from tcr_accuracy.errors import seed_budget
-from tcr_accuracy.kinematics import error_jacobian, tcp_poses
+from tcr_accuracy.jacobians import error_jacobian
+from tcr_accuracy.kinematics import tcp_poses
 from tcr_accuracy.montecarlo import run_monte_carlo
 from tcr_accuracy.robot import load_robot
 from tcr_accuracy.sensitivity import allocate_tolerance

@@ -8,8 +8,8 @@ import pinocchio as pin
 import pytest
 
 from tcr_accuracy.errors import ErrorModel
+from tcr_accuracy.jacobians import error_jacobian
 from tcr_accuracy.kinematics import (
-    error_jacobian,
     euler_zyx,
     exp6_batch,
     pose_error,

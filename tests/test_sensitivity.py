@@ -12,7 +12,8 @@ from tcr_accuracy.clearance import ClearanceModel
 from tcr_accuracy.cli import main
 from tcr_accuracy.errors import ErrorBudget, ErrorModel, ErrorSource, seed_budget
 from tcr_accuracy.exceptions import AnalysisError, InputError
-from tcr_accuracy.kinematics import error_jacobian, tcp_poses
+from tcr_accuracy.jacobians import error_jacobian
+from tcr_accuracy.kinematics import tcp_poses
 from tcr_accuracy.sensitivity import (allocate_tolerance, clearance_sweeps, seed_sweeps, sobol_indices,
                                       SEED_ANGLE_SWEEP, SEED_LINK_SWEEP)
 

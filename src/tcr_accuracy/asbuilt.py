@@ -17,7 +17,8 @@ import pinocchio as pin
 
 from .errors import ErrorModel
 from .exceptions import InputError
-from .robot import RobotModel, parse_urdf_xml
+from .robot import RobotModel
+from .urdf import parse_urdf_xml
 
 
 def _origin_of(joint: ElementTree.Element) -> tuple[ElementTree.Element, pin.SE3]:

@@ -11,7 +11,7 @@ are several).
 For every effect and part, the effect's parameters map linearly onto error vectors per
 pose (:class:`EffectBasis`: joint-side offsets go into the drive slice of
 :class:`~tcr_accuracy.errors.ErrorModel`); chained with Pinocchio's error Jacobian
-(:func:`~tcr_accuracy.kinematics.error_jacobians`) this gives each parameter's column of
+(:func:`~tcr_accuracy.jacobians.error_jacobians`) this gives each parameter's column of
 the identification Jacobian. :class:`FitEngine` fits sets of effects by nonlinear least
 squares (scipy ``least_squares``; exact batched forward kinematics as the residual, the
 chained Jacobian as ``jac``) and scores them by k-fold held-out error.
@@ -36,7 +36,8 @@ from .context import MeasurementContext
 from .effects import vocabulary
 from .errors import ErrorModel
 from .identifiability import identifiability
-from .kinematics import error_jacobians, tcp_poses
+from .jacobians import error_jacobians
+from .kinematics import tcp_poses
 from .robot import JointLimitWarning, RobotModel
 
 

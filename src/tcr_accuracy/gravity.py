@@ -19,7 +19,8 @@ import numpy as np
 import pinocchio as pin
 
 from .exceptions import InputError
-from .robot import RobotModel, find_frame
+from .robot import RobotModel
+from .urdf import find_frame
 
 
 def gravity_model(robot: RobotModel, link_mass_factors=None, payload_kg: float = 0.0) -> pin.Model:

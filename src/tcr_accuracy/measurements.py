@@ -24,7 +24,6 @@ from __future__ import annotations
 import csv
 import io
 import math
-import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -32,6 +31,7 @@ import numpy as np
 
 from .context import REFERENCE_TEMPERATURE_C, MeasurementContext
 from .exceptions import InputError
+from .measurement_checks import MeasurementWarning, check_duplicates, check_position_units, warn_outside_limits
 from .robot import RobotModel
 from .units import JOINT_COLUMN_UNITS as _JOINT_UNITS
 from .units import JOINT_DISPLAY
@@ -43,10 +43,6 @@ QUATERNION_TOLERANCE = 1e-3
 
 QUATERNION_COLUMNS = ("qw", "qx", "qy", "qz")
 CONTEXT_COLUMNS = ("payload_kg", "temperature_c")
-
-
-class MeasurementWarning(UserWarning):
-    """Something in a measurement file is suspicious but may be intended."""
 
 
 # ---------------------------------------------------------------------------------------
@@ -291,7 +287,7 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
         if rule.joint in si:
             si[name] = rule.multiplier * si[rule.joint] + rule.offset
     q = np.stack([si[name] for name in robot.joint_names], axis=1)
-    _warn_outside_limits(robot, q, rows, columns["joints"], source)
+    warn_outside_limits(robot, q, rows, columns["joints"], source)
     outside_q = None
     if any(name in si for name in robot.outside_joint_names):
         outside_q = np.stack([si.get(name, np.zeros(len(rows))) for name in robot.outside_joint_names], axis=1)
@@ -339,9 +335,9 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
         quaternion=quaternion, payload_kg=payload, temperature_c=temperature, direction=direction,
         source=source, rows=rows, outside_q=outside_q,
     )
-    _check_duplicates(mset, values, header, source)
+    check_duplicates(mset, values, header, source, CONTEXT_COLUMNS)
     if check_units and position is not None:
-        _check_position_units(mset, robot, columns, source)
+        check_position_units(mset, robot, columns, source)
     return mset
 
 
@@ -404,85 +400,6 @@ def _resolve_columns(header, robot, source, line_no, require_position, logical):
     directions = [(j, f"{name}_dir") for j, name in enumerate(robot.joint_names) if f"{name}_dir" in seen]
     return {"joints": joints, "outside": outside, "position": position, "quaternion": bool(quats),
             "directions": directions}
-
-
-def _warn_outside_limits(robot, q, rows, joint_columns, source):
-    lo, hi = robot.lower_limits, robot.upper_limits
-    with np.errstate(invalid="ignore"):
-        outside = (q < lo - 1e-12) | (q > hi + 1e-12)
-    for j in np.flatnonzero(outside.any(axis=0)):
-        r = int(np.argmax(outside[:, j]))
-        scale, unit = robot.display_scale[j], robot.display_units[j]
-        warnings.warn(
-            f"{source}: row {rows[r]}, column {joint_columns[j][1] or joint_columns[j][0] + ' (mimic)'}: "
-            f"{int(outside[:, j].sum())} value(s) "
-            f"outside the limits [{lo[j] * scale:.6g}, {hi[j] * scale:.6g}] {unit} of joint "
-            f"{robot.joint_names[j]} (first: {q[r, j] * scale:.6g} {unit})",
-            MeasurementWarning, stacklevel=3,
-        )
-
-
-def _check_duplicates(mset, values, header, source):
-    """Exact copies of a row are an error; repeated poses under the same context warn."""
-    rows = mset.rows
-    full = {}
-    for k in range(len(rows)):
-        key = values[k].tobytes()
-        if key in full:
-            raise InputError(f"{source}: row {rows[k]} repeats row {rows[full[key]]} exactly "
-                             "(a copy-paste?); remove one")
-        full[key] = k
-    ctx_cols = [c for c, name in enumerate(header) if name in CONTEXT_COLUMNS or name.endswith("_dir")]
-    blocks = [mset.q, values[:, ctx_cols]] + ([mset.outside_q] if mset.outside_q is not None else [])
-    pose = np.concatenate(blocks, axis=1)
-    seen = {}
-    repeats = []
-    for k in range(len(rows)):
-        key = pose[k].tobytes()
-        if key in seen:
-            repeats.append((seen[key], k))
-        else:
-            seen[key] = k
-    if repeats:
-        a, b = repeats[0]
-        warnings.warn(
-            f"{source}: row {rows[b]} has the same joint values and context as row {rows[a]} "
-            f"({len(repeats)} repeated pose(s) in all); repeated poses weigh more in a fit",
-            MeasurementWarning, stacklevel=3,
-        )
-
-
-def _check_position_units(mset, robot, columns, source):
-    """Compare the spread of the measured TCP with the nominal model's spread.
-
-    The tracker frame is unknown, so absolute values say nothing; distances between
-    measured points do, and a rigid frame change keeps them.
-    """
-    from .kinematics import tcp_poses
-
-    if len(mset) < 3:
-        return
-    nominal = tcp_poses(robot, mset.q).position
-    model_spread = float(np.sqrt(np.mean(np.sum((nominal - nominal.mean(axis=0)) ** 2, axis=1))))
-    measured_spread = float(np.sqrt(np.mean(np.sum((mset.position - mset.position.mean(axis=0)) ** 2, axis=1))))
-    if model_spread < 1e-3:  # all poses (nearly) the same: nothing to compare
-        return
-    ratio = measured_spread / model_spread
-    if 0.5 <= ratio <= 2.0:
-        return
-    cols, unit = columns["position"]
-    other = "m" if unit == "mm" else "mm"
-    if 0.3e-3 <= ratio <= 3e-3 or 0.3e3 <= ratio <= 3e3:
-        hint = (f"the values look like {other}: name the columns "
-                f"{', '.join(f'{a}_{other}' for a in 'xyz')}")
-    else:
-        joint_units = ", ".join(col for _, col, _ in columns["joints"])
-        hint = f"check the position units and the joint columns' units ({joint_units})"
-    raise InputError(
-        f"{source}: columns {', '.join(cols)}: the measured points spread over "
-        f"{measured_spread * 1e3:.4g} mm (RMS about their centre) while the model's TCP at the same "
-        f"joint values spreads over {model_spread * 1e3:.4g} mm ({ratio:.3g} times); {hint}"
-    )
 
 
 # ---------------------------------------------------------------------------------------

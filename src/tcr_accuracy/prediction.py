@@ -19,7 +19,7 @@ E (n, 3) [m] (real minus nominal): ``fit(Q, E)`` returns self, ``predict(Q)`` gi
   see: the nominal TCP position (and orientation) from :class:`TcpFeatures`, then
   scikit-learn's MLPRegressor or the IDW above.
 * :class:`GeometricCalibration` -- the parametric way: least squares of the
-  identifiable geometric error parameters (``kinematics.error_jacobian`` gives the
+  identifiable geometric error parameters (``jacobians.error_jacobian`` gives the
   identification Jacobian, a pivoted QR picks the identifiable columns, scipy solves),
   optionally with a Gaussian process on its residual (:class:`ResidualCorrected`).
 """
@@ -43,7 +43,8 @@ from threadpoolctl import threadpool_limits
 
 from .errors import ErrorModel
 from .exceptions import InputError
-from .kinematics import error_jacobian, tcp_poses
+from .jacobians import error_jacobian
+from .kinematics import tcp_poses
 from .semivariogram import empirical_semivariogram, fit_gaussian_variogram, standardize
 
 _CHUNK = 1024  # query rows per block in JointKriging.predict (keeps the block in cache)
@@ -368,7 +369,7 @@ class GeometricCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
     """Least squares of the identifiable geometric error parameters from position errors.
 
     The identification Jacobian stacks the position rows of
-    :func:`~tcr_accuracy.kinematics.error_jacobian` at every training pose; a QR
+    :func:`~tcr_accuracy.jacobians.error_jacobian` at every training pose; a QR
     decomposition with column pivoting of its column-normalised form keeps the
     identifiable parameters (|R_ii| > rank_tol |R_00|); scipy's least_squares then fits
     them on the exact (nonlinear) forward kinematics. Predicts ``FK_x(q) - FK(q)``.

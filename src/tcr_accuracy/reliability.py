@@ -34,7 +34,10 @@ from scipy import stats
 
 from .errors import ErrorBudget
 from .exceptions import InputError
-from .kinematics import error_jacobian, tcp_chain_soa, tcp_poses
+from .jacobians import error_jacobian
+
+
+from .kinematics import tcp_chain_soa, tcp_poses
 
 
 @dataclass(frozen=True)
@@ -43,7 +46,7 @@ class FirstOrder:
 
     mean : (6,) expected TCP displacement (linear [m], rotation vector [rad]), J mu_x
     covariance : (6, 6) J Sigma_x J^T
-    jacobian : (6, n_params) from :func:`~tcr_accuracy.kinematics.error_jacobian`
+    jacobian : (6, n_params) from :func:`~tcr_accuracy.jacobians.error_jacobian`
     euler_covariance : (3, 3) first-order covariance of the ZYX Euler angle errors [rad^2]
     """
 

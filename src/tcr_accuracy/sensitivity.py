@@ -32,7 +32,8 @@ import numpy as np
 
 from .errors import ErrorBudget, ErrorModel, ErrorSource, link_length_direction
 from .exceptions import AnalysisError, InputError
-from .kinematics import error_jacobian, pose_error, tcp_poses
+from .jacobians import error_jacobian
+from .kinematics import pose_error, tcp_poses
 from .robot import REVOLUTE, RobotModel
 
 #: Output columns of sweeps and Sobol indices (SI units: m then rad).

@@ -23,7 +23,8 @@ import numpy as np
 
 from .errors import ErrorBudget
 from .exceptions import InputError
-from .kinematics import error_jacobian, tcp_poses
+from .jacobians import error_jacobian
+from .kinematics import tcp_poses
 from .robot import JointLimitWarning, RobotModel
 from .units import JOINT_COLUMN_UNITS, PRISMATIC
 

@@ -19,7 +19,8 @@ import numpy as np
 from ..context import MeasurementContext
 from ..errors import ErrorModel
 from ..exceptions import InputError
-from ..kinematics import TcpPoses, error_jacobians, tcp_poses
+from ..jacobians import error_jacobians
+from ..kinematics import TcpPoses, tcp_poses
 from ..robot import JointLimitWarning, RobotModel
 from .base import Effect
 

@@ -1,0 +1,132 @@
+"""First-order sensitivity of the TCP to the error parameters: the one home of the error Jacobian.
+
+From Pinocchio's frame Jacobian (joint side) and frame kinematic regressor (placement side),
+chained with the derivative of ``exp6`` at the current error vector; batched over poses
+(:func:`error_jacobians`), one pose at x = 0 (:func:`error_jacobian`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from .errors import ErrorModel
+from .robot import RobotModel
+
+
+# ---------------------------------------------------------------------------------------
+# First-order sensitivity of the TCP to the error parameters
+# ---------------------------------------------------------------------------------------
+def error_jacobian(robot: RobotModel, q: np.ndarray, error_model: ErrorModel | None = None) -> np.ndarray:
+    """d(TCP pose)/dx at x = 0 for one pose q (n_joints,), shape (6, n_params).
+
+    Rows are the TCP's linear displacement (base-frame axes, at the TCP point) then its
+    rotation vector (base frame), as in Pinocchio's LOCAL_WORLD_ALIGNED: one row of
+    :func:`error_jacobians`.
+    """
+    q = robot.check_joint_values(np.asarray(q, dtype=float), source="q")
+    return error_jacobians(robot, q[None], None, error_model)[1][0]
+
+
+#: skew(p)_ij = -eps_ijk p_k
+_LEVI_CIVITA = np.zeros((3, 3, 3))
+_LEVI_CIVITA[0, 1, 2] = _LEVI_CIVITA[1, 2, 0] = _LEVI_CIVITA[2, 0, 1] = 1.0
+_LEVI_CIVITA[0, 2, 1] = _LEVI_CIVITA[2, 1, 0] = _LEVI_CIVITA[1, 0, 2] = -1.0
+
+
+def error_jacobians(robot: RobotModel, q, x=None, error_model: ErrorModel | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """TCP Jacobians with respect to joint offsets and error parameters, per row (batched).
+
+    Parameters
+    ----------
+    q : (N, n_joints) actual joint values [SI] (commanded plus joint-side offsets)
+    x : (n_error_params,) or (N, n_error_params), optional
+        Error vector(s) the Jacobians are taken at: one for every row, or one per row
+        (effects that depend on the pose, such as lateral compliance, give each row its own).
+
+    Returns
+    -------
+    jq : (N, 6, n_joints) d(TCP)/d(q), jx : (N, 6, n_error_params) d(TCP)/d(x).
+    Rows: TCP displacement in base-frame axes, then rotation vector, as Pinocchio's
+    LOCAL_WORLD_ALIGNED. From Pinocchio's frame Jacobian and frame kinematic regressor
+    of the perturbed model, chained with the derivative of ``exp6`` (``pin.Jexp6``) at x.
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    em = error_model or ErrorModel(robot)
+    n, nj, p = q.shape[0], robot.n_joints, em.size
+    xs = None if x is None else np.atleast_2d(np.asarray(x, dtype=float))
+    per_row = xs is not None and xs.shape[0] > 1 and bool(np.any(xs != xs[0]))
+    if not per_row:
+        x_mean = np.zeros(em.size) if xs is None else xs.mean(axis=0)
+        work = em.perturbed_robot(x_mean) if x_mean.any() else robot
+        rows = [(range(n), work.model, _exp6_chains(robot, em, x_mean))]
+    else:
+        # one model copy, its placements rewritten per row
+        model = pin.Model(robot.model)
+        rows = [([i], model, _exp6_chains(robot, em, xs[i]), xs[i]) for i in range(n)]
+    jq = np.empty((n, 6, nj))
+    jx = np.zeros((n, 6, p))
+    frame_id = robot.tool_frame_id
+    plain_q = robot.model.nq == nj
+    idx_v = [robot.model.joints[j].idx_v for j in range(1, robot.model.njoints)]
+    regressors = np.empty((n, 6, 6 * nj))
+    rotations = np.empty((n, 3, 3))
+    positions = np.empty((n, 3))
+    chains = np.empty((n, nj, 6, 6))
+    base_chains = np.empty((n, 6, 6))
+    tool_chains = np.empty((n, 6, 6))
+    data = None
+    for block in rows:
+        indices, model, (chain, base_chain, tool_chain) = block[:3]
+        if per_row:
+            placements, tool = em.perturbed_placements(block[3])
+            for j, placement in enumerate(placements):
+                model.jointPlacements[j + 1] = placement
+            frame = model.frames[frame_id]
+            frame.placement = tool
+            model.frames[frame_id] = frame
+        if data is None or not per_row:
+            data = model.createData()
+        for i in indices:
+            qp = q[i] if plain_q else robot.to_pinocchio_q(q[i])
+            pin.computeJointJacobians(model, data, qp)
+            pin.updateFramePlacements(model, data)
+            rotations[i] = data.oMf[frame_id].rotation
+            positions[i] = data.oMf[frame_id].translation
+            regressors[i] = pin.computeFrameKinematicRegressor(model, data, frame_id, pin.LOCAL)
+            jq[i] = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)[:, idx_v]
+            chains[i], base_chains[i], tool_chains[i] = chain, base_chain, tool_chain
+    # LOCAL (TCP frame) -> base-frame axes, then chain each placement block with its exp6 derivative
+    aligned = (rotations[:, None] @ regressors.reshape(n, 2, 3, 6 * nj)).reshape(n, 6, nj, 6)
+    if per_row:
+        placement = np.einsum("nijk,njkl->nijl", aligned, chains)
+    else:
+        placement = (aligned.transpose(0, 2, 1, 3) @ chains[0]).transpose(0, 2, 1, 3)
+    jx[:, :, em.placement_slice] = placement.reshape(n, 6, 6 * nj)
+    jx[:, :, em.drive_slice] = jq
+    base = np.zeros((n, 6, 6))
+    base[:, :3, :3] = np.eye(3)
+    base[:, :3, 3:] = -np.einsum("nk,ikj->nij", positions, _LEVI_CIVITA)  # -skew(p)
+    base[:, 3:, 3:] = np.eye(3)
+    jx[:, :, em.base_slice] = base @ (base_chains if per_row else base_chains[0])
+    tool = np.zeros((n, 6, 6))
+    tool[:, :3, :3] = rotations
+    tool[:, 3:, 3:] = rotations
+    jx[:, :, em.tool_slice] = tool @ (tool_chains if per_row else tool_chains[0])
+    return jq, jx
+
+
+def _exp6_chains(robot: RobotModel, em: ErrorModel, x: np.ndarray):
+    """Right Jacobians of exp6 at the twists of x (exp6(xi + d) = exp6(xi) exp6(Jr d)):
+    per joint (nj, 6, 6) with the drive offset folded in, the base's left Jacobian and the tool's."""
+    parts = em.split(x)
+    axes = robot.motion_axes
+    chain = np.empty((robot.n_joints, 6, 6))
+    for j in range(robot.n_joints):
+        jr = pin.Jexp6(pin.Motion(parts.placement[j]))
+        drive = pin.exp6(axes[j] * parts.drive[j]).inverse().action
+        chain[j] = drive @ jr
+    base_xi = pin.Motion(parts.base)
+    base_chain = pin.exp6(base_xi).action @ pin.Jexp6(base_xi)  # left Jacobian = Ad(exp) Jr
+    return chain, base_chain, pin.Jexp6(pin.Motion(parts.tool))
