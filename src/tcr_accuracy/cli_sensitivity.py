@@ -102,8 +102,9 @@ def _sweep_json(result) -> dict:
 def _run_sensitivity(args) -> int:
     from .exceptions import InputError
     from .robot import load_robot
-    from .sensitivity import (OUTPUT_UNITS, OUTPUTS, clearance_sweeps, random_inputs, seed_sweeps,
-                              sobol_indices)
+    from .random_inputs import random_inputs
+    from .sensitivity import OUTPUT_UNITS, OUTPUTS, clearance_sweeps, seed_sweeps
+    from .sobol import sobol_indices
 
     n = args.sobol_samples
     if n < 2 or n & (n - 1):
@@ -255,7 +256,8 @@ def _run_tolerance(args) -> int:
 
     from .exceptions import AnalysisError, InputError
     from .robot import load_robot
-    from .sensitivity import allocate_tolerance, random_inputs
+    from .random_inputs import random_inputs
+    from .tolerance import allocate_tolerance
 
     if not (args.target_tol > 0 and math.isfinite(args.target_tol)):
         raise InputError(f"--target-tol {args.target_tol}: the tolerance must be a number > 0 [mm]")
