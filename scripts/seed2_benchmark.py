@@ -36,8 +36,9 @@ from tcr_accuracy.prediction import METHODS, make_predictor
 from tcr_accuracy.realrobot import make_stand_in_robot
 from tcr_accuracy.robot import load_robot
 from tcr_accuracy.sampling import TaskWorkspace, inverse_kinematics, sample_task_workspace
+from tcr_accuracy.scenario import truth_as_scenario
 from tcr_accuracy.similarity import pair_distances, spatial_similarity
-from tcr_accuracy.simulate import simulate_measurements, truth_as_scenario
+from tcr_accuracy.simulate import simulate_measurements
 
 SEED_TABLE3_MM = {"kriging-pf": (0.089, 0.172), "mlp-cartesian": (0.212, 0.359), "idw-cartesian": (0.502, 0.942)}
 SEED_COMPENSATION_MM = (4.96, 0.28)

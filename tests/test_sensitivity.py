@@ -14,8 +14,9 @@ from tcr_accuracy.errors import ErrorBudget, ErrorModel, ErrorSource, seed_budge
 from tcr_accuracy.exceptions import AnalysisError, InputError
 from tcr_accuracy.jacobians import error_jacobian
 from tcr_accuracy.kinematics import tcp_poses
-from tcr_accuracy.sensitivity import (allocate_tolerance, clearance_sweeps, seed_sweeps, sobol_indices,
-                                      SEED_ANGLE_SWEEP, SEED_LINK_SWEEP)
+from tcr_accuracy.sensitivity import SEED_ANGLE_SWEEP, SEED_LINK_SWEEP, clearance_sweeps, seed_sweeps
+from tcr_accuracy.sobol import sobol_indices
+from tcr_accuracy.tolerance import allocate_tolerance
 
 
 @pytest.fixture(scope="module")
@@ -235,7 +236,7 @@ def test_tolerance_factor_is_the_largest_that_meets_the_target(tool_changer, pro
     assert result.achieved_probability >= prob
     rng = np.random.default_rng(4)  # the same uniform draws, recomputed here by plain Monte Carlo
     from tcr_accuracy.kinematics import pose_error
-    from tcr_accuracy.sensitivity import random_inputs
+    from tcr_accuracy.random_inputs import random_inputs
 
     values = random_inputs(budget).values_from_unit(rng.uniform(size=(3000, len(budget.sources))))
     nominal = tcp_poses(tool_changer, q)

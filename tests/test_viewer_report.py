@@ -24,7 +24,8 @@ from tcr_accuracy.errors import ErrorModel, seed_budget
 from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.kinematics import tcp_poses
 from tcr_accuracy.report import Report
-from tcr_accuracy.viewer import Scene, auto_magnification, visual_geometry
+from tcr_accuracy.robot_visuals import visual_geometry
+from tcr_accuracy.viewer import Scene, auto_magnification
 
 from conftest import TOOL_CHANGER_JOINTS, tool_changer_tcp_by_hand
 

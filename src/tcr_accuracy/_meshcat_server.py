@@ -1,9 +1,9 @@
-"""meshcat's server bridge, listening on 127.0.0.1 only (run by ``viewer.LiveView``).
+"""meshcat's server bridge, listening on 127.0.0.1 only (run by ``meshcat_page.LiveView``).
 
 meshcat's ``meshcat-server`` binds its ZeroMQ socket to 127.0.0.1 but its web server
 (tornado ``Application.listen(port)``) to every interface; this subclass passes
 ``address="127.0.0.1"`` so the scene is never reachable from another machine. It also
-serves the page of :mod:`tcr_accuracy.viewer` (meshcat's viewer plus the legend) at
+serves the page of :mod:`tcr_accuracy.meshcat_page` (meshcat's viewer plus the legend) at
 ``/view``. The page's HTML is read from stdin; ``zmq_url=`` and ``web_url=`` lines on
 stdout tell the parent where to connect, as meshcat's own server does. The server stops
 when its parent process is gone.

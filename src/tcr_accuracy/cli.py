@@ -48,6 +48,49 @@ def seed_value(text: str) -> int:
     return seed
 
 
+#: Error distributions ``--preset`` names: the seed's Table 1, Table 2 and Table 4 (joint clearance).
+PRESETS = ("table1", "table2", "clearance")
+
+
+def add_sampler_arguments(parser: argparse.ArgumentParser, *, pose: bool = False) -> None:
+    """What an analysis of an error sampler starts from: ``--robot``, ``--tool``, (with pose)
+    ``--q``, ``--preset`` or ``--config``, and ``--seed`` (read with :func:`error_sampler`)."""
+    add_robot_arguments(parser)
+    if pose:
+        parser.add_argument("--q", nargs="+", type=float, metavar="VALUE",
+                            help="joint values: revolute [deg], prismatic [mm] (default: the working pose)")
+    source = parser.add_mutually_exclusive_group()
+    source.add_argument("--preset", choices=PRESETS, default=None,
+                        help="error distributions: the seed's Table 1, Table 2 or Table 4 (joint clearance); "
+                             "default table2")
+    source.add_argument("--config", default=None, metavar="FILE",
+                        help="TOML or YAML file of error distributions (as for 'montecarlo --config')")
+    parser.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
+
+
+def sampler_from_args(robot, preset: str | None, config: str | None):
+    """The error sampler of --preset (default table2) or --config FILE."""
+    if config is not None:
+        from .budget_file import load_budget_file
+
+        return load_budget_file(config, robot)
+    preset = preset or "table2"
+    if preset == "clearance":
+        from .clearance import ClearanceModel
+
+        return ClearanceModel.from_robot(robot)
+    from .errors import seed_budget
+
+    return seed_budget(robot, preset)
+
+
+def error_sampler(robot, args) -> tuple[object, str]:
+    """The error sampler of ``--preset`` or ``--config`` (an ErrorBudget or a ClearanceModel)
+    and a label for reports (the preset's name, or ``config FILE``)."""
+    sampler = sampler_from_args(robot, args.preset, args.config)
+    return sampler, args.preset or ("table2" if args.config is None else f"config {args.config}")
+
+
 def add_quiet_argument(parser: argparse.ArgumentParser) -> None:
     """``--quiet``: no progress bars and no status lines on stderr (results are still printed)."""
     parser.add_argument("--quiet", action="store_true",
@@ -186,6 +229,8 @@ TOPIC_MODULES: list[str] = [
     "cli_demo",
     "cli_montecarlo",
     "cli_sensitivity",
+    "cli_tolerance",
+    "cli_trajectory",
     "cli_simulate",
     "cli_view",
     "cli_diagnose",

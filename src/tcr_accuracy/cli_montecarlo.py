@@ -7,10 +7,8 @@ from __future__ import annotations
 
 import math
 
-from .cli import add_robot_arguments, format_joint_values, joint_values_si, seed_value
+from .cli import PRESETS, add_robot_arguments, format_joint_values, joint_values_si, sampler_from_args, seed_value
 from .cli_output import add_output_arguments, progress_bar
-
-PRESETS = ("table1", "table2", "clearance")
 
 #: What the "dp" column means (also written to the JSON).
 DP_DEFINITION = ("signed radial error |P_actual| - |P_nominal| [mm]: change of the TCP's distance "
@@ -77,22 +75,6 @@ def _check_args(args) -> None:
         raise InputError(f"--workers {args.workers}: must be >= 1")
     if args.view_samples < 1:
         raise InputError(f"--view-samples {args.view_samples}: need at least 1")
-
-
-def sampler_from_args(robot, preset: str | None, config: str | None):
-    """The error sampler of --preset (default table2) or --config FILE."""
-    if config is not None:
-        from .budget_file import load_budget_file
-
-        return load_budget_file(config, robot)
-    preset = preset or "table2"
-    if preset == "clearance":
-        from .clearance import ClearanceModel
-
-        return ClearanceModel.from_robot(robot)
-    from .errors import seed_budget
-
-    return seed_budget(robot, preset)
 
 
 def _client(args):

@@ -45,7 +45,8 @@ def _run_simulate(args) -> int:
     from .exceptions import InputError
     from .measurements import read_measurements, write_measurements
     from .robot import load_robot
-    from .simulate import load_scenario, random_scenario, scenario_from_dict, simulate_measurements, write_truth
+    from .scenario import load_scenario, scenario_from_dict
+    from .simulate import random_scenario, simulate_measurements, write_truth
 
     robot = load_robot(args.robot, args.tool)
     rng = np.random.default_rng(args.seed)

@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 
 from .plots_common import pyplot, save_figure
-from .sensitivity import OUTPUTS, SobolIndices, SweepResult
+from .sensitivity import OUTPUTS, SweepResult
+from .sobol import SobolIndices
 from .trajectory import TrajectoryErrorBands
 
 _LABELS = {
