@@ -4,7 +4,8 @@
   second seed's Figs. 4-7).
 * :func:`plot_semivariograms` -- semivariance of the standardised x, y, z error against
   joint distance with the fitted Gaussian model, overall and along each joint (its Fig. 10).
-* :func:`plot_predicted_errors` -- the predicted error at each query pose (``predict``).
+* :func:`plot_predicted_errors` -- the predicted error at each query pose, with its
+  +-2 std band and the measured error where known (``predict``).
 * :func:`plot_compensation` -- the predicted error at the targets before and after
   compensation (``compensate``).
 
@@ -70,8 +71,20 @@ def plot_semivariograms(q: np.ndarray, errors: np.ndarray, path, n_bins: int = 2
     return save_figure(fig, path, tight=True)
 
 
-def plot_predicted_errors(errors: np.ndarray, path) -> Path:
-    """errors (N, 3) [m]: components and magnitude per query pose, and a histogram of |e| [mm]."""
+def plot_predicted_errors(errors: np.ndarray, path, std: np.ndarray | None = None,
+                          measured: np.ndarray | None = None) -> Path:
+    """The predicted error per query pose, and a histogram of its magnitude [mm].
+
+    Parameters
+    ----------
+    errors : array of shape (N, 3)
+        Predicted errors [m].
+    path : path of the PNG
+    std : array of shape (N, 3), optional
+        Standard deviation of each component [m]: drawn as a +-2 std band.
+    measured : array of shape (N, 3), optional
+        Measured errors at the same poses [m]: drawn as markers next to the prediction.
+    """
     e = np.asarray(errors, dtype=float).reshape(-1, 3) * 1e3
     norm = np.linalg.norm(e, axis=1)
     rows = np.arange(len(e)) + 2  # CSV row numbers (row 1 is the header)
@@ -79,11 +92,18 @@ def plot_predicted_errors(errors: np.ndarray, path) -> Path:
     plt, fig, axes = _figure(1, 2, (11, 3.8))
     ax = axes[0, 0]
     for k, axis in enumerate("xyz"):
-        ax.plot(rows, e[:, k], marker=marker, ms=3, lw=0.8, label=f"e{axis}")
+        line = ax.plot(rows, e[:, k], marker=marker, ms=3, lw=0.8, label=f"e{axis}")[0]
+        if std is not None:
+            band = 2e3 * np.asarray(std, dtype=float).reshape(-1, 3)[:, k]
+            ax.fill_between(rows, e[:, k] - band, e[:, k] + band, color=line.get_color(), alpha=0.15, lw=0,
+                            label=f"e{axis} +- 2 std")
+        if measured is not None:
+            ax.plot(rows, np.asarray(measured, dtype=float).reshape(-1, 3)[:, k] * 1e3, "x", ms=4,
+                    color=line.get_color(), label=f"measured e{axis}")
     ax.plot(rows, norm, marker=marker, ms=3, lw=1.4, color="black", label="|e|")
     ax.set_xlabel("query CSV row")
     ax.set_ylabel("predicted error [mm]")
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=6, ncol=2 if (std is not None or measured is not None) else 1)
     ax = axes[0, 1]
     ax.hist(norm, bins=min(40, max(5, len(norm) // 4)), color="tab:orange")
     ax.set_xlabel("predicted |e| [mm]")
