@@ -80,8 +80,10 @@ def _tracker_prediction(ur5, payload, predicted_mm, q):
 def test_predict_scores_itself_on_measured_queries_in_a_tracker_frame(ur5, tracked, capsys):
     d = tracked["dir"]
     code, out, err = run(["predict", "--robot", "ur5", "--train", tracked["train"], "--query", tracked["query"],
-                          "--method", "gp", "--csv", str(d / "gp.csv"), "--json", str(d / "gp.json")], capsys)
+                          "--method", "gp", "--csv", str(d / "gp.csv"), "--json", str(d / "gp.json"),
+                          "--plots", str(d / "plots")], capsys)
     assert code == 0, err
+    assert (d / "plots" / "predicted_errors.png").read_bytes().startswith(b"\x89PNG")  # std band, measured marks
     payload = json.loads((d / "gp.json").read_text())
     held = payload["heldout"]
     assert set(held) >= {"mean_mm", "max_mm", "rms_mm", "count"} and held["count"] == 40

@@ -321,9 +321,11 @@ def _run_predict(args) -> int:
     out.add_plots(lambda folder: [plot_predicted_errors(pred, Path(folder) / "predicted_errors.png", std=std,
                                                         measured=measured_error)],
                   {"predicted_errors.png": "Predicted TCP error at each query pose (components and magnitude"
-                                           + (", two standard deviations" if std is not None else "")
+                                           + (", +-2 standard deviations" if std is not None else "")
                                            + (", the measured error" if measured is not None else "")
-                                           + ") and its distribution"})
+                                           + ") and its distribution"
+                                           + ("; the held-out miss, measured - predicted error, per pose"
+                                              if measured is not None else "")})
     if out.scene_wanted:
         out.set_scene(*_predict_scene(robot, q, pred, norm, args))
     header = _joint_columns(robot) + ["ex_mm", "ey_mm", "ez_mm", "e_norm_mm"]
