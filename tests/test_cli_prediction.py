@@ -204,6 +204,6 @@ def test_bad_query_and_training_files_are_one_line_exit_2_and_write_nothing(ur5,
                               "--out", str(outputs[2])], capsys)
         assert code == 2, (extra, err)
         assert err.count("\n") == 1 and err.startswith("tcr-accuracy predict: error: ") and message in err, err
-        assert "Traceback" not in err and not any(p.exists() for p in outputs)
+        assert "Traceback" not in err and out == "" and not any(p.exists() for p in outputs)
     code, out, err = run(["compensate", "--robot", "ur5", "--train", train, "--targets", nan_query], capsys)
-    assert code == 2 and err.count("\n") == 1 and "non-finite value 'nan'" in err
+    assert code == 2 and out == "" and err.count("\n") == 1 and "non-finite value 'nan'" in err

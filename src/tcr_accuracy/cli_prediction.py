@@ -338,8 +338,8 @@ def _run_predict(args) -> int:
         blocks += [measured_error * 1e3, np.linalg.norm(residual, axis=1)[:, None] * 1e3]
     _write_csv_atomically(args, "predictions", header, np.hstack(blocks))
     lines = [_frame_line(model, args),
-             f"predicted |error| at {q.shape[0]} query poses: mean {norm.mean() * 1e3:.4f} mm, "
-             f"max {norm.max() * 1e3:.4f} mm (robot base frame, TCP offset included)",
+             (f"predicted |error| at {q.shape[0]} query poses: mean {norm.mean() * 1e3:.4f} mm, "
+              f"max {norm.max() * 1e3:.4f} mm (robot base frame, TCP offset included)"),
              (f"uncertainty ({kind}): mean std per axis {np.mean(std) * 1e3:.4f} mm" if std is not None
               else f"uncertainty: none ({args.method} gives no standard deviation)")]
     if heldout is not None:
@@ -461,10 +461,10 @@ def _run_compensate(args) -> int:
     _write_csv_atomically(args, "compensated joint values", header,
                           np.hstack([result.q * scale, dq, result.predicted_miss[:, None] * 1e3]))
     lines = [_frame_line(model, args),
-             f"{q.shape[0]} targets compensated in at most {result.iterations.max()} cycles; largest joint "
-             f"correction {np.abs(dq).max():.4g} ({', '.join(sorted(set(units)))})",
-             f"predicted error at the targets: mean {before.mean() * 1e3:.4f} mm, max {before.max() * 1e3:.4f} mm "
-             f"before; mean {after.mean() * 1e3:.2g} mm, max {after.max() * 1e3:.2g} mm after"]
+             (f"{q.shape[0]} targets compensated in at most {result.iterations.max()} cycles; largest joint "
+              f"correction {np.abs(dq).max():.4g} ({', '.join(sorted(set(units)))})"),
+             (f"predicted error at the targets: mean {before.mean() * 1e3:.4f} mm, max {before.max() * 1e3:.4f} mm "
+              f"before; mean {after.mean() * 1e3:.2g} mm, max {after.max() * 1e3:.2g} mm after")]
     if heldout is not None:
         lines.append(f"measured at the targets (held out): error {heldout['measured_error_before_mean_mm']:.4f} mm "
                      f"mean uncompensated; |measured - predicted error| mean {heldout['mean_mm']:.4f} mm, "

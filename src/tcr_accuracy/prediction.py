@@ -379,6 +379,11 @@ class TcpFeatures(TransformerMixin, BaseEstimator):
         return np.hstack([pose.position, pose.rotation[:, :, :2].reshape(len(X), 6)])
 
 
+#: Starting points of the GP's likelihood search: (signal variance, white-noise variance),
+#: in units of the standardised target's variance; length scales start at 1.
+GP_STARTS = {"smooth": (1.0, 1e-4), "noisy": (0.1, 0.1)}
+
+
 class JointGaussianProcess(MultiOutputMixin, RegressorMixin, BaseEstimator):
     """A Gaussian process per error axis on standardised joint values (scikit-learn's).
 
@@ -430,8 +435,6 @@ class JointGaussianProcess(MultiOutputMixin, RegressorMixin, BaseEstimator):
     >>> mean, std = gp.predict(X[:3], return_std=True)
     """
 
-    _STARTS = {"smooth": (1.0, 1e-4), "noisy": (0.1, 0.1)}
-
     def __init__(self, *, kernel="rbf", length_scale_bounds=(0.05, 1e3), noise_level_bounds=(1e-9, 1.0),
                  starts=("smooth", "noisy"), max_optimize_samples=600, n_restarts_optimizer=0,
                  random_state=None):
@@ -444,9 +447,9 @@ class JointGaussianProcess(MultiOutputMixin, RegressorMixin, BaseEstimator):
         self.random_state = random_state
 
     def _kernel(self, start: str, n_features: int):
-        if start not in self._STARTS:
-            raise InputError(f"starts: unknown start {start!r}; choose from {', '.join(self._STARTS)}")
-        signal, noise = self._STARTS[start]
+        if start not in GP_STARTS:
+            raise InputError(f"starts: unknown start {start!r}; choose from {', '.join(GP_STARTS)}")
+        signal, noise = GP_STARTS[start]
         lower, upper = self.length_scale_bounds
         noise = float(np.clip(noise, *self.noise_level_bounds))
         if self.kernel == "rbf":
