@@ -9,6 +9,14 @@ fitted to the 160 and scored on the 80 (|predicted - measured error|, as the see
 scores it, and against the noise-free truth); the best one and the seed's method then
 compensate the 80 targets and the simulated tracker measures the result.
 
+As ``tcr-accuracy predict`` does, every method is fitted through
+``prediction.MeasuredErrorModel``: the tracker frame and the TCP offset are registered on
+the 160 training measurements first (``--frame fit``, the default) and every error,
+measured, true or after compensation, is taken in that registered base frame, as a user
+with a tracker in its own frame would see it. ``--frame base`` takes the simulated
+tracker's frame as the base frame (only the TCP offset is fitted), the setting of the
+runs before the frame fit existed.
+
     python scripts/seed2_benchmark.py                       # tool-changer with the 150 kg cutter
     python scripts/seed2_benchmark.py --robot ur5 --json out.json --plots figures/
 
@@ -32,7 +40,7 @@ from threadpoolctl import threadpool_limits
 from tcr_accuracy.atomic import write_text_atomically
 from tcr_accuracy.compensation import compensate_joints
 from tcr_accuracy.kinematics import tcp_poses
-from tcr_accuracy.prediction import METHODS, make_predictor
+from tcr_accuracy.prediction import METHODS, MeasuredErrorModel, make_predictor
 from tcr_accuracy.realrobot import make_stand_in_robot
 from tcr_accuracy.robot import load_robot
 from tcr_accuracy.sampling import TaskWorkspace, inverse_kinematics, sample_task_workspace
@@ -113,7 +121,8 @@ def similarity_study(robot, real, q_ref, workspace, mode, rng, n=50):
     return out
 
 
-def run(robot_name: str, seed: int, plots: Path | None, quiet: bool, truth: str = "standin") -> dict:
+def run(robot_name: str, seed: int, plots: Path | None, quiet: bool, truth: str = "standin",
+        frame: str = "fit", methods_run=METHODS) -> dict:
     rng = np.random.default_rng(seed)
     robot = load_robot(robot_name)
     q_ref, half_box, half_angle_deg, payload, mode = SETUPS[robot.name]
@@ -130,22 +139,22 @@ def run(robot_name: str, seed: int, plots: Path | None, quiet: bool, truth: str 
     ik = inverse_kinematics(robot, positions, rotations, q_ref, orientation=mode)
     q_test = ik.q[ik.success][:80]
     q_train = sample.q
-    e_train = real.measure(q_train) - tcp_poses(robot, q_train).position
+    p_train = real.measure(q_train)
     target = tcp_poses(robot, q_test).position
-    e_test = real.measure(q_test) - target
-    e_true = real.true_errors(q_test)
+    p_test = real.measure(q_test)
+    p_true = real.true_positions(q_test)
 
     methods, fitted, fit_seconds = {}, {}, {}
-    for name in METHODS:
-        est = make_predictor(name, robot, random_state=seed)
+    for name in methods_run:
+        est = MeasuredErrorModel(robot=robot, estimator=make_predictor(name, robot, random_state=seed),
+                                 fit_frame=frame == "fit")
         t0 = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ConvergenceWarning)  # sklearn's iteration caps
-            est.fit(q_train, e_train)
+            est.fit(q_train, p_train)
         fit_seconds[name] = time.perf_counter() - t0
-        pred = est.predict(q_test)
-        d = np.linalg.norm(pred - e_test, axis=1) * 1e3
-        dt = np.linalg.norm(pred - e_true, axis=1) * 1e3
+        d = np.linalg.norm(est.heldout_residual(q_test, p_test), axis=1) * 1e3
+        dt = np.linalg.norm(est.heldout_residual(q_test, p_true), axis=1) * 1e3
         methods[name] = {"mean_mm": float(d.mean()), "max_mm": float(d.max()),
                          "truth_mean_mm": float(dt.mean()), "truth_max_mm": float(dt.max()),
                          "fit_s": fit_seconds[name]}
@@ -153,13 +162,16 @@ def run(robot_name: str, seed: int, plots: Path | None, quiet: bool, truth: str 
         if not quiet:
             print(f"  [{robot.name}] {name}: fitted in {fit_seconds[name]:.1f} s", file=sys.stderr)
     best = min(methods, key=lambda m: methods[m]["mean_mm"])
+    e_train = fitted[best].errors_  # training errors in the registered base frame
 
     compensation = {}
-    for name in dict.fromkeys((best, SEED_METHOD)):
-        result = compensate_joints(robot, fitted[name], q_test, threshold=1e-6)
-        before = np.linalg.norm(real.measure(q_test) - target, axis=1) * 1e3
-        after = np.linalg.norm(real.measure(result.q) - target, axis=1) * 1e3
-        after_true = np.linalg.norm(real.true_positions(result.q) - target, axis=1) * 1e3
+    for name in dict.fromkeys(m for m in (best, SEED_METHOD) if m in fitted):
+        model = fitted[name]
+        result = compensate_joints(robot, model.error_model_, q_test, threshold=1e-6)
+        to_base = model.registration_.to_base
+        before = np.linalg.norm(to_base(real.measure(q_test)) - target, axis=1) * 1e3
+        after = np.linalg.norm(to_base(real.measure(result.q)) - target, axis=1) * 1e3
+        after_true = np.linalg.norm(to_base(real.true_positions(result.q)) - target, axis=1) * 1e3
         compensation[name] = {"before_mean_mm": float(before.mean()), "before_max_mm": float(before.max()),
                               "after_mean_mm": float(after.mean()), "after_max_mm": float(after.max()),
                               "after_truth_mean_mm": float(after_true.mean()),
@@ -169,11 +181,11 @@ def run(robot_name: str, seed: int, plots: Path | None, quiet: bool, truth: str 
     # speed: 10,000 joint vectors from the 160 training points
     q_many = sample.dense_q[rng.integers(len(sample.dense_q), size=10_000)]
     speed = {}
-    for name in (SEED_METHOD, "kriging", "gp"):
+    for name in (m for m in (SEED_METHOD, "kriging", "gp") if m in fitted):
         t0 = time.perf_counter()
-        fitted[name].predict(q_many)
+        fitted[name].error_model_.residual_.predict(q_many)
         speed[f"{name}_predict_10000_s"] = time.perf_counter() - t0
-    speed["weight_search_s"] = fit_seconds[SEED_METHOD]
+    speed["weight_search_s"] = fit_seconds.get(SEED_METHOD)
 
     similarity = similarity_study(robot, real, q_ref, workspace, mode, rng)
     if plots is not None:
@@ -185,7 +197,7 @@ def run(robot_name: str, seed: int, plots: Path | None, quiet: bool, truth: str 
                             joint_names=robot.joint_names)
 
     return {
-        "robot": robot.name, "truth": truth, "payload_kg": payload, "noise_mm": real.noise_m * 1e3,
+        "robot": robot.name, "truth": truth, "frame": frame, "payload_kg": payload, "noise_mm": real.noise_m * 1e3,
         "noise_mean_norm_mm": float(real.noise_m * 1e3 * np.sqrt(8 / np.pi)),
         "n_train": int(len(q_train)), "n_test": int(len(q_test)),
         "sampling": {"dense_targets": sample.n_dense, "ik_failed": sample.n_failed, "seconds": t_sampling},
@@ -194,9 +206,11 @@ def run(robot_name: str, seed: int, plots: Path | None, quiet: bool, truth: str 
         "speed": speed,
         "similarity": {k: {"pcc_joint": r.pcc_joint, "pcc_cartesian": r.pcc_cartesian}
                        for k, (_, r) in similarity.items()},
-        "kriging_pf_weights": np.asarray(fitted[SEED_METHOD].weights_).tolist(),
-        "gp_length_scales": [np.asarray(e.kernel_.k1.k2.length_scale).tolist()
-                             for e in fitted["gp"][-1].estimators_],
+        "tracker_frame": {m: fitted[m].registration_.to_dict() for m in list(fitted)[:1]},
+        "kriging_pf_weights": (np.asarray(fitted[SEED_METHOD].error_model_.residual_.weights_).tolist()
+                               if SEED_METHOD in fitted else None),
+        "gp_length_scales": ([np.asarray(k.k1.k2.length_scale).tolist()
+                              for k in fitted["gp"].error_model_.residual_.kernels_] if "gp" in fitted else None),
     }
 
 
@@ -204,10 +218,10 @@ def print_report(results: list[dict]) -> None:
     names = [r["robot"] for r in results]
     head = "".join(f" | {n + ' mean/max [mm]':>26s} {'vs truth':>15s}" for n in names)
     print(f"\nPrediction error on {results[0]['n_test']} test poses, {results[0]['n_train']} training poses, "
-          f"hidden truth: {results[0]['truth']} "
+          f"hidden truth: {results[0]['truth']}, frame: {results[0]['frame']} "
           f"(|predicted - measured error|; 'vs truth': against the noise-free error)")
     print(f"{'method':15s} {'seed (real KUKA)':>17s}{head}")
-    for m in METHODS:
+    for m in results[0]["methods"]:
         seed = SEED_TABLE3_MM.get(m)
         seed_txt = f"{seed[0]:.3f}/{seed[1]:.3f}" if seed else ""
         row = "".join(f" | {r['methods'][m]['mean_mm']:12.4f} /{r['methods'][m]['max_mm']:7.4f}    "
@@ -233,10 +247,12 @@ def print_report(results: list[dict]) -> None:
     print("\nSpeed (shared machine; the lead re-measures)")
     for r in results:
         s = r["speed"]
-        print(f"  {r['robot']}: predict 10,000 poses: {SEED_METHOD} {s[SEED_METHOD + '_predict_10000_s']:.3f} s, "
-              f"kriging {s['kriging_predict_10000_s']:.3f} s, sklearn GP {s['gp_predict_10000_s']:.3f} s; "
-              f"weight search {s['weight_search_s']:.1f} s; sampling {r['sampling']['seconds']:.1f} s "
+        timings = ", ".join(f"{k[:-len('_predict_10000_s')]} {v:.3f} s" for k, v in s.items()
+                            if k.endswith("_predict_10000_s"))
+        search = f"; weight search {s['weight_search_s']:.1f} s" if s.get("weight_search_s") is not None else ""
+        print(f"  {r['robot']}: predict 10,000 poses: {timings}{search}; sampling {r['sampling']['seconds']:.1f} s "
               f"({r['sampling']['dense_targets']} dense IK targets, {r['sampling']['ik_failed']} not reached)")
+        print(f"  {r['robot']}: fit " + ", ".join(f"{m} {v['fit_s']:.1f} s" for m, v in r["methods"].items()))
 
 
 def main(argv=None) -> int:
@@ -248,10 +264,16 @@ def main(argv=None) -> int:
     parser.add_argument("--truth", choices=("standin", "simulate"), default="standin",
                         help="hidden truth: realrobot's stand-in (geometry + gravity compliance) or "
                              "tcr_accuracy.simulate's effect library (geometry, joint offsets, compliance)")
+    parser.add_argument("--frame", choices=("fit", "base"), default="fit",
+                        help="fit: register the tracker frame on the training data, as predict does (default); "
+                             "base: the simulated tracker's frame is the base frame")
+    parser.add_argument("--methods", nargs="+", choices=METHODS, default=list(METHODS), metavar="METHOD",
+                        help="methods to run (default: all)")
     parser.add_argument("--quiet", action="store_true")
     args = parser.parse_args(argv)
     with threadpool_limits(1):
-        results = [run(name, args.seed, args.plots, args.quiet, args.truth) for name in args.robot]
+        results = [run(name, args.seed, args.plots, args.quiet, args.truth, args.frame, tuple(args.methods))
+                   for name in args.robot]
     print_report(results)
     if args.json:
         payload = dict(results[0])

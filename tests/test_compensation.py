@@ -129,14 +129,15 @@ def run(argv, capsys):
 
 
 def test_cli_predict_writes_predictions_close_to_the_hidden_error(measured, tool_changer, capsys):
+    """The stand-in robot is measured in its base frame (--frame base): its hidden error is the truth."""
     out_csv = measured["dir"] / "pred.csv"
-    code, out, err = run(["predict", "--train", measured["train"], "--query", measured["query"],
+    code, out, err = run(["predict", "--train", measured["train"], "--query", measured["query"], "--frame", "base",
                           "--method", "kriging", "--csv", str(out_csv), "--json", str(measured["dir"] / "p.json")],
                          capsys)
     assert code == 0, err
     rows = np.loadtxt(out_csv, delimiter=",", skiprows=1)
     header = out_csv.read_text().splitlines()[0].split(",")
-    assert header[-4:] == ["ex_mm", "ey_mm", "ez_mm", "e_norm_mm"]
+    assert header[6:] == ["ex_mm", "ey_mm", "ez_mm", "e_norm_mm", "ex_std_mm", "ey_std_mm", "ez_std_mm"]
     np.testing.assert_allclose(rows[:, :6] / tool_changer.display_scale, measured["q_query"], atol=1e-8)
     truth = measured["real"].true_errors(measured["q_query"]) * 1e3
     assert np.abs(rows[:, 6:9] - truth).max() < 0.1 * np.abs(truth).max()
@@ -147,7 +148,7 @@ def test_cli_predict_writes_predictions_close_to_the_hidden_error(measured, tool
 def test_cli_compensate_writes_joints_that_reach_the_targets(measured, tool_changer, capsys):
     out_csv = measured["dir"] / "comp.csv"
     code, out, err = run(["compensate", "--train", measured["train"], "--targets", measured["query"],
-                          "--method", "kriging", "--csv", str(out_csv)], capsys)
+                          "--frame", "base", "--method", "kriging", "--csv", str(out_csv)], capsys)
     assert code == 0, err
     q_comp = np.loadtxt(out_csv, delimiter=",", skiprows=1)[:, :6] / tool_changer.display_scale
     target = tcp_poses(tool_changer, measured["q_query"]).position
@@ -206,8 +207,8 @@ def test_cli_predict_report_view_and_csv_agree_with_the_json(measured, tool_chan
     d = measured["dir"] / "predict_outputs"
     d.mkdir()
     code, out, err = run(["predict", "--train", measured["train"], "--query", measured["query"], "--method", "kriging",
-                          "--csv", str(d / "p.csv"), "--json", str(d / "p.json"), "--out", str(d / "report"),
-                          "--view", str(d / "view.html")], capsys)
+                          "--frame", "base", "--csv", str(d / "p.csv"), "--json", str(d / "p.json"),
+                          "--out", str(d / "report"), "--view", str(d / "view.html")], capsys)
     assert code == 0, err
     data = json.loads((d / "p.json").read_text())
     csv = np.loadtxt(d / "p.csv", delimiter=",", skiprows=1)
@@ -220,9 +221,13 @@ def test_cli_predict_report_view_and_csv_agree_with_the_json(measured, tool_chan
     assert stats["max"][0] == pytest.approx(norm.max(), rel=1e-3)
     assert stats["max"][3] == pytest.approx(np.abs(pred[:, 2]).max(), rel=1e-3)
     per_pose = tables["Predicted error per query pose"]
-    assert len(per_pose) == 1 + 8 and per_pose[0][-1] == "|e| [mm]"
-    for row, p in zip(per_pose[1:], pred):
-        assert [float(v) for v in row[-4:-1]] == pytest.approx(p, rel=1e-3, abs=1e-6)
+    assert len(per_pose) == 1 + 8 and per_pose[0][-4:] == ["|e| [mm]", "std x [mm]", "std y [mm]", "std z [mm]"]
+    std = np.array(data["predicted_std_mm"])
+    np.testing.assert_allclose(csv[:, 10:13], std, rtol=1e-8, atol=1e-12)
+    for row, p, s in zip(per_pose[1:], pred, std):
+        assert [float(v) for v in row[7:10]] == pytest.approx(p, rel=1e-3, abs=1e-6)
+        assert [float(v) for v in row[-3:]] == pytest.approx(s, rel=1e-3, abs=1e-6)
+    assert data["uncertainty"] == "kriging standard deviation" and data["heldout"] is None
     predictor = dict(tables["Predictor"][1:])
     assert predictor["method"] == "kriging" and predictor["training poses"] == "60"
     page = (d / "report" / "index.html").read_text(encoding="utf-8")
@@ -235,7 +240,7 @@ def test_cli_predict_report_view_and_csv_agree_with_the_json(measured, tool_chan
 
 def test_cli_compensate_report_shows_before_and_after_of_the_json(measured, tool_changer, capsys):
     d = measured["dir"] / "compensate_outputs"
-    code, out, err = run(["compensate", "--train", measured["train"], "--targets", measured["query"],
+    code, out, err = run(["compensate", "--train", measured["train"], "--targets", measured["query"], "--frame", "base",
                           "--method", "kriging", "--json", str(d.with_suffix(".json")), "--out", str(d),
                           "--plots", str(d.with_name("comp_plots")), "--quiet"], capsys)
     assert code == 0 and err == ""

@@ -170,3 +170,18 @@ def test_too_few_measurements_is_an_input_error(tool_changer):
     mset, _ = _simulate(tool_changer, {"frames": FRAMES}, 8, seed=1)
     with pytest.raises(InputError, match="too few"):
         diagnose(tool_changer, mset, folds=5)
+
+
+def test_an_effect_left_with_no_parameter_does_not_stop_the_diagnosis(tool_changer):
+    """At one constant temperature off the reference, thermal growth is a fixed geometric
+    error: once geometry is in the model it keeps no parameter of its own."""
+    rng = np.random.default_rng(11)
+    scenario = {"effects": {"frames": {"base_mm": {"dx": 15}}, "geometry": {"spread_mm": 0.3, "spread_mrad": 0.3}},
+                "context": {"temperature_c": 31.0, "temperature_spread_c": 0.0, "directions": "none",
+                            "payload_fraction": 0.0}}
+    mset, _ = simulate_measurements(tool_changer, scenario, 120, rng, noise_m=2e-5)
+    assert np.all(mset.temperature_c == 31.0)
+    result = diagnose(tool_changer, mset, effects=["geometry", "thermal", "joint_offsets"], folds=3,
+                      tracker_noise=2e-5)
+    assert result.primary_effect == "geometry" and "thermal" not in result.selected_effects
+    assert result.steps[-1].heldout.rms < 1.5 * result.noise_floor

@@ -10,11 +10,17 @@ from sklearn.utils.estimator_checks import check_estimator
 from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.kinematics import tcp_poses
 from tcr_accuracy.prediction import (
+    DiagnosisCalibration,
     GeometricCalibration,
     InverseDistanceWeighting,
+    JointGaussianProcess,
     JointKriging,
+    MeasuredErrorModel,
     ResidualCorrected,
+    TcpOffset,
     make_gaussian_process,
+    make_predictor,
+    uncertainty_kind,
 )
 from tcr_accuracy.realrobot import make_stand_in_robot
 from tcr_accuracy.similarity import pair_distances, spatial_similarity
@@ -144,7 +150,9 @@ def test_idw_matches_the_closed_form_and_returns_training_values_on_hits():
     JointKriging(weight_search="particle_filter", n_particles=6, max_iter=2, random_state=0),
     InverseDistanceWeighting(),
     ResidualCorrected(base=InverseDistanceWeighting(), residual=JointKriging()),
-], ids=["kriging", "kriging-pf", "idw", "residual-corrected"])
+    # hyper-parameters on 30 rows (the generic checks fit 100-row sets dozens of times)
+    JointGaussianProcess(max_optimize_samples=30, random_state=0),
+], ids=["kriging", "kriging-pf", "idw", "residual-corrected", "gp"])
 def test_scikit_learn_estimator_checks(estimator):
     """All of scikit-learn's estimator checks pass. Excluded: check_array_api_input, which
     scikit-learn itself skips unless SCIPY_ARRAY_API is set. GeometricCalibration and the
@@ -204,3 +212,127 @@ def test_semivariogram_and_similarity_plots_are_written_whole(ur5, tmp_path):
     for path in (figure, scatter):
         assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert sorted(f.name for f in tmp_path.iterdir()) == ["s.png", "sv.png"]  # no temporary files left
+
+
+# ---------------------------------------------------------------------------------------
+# uncertainty, the parametric calibration from the effect library, the tracker frame
+# ---------------------------------------------------------------------------------------
+def test_kriging_standard_deviation_is_the_simple_kriging_variance_by_hand():
+    """sigma^2(q) = var(y) (1 - c^T (C + lambda I)^-1 c), the covariances written out as in Eq. 15-18."""
+    rng = np.random.default_rng(11)
+    X = rng.uniform(-1, 1, (40, 3))
+    Y = np.column_stack([np.sin(2 * X[:, 0]), X[:, 1] * X[:, 2]])
+    w, lam = np.array([1.0, 0.6, 1.4]), 1e-3
+    model = JointKriging(weights=w, regularization=lam).fit(X, Y)
+    q = np.vstack([rng.uniform(-1, 1, (6, 3)), [[9.0, 9.0, 9.0]], X[:1]])  # far away, on a training point
+    mean, std = model.predict(q, return_std=True)
+    np.testing.assert_array_equal(mean, model.predict(q))
+    xs = (X - X.mean(0)) / X.std(0)
+    qs = (q - X.mean(0)) / X.std(0)
+    for k in range(2):
+        r = model.range_[k]
+        cov = np.exp(-3 * (((xs[:, None, :] - xs[None, :, :]) * w) ** 2).sum(-1) / r**2) + lam * np.eye(40)
+        c = np.exp(-3 * (((qs[:, None, :] - xs[None, :, :]) * w) ** 2).sum(-1) / r**2)
+        expected = Y[:, k].std() * np.sqrt(np.maximum(1 - np.einsum("ij,ji->i", c, np.linalg.solve(cov, c.T)), 0))
+        np.testing.assert_allclose(std[:, k], expected, rtol=1e-7, atol=1e-12)
+    assert np.all(std[-2] > std[:-2].max(axis=0))  # far from every training pose: the largest spread
+    assert np.all(std <= Y.std(0) + 1e-12) and np.all(std[-1] < 0.05 * Y.std(0))  # at a training pose: ~0
+
+
+def test_gp_standard_deviation_covers_the_hidden_error(ur5):
+    """A UR5 with hidden geometry, compliance and tracker noise (tcr_accuracy.simulate): +-2 std of
+    the GP covers about 95 % of the held-out measured errors and at least as much of the true ones."""
+    from tcr_accuracy.scenario import truth_as_scenario
+    from tcr_accuracy.simulate import simulate_measurements
+
+    scenario = {"effects": {"geometry": {"spread_mm": 0.2, "spread_mrad": 0.2}, "compliance": {"tcp_rms_mm": 1.0}},
+                "context": {"payload_kg": 5.0, "payload_fraction": 1.0, "temperature_spread_c": 0.0,
+                            "directions": "none"}}
+    rng = np.random.default_rng(12)
+    q_train = UR5_REF + rng.uniform(-0.35, 0.35, (150, 6))
+    q_test = UR5_REF + rng.uniform(-0.3, 0.3, (300, 6))
+    noise = 5e-5
+    train, truth = simulate_measurements(ur5, scenario, 0, rng, noise_m=noise, q=q_train)
+    test, _ = simulate_measurements(ur5, truth_as_scenario(truth), 0, rng, noise_m=noise, q=q_test)
+    true, _ = simulate_measurements(ur5, truth_as_scenario(truth), 0, rng, noise_m=0.0, q=q_test)
+    nominal_train, nominal_test = tcp_poses(ur5, q_train).position, tcp_poses(ur5, q_test).position
+    gp = JointGaussianProcess(random_state=0).fit(q_train, train.position - nominal_train)
+    mean, std = gp.predict(q_test, return_std=True)
+    z_measured = (test.position - nominal_test - mean) / std
+    z_true = (true.position - nominal_test - mean) / std
+    assert 0.88 <= np.mean(np.abs(z_measured) <= 2) <= 0.995
+    assert np.mean(np.abs(z_true) <= 2) >= 0.9
+    assert 0.7 < np.sqrt(np.mean(z_measured**2)) < 1.35
+    assert gp.noise_std_ == pytest.approx(np.full(3, noise), rel=0.5)  # the tracker noise, from the data alone
+
+
+def test_residual_corrected_passes_the_residual_models_std_and_says_none_without_one():
+    rng = np.random.default_rng(13)
+    X = rng.uniform(-1, 1, (40, 3))
+    Y = np.column_stack([X[:, 0], np.sin(3 * X[:, 1]), X[:, 2] ** 2])
+    stacked = ResidualCorrected(base=InverseDistanceWeighting(), residual=JointKriging()).fit(X, Y)
+    mean, std = stacked.predict(X[:5] + 0.01, return_std=True)
+    _, residual_std = stacked.residual_.predict(X[:5] + 0.01, return_std=True)
+    np.testing.assert_array_equal(std, residual_std)
+    np.testing.assert_allclose(mean, stacked.predict(X[:5] + 0.01))
+    assert uncertainty_kind(stacked) == "kriging standard deviation"
+    plain = ResidualCorrected(base=JointKriging(), residual=InverseDistanceWeighting()).fit(X, Y)
+    assert plain.predict(X[:2], return_std=True)[1] is None and uncertainty_kind(plain) is None
+
+
+def test_tcp_offset_is_the_frames_effects_tool_offset(ur5):
+    from tcr_accuracy.effects import make_effect, predict_positions
+
+    rng = np.random.default_rng(14)
+    q = UR5_REF + rng.uniform(-1, 1, (30, 6))
+    offset = np.array([0.002, -0.001, 0.031])
+    frames = make_effect("frames", ur5)
+    params = np.zeros(frames.n_params)
+    params[[frames.parameter_names().index(f"frames.tool.{c}") for c in ("dx", "dy", "dz")]] = offset
+    errors = predict_positions(ur5, [frames], [params], q) - tcp_poses(ur5, q).position
+    model = TcpOffset(robot=ur5).fit(q, errors + rng.normal(0, 1e-6, errors.shape))
+    np.testing.assert_allclose(model.offset_, offset, atol=1e-6)
+    np.testing.assert_allclose(model.predict(q), errors, atol=1e-6)
+
+
+def test_diagnosis_calibration_predicts_a_hidden_in_vocabulary_robot_to_the_noise(ur5):
+    from tcr_accuracy.scenario import truth_as_scenario
+    from tcr_accuracy.simulate import simulate_measurements
+
+    scenario = {"effects": {"geometry": {"spread_mm": 0.3, "spread_mrad": 0.3}, "compliance": {"tcp_rms_mm": 1.5}},
+                "context": {"payload_kg": 0.0, "payload_fraction": 0.0, "temperature_spread_c": 0.0,
+                            "directions": "none"}}
+    rng = np.random.default_rng(15)
+    q_train = UR5_REF + rng.uniform(-0.6, 0.6, (150, 6))
+    q_test = UR5_REF + rng.uniform(-0.5, 0.5, (40, 6))
+    train, truth = simulate_measurements(ur5, scenario, 0, rng, noise_m=2e-5, q=q_train)
+    true, _ = simulate_measurements(ur5, truth_as_scenario(truth), 0, rng, noise_m=0.0, q=q_test)
+    model = DiagnosisCalibration(robot=ur5, random_state=0).fit(q_train, train.position - tcp_poses(ur5, q_train).position)
+    assert "compliance" in model.selected_effects_
+    true_error = true.position - tcp_poses(ur5, q_test).position
+    assert _rms(true_error) > 1e-3
+    assert _rms(model.predict(q_test) - true_error) < 2e-5  # below the tracker noise per point
+
+
+def test_measured_error_model_predicts_tracker_readings_of_a_robot_in_a_tracker_frame(ur5):
+    from tcr_accuracy.scenario import truth_as_scenario
+    from tcr_accuracy.simulate import simulate_measurements
+
+    scenario = {"effects": {"frames": {"base_mm": {"dx": 900.0, "dy": -1400.0, "dz": 300.0},
+                                       "base_deg": {"ry": 4.0, "rz": -120.0}, "tool_mm": {"dz": 40.0}},
+                            "geometry": {"spread_mm": 0.2, "spread_mrad": 0.2}}}
+    rng = np.random.default_rng(16)
+    q_train = UR5_REF + rng.uniform(-0.4, 0.4, (120, 6))
+    q_test = UR5_REF + rng.uniform(-0.3, 0.3, (30, 6))
+    train, truth = simulate_measurements(ur5, scenario, 0, rng, noise_m=2e-5, q=q_train)
+    true, _ = simulate_measurements(ur5, truth_as_scenario(truth), 0, rng, noise_m=0.0, q=q_test)
+    for method, tolerance in (("gp", 3e-5), ("calibration", 1e-5)):
+        model = MeasuredErrorModel(robot=ur5, estimator=make_predictor(method, ur5, random_state=0))
+        model.fit(q_train, train.position)
+        # tracker readings at unseen poses, against the hidden robot read by a noise-free tracker
+        assert _rms(model.predict(q_test) - true.position) < tolerance, method
+        # and the same in the base frame: the held-out residual against those readings
+        np.testing.assert_allclose(model.heldout_residual(q_test, true.position),
+                                   model.registration_.vectors_to_base(true.position - model.predict(q_test)),
+                                   atol=1e-12)
+        assert np.abs(model.predict_error(q_test)).max() < 0.06  # the 40 mm TCP offset and tenths of mm

@@ -3,9 +3,13 @@ joint commands that correct it (the second seed).
 
 Input: measurement CSVs in the shared format (:mod:`tcr_accuracy.measurements`): joint
 columns ``<joint>_deg|_rad|_mm|_m`` and, for training data, the measured TCP position
-``x_mm, y_mm, z_mm`` (or ``_m``). The error is measured minus nominal TCP position, so
-positions in a tracker frame other than the base frame make the frame offset part of
-the predicted error. Output joint values are in degrees and millimetres.
+``x_mm, y_mm, z_mm`` (or ``_m``) in the tracker's own frame. The tracker frame and the
+TCP offset are fitted on the training data first (:mod:`tcr_accuracy.registration`;
+``--frame base`` when the positions are in the robot's base frame already); the error,
+real minus nominal TCP position, is then taken in the base frame. A query (or target)
+file that also carries measured positions is mapped with the training data's frame and
+scored: the held-out error of the prediction. Output joint values are in degrees and
+millimetres.
 
 Both commands end like the other analyses (:mod:`tcr_accuracy.cli_output`): ``--json``,
 ``--out DIR`` (report), ``--plots DIR``, ``--view``/``--serve``, ``--quiet``; their CSV
@@ -24,7 +28,8 @@ from .cli_output import RunOutput, add_output_arguments
 #: names of prediction.METHODS, repeated here so that --help does not import scikit-learn
 #: (a test checks that the two lists agree)
 METHODS = ("kriging", "kriging-pf", "gp", "idw-joint", "idw-cartesian", "mlp-cartesian", "calibration",
-           "calibration+gp")
+           "calibration+gp", "diagnosis", "diagnosis+gp")
+DEFAULT_METHOD = "diagnosis+gp"
 
 JSON_HELP = "write a JSON summary (mm, unit-suffixed keys) to FILE, or to stdout without FILE"
 
@@ -36,12 +41,17 @@ def add_parsers(sub) -> None:
     p = sub.add_parser(
         "predict", help="predict the TCP error at given joint values from measured poses",
         description="Fit an error predictor to measured poses (--train) and predict the TCP "
-                    "position error (real minus nominal) at the joint values of --query.",
+                    "position error (real minus nominal, robot base frame) at the joint values of "
+                    "--query. When --query also has measured positions, report the held-out error "
+                    "of the prediction against them.",
     )
     _common(p, METHODS)
-    p.add_argument("--query", required=True, metavar="CSV", help="joint values to predict at (CSV)")
+    p.add_argument("--query", required=True, metavar="CSV",
+                   help="joint values to predict at (CSV); with x/y/z columns also scored against them")
     p.add_argument("--csv", metavar="FILE",
-                   help="write the predictions: the query joints and ex_mm, ey_mm, ez_mm, e_norm_mm")
+                   help="write the predictions: the query joints, ex_mm, ey_mm, ez_mm, e_norm_mm, their "
+                        "standard deviations ex_std_mm ... (methods with one) and, for measured queries, "
+                        "the measured error and the held-out miss")
     add_output_arguments(p, plots=True, view=True, json_help=JSON_HELP)
     p.set_defaults(run=_run_predict)
 
@@ -65,18 +75,26 @@ def add_parsers(sub) -> None:
 def _common(p: argparse.ArgumentParser, methods) -> None:
     add_robot_arguments(p)
     p.add_argument("--train", required=True, metavar="CSV", help="measured poses: joints and x/y/z (CSV)")
-    p.add_argument("--method", default="gp", choices=methods,
-                   help="predictor (default gp; kriging-pf is the seed's method)")
+    p.add_argument("--method", default=DEFAULT_METHOD, choices=methods,
+                   help=f"predictor (default {DEFAULT_METHOD}: the diagnosis' fitted effect model plus a "
+                        "Gaussian process of what it leaves; kriging-pf is the seed's method)")
+    p.add_argument("--frame", default="fit", choices=("fit", "base"),
+                   help="fit: the positions are in a tracker's own frame; fit it and the TCP offset on the "
+                        "training data (default); base: they are in the robot's base frame already (only the "
+                        "TCP offset is fitted)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the stochastic methods (default 0)")
 
 
 def read_joint_csv(path: str, robot, *, need_positions: bool):
-    """Joint values (N, n) [SI] and measured positions (N, 3) [m] (None for a pose list),
-    read and validated by :func:`tcr_accuracy.measurements.read_measurements`."""
+    """Joint values (N, n) [SI] and measured positions (N, 3) [m] (None when the file has
+    none), read and validated by :func:`tcr_accuracy.measurements.read_measurements`."""
+    import numpy as np
+
     from .measurements import read_measurements
 
     mset = read_measurements(path, robot, require_position=need_positions)
-    return mset.q, (mset.position if need_positions else None)
+    has_positions = need_positions or not np.isnan(mset.position).all()
+    return mset.q, (mset.position if has_positions else None)
 
 
 def _check_csv_target(path: str | None) -> None:
@@ -120,34 +138,83 @@ def _check_training(path: str, q, n_joints: int) -> None:
 
 
 def _fit(args, robot):
+    """Read the training file, fit the tracker frame and the predictor: (q_train, MeasuredErrorModel)."""
     import warnings
 
     from sklearn.exceptions import ConvergenceWarning
 
-    from .kinematics import tcp_poses
-    from .prediction import make_predictor
+    from .exceptions import InputError
+    from .prediction import MeasuredErrorModel, make_predictor
 
     q, pos = read_joint_csv(args.train, robot, need_positions=True)
     _check_training(args.train, q, robot.n_joints)
-    errors = pos - tcp_poses(robot, q).position
-    estimator = make_predictor(args.method, robot, random_state=args.seed)
-    with warnings.catch_warnings():
-        # scikit-learn's optimisers warn at their iteration caps; the fit is still usable
-        warnings.simplefilter("ignore", ConvergenceWarning)
-        estimator.fit(q, errors)
-    return q, estimator
+    model = MeasuredErrorModel(robot=robot, estimator=make_predictor(args.method, robot, random_state=args.seed),
+                               fit_frame=args.frame == "fit")
+    try:
+        with warnings.catch_warnings():
+            # scikit-learn's optimisers warn at their iteration caps; the fit is still usable
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            model.fit(q, pos)
+    except InputError as exc:
+        hint = "; or choose a --method that needs fewer poses (gp, kriging)" if args.method.startswith(
+            "diagnosis") and "too few" in str(exc) else ""
+        raise InputError(f"{args.train}: {exc}{hint}") from None
+    return q, model
 
 
-def _predict(args, estimator, q):
-    """Predicted errors (N, 3) [m], checked finite."""
+def _predict(args, model, q):
+    """Predicted base-frame errors (N, 3) [m] and their std (N, 3) or None, checked finite."""
     import numpy as np
 
     from .exceptions import AnalysisError
 
-    pred = np.asarray(estimator.predict(q), dtype=float).reshape(-1, 3)
-    if not np.all(np.isfinite(pred)):
+    pred, std = model.predict_error(q, return_std=True)
+    pred = np.asarray(pred, dtype=float).reshape(-1, 3)
+    if not np.all(np.isfinite(pred)) or (std is not None and not np.all(np.isfinite(std))):
         raise AnalysisError(f"method {args.method} predicted non-finite errors")
-    return pred
+    return pred, (None if std is None else np.asarray(std, dtype=float).reshape(-1, 3))
+
+
+def _heldout(model, q, measured):
+    """Held-out miss at measured poses: (residual (N, 3) [m], measured error (N, 3) [m], summary dict [mm])."""
+    import numpy as np
+
+    from .kinematics import tcp_poses
+
+    measured_error = model.registration_.to_base(measured) - tcp_poses(model.robot, q).position
+    residual = model.heldout_residual(q, measured)
+    norm = np.linalg.norm(residual, axis=1)
+    summary = {"mean_mm": float(norm.mean() * 1e3), "rms_mm": float(np.sqrt(np.mean(norm**2)) * 1e3),
+               "max_mm": float(norm.max() * 1e3), "count": int(norm.size)}
+    return residual, measured_error, summary
+
+
+def _coverage(residual, std) -> dict:
+    """How well the predicted std covers the held-out miss: share of axis values within 2 std, RMS of miss/std."""
+    import numpy as np
+
+    z = residual / np.maximum(std, 1e-300)
+    return {"within_2std": float(np.mean(np.abs(z) <= 2.0)), "z_rms": float(np.sqrt(np.mean(z**2)))}
+
+
+def _frame_rows(model, args):
+    reg = model.registration_
+    info = reg.to_dict()
+    rows = [("frame", "fitted on the training data" if args.frame == "fit" else "base frame (--frame base)"),
+            ("rotation angle", f"{info['rotation_angle_deg']:.4f} deg"),
+            ("translation", "({:.3f}, {:.3f}, {:.3f}) mm".format(*info["translation_mm"])),
+            ("TCP offset (TCP frame)", "({:.4f}, {:.4f}, {:.4f}) mm".format(*info["tool_offset_mm"])),
+            ("RMS after the frame fit", f"{info['residual_rms_mm']:.4f} mm")]
+    return rows
+
+
+def _frame_line(model, args) -> str:
+    info = model.registration_.to_dict()
+    where = ("tracker frame fitted on the training data: rotation {:.4f} deg, translation ({:.3f}, {:.3f}, {:.3f}) mm"
+             .format(info["rotation_angle_deg"], *info["translation_mm"]) if args.frame == "fit"
+             else "positions taken in the base frame (--frame base)")
+    return (f"{where}; TCP offset ({info['tool_offset_mm'][0]:.4f}, {info['tool_offset_mm'][1]:.4f}, "
+            f"{info['tool_offset_mm'][2]:.4f}) mm; RMS after the frame fit {info['residual_rms_mm']:.4f} mm")
 
 
 def _start(args, title: str):
@@ -183,44 +250,104 @@ def _run_predict(args) -> int:
     import numpy as np
 
     from .plots_prediction import plot_predicted_errors
+    from .prediction import uncertainty_kind
 
     robot, out = _start(args, "Error prediction")
-    q_train, estimator = _fit(args, robot)
-    q, _ = read_joint_csv(args.query, robot, need_positions=False)
+    q_train, model = _fit(args, robot)
+    q, measured = read_joint_csv(args.query, robot, need_positions=False)
     scale = robot.display_scale
-    pred = _predict(args, estimator, q)
+    pred, std = _predict(args, model, q)
     norm = np.linalg.norm(pred, axis=1)
+    kind = uncertainty_kind(model) if std is not None else None
     stats = {
         "mean": (norm.mean(), *np.abs(pred).mean(axis=0)),
         "RMS": (np.sqrt(np.mean(norm ** 2)), *np.sqrt(np.mean(pred ** 2, axis=0))),
         "max": (norm.max(), *np.abs(pred).max(axis=0)),
     }
+    heldout = residual = measured_error = None
+    if measured is not None:
+        residual, measured_error, heldout = _heldout(model, q, measured)
+        if std is not None:
+            heldout.update(_coverage(residual, std))
     payload = {
-        "robot": robot.name, "method": args.method, "n_train": int(q_train.shape[0]), "n_query": int(q.shape[0]),
+        "robot": robot.name, "method": args.method, "frame": args.frame,
+        "n_train": int(q_train.shape[0]), "n_query": int(q.shape[0]),
+        "tracker_frame": model.registration_.to_dict(),
         "predicted_error_mean_mm": float(norm.mean() * 1e3), "predicted_error_max_mm": float(norm.max() * 1e3),
         "predicted_error_stats_mm": {k: dict(zip(("norm", "abs_ex", "abs_ey", "abs_ez"), (float(v * 1e3) for v in s)))
                                      for k, s in stats.items()},
         "predicted_errors_mm": (pred * 1e3).tolist(),
+        "uncertainty": kind or "none",
+        "predicted_std_mm": None if std is None else (std * 1e3).tolist(),
+        "heldout": heldout,
     }
+    if measured is not None:
+        payload["measured_errors_mm"] = (measured_error * 1e3).tolist()
     _fit_table(out, robot, args, q_train, "query poses", int(q.shape[0]))
+    out.add_table("Tracker frame", ["setting", "value"], _frame_rows(model, args),
+                  note="p_tracker = R p_base + t, fitted with the TCP offset on the training data "
+                       "(closed form, then the frames effect by least squares)")
     out.add_table("Predicted error at the query poses", ["statistic", "|e|", "|ex|", "|ey|", "|ez|"],
                   [(k, *(v * 1e3 for v in s)) for k, s in stats.items()], units=["", "mm", "mm", "mm", "mm"],
-                  note="error = real minus nominal TCP position, base frame")
+                  note="error = real minus nominal TCP position, robot base frame")
+    if heldout is not None:
+        rows = [("mean", heldout["mean_mm"]), ("RMS", heldout["rms_mm"]), ("max", heldout["max_mm"]),
+                ("count", heldout["count"])]
+        if "within_2std" in heldout:
+            rows += [("share of axis misses within 2 std", heldout["within_2std"]),
+                     ("RMS of miss / std", heldout["z_rms"])]
+        out.add_table("Held-out error at the measured query poses", ["statistic", "value"], rows,
+                      note="|measured - predicted error|; the query's measured positions mapped with the "
+                           "training data's tracker frame")
     shown = min(len(q), REPORT_ROWS)
-    out.add_table("Predicted error per query pose", ["row", *_joint_columns(robot), "ex", "ey", "ez", "|e|"],
-                  [(i + 2, *(q[i] * scale), *(pred[i] * 1e3), norm[i] * 1e3) for i in range(shown)],
-                  units=["", *[""] * robot.n_joints, "mm", "mm", "mm", "mm"],
+    columns = ["row", *_joint_columns(robot), "ex", "ey", "ez", "|e|"]
+    units = ["", *[""] * robot.n_joints, "mm", "mm", "mm", "mm"]
+    if std is not None:
+        columns += ["std x", "std y", "std z"]
+        units += ["mm", "mm", "mm"]
+    if measured is not None:
+        columns += ["held-out miss"]
+        units += ["mm"]
+    per_pose = []
+    for i in range(shown):
+        row = [i + 2, *(q[i] * scale), *(pred[i] * 1e3), norm[i] * 1e3]
+        if std is not None:
+            row += list(std[i] * 1e3)
+        if measured is not None:
+            row.append(float(np.linalg.norm(residual[i]) * 1e3))
+        per_pose.append(row)
+    out.add_table("Predicted error per query pose", columns, per_pose, units=units,
                   note=None if shown == len(q) else f"first {shown} of {len(q)} (all in --csv)")
-    out.add_plots(lambda folder: [plot_predicted_errors(pred, Path(folder) / "predicted_errors.png")],
-                  {"predicted_errors.png": "Predicted TCP error at each query pose (components and magnitude) "
-                                           "and its distribution"})
+    out.add_plots(lambda folder: [plot_predicted_errors(pred, Path(folder) / "predicted_errors.png", std=std,
+                                                        measured=measured_error)],
+                  {"predicted_errors.png": "Predicted TCP error at each query pose (components and magnitude"
+                                           + (", +-2 standard deviations" if std is not None else "")
+                                           + (", the measured error" if measured is not None else "")
+                                           + ") and its distribution"
+                                           + ("; the held-out miss, measured - predicted error, per pose"
+                                              if measured is not None else "")})
     if out.scene_wanted:
         out.set_scene(*_predict_scene(robot, q, pred, norm, args))
     header = _joint_columns(robot) + ["ex_mm", "ey_mm", "ez_mm", "e_norm_mm"]
-    _write_csv_atomically(args, "predictions", header, np.hstack([q * scale, pred * 1e3, norm[:, None] * 1e3]))
-    return out.finish(payload, lambda: _print(robot, args, q_train,
-                                              f"predicted |error| at {q.shape[0]} query poses: mean "
-                                              f"{norm.mean() * 1e3:.4f} mm, max {norm.max() * 1e3:.4f} mm"))
+    blocks = [q * scale, pred * 1e3, norm[:, None] * 1e3]
+    if std is not None:
+        header += ["ex_std_mm", "ey_std_mm", "ez_std_mm"]
+        blocks.append(std * 1e3)
+    if measured is not None:
+        header += ["measured_ex_mm", "measured_ey_mm", "measured_ez_mm", "heldout_miss_mm"]
+        blocks += [measured_error * 1e3, np.linalg.norm(residual, axis=1)[:, None] * 1e3]
+    _write_csv_atomically(args, "predictions", header, np.hstack(blocks))
+    lines = [_frame_line(model, args),
+             (f"predicted |error| at {q.shape[0]} query poses: mean {norm.mean() * 1e3:.4f} mm, "
+              f"max {norm.max() * 1e3:.4f} mm (robot base frame, TCP offset included)"),
+             (f"uncertainty ({kind}): mean std per axis {np.mean(std) * 1e3:.4f} mm" if std is not None
+              else f"uncertainty: none ({args.method} gives no standard deviation)")]
+    if heldout is not None:
+        lines.append(f"held-out error against the {heldout['count']} measured query positions: mean "
+                     f"{heldout['mean_mm']:.4f} mm, RMS {heldout['rms_mm']:.4f} mm, max {heldout['max_mm']:.4f} mm"
+                     + (f"; {100 * heldout['within_2std']:.0f} % of axis misses within 2 std"
+                        if "within_2std" in heldout else ""))
+    return out.finish(payload, lambda: _print(robot, args, q_train, *lines))
 
 
 def _print(robot, args, q_train, *lines: str) -> None:
@@ -265,10 +392,12 @@ def _run_compensate(args) -> int:
     if args.max_iter < 1:
         raise InputError(f"--max-iter {args.max_iter}: must be >= 1")
     robot, out = _start(args, "Joint compensation")
-    q_train, estimator = _fit(args, robot)
-    q, _ = read_joint_csv(args.targets, robot, need_positions=False)
+    q_train, model = _fit(args, robot)
+    q, measured = read_joint_csv(args.targets, robot, need_positions=False)
     units, scale = robot.display_units, robot.display_scale
-    result = compensate_joints(robot, estimator, q, threshold=args.threshold_mm * 1e-3, max_iter=args.max_iter)
+    # the predictor of the base-frame error (TCP offset + method): targets and commands are base-frame
+    result = compensate_joints(robot, model.error_model_, q, threshold=args.threshold_mm * 1e-3,
+                               max_iter=args.max_iter)
     failed = np.flatnonzero(~result.converged)
     if failed.size:
         rows = ", ".join(str(i + 2) for i in failed[:10]) + (" ..." if failed.size > 10 else "")
@@ -277,13 +406,23 @@ def _run_compensate(args) -> int:
                          f"{result.predicted_miss[failed].max() * 1e3:.4g} mm)")
     dq = (result.q - q) * scale
     # the real TCP the uncompensated command is predicted to reach, and the compensated one
-    before_tcp = result.target + _predict(args, estimator, q)
-    after_tcp = tcp_poses(robot, result.q).position + _predict(args, estimator, result.q)
+    # (base frame: result.target is the nominal TCP at the target joints)
+    before_tcp = result.target + _predict(args, model, q)[0]
+    after_tcp = tcp_poses(robot, result.q).position + _predict(args, model, result.q)[0]
     before = np.linalg.norm(before_tcp - result.target, axis=1)
     after = result.predicted_miss
     cycles, counts = np.unique(result.iterations, return_counts=True)
+    heldout = None
+    if measured is not None:
+        # the targets were measured at their uncompensated commands: how well the predicted
+        # error there matches the measured one is what compensation can hope to remove
+        _, measured_error, heldout = _heldout(model, q, measured)
+        measured_before = np.linalg.norm(measured_error, axis=1)
+        heldout["measured_error_before_mean_mm"] = float(measured_before.mean() * 1e3)
+        heldout["measured_error_before_max_mm"] = float(measured_before.max() * 1e3)
     payload = {
-        "robot": robot.name, "method": args.method, "n_train": int(q_train.shape[0]), "n_targets": int(q.shape[0]),
+        "robot": robot.name, "method": args.method, "frame": args.frame, "n_train": int(q_train.shape[0]),
+        "n_targets": int(q.shape[0]), "tracker_frame": model.registration_.to_dict(), "heldout": heldout,
         "threshold_mm": args.threshold_mm, "iterations_max": int(result.iterations.max()),
         "n_converged": int(result.converged.sum()),
         "cycles_targets": {str(int(c)): int(n) for c, n in zip(cycles, counts)},
@@ -294,10 +433,21 @@ def _run_compensate(args) -> int:
         "joint_units": units, "compensated_joints": (result.q * scale).tolist(),
     }
     _fit_table(out, robot, args, q_train, "targets", int(q.shape[0]))
+    out.add_table("Tracker frame", ["setting", "value"], _frame_rows(model, args),
+                  note="p_tracker = R p_base + t, fitted with the TCP offset on the training data")
     out.add_table("Predicted error at the targets, before and after compensation", ["command", "mean", "max"],
                   [("uncompensated (target joints)", before.mean() * 1e3, before.max() * 1e3),
                    ("compensated", after.mean() * 1e3, after.max() * 1e3)], units=["", "mm", "mm"],
-                  note="|predicted real TCP - target|; predicted real TCP = nominal FK + predicted error")
+                  note="|predicted real TCP - target|, robot base frame; predicted real TCP = nominal FK + "
+                       "predicted error")
+    if heldout is not None:
+        out.add_table("Measured targets (held out)", ["statistic", "mean", "max"],
+                      [("measured error, uncompensated", heldout["measured_error_before_mean_mm"],
+                        heldout["measured_error_before_max_mm"]),
+                       ("|measured - predicted error|", heldout["mean_mm"], heldout["max_mm"])],
+                      units=["", "mm", "mm"],
+                      note="the targets' measured positions mapped with the training data's tracker frame; the "
+                           "second row is about what compensation leaves")
     out.add_table("Convergence", ["cycles", "targets"], [(int(c), int(n)) for c, n in zip(cycles, counts)],
                   note=f"{int(result.converged.sum())} of {len(q)} targets converged (predicted miss below "
                        f"{args.threshold_mm:g} mm, joints inside their limits, at most {args.max_iter} cycles)")
@@ -310,12 +460,16 @@ def _run_compensate(args) -> int:
     header = _joint_columns(robot) + _joint_columns(robot, "d") + ["predicted_miss_mm"]
     _write_csv_atomically(args, "compensated joint values", header,
                           np.hstack([result.q * scale, dq, result.predicted_miss[:, None] * 1e3]))
-    return out.finish(payload, lambda: _print(
-        robot, args, q_train,
-        f"{q.shape[0]} targets compensated in at most {result.iterations.max()} cycles; largest joint "
-        f"correction {np.abs(dq).max():.4g} ({', '.join(sorted(set(units)))})",
-        f"predicted error at the targets: mean {before.mean() * 1e3:.4f} mm, max {before.max() * 1e3:.4f} mm "
-        f"before; mean {after.mean() * 1e3:.2g} mm, max {after.max() * 1e3:.2g} mm after"))
+    lines = [_frame_line(model, args),
+             (f"{q.shape[0]} targets compensated in at most {result.iterations.max()} cycles; largest joint "
+              f"correction {np.abs(dq).max():.4g} ({', '.join(sorted(set(units)))})"),
+             (f"predicted error at the targets: mean {before.mean() * 1e3:.4f} mm, max {before.max() * 1e3:.4f} mm "
+              f"before; mean {after.mean() * 1e3:.2g} mm, max {after.max() * 1e3:.2g} mm after")]
+    if heldout is not None:
+        lines.append(f"measured at the targets (held out): error {heldout['measured_error_before_mean_mm']:.4f} mm "
+                     f"mean uncompensated; |measured - predicted error| mean {heldout['mean_mm']:.4f} mm, "
+                     f"max {heldout['max_mm']:.4f} mm (about what compensation leaves)")
+    return out.finish(payload, lambda: _print(robot, args, q_train, *lines))
 
 
 def _compensate_scene(robot, q, result, before_tcp, after_tcp, before, args):

@@ -248,13 +248,14 @@ class FitEngine:
                 report["effects"].pop("joint_offsets")
                 report["note"] = "geometry excludes rotations about the joint axes (the joint_offsets effect)"
                 cols = [(self.bases[e].g * self.bases[e].scales)[:, :, keep[e]].reshape(-1, keep[e].size)
-                        for e in effects]
-                mat = np.concatenate(cols, axis=1)
-                mat = mat / np.linalg.norm(mat, axis=0)
-                sv = np.linalg.svd(mat, compute_uv=False)
-                report["rank"] = int(mat.shape[1])
-                report["condition_number"] = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
-                report["smallest_singular_value"] = float(sv[-1])
+                        for e in effects if keep[e].size]  # an effect may keep no column at all
+                report["rank"] = int(sum(c.shape[1] for c in cols))
+                if cols:
+                    mat = np.concatenate(cols, axis=1)
+                    mat = mat / np.linalg.norm(mat, axis=0)
+                    sv = np.linalg.svd(mat, compute_uv=False)
+                    report["condition_number"] = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
+                    report["smallest_singular_value"] = float(sv[-1])
             self._keep_cache[key] = (keep, report)
         return self._keep_cache[key]
 

@@ -4,7 +4,8 @@
   second seed's Figs. 4-7).
 * :func:`plot_semivariograms` -- semivariance of the standardised x, y, z error against
   joint distance with the fitted Gaussian model, overall and along each joint (its Fig. 10).
-* :func:`plot_predicted_errors` -- the predicted error at each query pose (``predict``).
+* :func:`plot_predicted_errors` -- the predicted error at each query pose, with its
+  +-2 std band, and where the queries were measured the held-out miss (``predict``).
 * :func:`plot_compensation` -- the predicted error at the targets before and after
   compensation (``compensate``).
 
@@ -70,25 +71,62 @@ def plot_semivariograms(q: np.ndarray, errors: np.ndarray, path, n_bins: int = 2
     return save_figure(fig, path, tight=True)
 
 
-def plot_predicted_errors(errors: np.ndarray, path) -> Path:
-    """errors (N, 3) [m]: components and magnitude per query pose, and a histogram of |e| [mm]."""
+def plot_predicted_errors(errors: np.ndarray, path, std: np.ndarray | None = None,
+                          measured: np.ndarray | None = None) -> Path:
+    """The predicted error per query pose, a histogram of its magnitude and, for measured
+    queries, the held-out miss per pose [mm].
+
+    Parameters
+    ----------
+    errors : array of shape (N, 3)
+        Predicted errors [m].
+    path : path of the PNG
+    std : array of shape (N, 3), optional
+        Standard deviation of each component [m]: drawn as a +-2 std band.
+    measured : array of shape (N, 3), optional
+        Measured errors at the same poses [m]: drawn as markers next to the prediction,
+        and their miss (measured - predicted) in a third panel, inside the +-2 std band.
+    """
     e = np.asarray(errors, dtype=float).reshape(-1, 3) * 1e3
+    sd = None if std is None else np.asarray(std, dtype=float).reshape(-1, 3) * 1e3
     norm = np.linalg.norm(e, axis=1)
     rows = np.arange(len(e)) + 2  # CSV row numbers (row 1 is the header)
     marker = "o" if len(e) <= 200 else None
-    plt, fig, axes = _figure(1, 2, (11, 3.8))
+    plt, fig, axes = _figure(1, 3 if measured is not None else 2, (16 if measured is not None else 11, 3.8))
     ax = axes[0, 0]
+    colors = {}
     for k, axis in enumerate("xyz"):
-        ax.plot(rows, e[:, k], marker=marker, ms=3, lw=0.8, label=f"e{axis}")
+        line = ax.plot(rows, e[:, k], marker=marker, ms=3, lw=0.8, label=f"e{axis}")[0]
+        colors[axis] = line.get_color()
+        if sd is not None:
+            ax.fill_between(rows, e[:, k] - 2 * sd[:, k], e[:, k] + 2 * sd[:, k], color=colors[axis], alpha=0.15,
+                            lw=0, label=f"e{axis} +- 2 std")
+        if measured is not None:
+            ax.plot(rows, np.asarray(measured, dtype=float).reshape(-1, 3)[:, k] * 1e3, "x", ms=4,
+                    color=colors[axis], label=f"measured e{axis}")
     ax.plot(rows, norm, marker=marker, ms=3, lw=1.4, color="black", label="|e|")
     ax.set_xlabel("query CSV row")
     ax.set_ylabel("predicted error [mm]")
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=6, ncol=2 if (sd is not None or measured is not None) else 1)
     ax = axes[0, 1]
     ax.hist(norm, bins=min(40, max(5, len(norm) // 4)), color="tab:orange")
     ax.set_xlabel("predicted |e| [mm]")
     ax.set_ylabel("query poses")
     ax.set_title(f"mean {norm.mean():.4g} mm, max {norm.max():.4g} mm", fontsize=9)
+    if measured is not None:
+        ax = axes[0, 2]
+        miss = np.asarray(measured, dtype=float).reshape(-1, 3) * 1e3 - e
+        for k, axis in enumerate("xyz"):
+            if sd is not None:
+                ax.fill_between(rows, -2 * sd[:, k], 2 * sd[:, k], color=colors[axis], alpha=0.12, lw=0,
+                                label=f"+- 2 std ({axis})")
+            ax.plot(rows, miss[:, k], marker=marker, ms=3, lw=0.8, color=colors[axis], label=f"miss {axis}")
+        miss_norm = np.linalg.norm(miss, axis=1)
+        ax.axhline(0.0, color="grey", lw=0.6)
+        ax.set_xlabel("query CSV row")
+        ax.set_ylabel("measured - predicted error [mm]")
+        ax.set_title(f"held-out |miss|: mean {miss_norm.mean():.4g} mm, max {miss_norm.max():.4g} mm", fontsize=9)
+        ax.legend(fontsize=6, ncol=2)
     return save_figure(fig, path, tight=True)
 
 
