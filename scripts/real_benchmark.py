@@ -198,8 +198,12 @@ def predict_set(name: str, settings: dict, work: Path, methods: list[str]) -> di
 
 
 def _compensation_figures(payload: dict) -> dict:
-    keys = [k for k in payload if any(w in k for w in ("before", "after"))]
-    return {k: payload[k] for k in keys if isinstance(payload[k], (int, float, dict))}
+    keys = ("predicted_error_before_mean_mm", "predicted_error_before_max_mm", "predicted_miss_mean_mm",
+            "predicted_miss_max_mm", "n_converged", "n_targets")
+    out = {k: payload[k] for k in keys if k in payload}
+    if payload.get("heldout"):
+        out["heldout_mean_mm"] = payload["heldout"]["mean_mm"]  # what compensation would leave, about
+    return out
 
 
 def report(name: str, settings: dict, diagnosis: dict, prediction: dict | None) -> None:
@@ -236,8 +240,15 @@ def report(name: str, settings: dict, diagnosis: dict, prediction: dict | None) 
             print(f"    {method:16s} {text}")
         for label, value in ref.get("query_mm", {}).items():
             print(f"    {'reference':16s} {label}: mean {value}")
-        if prediction["compensation"]:
-            print(f"  compensate with {prediction['best']}: {prediction['compensation']}")
+        comp = prediction["compensation"]
+        if comp and "error" in comp:
+            print(f"  compensate with {prediction['best']}: {comp['error']}")
+        elif comp:
+            print(f"  compensate with {prediction['best']} ({comp['n_converged']}/{comp['n_targets']} converged): "
+                  f"predicted error before {comp['predicted_error_before_mean_mm']:.3f} mm mean "
+                  f"(max {comp['predicted_error_before_max_mm']:.3f}), predicted miss after "
+                  f"{comp['predicted_miss_mean_mm']:.4f} mm mean (max {comp['predicted_miss_max_mm']:.4f}); "
+                  f"held-out miss of the prediction at the targets {comp.get('heldout_mean_mm', float('nan')):.3f} mm")
     if ref.get("goal"):
         print(f"  goal: {ref['goal']}")
 
@@ -247,7 +258,7 @@ def main(argv=None) -> int:
     parser.add_argument("--data", default=str(REPO.parent / "shared" / "real"), metavar="DIR",
                         help="folder holding one folder per real data set (default ../shared/real)")
     parser.add_argument("--json", default=None, metavar="FILE", help="write every figure as JSON")
-    parser.add_argument("--methods", default="calibration,calibration+gp,gp,kriging-pf",
+    parser.add_argument("--methods", default="diagnosis+gp,diagnosis,calibration+gp,calibration,gp,kriging-pf,kriging",
                         help="comma-separated predict methods (default: %(default)s)")
     parser.add_argument("--no-predict", action="store_true", help="diagnose only")
     args = parser.parse_args(argv)

@@ -178,3 +178,30 @@ def test_lateral_compliance_tilts_joints_as_a_rebuilt_urdf_does(branched):
     wrench = gravity_wrench(branched, qs, 20.0, outside_q=np.ones((3, 1)))
     axial = np.einsum("njk,jk->nj", wrench, branched.motion_axes)
     np.testing.assert_allclose(axial, gravity_torque(branched, qs, 20.0, outside_q=np.ones((3, 1))), rtol=1e-10)
+
+
+def test_prediction_feeds_the_other_joints_to_the_gravity_effects(branched):
+    """The side joint swings a 5 kg mass on link j1: the j1 sag follows it. A predictor that is
+    given every row's context sees that; one that freezes the side joint cannot."""
+    from tcr_accuracy.prediction import DiagnosisCalibration, MeasuredErrorModel
+
+    rng = np.random.default_rng(21)
+    n = 160
+    q = rng.uniform(-1.2, 1.2, (n, 2))
+    side = rng.uniform(-2.5, 2.5, (n, 1))
+    ctx = MeasurementContext(np.zeros(n), np.full(n, 20.0), np.zeros((n, 2)), outside_q=side)
+    effect = make_effect("compliance", branched)
+    tracker = np.array([0.3, -0.2, 0.1])  # the measurements sit in a tracker frame
+    measured = predict_positions(branched, [effect], [[4e-5, 2e-5]], q, ctx) + tracker  # sags of ~0.3 deg
+    measured += 1e-5 * rng.standard_normal(measured.shape)
+    train, test = np.arange(120), np.arange(120, n)
+    scores = {}
+    for label, context in (("with", ctx), ("without", None)):
+        model = MeasuredErrorModel(robot=branched, estimator=DiagnosisCalibration(robot=branched, folds=3,
+                                                                                  effects=["compliance"]))
+        model.fit(q[train], measured[train], context=None if context is None else context.subset(train))
+        miss = model.heldout_residual(q[test], measured[test],
+                                      context=None if context is None else context.subset(test))
+        scores[label] = float(np.sqrt(np.mean(np.sum(miss**2, axis=1))))
+    assert scores["with"] < 3 * np.sqrt(3) * 1e-5  # at the noise
+    assert scores["without"] > 20 * scores["with"]  # the side mass's share of the sag is lost

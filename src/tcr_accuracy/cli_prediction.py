@@ -86,15 +86,16 @@ def _common(p: argparse.ArgumentParser, methods) -> None:
 
 
 def read_joint_csv(path: str, robot, *, need_positions: bool):
-    """Joint values (N, n) [SI] and measured positions (N, 3) [m] (None when the file has
-    none), read and validated by :func:`tcr_accuracy.measurements.read_measurements`."""
+    """Joint values (N, n) [SI], measured positions (N, 3) [m] (None when the file has none)
+    and the rows' context (payload, joints outside the TCP chain, ...), read and validated by
+    :func:`tcr_accuracy.measurements.read_measurements`."""
     import numpy as np
 
     from .measurements import read_measurements
 
     mset = read_measurements(path, robot, require_position=need_positions)
     has_positions = need_positions or not np.isnan(mset.position).all()
-    return mset.q, (mset.position if has_positions else None)
+    return mset.q, (mset.position if has_positions else None), mset.context()
 
 
 def _check_csv_target(path: str | None) -> None:
@@ -146,7 +147,7 @@ def _fit(args, robot):
     from .exceptions import InputError
     from .prediction import MeasuredErrorModel, make_predictor
 
-    q, pos = read_joint_csv(args.train, robot, need_positions=True)
+    q, pos, context = read_joint_csv(args.train, robot, need_positions=True)
     _check_training(args.train, q, robot.n_joints)
     model = MeasuredErrorModel(robot=robot, estimator=make_predictor(args.method, robot, random_state=args.seed),
                                fit_frame=args.frame == "fit")
@@ -154,7 +155,7 @@ def _fit(args, robot):
         with warnings.catch_warnings():
             # scikit-learn's optimisers warn at their iteration caps; the fit is still usable
             warnings.simplefilter("ignore", ConvergenceWarning)
-            model.fit(q, pos)
+            model.fit(q, pos, context=context)
     except InputError as exc:
         hint = "; or choose a --method that needs fewer poses (gp, kriging)" if args.method.startswith(
             "diagnosis") and "too few" in str(exc) else ""
@@ -162,27 +163,27 @@ def _fit(args, robot):
     return q, model
 
 
-def _predict(args, model, q):
+def _predict(args, model, q, context=None):
     """Predicted base-frame errors (N, 3) [m] and their std (N, 3) or None, checked finite."""
     import numpy as np
 
     from .exceptions import AnalysisError
 
-    pred, std = model.predict_error(q, return_std=True)
+    pred, std = model.predict_error(q, return_std=True, context=context)
     pred = np.asarray(pred, dtype=float).reshape(-1, 3)
     if not np.all(np.isfinite(pred)) or (std is not None and not np.all(np.isfinite(std))):
         raise AnalysisError(f"method {args.method} predicted non-finite errors")
     return pred, (None if std is None else np.asarray(std, dtype=float).reshape(-1, 3))
 
 
-def _heldout(model, q, measured):
+def _heldout(model, q, measured, context=None):
     """Held-out miss at measured poses: (residual (N, 3) [m], measured error (N, 3) [m], summary dict [mm])."""
     import numpy as np
 
     from .kinematics import tcp_poses
 
     measured_error = model.registration_.to_base(measured) - tcp_poses(model.robot, q).position
-    residual = model.heldout_residual(q, measured)
+    residual = model.heldout_residual(q, measured, context=context)
     norm = np.linalg.norm(residual, axis=1)
     summary = {"mean_mm": float(norm.mean() * 1e3), "rms_mm": float(np.sqrt(np.mean(norm**2)) * 1e3),
                "max_mm": float(norm.max() * 1e3), "count": int(norm.size)}
@@ -254,9 +255,9 @@ def _run_predict(args) -> int:
 
     robot, out = _start(args, "Error prediction")
     q_train, model = _fit(args, robot)
-    q, measured = read_joint_csv(args.query, robot, need_positions=False)
+    q, measured, context = read_joint_csv(args.query, robot, need_positions=False)
     scale = robot.display_scale
-    pred, std = _predict(args, model, q)
+    pred, std = _predict(args, model, q, context)
     norm = np.linalg.norm(pred, axis=1)
     kind = uncertainty_kind(model) if std is not None else None
     stats = {
@@ -266,7 +267,7 @@ def _run_predict(args) -> int:
     }
     heldout = residual = measured_error = None
     if measured is not None:
-        residual, measured_error, heldout = _heldout(model, q, measured)
+        residual, measured_error, heldout = _heldout(model, q, measured, context)
         if std is not None:
             heldout.update(_coverage(residual, std))
     payload = {
@@ -393,11 +394,11 @@ def _run_compensate(args) -> int:
         raise InputError(f"--max-iter {args.max_iter}: must be >= 1")
     robot, out = _start(args, "Joint compensation")
     q_train, model = _fit(args, robot)
-    q, measured = read_joint_csv(args.targets, robot, need_positions=False)
+    q, measured, context = read_joint_csv(args.targets, robot, need_positions=False)
     units, scale = robot.display_units, robot.display_scale
     # the predictor of the base-frame error (TCP offset + method): targets and commands are base-frame
     result = compensate_joints(robot, model.error_model_, q, threshold=args.threshold_mm * 1e-3,
-                               max_iter=args.max_iter)
+                               max_iter=args.max_iter, context=context)
     failed = np.flatnonzero(~result.converged)
     if failed.size:
         rows = ", ".join(str(i + 2) for i in failed[:10]) + (" ..." if failed.size > 10 else "")
@@ -407,8 +408,8 @@ def _run_compensate(args) -> int:
     dq = (result.q - q) * scale
     # the real TCP the uncompensated command is predicted to reach, and the compensated one
     # (base frame: result.target is the nominal TCP at the target joints)
-    before_tcp = result.target + _predict(args, model, q)[0]
-    after_tcp = tcp_poses(robot, result.q).position + _predict(args, model, result.q)[0]
+    before_tcp = result.target + _predict(args, model, q, context)[0]
+    after_tcp = tcp_poses(robot, result.q).position + _predict(args, model, result.q, context)[0]
     before = np.linalg.norm(before_tcp - result.target, axis=1)
     after = result.predicted_miss
     cycles, counts = np.unique(result.iterations, return_counts=True)
@@ -416,7 +417,7 @@ def _run_compensate(args) -> int:
     if measured is not None:
         # the targets were measured at their uncompensated commands: how well the predicted
         # error there matches the measured one is what compensation can hope to remove
-        _, measured_error, heldout = _heldout(model, q, measured)
+        _, measured_error, heldout = _heldout(model, q, measured, context)
         measured_before = np.linalg.norm(measured_error, axis=1)
         heldout["measured_error_before_mean_mm"] = float(measured_before.mean() * 1e3)
         heldout["measured_error_before_max_mm"] = float(measured_before.max() * 1e3)

@@ -21,6 +21,7 @@ import numpy as np
 
 from .exceptions import InputError
 from .kinematics import tcp_poses
+from .prediction import predict_with_context
 from .robot import RobotModel
 from .sampling import inverse_kinematics
 
@@ -44,7 +45,7 @@ class CompensationResult:
 
 
 def compensate_joints(robot: RobotModel, predictor, q_target: np.ndarray, *, threshold: float = 1e-6,
-                      max_iter: int = 20, orientation: str = "best_effort") -> CompensationResult:
+                      max_iter: int = 20, orientation: str = "best_effort", context=None) -> CompensationResult:
     """Compensated joint commands for targets given as nominal joint values.
 
     Parameters
@@ -56,6 +57,8 @@ def compensate_joints(robot: RobotModel, predictor, q_target: np.ndarray, *, thr
     max_iter : most cycles
     orientation : passed to the IK ("best_effort": position first; "exact" also holds
         the orientation, only for robots with a full-rank 6-DoF Jacobian)
+    context : MeasurementContext of the targets, optional
+        Their payload and the joints outside the TCP chain, for predictors that use them.
     """
     q_target = np.atleast_2d(np.asarray(q_target, dtype=float))
     if q_target.shape[1] != robot.n_joints or not np.all(np.isfinite(q_target)):
@@ -71,7 +74,7 @@ def compensate_joints(robot: RobotModel, predictor, q_target: np.ndarray, *, thr
     miss = np.full(n, np.inf)
     for it in range(max_iter + 1):
         nominal = tcp_poses(robot, q).position
-        d = target - (nominal + np.asarray(predictor.predict(q), dtype=float).reshape(n, 3))
+        d = target - (nominal + np.asarray(predict_with_context(predictor, q, context), dtype=float).reshape(n, 3))
         if not np.all(np.isfinite(d)):
             raise InputError("compensation: the predictor returned non-finite errors")
         miss = np.linalg.norm(d, axis=1)

@@ -646,14 +646,17 @@ class ResidualCorrected(MultiOutputMixin, RegressorMixin, BaseEstimator):
         self.base = base
         self.residual = residual
 
-    def fit(self, X, y):
-        """Fit the base model to y, then the residual model to ``y - base(X)``; returns self."""
+    def fit(self, X, y, context=None):
+        """Fit the base model to y, then the residual model to ``y - base(X)``; returns self.
+
+        ``context`` (a MeasurementContext of the rows) goes to the members that take one."""
         X, y = validate_data(self, X, y, multi_output=True, y_numeric=True)
-        self.base_ = clone(self.base).fit(X, y)
-        self.residual_ = clone(self.residual).fit(X, y - self.base_.predict(X))
+        self.base_ = _fit_with_context(clone(self.base), X, y, context)
+        self.residual_ = _fit_with_context(clone(self.residual), X, y - predict_with_context(self.base_, X, context),
+                                           context)
         return self
 
-    def predict(self, X, return_std=False):
+    def predict(self, X, return_std=False, context=None):
         """``base(X) + residual(X)``; with return_std, the residual model's standard
         deviation (None when it has none). The base model's parameters count as exact:
         its own estimation spread is not added.
@@ -670,13 +673,34 @@ class ResidualCorrected(MultiOutputMixin, RegressorMixin, BaseEstimator):
         """
         check_is_fitted(self, "base_")
         X = validate_data(self, X, reset=False)
-        base = self.base_.predict(X)
+        base = predict_with_context(self.base_, X, context)
         if not return_std:
-            return base + self.residual_.predict(X)
+            return base + predict_with_context(self.residual_, X, context)
         if uncertainty_kind(self.residual_) is None:
-            return base + self.residual_.predict(X), None
-        mean, std = self.residual_.predict(X, return_std=True)
+            return base + predict_with_context(self.residual_, X, context), None
+        mean, std = predict_with_context(self.residual_, X, context, return_std=True)
         return base + mean, std
+
+
+def _takes_context(method) -> bool:
+    import inspect
+
+    return "context" in inspect.signature(method).parameters
+
+
+def _fit_with_context(estimator, X, y, context):
+    """``estimator.fit(X, y)``, with the rows' context when the estimator takes one (as
+    scikit-learn passes ``sample_weight`` only to estimators whose ``fit`` has it)."""
+    if context is not None and _takes_context(estimator.fit):
+        return estimator.fit(X, y, context=context)
+    return estimator.fit(X, y)
+
+
+def predict_with_context(estimator, X, context, **options):
+    """``estimator.predict(X)``, with the rows' context when the estimator takes one."""
+    if context is not None and _takes_context(estimator.predict):
+        return estimator.predict(X, context=context, **options)
+    return estimator.predict(X, **options)
 
 
 class TcpOffset(MultiOutputMixin, RegressorMixin, BaseEstimator):
@@ -752,8 +776,12 @@ class DiagnosisCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
         self.tracker_noise = tracker_noise
         self.random_state = random_state
 
-    def fit(self, X, y):
-        """Joint values X (n, n_joints) [rad, m], base-frame errors y (n, 3) [m]; returns self."""
+    def fit(self, X, y, context=None):
+        """Joint values X (n, n_joints) [rad, m], base-frame errors y (n, 3) [m]; returns self.
+
+        ``context`` (MeasurementContext of the rows, optional): payload, temperature,
+        approach directions and the joints outside the TCP chain, which the gravity
+        effects need (a second arm loads the torso)."""
         from .diagnose import diagnose
         from .measurements import MeasurementSet
 
@@ -765,7 +793,7 @@ class DiagnosisCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
                              f"errors (n, 3), got {X.shape} and {y.shape}")
         positions = tcp_poses(self.robot, X).position + y
         mset = MeasurementSet(joint_names=list(self.robot.joint_names), q=X, position=positions,
-                              source="training errors")
+                              source="training errors", **_measured_context(context))
         seed = 0 if self.random_state is None else int(check_random_state(self.random_state).randint(2**31 - 1))
         effects = self.effects
         with warnings.catch_warnings():
@@ -775,13 +803,30 @@ class DiagnosisCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
         self.selected_effects_ = list(self.diagnosis_.selected_effects)
         return self
 
-    def predict(self, X):
-        """(m, 3) errors of the fitted model at joint values X (m, n_joints) [m]."""
+    def predict(self, X, context=None):
+        """(m, 3) errors of the fitted model at joint values X (m, n_joints) [m] (and the
+        rows' context, as in :meth:`fit`)."""
         check_is_fitted(self, "diagnosis_")
         X = validate_data(self, X, reset=False)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", JointLimitWarning)
-            return self.diagnosis_.predict(self.robot, X) - tcp_poses(self.robot, X).position
+            # the diagnosis predicts in the frame of the positions it was given: here the base frame
+            return self.diagnosis_.predict(self.robot, X, context) - tcp_poses(self.robot, X).position
+
+
+def _measured_context(context) -> dict:
+    """MeasurementSet fields from a MeasurementContext: the columns that carry information."""
+    if context is None:
+        return {}
+    from .context import REFERENCE_TEMPERATURE_C
+
+    payload = np.asarray(context.payload_kg, dtype=float)
+    temperature = np.asarray(context.temperature_c, dtype=float)
+    direction = np.asarray(context.direction, dtype=float)
+    return {"payload_kg": payload if np.any(payload != 0) else None,
+            "temperature_c": temperature if np.any(temperature != REFERENCE_TEMPERATURE_C) else None,
+            "direction": direction if np.any(direction != 0) else None,
+            "outside_q": context.outside_q}
 
 
 def uncertainty_kind(estimator) -> str | None:
@@ -837,8 +882,9 @@ class MeasuredErrorModel(BaseEstimator):
         self.estimator = estimator
         self.fit_frame = fit_frame
 
-    def fit(self, X, y):
-        """Joint values X (n, n_joints) [rad, m], measured positions y (n, 3) in the tracker frame [m]."""
+    def fit(self, X, y, context=None):
+        """Joint values X (n, n_joints) [rad, m], measured positions y (n, 3) in the tracker frame [m];
+        ``context``: the rows' MeasurementContext, for the estimators that take one."""
         from .registration import register_tracker
 
         X, y = validate_data(self, X, y, multi_output=True, y_numeric=True)
@@ -847,25 +893,25 @@ class MeasuredErrorModel(BaseEstimator):
         self.registration_ = register_tracker(self.robot, X, y, fit_base=self.fit_frame)
         self.errors_ = self.registration_.to_base(y) - tcp_poses(self.robot, X).position
         self.error_model_ = ResidualCorrected(base=TcpOffset(robot=self.robot), residual=self.estimator)
-        self.error_model_.fit(X, self.errors_)
+        self.error_model_.fit(X, self.errors_, context=context)
         return self
 
-    def predict_error(self, X, return_std=False):
+    def predict_error(self, X, return_std=False, context=None):
         """Base-frame error (real minus nominal TCP position) at X (m, n_joints) [m].
 
         With return_std, also its standard deviation (m, 3), or None when the
         estimator has none (see :func:`uncertainty_kind`).
         """
         check_is_fitted(self, "error_model_")
-        return self.error_model_.predict(X, return_std=return_std)
+        return self.error_model_.predict(X, return_std=return_std, context=context)
 
-    def predict(self, X):
+    def predict(self, X, context=None):
         """(m, 3) predicted tracker readings at joint values X (m, n_joints) [m]."""
         check_is_fitted(self, "error_model_")
         X = validate_data(self, X, reset=False)
-        return self.registration_.to_tracker(tcp_poses(self.robot, X).position + self.predict_error(X))
+        return self.registration_.to_tracker(tcp_poses(self.robot, X).position + self.predict_error(X, context=context))
 
-    def heldout_residual(self, X, y) -> np.ndarray:
+    def heldout_residual(self, X, y, context=None) -> np.ndarray:
         """Measured minus predicted error at poses the model was not fitted to.
 
         Parameters
@@ -882,7 +928,7 @@ class MeasuredErrorModel(BaseEstimator):
         check_is_fitted(self, "error_model_")
         X = validate_data(self, X, reset=False)
         measured = self.registration_.to_base(np.asarray(y, dtype=float)) - tcp_poses(self.robot, X).position
-        return measured - self.predict_error(X)
+        return measured - self.predict_error(X, context=context)
 
 
 METHODS = ("kriging", "kriging-pf", "gp", "idw-joint", "idw-cartesian", "mlp-cartesian", "calibration",
