@@ -27,10 +27,10 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from tcr_accuracy.atomic import write_text_atomically
-from tcr_accuracy.diagnose import diagnose
+from tcr_accuracy.diagnosis.diagnose import diagnose
 from tcr_accuracy.effects import make_effect, predict_positions
-from tcr_accuracy.robot import load_robot
-from tcr_accuracy.simulate import random_scenario, simulate_measurements
+from tcr_accuracy.model.robot import load_robot
+from tcr_accuracy.analysis.simulate import random_scenario, simulate_measurements
 
 
 def plain_fit(robot, result, mset, effect_names) -> tuple[float, float]:

@@ -32,16 +32,16 @@ from pathlib import Path
 import numpy as np
 
 from tcr_accuracy.atomic import write_text_atomically
-from tcr_accuracy.errors import seed_budget
-from tcr_accuracy.kinematics import tcp_chain_soa, tcp_poses_pinocchio
-from tcr_accuracy.montecarlo import run_monte_carlo, sample_rows
-from tcr_accuracy.robot import load_robot
+from tcr_accuracy.model.errors import seed_budget
+from tcr_accuracy.model.kinematics import tcp_chain_soa, tcp_poses_pinocchio
+from tcr_accuracy.analysis.montecarlo import run_monte_carlo, sample_rows
+from tcr_accuracy.model.robot import load_robot
 
 MEMORY_CHILD = """
 import resource, sys, numpy as np
-from tcr_accuracy.errors import seed_budget
-from tcr_accuracy.montecarlo import run_monte_carlo
-from tcr_accuracy.robot import load_robot
+from tcr_accuracy.model.errors import seed_budget
+from tcr_accuracy.analysis.montecarlo import run_monte_carlo
+from tcr_accuracy.model.robot import load_robot
 robot = load_robot()
 result = run_monte_carlo(seed_budget(robot, "table2"), robot.working_pose, int(sys.argv[1]), 0)
 print(result.n_samples, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)

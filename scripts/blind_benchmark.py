@@ -30,10 +30,10 @@ from pathlib import Path
 import numpy as np
 
 from tcr_accuracy.atomic import write_text_atomically
-from tcr_accuracy.diagnose import diagnose
-from tcr_accuracy.measurements import read_measurements, write_measurements
-from tcr_accuracy.robot import load_robot
-from tcr_accuracy.simulate import random_scenario, simulate_measurements
+from tcr_accuracy.diagnosis.diagnose import diagnose
+from tcr_accuracy.io.measurements import read_measurements, write_measurements
+from tcr_accuracy.model.robot import load_robot
+from tcr_accuracy.analysis.simulate import random_scenario, simulate_measurements
 
 
 def run_scenario(robot, index: int, rng: np.random.Generator, *, n_train: int, n_test: int, folds: int,

@@ -23,12 +23,12 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from tcr_accuracy.errors import seed_budget  # noqa: E402
-from tcr_accuracy.jacobians import error_jacobian  # noqa: E402
-from tcr_accuracy.kinematics import pose_error, tcp_poses  # noqa: E402
-from tcr_accuracy.report import Report  # noqa: E402
-from tcr_accuracy.robot import load_robot  # noqa: E402
-from tcr_accuracy.viewer import Scene  # noqa: E402
+from tcr_accuracy.model.errors import seed_budget  # noqa: E402
+from tcr_accuracy.model.jacobians import error_jacobian  # noqa: E402
+from tcr_accuracy.model.kinematics import pose_error, tcp_poses  # noqa: E402
+from tcr_accuracy.view.report import Report  # noqa: E402
+from tcr_accuracy.model.robot import load_robot  # noqa: E402
+from tcr_accuracy.view.viewer import Scene  # noqa: E402
 
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
          "--disable-background-networking", "--disable-component-update", "--disable-sync",

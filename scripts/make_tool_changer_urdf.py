@@ -13,7 +13,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from tcr_accuracy.atomic import write_text_atomically
-from tcr_accuracy.tool_changer import ToolChangerDimensions, tool_changer_urdf
+from tcr_accuracy.model.tool_changer import ToolChangerDimensions, tool_changer_urdf
 
 DEFAULT_OUT = Path(__file__).resolve().parents[1] / "robots" / "tool_changer.urdf"
 

@@ -83,8 +83,8 @@ def discover(data: Path) -> list[tuple[str, dict | None, str]]:
 
 def _guess(folder: Path) -> tuple[dict | None, str]:
     """One CSV and one URDF: the measured frame is the CSV's <frame>.x_mm prefix or a leaf link."""
-    from tcr_accuracy.measurements import measured_frames
-    from tcr_accuracy.urdf import parse_urdf_xml
+    from tcr_accuracy.io.measurements import measured_frames
+    from tcr_accuracy.model.urdf import parse_urdf_xml
 
     csvs, urdfs = sorted(folder.glob("*.csv")), sorted(folder.glob("*.urdf"))
     if len(csvs) != 1 or len(urdfs) != 1:
@@ -125,9 +125,9 @@ def _robot_args(settings: dict) -> list[str]:
 
 
 def diagnose_set(name: str, settings: dict, work: Path) -> dict:
-    from tcr_accuracy.diagnose import GapDiagnosis
-    from tcr_accuracy.measurements import measured_frames, read_measurements
-    from tcr_accuracy.robot import load_robot
+    from tcr_accuracy.diagnosis.diagnose import GapDiagnosis
+    from tcr_accuracy.io.measurements import measured_frames, read_measurements
+    from tcr_accuracy.model.robot import load_robot
 
     path = settings["folder"] / settings["measurements"]
     out = work / f"{name}_diagnose.json"

@@ -2,7 +2,7 @@
 joint space and compensate it, next to what a user would otherwise pick.
 
 A simulated real robot (hidden geometric errors, gravity compliance under a heavy
-payload, a 0.02 mm laser tracker; tcr_accuracy.realrobot) is measured at 160 poses
+payload, a 0.02 mm laser tracker; tcr_accuracy.analysis.realrobot) is measured at 160 poses
 picked by the seed's task-workspace sampling (dense Cartesian targets, IK, per-joint
 stratified pick) and at 80 random test poses with varied orientation. Every method is
 fitted to the 160 and scored on the 80 (|predicted - measured error|, as the seed
@@ -38,15 +38,15 @@ from sklearn.exceptions import ConvergenceWarning
 from threadpoolctl import threadpool_limits
 
 from tcr_accuracy.atomic import write_text_atomically
-from tcr_accuracy.compensation import compensate_joints
-from tcr_accuracy.kinematics import tcp_poses
-from tcr_accuracy.prediction import METHODS, MeasuredErrorModel, make_predictor
-from tcr_accuracy.realrobot import make_stand_in_robot
-from tcr_accuracy.robot import load_robot
-from tcr_accuracy.sampling import TaskWorkspace, inverse_kinematics, sample_task_workspace
-from tcr_accuracy.scenario import truth_as_scenario
-from tcr_accuracy.similarity import pair_distances, spatial_similarity
-from tcr_accuracy.simulate import simulate_measurements
+from tcr_accuracy.prediction.compensation import compensate_joints
+from tcr_accuracy.model.kinematics import tcp_poses
+from tcr_accuracy.prediction.estimators import METHODS, MeasuredErrorModel, make_predictor
+from tcr_accuracy.analysis.realrobot import make_stand_in_robot
+from tcr_accuracy.model.robot import load_robot
+from tcr_accuracy.analysis.sampling import TaskWorkspace, inverse_kinematics, sample_task_workspace
+from tcr_accuracy.analysis.scenario import truth_as_scenario
+from tcr_accuracy.analysis.similarity import pair_distances, spatial_similarity
+from tcr_accuracy.analysis.simulate import simulate_measurements
 
 SEED_TABLE3_MM = {"kriging-pf": (0.089, 0.172), "mlp-cartesian": (0.212, 0.359), "idw-cartesian": (0.502, 0.942)}
 SEED_COMPENSATION_MM = (4.96, 0.28)
@@ -64,7 +64,7 @@ SETUPS = {
 
 
 class SimulatedRobot:
-    """The same interface as realrobot.StandInRobot, on tcr_accuracy.simulate's effect library:
+    """The same interface as realrobot.StandInRobot, on tcr_accuracy.analysis.simulate's effect library:
     geometry 0.2 mm / 0.2 mrad, joint offsets 1 mrad, gravity compliance scaled to 3 mm RMS
     at the TCP under the payload over q_scale, tracker noise 0.02 mm. The hidden parameters
     are drawn once and replayed for every measurement (truth_as_scenario)."""
@@ -189,7 +189,7 @@ def run(robot_name: str, seed: int, plots: Path | None, quiet: bool, truth: str 
 
     similarity = similarity_study(robot, real, q_ref, workspace, mode, rng)
     if plots is not None:
-        from tcr_accuracy.plots_prediction import plot_semivariograms, plot_similarity
+        from tcr_accuracy.view.plots_prediction import plot_semivariograms, plot_similarity
 
         plots.mkdir(parents=True, exist_ok=True)
         plot_similarity(similarity, plots / f"{robot.name}_similarity.png")
@@ -263,7 +263,7 @@ def main(argv=None) -> int:
     parser.add_argument("--plots", metavar="DIR", type=Path)
     parser.add_argument("--truth", choices=("standin", "simulate"), default="standin",
                         help="hidden truth: realrobot's stand-in (geometry + gravity compliance) or "
-                             "tcr_accuracy.simulate's effect library (geometry, joint offsets, compliance)")
+                             "tcr_accuracy.analysis.simulate's effect library (geometry, joint offsets, compliance)")
     parser.add_argument("--frame", choices=("fit", "base"), default="fit",
                         help="fit: register the tracker frame on the training data, as predict does (default); "
                              "base: the simulated tracker's frame is the base frame")

@@ -18,13 +18,13 @@ import math
 import numpy as np
 from scipy import optimize, stats
 
-from tcr_accuracy.clearance import ClearanceModel
-from tcr_accuracy.errors import seed_budget
-from tcr_accuracy.jacobians import error_jacobian
-from tcr_accuracy.kinematics import tcp_poses
-from tcr_accuracy.montecarlo import run_monte_carlo
-from tcr_accuracy.robot import load_robot
-from tcr_accuracy.tolerance import allocate_tolerance
+from tcr_accuracy.model.clearance import ClearanceModel
+from tcr_accuracy.model.errors import seed_budget
+from tcr_accuracy.model.jacobians import error_jacobian
+from tcr_accuracy.model.kinematics import tcp_poses
+from tcr_accuracy.analysis.montecarlo import run_monte_carlo
+from tcr_accuracy.model.robot import load_robot
+from tcr_accuracy.analysis.tolerance import allocate_tolerance
 
 SEED_TCP = np.array([-0.0924, 0.1609, -1.5119])  # [m], seed text after Table 2
 SEED_STD = np.array([0.1389, 0.0822, 0.1414]) * 1e-3  # Table 3 std of dx, dy, dz [m]

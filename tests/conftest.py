@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tcr_accuracy.robot import load_robot
+from tcr_accuracy.model.robot import load_robot
 
 REPO = Path(__file__).resolve().parents[1]
 

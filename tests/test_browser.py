@@ -25,9 +25,9 @@ matplotlib.use("Agg")
 from matplotlib import colormaps
 from matplotlib.image import imread
 
-from tcr_accuracy.errors import seed_budget
-from tcr_accuracy.report import Report
-from tcr_accuracy.viewer import Scene
+from tcr_accuracy.model.errors import seed_budget
+from tcr_accuracy.view.report import Report
+from tcr_accuracy.view.viewer import Scene
 
 INSTALL_HINT = ("headless Chromium is needed for the browser tests and was not found: "
                 "install it with 'apt-get install -y chromium chromium-driver' (Debian/Ubuntu), "

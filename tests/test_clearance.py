@@ -4,9 +4,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from tcr_accuracy.clearance import ClearanceModel, radial_offset_added
-from tcr_accuracy.kinematics import tcp_poses, tcp_poses_pinocchio
-from tcr_accuracy.montecarlo import run_monte_carlo
+from tcr_accuracy.model.clearance import ClearanceModel, radial_offset_added
+from tcr_accuracy.model.kinematics import tcp_poses, tcp_poses_pinocchio
+from tcr_accuracy.analysis.montecarlo import run_monte_carlo
 
 
 def test_tool_changer_clearance_joints_and_planes(tool_changer):

@@ -94,15 +94,15 @@ CSV = REPO / "src" / "tcr_accuracy" / "data" / "tool_changer_cutter.csv"
 
 
 @pytest.mark.parametrize("argv, module, function, exc, words", [
-    (["pose"], "tcr_accuracy.kinematics", "tcp_poses",
+    (["pose"], "tcr_accuracy.model.kinematics", "tcp_poses",
      ValueError("shapes (6,) and (7,)\nnot aligned"), ["tcr-accuracy pose", "ValueError", "shapes (6,) and (7,) not aligned"]),
-    (["diagnose", str(CSV)], "tcr_accuracy.diagnose", "diagnose",
+    (["diagnose", str(CSV)], "tcr_accuracy.diagnosis.diagnose", "diagnose",
      np.linalg.LinAlgError("SVD did not converge"), ["tcr-accuracy diagnose", "LinAlgError", "SVD did not converge"]),
-    (["montecarlo", "--samples", "1000000000"], "tcr_accuracy.montecarlo", "run_monte_carlo",
+    (["montecarlo", "--samples", "1000000000"], "tcr_accuracy.analysis.montecarlo", "run_monte_carlo",
      MemoryError("Unable to allocate 22.4 GiB for an array with shape (1000000000, 3)"),
      ["tcr-accuracy montecarlo", "out of memory", "MemoryError", "22.4 GiB", "fewer samples"]),
     # demo runs montecarlo through main(); the outer command reports the inner failure
-    (["demo", "--samples", "100"], "tcr_accuracy.montecarlo", "run_monte_carlo",
+    (["demo", "--samples", "100"], "tcr_accuracy.analysis.montecarlo", "run_monte_carlo",
      KeyError("dx"), ["tcr-accuracy demo", "KeyError", "'dx'"]),
 ])
 def test_an_unexpected_error_is_one_line_and_exit_code_1(argv, module, function, exc, words,
@@ -119,7 +119,7 @@ def test_an_unexpected_error_is_one_line_and_exit_code_1(argv, module, function,
 
 @pytest.mark.parametrize("where", ["before", "after"])
 def test_debug_before_or_after_the_command_prints_the_traceback(where, monkeypatch, capsys):
-    monkeypatch.setattr("tcr_accuracy.kinematics.tcp_poses", _raise(RuntimeError("boom in the kinematics")))
+    monkeypatch.setattr("tcr_accuracy.model.kinematics.tcp_poses", _raise(RuntimeError("boom in the kinematics")))
     argv = ["--debug", "pose"] if where == "before" else ["pose", "--debug"]
     code, out, err = run(argv, capsys)
     assert code == 1
@@ -135,17 +135,17 @@ def test_debug_keeps_the_exit_code_of_bad_input(capsys):
 
 
 def test_interrupt_and_closed_pipe_keep_their_exit_codes(monkeypatch, capsys):
-    monkeypatch.setattr("tcr_accuracy.kinematics.tcp_poses", _raise(KeyboardInterrupt()))
+    monkeypatch.setattr("tcr_accuracy.model.kinematics.tcp_poses", _raise(KeyboardInterrupt()))
     code, out, err = run(["pose"], capsys)
     assert (code, err) == (130, "tcr-accuracy: interrupted\n")
-    monkeypatch.setattr("tcr_accuracy.kinematics.tcp_poses", _raise(BrokenPipeError()))
+    monkeypatch.setattr("tcr_accuracy.model.kinematics.tcp_poses", _raise(BrokenPipeError()))
     code, out, err = run(["pose"], capsys)
     assert (code, err) == (0, "")  # `tcr-accuracy ... | head` closed the pipe: not an error
 
 
 def test_unexpected_error_through_the_console_entry_point_has_no_traceback(tmp_path):
     """As a user runs it: a fresh interpreter, the exit status the shell sees."""
-    script = ("import sys, tcr_accuracy.kinematics as k\n"
+    script = ("import sys, tcr_accuracy.model.kinematics as k\n"
               "def fail(*a, **kw): raise ZeroDivisionError('float division by zero')\n"
               "k.tcp_poses = fail\n"
               "from tcr_accuracy.cli import main\n"

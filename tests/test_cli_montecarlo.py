@@ -5,10 +5,10 @@ import json
 import numpy as np
 import pytest
 
-from tcr_accuracy.budget_file import load_budget_file
+from tcr_accuracy.io.budget_file import load_budget_file
 from tcr_accuracy.cli import main
-from tcr_accuracy.errors import seed_budget
-from tcr_accuracy.reliability import first_order
+from tcr_accuracy.model.errors import seed_budget
+from tcr_accuracy.analysis.reliability import first_order
 
 
 def _run(capsys, argv):

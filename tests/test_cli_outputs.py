@@ -11,7 +11,7 @@ from html.parser import HTMLParser
 
 import pytest
 
-from tcr_accuracy import plots_montecarlo, plots_sensitivity
+from tcr_accuracy.view import plots_montecarlo, plots_sensitivity
 from tcr_accuracy.cli import main
 
 #: Small runs of each seeded command (a few seconds each).

@@ -8,9 +8,9 @@ import pinocchio as pin
 import pytest
 
 from tcr_accuracy.cli import main
-from tcr_accuracy.kinematics import tcp_poses
-from tcr_accuracy.scenario import truth_as_scenario
-from tcr_accuracy.simulate import simulate_measurements
+from tcr_accuracy.model.kinematics import tcp_poses
+from tcr_accuracy.analysis.scenario import truth_as_scenario
+from tcr_accuracy.analysis.simulate import simulate_measurements
 
 UR5_REF = np.array([0.3, -1.2, 1.5, -1.9, -1.57, 0.4])
 NOISE_M = 2e-5

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from tcr_accuracy.cli import main
-from tcr_accuracy.compensation import compensate_joints
-from tcr_accuracy.kinematics import tcp_poses
-from tcr_accuracy.prediction import JointKriging
-from tcr_accuracy.realrobot import gravity_torques, make_stand_in_robot, model_with_payload
-from tcr_accuracy.sampling import TaskWorkspace, sample_task_workspace
+from tcr_accuracy.prediction.compensation import compensate_joints
+from tcr_accuracy.model.kinematics import tcp_poses
+from tcr_accuracy.prediction.estimators import JointKriging
+from tcr_accuracy.analysis.realrobot import gravity_torques, make_stand_in_robot, model_with_payload
+from tcr_accuracy.analysis.sampling import TaskWorkspace, sample_task_workspace
 
 UR5_REF = np.array([0.3, -1.2, 1.5, -1.9, -1.57, 0.4])
 TC_REF = np.array([np.radians(15), np.radians(30), np.radians(-10), 0.2, np.radians(20), 0.0])
@@ -270,7 +270,7 @@ def test_cli_compensate_report_shows_before_and_after_of_the_json(measured, tool
                                                ("compensate", "plot_compensation")])
 def test_cli_a_failure_mid_run_leaves_no_csv_report_json_or_view(command, function, measured, tmp_path,
                                                                   monkeypatch, capsys):
-    from tcr_accuracy import plots_prediction
+    from tcr_accuracy.view import plots_prediction
 
     def boom(*args, **kwargs):
         raise RuntimeError("plot failed")

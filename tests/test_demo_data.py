@@ -6,8 +6,8 @@ import sys
 
 import numpy as np
 
-from tcr_accuracy.measurements import read_measurements
-from tcr_accuracy.robot import load_robot
+from tcr_accuracy.io.measurements import read_measurements
+from tcr_accuracy.model.robot import load_robot
 
 from conftest import REPO
 

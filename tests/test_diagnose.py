@@ -12,13 +12,13 @@ import sys
 import numpy as np
 import pytest
 
-from tcr_accuracy.diagnose import diagnose
+from tcr_accuracy.diagnosis.diagnose import diagnose
 from tcr_accuracy.effects import predict_positions
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.kinematics import tcp_poses
-from tcr_accuracy.measurements import write_measurements
-from tcr_accuracy.robot import load_robot
-from tcr_accuracy.simulate import simulate_measurements
+from tcr_accuracy.model.kinematics import tcp_poses
+from tcr_accuracy.io.measurements import write_measurements
+from tcr_accuracy.model.robot import load_robot
+from tcr_accuracy.analysis.simulate import simulate_measurements
 
 from conftest import REPO
 

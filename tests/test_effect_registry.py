@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from tcr_accuracy.diagnose import diagnose
+from tcr_accuracy.diagnosis.diagnose import diagnose
 from tcr_accuracy.effects import (
     EffectJacobian,
     LinearEffect,
@@ -17,7 +17,7 @@ from tcr_accuracy.effects import (
     vocabulary,
 )
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.simulate import dominant_candidates, outside_vocabulary, simulate_measurements
+from tcr_accuracy.analysis.simulate import dominant_candidates, outside_vocabulary, simulate_measurements
 
 
 class ElbowDroop(LinearEffect):

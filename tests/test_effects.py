@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from tcr_accuracy.context import MeasurementContext
+from tcr_accuracy.model.context import MeasurementContext
 from tcr_accuracy.effects import Effect, effect_classes, predict_poses, predict_positions, prediction_jacobian
 from tcr_accuracy.effects.backlash import Backlash
 from tcr_accuracy.effects.clearance import Clearance
@@ -17,11 +17,11 @@ from tcr_accuracy.effects.geometry import Geometry
 from tcr_accuracy.effects.joint_offsets import JointOffsets
 from tcr_accuracy.effects.thermal import Thermal
 from tcr_accuracy.effects.transmission import Transmission
-from tcr_accuracy.errors import ErrorModel
-from tcr_accuracy.gravity import gravity_torque
-from tcr_accuracy.kinematics import pose_error, tcp_poses, tcp_poses_pinocchio
-from tcr_accuracy.robot import robot_from_urdf_text
-from tcr_accuracy.tool_changer import ToolChangerDimensions, tool_changer_urdf
+from tcr_accuracy.model.errors import ErrorModel
+from tcr_accuracy.model.gravity import gravity_torque
+from tcr_accuracy.model.kinematics import pose_error, tcp_poses, tcp_poses_pinocchio
+from tcr_accuracy.model.robot import robot_from_urdf_text
+from tcr_accuracy.model.tool_changer import ToolChangerDimensions, tool_changer_urdf
 from tcr_accuracy.units import display_value
 
 from conftest import random_joint_values

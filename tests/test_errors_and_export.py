@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 import yourdfpy
 
-from tcr_accuracy.asbuilt import as_built_urdf
-from tcr_accuracy.errors import ErrorModel, ErrorSource, seed_budget
+from tcr_accuracy.model.asbuilt import as_built_urdf
+from tcr_accuracy.model.errors import ErrorModel, ErrorSource, seed_budget
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.kinematics import tcp_poses
-from tcr_accuracy.robot import load_robot, robot_from_urdf_text
+from tcr_accuracy.model.kinematics import tcp_poses
+from tcr_accuracy.model.robot import load_robot, robot_from_urdf_text
 
 from conftest import random_joint_values, tool_changer_tcp_by_hand
 

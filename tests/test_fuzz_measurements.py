@@ -9,8 +9,8 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.measurements import MeasurementWarning, parse_measurements
-from tcr_accuracy.robot import JointLimitWarning, load_robot
+from tcr_accuracy.io.measurements import MeasurementWarning, parse_measurements
+from tcr_accuracy.model.robot import JointLimitWarning, load_robot
 
 ROBOT = load_robot()
 VALID = (importlib.resources.files("tcr_accuracy") / "data" / "tool_changer_cutter.csv").read_text()

@@ -7,9 +7,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from tcr_accuracy.errors import ErrorModel
-from tcr_accuracy.jacobians import error_jacobian
-from tcr_accuracy.kinematics import (
+from tcr_accuracy.model.errors import ErrorModel
+from tcr_accuracy.model.jacobians import error_jacobian
+from tcr_accuracy.model.kinematics import (
     euler_zyx,
     exp6_batch,
     pose_error,
@@ -17,7 +17,7 @@ from tcr_accuracy.kinematics import (
     tcp_poses_pinocchio,
     TcpPoses,
 )
-from tcr_accuracy.robot import load_robot
+from tcr_accuracy.model.robot import load_robot
 
 from conftest import random_joint_values
 

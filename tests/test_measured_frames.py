@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from tcr_accuracy.cli import main
-from tcr_accuracy.context import MeasurementContext
-from tcr_accuracy.diagnose import diagnose
+from tcr_accuracy.model.context import MeasurementContext
+from tcr_accuracy.diagnosis.diagnose import diagnose
 from tcr_accuracy.effects import make_effect, predict_positions
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.measurements import measured_frames, parse_measurements, read_measurements
-from tcr_accuracy.robot import robot_from_urdf_text
+from tcr_accuracy.io.measurements import measured_frames, parse_measurements, read_measurements
+from tcr_accuracy.model.robot import robot_from_urdf_text
 
 
 def _arm(side: str, y: float) -> str:
@@ -153,7 +153,7 @@ def test_measured_orientation_enters_the_fit(tool_changer):
     only a fit that uses the measured orientation can find it."""
     from dataclasses import replace
 
-    from tcr_accuracy.simulate import simulate_measurements
+    from tcr_accuracy.analysis.simulate import simulate_measurements
 
     scenario = {"effects": {"frames": {"base_mm": {"dx": 20, "dy": -10}, "base_mrad": {"rz": 3},
                                        "tool_mm": {"dx": 1.0}},

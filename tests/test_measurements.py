@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.kinematics import tcp_poses
-from tcr_accuracy.measurements import (
+from tcr_accuracy.model.kinematics import tcp_poses
+from tcr_accuracy.io.measurements import (
     MeasurementContext,
     MeasurementSet,
     MeasurementWarning,

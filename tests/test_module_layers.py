@@ -1,9 +1,12 @@
-"""Imports run one way, and building the command line parser loads no heavy library.
+"""Imports run one way: each folder of the package imports only from the layers under it, no
+module imports itself back through others (lazy imports inside functions included), and
+building the command line parser loads no heavy library.
 
-Each check runs in a fresh interpreter, so that what other tests imported does not hide
-an import the module under test makes itself.
+The import graph is read from the source with Python's ``ast``, not by importing it, so an
+import hidden in a function counts as much as one at the top.
 """
 
+import ast
 import json
 import os
 import subprocess
@@ -14,34 +17,122 @@ import pytest
 
 import tcr_accuracy
 
-SRC = str(Path(tcr_accuracy.__file__).resolve().parents[1])
+PACKAGE = Path(tcr_accuracy.__file__).resolve().parent
+SRC = str(PACKAGE.parent)
+
+#: Layers, bottom first (the README's Architecture section); a module may import from its own
+#: layer and those before it.
+LAYERS = ["base", "model", "io", "effects", "analysis", "diagnosis", "prediction", "view", "cli"]
+BASE = {"tcr_accuracy", "tcr_accuracy.units", "tcr_accuracy.exceptions", "tcr_accuracy.atomic"}
 
 
-def _modules_after(code: str) -> set[str]:
-    """The names in sys.modules after running code in a fresh interpreter on this package."""
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(p for p in (SRC, env.get("PYTHONPATH", "")) if p)
-    script = f"import json, sys\n{code}\nprint(json.dumps(sorted(sys.modules)))"
-    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=120)
-    assert done.returncode == 0, done.stderr[-2000:]
-    return set(json.loads(done.stdout.splitlines()[-1]))
+def _layer(module: str) -> str:
+    if module in BASE or module == "tcr_accuracy.__main__":
+        return "cli" if module.endswith("__main__") else "base"
+    return module.split(".")[1]
 
 
-@pytest.mark.parametrize("module, below", [
-    ("scenario", ["simulate"]),  # simulate reads scenarios, never the other way round
-    ("sensitivity", ["sobol", "tolerance", "random_inputs"]),  # the sweeps need no global analysis
-    ("random_inputs", ["sobol", "tolerance"]),
-    ("robot_visuals", ["viewer"]),  # the scene draws robots, the robots know no scene
-    ("meshcat_page", ["viewer", "robot_visuals"]),
+def _import_graph() -> dict[str, set[str]]:
+    modules = {}
+    for path in PACKAGE.rglob("*.py"):
+        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        modules[name] = path
+    graph = {name: set() for name in modules}
+    for name, path in modules.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                base = package.split(".")[: len(package.split(".")) - node.level + 1] if node.level else []
+                target = ".".join(base + ([node.module] if node.module else [])) if node.level else node.module
+                # "from . import x" names the submodule x; the package's own __init__ is
+                # imported first by any import of a submodule and is not counted as an edge
+                candidates = ([] if node.module is None and node.level else [target]) + \
+                    [f"{target}.{alias.name}" for alias in node.names]
+            elif isinstance(node, ast.Import):
+                candidates = [alias.name for alias in node.names]
+            else:
+                continue
+            for candidate in candidates:
+                while candidate and candidate not in modules:
+                    candidate = candidate.rpartition(".")[0]
+                if candidate and candidate != name:
+                    graph[name].add(candidate)
+    return graph
+
+
+GRAPH = _import_graph()
+
+
+def test_every_module_belongs_to_a_layer():
+    assert {_layer(m) for m in GRAPH} <= set(LAYERS)
+    assert len(GRAPH) > 60  # the walk found the package
+
+
+def test_imports_point_down_the_layers():
+    upward = [f"{m} -> {t}" for m, targets in GRAPH.items() for t in targets
+              if t != "tcr_accuracy" and LAYERS.index(_layer(t)) > LAYERS.index(_layer(m))]
+    assert not upward, upward
+
+
+def test_no_import_cycle():
+    """Tarjan's strongly connected components of the import graph: each must be one module."""
+    index, low, stack, on_stack, cycles = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in GRAPH[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                cycles.append(sorted(component))
+
+    for module in GRAPH:
+        if module not in index:
+            visit(module)
+    # the package root re-exports the API lazily (PEP 562): it imports nothing at import time
+    assert not cycles, cycles
+
+
+@pytest.mark.parametrize("module, above", [
+    ("analysis.scenario", ["analysis.simulate"]),  # simulate reads scenarios, never the other way round
+    ("analysis.sensitivity", ["analysis.sobol", "analysis.tolerance", "analysis.random_inputs"]),
+    ("analysis.random_inputs", ["analysis.sobol", "analysis.tolerance"]),
+    ("view.robot_visuals", ["view.viewer"]),  # the scene draws robots, the robots know no scene
+    ("view.meshcat_page", ["view.viewer", "view.robot_visuals"]),
+    ("effects.base", ["effects.compliance", "diagnosis.diagnose"]),
 ])
-def test_module_does_not_import_the_modules_built_on_it(module, below):
-    loaded = _modules_after(f"import tcr_accuracy.{module}")
-    assert f"tcr_accuracy.{module}" in loaded
-    assert not loaded & {f"tcr_accuracy.{name}" for name in below}
+def test_within_a_layer_the_arrows_run_one_way(module, above):
+    reachable, todo = set(), [f"tcr_accuracy.{module}"]
+    while todo:
+        for target in GRAPH[todo.pop()]:
+            if target not in reachable:
+                reachable.add(target)
+                todo.append(target)
+    assert not reachable & {f"tcr_accuracy.{name}" for name in above}
 
 
 def test_building_the_parser_imports_no_heavy_library():
     """``--help`` stays instant: every topic module registers its commands without numpy & co."""
-    loaded = _modules_after("from tcr_accuracy.cli import build_parser\nbuild_parser()")
-    assert {"tcr_accuracy.cli_tolerance", "tcr_accuracy.cli_trajectory"} <= loaded
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (SRC, env.get("PYTHONPATH", "")) if p)
+    code = "from tcr_accuracy.cli import build_parser\nbuild_parser()"
+    script = f"import json, sys\n{code}\nprint(json.dumps(sorted(sys.modules)))"
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    loaded = set(json.loads(done.stdout.splitlines()[-1]))
+    assert {"tcr_accuracy.cli.tolerance", "tcr_accuracy.cli.trajectory"} <= loaded
     assert not loaded & {"numpy", "pinocchio", "scipy", "meshcat", "SALib", "matplotlib"}

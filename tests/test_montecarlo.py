@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from tcr_accuracy.cli import main
-from tcr_accuracy.clearance import ClearanceModel
-from tcr_accuracy.errors import ErrorModel, seed_budget
-from tcr_accuracy.kinematics import tcp_chain_soa, tcp_poses_pinocchio
-from tcr_accuracy.montecarlo import STAT_COLUMNS, chunk_plan, run_monte_carlo, sample_rows
-from tcr_accuracy.reliability import first_order
+from tcr_accuracy.model.clearance import ClearanceModel
+from tcr_accuracy.model.errors import ErrorModel, seed_budget
+from tcr_accuracy.model.kinematics import tcp_chain_soa, tcp_poses_pinocchio
+from tcr_accuracy.analysis.montecarlo import STAT_COLUMNS, chunk_plan, run_monte_carlo, sample_rows
+from tcr_accuracy.analysis.reliability import first_order
 
 
 class ToolShiftSampler:

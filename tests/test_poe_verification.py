@@ -10,8 +10,8 @@ import pinocchio as pin
 import pytest
 from scipy.linalg import expm
 
-from tcr_accuracy.errors import ErrorModel
-from tcr_accuracy.kinematics import pose_error, tcp_poses, tcp_poses_pinocchio
+from tcr_accuracy.model.errors import ErrorModel
+from tcr_accuracy.model.kinematics import pose_error, tcp_poses, tcp_poses_pinocchio
 
 from conftest import random_joint_values
 
@@ -145,7 +145,7 @@ def test_tilt_screw_written_as_r_cross_w_is_the_placement_rotation(tool_changer)
 @pytest.mark.parametrize("scale", [1e-5, 1e-4, 1e-3])
 def test_small_errors_follow_the_first_order_jacobian(tool_changer, scale):
     """Error screws are first order: the residual to the linear prediction shrinks as scale^2."""
-    from tcr_accuracy.jacobians import error_jacobian
+    from tcr_accuracy.model.jacobians import error_jacobian
 
     rng = np.random.default_rng(2)
     em = ErrorModel(tool_changer)

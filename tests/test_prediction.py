@@ -8,8 +8,8 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.estimator_checks import check_estimator
 
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.kinematics import tcp_poses
-from tcr_accuracy.prediction import (
+from tcr_accuracy.model.kinematics import tcp_poses
+from tcr_accuracy.prediction.estimators import (
     DiagnosisCalibration,
     GeometricCalibration,
     InverseDistanceWeighting,
@@ -22,8 +22,8 @@ from tcr_accuracy.prediction import (
     make_predictor,
     uncertainty_kind,
 )
-from tcr_accuracy.realrobot import make_stand_in_robot
-from tcr_accuracy.similarity import pair_distances, spatial_similarity
+from tcr_accuracy.analysis.realrobot import make_stand_in_robot
+from tcr_accuracy.analysis.similarity import pair_distances, spatial_similarity
 
 UR5_REF = np.array([0.3, -1.2, 1.5, -1.9, -1.57, 0.4])
 
@@ -201,7 +201,7 @@ def test_pcc_is_numpy_corrcoef_of_the_pair_distances(ur5):
 
 
 def test_semivariogram_and_similarity_plots_are_written_whole(ur5, tmp_path):
-    from tcr_accuracy.plots_prediction import plot_semivariograms, plot_similarity
+    from tcr_accuracy.view.plots_prediction import plot_semivariograms, plot_similarity
 
     rng = np.random.default_rng(6)
     q = UR5_REF + rng.uniform(-0.1, 0.1, (40, 6))
@@ -240,10 +240,10 @@ def test_kriging_standard_deviation_is_the_simple_kriging_variance_by_hand():
 
 
 def test_gp_standard_deviation_covers_the_hidden_error(ur5):
-    """A UR5 with hidden geometry, compliance and tracker noise (tcr_accuracy.simulate): +-2 std of
+    """A UR5 with hidden geometry, compliance and tracker noise (tcr_accuracy.analysis.simulate): +-2 std of
     the GP covers about 95 % of the held-out measured errors and at least as much of the true ones."""
-    from tcr_accuracy.scenario import truth_as_scenario
-    from tcr_accuracy.simulate import simulate_measurements
+    from tcr_accuracy.analysis.scenario import truth_as_scenario
+    from tcr_accuracy.analysis.simulate import simulate_measurements
 
     scenario = {"effects": {"geometry": {"spread_mm": 0.2, "spread_mrad": 0.2}, "compliance": {"tcp_rms_mm": 1.0}},
                 "context": {"payload_kg": 5.0, "payload_fraction": 1.0, "temperature_spread_c": 0.0,
@@ -296,8 +296,8 @@ def test_tcp_offset_is_the_frames_effects_tool_offset(ur5):
 
 
 def test_diagnosis_calibration_predicts_a_hidden_in_vocabulary_robot_to_the_noise(ur5):
-    from tcr_accuracy.scenario import truth_as_scenario
-    from tcr_accuracy.simulate import simulate_measurements
+    from tcr_accuracy.analysis.scenario import truth_as_scenario
+    from tcr_accuracy.analysis.simulate import simulate_measurements
 
     scenario = {"effects": {"geometry": {"spread_mm": 0.3, "spread_mrad": 0.3}, "compliance": {"tcp_rms_mm": 1.5}},
                 "context": {"payload_kg": 0.0, "payload_fraction": 0.0, "temperature_spread_c": 0.0,
@@ -315,8 +315,8 @@ def test_diagnosis_calibration_predicts_a_hidden_in_vocabulary_robot_to_the_nois
 
 
 def test_measured_error_model_predicts_tracker_readings_of_a_robot_in_a_tracker_frame(ur5):
-    from tcr_accuracy.scenario import truth_as_scenario
-    from tcr_accuracy.simulate import simulate_measurements
+    from tcr_accuracy.analysis.scenario import truth_as_scenario
+    from tcr_accuracy.analysis.simulate import simulate_measurements
 
     scenario = {"effects": {"frames": {"base_mm": {"dx": 900.0, "dy": -1400.0, "dz": 300.0},
                                        "base_deg": {"ry": 4.0, "rz": -120.0}, "tool_mm": {"dz": 40.0}},

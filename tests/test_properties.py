@@ -20,11 +20,11 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from tcr_accuracy import cli
-from tcr_accuracy.errors import ErrorModel
+from tcr_accuracy.model.errors import ErrorModel
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.jacobians import error_jacobian
-from tcr_accuracy.kinematics import tcp_poses
-from tcr_accuracy.robot import load_robot, robot_from_urdf_text
+from tcr_accuracy.model.jacobians import error_jacobian
+from tcr_accuracy.model.kinematics import tcp_poses
+from tcr_accuracy.model.robot import load_robot, robot_from_urdf_text
 
 PROPERTY = settings(max_examples=25, derandomize=True, deadline=None, database=None,
                     suppress_health_check=[HealthCheck.too_slow])

@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from tcr_accuracy.context import MeasurementContext
+from tcr_accuracy.model.context import MeasurementContext
 from tcr_accuracy.effects import make_effect, predict_positions
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.gravity import gravity_torque, gravity_wrench
-from tcr_accuracy.kinematics import tcp_poses
-from tcr_accuracy.measurements import parse_measurements
-from tcr_accuracy.robot import robot_from_urdf_text
+from tcr_accuracy.model.gravity import gravity_torque, gravity_wrench
+from tcr_accuracy.model.kinematics import tcp_poses
+from tcr_accuracy.io.measurements import parse_measurements
+from tcr_accuracy.model.robot import robot_from_urdf_text
 
 G = 9.81
 L1, L2, A1, A2, B, M1, M2, M3 = 0.8, 0.6, 0.35, 0.25, 0.3, 12.0, 7.0, 5.0
@@ -183,7 +183,7 @@ def test_lateral_compliance_tilts_joints_as_a_rebuilt_urdf_does(branched):
 def test_prediction_feeds_the_other_joints_to_the_gravity_effects(branched):
     """The side joint swings a 5 kg mass on link j1: the j1 sag follows it. A predictor that is
     given every row's context sees that; one that freezes the side joint cannot."""
-    from tcr_accuracy.prediction import DiagnosisCalibration, MeasuredErrorModel
+    from tcr_accuracy.prediction.estimators import DiagnosisCalibration, MeasuredErrorModel
 
     rng = np.random.default_rng(21)
     n = 160

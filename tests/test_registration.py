@@ -5,9 +5,9 @@ import pinocchio as pin
 import pytest
 
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.kinematics import tcp_poses
-from tcr_accuracy.registration import register_tracker, rigid_fit
-from tcr_accuracy.simulate import simulate_measurements
+from tcr_accuracy.model.kinematics import tcp_poses
+from tcr_accuracy.prediction.registration import register_tracker, rigid_fit
+from tcr_accuracy.analysis.simulate import simulate_measurements
 
 #: a tracker 1.2 m away, turned 40 deg about z and tilted a few degrees, with a 30 mm
 #: TCP offset (a reflector on a tool): the situation of every laser tracker

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from tcr_accuracy.errors import seed_budget
-from tcr_accuracy.montecarlo import run_monte_carlo
-from tcr_accuracy.reliability import (
+from tcr_accuracy.model.errors import seed_budget
+from tcr_accuracy.analysis.montecarlo import run_monte_carlo
+from tcr_accuracy.analysis.reliability import (
     binomial_interval,
     first_order,
     gaussian_exceedance,

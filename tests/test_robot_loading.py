@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.robot import EXAMPLE_ROBOTS, JointLimitWarning, load_robot, robot_from_urdf_text
+from tcr_accuracy.model.robot import EXAMPLE_ROBOTS, JointLimitWarning, load_robot, robot_from_urdf_text
 
 from conftest import REPO
 
@@ -41,7 +41,7 @@ def test_two_link_closed_form():
         <origin xyz="0.7 0 0"/><axis xyz="0 0 1"/></joint>
       <joint name="t" type="fixed"><parent link="l2"/><child link="tip"/><origin xyz="0.4 0 0"/></joint>
     </robot>"""
-    from tcr_accuracy.kinematics import tcp_poses
+    from tcr_accuracy.model.kinematics import tcp_poses
 
     robot = robot_from_urdf_text(text, None)
     assert robot.tool_frame == "tip" and robot.joint_kinds == ["revolute", "revolute"]

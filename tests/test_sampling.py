@@ -5,8 +5,8 @@ import pinocchio as pin
 import pytest
 
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.kinematics import euler_zyx, rotation_from_euler_zyx, tcp_poses
-from tcr_accuracy.sampling import TaskWorkspace, inverse_kinematics, sample_task_workspace, stratified_subset
+from tcr_accuracy.model.kinematics import euler_zyx, rotation_from_euler_zyx, tcp_poses
+from tcr_accuracy.analysis.sampling import TaskWorkspace, inverse_kinematics, sample_task_workspace, stratified_subset
 
 UR5_REF = np.array([0.3, -1.2, 1.5, -1.9, -1.57, 0.4])
 TC_REF = np.array([np.radians(15), np.radians(30), np.radians(-10), 0.2, np.radians(20), 0.0])

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.semivariogram import (
+from tcr_accuracy.analysis.semivariogram import (
     GaussianVariogram,
     empirical_semivariogram,
     fit_gaussian_variogram,
@@ -55,7 +55,7 @@ def test_per_joint_semivariogram_finds_the_joint_the_error_depends_on():
 def test_gaussian_fit_recovers_known_parameters():
     truth = GaussianVariogram(nugget=0.1, sill=0.8, range_=1.3)
     h = np.linspace(0.05, 3.0, 20)
-    from tcr_accuracy.semivariogram import EmpiricalSemivariogram
+    from tcr_accuracy.analysis.semivariogram import EmpiricalSemivariogram
 
     emp = EmpiricalSemivariogram(lags=h, semivariance=truth(h)[:, None], counts=np.full(20, 50), joint=None)
     fit = fit_gaussian_variogram(emp)

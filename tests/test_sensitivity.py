@@ -8,15 +8,15 @@ import pytest
 from scipy.spatial.transform import Rotation
 from scipy.stats import norm
 
-from tcr_accuracy.clearance import ClearanceModel
+from tcr_accuracy.model.clearance import ClearanceModel
 from tcr_accuracy.cli import main
-from tcr_accuracy.errors import ErrorBudget, ErrorModel, ErrorSource, seed_budget
+from tcr_accuracy.model.errors import ErrorBudget, ErrorModel, ErrorSource, seed_budget
 from tcr_accuracy.exceptions import AnalysisError, InputError
-from tcr_accuracy.jacobians import error_jacobian
-from tcr_accuracy.kinematics import tcp_poses
-from tcr_accuracy.sensitivity import SEED_ANGLE_SWEEP, SEED_LINK_SWEEP, clearance_sweeps, seed_sweeps
-from tcr_accuracy.sobol import sobol_indices
-from tcr_accuracy.tolerance import allocate_tolerance
+from tcr_accuracy.model.jacobians import error_jacobian
+from tcr_accuracy.model.kinematics import tcp_poses
+from tcr_accuracy.analysis.sensitivity import SEED_ANGLE_SWEEP, SEED_LINK_SWEEP, clearance_sweeps, seed_sweeps
+from tcr_accuracy.analysis.sobol import sobol_indices
+from tcr_accuracy.analysis.tolerance import allocate_tolerance
 
 
 @pytest.fixture(scope="module")
@@ -235,8 +235,8 @@ def test_tolerance_factor_is_the_largest_that_meets_the_target(tool_changer, pro
     result = allocate_tolerance(budget, q, 0.25e-3, prob, n_samples=3000, rng=np.random.default_rng(4))
     assert result.achieved_probability >= prob
     rng = np.random.default_rng(4)  # the same uniform draws, recomputed here by plain Monte Carlo
-    from tcr_accuracy.kinematics import pose_error
-    from tcr_accuracy.random_inputs import random_inputs
+    from tcr_accuracy.model.kinematics import pose_error
+    from tcr_accuracy.analysis.random_inputs import random_inputs
 
     values = random_inputs(budget).values_from_unit(rng.uniform(size=(3000, len(budget.sources))))
     nominal = tcp_poses(tool_changer, q)
@@ -311,7 +311,7 @@ def test_cli_sensitivity_json(tmp_path):
 
 
 def test_sweep_and_sobol_plots_are_written_whole(tool_changer, tmp_path):
-    from tcr_accuracy.plots_sensitivity import POSITION_OUTPUTS, plot_sobol, plot_sweep
+    from tcr_accuracy.view.plots_sensitivity import POSITION_OUTPUTS, plot_sobol, plot_sweep
 
     q = tool_changer.working_pose
     sweep = seed_sweeps(tool_changer, q)["joint_angle"]

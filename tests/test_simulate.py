@@ -10,10 +10,10 @@ import yaml
 from tcr_accuracy.cli import main
 from tcr_accuracy.effects import effect_classes, prediction_jacobian
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.kinematics import tcp_poses
-from tcr_accuracy.measurements import allowed_columns, read_measurements
-from tcr_accuracy.scenario import load_scenario, resolve_effect, truth_as_scenario
-from tcr_accuracy.simulate import dominant_candidates, random_scenario, simulate_measurements
+from tcr_accuracy.model.kinematics import tcp_poses
+from tcr_accuracy.io.measurements import allowed_columns, read_measurements
+from tcr_accuracy.analysis.scenario import load_scenario, resolve_effect, truth_as_scenario
+from tcr_accuracy.analysis.simulate import dominant_candidates, random_scenario, simulate_measurements
 
 from conftest import REPO
 

@@ -7,8 +7,8 @@ import pinocchio as pin
 import pytest
 import yourdfpy
 
-from tcr_accuracy.robot import load_robot
-from tcr_accuracy.tool_changer import ToolChangerDimensions, tool_changer_urdf
+from tcr_accuracy.model.robot import load_robot
+from tcr_accuracy.model.tool_changer import ToolChangerDimensions, tool_changer_urdf
 
 from conftest import REPO
 
@@ -71,7 +71,7 @@ def test_yourdfpy_loads_the_urdf_and_agrees_at_the_working_pose(tool_changer):
 
 def test_other_dimensions_rebuild_the_robot():
     dims = ToolChangerDimensions(l3=1.0)
-    from tcr_accuracy.robot import robot_from_urdf_text
+    from tcr_accuracy.model.robot import robot_from_urdf_text
 
     robot = robot_from_urdf_text(tool_changer_urdf(dims), "tool")
     data = robot.model.createData()

@@ -9,11 +9,11 @@ import pytest
 from scipy.stats import norm
 
 from tcr_accuracy.cli import main
-from tcr_accuracy.errors import ErrorBudget, seed_budget
+from tcr_accuracy.model.errors import ErrorBudget, seed_budget
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.kinematics import tcp_poses_pinocchio
-from tcr_accuracy.robot import JointLimitWarning
-from tcr_accuracy.trajectory import (STOWED_POSE, JointTrajectory, quintic_time_scaling, read_trajectory_csv,
+from tcr_accuracy.model.kinematics import tcp_poses_pinocchio
+from tcr_accuracy.model.robot import JointLimitWarning
+from tcr_accuracy.analysis.trajectory import (STOWED_POSE, JointTrajectory, quintic_time_scaling, read_trajectory_csv,
                                      tool_change_motion, trajectory_error_bands)
 
 HEADER = "t_s,j1_deg,j2_deg,j3_rad,j4_mm,j5_deg,j6_deg"

@@ -18,19 +18,19 @@ import pytest
 
 matplotlib.use("Agg")
 
-from tcr_accuracy import report as report_module
+from tcr_accuracy.view import report as report_module
 from tcr_accuracy.cli import main
-from tcr_accuracy.errors import ErrorModel, seed_budget
+from tcr_accuracy.model.errors import ErrorModel, seed_budget
 from tcr_accuracy.exceptions import InputError
-from tcr_accuracy.kinematics import tcp_poses
-from tcr_accuracy.report import Report
-from tcr_accuracy.robot_visuals import visual_geometry
-from tcr_accuracy.viewer import Scene, auto_magnification
+from tcr_accuracy.model.kinematics import tcp_poses
+from tcr_accuracy.view.report import Report
+from tcr_accuracy.view.robot_visuals import visual_geometry
+from tcr_accuracy.view.viewer import Scene, auto_magnification
 
 from conftest import TOOL_CHANGER_JOINTS, tool_changer_tcp_by_hand
 
 #: In the built-in tool-changer the end-effector box is centred 0.05 m along +y of the
-#: TCP frame (tcr_accuracy.tool_changer._link_geometry), and the TCP sits at j6's origin.
+#: TCP frame (tcr_accuracy.model.tool_changer._link_geometry), and the TCP sits at j6's origin.
 END_EFFECTOR_CENTRE_IN_TCP = np.array([0.0, 0.05, 0.0])
 
 
@@ -322,7 +322,7 @@ def test_view_command_bad_input_is_one_line_and_exit_2(argv, message, capsys):
 def test_view_arguments_plug_into_another_command(tmp_path, capsys, tool_changer):
     import argparse
 
-    from tcr_accuracy.cli_view import add_view_arguments, emit_view
+    from tcr_accuracy.cli.view import add_view_arguments, emit_view
 
     parser = argparse.ArgumentParser()
     add_view_arguments(parser)

@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
-from ..context import context_column
-from ..gravity import gravity_torque
+from ..model.context import context_column
+from ..model.gravity import gravity_torque
 from ..units import REVOLUTE
 from .base import PerJointEffect, joint_unit
 

@@ -30,7 +30,7 @@ option fails); :attr:`Effect.options` lists those that differ from their default
 
 What an effect does: ``perturb(params, q, context)`` gives joint-side offsets ``dq``
 (N, n_joints) and/or error vectors ``x`` (N, n_error_params) of
-:class:`~tcr_accuracy.errors.ErrorModel`, i.e. it acts on the Pinocchio model's joint
+:class:`~tcr_accuracy.model.errors.ErrorModel`, i.e. it acts on the Pinocchio model's joint
 values and joint placements, never on output positions; ``parameter_jacobian`` gives
 their derivatives in the parameters (exact for linear effects).
 """
@@ -45,10 +45,10 @@ from typing import ClassVar
 
 import numpy as np
 
-from ..context import MeasurementContext
-from ..errors import ErrorModel
+from ..model.context import MeasurementContext
+from ..model.errors import ErrorModel
 from ..exceptions import InputError
-from ..robot import RobotModel
+from ..model.robot import RobotModel
 from ..units import REVOLUTE
 
 
@@ -59,7 +59,7 @@ class EffectOutput:
     dq : ndarray of shape (N, n_joints) or None
         Offsets added to the commanded joint values [rad, m].
     x : ndarray of shape (N, n_error_params) or None
-        Geometric error vectors (layout of :class:`~tcr_accuracy.errors.ErrorModel`).
+        Geometric error vectors (layout of :class:`~tcr_accuracy.model.errors.ErrorModel`).
     """
 
     dq: np.ndarray | None = None

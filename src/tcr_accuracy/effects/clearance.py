@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..clearance import ClearanceModel
+from ..model.clearance import ClearanceModel
 from ..exceptions import InputError
 from ..units import REVOLUTE
 from .base import Effect, EffectOutput
@@ -18,7 +18,7 @@ class Clearance(Effect):
     radial shift of length ``s ~ N(0, radial)`` in a uniformly random direction
     perpendicular to the axis, and a tilt of the axis about the two perpendicular
     directions, each ``~ N(0, tilt)``: the exact model the Monte Carlo samples
-    (:class:`~tcr_accuracy.clearance.ClearanceModel`, ``Trans * Rot`` on the placement). Parameters: the spreads ``clearance.axial`` [m],
+    (:class:`~tcr_accuracy.model.clearance.ClearanceModel`, ``Trans * Rot`` on the placement). Parameters: the spreads ``clearance.axial`` [m],
     ``clearance.radial`` [m], ``clearance.tilt`` [rad], shared by the joints with play.
     ``joints``: names (default every revolute joint, as the seed); ``rng``: a numpy
     Generator (else ``context.rng`` is used).
@@ -55,7 +55,7 @@ class Clearance(Effect):
         return [self.robot.joint_names.index(n) for n in self.joints]
 
     def model(self, params) -> ClearanceModel:
-        """The exact clearance model of the Monte Carlo (:class:`~tcr_accuracy.clearance.ClearanceModel`)
+        """The exact clearance model of the Monte Carlo (:class:`~tcr_accuracy.model.clearance.ClearanceModel`)
         with these spreads."""
         axial, radial, tilt = self.check_params(params)
         return ClearanceModel(self.error_model, tuple(self.joint_indices()), axial_std=float(axial),

@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
-from ..context import context_column
-from ..gravity import gravity_torque
+from ..model.context import context_column
+from ..model.gravity import gravity_torque
 from ..units import REVOLUTE
 from .base import PerJointEffect, loaded_joint_scales, reference_poses
 
@@ -15,7 +15,7 @@ from .base import PerJointEffect, loaded_joint_scales, reference_poses
 class Compliance(PerJointEffect):
     """Joint elasticity under gravity and payload: ``dq_j = c_j * tau_g,j(q, payload)``.
 
-    ``tau_g`` is the torque gravity exerts on each joint (:func:`~tcr_accuracy.gravity.gravity_torque`,
+    ``tau_g`` is the torque gravity exerts on each joint (:func:`~tcr_accuracy.model.gravity.gravity_torque`,
     on the robot's whole tree, the payload a point mass at the TCP and the joints outside
     the TCP chain at their measured values), so a positive compliance lets the arm sag the
     way gravity pulls. Parameters ``compliance.<joint>`` = 1/k_j [rad/Nm, or m/N for a

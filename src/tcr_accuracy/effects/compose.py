@@ -16,12 +16,12 @@ from typing import Sequence
 
 import numpy as np
 
-from ..context import MeasurementContext
-from ..errors import ErrorModel
+from ..model.context import MeasurementContext
+from ..model.errors import ErrorModel
 from ..exceptions import InputError
-from ..jacobians import error_jacobians
-from ..kinematics import TcpPoses, tcp_poses
-from ..robot import JointLimitWarning, RobotModel
+from ..model.jacobians import error_jacobians
+from ..model.kinematics import TcpPoses, tcp_poses
+from ..model.robot import JointLimitWarning, RobotModel
 from .base import Effect
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import PLACEMENT_COMPONENTS
+from ..model.errors import PLACEMENT_COMPONENTS
 from ..exceptions import InputError
 from .base import EffectJacobian, LinearEffect
 

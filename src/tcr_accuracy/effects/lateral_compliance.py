@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
-from ..context import MeasurementContext, context_column
-from ..gravity import gravity_wrench
+from ..model.context import MeasurementContext, context_column
+from ..model.gravity import gravity_wrench
 from ..units import REVOLUTE
 from .base import EffectJacobian, LinearEffect, loaded_joint_scales, reference_poses
 
@@ -23,7 +23,7 @@ class LateralCompliance(LinearEffect):
     z-axis joint).
 
     Implementation: the wrench comes from Pinocchio's RNEA on the robot's whole tree
-    (:func:`~tcr_accuracy.gravity.gravity_wrench`, at the joint's moving origin), its moment
+    (:func:`~tcr_accuracy.model.gravity.gravity_wrench`, at the joint's moving origin), its moment
     is turned into the placement frame (``R(q_j)``), and the tilt is a twist on the joint
     placement, ``parentMjoint <- parentMjoint * exp6(xi)``, with ``xi = (0, w)`` for a
     revolute joint and ``(q a x w, w)`` for a prismatic one (the tilt acts at the moving

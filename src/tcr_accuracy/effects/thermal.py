@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..context import REFERENCE_TEMPERATURE_C, context_column
+from ..model.context import REFERENCE_TEMPERATURE_C, context_column
 from .base import EffectJacobian, LinearEffect
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..robot import RobotModel
+from ..model.robot import RobotModel
 from .base import Effect, EffectOutput
 
 

@@ -1,0 +1,1 @@
+"""analysis layer of tcr_accuracy (see the README's Architecture section)."""

@@ -1,0 +1,236 @@
+"""Scenarios: which effects a simulated robot hides, and how its context and noise are drawn.
+
+A *scenario* (a YAML file, a mapping, or a truth file written by
+:func:`tcr_accuracy.analysis.simulate.write_truth`) is read here into a :class:`Scenario`, and
+each of its effects is resolved into an effect instance with parameter values in SI
+(:func:`resolve_effect`). Drawing poses and context, and measuring the perturbed TCP, is
+:mod:`tcr_accuracy.analysis.simulate`'s job; this module knows only the format.
+
+Scenario format (every key optional)::
+
+    effects:
+      frames:                       # the tracker frame and TCP offset
+        base_mm: {dx: 25, dy: -40, dz: 10}
+        base_mrad: {rz: 8}
+      geometry:
+        spread_mm: 0.2              # random: normal, this std, for every length parameter
+        spread_mrad: 0.2            # ... and every angle parameter
+      joint_offsets:
+        offsets_deg: {j2: 0.05, j3: -0.03}
+      compliance:
+        tcp_rms_mm: 1.5             # scale the drawn compliances to this RMS TCP displacement
+        options: {link_mass_spread: 0.05}
+      thermal:
+        alpha_per_k: 1.2e-5
+    context:
+      payload_kg: 150               # payload of the rows that carry it (default: a disc cutter)
+      payload_fraction: 0.5
+      temperature_c: 20             # mean; rows spread uniformly by +-temperature_spread_c
+      temperature_spread_c: 10
+      directions: random            # random +-1 approach directions per joint, or none
+    noise_mm: 0.02
+
+Inside an effect, a key ``<label>_<unit>`` gives values: a number for every parameter
+of that dimension, or a mapping ``{selector: value}`` where the selector is the
+parameter name without the effect prefix (``j3.dy``), or a leading or trailing part of
+it (``j3``, ``dy``); a label that is itself a selector restricts the key to those
+parameters (``base_mm: {dx: 25}`` sets ``frames.base.dx``). ``spread_<unit>`` draws normal values with that standard deviation
+instead. ``parameters`` takes full names in SI (``compliance.j2: 2.0e-8``): a truth file
+is a scenario. An effect with no values is drawn around its typical scales.
+``tcp_rms_mm`` rescales the effect to that RMS TCP displacement over the simulated rows.
+Units: m, mm, um, rad, mrad, urad, deg, arcsec, per_k, ppm_per_k, ppm, rad_per_nm,
+urad_per_nm, deg_per_knm, m_per_n, um_per_n, mm_per_kn; no suffix = dimensionless.
+
+Effects outside the vocabulary (``unmodelled``, ``link_bending``) are named the same way.
+What this module needs to know about an effect (its parameters, units, scales and sign
+constraint) it reads from the effect's class.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..model.context import REFERENCE_TEMPERATURE_C
+from ..effects import Effect, effect_class
+from ..exceptions import InputError
+from ..io.measurements import read_user_text
+from ..model.robot import RobotModel
+from ..units import SUFFIXES, split_suffix
+
+
+@dataclass
+class ContextSpec:
+    """How the simulated context columns are drawn."""
+
+    payload_kg: float | None = None  # None: typical_payload_kg(robot)
+    payload_fraction: float = 0.5
+    temperature_c: float = REFERENCE_TEMPERATURE_C
+    temperature_spread_c: float = 10.0
+    directions: str = "random"  # "random" or "none"
+
+
+@dataclass
+class Scenario:
+    """Hidden effects (name -> spec as in the YAML) and how to draw context and noise."""
+
+    effects: dict[str, dict] = field(default_factory=dict)
+    context: ContextSpec = field(default_factory=ContextSpec)
+    noise_m: float | None = None
+    source: str = "<scenario>"
+
+
+_CONTEXT_KEYS = {"payload_kg", "payload_fraction", "temperature_c", "temperature_spread_c", "directions"}
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read a scenario YAML file (see the module docstring)."""
+    import yaml
+
+    path = Path(path)
+    text = read_user_text(path, "scenario file")
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise InputError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
+    return scenario_from_dict(data or {}, source=str(path))
+
+
+def scenario_from_dict(data: dict, source: str = "<scenario>") -> Scenario:
+    """Check the structure of a scenario mapping and wrap it."""
+    if not isinstance(data, dict):
+        raise InputError(f"{source}: a scenario is a mapping with keys effects, context, noise_mm")
+    unknown = set(data) - {"effects", "context", "noise_mm", "robot", "dominant", "outside_vocabulary",
+                           "seed", "n", "orientation_noise_rad", "noise_m", "notes"}
+    if unknown:
+        raise InputError(f"{source}: unknown key(s) {', '.join(sorted(unknown))} (keys: effects, context, noise_mm)")
+    effects = data.get("effects") or {}
+    if not isinstance(effects, dict):
+        raise InputError(f"{source}: effects: a mapping effect name -> settings")
+    for name, spec in effects.items():
+        effect_class(name, source=source)  # raises for unknown names
+        if spec is not None and not isinstance(spec, dict):
+            raise InputError(f"{source}: effects.{name}: settings must be a mapping (or empty)")
+    ctx = data.get("context") or {}
+    if not isinstance(ctx, dict) or set(ctx) - _CONTEXT_KEYS:
+        raise InputError(f"{source}: context: unknown key(s) {', '.join(sorted(set(ctx) - _CONTEXT_KEYS))} "
+                         f"(keys: {', '.join(sorted(_CONTEXT_KEYS))})")
+    context = ContextSpec(**{k: ctx[k] for k in ctx})
+    if context.directions not in ("random", "none"):
+        raise InputError(f"{source}: context.directions: 'random' or 'none', got {context.directions!r}")
+    if not 0.0 <= float(context.payload_fraction) <= 1.0:
+        raise InputError(f"{source}: context.payload_fraction must lie in [0, 1]")
+    noise = None
+    if "noise_mm" in data:
+        noise = _number(data["noise_mm"], f"{source}: noise_mm") * 1e-3
+    elif "noise_m" in data:
+        noise = _number(data["noise_m"], f"{source}: noise_m")
+    if noise is not None and noise < 0:
+        raise InputError(f"{source}: noise must be >= 0")
+    return Scenario(effects={k: dict(v or {}) for k, v in effects.items()}, context=context,
+                    noise_m=noise, source=source)
+
+
+def _number(value, where: str) -> float:
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{where}: {value!r} is not a number") from None
+    if not math.isfinite(out):
+        raise InputError(f"{where}: non-finite value")
+    return out
+
+
+def _selected(sub: str, selector: str) -> bool:
+    parts, sel = sub.split("."), str(selector).split(".")
+    return parts[: len(sel)] == sel or parts[-len(sel):] == sel
+
+
+def resolve_effect(robot: RobotModel, name: str, spec: dict, rng: np.random.Generator,
+                   source: str = "<scenario>", lenient: bool = False) -> tuple[Effect, np.ndarray, float | None]:
+    """Instantiate one hidden effect and draw/convert its parameters to SI.
+
+    lenient: skip value keys whose unit no parameter has (a robot without prismatic
+    joints has no length-valued joint offsets) instead of raising.
+    Returns (effect, params, tcp_rms_m or None).
+    """
+    cls = effect_class(name, source=source)
+    where = f"{source}: effects.{name}"
+    options = dict(spec.get("options") or {})
+    mass_spread = options.pop("link_mass_spread", None)
+    if mass_spread is not None:
+        spread = _number(mass_spread, f"{where}.options.link_mass_spread")
+        options["link_mass_factors"] = np.clip(1.0 + spread * rng.standard_normal(robot.n_joints), 0.1, None)
+    if "link_mass_factors" in options:
+        options["link_mass_factors"] = np.asarray(options["link_mass_factors"], dtype=float)
+    try:
+        effect = cls(robot, **options)
+    except TypeError as exc:  # an option the effect does not have (misspelt?)
+        raise InputError(f"{where}.options: {exc}") from None
+    names = effect.parameter_names()
+    subs = [n[len(name) + 1:] for n in names]
+    units = effect.parameter_units()
+    values = np.full(len(names), np.nan)
+    spreads = np.full(len(names), np.nan)
+    tcp_rms = None
+    for key, value in spec.items():
+        if key == "options":
+            continue
+        if key == "tcp_rms_mm":
+            tcp_rms = _number(value, f"{where}.tcp_rms_mm") * 1e-3
+            continue
+        if key == "parameters":
+            if not isinstance(value, dict):
+                raise InputError(f"{where}.parameters: a mapping full parameter name -> SI value")
+            for pname, v in value.items():
+                if pname not in names:
+                    raise InputError(f"{where}.parameters: unknown parameter {pname!r} "
+                                     f"(parameters: {', '.join(names)})")
+                values[names.index(pname)] = _number(v, f"{where}.parameters.{pname}")
+            continue
+        label, unit = split_suffix(key)
+        dim, factor = SUFFIXES[unit] if unit else ("1", 1.0)
+        target = spreads if label == "spread" else values
+        matching = [k for k, u in enumerate(units) if u == dim]
+        if not matching and lenient:
+            continue
+        if not matching:
+            raise InputError(f"{where}.{key}: no parameter of {name} is in {dim} "
+                             f"(its units: {', '.join(sorted(set(units)))})")
+        if label != "spread":  # a label that names parameters (base_mm, j2_deg) also selects
+            named = [k for k in matching if _selected(subs[k], label)]
+            matching = named or matching
+        if isinstance(value, dict):
+            for selector, v in value.items():
+                hit = [k for k in matching if _selected(subs[k], selector)]
+                if not hit:
+                    raise InputError(f"{where}.{key}: {selector!r} selects no {dim} parameter "
+                                     f"(parameters: {', '.join(subs)})")
+                target[hit] = _number(v, f"{where}.{key}.{selector}") * factor
+        else:
+            target[matching] = _number(value, f"{where}.{key}") * factor
+    if np.any(spreads < 0):
+        raise InputError(f"{where}: spreads must be >= 0")
+    if cls.non_negative and np.any(values < 0):
+        raise InputError(f"{where}: {name} parameters cannot be negative")
+    draw = np.isnan(values)
+    if np.all(draw) and np.all(np.isnan(spreads)):
+        spreads = effect.parameter_scales()  # no values at all: around the typical scales
+    spreads = np.where(np.isnan(spreads), 0.0, spreads)
+    drawn = spreads[draw] * rng.standard_normal(int(draw.sum()))
+    values[draw] = np.abs(drawn) if cls.non_negative else drawn + 0.0  # no -0.0
+    return effect, values, tcp_rms
+
+
+def truth_as_scenario(truth: dict) -> dict:
+    """A scenario dict that re-creates the truth's effects exactly (parameters in SI)."""
+    effects = {}
+    for name, spec in truth["effects"].items():
+        entry = {"parameters": dict(spec["parameters"])}
+        if spec.get("options"):
+            entry["options"] = dict(spec["options"])
+        effects[name] = entry
+    return {"effects": effects, "context": dict(truth["context"]), "noise_m": truth["noise_m"]}

@@ -1,0 +1,138 @@
+"""Command line: ``tcr-accuracy <command> ...`` (``main``), built from one module per topic.
+
+Exit codes: 0 ok, 1 the analysis failed (or an unexpected error), 2 bad input,
+130 interrupted. Every failure is one line on stderr naming the command and what
+went wrong; ``--debug`` (before or after the command) prints the full traceback
+as well.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+
+from .. import __version__
+from . import demo, diagnose, montecarlo, pose, prediction, sensitivity, simulate, tolerance, trajectory, view
+from .common import EXIT_ANALYSIS, EXIT_INPUT, EXIT_OK, Parser
+
+
+# ---------------------------------------------------------------------------------------
+def build_parser() -> argparse.ArgumentParser:
+    parser = Parser(
+        prog="tcr-accuracy",
+        description="Motion accuracy of serial robots on Pinocchio: kinematics with error "
+                    "screws, Monte Carlo accuracy, sim-to-real gap diagnosis, compensation.",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    parser.add_argument("--debug", action="store_true", help=DEBUG_HELP)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
+    sub.required = True
+    for module in COMMANDS:
+        module.add_parsers(sub)
+    for command_parser in set(sub.choices.values()):
+        # also accepted after the command; SUPPRESS keeps a --debug given before it
+        command_parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                                    help=DEBUG_HELP)
+    return parser
+
+
+DEBUG_HELP = "on an error, print the full Python traceback as well as the one-line message"
+
+
+#: The commands, one module per topic, in the order --help lists them; each module's
+#: ``add_parsers(sub)`` adds its subcommands. Every module imports only argparse and the
+#: shared helpers at the top (heavy imports wait inside each command), so --help is instant.
+COMMANDS = [pose, demo, montecarlo, sensitivity, tolerance, trajectory, simulate, view, diagnose, prediction]
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    sys.stderr.write(f"tcr-accuracy: warning: {message}\n")
+
+
+#: How many main() calls are running (``demo`` runs ``montecarlo`` and ``diagnose`` through
+#: main); an unexpected error in an inner one goes up to the outermost, which reports it.
+_depth = 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point; returns the exit code.
+
+    Bad input (:class:`InputError`) is one line and exit code 2, a failed analysis
+    (:class:`AnalysisError`) one line and 1, anything else (a bug, an unhandled case, no
+    memory left) one line naming the command, the exception's type and message, and 1.
+    With ``--debug`` the traceback is printed before that line.
+    """
+    global _depth
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # read before parsing too, so that a failure while building the parser is traced as well
+    debug = "--debug" in argv
+    command = next((a for a in argv if not a.startswith("-")), None)
+    _depth += 1
+    try:
+        return _main(argv, debug, command)
+    finally:
+        _depth -= 1
+
+
+def _main(argv: list[str], debug: bool, command: str | None) -> int:
+    from ..exceptions import AnalysisError, InputError
+
+    name = f"tcr-accuracy {command}" if command else "tcr-accuracy"
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        args.argv = argv  # the command as typed, for reports
+        name = f"tcr-accuracy {args.command}"
+        debug = debug or getattr(args, "debug", False)  # also an abbreviated --deb
+        with warnings.catch_warnings():
+            warnings.simplefilter("default", UserWarning)
+            warnings.showwarning = _show_warning
+            return args.run(args)
+    except InputError as exc:
+        _report(f"{name}: error: {exc}", debug)
+        return EXIT_INPUT
+    except AnalysisError as exc:
+        _report(f"{name}: analysis failed: {exc}", debug)
+        return EXIT_ANALYSIS
+    except KeyboardInterrupt:
+        _report("tcr-accuracy: interrupted", debug)
+        return 130
+    except BrokenPipeError:  # output piped into `head` and closed: not an error of ours
+        import os
+
+        try:  # so that Python's own flush of stdout at exit does not fail again
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):  # stdout is no file (captured, replaced)
+            pass
+        return EXIT_OK
+    except MemoryError as exc:
+        _report(f"{name}: out of memory ({_describe(exc)}); try fewer samples, poses or measurements"
+                f"{'' if debug else ', or rerun with --debug for the traceback'}", debug)
+        return EXIT_ANALYSIS
+    except Exception as exc:
+        if _depth > 1:  # an inner main (demo's steps): the outermost one reports it
+            raise
+        _report(f"{name}: unexpected error: {_describe(exc)}"
+                f"{'' if debug else ' (rerun with --debug for the traceback)'}", debug)
+        return EXIT_ANALYSIS
+
+
+def _describe(exc: BaseException) -> str:
+    """``Type: message`` on one line (a message over several lines is joined with spaces)."""
+    message = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {message}" if message else type(exc).__name__
+
+
+def _report(line: str, debug: bool) -> None:
+    """One line on stderr; with --debug, the traceback of the exception being handled first."""
+    if debug:
+        import traceback
+
+        traceback.print_exc(file=sys.stderr)
+    sys.stderr.write(line + "\n")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

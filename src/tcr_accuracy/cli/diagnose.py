@@ -1,0 +1,353 @@
+"""``tcr-accuracy diagnose``: the sim-to-real gap of a robot from tracker measurements.
+
+Edge layer: reads the CSV, runs :func:`tcr_accuracy.diagnosis.diagnose.diagnose`, prints the
+summary (mm, labelled), writes JSON, the Markdown/HTML report with plots, and the
+as-built URDF with the non-geometric effects' parameters in YAML next to it.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+from .common import add_robot_arguments
+from .output import RunOutput, add_output_arguments
+
+
+def add_parsers(sub) -> None:
+    p = sub.add_parser(
+        "diagnose", help="where the sim-to-real gap lies, which effect causes it, how far it shrinks",
+        description="Fit the tracker frame, break the remaining TCP error down over the workspace, "
+                    "rank the effects of the vocabulary by k-fold held-out error (forward selection "
+                    "with a paired significance test, then backward elimination), check "
+                    "identifiability, and say whether structure remains. Units: mm and deg in what "
+                    "is printed, SI in the YAML.",
+    )
+    p.add_argument("measurements", metavar="MEASUREMENTS.csv", help="measurement CSV (see README)")
+    add_robot_arguments(p)
+    p.add_argument("--effects", default=None, metavar="LIST",
+                   help="comma-separated effects to consider (default: the whole vocabulary; frames is "
+                        "always in)")
+    p.add_argument("--folds", type=int, default=5, help="k of the k-fold cross-validation (default 5)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the fold split and permutation tests")
+    p.add_argument("--noise-mm", type=float, default=None,
+                   help="the instrument's noise, std per axis [mm]; noise floor = sqrt(3) x this (default: "
+                        "estimated from repeated poses, else from the final residual, and said which)")
+    p.add_argument("--as-built-urdf", default=None, metavar="FILE",
+                   help="write the calibrated URDF to FILE and the other effects' parameters to "
+                        "FILE with suffix .effects.yaml")
+    add_output_arguments(p, view=True)
+    p.set_defaults(run=_run_diagnose)
+
+
+def _run_diagnose(args) -> int:
+    from ..diagnosis.diagnose import diagnose
+    from ..effects import vocabulary
+    from ..exceptions import InputError
+    from ..io.measurements import measured_frames, read_measurements
+    from ..view.plots_diagnose import write_plots
+    from ..model.robot import load_robot
+
+    if args.folds < 2:
+        raise InputError(f"--folds {args.folds}: need at least 2")
+    if args.noise_mm is not None and not (args.noise_mm > 0 and math.isfinite(args.noise_mm)):
+        raise InputError(f"--noise-mm {args.noise_mm}: must be a positive number")
+    effects = None
+    if args.effects:
+        effects = [e.strip() for e in args.effects.split(",") if e.strip()]
+        unknown = [e for e in effects if e not in vocabulary()]
+        if unknown:
+            raise InputError(f"--effects: unknown {', '.join(unknown)} (vocabulary: {', '.join(vocabulary())})")
+    min_rows = max(3 * args.folds, 12)
+    frames = measured_frames(args.measurements)
+    if frames:  # several measured frames per row: one chain each, their shared parameters fitted once
+        if args.tool is not None and args.tool not in frames:
+            raise InputError(f"--tool {args.tool}: {args.measurements} measures {', '.join(frames)}")
+        order = [args.tool] + [f for f in frames if f != args.tool] if args.tool else frames
+        robots = [load_robot(args.robot, f) for f in order]
+        parts = [(r, read_measurements(args.measurements, r, min_rows=min_rows, frame=f))
+                 for r, f in zip(robots, order)]
+        robot, measurements, data = robots[0], parts[0][1], parts
+    else:
+        robot = load_robot(args.robot, args.tool)
+        measurements = data = read_measurements(args.measurements, robot, min_rows=min_rows)
+    out = RunOutput(args, f"Sim-to-real gap diagnosis: {robot.name}")
+    from tqdm import tqdm
+
+    bar = tqdm(desc="diagnose", file=sys.stderr, bar_format="{desc}: {postfix} [{elapsed}]",
+               disable=args.quiet or not sys.stderr.isatty())
+    try:
+        result = diagnose(robot, data, effects=effects, folds=args.folds, seed=args.seed,
+                          tracker_noise=None if args.noise_mm is None else args.noise_mm * 1e-3,
+                          progress=bar.set_postfix_str)
+    finally:
+        bar.close()
+    payload = jsonable({"measurements": str(args.measurements), **result.to_dict()})
+    source = str(args.measurements)
+    _report_tables(out, robot, result, source)
+    out.add_plots(lambda folder: list(write_plots(result, robot, folder).values()), PLOT_CAPTIONS)
+    if out.scene_wanted:
+        out.set_scene(_scene(robot, result, measurements),
+                      "Measured TCP points (base frame) and the gap to the nominal model, magnified; "
+                      "nominal robot and the calibrated as-built robot (geometric errors magnified)")
+    if args.as_built_urdf:
+        write_as_built(robot, result, Path(args.as_built_urdf))
+    return out.finish(payload, lambda: print(format_summary(robot, result, source)))
+
+
+def jsonable(value):
+    """Plain JSON types; non-finite floats become None."""
+    import numpy as np
+
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
+# ---------------------------------------------------------------------------------------
+# Printed summary
+# ---------------------------------------------------------------------------------------
+def format_summary(robot, d, source: str) -> str:
+    mm = 1e3
+    out = [f"Diagnosis of {source}: {d.n_measurements} measurements of {robot.name}, "
+           f"{d.folds}-fold cross-validation"]
+    out.append(f"\n1. Gap after fitting the tracker frame and TCP offset (frames): "
+               f"mean {d.gap.mean * mm:.4f} mm, RMS {d.gap.rms * mm:.4f} mm, max {d.gap.max * mm:.4f} mm")
+    out.append("\n2. Where it lies (residual after frames)")
+    axes = d.where["per_axis"]
+    out.append("   per axis RMS [mm]: " + ", ".join(f"{a} {axes[a]['rms_mm']:.4f}" for a in "xyz"))
+    strongest = _strongest(d.where)
+    if strongest:
+        out.append("   strongest links: " + "; ".join(strongest))
+    along = d.where["along_joints"]
+    out.append("   along single joints (share of the residual variance its k-NN along that joint predicts; "
+               "short-lag semivariance, 1 = none): " + ", ".join(
+                   f"{j} {a['knn_explained_share']:+.2f} ({min(a['short_lag_semivariance_xyz']):.2f})"
+                   for j, a in along.items()))
+    out.append("   varies most along: " + (", ".join(d.where["varies_along"]) or
+                                           "no single joint (the error depends on several together)"))
+    pairs = [p for p in d.where.get("along_joint_pairs", []) if p["knn_explained_share"] > 0.05][:3]
+    if pairs:
+        out.append("   joint pairs it varies along (k-NN share): " + ", ".join(
+            f"{'+'.join(p['joints'])} {p['knn_explained_share']:+.2f}" for p in pairs))
+    out.append("\n3. Which effect: each effect added to frames alone (held-out RMS [mm], gain, paired z)")
+    for name, c in d.candidates.items():
+        if c.get("tried"):
+            out.append(f"   {name:18s} {c['heldout_rms_mm_with_frames']:9.4f} {c['gain_mm']:+9.4f} "
+                       f"z = {c['z']:6.1f}  ({c['n_parameters']} identifiable parameters)")
+        else:
+            out.append(f"   {name:18s} not tried: {c['why']}")
+    ident = d.identifiability
+    removed = [(e, r) for e, info in ident["effects"].items() for r in info["removed"]]
+    everything = ident.get("all_effects", {})
+    out.append(f"   identifiability of the final model: {ident.get('rank', 0)} parameters kept, condition number "
+               f"{ident.get('condition_number', float('nan')):.3g}; {len(removed)} removed, e.g.:")
+    for e, r in removed[:6]:
+        out.append(f"     {r['parameter']}: {r['reason']}")
+    if everything:
+        n_removed = sum(len(i["removed"]) for i in everything["effects"].values())
+        out.append(f"   (whole vocabulary in one model: {everything.get('rank', 0)} identifiable, {n_removed} removed, "
+                   f"condition number {everything.get('condition_number', float('nan')):.3g})")
+    out.append("\n4. How far it shrinks (k-fold held-out) [mm]")
+    out.append(f"   {'step':18s} {'params':>6s} {'train RMS':>10s} {'mean':>9s} {'RMS':>9s} {'max':>9s}")
+    for i, s in enumerate(d.steps):
+        label = s.effect if i == 0 else "+" + s.effect
+        out.append(f"   {label:18s} {s.n_parameters:6d} {s.train_rms * mm:10.4f} {s.heldout.mean * mm:9.4f} "
+                   f"{s.heldout.rms * mm:9.4f} {s.heldout.max * mm:9.4f}")
+    if d.leave_one_out:
+        out.append("   leave one out of the chosen set (held-out RMS without it; the others refitted and free to "
+                   "take its place / held to their own parameters):")
+        for r in d.leave_one_out:
+            out.append(f"     without {r['dropped']:18s} {r['heldout_rms_mm']:9.4f} ({r['increase_mm']:+.4f})  /  "
+                       f"{r['own_share_heldout_rms_mm']:9.4f} ({r['own_share_increase_mm']:+.4f})")
+    for e in d.eliminated:
+        out.append(f"   dropped again in backward elimination: {e['effect']} (z = {e['z']:.1f})")
+    out.append(f"   primary effect: {d.primary_effect or 'none beyond frames'}"
+               + (" (the largest own share)" if d.primary_effect else ""))
+    final = d.steps[-1].heldout.rms
+    noise = d.noise
+    source = "tracker" if noise is None or noise.source == "given" else f"estimated from the {noise.source}"
+    out.append(f"   final held-out RMS {final * mm:.4f} mm = {final / d.noise_floor:.2f} x the noise floor "
+               f"{d.noise_floor * mm:.4f} mm ({source} {d.tracker_noise * mm:.4f} mm per axis)")
+    if noise is not None and noise.source != "given":
+        out.append(f"   noise: {noise.detail}")
+    st = d.structure
+    along = ", ".join(robot.joint_names[j] for j in st.get("along_joints", []))
+    out.append(f"   structure remains: {'YES' if st['remains'] else 'no'} (k-NN along {along}: share "
+               f"{st['gain_over_null']:+.3f} "
+               f"beyond chance, z = {st['z']:.1f}; ridge on joint features share {st['ridge_explained_share']:+.3f}, "
+               f"z = {st['ridge_z']:.1f}; limits: share > {st['min_explained']}, p < {st['alpha']})")
+    sc = d.scatter
+    if sc.get("tested", True):
+        out.append(f"   random scatter beyond the tracker: {'YES' if sc['detected'] else 'no'} "
+                   f"(estimated {sc['estimated_noise_per_axis_mm']:.4f} mm per axis, ratio {sc['ratio']:.2f})")
+    else:
+        out.append(f"   random scatter beyond the instrument: not tested ({sc['why']})")
+    if d.orientation:
+        o = d.orientation
+        out.append(f"   orientation (held-out): mean {o['heldout_mean_deg']:.4f} deg, "
+                   f"RMS {o['heldout_rms_deg']:.4f} deg, max {o['heldout_max_deg']:.4f} deg "
+                   f"(weight {o['weight_m_per_rad'] * 1e3:.4g} mm/rad)")
+    for frame, stats in d.heldout_by_frame.items():
+        out.append(f"   measured frame {frame}: held-out mean {stats.mean * mm:.4f} mm, RMS {stats.rms * mm:.4f} mm, "
+                   f"max {stats.max * mm:.4f} mm")
+    if st["remains"]:
+        out.append("   -> something the vocabulary does not express is still in the data: the fit is not the "
+                   "whole story")
+    for note in d.notes:
+        out.append(f"   note: {note}")
+    return "\n".join(out)
+
+
+def _strongest(where: dict) -> list:
+    links = []
+    for group, label in (("joints", "joint"), ("gravity_torque", "gravity torque")):
+        for name, info in where.get(group, {}).items():
+            if "correlation_xyz" not in info:
+                continue
+            corr = info["correlation_xyz"]
+            c = int(max(range(3), key=lambda k: abs(corr[k])))
+            links.append((abs(corr[c]), f"{label} {name} vs {'xyz'[c]}: r = {corr[c]:+.2f}, "
+                                        f"binned spread {info['spread_mm']:.3f} mm"))
+    for key in ("payload_kg", "temperature_c"):
+        if key in where:
+            corr = where[key]["correlation_xyz"]
+            c = int(max(range(3), key=lambda k: abs(corr[k])))
+            links.append((abs(corr[c]), f"{key} vs {'xyz'[c]}: r = {corr[c]:+.2f}"))
+    for name, info in where.get("approach_direction", {}).items():
+        links.append((0.0, f"approach direction {name}: +/- differ by {info['difference_norm_mm']:.4f} mm"))
+    links.sort(key=lambda t: -t[0])
+    return [text for _, text in links[:4]]
+
+
+# ---------------------------------------------------------------------------------------
+# As-built model
+# ---------------------------------------------------------------------------------------
+def write_as_built(robot, d, path: Path) -> tuple[Path, Path]:
+    import yaml
+
+    from ..model.asbuilt import as_built_urdf
+    from ..atomic import write_text_atomically
+    from ..effects import effect_class
+    from ..model.errors import ErrorModel
+
+    text, tool_frame = as_built_urdf(robot, d.as_built_x, ErrorModel(robot), name=f"{robot.name}_as_built")
+    write_text_atomically(path, text)
+    side = path.with_name(path.stem + ".effects.yaml")
+    doc = {
+        "robot": robot.name,
+        "urdf": path.name,
+        "tool_frame": tool_frame,
+        "units": "SI (m, rad, rad/Nm, m/N, 1/K)",
+        "note": "geometric effects (frames' TCP offset, joint offsets, geometry) are built into the URDF; "
+                "the tracker frame is not part of the robot and is given separately",
+        "tracker_from_base": [[float(v) for v in row] for row in d.tracker_transform],
+        **({"measured_frames": list(d.frames_measured),
+            "chain_in_urdf": f"the URDF is the chain to {d.frames_measured[0]}; the other frames' TCP offsets "
+                             "are among the parameters"} if len(d.frames_measured) > 1 else {}),
+        "selected_effects": list(d.selected_effects),
+        "effects": {e: {"parameters": {k: float(v) for k, v in p.items()},
+                        "units": dict(d.parameter_units.get(e, {}))}
+                    for e, p in d.parameters.items() if not effect_class(e).geometric},
+        "geometric_parameters_in_urdf": {e: {k: float(v) for k, v in p.items()}
+                                         for e, p in d.parameters.items() if effect_class(e).geometric},
+    }
+    write_text_atomically(side, yaml.safe_dump(doc, sort_keys=False))
+    return path, side
+
+
+# ---------------------------------------------------------------------------------------
+# Report tables and 3D view (the report itself is written by cli_output.RunOutput)
+# ---------------------------------------------------------------------------------------
+PLOT_CAPTIONS = {
+    "steps.png": "How far the gap shrinks: held-out RMS after each step of the forward selection",
+    "axes.png": "Residual after fitting the tracker frame, per axis",
+    "joints.png": "Residual after the tracker frame against each joint value",
+    "gravity.png": "Residual after the tracker frame against the gravity torque of each joint",
+    "regions.png": "Residual after the tracker frame over the workspace (octants, radius, height) and against "
+                   "payload, temperature and approach direction",
+    "semivariograms.png": "Per-joint semivariograms of the residual (along which joints it varies)",
+}
+
+
+def _report_tables(out, robot, d, source: str) -> None:
+    mm = 1e3
+    out.add_text(f"{d.n_measurements} measurements of {robot.name} from {source}, {d.folds}-fold "
+                 "cross-validation. Every held-out figure comes from measurements not used for that fit.",
+                 heading="Data")
+    out.add_table("1. Gap after fitting only the tracker frame and TCP offset", ["statistic", "value"],
+                  [("mean", d.gap.mean * mm), ("RMS", d.gap.rms * mm), ("max", d.gap.max * mm)],
+                  units=["", "mm"])
+    axes = d.where["per_axis"]
+    out.add_table("2. Where it lies: residual per axis", ["axis", "RMS"],
+                  [(a, axes[a]["rms_mm"]) for a in "xyz"], units=["", "mm"],
+                  note="strongest links: " + "; ".join(_strongest(d.where)))
+    rows = []
+    for name, c in d.candidates.items():
+        if c.get("tried"):
+            rows.append((name, c["heldout_rms_mm_with_frames"], c["gain_mm"], c["z"], c["n_parameters"]))
+        else:
+            rows.append((name, "not tried", c["why"], "", ""))
+    out.add_table("3. Which effect: each effect added to frames alone",
+                  ["effect", "held-out RMS", "gain", "paired z", "identifiable parameters"], rows,
+                  units=["", "mm", "mm", "", ""])
+    out.add_table("4. How far it shrinks (k-fold held-out)",
+                  ["step", "parameters", "train RMS", "held-out mean", "held-out RMS", "held-out max"],
+                  [(s.effect if i == 0 else "+" + s.effect, s.n_parameters, s.train_rms * mm, s.heldout.mean * mm,
+                    s.heldout.rms * mm, s.heldout.max * mm) for i, s in enumerate(d.steps)],
+                  units=["", "", "mm", "mm", "mm", "mm"],
+                  note=f"primary effect: {d.primary_effect or 'none beyond frames'}; final held-out RMS = "
+                       f"{d.steps[-1].heldout.rms / d.noise_floor:.2f} x the noise floor "
+                       f"{d.noise_floor * mm:.4f} mm; structure remains: "
+                       f"{'YES' if d.structure['remains'] else 'no'}")
+    if d.leave_one_out:
+        out.add_table("Leave one out of the chosen set",
+                      ["dropped", "held-out RMS (others refitted)", "increase", "held-out RMS (own share)",
+                       "increase (own share)"],
+                      [(r["dropped"], r["heldout_rms_mm"], r["increase_mm"], r["own_share_heldout_rms_mm"],
+                        r["own_share_increase_mm"]) for r in d.leave_one_out],
+                      units=["", "mm", "mm", "mm", "mm"],
+                      note="others refitted: the remaining effects may take the dropped one's place (backward "
+                           "elimination uses this); own share: they keep the parameters they have in the final "
+                           "model, so an effect is not credited with what a later one of the vocabulary duplicates. "
+                           "The primary effect has the largest own share.")
+    out.add_text(format_summary(robot, d, source), heading="Full printed summary")
+
+
+def _scene(robot, d, measurements):
+    """Nominal robot, the calibrated as-built robot as a ghost, measured points and the gap."""
+    import numpy as np
+
+    from ..model.errors import ErrorModel
+    from ..view.viewer import Scene, auto_magnification
+
+    context = measurements.context()
+    model_final = d.predict(robot, d.q, context)
+    measured = model_final - d.final_residual  # in the robot's base frame
+    nominal_model = measured + d.gap_residual  # the model with the tracker frame only
+    gap = np.linalg.norm(d.gap_residual, axis=1)
+    magnify = auto_magnification(float(gap.max()), drawn_m=0.15)
+    scene = Scene(f"{robot.name}: sim-to-real gap")
+    q_show = robot.working_pose
+    scene.add_robot(robot, q_show, name="nominal robot")
+    em = ErrorModel(robot)
+    as_built = em.perturbed_robot(magnify * np.asarray(d.as_built_x))
+    scene.add_robot(as_built, q_show, name=f"as-built robot, geometric errors x {magnify:g}",
+                    color=(0.85, 0.2, 0.2), opacity=0.35, include_base=False)
+    scene.add_point_cloud(measured, gap * 1e3, name="measured",
+                          label="gap after the tracker frame |dP| [mm]")
+    scene.add_error_segments(measured, nominal_model, magnify=magnify, name="gap",
+                             start_label="measured", end_label="nominal model")
+    scene.add_note(f"{d.n_measurements} measurements; segments and the as-built ghost magnified x {magnify:g}")
+    return scene

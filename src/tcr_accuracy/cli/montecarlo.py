@@ -1,0 +1,276 @@
+"""CLI: ``tcr-accuracy montecarlo``, the seed's Table 3/5 statistics and Eq. (25)-(26).
+
+Heavy imports live inside the run function so that ``--help`` stays instant.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .common import PRESETS, add_robot_arguments, format_joint_values, joint_values_si, sampler_from_args, seed_value
+from .output import add_output_arguments, progress_bar
+
+#: What the "dp" column means (also written to the JSON).
+DP_DEFINITION = ("signed radial error |P_actual| - |P_nominal| [mm]: change of the TCP's distance "
+                 "from the base origin (to first order dP projected on the unit vector to the nominal TCP)")
+
+
+def add_parsers(sub) -> None:
+    p = sub.add_parser(
+        "montecarlo", help="Monte Carlo accuracy and reliability of the TCP at one pose",
+        description="Samples the error model (the seed's Table 1, Table 2 or Table 4 joint clearance, "
+                    "or a TOML/YAML --config file), runs the batched kinematics and prints the TCP "
+                    "error statistics of the seed's Table 3/5 (mm and rad), the reliability "
+                    "P(|dP| < T) and P(|d angle| < R) of Eq. (25), the first-order (Jacobian) standard "
+                    "deviations next to the Monte Carlo ones, and tail probabilities P(|dP| > T) with "
+                    "confidence intervals (exact binomial on the counts, first-order Gaussian, and "
+                    "importance sampling on the exact model). Joint values: revolute [deg], "
+                    "prismatic [mm]; default the robot's working pose.",
+    )
+    add_robot_arguments(p)
+    source = p.add_mutually_exclusive_group()
+    source.add_argument("--preset", choices=PRESETS, default=None,
+                        help="the seed's error distributions: table1, table2 (default) or clearance (Table 4)")
+    source.add_argument("--config", default=None, metavar="FILE",
+                        help="TOML or YAML file of error distributions (see README, 'Monte Carlo')")
+    p.add_argument("--samples", type=int, default=20_000, help="Monte Carlo samples (default 20000)")
+    p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
+    p.add_argument("--q", nargs="+", type=float, metavar="VALUE",
+                   help="joint values: revolute [deg], prismatic [mm] (default: working pose)")
+    p.add_argument("--tol", nargs="+", type=float, default=[0.15, 0.25], metavar="MM",
+                   help="position tolerances T [mm] (default 0.15 0.25)")
+    p.add_argument("--angle-tol", type=float, default=0.002, metavar="RAD",
+                   help="attitude tolerance R per ZYX angle [rad] (default 0.002)")
+    p.add_argument("--tail-samples", type=int, default=20_000, metavar="N",
+                   help="importance samples per tolerance for the tail P(|dP| > T) (default 20000; 0: skip)")
+    p.add_argument("--chunk", type=int, default=None, metavar="N",
+                   help="samples per chunk (default 20000; part of the random stream)")
+    add_output_arguments(p, view=True, json_help="write JSON (keys in README, 'Monte Carlo') to FILE, or to "
+                                                 "stdout without FILE")
+    p.add_argument("--view-samples", type=int, default=2000, metavar="N",
+                   help="samples drawn for the 3D view's TCP error cloud (default 2000)")
+    cluster = p.add_mutually_exclusive_group()
+    cluster.add_argument("--dask", default=None, metavar="ADDRESS",
+                         help="run the chunks on the Dask scheduler at ADDRESS (e.g. tcp://host:8786)")
+    cluster.add_argument("--workers", type=int, default=None, metavar="N",
+                         help="run the chunks on a local Dask cluster of N processes (1 thread each)")
+    p.set_defaults(run=_run_montecarlo)
+
+
+def _check_args(args) -> None:
+    from ..exceptions import InputError
+
+    if args.samples < 2:
+        raise InputError(f"--samples {args.samples}: need at least 2")
+    for t in args.tol:
+        if not (t > 0) or not math.isfinite(t):
+            raise InputError(f"--tol {t:g}: tolerances must be finite and > 0 mm")
+    if not (args.angle_tol > 0) or not math.isfinite(args.angle_tol):
+        raise InputError(f"--angle-tol {args.angle_tol:g}: must be finite and > 0 rad")
+    if args.tail_samples < 0:
+        raise InputError(f"--tail-samples {args.tail_samples}: must be >= 0")
+    if args.chunk is not None and args.chunk < 1:
+        raise InputError(f"--chunk {args.chunk}: must be >= 1")
+    if args.workers is not None and args.workers < 1:
+        raise InputError(f"--workers {args.workers}: must be >= 1")
+    if args.view_samples < 1:
+        raise InputError(f"--view-samples {args.view_samples}: need at least 1")
+
+
+def _client(args):
+    """(client, closer) for --dask / --workers, or (None, no-op)."""
+    if args.dask is None and args.workers is None:
+        return None, lambda: None
+    import logging
+
+    from distributed import Client, LocalCluster
+
+    if args.dask is not None:
+        try:
+            client = Client(args.dask, timeout="10s")
+        except (OSError, TimeoutError, ValueError) as exc:
+            from ..exceptions import InputError
+
+            raise InputError(f"--dask {args.dask}: cannot connect ({' '.join(str(exc).split())})") from None
+        return client, client.close
+    cluster = LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
+                           dashboard_address=None, silence_logs=logging.ERROR)
+    client = Client(cluster)
+
+    def close():
+        client.close()
+        cluster.close()
+
+    return client, close
+
+
+def _tol_key(t_mm: float) -> str:
+    return f"{t_mm:g}"
+
+
+def _run_montecarlo(args) -> int:
+    import numpy as np
+
+    from .output import RunOutput
+    from ..analysis.montecarlo import CHUNK, STAT_COLUMNS, run_monte_carlo
+    from ..model.errors import ErrorBudget
+    from ..analysis.reliability import binomial_interval, first_order, gaussian_exceedance, importance_exceedance
+    from ..model.robot import load_robot
+
+    _check_args(args)
+    out = RunOutput(args, "Monte Carlo accuracy of the TCP")
+    robot = load_robot(args.robot, args.tool)
+    q = joint_values_si(robot, args.q)
+    sampler = sampler_from_args(robot, args.preset, args.config)
+    tolerances_m = np.array(args.tol) * 1e-3
+    chunk = args.chunk or CHUNK
+    client, close_client = _client(args)
+    update, close_bar = progress_bar(args.samples, "monte carlo", args.quiet, unit="sample", unit_scale=True)
+    try:
+        result = run_monte_carlo(sampler, q, args.samples, args.seed, position_tolerances=tolerances_m,
+                                 angle_tolerance=args.angle_tol, chunk=chunk, progress=update, client=client)
+    finally:
+        close_bar()
+        close_client()
+    fo = first_order(sampler, q)
+    fo_std = {"dx": fo.position_std[0], "dy": fo.position_std[1], "dz": fo.position_std[2],
+              "d_alpha_z": fo.euler_std[0], "d_beta_y": fo.euler_std[1], "d_gamma_x": fo.euler_std[2]}
+    s = result.stats
+    col = {name: k for k, name in enumerate(STAT_COLUMNS)}
+
+    def entry(name, scale):
+        k = col[name]
+        return {"mean": float(s.mean[k] * scale), "std": float(s.std[k] * scale),
+                "max": float(s.maximum[k] * scale), "min": float(s.minimum[k] * scale)}
+
+    tails = {}
+    for t_mm, t_m, inside in zip(args.tol, tolerances_m, result.inside_position):
+        outside = int(result.n_samples - inside)
+        tail = {"monte_carlo": outside / result.n_samples,
+                "monte_carlo_ci95": list(binomial_interval(outside, result.n_samples)),
+                "first_order": gaussian_exceedance(fo.mean[:3], fo.covariance[:3, :3], float(t_m))}
+        if isinstance(sampler, ErrorBudget) and args.tail_samples > 0:
+            est = importance_exceedance(sampler, q, float(t_m), args.tail_samples,
+                                        np.random.default_rng([args.seed, 1]))
+            tail.update({"importance_sampling": est.probability,
+                         "importance_sampling_ci95": list(est.ci95),
+                         "importance_effective_samples": est.effective_samples,
+                         "importance_inflation": est.inflation})
+        tails[_tol_key(t_mm)] = tail
+    payload = {
+        "robot": robot.name,
+        "tool_frame": robot.tool_frame,
+        "preset": None if args.config else (args.preset or "table2"),
+        "config": args.config,
+        "sampler": sampler.name,
+        "samples": result.n_samples,
+        "seed": args.seed,
+        "chunk": chunk,
+        "q": {n: float(v * sc) for n, v, sc in zip(robot.joint_names, q, robot.display_scale)},
+        "q_units": dict(zip(robot.joint_names, robot.display_units)),
+        "q_si": q.tolist(),
+        "nominal_position_mm": (result.nominal_position * 1e3).tolist(),
+        "stats_mm": {name: entry(name, 1e3) for name in ("dx", "dy", "dz", "dp", "norm")},
+        "stats_rad": {name: entry(name, 1.0) for name in ("d_alpha_z", "d_beta_y", "d_gamma_x")},
+        "dp_definition": DP_DEFINITION,
+        "first_order_std_mm": {k: float(fo_std[k] * 1e3) for k in ("dx", "dy", "dz")},
+        "first_order_std_rad": {k: float(fo_std[k]) for k in ("d_alpha_z", "d_beta_y", "d_gamma_x")},
+        "reliability_position": {_tol_key(t): float(p) for t, p in zip(args.tol, result.position_reliability)},
+        "reliability_position_ci95": {
+            _tol_key(t): list(binomial_interval(int(k), result.n_samples))
+            for t, k in zip(args.tol, result.inside_position)},
+        "angle_tolerance_rad": float(args.angle_tol),
+        "reliability_angle": {name: float(p) for name, p in
+                              zip(("d_alpha_z", "d_beta_y", "d_gamma_x"), result.angle_reliability)},
+        "tail_position": tails,
+    }
+    from ..view.plots_montecarlo import write_montecarlo_plots
+
+    _report_tables(out, robot, q, sampler, args, result, payload)
+    out.add_plots(lambda folder: write_montecarlo_plots(result, folder, label=sampler.name),
+                  {"cloud_3d.png": "TCP position error cloud (seed Fig. 6 and 12)",
+                   "projection_density.png": "Projection densities of the TCP position error on the xy, xz "
+                                             "and yz planes"})
+    if out.scene_wanted:
+        out.set_scene(*_scene(robot, q, sampler, args))
+    return out.finish(payload, lambda: _print_report(robot, q, sampler, args, result, payload))
+
+
+def _scene(robot, q, sampler, args):
+    """The robot at q with a TCP error cloud of --view-samples fresh draws, coloured by |dP|."""
+    import numpy as np
+
+    from ..view.viewer import Scene
+
+    scene = Scene(f"{robot.name}: Monte Carlo of {sampler.name}")
+    scene.add_robot(robot, q, "nominal")
+    x = sampler.sample(args.view_samples, np.random.default_rng([args.seed, 2]))
+    magnify = scene.add_tcp_error_cloud(robot, q, x, sampler.error_model)
+    scene.add_note(f"{args.view_samples} samples of {sampler.name} (seed {args.seed}, drawn for this view); "
+                   f"errors magnified x {magnify:g} about the nominal TCP")
+    return scene, f"TCP error cloud at the pose, |dP| magnified x {magnify:g}"
+
+
+def _setup_lines(robot, q, sampler, args, result, payload) -> list[str]:
+    source = f"--config {args.config}" if args.config else f"preset {payload['preset']}"
+    return [f"Monte Carlo of {source} ({sampler.name}): {result.n_samples} samples, seed {args.seed}",
+            f"  {robot.name}, TCP '{robot.tool_frame}' at {format_joint_values(robot, q)}",
+            "  nominal TCP [mm]: x = {:.3f}, y = {:.3f}, z = {:.3f}".format(*payload["nominal_position_mm"])]
+
+
+def _stat_rows(payload) -> list[tuple]:
+    """(label with unit, {mean, std, max, min}, first-order std or None) of the seed's Table 3/5."""
+    rows = [("dp [mm]", payload["stats_mm"]["dp"], None),
+            ("dx [mm]", payload["stats_mm"]["dx"], payload["first_order_std_mm"]["dx"]),
+            ("dy [mm]", payload["stats_mm"]["dy"], payload["first_order_std_mm"]["dy"]),
+            ("dz [mm]", payload["stats_mm"]["dz"], payload["first_order_std_mm"]["dz"]),
+            ("|dP| [mm]", payload["stats_mm"]["norm"], None)]
+    rows += [(f"{label} [rad]", payload["stats_rad"][key], payload["first_order_std_rad"][key])
+             for label, key in (("d_alpha (z)", "d_alpha_z"), ("d_beta (y)", "d_beta_y"),
+                                ("d_gamma (x)", "d_gamma_x"))]
+    return rows
+
+
+def _report_tables(out, robot, q, sampler, args, result, payload) -> None:
+    out.add_text("\n\n".join(line.strip() for line in _setup_lines(robot, q, sampler, args, result, payload)),
+                 heading="Setup")
+    out.add_table("TCP error statistics (seed Table 3 and 5)", ["error", "mean", "std", "max", "min", "1st-order std"],
+                  [(label, e["mean"], e["std"], e["max"], e["min"], fo) for label, e, fo in _stat_rows(payload)],
+                  note="dp = " + DP_DEFINITION)
+    rel = [(f"|dP| < {t} mm", payload["reliability_position"][t], *payload["reliability_position_ci95"][t])
+           for t in payload["reliability_position"]]
+    rel += [(f"|{k}| < {args.angle_tol:g} rad", p, None, None) for k, p in payload["reliability_angle"].items()]
+    out.add_table("Reliability, Eq. (25)", ["event", "probability", "95% CI low", "95% CI high"], rel,
+                  note="exact binomial (Clopper-Pearson) intervals on the Monte Carlo counts")
+    tails = []
+    for key, tail in payload["tail_position"].items():
+        tails.append((key, tail["monte_carlo"], *tail["monte_carlo_ci95"], tail["first_order"],
+                      tail.get("importance_sampling"), *tail.get("importance_sampling_ci95", (None, None))))
+    out.add_table("Tail P(|dP| > T)", ["T", "Monte Carlo", "MC 95% low", "MC 95% high", "first-order Gaussian",
+                                       "importance sampling", "IS 95% low", "IS 95% high"], tails,
+                  units=["mm", "", "", "", "", "", "", ""])
+
+
+def _print_report(robot, q, sampler, args, result, payload) -> None:
+    print("\n".join(_setup_lines(robot, q, sampler, args, result, payload)))
+    print(f"\n  {'error':17s} {'mean':>11s} {'std':>11s} {'max':>11s} {'min':>11s} {'1st-order std':>14s}")
+    for label, e, fo in _stat_rows(payload):
+        fo_text = f"{fo:14.4e}" if fo is not None else f"{'':14s}"
+        print(f"  {label:17s} {e['mean']:11.4e} {e['std']:11.4e} {e['max']:11.4e} {e['min']:11.4e} {fo_text}")
+    print("  dp = " + DP_DEFINITION)
+    print("\n  Reliability, Eq. (25) (95% exact binomial interval):")
+    for t in args.tol:
+        key = _tol_key(t)
+        lo, hi = payload["reliability_position_ci95"][key]
+        print(f"    P(|dP| < {key} mm) = {payload['reliability_position'][key]:.4f}  [{lo:.4f}, {hi:.4f}]")
+    ra = payload["reliability_angle"]
+    print(f"    P(|d angle| < {args.angle_tol:g} rad) = ({ra['d_alpha_z']:.4f}, {ra['d_beta_y']:.4f}, "
+          f"{ra['d_gamma_x']:.4f})  (alpha about z, beta about y, gamma about x)")
+    print("\n  Tail P(|dP| > T): Monte Carlo [95% CI] | first-order Gaussian | importance sampling [95% CI]:")
+    for key, tail in payload["tail_position"].items():
+        lo, hi = tail["monte_carlo_ci95"]
+        text = f"    T = {key} mm: {tail['monte_carlo']:.3e} [{lo:.2e}, {hi:.2e}] | {tail['first_order']:.3e}"
+        if "importance_sampling" in tail:
+            ilo, ihi = tail["importance_sampling_ci95"]
+            text += f" | {tail['importance_sampling']:.3e} [{ilo:.2e}, {ihi:.2e}]"
+        print(text)

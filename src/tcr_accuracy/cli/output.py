@@ -1,0 +1,185 @@
+"""What an analysis command shows besides its printed text: report, plots, 3D view, JSON.
+
+Every analysis command ends the same way: the tables it prints, the plots it draws and
+its 3D view go, as asked, to ``--out DIR`` (an HTML report, ``DIR/index.html``, through
+:class:`tcr_accuracy.view.report.Report`), ``--plots DIR`` (PNG files), ``--view [HTML]`` /
+``--serve`` (meshcat) and ``--json [FILE]``. A command adds the options with
+:func:`add_output_arguments` and hands its results to a :class:`RunOutput`::
+
+    out = RunOutput(args, "Monte Carlo accuracy")
+    out.add_table("TCP error", columns, rows, units=[...])      # what the command prints
+    out.add_plots(lambda folder: write_plots(result, folder))   # PNGs: --plots and/or --out
+    if out.scene_wanted:                                        # --view, --serve or --out
+        out.set_scene(build_scene(...), "TCP error cloud")
+    return out.finish(payload, lambda: print_results(...))
+
+Nothing is written before :meth:`RunOutput.finish`, once everything has been computed
+(plots asked for by ``--out`` alone are drawn in a temporary folder and kept in
+memory), and every file goes through a temporary file and a rename; the report's
+``index.html`` comes last. So a run that fails half-way leaves no report and no JSON,
+and never half a file. Status lines (which file was written) go to stderr and are
+silenced by ``--quiet``; results go to stdout.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Callable
+
+from .common import EXIT_OK, add_quiet_argument, emit_json, status
+
+
+def add_output_arguments(parser: argparse.ArgumentParser, *, plots: bool = True, view: bool = False,
+                         json_help: str = "write JSON (SI units, unit-suffixed keys) to FILE, or to stdout "
+                                          "without FILE") -> None:
+    """Add ``--json [FILE]``, ``--out DIR``, ``--quiet`` and, as asked, ``--plots DIR`` and
+    ``--view [HTML]`` / ``--serve`` / ``--open``."""
+    parser.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE", help=json_help)
+    parser.add_argument("--out", default=None, metavar="DIR",
+                        help="write an HTML report to DIR/index.html (tables, plots, 3D view, the command "
+                             "and the versions; also DIR/report.md)")
+    if plots:
+        parser.add_argument("--plots", default=None, metavar="DIR", help="write the PNG plots to DIR")
+    if view:
+        from .view import add_view_arguments
+
+        add_view_arguments(parser)
+    add_quiet_argument(parser)
+
+
+def progress_bar(total: int | None, desc: str, quiet: bool, **tqdm_options):
+    """A tqdm bar on stderr as ``(update, close)``; off with ``--quiet`` or when stderr is no terminal."""
+    from tqdm import tqdm
+
+    bar = tqdm(total=total, desc=desc, file=sys.stderr, leave=False,
+               disable=quiet or not sys.stderr.isatty(), **tqdm_options)
+    return bar.update, bar.close
+
+
+class RunOutput:
+    """The report, plots, 3D view and JSON of one command run (see the module docstring).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        With the options of :func:`add_output_arguments`.
+    title : str
+        The report's title.
+    """
+
+    def __init__(self, args: argparse.Namespace, title: str):
+        if getattr(args, "open", False) and not getattr(args, "serve", False):
+            from ..exceptions import InputError
+
+            raise InputError("--open needs --serve")
+        for option in ("json", "view"):  # fail before the computation, not after it
+            target = getattr(args, option, None)
+            if target not in (None, "-") and not Path(target).resolve().parent.is_dir():
+                from ..exceptions import InputError
+
+                raise InputError(f"--{option} {target}: the folder {Path(target).parent} does not exist")
+        self.args = args
+        self.plot_files: list[str] = []
+        self.scene = None
+        self.report = None
+        if getattr(args, "out", None) is not None:
+            from ..view.report import Report
+
+            self.report = Report(title, command=getattr(args, "argv", None))
+
+    @property
+    def scene_wanted(self) -> bool:
+        """Whether a 3D scene will be shown (``--view``, ``--serve`` or ``--out``): build it only then."""
+        a = self.args
+        return self.report is not None or getattr(a, "view", None) is not None or getattr(a, "serve", False)
+
+    @property
+    def plots_wanted(self) -> bool:
+        return self.report is not None or getattr(self.args, "plots", None) is not None
+
+    # -- content ---------------------------------------------------------------------
+    def add_text(self, text: str, heading: str | None = None) -> None:
+        if self.report is not None:
+            self.report.add_text(text, heading)
+
+    def add_table(self, title: str, columns, rows, units=None, *, note: str | None = None,
+                  float_format: str = "{:.4g}") -> None:
+        """A table of the report (values in display units, named in ``units`` or the column names)."""
+        if self.report is not None:
+            self.report.add_table(title, columns, rows, units, note=note, float_format=float_format)
+
+    def add_plots(self, write: Callable[[Path], list], captions: dict[str, str] | None = None) -> list[str]:
+        """Draw the plots if ``--plots`` or ``--out`` asks for them.
+
+        Parameters
+        ----------
+        write : callable
+            ``write(folder) -> list of PNG paths``: the command's plot function. It gets
+            the ``--plots`` folder, or a temporary one when only ``--out`` wants the plots.
+        captions : dict, optional
+            Report captions by file name (default: the file name).
+
+        Returns
+        -------
+        list of str
+            The files written to the ``--plots`` folder (empty without ``--plots``).
+        """
+        if not self.plots_wanted:
+            return []
+        folder = getattr(self.args, "plots", None)
+        if folder is not None:
+            files = [str(f) for f in write(Path(folder))]
+            self._add_figures(files, captions)
+            self.plot_files += files
+            return files
+        import tempfile
+
+        with tempfile.TemporaryDirectory(prefix="tcr-plots-") as tmp:
+            self._add_figures([str(f) for f in write(Path(tmp))], captions)  # read into memory here
+        return []
+
+    def _add_figures(self, files: list[str], captions: dict[str, str] | None) -> None:
+        if self.report is None:
+            return
+        for f in files:
+            name = Path(f).name
+            self.report.add_figure(f, (captions or {}).get(name, name))
+
+    def set_scene(self, scene, caption: str = "3D view (meshcat)") -> None:
+        """The run's :class:`~tcr_accuracy.view.viewer.Scene`, for ``--view``, ``--serve`` and the report."""
+        self.scene = scene
+        if self.report is not None:
+            self.report.add_scene(scene.static_html(), caption)
+
+    # -- output ----------------------------------------------------------------------
+    def finish(self, payload: dict, print_results: Callable[[], None]) -> int:
+        """Write what was asked, print the results, then serve the view if asked.
+
+        ``--json -`` prints the JSON instead of the results. The files go in this order:
+        3D view, JSON, report (its ``index.html`` last). Returns the exit code (0).
+        """
+        from .view import serve_view, write_view
+
+        args = self.args
+        if self.plot_files:
+            payload["plots"] = list(self.plot_files)
+        if self.scene is not None:
+            write_view(self.scene, args)
+        target = getattr(args, "json", None)
+        if target is not None and target != "-":
+            emit_json(payload, target)
+            status(args, f"JSON written to {target}")
+        if self.report is not None:
+            index = self.report.write(args.out)
+            status(args, f"report written to {index}")
+        if self.plot_files:
+            status(args, "plots: " + ", ".join(self.plot_files))
+        if target == "-":
+            emit_json(payload, "-")
+        else:
+            print_results()
+        if self.scene is not None:
+            serve_view(self.scene, args)
+        return EXIT_OK

@@ -1,0 +1,492 @@
+"""Commands ``predict`` and ``compensate``: the remaining error from measurements, and
+joint commands that correct it (the second seed).
+
+Input: measurement CSVs in the shared format (:mod:`tcr_accuracy.io.measurements`): joint
+columns ``<joint>_deg|_rad|_mm|_m`` and, for training data, the measured TCP position
+``x_mm, y_mm, z_mm`` (or ``_m``) in the tracker's own frame. The tracker frame and the
+TCP offset are fitted on the training data first (:mod:`tcr_accuracy.prediction.registration`;
+``--frame base`` when the positions are in the robot's base frame already); the error,
+real minus nominal TCP position, is then taken in the base frame. A query (or target)
+file that also carries measured positions is mapped with the training data's frame and
+scored: the held-out error of the prediction. Output joint values are in degrees and
+millimetres.
+
+Both commands end like the other analyses (:mod:`tcr_accuracy.cli.output`): ``--json``,
+``--out DIR`` (report), ``--plots DIR``, ``--view``/``--serve``, ``--quiet``; their CSV
+(``--csv FILE``) is written whole, once everything has been computed, just before the
+view, JSON and report.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from .common import add_robot_arguments, status
+from .output import RunOutput, add_output_arguments
+
+#: names of prediction.METHODS, repeated here so that --help does not import scikit-learn
+#: (a test checks that the two lists agree)
+METHODS = ("kriging", "kriging-pf", "gp", "idw-joint", "idw-cartesian", "mlp-cartesian", "calibration",
+           "calibration+gp", "diagnosis", "diagnosis+gp")
+DEFAULT_METHOD = "diagnosis+gp"
+
+JSON_HELP = "write a JSON summary (mm, unit-suffixed keys) to FILE, or to stdout without FILE"
+
+#: most rows of the per-pose tables in the report (the CSV has them all)
+REPORT_ROWS = 50
+
+
+def add_parsers(sub) -> None:
+    p = sub.add_parser(
+        "predict", help="predict the TCP error at given joint values from measured poses",
+        description="Fit an error predictor to measured poses (--train) and predict the TCP "
+                    "position error (real minus nominal, robot base frame) at the joint values of "
+                    "--query. When --query also has measured positions, report the held-out error "
+                    "of the prediction against them.",
+    )
+    _common(p, METHODS)
+    p.add_argument("--query", required=True, metavar="CSV",
+                   help="joint values to predict at (CSV); with x/y/z columns also scored against them")
+    p.add_argument("--csv", metavar="FILE",
+                   help="write the predictions: the query joints, ex_mm, ey_mm, ez_mm, e_norm_mm, their "
+                        "standard deviations ex_std_mm ... (methods with one) and, for measured queries, "
+                        "the measured error and the held-out miss")
+    add_output_arguments(p, plots=True, view=True, json_help=JSON_HELP)
+    p.set_defaults(run=_run_predict)
+
+    c = sub.add_parser(
+        "compensate", help="corrected joint commands so the predicted real TCP lands on target",
+        description="Fit an error predictor to measured poses (--train), then for every target "
+                    "(joint values whose nominal TCP is where the tool should go) search the "
+                    "joint command whose predicted real TCP reaches it (cyclic search, IK steps).",
+    )
+    _common(c, METHODS)
+    c.add_argument("--targets", required=True, metavar="CSV", help="target joint values (CSV)")
+    c.add_argument("--threshold-mm", type=float, default=0.001,
+                   help="stop when the predicted miss is below this [mm] (default 0.001)")
+    c.add_argument("--max-iter", type=int, default=20, help="most compensation cycles (default 20)")
+    c.add_argument("--csv", metavar="FILE", help="write the compensated joint values [deg, mm], the "
+                                                 "corrections and the predicted miss")
+    add_output_arguments(c, plots=True, view=True, json_help=JSON_HELP)
+    c.set_defaults(run=_run_compensate)
+
+
+def _common(p: argparse.ArgumentParser, methods) -> None:
+    add_robot_arguments(p)
+    p.add_argument("--train", required=True, metavar="CSV", help="measured poses: joints and x/y/z (CSV)")
+    p.add_argument("--method", default=DEFAULT_METHOD, choices=methods,
+                   help=f"predictor (default {DEFAULT_METHOD}: the diagnosis' fitted effect model plus a "
+                        "Gaussian process of what it leaves; kriging-pf is the seed's method)")
+    p.add_argument("--frame", default="fit", choices=("fit", "base"),
+                   help="fit: the positions are in a tracker's own frame; fit it and the TCP offset on the "
+                        "training data (default); base: they are in the robot's base frame already (only the "
+                        "TCP offset is fitted)")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the stochastic methods (default 0)")
+
+
+def read_joint_csv(path: str, robot, *, need_positions: bool):
+    """Joint values (N, n) [SI], measured positions (N, 3) [m] (None when the file has none)
+    and the rows' context (payload, joints outside the TCP chain, ...), read and validated by
+    :func:`tcr_accuracy.io.measurements.read_measurements`."""
+    import numpy as np
+
+    from ..io.measurements import read_measurements
+
+    mset = read_measurements(path, robot, require_position=need_positions)
+    has_positions = need_positions or not np.isnan(mset.position).all()
+    return mset.q, (mset.position if has_positions else None), mset.context()
+
+
+def _check_csv_target(path: str | None) -> None:
+    """Fail before the computation when the --csv folder does not exist."""
+    if path is not None and not Path(path).resolve().parent.is_dir():
+        from ..exceptions import InputError
+
+        raise InputError(f"--csv {path}: the folder {Path(path).parent} does not exist")
+
+
+def _write_csv_atomically(args, what: str, header: list[str], rows) -> None:
+    import io
+
+    from ..atomic import write_text_atomically
+
+    if args.csv is None:
+        return
+    buf = io.StringIO()
+    buf.write(",".join(header) + "\n")
+    for row in rows:
+        buf.write(",".join(f"{v:.9g}" for v in row) + "\n")
+    write_text_atomically(Path(args.csv), buf.getvalue())
+    status(args, f"{what} written to {args.csv}")
+
+
+def _check_training(path: str, q, n_joints: int) -> None:
+    import numpy as np
+
+    from ..exceptions import InputError
+
+    if q.shape[0] <= n_joints:
+        raise InputError(f"{path}: {q.shape[0]} training poses for {n_joints} joints; need at least "
+                         f"{n_joints + 1} (the seed used 160 for 6)")
+    _, first, inverse, counts = np.unique(q, axis=0, return_index=True, return_inverse=True,
+                                          return_counts=True)
+    if (counts > 1).any():
+        group = int(np.flatnonzero(counts > 1)[0])
+        rows = np.flatnonzero(inverse.ravel() == group)[:2] + 2
+        raise InputError(f"{path}: rows {rows[0]} and {rows[1]} have the same joint values (a singular "
+                         "kriging covariance); average repeated measurements of a pose into one row")
+
+
+def _fit(args, robot):
+    """Read the training file, fit the tracker frame and the predictor: (q_train, MeasuredErrorModel)."""
+    import warnings
+
+    from sklearn.exceptions import ConvergenceWarning
+
+    from ..exceptions import InputError
+    from ..prediction.estimators import MeasuredErrorModel, make_predictor
+
+    q, pos, context = read_joint_csv(args.train, robot, need_positions=True)
+    _check_training(args.train, q, robot.n_joints)
+    model = MeasuredErrorModel(robot=robot, estimator=make_predictor(args.method, robot, random_state=args.seed),
+                               fit_frame=args.frame == "fit")
+    try:
+        with warnings.catch_warnings():
+            # scikit-learn's optimisers warn at their iteration caps; the fit is still usable
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            model.fit(q, pos, context=context)
+    except InputError as exc:
+        hint = "; or choose a --method that needs fewer poses (gp, kriging)" if args.method.startswith(
+            "diagnosis") and "too few" in str(exc) else ""
+        raise InputError(f"{args.train}: {exc}{hint}") from None
+    return q, model
+
+
+def _predict(args, model, q, context=None):
+    """Predicted base-frame errors (N, 3) [m] and their std (N, 3) or None, checked finite."""
+    import numpy as np
+
+    from ..exceptions import AnalysisError
+
+    pred, std = model.predict_error(q, return_std=True, context=context)
+    pred = np.asarray(pred, dtype=float).reshape(-1, 3)
+    if not np.all(np.isfinite(pred)) or (std is not None and not np.all(np.isfinite(std))):
+        raise AnalysisError(f"method {args.method} predicted non-finite errors")
+    return pred, (None if std is None else np.asarray(std, dtype=float).reshape(-1, 3))
+
+
+def _heldout(model, q, measured, context=None):
+    """Held-out miss at measured poses: (residual (N, 3) [m], measured error (N, 3) [m], summary dict [mm])."""
+    import numpy as np
+
+    from ..model.kinematics import tcp_poses
+
+    measured_error = model.registration_.to_base(measured) - tcp_poses(model.robot, q).position
+    residual = model.heldout_residual(q, measured, context=context)
+    norm = np.linalg.norm(residual, axis=1)
+    summary = {"mean_mm": float(norm.mean() * 1e3), "rms_mm": float(np.sqrt(np.mean(norm**2)) * 1e3),
+               "max_mm": float(norm.max() * 1e3), "count": int(norm.size)}
+    return residual, measured_error, summary
+
+
+def _coverage(residual, std) -> dict:
+    """How well the predicted std covers the held-out miss: share of axis values within 2 std, RMS of miss/std."""
+    import numpy as np
+
+    z = residual / np.maximum(std, 1e-300)
+    return {"within_2std": float(np.mean(np.abs(z) <= 2.0)), "z_rms": float(np.sqrt(np.mean(z**2)))}
+
+
+def _frame_rows(model, args):
+    reg = model.registration_
+    info = reg.to_dict()
+    rows = [("frame", "fitted on the training data" if args.frame == "fit" else "base frame (--frame base)"),
+            ("rotation angle", f"{info['rotation_angle_deg']:.4f} deg"),
+            ("translation", "({:.3f}, {:.3f}, {:.3f}) mm".format(*info["translation_mm"])),
+            ("TCP offset (TCP frame)", "({:.4f}, {:.4f}, {:.4f}) mm".format(*info["tool_offset_mm"])),
+            ("RMS after the frame fit", f"{info['residual_rms_mm']:.4f} mm")]
+    return rows
+
+
+def _frame_line(model, args) -> str:
+    info = model.registration_.to_dict()
+    where = ("tracker frame fitted on the training data: rotation {:.4f} deg, translation ({:.3f}, {:.3f}, {:.3f}) mm"
+             .format(info["rotation_angle_deg"], *info["translation_mm"]) if args.frame == "fit"
+             else "positions taken in the base frame (--frame base)")
+    return (f"{where}; TCP offset ({info['tool_offset_mm'][0]:.4f}, {info['tool_offset_mm'][1]:.4f}, "
+            f"{info['tool_offset_mm'][2]:.4f}) mm; RMS after the frame fit {info['residual_rms_mm']:.4f} mm")
+
+
+def _start(args, title: str):
+    """The robot and the run's outputs, checked before any work."""
+    from ..model.robot import load_robot
+
+    _check_csv_target(args.csv)
+    out = RunOutput(args, title)
+    return load_robot(args.robot, args.tool), out
+
+
+def _fit_table(out, robot, args, q_train, what: str, n: int) -> None:
+    out.add_table("Predictor", ["setting", "value"],
+                  [("robot", robot.name), ("method", args.method), ("training poses", int(q_train.shape[0])),
+                   ("training file", str(args.train)), (what, n), ("seed", args.seed)])
+
+
+def _joint_columns(robot, prefix: str = "") -> list[str]:
+    return [f"{prefix}{n}_{u}" for n, u in zip(robot.joint_names, robot.display_units)]
+
+
+def _median_index(values) -> int:
+    """Index of the value nearest the median: the pose the 3D view shows the robot at."""
+    import numpy as np
+
+    return int(np.argmin(np.abs(values - np.median(values))))
+
+
+# ---------------------------------------------------------------------------------------
+# predict
+# ---------------------------------------------------------------------------------------
+def _run_predict(args) -> int:
+    import numpy as np
+
+    from ..view.plots_prediction import plot_predicted_errors
+    from ..prediction.estimators import uncertainty_kind
+
+    robot, out = _start(args, "Error prediction")
+    q_train, model = _fit(args, robot)
+    q, measured, context = read_joint_csv(args.query, robot, need_positions=False)
+    scale = robot.display_scale
+    pred, std = _predict(args, model, q, context)
+    norm = np.linalg.norm(pred, axis=1)
+    kind = uncertainty_kind(model) if std is not None else None
+    stats = {
+        "mean": (norm.mean(), *np.abs(pred).mean(axis=0)),
+        "RMS": (np.sqrt(np.mean(norm ** 2)), *np.sqrt(np.mean(pred ** 2, axis=0))),
+        "max": (norm.max(), *np.abs(pred).max(axis=0)),
+    }
+    heldout = residual = measured_error = None
+    if measured is not None:
+        residual, measured_error, heldout = _heldout(model, q, measured, context)
+        if std is not None:
+            heldout.update(_coverage(residual, std))
+    payload = {
+        "robot": robot.name, "method": args.method, "frame": args.frame,
+        "n_train": int(q_train.shape[0]), "n_query": int(q.shape[0]),
+        "tracker_frame": model.registration_.to_dict(),
+        "predicted_error_mean_mm": float(norm.mean() * 1e3), "predicted_error_max_mm": float(norm.max() * 1e3),
+        "predicted_error_stats_mm": {k: dict(zip(("norm", "abs_ex", "abs_ey", "abs_ez"), (float(v * 1e3) for v in s)))
+                                     for k, s in stats.items()},
+        "predicted_errors_mm": (pred * 1e3).tolist(),
+        "uncertainty": kind or "none",
+        "predicted_std_mm": None if std is None else (std * 1e3).tolist(),
+        "heldout": heldout,
+    }
+    if measured is not None:
+        payload["measured_errors_mm"] = (measured_error * 1e3).tolist()
+    _fit_table(out, robot, args, q_train, "query poses", int(q.shape[0]))
+    out.add_table("Tracker frame", ["setting", "value"], _frame_rows(model, args),
+                  note="p_tracker = R p_base + t, fitted with the TCP offset on the training data "
+                       "(closed form, then the frames effect by least squares)")
+    out.add_table("Predicted error at the query poses", ["statistic", "|e|", "|ex|", "|ey|", "|ez|"],
+                  [(k, *(v * 1e3 for v in s)) for k, s in stats.items()], units=["", "mm", "mm", "mm", "mm"],
+                  note="error = real minus nominal TCP position, robot base frame")
+    if heldout is not None:
+        rows = [("mean", heldout["mean_mm"]), ("RMS", heldout["rms_mm"]), ("max", heldout["max_mm"]),
+                ("count", heldout["count"])]
+        if "within_2std" in heldout:
+            rows += [("share of axis misses within 2 std", heldout["within_2std"]),
+                     ("RMS of miss / std", heldout["z_rms"])]
+        out.add_table("Held-out error at the measured query poses", ["statistic", "value"], rows,
+                      note="|measured - predicted error|; the query's measured positions mapped with the "
+                           "training data's tracker frame")
+    shown = min(len(q), REPORT_ROWS)
+    columns = ["row", *_joint_columns(robot), "ex", "ey", "ez", "|e|"]
+    units = ["", *[""] * robot.n_joints, "mm", "mm", "mm", "mm"]
+    if std is not None:
+        columns += ["std x", "std y", "std z"]
+        units += ["mm", "mm", "mm"]
+    if measured is not None:
+        columns += ["held-out miss"]
+        units += ["mm"]
+    per_pose = []
+    for i in range(shown):
+        row = [i + 2, *(q[i] * scale), *(pred[i] * 1e3), norm[i] * 1e3]
+        if std is not None:
+            row += list(std[i] * 1e3)
+        if measured is not None:
+            row.append(float(np.linalg.norm(residual[i]) * 1e3))
+        per_pose.append(row)
+    out.add_table("Predicted error per query pose", columns, per_pose, units=units,
+                  note=None if shown == len(q) else f"first {shown} of {len(q)} (all in --csv)")
+    out.add_plots(lambda folder: [plot_predicted_errors(pred, Path(folder) / "predicted_errors.png", std=std,
+                                                        measured=measured_error)],
+                  {"predicted_errors.png": "Predicted TCP error at each query pose (components and magnitude"
+                                           + (", +-2 standard deviations" if std is not None else "")
+                                           + (", the measured error" if measured is not None else "")
+                                           + ") and its distribution"
+                                           + ("; the held-out miss, measured - predicted error, per pose"
+                                              if measured is not None else "")})
+    if out.scene_wanted:
+        out.set_scene(*_predict_scene(robot, q, pred, norm, args))
+    header = _joint_columns(robot) + ["ex_mm", "ey_mm", "ez_mm", "e_norm_mm"]
+    blocks = [q * scale, pred * 1e3, norm[:, None] * 1e3]
+    if std is not None:
+        header += ["ex_std_mm", "ey_std_mm", "ez_std_mm"]
+        blocks.append(std * 1e3)
+    if measured is not None:
+        header += ["measured_ex_mm", "measured_ey_mm", "measured_ez_mm", "heldout_miss_mm"]
+        blocks += [measured_error * 1e3, np.linalg.norm(residual, axis=1)[:, None] * 1e3]
+    _write_csv_atomically(args, "predictions", header, np.hstack(blocks))
+    lines = [_frame_line(model, args),
+             (f"predicted |error| at {q.shape[0]} query poses: mean {norm.mean() * 1e3:.4f} mm, "
+              f"max {norm.max() * 1e3:.4f} mm (robot base frame, TCP offset included)"),
+             (f"uncertainty ({kind}): mean std per axis {np.mean(std) * 1e3:.4f} mm" if std is not None
+              else f"uncertainty: none ({args.method} gives no standard deviation)")]
+    if heldout is not None:
+        lines.append(f"held-out error against the {heldout['count']} measured query positions: mean "
+                     f"{heldout['mean_mm']:.4f} mm, RMS {heldout['rms_mm']:.4f} mm, max {heldout['max_mm']:.4f} mm"
+                     + (f"; {100 * heldout['within_2std']:.0f} % of axis misses within 2 std"
+                        if "within_2std" in heldout else ""))
+    return out.finish(payload, lambda: _print(robot, args, q_train, *lines))
+
+
+def _print(robot, args, q_train, *lines: str) -> None:
+    print(f"{robot.name}: {args.method} fitted to {q_train.shape[0]} measured poses ({args.train})")
+    for line in lines:
+        print(f"  {line}")
+
+
+def _predict_scene(robot, q, pred, norm, args):
+    from ..model.kinematics import tcp_poses
+    from ..view.viewer import Scene, auto_magnification
+
+    nominal = tcp_poses(robot, q).position
+    magnify = auto_magnification(float(norm.max()), drawn_m=0.3)
+    scene = Scene(f"{robot.name}: error predicted by {args.method}")
+    shown = _median_index(norm)
+    scene.add_robot(robot, q[shown], name="nominal robot", opacity=0.5)  # the TCP points sit in the tool
+    scene.add_point_cloud(nominal, norm * 1e3, name="query TCP", label="predicted TCP error |e| [mm]",
+                          size_m=0.025)
+    scene.add_error_segments(nominal, nominal + pred, magnify=magnify, name="predicted error",
+                             start_label="nominal TCP at the query joints",
+                             end_label="predicted real TCP", size_m=0.015)
+    scene.add_note(f"{len(q)} query poses, {args.method} fitted to {args.train}; robot at query row {shown + 2} "
+                   f"(median |e|); segments magnified x {magnify:g}")
+    return scene, (f"Query TCP points coloured by the predicted |e|; segments to the predicted real TCP, "
+                   f"magnified x {magnify:g}")
+
+
+# ---------------------------------------------------------------------------------------
+# compensate
+# ---------------------------------------------------------------------------------------
+def _run_compensate(args) -> int:
+    import numpy as np
+
+    from ..prediction.compensation import compensate_joints
+    from ..exceptions import InputError
+    from ..model.kinematics import tcp_poses
+    from ..view.plots_prediction import plot_compensation
+
+    if args.threshold_mm <= 0:
+        raise InputError(f"--threshold-mm {args.threshold_mm}: must be > 0")
+    if args.max_iter < 1:
+        raise InputError(f"--max-iter {args.max_iter}: must be >= 1")
+    robot, out = _start(args, "Joint compensation")
+    q_train, model = _fit(args, robot)
+    q, measured, context = read_joint_csv(args.targets, robot, need_positions=False)
+    units, scale = robot.display_units, robot.display_scale
+    # the predictor of the base-frame error (TCP offset + method): targets and commands are base-frame
+    result = compensate_joints(robot, model.error_model_, q, threshold=args.threshold_mm * 1e-3,
+                               max_iter=args.max_iter, context=context)
+    failed = np.flatnonzero(~result.converged)
+    if failed.size:
+        rows = ", ".join(str(i + 2) for i in failed[:10]) + (" ..." if failed.size > 10 else "")
+        raise InputError(f"{args.targets}: {failed.size} target(s) not reachable within the joint limits or "
+                         f"{args.max_iter} cycles (rows {rows}; predicted miss up to "
+                         f"{result.predicted_miss[failed].max() * 1e3:.4g} mm)")
+    dq = (result.q - q) * scale
+    # the real TCP the uncompensated command is predicted to reach, and the compensated one
+    # (base frame: result.target is the nominal TCP at the target joints)
+    before_tcp = result.target + _predict(args, model, q, context)[0]
+    after_tcp = tcp_poses(robot, result.q).position + _predict(args, model, result.q, context)[0]
+    before = np.linalg.norm(before_tcp - result.target, axis=1)
+    after = result.predicted_miss
+    cycles, counts = np.unique(result.iterations, return_counts=True)
+    heldout = None
+    if measured is not None:
+        # the targets were measured at their uncompensated commands: how well the predicted
+        # error there matches the measured one is what compensation can hope to remove
+        _, measured_error, heldout = _heldout(model, q, measured, context)
+        measured_before = np.linalg.norm(measured_error, axis=1)
+        heldout["measured_error_before_mean_mm"] = float(measured_before.mean() * 1e3)
+        heldout["measured_error_before_max_mm"] = float(measured_before.max() * 1e3)
+    payload = {
+        "robot": robot.name, "method": args.method, "frame": args.frame, "n_train": int(q_train.shape[0]),
+        "n_targets": int(q.shape[0]), "tracker_frame": model.registration_.to_dict(), "heldout": heldout,
+        "threshold_mm": args.threshold_mm, "iterations_max": int(result.iterations.max()),
+        "n_converged": int(result.converged.sum()),
+        "cycles_targets": {str(int(c)): int(n) for c, n in zip(cycles, counts)},
+        "predicted_error_before_mean_mm": float(before.mean() * 1e3),
+        "predicted_error_before_max_mm": float(before.max() * 1e3),
+        "predicted_miss_mean_mm": float(after.mean() * 1e3),
+        "predicted_miss_max_mm": float(after.max() * 1e3),
+        "joint_units": units, "compensated_joints": (result.q * scale).tolist(),
+    }
+    _fit_table(out, robot, args, q_train, "targets", int(q.shape[0]))
+    out.add_table("Tracker frame", ["setting", "value"], _frame_rows(model, args),
+                  note="p_tracker = R p_base + t, fitted with the TCP offset on the training data")
+    out.add_table("Predicted error at the targets, before and after compensation", ["command", "mean", "max"],
+                  [("uncompensated (target joints)", before.mean() * 1e3, before.max() * 1e3),
+                   ("compensated", after.mean() * 1e3, after.max() * 1e3)], units=["", "mm", "mm"],
+                  note="|predicted real TCP - target|, robot base frame; predicted real TCP = nominal FK + "
+                       "predicted error")
+    if heldout is not None:
+        out.add_table("Measured targets (held out)", ["statistic", "mean", "max"],
+                      [("measured error, uncompensated", heldout["measured_error_before_mean_mm"],
+                        heldout["measured_error_before_max_mm"]),
+                       ("|measured - predicted error|", heldout["mean_mm"], heldout["max_mm"])],
+                      units=["", "mm", "mm"],
+                      note="the targets' measured positions mapped with the training data's tracker frame; the "
+                           "second row is about what compensation leaves")
+    out.add_table("Convergence", ["cycles", "targets"], [(int(c), int(n)) for c, n in zip(cycles, counts)],
+                  note=f"{int(result.converged.sum())} of {len(q)} targets converged (predicted miss below "
+                       f"{args.threshold_mm:g} mm, joints inside their limits, at most {args.max_iter} cycles)")
+    out.add_table("Joint corrections", ["joint", "largest |correction|", "unit"],
+                  [(n, np.abs(dq[:, j]).max(), u) for j, (n, u) in enumerate(zip(robot.joint_names, units))])
+    out.add_plots(lambda folder: [plot_compensation(before, after, Path(folder) / "compensation.png")],
+                  {"compensation.png": "Predicted error at the targets before and after compensation"})
+    if out.scene_wanted:
+        out.set_scene(*_compensate_scene(robot, q, result, before_tcp, after_tcp, before, args))
+    header = _joint_columns(robot) + _joint_columns(robot, "d") + ["predicted_miss_mm"]
+    _write_csv_atomically(args, "compensated joint values", header,
+                          np.hstack([result.q * scale, dq, result.predicted_miss[:, None] * 1e3]))
+    lines = [_frame_line(model, args),
+             (f"{q.shape[0]} targets compensated in at most {result.iterations.max()} cycles; largest joint "
+              f"correction {np.abs(dq).max():.4g} ({', '.join(sorted(set(units)))})"),
+             (f"predicted error at the targets: mean {before.mean() * 1e3:.4f} mm, max {before.max() * 1e3:.4f} mm "
+              f"before; mean {after.mean() * 1e3:.2g} mm, max {after.max() * 1e3:.2g} mm after")]
+    if heldout is not None:
+        lines.append(f"measured at the targets (held out): error {heldout['measured_error_before_mean_mm']:.4f} mm "
+                     f"mean uncompensated; |measured - predicted error| mean {heldout['mean_mm']:.4f} mm, "
+                     f"max {heldout['max_mm']:.4f} mm (about what compensation leaves)")
+    return out.finish(payload, lambda: _print(robot, args, q_train, *lines))
+
+
+def _compensate_scene(robot, q, result, before_tcp, after_tcp, before, args):
+    from ..view.viewer import COLORS, Scene, auto_magnification
+
+    magnify = auto_magnification(float(before.max()), drawn_m=0.3)
+    scene = Scene(f"{robot.name}: compensation with {args.method}")
+    shown = _median_index(before)
+    scene.add_robot(robot, result.q[shown], name="compensated command", opacity=0.5)
+    scene.add_error_segments(result.target, before_tcp, magnify=magnify, name="before",
+                             start_label="target TCP", end_label="predicted real TCP, uncompensated command",
+                             size_m=0.02)
+    scene.add_error_segments(result.target, after_tcp, magnify=magnify, name="after",
+                             start_label="target TCP", end_label="predicted real TCP, compensated command",
+                             end_color=COLORS["trajectory"], size_m=0.02)
+    del scene.legend[-2]  # the targets' entry, already in the legend once
+    scene.add_note(f"{len(q)} targets of {args.targets}; robot at target row {shown + 2} (median error before); "
+                   f"segments magnified x {magnify:g}")
+    return scene, f"Targets and the predicted real TCP before and after compensation, magnified x {magnify:g}"

@@ -1,0 +1,86 @@
+"""``tcr-accuracy simulate``: measurements of a robot with hidden effects (a stand-in robot)."""
+
+from __future__ import annotations
+
+from .common import EXIT_OK, add_quiet_argument, add_robot_arguments, seed_value, status
+
+
+def add_parsers(sub) -> None:
+    p = sub.add_parser(
+        "simulate", help="write a measurement CSV of a robot with hidden effects",
+        description="Stand-in for the real robot: perturb the nominal model with the hidden effects "
+                    "of a scenario (YAML), take N poses (random within the joint limits, in a task box, "
+                    "or from --poses), add laser-tracker noise and write a measurement CSV. The hidden "
+                    "truth goes to --truth only, never into the CSV.",
+    )
+    add_robot_arguments(p)
+    p.add_argument("--scenario", metavar="YAML", default=None,
+                   help="hidden effects (see examples/scenario_*.yaml); without it: --random")
+    p.add_argument("--random", nargs="*", metavar="EFFECT", default=None,
+                   help="draw a random realistic scenario (geometry plus the named dominant effects, "
+                        "or one or two drawn at random)")
+    p.add_argument("--outside", metavar="EFFECT", default=None,
+                   help="with --random: also hide an effect outside the vocabulary (unmodelled, link_bending)")
+    p.add_argument("--n", type=int, default=200, help="number of measurements (default 200)")
+    p.add_argument("--poses", metavar="CSV", default=None,
+                   help="commanded poses (joint columns, optional context columns) instead of random ones")
+    p.add_argument("--box", nargs=6, type=float, metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
+                   help="task box for random poses [mm], in the robot's base frame")
+    p.add_argument("--noise-mm", type=float, default=None,
+                   help="tracker noise, std per axis [mm] (default: the scenario's, else 0.02)")
+    p.add_argument("--orientation", action="store_true", help="also write measured orientations (qw..qz)")
+    p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
+    p.add_argument("--unit", choices=("mm", "m"), default="mm",
+                   help="CSV units: mm (joints in deg/mm) or m (rad/m) (default mm)")
+    p.add_argument("--out", required=True, metavar="CSV", help="measurement CSV to write")
+    p.add_argument("--truth", metavar="FILE", default=None,
+                   help="write the hidden truth here (.yaml/.yml or JSON); keep it from the diagnosis")
+    add_quiet_argument(p)
+    p.set_defaults(run=_run_simulate)
+
+
+def _run_simulate(args) -> int:
+    import numpy as np
+
+    from ..exceptions import InputError
+    from ..io.measurements import read_measurements, write_measurements
+    from ..model.robot import load_robot
+    from ..analysis.scenario import load_scenario, scenario_from_dict
+    from ..analysis.simulate import random_scenario, simulate_measurements, write_truth
+
+    robot = load_robot(args.robot, args.tool)
+    rng = np.random.default_rng(args.seed)
+    if args.scenario is not None and args.random is not None:
+        raise InputError("--scenario and --random: give one of them")
+    if args.outside is not None and args.random is None:
+        raise InputError("--outside: only with --random (in a scenario file, list the effect under effects)")
+    if args.noise_mm is not None and not args.noise_mm >= 0:
+        raise InputError(f"--noise-mm {args.noise_mm}: must be >= 0")
+    if args.n < 1:
+        raise InputError(f"--n {args.n}: need at least one measurement")
+    extra = {}
+    if args.scenario is not None:
+        scenario = load_scenario(args.scenario)
+    else:
+        spec = random_scenario(robot, rng, dominant=args.random or None, outside=args.outside)
+        extra = {"dominant": spec["dominant"], "notes": spec["notes"]}
+        scenario = scenario_from_dict(spec, source="--random")
+    q = context = None
+    if args.poses is not None:
+        poses = read_measurements(args.poses, robot, require_position=False)
+        q, context = poses.q, poses.context(rng=rng)
+    box = None if args.box is None else np.asarray(args.box, dtype=float).reshape(3, 2) * 1e-3
+    noise = None if args.noise_mm is None else args.noise_mm * 1e-3
+    mset, truth = simulate_measurements(robot, scenario, args.n, rng, noise, q=q, context=context, box=box,
+                                        orientation=args.orientation)
+    truth.update(extra)
+    truth["seed"] = args.seed
+    write_measurements(args.out, robot, mset, unit=args.unit)
+    if args.truth:
+        write_truth(args.truth, truth)
+    names = ", ".join(truth["effects"]) or "none"
+    print(f"{robot.name}: {len(mset)} simulated measurements -> {args.out} "
+          f"(hidden effects: {names}; noise {truth['noise_m'] * 1e3:.4g} mm)")
+    if args.truth:
+        status(args, f"hidden truth written to {args.truth}")
+    return EXIT_OK

@@ -1,0 +1,504 @@
+"""Sim-to-real gap diagnosis: how big the gap is, where it lies, which unmodelled effect
+causes it, and how far it shrinks once that effect is in the model.
+
+The input is a set of measurements of the real robot (commanded joint values, the
+position, and optionally orientation, of one or more measured frames in the tracker's
+own frame, optional context); the nominal model is a
+:class:`~tcr_accuracy.model.robot.RobotModel` per measured frame. Steps:
+
+1. **Gap.** The tracker frame is registered to the robot's base (closed-form Kabsch on
+   nominal vs measured positions), then the ``frames`` effect (base twist and TCP
+   offsets) is fitted; the remaining error is the gap.
+2. **Where.** That residual per axis, per workspace region, against each joint value,
+   gravity torque, payload, temperature and approach direction, and along which joints
+   it varies (:func:`~tcr_accuracy.diagnosis.residuals.where_analysis`).
+3. **Which effect.** Every effect of the vocabulary (:mod:`tcr_accuracy.effects`) is a
+   parametric model on top of the nominal kinematics, fitted by the engine of
+   :mod:`tcr_accuracy.diagnosis.fitting`; identifiability per candidate model
+   (:mod:`tcr_accuracy.diagnosis.identifiability`): a parameter whose own part moves the TCP less
+   than a tenth of the noise is named and removed with what it duplicates. Effects
+   enter by forward selection on k-fold held-out error when a one-sided paired test on
+   the per-measurement held-out squared errors gives z > ``selection_z``; backward
+   elimination drops a chosen effect that the others can replace (same test).
+4. **How far it shrinks.** Held-out mean/RMS/max after each step; a leave-one-out table
+   over the chosen set, two ways: with the others refitted and free to take the dropped
+   effect's place (what backward elimination uses), and with the others held to the
+   parameters they have in the final model (the dropped effect's *own share*, under the
+   vocabulary's convention that an earlier effect keeps what a later one duplicates);
+   the **primary effect** is the one with the largest own share. Then the final residual
+   next to the noise floor, whether structure remains in joint space and whether there
+   is scatter beyond the instrument's (:mod:`tcr_accuracy.diagnosis.residuals`).
+
+The noise is not assumed: without ``tracker_noise`` it comes from repeated poses, else
+from the final residual (:func:`~tcr_accuracy.diagnosis.residuals.noise_from_residual`), and the
+result says which.
+
+All lengths are SI (m) inside; :meth:`Diagnosis.to_dict` converts to mm with unit
+suffixed keys. Nothing here prints or plots.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+from scipy.spatial.transform import Rotation
+
+from ..model.context import CONTEXT_FIELDS, MeasurementContext
+from .result import Diagnosis, ErrorStats, Observations, Step, observations_from
+from ..effects import effect_class, make_effect, vocabulary
+from ..model.errors import ErrorModel
+from ..exceptions import AnalysisError, InputError
+from .fitting import EffectBasis, FitEngine, Part, UnionBasis, ordered, paired_z, position_jacobians, register, stacked
+from ..model.gravity import gravity_torque
+from ..model.kinematics import tcp_poses
+from .residuals import NoiseEstimate, noise_from_repeats, noise_from_residual, scatter_test, structure_test, \
+    where_analysis
+from ..model.robot import RobotModel
+
+#: Noise figure [m per axis] the identifiability test resolves down to a tenth of when the
+#: instrument's is not known (a good laser tracker): pruning stays rank-based.
+RESOLUTION_NOISE = 2e-5
+
+
+# ---------------------------------------------------------------------------------------
+# The diagnosis
+# ---------------------------------------------------------------------------------------
+def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, seed: int = 0,
+             tracker_noise: float | None = None, selection_z: float = 3.0, min_relative_gain: float = 0.002,
+             rank_tol: float = 1e-6, orientation_weight: float | None = None, progress=None) -> Diagnosis:
+    """Diagnose the gap between the nominal robot and its measurements.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The nominal model (of the measured frame).
+    measurements : MeasurementSet, Observations, or list of (RobotModel, MeasurementSet)
+        q (N, n_joints) [rad, m], position (N, 3) [m] in the tracker frame, context. A
+        list measures several frames on the same rows (each with the robot whose TCP it
+        is; ``robot`` is then the first one's): their shared parameters are fitted once.
+    effects : list of str, optional
+        Effects to consider (vocabulary order is used; ``frames`` is always in).
+    folds : int
+        k of the k-fold cross-validation (>= 2).
+    seed : int
+        Seeds the fold split and the permutation tests.
+    tracker_noise : float, optional
+        Per-axis standard deviation of the instrument [m]; noise floor = sqrt(3) times it.
+        None: estimated from the data (repeated poses, else the final residual).
+    selection_z : float
+        One-sided z the paired held-out test must exceed for an effect to enter.
+    min_relative_gain : float
+        And the held-out RMS must drop by at least this fraction.
+    rank_tol : float
+        Identifiability tolerance on normalised pivots.
+    orientation_weight : float, optional
+        [m/rad] weight of measured orientation in the fit (an angle counts as the position
+        error it makes at this distance); default the RMS spread of the measured points
+        about their centre.
+    progress : callable(str), optional
+        Called with a short message as the work advances (the CLI's progress bar).
+    """
+    return GapDiagnosis(effects=effects, folds=folds, seed=seed, tracker_noise=tracker_noise,
+                        selection_z=selection_z, min_relative_gain=min_relative_gain, rank_tol=rank_tol,
+                        orientation_weight=orientation_weight).fit(robot, measurements, progress).result_
+
+
+def _one_blas_thread():
+    """The least-squares problems here are small (3N x ~60): multi-threaded BLAS only adds
+    synchronisation, and on a shared machine it was 50-100x slower than one thread.
+    threadpoolctl (a scikit-learn dependency) limits it for the duration of a call."""
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+class GapDiagnosis:
+    """The diagnosis as an estimator: hyper-parameters here, ``fit`` does the work.
+
+    Parameters are those of :func:`diagnose`. After :meth:`fit`: ``result_`` (a
+    :class:`Diagnosis`), ``selected_effects_``, ``primary_effect_``, ``parameters_``,
+    ``noise_``; :meth:`predict` gives the fitted model's TCP positions in the tracker frame.
+    """
+
+    def __init__(self, *, effects=None, folds: int = 5, seed: int = 0, tracker_noise: float | None = None,
+                 selection_z: float = 3.0, min_relative_gain: float = 0.002, rank_tol: float = 1e-6,
+                 orientation_weight: float | None = None):
+        self.effects = effects
+        self.folds = folds
+        self.seed = seed
+        self.tracker_noise = tracker_noise
+        self.selection_z = selection_z
+        self.min_relative_gain = min_relative_gain
+        self.rank_tol = rank_tol
+        self.orientation_weight = orientation_weight
+
+    # -- inputs ------------------------------------------------------------------------
+    def _check(self, robot, measurements) -> list[tuple[RobotModel, Observations, str]]:
+        if isinstance(measurements, (list, tuple)):
+            frames = [(r, observations_from(m), r.tool_frame) for r, m in measurements]
+        else:
+            frames = [(robot, observations_from(measurements), robot.tool_frame)]
+        if self.folds < 2:
+            raise InputError(f"--folds {self.folds}: need at least 2")
+        n = len(frames[0][1])
+        for r, obs, label in frames:
+            if obs.q.ndim != 2 or obs.q.shape[1] != r.n_joints:
+                raise InputError(f"measurements have {obs.q.shape[-1]} joint columns, {r.name} has {r.n_joints}")
+            if len(obs) != n:
+                raise InputError(f"measured frame {label}: {len(obs)} rows, the first frame has {n}")
+        if n < max(3 * self.folds, 12):
+            raise InputError(f"{n} measurements are too few to diagnose with {self.folds}-fold cross-validation "
+                             f"(need at least {max(3 * self.folds, 12)})")
+        words = vocabulary()
+        if self.effects is not None:
+            unknown = [e for e in self.effects if e not in words]
+            if unknown:
+                raise InputError(f"--effects: unknown effect(s) {', '.join(unknown)} "
+                                 f"(vocabulary: {', '.join(words)})")
+        return frames
+
+    # -- the pipeline ------------------------------------------------------------------
+    def fit(self, robot: RobotModel, measurements, progress=None) -> "GapDiagnosis":
+        """Run the diagnosis on ``measurements`` of ``robot`` (see :func:`diagnose`)."""
+        with _one_blas_thread():
+            return self._fit(robot, measurements, progress)
+
+    def _fit(self, robot, measurements, progress) -> "GapDiagnosis":
+        from sklearn.model_selection import KFold
+
+        frames = self._check(robot, measurements)
+        robot, obs = frames[0][0], frames[0][1]
+        n = len(obs)
+        say = progress or (lambda message: None)
+        rng = np.random.default_rng(self.seed)
+        names = [e for e in vocabulary() if self.effects is None or e in self.effects or e == "frames"]
+        notes: list = []
+        measured = set().union(*(set(o.measured) for _, o, _ in frames))
+
+        # 1. register the tracker frame, then work in the robot's base frame
+        say("registering the tracker frame")
+        nominal = [tcp_poses(r, o.q) for r, o, _ in frames]
+        rot, trans = register(np.concatenate([p.position for p in nominal]),
+                              np.concatenate([o.position for _, o, _ in frames]))
+        weight = self.orientation_weight
+        if weight is None:
+            points = np.concatenate([o.position for _, o, _ in frames])
+            weight = float(np.sqrt(np.mean(np.sum((points - points.mean(axis=0)) ** 2, axis=1))))
+        parts = []
+        for (r, o, label) in frames:
+            target_rotation = None
+            if o.quaternion is not None:
+                w, x, y, z = o.quaternion.T
+                tracker_rotation = Rotation.from_quat(np.stack([x, y, z, w], axis=1)).as_matrix()
+                target_rotation = np.einsum("ji,njk->nik", rot, tracker_rotation)  # R^T R_tracker
+            parts.append(Part(r, o.q, (o.position - trans) @ rot, o.context, label, target_rotation, weight))
+        if any(p.target_rotation is not None for p in parts):
+            notes.append(f"measured orientation enters the fit: rotation errors [rad] weighted by {weight:.4g} m/rad "
+                         "(an angle counts as the position error it makes at the measured points' RMS spread "
+                         "about their centre)")
+        tau = gravity_torque(robot, obs.q, obs.context.payload_kg, outside_q=obs.context.outside_q)
+
+        # effects as linear maps, and which can be tried at all
+        say("building effect models")
+        bases, candidates, stochastic = self._bases(parts, names, measured, notes)
+        if "frames" not in bases:
+            raise AnalysisError("the frames effect could not be built")
+        order = ordered(bases)
+        # a TCP offset of centimetres changes which directions duplicate one another:
+        # linearise about the frames-only fit, not the nominal model
+        pre = FitEngine(parts, {"frames": bases["frames"]}, [], rank_tol=0.0)
+        frames_cols = pre.columns(["frames"])
+        phi, _ = pre.fit(frames_cols, np.arange(n))
+        for p, part in enumerate(parts):
+            basis, _, idx = frames_cols.per_part[p]
+            x_frames = basis[0] @ (phi[idx] * frames_cols.scale[idx])
+            jac_x = position_jacobians(part.robot, part.q, x_frames,
+                                       weight if part.target_rotation is not None else None)
+            for b in bases.values():
+                b.per_part[p].relinearise(jac_x)
+        for b in bases.values():
+            b.restack()
+        kfold = KFold(n_splits=self.folds, shuffle=True, random_state=int(rng.integers(2**31 - 1)))
+        split = [(np.asarray(a), np.asarray(b)) for a, b in kfold.split(np.arange(n))]
+        repeats = noise_from_repeats(obs.q, obs.position, _context_table(obs)) if self.tracker_noise is None \
+            else None
+        resolution = self.tracker_noise or (repeats.per_axis if repeats else RESOLUTION_NOISE)
+        engine = FitEngine(parts, bases, split, self.rank_tol, min_motion=0.1 * resolution)
+        _, ident_all = engine.identify(order)
+        testable = []
+        for name in order:
+            if name != "frames" and engine.identify(("frames", name))[0][name].size == 0:
+                candidates[name] = {"tried": False, "why": "no identifiable parameter on these data (beyond frames)"}
+            elif name != "frames":
+                testable.append(name)
+
+        # 2. gap after frames; 3. forward selection, backward elimination
+        say("fitting frames")
+        result = engine.evaluate(["frames"])
+        gap_residual = result["train_residual"]
+        steps = [Step("frames", ("frames",), result["n_parameters"], ErrorStats.of(result["train_residual"]).rms,
+                      ErrorStats.of(result["heldout_residual"]), None)]
+        current = self._forward(engine, testable, steps, candidates, say)
+        current, loo, eliminated = self._backward(engine, current, say)
+        selected = list(current)  # forward order, without what backward elimination dropped
+        chosen = [e for e in selected if e != "frames"]
+        final = engine.evaluate(ordered(current))
+        primary = max(loo, key=lambda row: row["own_share_increase_mm"])["dropped"] if loo else None
+        if eliminated:  # rebuild the shrink table along the forward order of what stayed
+            steps = steps[:1]
+            for k in range(1, len(selected)):
+                r = engine.evaluate(ordered(selected[:k + 1]))
+                p_ = engine.evaluate(ordered(selected[:k]))
+                steps.append(Step(selected[k], tuple(ordered(selected[:k + 1])), r["n_parameters"],
+                                  ErrorStats.of(r["train_residual"]).rms, ErrorStats.of(r["heldout_residual"]),
+                                  paired_z(p_["heldout_residual"], r["heldout_residual"])))
+            notes.append("dropped again after forward selection (no significant held-out loss without them): "
+                         + ", ".join(f"{e['effect']} (z = {e['z']:.1f})" for e in eliminated))
+
+        # where (on the frames-only residual), structure, noise and scatter (on the final residual)
+        say("where the gap lies")
+        first = _first_frame
+        context = {k: np.asarray(getattr(obs.context, k), dtype=float) for k in obs.measured}
+        where, semis = where_analysis(robot, obs.q, nominal[0].position, first(gap_residual), tau, context, rng=rng)
+        say("testing the final residual")
+        final_train = first(final["train_residual"])
+        structure = structure_test(obs.q, final_train, rng, kinds=robot.joint_kinds)
+        noise = self._noise(repeats, obs.q, final_train, final["n_parameters"], structure["remains"])
+        scatter = self._scatter(noise, final, stochastic, structure, notes)
+
+        # fitted parameters, as-built geometry, tracker frame
+        keep, ident = engine.identify(tuple(ordered(selected)))
+        ident = {**ident, "all_effects": ident_all}
+        theta = final["phi"] * final["scale"]
+        parameters, units, full_parameters = {}, {}, {}
+        em = ErrorModel(robot)
+        as_built = np.zeros(em.size)
+        offset = 0
+        for e in ordered(selected):
+            b = bases[e]
+            union = np.zeros(len(b.names))
+            union[keep[e]] = theta[offset:offset + keep[e].size]
+            offset += keep[e].size
+            parameters[e] = {b.names[k]: union[k] for k in keep[e]}
+            units[e] = {b.names[k]: b.units[k] for k in keep[e]}
+            full = union[b.index[0]]  # the first frame's own parameter vector
+            full_parameters[e] = full
+            if effect_class(e).geometric:
+                as_built += b.per_part[0].basis[0] @ full
+        contribution = self._contributions(parts[0], bases, chosen, full_parameters, nominal[0].position)
+        base_twist = as_built[em.base_slice].copy()
+        as_built[em.base_slice] = 0.0  # the base twist belongs to the tracker frame, not the robot
+        tracker = np.eye(4)
+        tracker[:3, :3], tracker[:3, 3] = rot, trans
+        tracker = tracker @ pin.exp6(base_twist).homogeneous
+
+        held = final["heldout_residual"]
+        by_frame = {}
+        if len(parts) > 1:
+            by_frame = {part.label: ErrorStats.of(held[p]) for p, part in enumerate(parts)}
+        orientation = {}
+        if final["heldout_orientation"] is not None:
+            angle = np.degrees(np.linalg.norm(stacked(final["heldout_orientation"]), axis=1))
+            orientation = {"weight_m_per_rad": weight, "heldout_mean_deg": float(angle.mean()),
+                           "heldout_rms_deg": float(np.sqrt(np.mean(angle**2))), "heldout_max_deg": float(angle.max())}
+        self.result_ = Diagnosis(
+            robot_name=robot.name, n_measurements=n, folds=self.folds, gap=ErrorStats.of(gap_residual), where=where,
+            identifiability=ident, candidates=candidates, steps=steps, selected_effects=selected,
+            primary_effect=primary, leave_one_out=loo, noise_floor=math.sqrt(3.0) * noise.per_axis,
+            tracker_noise=noise.per_axis, scatter=scatter, structure=structure, parameters=parameters,
+            parameter_units=units, as_built_x=as_built, tracker_transform=tracker, final_residual=final_train,
+            heldout_residual=first(held), gap_residual=first(gap_residual), q=obs.q,
+            nominal_position=nominal[0].position, gravity_torque=tau, notes=notes, semivariograms=semis,
+            effect_parameters=full_parameters, registration=(rot, trans), eliminated=eliminated,
+            n_fits=engine.n_fits, contribution=contribution, noise=noise,
+            frames_measured=[p.label for p in parts], heldout_by_frame=by_frame, orientation=orientation,
+        )
+        self.robot_ = robot
+        self.engine_ = engine
+        self.selected_effects_ = selected
+        self.primary_effect_ = primary
+        self.parameters_ = parameters
+        self.noise_ = noise
+        return self
+
+    def ladder(self, effects) -> list[Step]:
+        """The shrink table along a given order of effects (``frames`` first), on the same data,
+        folds and identifiability as the fit: e.g. to set the diagnosis next to a published
+        calibration ladder. Effects that could not be fitted on these data raise InputError."""
+        if not hasattr(self, "engine_"):
+            raise AnalysisError("GapDiagnosis.ladder: call fit first")
+        engine = self.engine_
+        sequence = ["frames"] + [e for e in effects if e != "frames"]
+        missing = [e for e in sequence if e not in engine.bases]
+        if missing:
+            raise InputError(f"ladder: {', '.join(missing)} cannot be fitted on these data")
+        steps, previous = [], None
+        for k, effect in enumerate(sequence):
+            with _one_blas_thread():
+                r = engine.evaluate(ordered(sequence[:k + 1]))
+            z = None if previous is None else paired_z(previous["heldout_residual"], r["heldout_residual"])
+            steps.append(Step(effect, tuple(ordered(sequence[:k + 1])), r["n_parameters"],
+                              ErrorStats.of(r["train_residual"]).rms, ErrorStats.of(r["heldout_residual"]), z))
+            previous = r
+        return steps
+
+    def predict(self, q: np.ndarray, context: MeasurementContext | None = None) -> np.ndarray:
+        """(N, 3) TCP positions [m] in the tracker frame that the fitted model predicts at q (N, n)."""
+        if not hasattr(self, "result_"):
+            raise AnalysisError("GapDiagnosis.predict: call fit first")
+        return self.result_.predict(self.robot_, q, context)
+
+    # -- pieces ------------------------------------------------------------------------
+    def _bases(self, parts, names, measured, notes):
+        bases, candidates, stochastic = {}, {}, []
+        for name in names:
+            cls = effect_class(name)
+            if cls.stochastic:
+                stochastic.append(name)
+                candidates[name] = {"tried": False, "why": "stochastic: tested as extra scatter, not fitted"}
+                continue
+            missing = [c for c in cls.context_columns if c in CONTEXT_FIELDS and CONTEXT_FIELDS[c] not in measured]
+            if missing and cls.requires_context:
+                candidates[name] = {"tried": False, "why": f"needs the {', '.join(missing)} column"}
+                continue
+            try:
+                per_part = []
+                for part in parts:
+                    options = {"tool_rotation": True} if name == "frames" and part.target_rotation is not None else {}
+                    effect = make_effect(name, part.robot, **options)
+                    labels = _part_names(effect, part, len(parts))
+                    em = ErrorModel(part.robot)
+                    jac_x = position_jacobians(part.robot, part.q, None,
+                                               part.orientation_weight if part.target_rotation is not None else None)
+                    per_part.append(EffectBasis(effect, part, em, jac_x, labels))
+                basis = UnionBasis(per_part)
+            except InputError as exc:
+                candidates[name] = {"tried": False, "why": f"not testable on these data: {exc}"}
+                continue
+            if basis.nonlinearity > 1e-6:
+                notes.append(f"{name} is nonlinear in its parameters (relative {basis.nonlinearity:.1e}); "
+                             "it is fitted in its linearisation about zero")
+            bases[name] = basis
+        return bases, candidates, stochastic
+
+    def _forward(self, engine, testable, steps, candidates, say) -> list:
+        current = ["frames"]
+        pool = list(testable)
+        while pool:
+            trials = {}
+            for e in pool:
+                say(f"step {len(steps)}: trying {e}")
+                trials[e] = engine.evaluate(ordered(current + [e]))
+            prev = engine.evaluate(ordered(current))
+            prev_rms = ErrorStats.of(prev["heldout_residual"]).rms
+            if len(current) == 1:
+                for e, r in trials.items():
+                    rms = ErrorStats.of(r["heldout_residual"]).rms
+                    candidates[e] = {"tried": True, "heldout_rms_mm_with_frames": rms * 1e3,
+                                     "gain_mm": (prev_rms - rms) * 1e3,
+                                     "z": paired_z(prev["heldout_residual"], r["heldout_residual"]),
+                                     "n_parameters": r["n_parameters"] - prev["n_parameters"]}
+            best = min(trials, key=lambda e: ErrorStats.of(trials[e]["heldout_residual"]).rms)
+            r = trials[best]
+            rms = ErrorStats.of(r["heldout_residual"]).rms
+            z = paired_z(prev["heldout_residual"], r["heldout_residual"])
+            if not (z > self.selection_z and rms < prev_rms * (1.0 - self.min_relative_gain)):
+                break
+            current.append(best)
+            pool.remove(best)
+            steps.append(Step(best, tuple(ordered(current)), r["n_parameters"],
+                              ErrorStats.of(r["train_residual"]).rms, ErrorStats.of(r["heldout_residual"]), z))
+        return current
+
+    def _backward(self, engine, current, say):
+        """Backward elimination: an effect that no longer earns its place once the others are
+        in (a flexible one picked early that later effects explain better) goes out."""
+        eliminated = []
+        while True:
+            chosen = [e for e in current if e != "frames"]
+            final = engine.evaluate(ordered(current))
+            final_rms = ErrorStats.of(final["heldout_residual"]).rms
+            keep = engine.identify(tuple(ordered(current)))[0]
+            loo = []
+            for e in chosen:
+                say(f"leave-one-out: {e}")
+                rest = ordered([s for s in current if s != e])
+                r = engine.evaluate(rest)
+                own = engine.evaluate(rest, keep={s: keep[s] for s in rest})
+                held, held_own = ErrorStats.of(r["heldout_residual"]), ErrorStats.of(own["heldout_residual"])
+                loo.append({"dropped": e, "heldout_rms_mm": held.rms * 1e3, "heldout_mean_mm": held.mean * 1e3,
+                            "heldout_max_mm": held.max * 1e3, "increase_mm": (held.rms - final_rms) * 1e3,
+                            "z": paired_z(r["heldout_residual"], final["heldout_residual"]),
+                            "own_share_heldout_rms_mm": held_own.rms * 1e3,
+                            "own_share_heldout_mean_mm": held_own.mean * 1e3,
+                            "own_share_increase_mm": (held_own.rms - final_rms) * 1e3})
+            weakest = min(loo, key=lambda row: row["z"]) if loo else None
+            if weakest is None or weakest["z"] > self.selection_z:
+                return current, loo, eliminated
+            eliminated.append({"effect": weakest["dropped"], "z": weakest["z"],
+                               "increase_mm": weakest["increase_mm"]})
+            current.remove(weakest["dropped"])
+
+    def _noise(self, repeats, q, residual, n_parameters, structured) -> NoiseEstimate:
+        if self.tracker_noise is not None:
+            return NoiseEstimate(float(self.tracker_noise), "given", True, "the instrument's figure (--noise-mm)")
+        if repeats is not None:
+            return repeats
+        return noise_from_residual(q, residual, n_parameters, structured)
+
+    @staticmethod
+    def _scatter(noise, final, stochastic, structure, notes) -> dict:
+        if not noise.independent:
+            return {"tested": False, "detected": False,
+                    "why": "the noise was estimated from this residual; give the instrument's (--noise-mm) or "
+                           "measure repeated poses to test for scatter beyond it",
+                    "estimated_noise_per_axis_mm": noise.per_axis * 1e3}
+        scatter = scatter_test(stacked(final["train_residual"]), final["n_parameters"], noise.per_axis)
+        scatter["tested"] = True
+        if stochastic:
+            scatter["stochastic_effects"] = stochastic
+        if scatter["detected"] and not structure["remains"]:
+            scatter["named"] = "clearance" if "clearance" in stochastic else "random scatter"
+            notes.append(f"random scatter beyond the tracker noise: {scatter['estimated_noise_per_axis_mm']:.4f} mm "
+                         f"per axis vs {noise.per_axis * 1e3:.4f} mm, without spatial structure: joint play "
+                         "(clearance) or a noisier instrument")
+        return scatter
+
+    @staticmethod
+    def _contributions(part, bases, chosen, full_parameters, nominal) -> dict:
+        """How much of the gap each chosen effect accounts for: the TCP motion its fitted
+        parameters cause, after taking out what a rigid frame change could absorb."""
+        frames_g = bases["frames"].per_part[0].g[:, :3]
+        frames_cols = frames_g.reshape(-1, frames_g.shape[2])
+        em = ErrorModel(part.robot)
+        contribution = {}
+        for e in chosen:
+            x_e = bases[e].per_part[0].basis @ full_parameters[e]
+            motion = (tcp_poses(part.robot, part.q, x_e, em).position - nominal).ravel()
+            rigid = frames_cols @ np.linalg.lstsq(frames_cols, motion, rcond=None)[0]
+            contribution[e] = float(np.sqrt(np.mean((motion - rigid) ** 2) * 3))
+        return contribution
+
+
+def _part_names(effect, part: Part, n_parts: int) -> list[str]:
+    """Parameter names of an effect on a part; each measured frame's TCP offset is its own."""
+    names = effect.parameter_names()
+    if effect.name != "frames" or n_parts == 1:
+        return names
+    return [n.replace("frames.tool.", f"frames.{part.label}.") for n in names]
+
+
+def _first_frame(residual: np.ndarray) -> np.ndarray:
+    """The first measured frame's (N, 3) rows of a (N, 3) or (n_parts, N, 3) residual."""
+    return residual if residual.ndim == 2 else residual[0]
+
+
+def _context_table(obs: Observations) -> np.ndarray:
+    """(N, c) the context columns that make two rows the same pose (for repeated poses)."""
+    cols = [np.asarray(obs.context.payload_kg)[:, None], np.asarray(obs.context.temperature_c)[:, None],
+            np.asarray(obs.context.direction)]
+    if obs.context.outside_q is not None:
+        cols.append(obs.context.outside_q)
+    return np.concatenate(cols, axis=1)

@@ -1,0 +1,406 @@
+"""The fit engine of the diagnosis: effects linearised per pose, fitted on exact kinematics.
+
+A measurement row may carry several measured frames (both hands of a humanoid, a target
+on the TCP and one on the base); each frame is a *part* with its own kinematic chain
+(:class:`~tcr_accuracy.model.robot.RobotModel`) and effect instances. Parameters are shared by
+name across parts: ``compliance.torso_1`` or ``geometry.torso_2.dx`` is one number
+whichever hand sees it, the tracker frame (``frames.base.*``) is one, and each measured
+frame has its own TCP offset (``frames.tool.*``, renamed ``frames.<frame>.*`` when there
+are several).
+
+For every effect and part, the effect's parameters map linearly onto error vectors per
+pose (:class:`EffectBasis`: joint-side offsets go into the drive slice of
+:class:`~tcr_accuracy.model.errors.ErrorModel`); chained with Pinocchio's error Jacobian
+(:func:`~tcr_accuracy.model.jacobians.error_jacobians`) this gives each parameter's column of
+the identification Jacobian. :class:`FitEngine` fits sets of effects by nonlinear least
+squares (scipy ``least_squares``; exact batched forward kinematics as the residual, the
+chained Jacobian as ``jac``) and scores them by k-fold held-out error.
+
+Residual rows per measured frame: the three position components [m], and with measured
+orientation three rotation-vector components [rad] multiplied by the part's
+``orientation_weight`` [m/rad] (an angle counts as the position error it makes at that
+distance).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from ..model.context import MeasurementContext
+from ..effects import vocabulary
+from ..model.errors import ErrorModel
+from .identifiability import identifiability
+from ..model.jacobians import error_jacobians
+from ..model.kinematics import tcp_poses
+from ..model.robot import JointLimitWarning, RobotModel
+
+
+def ordered(effects) -> list:
+    """The effects in vocabulary order."""
+    return [e for e in vocabulary() if e in effects]
+
+
+@dataclass
+class Part:
+    """One measured frame: its chain, joint values and targets (in the robot's base frame).
+
+    q : (N, n_joints) commanded joints of this chain [rad, m]
+    target : (N, 3) measured position in the base frame [m]
+    target_rotation : (N, 3, 3) measured orientation in the base frame, or None
+    context : the rows' context for this chain (directions of its joints, the other joints)
+    orientation_weight : [m/rad] weight of the orientation rows
+    label : the frame's name
+    """
+
+    robot: RobotModel
+    q: np.ndarray
+    target: np.ndarray
+    context: MeasurementContext
+    label: str
+    target_rotation: np.ndarray | None = None
+    orientation_weight: float = 0.0
+
+    @property
+    def rows_per_pose(self) -> int:
+        return 6 if self.target_rotation is not None else 3
+
+
+class EffectBasis:
+    """One effect on one part, linearised: x_total(theta) = basis @ theta per pose.
+
+    ``basis`` has shape (N, p_em, P): error-vector columns for every parameter, with
+    joint-side offsets dq placed in the drive slice (``q + dq`` is a drive offset).
+    ``g`` (N, r, P) is the TCP sensitivity (error Jacobian chained with it): position
+    rows, then weighted orientation rows when the part measures orientation.
+    """
+
+    def __init__(self, effect, part: Part, em: ErrorModel, jac_x: np.ndarray, names: list[str] | None = None):
+        self.effect = effect
+        self.name = effect.name
+        self.names = list(names if names is not None else effect.parameter_names())
+        self.scales = np.asarray(effect.parameter_scales(), dtype=float)
+        self.units = list(effect.parameter_units())
+        n, k = part.q.shape[0], len(self.names)
+        maps = effect.parameter_jacobian(np.zeros(k), part.q, part.context)
+        basis = np.zeros((n, em.size, k))
+        if maps.x is not None:
+            basis += maps.x if maps.x.ndim == 3 else maps.x[None]
+        if maps.dq is not None:
+            basis[:, em.drive_slice, :] += maps.dq
+        self.basis = basis
+        self.relinearise(jac_x)
+        # linear effects only: check perturb against the map at one point
+        probe = self.scales * np.linspace(-1.0, 1.0, k) if k > 1 else self.scales
+        out = effect.perturb(probe, part.q, part.context)
+        total = np.zeros((n, em.size))
+        if out.x is not None:
+            total += out.x
+        if out.dq is not None:
+            total[:, em.drive_slice] += out.dq
+        size = max(float(np.abs(total).max()), 1e-300)
+        self.nonlinearity = float(np.abs(total - basis @ probe).max() / size)
+
+    def relinearise(self, jac_x: np.ndarray) -> None:
+        """TCP sensitivity (N, r, P) for error Jacobians jac_x (N, r, p_em)."""
+        self.g = np.einsum("nip,npk->nik", jac_x, self.basis)
+
+
+class UnionBasis:
+    """One effect over all parts: its parameters by name, and the stacked sensitivity.
+
+    ``names`` and ``scales`` are the union over the parts (first part's order, then new
+    names of later parts); ``index[p]`` maps part p's columns into the union; ``g`` is
+    (sum of the parts' N, r, P_union), zero where a part lacks a parameter, for the
+    identifiability test.
+    """
+
+    def __init__(self, per_part: list[EffectBasis]):
+        self.per_part = per_part
+        self.name = per_part[0].name
+        names: list[str] = []
+        scales: list[float] = []
+        units: list[str] = []
+        for b in per_part:
+            for name, scale, unit in zip(b.names, b.scales, b.units):
+                if name not in names:
+                    names.append(name)
+                    scales.append(float(scale))
+                    units.append(unit)
+        self.names, self.scales, self.units = names, np.array(scales), units
+        self.index = [np.array([names.index(n) for n in b.names], dtype=int) for b in per_part]
+        self.nonlinearity = max(b.nonlinearity for b in per_part)
+        self.restack()
+
+    def restack(self) -> None:
+        rows = max(b.g.shape[1] for b in self.per_part)
+        blocks = []
+        for b, idx in zip(self.per_part, self.index):
+            block = np.zeros((b.g.shape[0], rows, len(self.names)))
+            block[:, :b.g.shape[1], idx] = b.g
+            blocks.append(block)
+        self.g = np.concatenate(blocks, axis=0)
+
+    @property
+    def basis(self) -> np.ndarray:
+        """The first part's basis (N, p_em, P_part): the robot of a single-frame diagnosis."""
+        return self.per_part[0].basis
+
+
+def position_jacobians(robot: RobotModel, q: np.ndarray, x: np.ndarray | None = None,
+                       orientation_weight: float | None = None) -> np.ndarray:
+    """Error Jacobians (N, r, p_em) at error vector x: position rows, plus weighted rotation rows."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", JointLimitWarning)
+        _, jx = error_jacobians(robot, q, x)
+    if orientation_weight is None:
+        return np.ascontiguousarray(jx[:, :3])
+    jx = jx.copy()
+    jx[:, 3:] *= orientation_weight
+    return np.ascontiguousarray(jx)
+
+
+def register(nominal: np.ndarray, measured: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation R and translation t with measured ~ R nominal + t (Kabsch, scipy)."""
+    mn, mm = nominal.mean(axis=0), measured.mean(axis=0)
+    rot, _ = Rotation.align_vectors(measured - mm, nominal - mn)
+    r = rot.as_matrix()
+    return r, mm - r @ mn
+
+
+def paired_z(before: np.ndarray, after: np.ndarray) -> float:
+    """z of the mean cut in per-measurement squared held-out errors (one-sided, paired).
+
+    before, after : (N, 3) or (n_parts, N, 3) position errors; parts of a row add up.
+    """
+    d = _row_squares(before) - _row_squares(after)
+    sd = d.std(ddof=1)
+    if sd == 0:
+        return 0.0 if d.mean() == 0 else math.copysign(math.inf, d.mean())
+    return float(d.mean() / (sd / math.sqrt(d.size)))
+
+
+def _row_squares(residual: np.ndarray) -> np.ndarray:
+    residual = np.asarray(residual)
+    if residual.ndim == 2:
+        return np.sum(residual**2, axis=1)
+    return np.sum(residual**2, axis=(0, 2))
+
+
+def stacked(residual: np.ndarray) -> np.ndarray:
+    """(n_parts, N, 3) or (N, 3) position errors as (n_parts * N, 3) points."""
+    residual = np.asarray(residual)
+    return residual if residual.ndim == 2 else residual.reshape(-1, 3)
+
+
+class FitEngine:
+    """Linearised effects over one data set; fits and k-fold held-out errors.
+
+    Parameters
+    ----------
+    parts : list of Part
+        The measured frames (one for a single TCP), all with the same N rows.
+    bases : dict of str to UnionBasis
+        Every effect that may enter, linearised on every part.
+    folds : list of (train, test) row index arrays
+    rank_tol, min_motion : identifiability thresholds (see
+        :func:`~tcr_accuracy.diagnosis.identifiability.identifiability`)
+    """
+
+    def __init__(self, parts: list[Part], bases: dict, folds, rank_tol=1e-6, min_motion=0.0):
+        self.parts = parts
+        self.ems = [ErrorModel(p.robot) for p in parts]
+        self.bases = bases
+        self.folds = folds
+        self.rank_tol, self.min_motion = rank_tol, min_motion
+        self.n_rows = parts[0].q.shape[0]
+        self._full_cache: dict = {}
+        self._keep_cache: dict = {}
+        self._last: dict = {}  # effect -> last fitted full-length scaled parameters
+        self.n_fits = 0
+
+    # -- identifiability -------------------------------------------------------------
+    def identify(self, effects) -> tuple[dict, dict]:
+        """Identifiable columns of each effect *within this set* (vocabulary order), and the report.
+
+        Per set, not once for the whole vocabulary: an effect that is not in the model
+        must not take columns away from one that is (sin q of transmission against s q of
+        encoder_scale, say).
+        """
+        key = tuple(effects)
+        if key not in self._keep_cache:
+            # vocabulary convention: geometry is what frames and joint offsets cannot
+            # express, so joint-axis rotations stay joint offsets even when joint_offsets
+            # is not (yet) in the model
+            order = list(effects)
+            borrowed = "geometry" in order and "joint_offsets" not in order and "joint_offsets" in self.bases
+            if borrowed:
+                order = ordered(order + ["joint_offsets"])
+            keep, report = identifiability({e: self.bases[e] for e in order}, order, self.rank_tol,
+                                           self.min_motion)
+            if borrowed:
+                keep.pop("joint_offsets")
+                report["effects"].pop("joint_offsets")
+                report["note"] = "geometry excludes rotations about the joint axes (the joint_offsets effect)"
+                cols = [(self.bases[e].g * self.bases[e].scales)[:, :, keep[e]].reshape(-1, keep[e].size)
+                        for e in effects if keep[e].size]  # an effect may keep no column at all
+                report["rank"] = int(sum(c.shape[1] for c in cols))
+                if cols:
+                    mat = np.concatenate(cols, axis=1)
+                    mat = mat / np.linalg.norm(mat, axis=0)
+                    sv = np.linalg.svd(mat, compute_uv=False)
+                    report["condition_number"] = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
+                    report["smallest_singular_value"] = float(sv[-1])
+            self._keep_cache[key] = (keep, report)
+        return self._keep_cache[key]
+
+    # -- columns of a model ------------------------------------------------------------
+    def columns(self, effects, keep: dict | None = None) -> "Columns":
+        """The kept parameters of a set of effects: per-part bases and their union layout."""
+        keep = keep if keep is not None else self.identify(effects)[0]
+        names, scale = [], []
+        for e in effects:
+            b = self.bases[e]
+            names += [b.names[k] for k in keep[e]]
+            scale.append(b.scales[keep[e]])
+        scale = np.concatenate(scale) if scale else np.zeros(0)
+        per_part = []
+        for p in range(len(self.parts)):
+            bases, gs, idx = [], [], []
+            offset = 0
+            for e in effects:
+                ub = self.bases[e]
+                local = ub.per_part[p]
+                position = {u: i for i, u in enumerate(keep[e])}  # union column -> kept position
+                cols = [c for c, u in enumerate(ub.index[p]) if u in position]
+                bases.append(local.basis[:, :, cols])
+                gs.append(local.g[:, :, cols])
+                idx.append(offset + np.array([position[ub.index[p][c]] for c in cols], dtype=int))
+                offset += keep[e].size
+            per_part.append((np.concatenate(bases, axis=2), np.concatenate(gs, axis=2),
+                             np.concatenate(idx) if idx else np.zeros(0, dtype=int)))
+        return Columns(names=names, scale=scale, per_part=per_part)
+
+    # -- fits --------------------------------------------------------------------------
+    def _pose_residual(self, p: int, rows, x: np.ndarray) -> np.ndarray:
+        """(len(rows), r) residual rows of part p for error vectors x (len(rows), p_em)."""
+        part = self.parts[p]
+        poses = tcp_poses(part.robot, part.q[rows], x, self.ems[p])
+        res = poses.position - part.target[rows]
+        if part.target_rotation is None:
+            return res
+        # rotation vector of R_model R_target^T, base-frame axes (the Jacobian's rows)
+        rel = np.einsum("nij,nkj->nik", poses.rotation, part.target_rotation[rows])
+        rot = Rotation.from_matrix(rel).as_rotvec() * part.orientation_weight
+        return np.concatenate([res, rot], axis=1)
+
+    def predict_residual(self, cols: "Columns", phi: np.ndarray, rows) -> list[np.ndarray]:
+        """Residual rows of every part at scaled parameters phi (theta = phi * scale)."""
+        theta = phi * cols.scale
+        return [self._pose_residual(p, rows, basis[rows] @ theta[idx])
+                for p, (basis, _, idx) in enumerate(cols.per_part)]
+
+    def _fit_residual(self, scaled: list, phi: np.ndarray, rows) -> list[np.ndarray]:
+        """As predict_residual, with each part's basis already multiplied by the scales."""
+        return [self._pose_residual(p, rows, bs @ phi[idx]) for p, (bs, idx) in enumerate(scaled)]
+
+    def fit(self, cols: "Columns", rows, start=None):
+        """Scaled parameters phi minimising the residual on rows, and the residual per part."""
+        self.n_fits += 1
+        k = cols.scale.size
+        blocks = []
+        for basis, g, idx in cols.per_part:
+            gr = g[rows]
+            block = np.zeros((gr.shape[0], gr.shape[1], k))
+            block[:, :, idx] = gr * cols.scale[idx]
+            blocks.append(block.reshape(-1, k))
+        jac = np.concatenate(blocks, axis=0)
+
+        scaled = [(basis[rows] * cols.scale[idx], idx) for basis, _, idx in cols.per_part]
+
+        def residual(phi):
+            return np.concatenate([r.ravel() for r in self._fit_residual(scaled, phi, rows)])
+
+        if start is None:
+            start = np.zeros(k)
+        # one Gauss-Newton step from the warm start: the model is nearly linear, so this
+        # lands next to the optimum and least_squares only polishes
+        r0 = residual(start)
+        step = start + np.linalg.lstsq(jac, -r0, rcond=None)[0]
+        if np.sum(residual(step) ** 2) < np.sum(r0**2):
+            start = step
+        fit = least_squares(residual, start, jac=lambda phi: jac, method="lm", x_scale="jac", xtol=1e-7, ftol=1e-7,
+                            max_nfev=30)
+        return fit.x, self._split(fit.fun)
+
+    def _split(self, flat: np.ndarray) -> list[np.ndarray]:
+        out, start = [], 0
+        n = flat.size // sum(p.rows_per_pose for p in self.parts)
+        for part in self.parts:
+            size = n * part.rows_per_pose
+            out.append(flat[start:start + size].reshape(n, part.rows_per_pose))
+            start += size
+        return out
+
+    def evaluate(self, effects, keep: dict | None = None):
+        """Full-data fit and k-fold out-of-fold residuals for a set of effects.
+
+        ``keep``: identifiable columns to use instead of the set's own (the leave-one-out
+        of an effect's own share keeps the full model's partition).
+
+        Returns a dict: ``phi``, ``scale``, ``names``, ``keep``, ``n_parameters``,
+        ``train_residual`` / ``heldout_residual`` (position errors, (N, 3) for one part,
+        (n_parts, N, 3) for several), ``train_orientation`` / ``heldout_orientation``
+        (rotation errors [rad], same shapes, or None).
+        """
+        key = (tuple(effects), None if keep is None else tuple((e, tuple(v)) for e, v in keep.items()))
+        if key in self._full_cache:
+            return self._full_cache[key]
+        keep = keep if keep is not None else self.identify(effects)[0]
+        cols = self.columns(effects, keep)
+        every = np.arange(self.n_rows)
+        # warm start: each effect's last fitted values, zeros for an effect new to the model
+        start = np.concatenate([self._last.get(e, np.zeros(len(self.bases[e].names)))[keep[e]] for e in effects])
+        phi, train = self.fit(cols, every, start=start)
+        offset = 0
+        for e in effects:
+            full = np.zeros(len(self.bases[e].names))
+            full[keep[e]] = phi[offset:offset + keep[e].size]
+            self._last[e] = full
+            offset += keep[e].size
+        oof = [np.empty((self.n_rows, p.rows_per_pose)) for p in self.parts]
+        for train_rows, test in self.folds:
+            phi_k, _ = self.fit(cols, train_rows, start=phi)
+            for p, r in enumerate(self.predict_residual(cols, phi_k, test)):
+                oof[p][test] = r
+        result = {"phi": phi, "scale": cols.scale, "names": cols.names, "keep": keep,
+                  "n_parameters": int(cols.scale.size),
+                  "train_residual": self._positions(train), "heldout_residual": self._positions(oof),
+                  "train_orientation": self._rotations(train), "heldout_orientation": self._rotations(oof)}
+        self._full_cache[key] = result
+        return result
+
+    def _positions(self, per_part: list[np.ndarray]) -> np.ndarray:
+        pos = [r[:, :3] for r in per_part]
+        return pos[0] if len(pos) == 1 else np.stack(pos)
+
+    def _rotations(self, per_part: list[np.ndarray]):
+        rot = [r[:, 3:] / part.orientation_weight for r, part in zip(per_part, self.parts)
+               if part.target_rotation is not None]
+        if not rot:
+            return None
+        return rot[0] if len(rot) == 1 else np.concatenate(rot)
+
+
+@dataclass(frozen=True)
+class Columns:
+    """The kept parameters of a model: union names and scales, and per part (basis, g, index)."""
+
+    names: list
+    scale: np.ndarray
+    per_part: list

@@ -1,0 +1,365 @@
+"""What is left after a fit: where a residual lies, whether it has structure, how noisy it is.
+
+The diagnosis breaks the gap down over the workspace and the conditions
+(:func:`where_analysis`), tests whether its final residual can still be predicted from the
+joint values (:func:`structure_test`), estimates the measurement scatter when the
+instrument's is not given (:func:`estimate_noise`) and tests for scatter beyond a known
+instrument noise (:func:`scatter_test`). Lengths in m inside, mm in the returned dicts'
+``_mm`` keys.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from ..model.robot import RobotModel
+from ..analysis.semivariogram import (
+    EmpiricalSemivariogram,
+    empirical_semivariogram,
+    fit_gaussian_variogram,
+    per_joint_semivariograms,
+    standardize,
+)
+
+
+# ---------------------------------------------------------------------------------------
+# Where the gap lies
+# ---------------------------------------------------------------------------------------
+def _binned(values: np.ndarray, residual: np.ndarray, n_bins: int = 5) -> dict:
+    """Quantile bins of values (N,): count, mean residual vector and RMS norm per bin [mm]."""
+    finite = np.isfinite(values)
+    levels = np.unique(values[finite])
+    if levels.size <= n_bins:  # a few distinct values (payload on/off): one bin each
+        if levels.size < 2:
+            return {"bins": [], "spread_mm": 0.0}
+        edges = None
+        which = np.searchsorted(levels, values)
+    else:
+        edges = np.unique(np.quantile(values[finite], np.linspace(0, 1, n_bins + 1)))
+        which = np.clip(np.searchsorted(edges, values, side="right") - 1, 0, edges.size - 2)
+    bins = []
+    n_out = levels.size if edges is None else edges.size - 1
+    for b in range(n_out):
+        sel = which == b
+        if not sel.any():
+            continue
+        r = residual[sel]
+        low, high = (levels[b], levels[b]) if edges is None else (edges[b], edges[b + 1])
+        bins.append({"low": float(low), "high": float(high), "count": int(sel.sum()),
+                     "mean_mm": (r.mean(axis=0) * 1e3).tolist(),
+                     "rms_mm": float(np.sqrt(np.mean(np.sum(r**2, axis=1))) * 1e3)})
+    means = np.array([b["mean_mm"] for b in bins])
+    spread = float(np.linalg.norm(means.max(axis=0) - means.min(axis=0))) if len(bins) > 1 else 0.0
+    return {"bins": bins, "spread_mm": spread}
+
+
+def _correlations(values: np.ndarray, residual: np.ndarray) -> list:
+    out = []
+    for c in range(3):
+        if np.std(values) == 0 or np.std(residual[:, c]) == 0:
+            out.append(0.0)
+        else:
+            out.append(float(np.corrcoef(values, residual[:, c])[0, 1]))
+    return out
+
+
+def where_analysis(robot: RobotModel, q: np.ndarray, nominal: np.ndarray, residual: np.ndarray,
+                   tau: np.ndarray, context: dict, n_bins: int = 5, rng=None):
+    """Breakdown of the residual (N, 3) [m]; returns (JSON-able dict, semivariograms)."""
+    norm = np.linalg.norm(residual, axis=1)
+    where: dict = {}
+    where["per_axis"] = {ax: {"mean_mm": float(residual[:, c].mean() * 1e3),
+                              "rms_mm": float(np.sqrt(np.mean(residual[:, c] ** 2)) * 1e3),
+                              "max_abs_mm": float(np.abs(residual[:, c]).max() * 1e3)}
+                         for c, ax in enumerate("xyz")}
+    centre = np.median(nominal, axis=0)
+    octant = ((nominal - centre) > 0).astype(int) @ np.array([4, 2, 1])
+    regions = []
+    for o in range(8):
+        sel = octant == o
+        if sel.any():
+            label = "".join(("+" if (o >> (2 - c)) & 1 else "-") + "xyz"[c] for c in range(3))
+            regions.append({"region": label, "count": int(sel.sum()),
+                            "mean_mm": float(norm[sel].mean() * 1e3),
+                            "rms_mm": float(np.sqrt(np.mean(norm[sel] ** 2)) * 1e3)})
+    where["octants"] = {"centre_m": centre.tolist(), "regions": regions}
+    where["radius"] = _binned(np.hypot(nominal[:, 0], nominal[:, 1]), residual, n_bins)
+    where["height"] = _binned(nominal[:, 2], residual, n_bins)
+    joints = {}
+    for j, name in enumerate(robot.joint_names):
+        joints[name] = {"unit": "rad" if robot.joint_kinds[j] == "revolute" else "m",
+                        "correlation_xyz": _correlations(q[:, j], residual), **_binned(q[:, j], residual, n_bins)}
+    where["joints"] = joints
+    loaded = np.ptp(tau, axis=0) > 1e-6 * max(float(np.abs(tau).max()), 1e-300)
+    where["gravity_torque"] = {name: ({"correlation_xyz": _correlations(tau[:, j], residual),
+                                       **_binned(tau[:, j], residual, n_bins)} if loaded[j]
+                                      else {"loaded": False})
+                               for j, name in enumerate(robot.joint_names)}
+    for key in ("payload_kg", "temperature_c"):
+        if key in context and np.std(context[key]) > 0:
+            where[key] = {"correlation_xyz": _correlations(context[key], residual),
+                          **_binned(context[key], residual, n_bins)}
+    if "direction" in context:
+        direction = {}
+        for j, name in enumerate(robot.joint_names):
+            d = context["direction"][:, j]
+            plus, minus = d > 0, d < 0
+            if plus.any() and minus.any():
+                diff = residual[plus].mean(axis=0) - residual[minus].mean(axis=0)
+                direction[name] = {"count_plus": int(plus.sum()), "count_minus": int(minus.sum()),
+                                   "mean_plus_minus_minus_mm": (diff * 1e3).tolist(),
+                                   "difference_norm_mm": float(np.linalg.norm(diff) * 1e3)}
+        where["approach_direction"] = direction
+    # along which joints does the error vary? Per-joint semivariograms (standardised:
+    # 1 = no similarity) at short lag, and the share of the residual variance that the
+    # k nearest neighbours along that joint alone predict (out of sample: self excluded)
+    from sklearn.neighbors import NearestNeighbors
+
+    semis = per_joint_semivariograms(q, residual, n_bins=12, rng=rng)
+    centred = residual - residual.mean(axis=0)
+    total = float(np.sum(centred**2)) or 1.0
+    along = {}
+    for j, name in enumerate(robot.joint_names):
+        if np.std(q[:, j]) == 0:
+            continue
+        s = semis[j]
+        short = s.lags <= np.quantile(s.lags, 0.25)
+        gamma_short = (s.semivariance[short] * s.counts[short, None]).sum(axis=0) / s.counts[short].sum()
+        k = min(10, q.shape[0] - 1)
+        idx = NearestNeighbors(n_neighbors=k + 1).fit(q[:, [j]]).kneighbors(q[:, [j]], return_distance=False)[:, 1:]
+        share = 1.0 - float(np.sum((centred - centred[idx].mean(axis=1)) ** 2)) / total
+        along[name] = {"short_lag_semivariance_xyz": gamma_short.tolist(), "knn_explained_share": share}
+    where["along_joints"] = along
+    where["varies_along"] = [n for n in sorted(along, key=lambda n: -along[n]["knn_explained_share"])
+                             if along[n]["knn_explained_share"] > 0.05][:3]
+    qs, _, _ = standardize(q)
+    names = [n for n in robot.joint_names if n in along]
+    pairs = []
+    for a in range(len(names)):
+        for b in range(a + 1, len(names)):
+            cols = [robot.joint_names.index(names[a]), robot.joint_names.index(names[b])]
+            k = min(10, q.shape[0] - 1)
+            idx = NearestNeighbors(n_neighbors=k + 1).fit(qs[:, cols]).kneighbors(
+                qs[:, cols], return_distance=False)[:, 1:]
+            share = 1.0 - float(np.sum((centred - centred[idx].mean(axis=1)) ** 2)) / total
+            pairs.append({"joints": [names[a], names[b]], "knn_explained_share": share})
+    pairs.sort(key=lambda r: -r["knn_explained_share"])
+    where["along_joint_pairs"] = pairs
+    return where, semis
+
+
+def _nugget_ratio(semi, column) -> float:
+    try:
+        return float(fit_gaussian_variogram(semi, column).nugget_ratio)
+    except (ValueError, np.linalg.LinAlgError):
+        return 1.0
+
+
+
+# ---------------------------------------------------------------------------------------
+# Structure and scatter of the final residual
+# ---------------------------------------------------------------------------------------
+def _smooth_features(q: np.ndarray, kinds) -> np.ndarray:
+    """Smooth functions of the joints (N, F): per joint sin/cos of q and 2q (standardised
+    value and its square for prismatic joints) and the pairwise products of the first
+    harmonics, which is what a serial chain's kinematics is made of."""
+    first, cols = [], []
+    for j, kind in enumerate(kinds):
+        v = q[:, j]
+        if kind == "revolute":
+            a = [np.sin(v), np.cos(v)]
+            cols += a + [np.sin(2 * v), np.cos(2 * v)]
+        else:
+            z = (v - v.mean()) / (v.std() or 1.0)
+            a = [z]
+            cols += [z, z**2]
+        first.append(a)
+    for i in range(len(first)):
+        for k in range(i + 1, len(first)):
+            cols += [u * w for u in first[i] for w in first[k]]
+    return np.stack(cols, axis=1)
+
+
+def structure_test(q: np.ndarray, residual: np.ndarray, rng: np.random.Generator, kinds=None, k: int = 10,
+                   n_permutations: int = 100, alpha: float = 1e-3, min_explained: float = 0.05,
+                   folds: int = 5) -> dict:
+    """Is the residual (N, 3) still predictable from the joint values?
+
+    Two predictors, each judged out of sample:
+
+    * local: each residual predicted by the mean of its k nearest neighbours in
+      standardised joint space (scikit-learn), over all joints, each joint and each
+      pair of joints, compared with the same statistic after shuffling residuals over
+      poses (z against the permutation distribution, Bonferroni over the subsets);
+    * global: ridge regression (scikit-learn ``RidgeCV``) on smooth joint features
+      (:func:`_smooth_features`), k-fold cross-validated predictions, with a one-sided
+      paired z-test of the cut in squared residuals.
+
+    Structure remains when either predictor explains more than ``min_explained`` of the
+    residual variance beyond chance (p < alpha, resp. z above the matching quantile).
+    """
+    from sklearn.linear_model import RidgeCV
+    from sklearn.model_selection import KFold, cross_val_predict
+    from sklearn.neighbors import NearestNeighbors
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import StandardScaler
+
+    qs, _, _ = standardize(q)
+    centred = residual - residual.mean(axis=0)
+    total = np.sum(centred**2)
+    # an unmodelled effect often depends on a few joints: in all of joint space 6-D
+    # neighbours are far apart, along one joint or a pair they are close. Test all
+    # joints, each joint and each pair; Bonferroni over the subsets.
+    n_j = q.shape[1]
+    moving = [j for j in range(n_j) if np.std(q[:, j]) > 0]
+    subsets = [tuple(moving)] + [(j,) for j in moving]
+    subsets += [(a, b) for i, a in enumerate(moving) for b in moving[i + 1:]]
+    m = len(subsets)
+    perms = [rng.permutation(len(centred)) for _ in range(n_permutations)]
+    best = None
+    for subset in subsets:
+        nn = NearestNeighbors(n_neighbors=k + 1).fit(qs[:, subset])
+        idx = nn.kneighbors(qs[:, subset], return_distance=False)[:, 1:]
+
+        def explained(r, idx=idx):
+            return 1.0 - np.sum((r - r[idx].mean(axis=1)) ** 2) / total
+
+        actual = explained(centred)
+        null = np.array([explained(centred[perm]) for perm in perms])
+        gain = float(actual - null.mean())
+        # a few hundred permutations cannot resolve small p by counting: use their spread
+        z_sub = gain / max(float(null.std(ddof=1)), 1e-12)
+        row = {"joints": list(subset), "explained_share": float(actual), "null_mean": float(null.mean()),
+               "null_std": float(null.std(ddof=1)), "gain": gain, "z": z_sub}
+        if best is None or z_sub > best["z"]:
+            best = row
+    z_knn = best["z"]
+    gain = best["gain"]
+    p_knn = float(min(1.0, stats.norm.sf(z_knn) * m))
+    local = bool(p_knn < alpha and gain > min_explained)
+    actual, null_mean, null_std = best["explained_share"], best["null_mean"], best["null_std"]
+
+    kinds = kinds if kinds is not None else ["revolute"] * q.shape[1]
+    features = _smooth_features(q, kinds)
+    model = make_pipeline(StandardScaler(), RidgeCV(alphas=np.logspace(-3, 3, 13)))
+    split = KFold(n_splits=folds, shuffle=True, random_state=int(rng.integers(2**31 - 1)))
+    predicted = cross_val_predict(model, features, centred, cv=split)
+    ridge_share = float(1.0 - np.sum((centred - predicted) ** 2) / total)
+    d = np.sum(centred**2, axis=1) - np.sum((centred - predicted) ** 2, axis=1)
+    z = float(d.mean() / (d.std(ddof=1) / math.sqrt(d.size))) if d.std() > 0 else 0.0
+    z_crit = float(stats.norm.isf(alpha))
+    global_ = bool(z > z_crit and ridge_share > min_explained)
+
+    semi = empirical_semivariogram(q, residual, n_bins=12, rng=rng)
+    ratios = [_nugget_ratio(semi, c) for c in range(3)]
+    return {"statistic": "share of residual variance predicted out of sample from the joint values: "
+                         "k-NN (permutation test) and ridge on smooth joint features (paired z-test)",
+            "k": k, "explained_share": float(actual), "null_mean": null_mean, "null_std": null_std,
+            "z": z_knn, "p_value": p_knn, "gain_over_null": gain, "n_subsets": m,
+            "along_joints": best["joints"],
+            "ridge_explained_share": ridge_share, "ridge_z": z, "z_critical": z_crit,
+            "alpha": alpha, "min_explained": min_explained,
+            "semivariogram_nugget_ratio_xyz": ratios,
+            "local": local, "global": global_,
+            "remains": bool(local or global_)}
+
+
+def scatter_test(residual: np.ndarray, n_parameters: int, tracker_noise: float, alpha: float = 1e-3,
+                 min_ratio: float = 1.1) -> dict:
+    """Random scatter beyond the tracker noise (chi-square on the in-sample residual)."""
+    dof = max(residual.size - n_parameters, 1)
+    rss = float(np.sum(residual**2))
+    sigma = math.sqrt(rss / dof)
+    chi2_stat = rss / tracker_noise**2 if tracker_noise > 0 else math.inf
+    p = float(stats.chi2.sf(chi2_stat, dof)) if tracker_noise > 0 else 0.0
+    ratio = sigma / tracker_noise if tracker_noise > 0 else math.inf
+    extra = math.sqrt(max(sigma**2 - tracker_noise**2, 0.0))
+    return {"estimated_noise_per_axis_mm": sigma * 1e3, "tracker_noise_per_axis_mm": tracker_noise * 1e3,
+            "ratio": ratio, "p_value": p, "extra_per_axis_mm": extra * 1e3,
+            "detected": bool(p < alpha and ratio > min_ratio)}
+
+
+
+# ---------------------------------------------------------------------------------------
+# The measurement scatter, when nobody says what it is
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class NoiseEstimate:
+    """Per-axis standard deviation of the measurement scatter [m], and where it came from.
+
+    source : ``given`` (the instrument's figure), ``repeated poses`` (pooled scatter of
+        readings of the same pose), ``residual`` (the final residual, which the structure
+        test found without structure: all of it is scatter) or ``residual nugget`` (the
+        part of a structured residual that does not vary with the joints: its
+        semivariogram extrapolated to zero joint distance)
+    independent : True when it does not come from the residual it judges (given or
+        repeated poses): only then can scatter beyond the instrument be tested
+    detail : one line for the report
+    """
+
+    per_axis: float
+    source: str
+    independent: bool
+    detail: str
+
+    def to_dict(self) -> dict:
+        return {"per_axis_mm": self.per_axis * 1e3, "source": self.source, "independent": self.independent,
+                "detail": self.detail}
+
+
+def noise_from_repeats(q: np.ndarray, position: np.ndarray, context_columns: np.ndarray | None = None,
+                       min_dof: int = 6) -> NoiseEstimate | None:
+    """Pooled within-pose scatter of readings of the same commanded pose, or None.
+
+    q (N, n) and the context (N, c) define a pose; position (N, 3) [m] in any fixed frame
+    (same pose, same model prediction: the spread is the instrument's and the robot's
+    repeatability). Needs at least ``min_dof`` degrees of freedom.
+    """
+    keys = np.concatenate([q] + ([context_columns] if context_columns is not None else []), axis=1)
+    _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
+    repeated = np.flatnonzero(counts[inverse] > 1)
+    groups = int(np.count_nonzero(counts > 1))
+    dof = 3 * (repeated.size - groups)
+    if dof < min_dof:
+        return None
+    sq = 0.0
+    for g in np.flatnonzero(counts > 1):
+        points = position[inverse == g]
+        sq += float(np.sum((points - points.mean(axis=0)) ** 2))
+    sigma = math.sqrt(sq / dof)
+    return NoiseEstimate(sigma, "repeated poses", True,
+                         f"pooled scatter of {repeated.size} readings of {groups} repeated poses ({dof} dof)")
+
+
+def noise_from_residual(q: np.ndarray, residual: np.ndarray, n_parameters: int, structured: bool) -> NoiseEstimate:
+    """Measurement scatter from a fit's in-sample residual (N, 3) [m] over joint values q (N, n).
+
+    Without structure (the structure test found none) the residual is all scatter:
+    sigma^2 = RSS / (3N - p). With structure, only its part that does not vary with the
+    joints is scatter: the nugget of the semivariogram of the residual in standardised
+    joint space (Gaussian model, :func:`~tcr_accuracy.analysis.semivariogram.fit_gaussian_variogram`),
+    capped by the RSS figure. Far from exact when no two poses are close in joint space:
+    measuring some poses twice pins it down (:func:`noise_from_repeats`).
+    """
+    dof = max(residual.size - n_parameters, 1)
+    sigma_rss = math.sqrt(float(np.sum(residual**2)) / dof)
+    if not structured:
+        return NoiseEstimate(sigma_rss, "residual", False,
+                             f"final residual without structure, RSS / (3N - p) with {dof} dof")
+    qs, _, _ = standardize(q)
+    semi = empirical_semivariogram(qs, residual, n_bins=20, standardise=False)
+    pooled = EmpiricalSemivariogram(semi.lags, semi.semivariance.mean(axis=1, keepdims=True), semi.counts, None)
+    try:
+        nugget = float(fit_gaussian_variogram(pooled, 0).nugget)
+    except (ValueError, np.linalg.LinAlgError):
+        nugget = sigma_rss**2
+    sigma = min(math.sqrt(max(nugget, 0.0)), sigma_rss)
+    return NoiseEstimate(sigma, "residual nugget", False,
+                         "part of the structured final residual that does not vary with the joints "
+                         f"(semivariogram at zero joint distance; the whole residual is {sigma_rss * 1e3:.4g} mm "
+                         "per axis); measure some poses twice to pin it down")

@@ -1,0 +1,187 @@
+"""What a diagnosis reads and what it finds: the observations, the shrink table and the result.
+
+:class:`Diagnosis` holds everything :func:`tcr_accuracy.diagnosis.diagnose.diagnose` found, SI inside;
+:meth:`Diagnosis.to_dict` is its JSON form (mm, unit-suffixed keys).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..model.context import MeasurementContext
+from ..effects import make_effect, predict_positions
+from .fitting import stacked
+from .residuals import NoiseEstimate
+from ..model.robot import RobotModel
+
+
+# ---------------------------------------------------------------------------------------
+# Inputs
+# ---------------------------------------------------------------------------------------
+@dataclass
+class Observations:
+    """Measurements in the form the diagnosis needs (one measured frame).
+
+    q : (N, n_joints) commanded joint values [rad, m]
+    position : (N, 3) measured position in the tracker frame [m]
+    context : MeasurementContext (payload, temperature, directions, other joints)
+    measured : names of the context fields actually measured (``payload_kg``,
+        ``temperature_c``, ``direction``)
+    quaternion : (N, 4) measured orientation (w, x, y, z) in the tracker frame, or None
+    """
+
+    q: np.ndarray
+    position: np.ndarray
+    context: MeasurementContext
+    measured: tuple = ()
+    quaternion: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return self.q.shape[0]
+
+
+def observations_from(measurements) -> Observations:
+    """Adapter from :class:`tcr_accuracy.io.measurements.MeasurementSet` (or Observations)."""
+    if isinstance(measurements, Observations):
+        return measurements
+    measured = tuple(k for k in ("payload_kg", "temperature_c", "direction")
+                     if getattr(measurements, k, None) is not None)
+    return Observations(np.asarray(measurements.q, dtype=float), np.asarray(measurements.position, dtype=float),
+                        measurements.context(), measured, getattr(measurements, "quaternion", None))
+
+
+# ---------------------------------------------------------------------------------------
+# Results
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ErrorStats:
+    """Mean, RMS and max of position error norms [m], over ``count`` measured points."""
+
+    mean: float
+    rms: float
+    max: float
+    count: int
+
+    @staticmethod
+    def of(errors: np.ndarray) -> "ErrorStats":
+        norm = np.linalg.norm(stacked(errors), axis=1)
+        return ErrorStats(float(norm.mean()), float(np.sqrt(np.mean(norm**2))), float(norm.max()), int(norm.size))
+
+    def to_dict(self) -> dict:
+        return {"mean_mm": self.mean * 1e3, "rms_mm": self.rms * 1e3, "max_mm": self.max * 1e3, "count": self.count}
+
+
+@dataclass(frozen=True)
+class Step:
+    """One row of the shrink table: the model after adding ``effect``."""
+
+    effect: str
+    effects: tuple
+    n_parameters: int
+    train_rms: float
+    heldout: ErrorStats
+    z_statistic: float | None  # paired test against the previous step (None for frames)
+
+    def to_dict(self) -> dict:
+        return {"effect": self.effect, "effects": list(self.effects), "n_parameters": self.n_parameters,
+                "train_rms_mm": self.train_rms * 1e3, "heldout_rms_mm": self.heldout.rms * 1e3,
+                "heldout_mean_mm": self.heldout.mean * 1e3, "heldout_max_mm": self.heldout.max * 1e3,
+                "z_vs_previous": self.z_statistic}
+
+
+@dataclass
+class Diagnosis:
+    """Everything :func:`diagnose` found. Lengths in m inside; :meth:`to_dict` gives mm.
+
+    Arrays of the residual (``gap_residual``, ``final_residual``, ``heldout_residual``),
+    ``q`` and ``nominal_position`` are those of the first measured frame; with several,
+    ``frames_measured`` names them and ``heldout_by_frame`` gives each one's figures.
+    """
+
+    robot_name: str
+    n_measurements: int
+    folds: int
+    gap: ErrorStats
+    where: dict
+    identifiability: dict
+    candidates: dict  # effect -> first-step held-out result or why it was not tried
+    steps: list
+    selected_effects: list
+    primary_effect: str | None
+    leave_one_out: list
+    noise_floor: float  # RMS norm of the measurement noise [m]
+    tracker_noise: float  # per-axis std [m]
+    scatter: dict
+    structure: dict
+    parameters: dict  # effect -> {name: value SI}
+    parameter_units: dict
+    as_built_x: np.ndarray
+    tracker_transform: np.ndarray  # (4, 4) robot base -> tracker
+    final_residual: np.ndarray  # (N, 3) in-sample residual of the final model [m]
+    heldout_residual: np.ndarray  # (N, 3) out-of-fold residual of the final model [m]
+    gap_residual: np.ndarray  # (N, 3) residual after frames only [m]
+    q: np.ndarray
+    nominal_position: np.ndarray
+    gravity_torque: np.ndarray
+    notes: list
+    semivariograms: list = field(default_factory=list)
+    eliminated: list = field(default_factory=list)
+    n_fits: int = 0
+    contribution: dict = field(default_factory=dict)  # effect -> RMS TCP motion of its fit beyond frames [m]
+    effect_parameters: dict = field(default_factory=dict)  # effect -> full (k,) vector [SI], first frame
+    registration: tuple = (np.eye(3), np.zeros(3))  # (R, t): tracker = R robot + t
+    noise: NoiseEstimate | None = None
+    frames_measured: list = field(default_factory=list)
+    heldout_by_frame: dict = field(default_factory=dict)
+    orientation: dict = field(default_factory=dict)
+
+    def predict(self, robot: RobotModel, q: np.ndarray, context: MeasurementContext | None = None) -> np.ndarray:
+        """TCP positions (N, 3) in the tracker frame [m] that the fitted model predicts
+        (the first measured frame's robot)."""
+        effects = [make_effect(e, robot) for e in self.effect_parameters]
+        position = predict_positions(robot, effects, list(self.effect_parameters.values()), q, context)
+        rot, trans = self.registration
+        return position @ rot.T + trans
+
+    @property
+    def structure_remains(self) -> bool:
+        return bool(self.structure.get("remains", False))
+
+    def to_dict(self) -> dict:
+        last = self.steps[-1]
+        out = {
+            "robot": self.robot_name,
+            "n_measurements": self.n_measurements,
+            "folds": self.folds,
+            "gap": self.gap.to_dict(),
+            "where": self.where,
+            "identifiability": self.identifiability,
+            "candidates": self.candidates,
+            "steps": [s.to_dict() for s in self.steps],
+            "selected_effects": list(self.selected_effects),
+            "primary_effect": self.primary_effect,
+            "leave_one_out": self.leave_one_out,
+            "backward_eliminated": self.eliminated,
+            "noise_floor_mm": self.noise_floor * 1e3,
+            "tracker_noise_mm": self.tracker_noise * 1e3,
+            "noise": self.noise.to_dict() if self.noise is not None else None,
+            "final_heldout_rms_mm": last.heldout.rms * 1e3,
+            "final_over_noise": last.heldout.rms / self.noise_floor if self.noise_floor > 0 else None,
+            "extra_scatter": self.scatter,
+            "structure_remains": self.structure_remains,
+            "structure": self.structure,
+            "parameters": {e: {k: float(v) for k, v in p.items()} for e, p in self.parameters.items()},
+            "parameter_units": self.parameter_units,
+            "tracker_transform": self.tracker_transform.tolist(),
+            "notes": list(self.notes),
+            "n_fits": self.n_fits,
+            "contribution_mm": {e: v * 1e3 for e, v in self.contribution.items()},
+        }
+        if len(self.frames_measured) > 1:
+            out["frames_measured"] = list(self.frames_measured)
+            out["heldout_by_frame"] = {f: s.to_dict() for f, s in self.heldout_by_frame.items()}
+        if self.orientation:
+            out["orientation"] = self.orientation
+        return out

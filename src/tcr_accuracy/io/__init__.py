@@ -1,0 +1,1 @@
+"""io layer of tcr_accuracy (see the README's Architecture section)."""

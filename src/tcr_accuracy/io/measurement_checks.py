@@ -1,0 +1,95 @@
+"""Plausibility checks of a measurement file, each failing with the file, row and column at fault.
+
+Used by :mod:`tcr_accuracy.io.measurements` once a file is parsed: joint values outside the
+URDF limits and repeated poses warn; exact duplicate rows and positions in the wrong unit stop.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from ..exceptions import InputError
+
+class MeasurementWarning(UserWarning):
+    """Something in a measurement file is suspicious but may be intended."""
+
+
+def warn_outside_limits(robot, q, rows, joint_columns, source):
+    lo, hi = robot.lower_limits, robot.upper_limits
+    with np.errstate(invalid="ignore"):
+        outside = (q < lo - 1e-12) | (q > hi + 1e-12)
+    for j in np.flatnonzero(outside.any(axis=0)):
+        r = int(np.argmax(outside[:, j]))
+        scale, unit = robot.display_scale[j], robot.display_units[j]
+        warnings.warn(
+            f"{source}: row {rows[r]}, column {joint_columns[j][1] or joint_columns[j][0] + ' (mimic)'}: "
+            f"{int(outside[:, j].sum())} value(s) "
+            f"outside the limits [{lo[j] * scale:.6g}, {hi[j] * scale:.6g}] {unit} of joint "
+            f"{robot.joint_names[j]} (first: {q[r, j] * scale:.6g} {unit})",
+            MeasurementWarning, stacklevel=3,
+        )
+
+
+def check_duplicates(mset, values, header, source, context_columns):
+    """Exact copies of a row are an error; repeated poses under the same context warn."""
+    rows = mset.rows
+    full = {}
+    for k in range(len(rows)):
+        key = values[k].tobytes()
+        if key in full:
+            raise InputError(f"{source}: row {rows[k]} repeats row {rows[full[key]]} exactly "
+                             "(a copy-paste?); remove one")
+        full[key] = k
+    ctx_cols = [c for c, name in enumerate(header) if name in context_columns or name.endswith("_dir")]
+    blocks = [mset.q, values[:, ctx_cols]] + ([mset.outside_q] if mset.outside_q is not None else [])
+    pose = np.concatenate(blocks, axis=1)
+    seen = {}
+    repeats = []
+    for k in range(len(rows)):
+        key = pose[k].tobytes()
+        if key in seen:
+            repeats.append((seen[key], k))
+        else:
+            seen[key] = k
+    if repeats:
+        a, b = repeats[0]
+        warnings.warn(
+            f"{source}: row {rows[b]} has the same joint values and context as row {rows[a]} "
+            f"({len(repeats)} repeated pose(s) in all); repeated poses weigh more in a fit",
+            MeasurementWarning, stacklevel=3,
+        )
+
+
+def check_position_units(mset, robot, columns, source):
+    """Compare the spread of the measured TCP with the nominal model's spread.
+
+    The tracker frame is unknown, so absolute values say nothing; distances between
+    measured points do, and a rigid frame change keeps them.
+    """
+    from ..model.kinematics import tcp_poses
+
+    if len(mset) < 3:
+        return
+    nominal = tcp_poses(robot, mset.q).position
+    model_spread = float(np.sqrt(np.mean(np.sum((nominal - nominal.mean(axis=0)) ** 2, axis=1))))
+    measured_spread = float(np.sqrt(np.mean(np.sum((mset.position - mset.position.mean(axis=0)) ** 2, axis=1))))
+    if model_spread < 1e-3:  # all poses (nearly) the same: nothing to compare
+        return
+    ratio = measured_spread / model_spread
+    if 0.5 <= ratio <= 2.0:
+        return
+    cols, unit = columns["position"]
+    other = "m" if unit == "mm" else "mm"
+    if 0.3e-3 <= ratio <= 3e-3 or 0.3e3 <= ratio <= 3e3:
+        hint = (f"the values look like {other}: name the columns "
+                f"{', '.join(f'{a}_{other}' for a in 'xyz')}")
+    else:
+        joint_units = ", ".join(col for _, col, _ in columns["joints"])
+        hint = f"check the position units and the joint columns' units ({joint_units})"
+    raise InputError(
+        f"{source}: columns {', '.join(cols)}: the measured points spread over "
+        f"{measured_spread * 1e3:.4g} mm (RMS about their centre) while the model's TCP at the same "
+        f"joint values spreads over {model_spread * 1e3:.4g} mm ({ratio:.3g} times); {hint}"
+    )

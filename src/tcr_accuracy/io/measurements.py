@@ -1,0 +1,479 @@
+"""Measurement CSV: commanded joint values, measured TCP position (and orientation), context.
+
+One row per measurement. Columns (header names, any order):
+
+==========================  ===============================================================
+column                      meaning
+==========================  ===============================================================
+``<joint>_deg|_rad``        commanded value of a revolute joint (every joint of the chain)
+``<joint>_mm|_m``           commanded value of a prismatic joint
+``x_mm, y_mm, z_mm``        measured TCP position in the tracker frame (or ``x_m, y_m, z_m``)
+``qw, qx, qy, qz``          optional measured TCP orientation (unit quaternion, all four)
+``payload_kg``              optional payload at the TCP [kg] (absent: 0)
+``temperature_c``           optional temperature of the arm [degC] (absent: reference, 20)
+``<joint>_dir``             optional approach direction of a joint: +1 or -1
+==========================  ===============================================================
+
+Lines starting with ``#`` are comments. Row numbers in messages are the file's line
+numbers, as a spreadsheet shows them (the header is row 1 when there is no comment).
+Everything read is converted to SI at once; :class:`MeasurementSet` holds SI only.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..model.context import REFERENCE_TEMPERATURE_C, MeasurementContext
+from ..exceptions import InputError
+from .measurement_checks import MeasurementWarning, check_duplicates, check_position_units, warn_outside_limits
+from ..model.robot import RobotModel
+from ..units import JOINT_COLUMN_UNITS as _JOINT_UNITS
+from ..units import JOINT_DISPLAY
+from ..units import POSITION_UNITS as _POSITION_UNITS
+from ..units import REVOLUTE
+
+#: Largest |quaternion norm - 1| accepted before normalising.
+QUATERNION_TOLERANCE = 1e-3
+
+QUATERNION_COLUMNS = ("qw", "qx", "qy", "qz")
+CONTEXT_COLUMNS = ("payload_kg", "temperature_c")
+
+
+# ---------------------------------------------------------------------------------------
+# Containers
+# ---------------------------------------------------------------------------------------
+@dataclass
+class MeasurementSet:
+    """Measurements of one robot, SI units.
+
+    Attributes
+    ----------
+    joint_names : list of str
+        Joint order of ``q`` (the robot's).
+    q : ndarray of shape (N, n_joints)
+        Commanded joint values [rad, m].
+    position : ndarray of shape (N, 3)
+        Measured TCP position in the measurement (tracker) frame [m].
+    quaternion : ndarray of shape (N, 4) or None
+        Measured TCP orientation (w, x, y, z), unit norm; None when not measured.
+    payload_kg : ndarray of shape (N,) or None
+        Payload [kg]; None when the file has no ``payload_kg`` column.
+    temperature_c : ndarray of shape (N,) or None
+        Temperature [degC]; None when the file has no ``temperature_c`` column.
+    direction : ndarray of shape (N, n_joints) or None
+        Approach directions +1/-1, 0 for joints without a ``<joint>_dir`` column;
+        None when the file has no direction column at all.
+    outside_q : ndarray of shape (N, n_outside) or None
+        Values [rad, m] of the robot's joints that do not move the TCP
+        (``robot.outside_joint_names``: another arm, a head), for the gravity torques;
+        None when the file has none of their columns and no mimic rule sets them.
+    source : str
+        Where the rows came from (file path or a label).
+    rows : ndarray of shape (N,)
+        Row (line) number of each measurement in the source file.
+    """
+
+    joint_names: list[str]
+    q: np.ndarray
+    position: np.ndarray
+    quaternion: np.ndarray | None = None
+    payload_kg: np.ndarray | None = None
+    temperature_c: np.ndarray | None = None
+    direction: np.ndarray | None = None
+    source: str = "<memory>"
+    rows: np.ndarray | None = None
+    outside_q: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        self.q = np.atleast_2d(np.asarray(self.q, dtype=float))
+        self.position = np.atleast_2d(np.asarray(self.position, dtype=float))
+        if self.rows is None:
+            self.rows = np.arange(2, 2 + self.q.shape[0])
+
+    def __len__(self) -> int:
+        return self.q.shape[0]
+
+    def context(self, reference_temperature_c: float = REFERENCE_TEMPERATURE_C,
+                rng: np.random.Generator | None = None) -> MeasurementContext:
+        """The per-row context, with defaults where a column is absent."""
+        n, nj = self.q.shape
+        return MeasurementContext(
+            payload_kg=self.payload_kg.copy() if self.payload_kg is not None else np.zeros(n),
+            temperature_c=(self.temperature_c.copy() if self.temperature_c is not None
+                           else np.full(n, float(reference_temperature_c))),
+            direction=self.direction.copy() if self.direction is not None else np.zeros((n, nj)),
+            rng=rng,
+            outside_q=None if self.outside_q is None else self.outside_q.copy(),
+        )
+
+    def subset(self, rows) -> "MeasurementSet":
+        """The measurements of some rows (index array or boolean mask), e.g. a fold."""
+        def pick(a):
+            return None if a is None else a[rows]
+
+        return replace(self, q=self.q[rows], position=self.position[rows],
+                       quaternion=pick(self.quaternion), payload_kg=pick(self.payload_kg),
+                       temperature_c=pick(self.temperature_c), direction=pick(self.direction),
+                       rows=self.rows[rows], outside_q=pick(self.outside_q))
+
+
+# ---------------------------------------------------------------------------------------
+# Reading
+# ---------------------------------------------------------------------------------------
+def _all_joints(robot: RobotModel) -> list[tuple[str, str]]:
+    """(name, kind) of every joint a row may give: the chain's, then those outside it."""
+    return (list(zip(robot.joint_names, robot.joint_kinds))
+            + list(zip(robot.outside_joint_names, robot.outside_joint_kinds)))
+
+
+def allowed_columns(robot: RobotModel) -> list[str]:
+    """Every column name a measurement file for this robot may have.
+
+    Columns of joints that do not move the TCP (another arm, a head) are allowed: a joint
+    log has every joint, and their masses load the chain (gravity torques).
+    """
+    cols = []
+    for name, kind in _all_joints(robot):
+        cols += [f"{name}_{u}" for u in _JOINT_UNITS[kind]]
+    cols += [f"{a}_{u}" for u in _POSITION_UNITS for a in "xyz"]
+    cols += list(QUATERNION_COLUMNS) + list(CONTEXT_COLUMNS)
+    cols += [f"{name}_dir" for name, _ in _all_joints(robot)]
+    return cols
+
+
+def read_measurements(path: str | Path, robot: RobotModel, *, min_rows: int = 1,
+                      require_position: bool = True, check_units: bool = True,
+                      frame: str | None = None) -> MeasurementSet:
+    """Read and validate a measurement CSV (see the module docstring for the columns).
+
+    Parameters
+    ----------
+    path : str or Path
+    robot : RobotModel
+        Names the joint columns and gives the nominal kinematics for the unit check.
+    min_rows : int
+        Fewest measurements the caller needs (e.g. the number of parameters to fit).
+    require_position : bool
+        False to read a pose list (joint columns and context only), e.g. ``simulate --poses``.
+    check_units : bool
+        Compare the spread of the measured positions with that of the nominal model's
+        TCP at the same joint values, to catch a file in metres labelled mm (or the
+        reverse) and joint values in the wrong unit.
+    frame : str, optional
+        For a file measuring several frames per row (``<frame>.x_mm`` ... columns, see
+        :func:`measured_frames`): the one to read; the robot's TCP must be that frame.
+
+    Raises
+    ------
+    InputError
+        Naming the file, row and column at fault.
+    """
+    path = Path(path)
+    text = read_user_text(path, "measurement file")
+    return parse_measurements(text, robot, source=str(path), min_rows=min_rows,
+                              require_position=require_position, check_units=check_units, frame=frame)
+
+
+def read_user_text(path: Path, what: str) -> str:
+    """A user's UTF-8 text file (a byte-order mark is dropped), or one InputError line."""
+    try:
+        return Path(path).read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such {what}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: cannot read {what} as UTF-8 text ({exc})") from None
+
+
+#: Column suffixes a measured frame's columns carry after ``<frame>.``
+FRAME_COLUMNS = tuple(f"{a}_{u}" for u in _POSITION_UNITS for a in "xyz") + QUATERNION_COLUMNS
+
+
+def _frame_of(column: str) -> str | None:
+    """``right_marker.x_mm`` -> ``right_marker``; None for any other column."""
+    prefix, dot, rest = column.rpartition(".")
+    return prefix if dot and prefix and rest in FRAME_COLUMNS else None
+
+
+def _header(text: str, source: str) -> tuple[list[tuple[int, str]], list[str], int]:
+    lines = [(i + 1, line) for i, line in enumerate(text.splitlines())
+             if line.strip() and not line.lstrip().startswith("#")]
+    if not lines:
+        raise InputError(f"{source}: empty measurement file (no header row)")
+    header_line, header_text = lines[0]
+    if ";" in header_text and "," not in header_text:
+        raise InputError(f"{source}: row {header_line}: columns are separated by ';'; "
+                         "a measurement CSV uses commas (and '.' for decimals)")
+    return lines, [h.strip() for h in next(csv.reader(io.StringIO(header_text)))], header_line
+
+
+def measured_frames(path: str | Path) -> list[str]:
+    """Frames a measurement file measures as ``<frame>.x_mm ...`` columns (empty: the TCP's ``x_mm``)."""
+    text = read_user_text(Path(path), "measurement file")
+    _, header, _ = _header(text, str(path))
+    return list(dict.fromkeys(f for f in map(_frame_of, header) if f is not None))
+
+
+def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", min_rows: int = 1,
+                       require_position: bool = True, check_units: bool = True,
+                       frame: str | None = None) -> MeasurementSet:
+    """:func:`read_measurements` on CSV text already in memory."""
+    lines, header, header_line = _header(text, source)
+    # a file may measure several frames per row: <frame>.x_mm ...; read one of them
+    frames = list(dict.fromkeys(f for f in map(_frame_of, header) if f is not None))
+    if frames:
+        plain = [h for h in header if h in FRAME_COLUMNS]
+        if plain:
+            raise InputError(f"{source}: row {header_line}: column {plain[0]} next to per-frame columns "
+                             f"({frames[0]}.x_mm ...); name every measured frame's columns <frame>.x_mm")
+        if frame is None:
+            raise InputError(f"{source}: measures several frames ({', '.join(frames)}); read one with frame=...")
+        if frame not in frames:
+            raise InputError(f"{source}: no columns {frame}.x_mm ... (frames measured: {', '.join(frames)})")
+    logical = [h if _frame_of(h) is None else (h.rpartition(".")[2] if _frame_of(h) == frame else "")
+               for h in header]
+    columns = _resolve_columns(header, robot, source, header_line, require_position, logical)
+    shown, header = header, logical  # messages name the file's columns; the reading uses their meaning
+
+    n_cols = len(header)
+    values = np.empty((len(lines) - 1, n_cols))
+    rows = np.empty(len(lines) - 1, dtype=int)
+    for k, (line_no, line) in enumerate(lines[1:]):
+        cells = next(csv.reader(io.StringIO(line)))
+        if len(cells) != n_cols:
+            raise InputError(f"{source}: row {line_no}: {len(cells)} cells, the header has {n_cols} columns")
+        for c, cell in enumerate(cells):
+            cell = cell.strip()
+            try:
+                value = float(cell)
+            except ValueError:
+                what = "an empty cell" if not cell else f"{cell!r} is not a number"
+                raise InputError(f"{source}: row {line_no}, column {shown[c]}: {what}") from None
+            if not math.isfinite(value):
+                raise InputError(f"{source}: row {line_no}, column {shown[c]}: non-finite value {cell!r}")
+            values[k, c] = value
+        rows[k] = line_no
+    if len(rows) < min_rows:
+        raise InputError(f"{source}: {len(rows)} measurement rows, at least {min_rows} are needed")
+
+    def column(name):
+        return values[:, header.index(name)]
+
+    # joints: the chain's into q, the others into outside_q (gravity only); a joint
+    # without a column but with a URDF <mimic> rule follows its source joint
+    si: dict[str, np.ndarray] = {}
+    kinds = dict(_all_joints(robot))
+    for name, col, unit in columns["joints"] + [(n, c, u) for _, n, c, u in columns["outside"]]:
+        if col is None:
+            continue
+        raw = column(col)
+        if kinds[name] == REVOLUTE and unit == "rad":
+            bad = np.flatnonzero(np.abs(raw) > 2 * math.pi + 1e-9)
+            if len(bad) and (name not in robot.joint_names
+                             or np.isfinite(robot.lower_limits[robot.joint_names.index(name)])):
+                r = bad[0]
+                raise InputError(
+                    f"{source}: row {rows[r]}, column {col}: {raw[r]:g} rad is more than a full turn; "
+                    f"if the column holds degrees, name it {name}_deg"
+                )
+        si[name] = raw * _JOINT_UNITS[kinds[name]][unit]
+    for name in [n for n, _ in _all_joints(robot) if n not in si and n in robot.mimic]:
+        rule = robot.mimic[name]
+        if rule.joint in si:
+            si[name] = rule.multiplier * si[rule.joint] + rule.offset
+    q = np.stack([si[name] for name in robot.joint_names], axis=1)
+    warn_outside_limits(robot, q, rows, columns["joints"], source)
+    outside_q = None
+    if any(name in si for name in robot.outside_joint_names):
+        outside_q = np.stack([si.get(name, np.zeros(len(rows))) for name in robot.outside_joint_names], axis=1)
+
+    position = None
+    if columns["position"] is not None:
+        cols, unit = columns["position"]
+        position = np.stack([column(c) for c in cols], axis=1) * _POSITION_UNITS[unit]
+    quaternion = None
+    if columns["quaternion"]:
+        quaternion = np.stack([column(c) for c in QUATERNION_COLUMNS], axis=1)
+        norms = np.linalg.norm(quaternion, axis=1)
+        bad = np.flatnonzero(np.abs(norms - 1.0) > QUATERNION_TOLERANCE)
+        if len(bad):
+            r = bad[0]
+            raise InputError(
+                f"{source}: row {rows[r]}, columns qw,qx,qy,qz: quaternion norm is {norms[r]:.6g}, "
+                f"not 1 (within {QUATERNION_TOLERANCE:g})"
+            )
+        quaternion = quaternion / norms[:, None]
+    payload = column("payload_kg") if "payload_kg" in header else None
+    if payload is not None and (payload < 0).any():
+        r = int(np.argmax(payload < 0))
+        raise InputError(f"{source}: row {rows[r]}, column payload_kg: negative payload {payload[r]:g} kg")
+    temperature = column("temperature_c") if "temperature_c" in header else None
+    if temperature is not None and (temperature < -273.15).any():
+        r = int(np.argmax(temperature < -273.15))
+        raise InputError(f"{source}: row {rows[r]}, column temperature_c: {temperature[r]:g} degC is below "
+                         "absolute zero")
+    direction = None
+    if columns["directions"]:
+        direction = np.zeros((len(rows), robot.n_joints))
+        for j, col in columns["directions"]:
+            raw = column(col)
+            bad = np.flatnonzero((raw != 1.0) & (raw != -1.0))
+            if len(bad):
+                r = bad[0]
+                raise InputError(f"{source}: row {rows[r]}, column {col}: approach direction must be "
+                                 f"+1 or -1, got {raw[r]:g}")
+            direction[:, j] = raw
+
+    mset = MeasurementSet(
+        joint_names=list(robot.joint_names), q=q,
+        position=position if position is not None else np.full((len(rows), 3), np.nan),
+        quaternion=quaternion, payload_kg=payload, temperature_c=temperature, direction=direction,
+        source=source, rows=rows, outside_q=outside_q,
+    )
+    check_duplicates(mset, values, header, source, CONTEXT_COLUMNS)
+    if check_units and position is not None:
+        check_position_units(mset, robot, columns, source)
+    return mset
+
+
+def _resolve_columns(header, robot, source, line_no, require_position, logical):
+    allowed = allowed_columns(robot)
+    seen = set()
+    for c, (name, meaning) in enumerate(zip(header, logical)):
+        if not name:
+            raise InputError(f"{source}: row {line_no}, column {c + 1}: empty column name in the header")
+        if name in seen:
+            raise InputError(f"{source}: row {line_no}: column {name} appears twice in the header")
+        if not meaning:  # another measured frame's column: read and checked, not used here
+            continue
+        seen.add(meaning)
+        name = meaning
+        if name not in allowed:
+            raise InputError(f"{source}: row {line_no}: unknown column {name!r}; allowed columns for "
+                             f"{robot.name}: {', '.join(allowed)}")
+    def given(name, kind):
+        present = [u for u in _JOINT_UNITS[kind] if f"{name}_{u}" in seen]
+        if len(present) > 1:
+            raise InputError(f"{source}: row {line_no}: joint {name} is given twice "
+                             f"({', '.join(f'{name}_{u}' for u in present)}); keep one")
+        return present[0] if present else None
+
+    units_given = {name: given(name, kind) for name, kind in _all_joints(robot)}
+    joints = []
+    for name, kind in zip(robot.joint_names, robot.joint_kinds):
+        unit = units_given[name]
+        if unit is None:
+            rule = robot.mimic.get(name)
+            if rule is not None and units_given.get(rule.joint) is not None:
+                joints.append((name, None, None))  # follows its <mimic> source
+                continue
+            options = " or ".join(f"{name}_{u}" for u in _JOINT_UNITS[kind])
+            hint = f" (its <mimic> source {rule.joint} has no column either)" if rule is not None else ""
+            raise InputError(f"{source}: row {line_no}: missing joint column {options} "
+                             f"({kind} joint {name}){hint}")
+        joints.append((name, f"{name}_{unit}", unit))
+    outside = [(k, name, f"{name}_{units_given[name]}", units_given[name])
+               for k, name in enumerate(robot.outside_joint_names) if units_given[name] is not None]
+    position = None
+    units = [u for u in _POSITION_UNITS if any(f"{a}_{u}" in seen for a in "xyz")]
+    if len(units) > 1:
+        raise InputError(f"{source}: row {line_no}: position columns mix units "
+                         f"({', '.join(c for c in header if c[:2] in ('x_', 'y_', 'z_'))}); use one unit")
+    if units:
+        missing = [f"{a}_{units[0]}" for a in "xyz" if f"{a}_{units[0]}" not in seen]
+        if missing:
+            raise InputError(f"{source}: row {line_no}: missing position column {', '.join(missing)}")
+        position = ([f"{a}_{units[0]}" for a in "xyz"], units[0])
+    elif require_position:
+        raise InputError(f"{source}: row {line_no}: missing position columns x_mm, y_mm, z_mm (or x_m, y_m, z_m)")
+    quats = [c for c in QUATERNION_COLUMNS if c in seen]
+    if quats and len(quats) != 4:
+        missing = [c for c in QUATERNION_COLUMNS if c not in seen]
+        raise InputError(f"{source}: row {line_no}: orientation needs all of qw, qx, qy, qz; "
+                         f"missing {', '.join(missing)}")
+    # directions of joints outside the chain are allowed (a joint log has them) and not used
+    directions = [(j, f"{name}_dir") for j, name in enumerate(robot.joint_names) if f"{name}_dir" in seen]
+    return {"joints": joints, "outside": outside, "position": position, "quaternion": bool(quats),
+            "directions": directions}
+
+
+# ---------------------------------------------------------------------------------------
+# Writing
+# ---------------------------------------------------------------------------------------
+def measurement_columns(robot: RobotModel, mset: MeasurementSet, unit: str = "mm") -> list[str]:
+    """Header of the CSV :func:`write_measurements` writes."""
+    if unit not in ("mm", "m"):
+        raise InputError(f"unit {unit!r}: use 'mm' (deg, mm columns) or 'm' (rad, m columns)")
+    joint_unit = {REVOLUTE: "deg" if unit == "mm" else "rad", "prismatic": unit}
+    cols = [f"{n}_{joint_unit[k]}" for n, k in zip(robot.joint_names, robot.joint_kinds)]
+    if mset.outside_q is not None:
+        cols += [f"{n}_{joint_unit[k]}" for n, k in zip(robot.outside_joint_names, robot.outside_joint_kinds)]
+    cols += [f"{a}_{unit}" for a in "xyz"]
+    if mset.quaternion is not None:
+        cols += list(QUATERNION_COLUMNS)
+    if mset.payload_kg is not None:
+        cols.append("payload_kg")
+    if mset.temperature_c is not None:
+        cols.append("temperature_c")
+    if mset.direction is not None:
+        cols += [f"{n}_dir" for j, n in enumerate(robot.joint_names) if np.any(mset.direction[:, j] != 0)]
+    return cols
+
+
+def format_measurements(robot: RobotModel, mset: MeasurementSet, unit: str = "mm",
+                        comment: str | None = None) -> str:
+    """CSV text of a measurement set, joints in deg/mm (unit "mm") or rad/m (unit "m")."""
+    cols = measurement_columns(robot, mset, unit)
+    if list(mset.joint_names) != list(robot.joint_names):
+        raise InputError(f"measurement set joints {mset.joint_names} are not the robot's {robot.joint_names}")
+    factor = 1e3 if unit == "mm" else 1.0
+    joint_scale = robot.display_scale if unit == "mm" else np.ones(robot.n_joints)
+    blocks = [mset.q * joint_scale]
+    if mset.outside_q is not None:
+        outside_scale = (np.array([JOINT_DISPLAY[k][1] for k in robot.outside_joint_kinds]) if unit == "mm"
+                         else np.ones(len(robot.outside_joint_names)))
+        blocks.append(mset.outside_q * outside_scale)
+    blocks.append(mset.position * factor)
+    if mset.quaternion is not None:
+        blocks.append(mset.quaternion)
+    if mset.payload_kg is not None:
+        blocks.append(mset.payload_kg[:, None])
+    if mset.temperature_c is not None:
+        blocks.append(mset.temperature_c[:, None])
+    if mset.direction is not None:
+        used = [j for j in range(robot.n_joints) if np.any(mset.direction[:, j] != 0)]
+        blocks.append(mset.direction[:, used])
+    table = np.concatenate(blocks, axis=1)
+    if not np.all(np.isfinite(table)):
+        raise InputError("measurement set has non-finite values; nothing written")
+    out = io.StringIO()
+    if comment:
+        for line in comment.splitlines():
+            out.write(f"# {line}\n")
+    out.write(",".join(cols) + "\n")
+    n_values = len(cols) - sum(c.endswith("_dir") for c in cols)
+    for row in table:
+        cells = [format(v, ".12g") for v in row[:n_values]]
+        cells += [f"{int(v):+d}" for v in row[n_values:]]
+        out.write(",".join(cells) + "\n")
+    return out.getvalue()
+
+
+def write_measurements(path: str | Path, robot: RobotModel, mset: MeasurementSet, unit: str = "mm",
+                       comment: str | None = None) -> None:
+    """Write a measurement CSV atomically (temporary file + rename)."""
+    from ..atomic import write_text_atomically
+
+    write_text_atomically(Path(path), format_measurements(robot, mset, unit, comment))
+
+
+__all__ = [
+    "MeasurementContext", "MeasurementSet", "MeasurementWarning", "REFERENCE_TEMPERATURE_C",
+    "allowed_columns", "format_measurements", "measured_frames", "measurement_columns", "parse_measurements",
+    "read_measurements", "read_user_text", "write_measurements",
+]

@@ -1,0 +1,1 @@
+"""prediction layer of tcr_accuracy (see the README's Architecture section)."""

@@ -1,0 +1,39 @@
+"""What every plotting module shares: matplotlib without a display, and whole PNG files."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+from ..atomic import write_bytes_atomically
+from ..exceptions import InputError
+
+
+def pyplot():
+    """matplotlib.pyplot on the Agg backend (no display needed)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save_figure(fig, path, *, dpi: int = 110, tight: bool = False) -> Path:
+    """Write a figure as a PNG file, whole or not at all, and close it; returns the path.
+
+    The folder is created when missing; ``tight`` applies ``fig.tight_layout()`` first.
+    """
+    path = Path(path)
+    try:
+        if tight:
+            fig.tight_layout()
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format="png", dpi=dpi)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InputError(f"{path}: cannot write the plot ({exc.strerror})") from None
+        return write_bytes_atomically(path, buffer.getvalue())
+    finally:
+        pyplot().close(fig)

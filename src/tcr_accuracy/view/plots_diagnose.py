@@ -1,0 +1,180 @@
+"""Plots of a diagnosis (matplotlib, Agg backend): PNG files for the report.
+
+Edge layer: reads a :class:`~tcr_accuracy.diagnosis.diagnose.Diagnosis`, writes images. Every
+figure is saved to a temporary name and renamed, so no half-written file is left.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .plots_common import pyplot, save_figure
+
+
+def _binned_means(values, residual, n_bins=8):
+    edges = np.unique(np.quantile(values, np.linspace(0, 1, n_bins + 1)))
+    if edges.size < 2:
+        return np.array([]), np.zeros((0, 3))
+    which = np.clip(np.searchsorted(edges, values, side="right") - 1, 0, edges.size - 2)
+    centres, means = [], []
+    for b in range(edges.size - 1):
+        sel = which == b
+        if sel.any():
+            centres.append(values[sel].mean())
+            means.append(residual[sel].mean(axis=0))
+    return np.array(centres), np.array(means)
+
+
+def plot_steps(diagnosis, path: Path) -> Path:
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7, 3.6))
+    labels = [s.effect if i == 0 else f"+{s.effect}" for i, s in enumerate(diagnosis.steps)]
+    rms = [s.heldout.rms * 1e3 for s in diagnosis.steps]
+    mean = [s.heldout.mean * 1e3 for s in diagnosis.steps]
+    x = np.arange(len(labels))
+    ax.bar(x - 0.2, rms, 0.4, label="held-out RMS")
+    ax.bar(x + 0.2, mean, 0.4, label="held-out mean")
+    ax.axhline(diagnosis.noise_floor * 1e3, color="k", ls="--", lw=1, label="noise floor")
+    ax.set_xticks(x, labels, rotation=20)
+    ax.set_ylabel("TCP position error [mm]")
+    ax.set_yscale("log")
+    ax.set_title("How far the gap shrinks (k-fold held-out)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def plot_axes(diagnosis, path: Path) -> Path:
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 3, figsize=(9, 3))
+    for c, ax in enumerate(axes):
+        ax.hist(diagnosis.gap_residual[:, c] * 1e3, bins=30, alpha=0.6, label="after frames")
+        ax.hist(diagnosis.heldout_residual[:, c] * 1e3, bins=30, alpha=0.6, label="final, held-out")
+        ax.set_xlabel(f"{'xyz'[c]} error [mm]")
+    axes[0].set_ylabel("measurements")
+    axes[0].legend(fontsize=7)
+    fig.suptitle("Residual per axis")
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def _versus(diagnosis, values, names, units, path: Path, title: str) -> Path:
+    plt = pyplot()
+    n = values.shape[1]
+    cols = min(3, n)
+    rows = int(np.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
+    residual = diagnosis.gap_residual * 1e3
+    for j in range(rows * cols):
+        ax = axes[j // cols][j % cols]
+        if j >= n:
+            ax.axis("off")
+            continue
+        v = values[:, j]
+        ax.scatter(v, np.linalg.norm(residual, axis=1), s=3, c="0.7")
+        centres, means = _binned_means(v, residual)
+        for c in range(3):
+            if centres.size:
+                ax.plot(centres, means[:, c], marker="o", ms=3, label="xyz"[c])
+        ax.set_xlabel(f"{names[j]} [{units[j]}]")
+        ax.tick_params(labelsize=7)
+    axes[0][0].set_ylabel("error [mm]")
+    axes[0][0].legend(fontsize=7, title="binned mean", title_fontsize=7)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def plot_joints(diagnosis, robot, path: Path) -> Path:
+    values = diagnosis.q * robot.display_scale
+    return _versus(diagnosis, values, robot.joint_names, robot.display_units, path,
+                   "Residual after frames against each joint (|e| grey, binned mean per axis)")
+
+
+def plot_gravity(diagnosis, robot, path: Path) -> Path:
+    units = ["Nm" if k == "revolute" else "N" for k in robot.joint_kinds]
+    return _versus(diagnosis, diagnosis.gravity_torque, [f"tau_g {n}" for n in robot.joint_names], units, path,
+                   "Residual after frames against gravity torque")
+
+
+def plot_semivariograms(diagnosis, robot, path: Path) -> Path:
+    plt = pyplot()
+    semis = diagnosis.semivariograms
+    n = len(semis)
+    cols = min(3, n)
+    rows = int(np.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
+    for j in range(rows * cols):
+        ax = axes[j // cols][j % cols]
+        if j >= n:
+            ax.axis("off")
+            continue
+        s = semis[j]
+        for c in range(3):
+            ax.plot(s.lags, s.semivariance[:, c], marker="o", ms=3, label="xyz"[c])
+        ax.axhline(1.0, color="k", lw=0.8, ls=":")
+        ax.set_xlabel(f"|d {robot.joint_names[j]}| (standardised)")
+        ax.tick_params(labelsize=7)
+    axes[0][0].set_ylabel("semivariance (standardised)")
+    axes[0][0].legend(fontsize=7)
+    fig.suptitle("Per-joint semivariograms of the residual after frames (low at small lag = varies along it)")
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def plot_regions(diagnosis, path: Path) -> Path:
+    """Workspace octants, radius and height bins, and the context columns that were measured."""
+    plt = pyplot()
+    where = diagnosis.where
+    panels = [("octants", None), ("radius", "radius [m]"), ("height", "height z [m]")]
+    panels += [(k, label) for k, label in (("payload_kg", "payload [kg]"), ("temperature_c", "temperature [degC]"))
+               if k in where]
+    if where.get("approach_direction"):
+        panels.append(("approach_direction", None))
+    cols = min(3, len(panels))
+    rows = int(np.ceil(len(panels) / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(3.4 * cols, 2.9 * rows), squeeze=False)
+    flat = axes.ravel()
+    for ax in flat[len(panels):]:
+        ax.axis("off")
+    for ax, (key, label) in zip(flat, panels):
+        if key == "octants":
+            regions = where["octants"]["regions"]
+            ax.bar([r["region"] for r in regions], [r["rms_mm"] for r in regions])
+            ax.set_ylabel("RMS |e| [mm]")
+            ax.tick_params(axis="x", rotation=60, labelsize=6)
+            ax.set_title("octants around the median TCP", fontsize=8)
+        elif key == "approach_direction":
+            info = where["approach_direction"]
+            ax.bar(list(info), [v["difference_norm_mm"] for v in info.values()])
+            ax.set_ylabel("|mean(+) - mean(-)| [mm]")
+            ax.set_title("approach direction", fontsize=8)
+        else:
+            bins = where[key]["bins"]
+            centres = [0.5 * (b["low"] + b["high"]) for b in bins]
+            if not bins:
+                continue
+            means = np.array([b["mean_mm"] for b in bins])
+            for c in range(3):
+                ax.plot(centres, means[:, c], marker="o", ms=3, label="xyz"[c])
+            ax.set_xlabel(label)
+            ax.set_ylabel("binned mean error [mm]")
+            ax.legend(fontsize=7)
+    fig.suptitle("Residual after frames over the workspace and the context")
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def write_plots(diagnosis, robot, directory: Path) -> dict:
+    """All figures into directory; returns {label: Path}."""
+    directory = Path(directory)
+    return {
+        "Shrink table": plot_steps(diagnosis, directory / "steps.png"),
+        "Residual per axis": plot_axes(diagnosis, directory / "axes.png"),
+        "Against joint values": plot_joints(diagnosis, robot, directory / "joints.png"),
+        "Against gravity torque": plot_gravity(diagnosis, robot, directory / "gravity.png"),
+        "Workspace regions and context": plot_regions(diagnosis, directory / "regions.png"),
+        "Per-joint semivariograms": plot_semivariograms(diagnosis, robot, directory / "semivariograms.png"),
+    }

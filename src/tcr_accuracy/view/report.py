@@ -1,0 +1,336 @@
+"""A report per run: tables, plots, 3D views, the command and the versions, as HTML and Markdown.
+
+Build it, then write it::
+
+    report = Report("Monte Carlo accuracy", command=["tcr-accuracy", "montecarlo", "--seed", "0"])
+    report.add_text("2000 samples of the seed's Table 2 errors at the working pose.")
+    report.add_table("TCP position error", ["axis", "mean", "std"], rows, units=["", "mm", "mm"])
+    report.add_figure(fig, "Histogram of |dP|")          # a matplotlib figure or a PNG file
+    report.add_scene(scene.static_html(), "TCP cloud")   # a viewer.Scene's static page
+    report.write("out")                                  # out/index.html, out/report.md, PNGs
+
+``write`` puts every file in place through a temporary file and a rename, and writes
+``index.html`` last, so a crash or Ctrl-C never leaves a half-written file, and the
+index never names a file that is not there. The page has no external resources: it
+opens from disk with no network.
+
+Values in tables are shown as given: convert to display units (mm, deg) before adding
+them, and name the unit in ``units``.
+"""
+
+from __future__ import annotations
+
+import html
+import io
+import math
+import os
+import platform
+import shlex
+import sys
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+
+from .. import __version__
+from ..atomic import write_bytes_atomically
+from ..exceptions import InputError
+
+#: Distributions whose versions every report lists (when installed).
+VERSION_PACKAGES = ("pin", "numpy", "scipy", "meshcat", "matplotlib", "scikit-learn", "SALib", "dask")
+
+
+@dataclass(frozen=True)
+class _Text:
+    text: str
+    heading: str | None
+
+
+@dataclass(frozen=True)
+class _Table:
+    title: str
+    columns: tuple[str, ...]
+    rows: tuple[tuple[str, ...], ...]
+    note: str | None
+
+
+@dataclass(frozen=True)
+class _Links:
+    heading: str
+    links: tuple[tuple[str, str], ...]  # (label, relative href)
+
+
+@dataclass(frozen=True)
+class _Figure:
+    filename: str
+    png: bytes
+    caption: str
+
+
+@dataclass(frozen=True)
+class _Scene:
+    filename: str
+    page: str
+    caption: str
+    height_px: int
+
+
+def command_line(argv: list[str] | None = None) -> str:
+    """The command as typed: ``tcr-accuracy`` and the arguments (default: this process's)."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    if args and args[0] in ("tcr-accuracy", "tcr_accuracy"):
+        args = args[1:]
+    return shlex.join(["tcr-accuracy", *args])
+
+
+def versions() -> dict[str, str]:
+    """Versions of tcr-accuracy, Python, the platform and the libraries in VERSION_PACKAGES."""
+    from importlib import metadata
+
+    out = {"tcr-accuracy": __version__, "python": platform.python_version(),
+           "platform": f"{platform.system()} {platform.machine()}"}
+    for name in VERSION_PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def _cell(value, float_format: str) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return str(value)
+    if isinstance(value, int):
+        return str(value)
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return str(value)
+    if not isinstance(value, str):
+        if math.isnan(number):
+            return "NaN"
+        return float_format.format(number)
+    return str(value)
+
+
+class Report:
+    """An HTML (and Markdown) report under construction.
+
+    Parameters
+    ----------
+    title : str
+    command : str or list of str, optional
+        The command that produced the report (default: this process's arguments, see
+        :func:`command_line`).
+    """
+
+    def __init__(self, title: str, *, command: str | list[str] | None = None):
+        self.title = title
+        self.command = command if isinstance(command, str) else command_line(command)
+        # SOURCE_DATE_EPOCH (the reproducible-builds convention) pins the date, so that two
+        # runs with the same --seed write byte-identical reports
+        epoch = os.environ.get("SOURCE_DATE_EPOCH")
+        when = datetime.fromtimestamp(int(epoch), timezone.utc) if epoch and epoch.isdigit() \
+            else datetime.now(timezone.utc)
+        self.created = when.strftime("%Y-%m-%d %H:%M:%S UTC")
+        self.items: list = []
+        self._n_figures = 0
+        self._n_scenes = 0
+
+    # -- content ---------------------------------------------------------------------
+    def add_text(self, text: str, heading: str | None = None) -> None:
+        """A paragraph (blank lines start new paragraphs), optionally under a heading."""
+        self.items.append(_Text(str(text), heading))
+
+    def add_table(self, title: str, columns, rows, units=None, *, note: str | None = None,
+                  float_format: str = "{:.4g}") -> None:
+        """A table.
+
+        Parameters
+        ----------
+        title : str
+        columns : sequence of str, length n_columns
+        rows : sequence of sequences, each of length n_columns
+            Numbers are formatted with ``float_format``; other values with ``str``.
+        units : sequence of str, optional
+            One per column (``""`` for none): shown in the header as ``name [unit]``.
+        note : str, optional
+            A line under the table (source, settings).
+        """
+        columns = [str(c) for c in columns]
+        if units is not None:
+            units = list(units)
+            if len(units) != len(columns):
+                raise InputError(f"table {title!r}: {len(units)} units for {len(columns)} columns")
+            columns = [f"{c} [{u}]" if u else c for c, u in zip(columns, units)]
+        formatted = []
+        for i, row in enumerate(rows):
+            row = list(row)
+            if len(row) != len(columns):
+                raise InputError(f"table {title!r}: row {i + 1} has {len(row)} values for {len(columns)} columns")
+            formatted.append(tuple(_cell(v, float_format) for v in row))
+        self.items.append(_Table(str(title), tuple(columns), tuple(formatted), note))
+
+    def add_links(self, heading: str, links) -> None:
+        """A list of links (label, relative href), e.g. to the reports of sub-runs."""
+        self.items.append(_Links(str(heading), tuple((str(label), str(href)) for label, href in links)))
+
+    def add_figure(self, figure, caption: str, *, dpi: int = 110) -> str:
+        """A plot: a matplotlib ``Figure`` (saved as PNG now) or the path of a PNG file.
+
+        Returns the file name the PNG gets in the report folder.
+        """
+        if hasattr(figure, "savefig"):
+            buffer = io.BytesIO()
+            figure.savefig(buffer, format="png", dpi=dpi, bbox_inches="tight")
+            png = buffer.getvalue()
+        else:
+            path = Path(figure)
+            try:
+                png = path.read_bytes()
+            except OSError as exc:
+                raise InputError(f"{path}: cannot read figure ({exc.strerror})") from None
+            if not png.startswith(b"\x89PNG\r\n\x1a\n"):
+                raise InputError(f"{path}: not a PNG file")
+        self._n_figures += 1
+        filename = f"figure-{self._n_figures}.png"
+        self.items.append(_Figure(filename, png, str(caption)))
+        return filename
+
+    def add_scene(self, static_html: str, caption: str = "3D view", *, height_px: int = 540) -> str:
+        """A 3D view: the page of :meth:`tcr_accuracy.view.viewer.Scene.static_html`.
+
+        It is written next to ``index.html`` and shown in an iframe (with a link to open
+        it alone). Returns its file name.
+        """
+        self._n_scenes += 1
+        filename = f"scene-{self._n_scenes}.html"
+        self.items.append(_Scene(filename, str(static_html), str(caption), int(height_px)))
+        return filename
+
+    # -- rendering -------------------------------------------------------------------
+    def html(self) -> str:
+        """The index page (figures and scenes referenced by their file names)."""
+        esc = html.escape
+        body: list[str] = [f"<h1>{esc(self.title)}</h1>",
+                           f'<p class="meta">Written {esc(self.created)} by tcr-accuracy {esc(__version__)}.</p>']
+        for item in self.items:
+            if isinstance(item, _Text):
+                if item.heading:
+                    body.append(f"<h2>{esc(item.heading)}</h2>")
+                for para in (p.strip() for p in item.text.split("\n\n")):
+                    if para:
+                        body.append(f"<p>{esc(para)}</p>")
+            elif isinstance(item, _Table):
+                body.append(f"<h2>{esc(item.title)}</h2>")
+                head = "".join(f"<th>{esc(c)}</th>" for c in item.columns)
+                rows = "".join("<tr>" + "".join(f"<td>{esc(v)}</td>" for v in row) + "</tr>" for row in item.rows)
+                body.append(f'<table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>')
+                if item.note:
+                    body.append(f'<p class="note">{esc(item.note)}</p>')
+            elif isinstance(item, _Links):
+                body.append(f"<h2>{esc(item.heading)}</h2>")
+                body.append("<ul>" + "".join(f'<li><a href="{esc(href)}">{esc(label)}</a></li>'
+                                             for label, href in item.links) + "</ul>")
+            elif isinstance(item, _Figure):
+                body.append(f'<figure><img src="{esc(item.filename)}" alt="{esc(item.caption)}">'
+                            f"<figcaption>{esc(item.caption)}</figcaption></figure>")
+            elif isinstance(item, _Scene):
+                body.append(
+                    f'<figure class="scene"><iframe src="{esc(item.filename)}" title="{esc(item.caption)}" '
+                    f'style="height:{item.height_px}px"></iframe>'
+                    f'<figcaption>{esc(item.caption)} (<a href="{esc(item.filename)}">open alone</a>; '
+                    "drag to turn, scroll to zoom)</figcaption></figure>")
+        body.append("<h2>How this report was made</h2>")
+        body.append(f"<pre class=\"command\">{esc(self.command)}</pre>")
+        rows = "".join(f"<tr><td>{esc(k)}</td><td>{esc(v)}</td></tr>" for k, v in versions().items())
+        body.append(f'<table class="versions"><thead><tr><th>software</th><th>version</th></tr></thead>'
+                    f"<tbody>{rows}</tbody></table>")
+        return _PAGE.format(title=esc(self.title), css=_CSS, body="\n".join(body))
+
+    def markdown(self) -> str:
+        """The same content as Markdown (tables as pipe tables)."""
+
+        def md(text: str) -> str:
+            return text.replace("|", "\\|")
+
+        out = [f"# {self.title}", "", f"Written {self.created} by tcr-accuracy {__version__}.", ""]
+        for item in self.items:
+            if isinstance(item, _Text):
+                if item.heading:
+                    out += [f"## {item.heading}", ""]
+                out += [item.text.strip(), ""]
+            elif isinstance(item, _Table):
+                out += [f"## {item.title}", "",
+                        "| " + " | ".join(md(c) for c in item.columns) + " |",
+                        "|" + "|".join("---" for _ in item.columns) + "|"]
+                out += ["| " + " | ".join(md(v) for v in row) + " |" for row in item.rows]
+                out.append("")
+                if item.note:
+                    out += [item.note, ""]
+            elif isinstance(item, _Links):
+                out += [f"## {item.heading}", ""] + [f"- [{label}]({href})" for label, href in item.links] + [""]
+            elif isinstance(item, _Figure):
+                out += [f"![{item.caption}]({item.filename})", "", f"*{item.caption}*", ""]
+            elif isinstance(item, _Scene):
+                out += [f"[{item.caption} (3D, opens in a browser)]({item.filename})", ""]
+        out += ["## How this report was made", "", "```", self.command, "```", "",
+                "| software | version |", "|---|---|"]
+        out += [f"| {k} | {v} |" for k, v in versions().items()]
+        return "\n".join(out) + "\n"
+
+    def write(self, out_dir) -> Path:
+        """Write ``out_dir/index.html``, ``out_dir/report.md``, PNGs and scene pages.
+
+        Every file goes through a temporary file and a rename; ``index.html`` comes last.
+        Other files in ``out_dir`` are left alone. Returns the path of ``index.html``.
+        """
+        out_dir = Path(out_dir)
+        try:
+            out_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InputError(f"{out_dir}: cannot create the report folder ({exc.strerror})") from None
+        if not out_dir.is_dir():
+            raise InputError(f"{out_dir}: not a folder")
+        for item in self.items:
+            if isinstance(item, _Figure):
+                write_bytes_atomically(out_dir / item.filename, item.png)
+            elif isinstance(item, _Scene):
+                write_bytes_atomically(out_dir / item.filename, item.page.encode("utf-8"))
+        write_bytes_atomically(out_dir / "report.md", self.markdown().encode("utf-8"))
+        index = out_dir / "index.html"
+        write_bytes_atomically(index, self.html().encode("utf-8"))
+        return index
+
+
+_CSS = """
+body { font-family: system-ui, -apple-system, "Segoe UI", Roboto, sans-serif; color: #1d1d1f;
+  max-width: 1100px; margin: 24px auto; padding: 0 18px; line-height: 1.45; }
+h1 { font-size: 1.6em; margin-bottom: 0.2em; }
+h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ddd; padding-bottom: 0.2em; }
+.meta, .note, figcaption { color: #555; font-size: 0.9em; }
+table { border-collapse: collapse; margin: 0.6em 0; font-variant-numeric: tabular-nums; }
+th, td { border: 1px solid #ccc; padding: 4px 10px; text-align: right; }
+th { background: #f0f2f5; }
+td:first-child, th:first-child { text-align: left; }
+tbody tr:nth-child(even) { background: #fafafa; }
+figure { margin: 1em 0; }
+img { max-width: 100%; border: 1px solid #e3e3e3; }
+iframe { width: 100%; border: 1px solid #ccc; }
+pre.command { background: #f5f5f5; padding: 8px 10px; overflow-x: auto; }
+"""
+
+_PAGE = """<!DOCTYPE html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>{title}</title>
+<style>{css}</style>
+</head>
+<body>
+{body}
+</body>
+</html>
+"""

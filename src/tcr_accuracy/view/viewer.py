@@ -1,0 +1,459 @@
+"""3D views in meshcat: a scene of robots, TCP point clouds, error segments and a legend.
+
+Build a :class:`Scene`, add what should be seen, then either write one self-contained
+HTML file that opens in any browser with no server (:meth:`Scene.write_static_html`)
+or serve it live on localhost (:meth:`Scene.serve`)::
+
+    scene = Scene("tool-changer at the working pose")
+    scene.add_robot(robot, q, "nominal")
+    scene.add_robot(error_model.perturbed_robot(x), q, "as_built", color=(0.9, 0.2, 0.2), opacity=0.35)
+    scene.add_point_cloud(tcp_points_m, error_mm, "tcp_cloud", "|dP| [mm]")
+    scene.write_static_html("view.html")
+
+This module owns what a view holds and how it is framed: robots, point clouds coloured
+by a value, magnified error segments, trajectories, frames, the camera and ground grid,
+and the legend's content (:class:`ColorBar`, :class:`LegendEntry`, notes). Robot bodies
+come from the URDF visuals through :mod:`tcr_accuracy.view.robot_visuals`. The scene records
+meshcat's drawing commands in memory, and :mod:`tcr_accuracy.view.meshcat_page` turns the
+recording into a page: one static HTML file (no server, no port, no subprocess) or a
+live meshcat server on 127.0.0.1, with the legend as an HTML overlay (meshcat draws no
+text).
+
+Units: positions in metres (SI) as everywhere inside the package; the values that
+colour a point cloud are shown as given, with the unit in their label.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..exceptions import InputError
+from .meshcat_page import (LiveView, RecordingWindow, import_meshcat, legend_html, meshcat_color, serve_page,
+                           static_page)
+from ..model.robot import RobotModel
+from .robot_visuals import draw_robot
+
+#: Default colours (RGB in 0..1) for things the scene draws.
+COLORS = {
+    "as_built": (0.85, 0.15, 0.15),
+    "measured": (0.10, 0.35, 0.95),
+    "predicted": (0.95, 0.55, 0.05),
+    "segment": (0.10, 0.10, 0.10),
+    "trajectory": (0.00, 0.60, 0.30),
+    "nominal_tcp": (1.0, 1.0, 1.0),
+}
+
+
+def _as_points(points, what: str) -> np.ndarray:
+    points = np.asarray(points, dtype=float)
+    if points.ndim == 1 and points.shape == (3,):
+        points = points[None]
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise InputError(f"{what}: expected points of shape (N, 3) [m], got {points.shape}")
+    if not np.isfinite(points).all():
+        raise InputError(f"{what}: points contain NaN or infinite values")
+    return points
+
+
+# ---------------------------------------------------------------------------------------
+# Legends shown next to the 3D view
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ColorBar:
+    """A colour scale: ``label`` (with unit) from ``vmin`` to ``vmax``, sampled colours."""
+
+    label: str
+    vmin: float
+    vmax: float
+    colors: tuple  # RGB triples, low to high
+
+
+@dataclass(frozen=True)
+class LegendEntry:
+    """A swatch and a text line (e.g. "error segments x 100")."""
+
+    text: str
+    color: tuple | None = None
+
+
+@dataclass
+class _Bounds:
+    lo: np.ndarray = field(default_factory=lambda: np.full(3, np.inf))
+    hi: np.ndarray = field(default_factory=lambda: np.full(3, -np.inf))
+
+    def add(self, points: np.ndarray) -> None:
+        if len(points):
+            self.lo = np.minimum(self.lo, points.min(axis=0))
+            self.hi = np.maximum(self.hi, points.max(axis=0))
+
+    @property
+    def empty(self) -> bool:
+        return not np.all(np.isfinite(self.lo))
+
+
+# ---------------------------------------------------------------------------------------
+# The scene
+# ---------------------------------------------------------------------------------------
+class Scene:
+    """A meshcat scene under construction (see the module docstring).
+
+    Parameters
+    ----------
+    title : str
+        Shown above the view and as the page title.
+    grid : bool
+        Show meshcat's ground grid (z = 0 plane, 0.5 m squares).
+    """
+
+    def __init__(self, title: str = "tcr-accuracy", *, grid: bool = True):
+        meshcat, self._mg = import_meshcat()
+        self.title = title
+        self._window = RecordingWindow()
+        self.vis = meshcat.Visualizer(window=self._window)
+        self.color_bars: list[ColorBar] = []
+        self.legend: list[LegendEntry] = []
+        self.notes: list[str] = []
+        self._bounds = _Bounds()
+        self._camera: tuple[np.ndarray, np.ndarray] | None = None
+        self._grid = grid
+        self._finished = False
+        # a light background makes coloured points and dark segments readable
+        self.vis["/Background"].set_property("top_color", [0.97, 0.97, 0.98])
+        self.vis["/Background"].set_property("bottom_color", [0.80, 0.82, 0.86])
+
+    # -- content ---------------------------------------------------------------------
+    def add_robot(self, robot: RobotModel, q, name: str = "robot", color=None,
+                  opacity: float = 1.0, *, include_base: bool = True) -> None:
+        """Draw the robot's URDF visuals at joint values q.
+
+        Parameters
+        ----------
+        robot : RobotModel
+            Nominal or as-built (e.g. ``ErrorModel.perturbed_robot(x)``): the bodies hang
+            on the robot's own joint placements.
+        q : array-like of shape (n_joints,)
+            Joint values [rad, m].
+        name : str
+            Node name in the meshcat tree (also the legend text).
+        color : RGB triple in 0..1, optional
+            Paint every body in this colour (default: the URDF's materials).
+        opacity : float
+            1 opaque; below 1 a transparent "ghost".
+        include_base : bool
+            Draw the bodies fixed to the base (a ghost without base error would only
+            repaint the nominal robot's pedestal).
+        """
+        q = robot.check_joint_values(np.asarray(q, dtype=float), source=f"{name}: q")
+        if not 0.0 < opacity <= 1.0:
+            raise InputError(f"{name}: opacity {opacity} is outside (0, 1]")
+        points, skeleton = draw_robot(self.vis, robot, q, _node(name), color, opacity, include_base=include_base)
+        self._bounds.add(points)
+        what = " (skeleton: the URDF has no visuals)" if skeleton else ""
+        suffix = f", {round(opacity * 100)} % opaque" if opacity < 1.0 else ""
+        self.legend.append(LegendEntry(f"robot: {name}{what}{suffix}", tuple(color) if color is not None else None))
+
+    def add_point_cloud(self, points_m, values, name: str, label: str, *, cmap: str = "viridis",
+                        vmin: float | None = None, vmax: float | None = None,
+                        center_m=None, magnify: float = 1.0, size_m: float | None = None,
+                        center_label: str = "its centre") -> ColorBar:
+        """Points coloured by a value, with a colour bar in the legend.
+
+        Parameters
+        ----------
+        points_m : array-like of shape (N, 3)
+            Positions [m].
+        values : array-like of shape (N,)
+            What the colour shows (e.g. |dP| in mm), in the unit named by ``label``.
+        name : str
+            Node name.
+        label : str
+            Colour-bar label with its unit, e.g. ``"|dP| [mm]"``.
+        cmap : str
+            A matplotlib colormap name.
+        vmin, vmax : float, optional
+            Colour range (default: the values' range).
+        center_m : array-like of shape (3,), optional
+            With ``magnify``: points are drawn at ``center + magnify * (p - center)``
+            (errors of tenths of a millimetre become visible on a 2 m robot). The factor
+            is written in the legend.
+        magnify : float
+            Magnification about ``center_m`` (1: true positions).
+        center_label : str
+            What the centre is, for the legend ("the nominal TCP").
+        size_m : float, optional
+            Point size [m] (default: 1/60 of the cloud's drawn extent, at least 2 mm).
+        """
+        import matplotlib
+
+        points = _as_points(points_m, name)
+        values = np.asarray(values, dtype=float).reshape(-1)
+        if values.shape != (len(points),):
+            raise InputError(f"{name}: {values.size} values for {len(points)} points")
+        if not np.isfinite(values).all():
+            raise InputError(f"{name}: values contain NaN or infinite entries")
+        points = self._magnified(points, center_m, magnify, name)
+        lo = float(values.min()) if vmin is None else float(vmin)
+        hi = float(values.max()) if vmax is None else float(vmax)
+        if hi <= lo:
+            hi = lo + 1.0 if lo == 0 else lo + abs(lo) * 1e-6
+        try:
+            colormap = matplotlib.colormaps[cmap]
+        except KeyError:
+            raise InputError(f"colormap {cmap!r} is not a matplotlib colormap") from None
+        rgb = colormap(np.clip((values - lo) / (hi - lo), 0.0, 1.0))[:, :3]
+        if size_m is None:
+            extent = float(np.max(np.ptp(points, axis=0))) if len(points) > 1 else 0.0
+            size_m = max(extent / 60.0, 0.002)
+        self.vis[_node(name)].set_object(
+            self._mg.PointCloud(points.T.astype(np.float32), rgb.T.astype(np.float32), size=size_m))
+        self._bounds.add(points)
+        bar = ColorBar(label, lo, hi, tuple(tuple(float(c) for c in colormap(t)[:3])
+                                           for t in np.linspace(0.0, 1.0, 11)))
+        self.color_bars.append(bar)
+        if magnify != 1.0:
+            self.legend.append(LegendEntry(f"{name}: magnified x {magnify:g} about {center_label}"))
+        return bar
+
+    @staticmethod
+    def _magnified(points: np.ndarray, center_m, magnify: float, name: str) -> np.ndarray:
+        if not (math.isfinite(magnify) and magnify > 0):
+            raise InputError(f"{name}: magnification {magnify} must be a positive number")
+        if center_m is None:
+            if magnify != 1.0:
+                raise InputError(f"{name}: a magnification needs the centre to magnify about")
+            return points
+        center = _as_points(center_m, f"{name}: centre")[0]
+        return center + magnify * (points - center)
+
+    def add_tcp_error_cloud(self, robot: RobotModel, q, x, error_model=None, *, name: str = "tcp_cloud",
+                            magnify: float | None = None, ghost: bool = True) -> float:
+        """The TCP positions of as-built robots at joint values q, coloured by |dP| [mm].
+
+        Parameters
+        ----------
+        robot : RobotModel
+            The nominal robot (drawn by the caller with :meth:`add_robot`).
+        q : array-like of shape (n_joints,)
+            Joint values [rad, m].
+        x : array-like of shape (N, n_params)
+            Error vectors, e.g. ``ErrorBudget.sample(N, rng)``.
+        error_model : ErrorModel, optional
+            Layout of x (built from the robot when omitted).
+        magnify : float, optional
+            Magnification of the cloud about the nominal TCP (default:
+            :func:`auto_magnification` of the largest error).
+        ghost : bool
+            Also draw, transparent, the as-built robot of the sample with the largest |dP|,
+            its error vector scaled by the same factor (so its TCP sits, to first order,
+            on that sample's magnified point).
+
+        Returns
+        -------
+        float
+            The magnification used (also written in the legend).
+        """
+        from ..model.errors import ErrorModel
+        from ..model.kinematics import pose_error, tcp_poses
+
+        error_model = error_model or ErrorModel(robot)
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+        q = robot.check_joint_values(np.asarray(q, dtype=float), source=f"{name}: q")
+        nominal = tcp_poses(robot, q)
+        actual = tcp_poses(robot, q, x, error_model)
+        error = pose_error(nominal, actual)
+        worst = int(np.argmax(error.position_norm))
+        if magnify is None:
+            magnify = auto_magnification(float(error.position_norm[worst]))
+        self.add_point_cloud(actual.position, error.position_norm * 1000.0, name, "TCP error |dP| [mm]",
+                             center_m=nominal.position[0], magnify=magnify, center_label="the nominal TCP")
+        self.add_points(nominal.position, f"{name}_nominal", COLORS["nominal_tcp"], size_m=0.02,
+                        label="nominal TCP")
+        if ghost:
+            as_built = error_model.perturbed_robot(magnify * x[worst], name="as_built")
+            base_error = bool(np.any(x[worst][error_model.base_slice]))
+            self.add_robot(as_built, q, f"{name}_worst_as_built", color=COLORS["as_built"], opacity=0.35,
+                           include_base=base_error)
+            self.legend[-1] = LegendEntry(
+                f"as-built robot of the worst sample (|dP| = {error.position_norm[worst] * 1000:.3g} mm), "
+                f"errors x {magnify:g}", COLORS["as_built"])
+        return magnify
+
+    def add_points(self, points_m, name: str, color=(0.1, 0.35, 0.95), size_m: float = 0.01,
+                   label: str | None = None) -> None:
+        """Points in one colour (e.g. measured TCP positions), (N, 3) [m]."""
+        points = _as_points(points_m, name)
+        rgb = np.tile(np.asarray(color, dtype=np.float32)[:3, None], (1, len(points)))
+        self.vis[_node(name)].set_object(
+            self._mg.PointCloud(points.T.astype(np.float32), rgb, size=size_m))
+        self._bounds.add(points)
+        self.legend.append(LegendEntry(label or name, tuple(color)))
+
+    def add_error_segments(self, start_m, end_m, magnify: float = 1.0, name: str = "errors", *,
+                           start_label: str = "measured", end_label: str = "predicted",
+                           start_color=COLORS["measured"], end_color=COLORS["predicted"],
+                           size_m: float = 0.01) -> None:
+        """Pairs of points joined by segments, the gap magnified.
+
+        Parameters
+        ----------
+        start_m, end_m : array-like of shape (N, 3)
+            e.g. measured and predicted TCP positions [m].
+        magnify : float
+            Each end is drawn at ``start + magnify * (end - start)``; the factor is
+            written in the legend.
+        """
+        start = _as_points(start_m, f"{name}: start")
+        end = _as_points(end_m, f"{name}: end")
+        if start.shape != end.shape:
+            raise InputError(f"{name}: {len(start)} start points but {len(end)} end points")
+        if not (math.isfinite(magnify) and magnify > 0):
+            raise InputError(f"{name}: magnification {magnify} must be a positive number")
+        drawn_end = start + magnify * (end - start)
+        segments = np.empty((2 * len(start), 3))
+        segments[0::2], segments[1::2] = start, drawn_end
+        mg = self._mg
+        node = self.vis[_node(name)]
+        node["segments"].set_object(mg.LineSegments(
+            mg.PointsGeometry(segments.T.astype(np.float32)),
+            mg.LineBasicMaterial(color=meshcat_color(COLORS["segment"]))))
+        for key, pts, rgb in (("start", start, start_color), ("end", drawn_end, end_color)):
+            colors = np.tile(np.asarray(rgb, dtype=np.float32)[:3, None], (1, len(pts)))
+            node[key].set_object(mg.PointCloud(pts.T.astype(np.float32), colors, size=size_m))
+        self._bounds.add(start)
+        self._bounds.add(drawn_end)
+        self.legend.append(LegendEntry(start_label, tuple(start_color)))
+        self.legend.append(LegendEntry(
+            f"{end_label} (segments magnified x {magnify:g})" if magnify != 1.0 else end_label,
+            tuple(end_color)))
+
+    def add_trajectory(self, points_m, name: str = "trajectory", color=COLORS["trajectory"]) -> None:
+        """A polyline through (N, 3) points [m], in order."""
+        points = _as_points(points_m, name)
+        if len(points) < 2:
+            raise InputError(f"{name}: a trajectory needs at least 2 points, got {len(points)}")
+        mg = self._mg
+        self.vis[_node(name)].set_object(mg.Line(
+            mg.PointsGeometry(points.T.astype(np.float32)),
+            mg.LineBasicMaterial(color=meshcat_color(color), linewidth=2)))
+        self._bounds.add(points)
+        self.legend.append(LegendEntry(name, tuple(color)))
+
+    def add_frame(self, placement, name: str, length_m: float = 0.15) -> None:
+        """Axes of a frame (pin.SE3 or (4, 4) matrix) in red/green/blue for x/y/z."""
+        matrix = np.asarray(getattr(placement, "homogeneous", placement), dtype=float)
+        node = self.vis[_node(name)]
+        node.set_object(self._mg.triad(length_m))
+        node.set_transform(matrix)
+        self._bounds.add(matrix[None, :3, 3])
+
+    def add_note(self, text: str) -> None:
+        """A line of text under the legend (settings, units, what the view shows)."""
+        self.notes.append(text)
+
+    def set_camera(self, target_m, position_m) -> None:
+        """Look at ``target_m`` (3,) from ``position_m`` (3,) [m], base frame (z up)."""
+        target = np.asarray(target_m, dtype=float).reshape(3)
+        position = np.asarray(position_m, dtype=float).reshape(3)
+        self._camera = (target, position)
+
+    def recorded_commands(self) -> list[dict]:
+        """The meshcat commands of the scene as dicts (``type``, ``path``, ...), in replay order."""
+        import umsgpack
+
+        return [umsgpack.unpackb(c) for c in self._window.packed_commands()]
+
+    # -- output ----------------------------------------------------------------------
+    def _view_target(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(target, camera position) [m]: the one set, or one framing everything drawn."""
+        if self._camera is not None:
+            return self._camera
+        if self._bounds.empty:
+            return None
+        lo, hi = self._bounds.lo, self._bounds.hi
+        target = 0.5 * (lo + hi)
+        radius = max(0.5 * float(np.linalg.norm(hi - lo)), 0.3)
+        direction = np.array([1.0, -0.55, 0.45])
+        return target, target + 2.2 * radius * direction / np.linalg.norm(direction)
+
+    def _finish(self) -> None:
+        """Camera, ground grid and base axes, set once before output.
+
+        meshcat's orbit camera always turns about the world origin, so the whole scene
+        (everything lives under ``/meshcat``) is shifted to put the view target there; the
+        camera is then placed relative to it in its parent's axes (three.js, y up: the
+        base frame's (x, z, -y)). meshcat's own grid and axes would not follow the shift,
+        so they are hidden and drawn again under ``/meshcat``.
+        """
+        from meshcat.transformations import translation_matrix
+
+        view = self._view_target()
+        if view is None or self._finished:
+            return
+        self._finished = True
+        target, position = view
+        mg = self._mg
+        self.vis["/Grid"].set_property("visible", False)
+        self.vis["/Axes"].set_property("visible", False)
+        if self._grid:
+            lo = np.floor(np.minimum(self._bounds.lo, target) / 0.5 - 2) * 0.5
+            hi = np.ceil(np.maximum(self._bounds.hi, target) / 0.5 + 2) * 0.5
+            xs, ys = np.arange(lo[0], hi[0] + 1e-9, 0.5), np.arange(lo[1], hi[1] + 1e-9, 0.5)
+            lines = [((x, ys[0], 0.0), (x, ys[-1], 0.0)) for x in xs]
+            lines += [((xs[0], y, 0.0), (xs[-1], y, 0.0)) for y in ys]
+            self.vis["ground_grid"].set_object(mg.LineSegments(
+                mg.PointsGeometry(np.array(lines, dtype=np.float32).reshape(-1, 3).T),
+                mg.LineBasicMaterial(color=0x9a9a9a)))
+        self.vis["base_axes"].set_object(mg.triad(0.5))
+        self.vis.set_transform(translation_matrix(-target))
+        offset = position - target
+        self.vis["/Cameras/default/rotated/<object>"].set_property(
+            "position", [float(offset[0]), float(offset[2]), float(-offset[1])])
+
+    def static_html(self) -> str:
+        """One self-contained HTML page (meshcat's viewer, the scene, the legend); no server needed."""
+        self._finish()
+        return static_page(self._window, self.title, self._legend())
+
+    def write_static_html(self, path) -> Path:
+        """Write :meth:`static_html` to path atomically (temporary file + rename)."""
+        from ..atomic import write_text_atomically
+
+        path = Path(path)
+        write_text_atomically(path, self.static_html())
+        return path
+
+    def serve(self, open_browser: bool = False) -> LiveView:
+        """Serve the scene live on 127.0.0.1 (a meshcat server subprocess).
+
+        Returns a :class:`~tcr_accuracy.view.meshcat_page.LiveView` with the page's ``url``; call
+        ``close()`` (or use it as a context manager) to stop the server. Further ``add_*``
+        calls are not sent to a live view: build the scene first.
+        """
+        self._finish()
+        return serve_page(self._window, self.title, self._legend(), open_browser)
+
+    def _legend(self) -> str:
+        return legend_html(self.title, self.color_bars, self.legend, self.notes)
+
+
+def auto_magnification(largest_error_m: float, drawn_m: float = 0.8) -> float:
+    """A round factor (1, 2 or 5 times a power of ten, at least 1) that draws the largest
+    error at most about ``drawn_m`` long."""
+    if not (largest_error_m > 0 and math.isfinite(largest_error_m)):
+        return 1.0
+    raw = drawn_m / largest_error_m
+    if raw <= 1.0:
+        return 1.0
+    decade = 10.0 ** math.floor(math.log10(raw))
+    return max(m * decade for m in (1.0, 2.0, 5.0) if m * decade <= raw)
+
+
+def _node(name: str) -> str:
+    name = str(name).strip().strip("/")
+    if not name or any(c in name for c in "<>\"'"):
+        raise InputError(f"scene node name {name!r} is empty or has characters meshcat cannot use")
+    return name
