@@ -136,3 +136,20 @@ def test_building_the_parser_imports_no_heavy_library():
     loaded = set(json.loads(done.stdout.splitlines()[-1]))
     assert {"tcr_accuracy.cli.tolerance", "tcr_accuracy.cli.trajectory"} <= loaded
     assert not loaded & {"numpy", "pinocchio", "scipy", "meshcat", "SALib", "matplotlib"}
+
+
+def test_the_package_root_exports_the_api_lazily():
+    """``import tcr_accuracy`` loads nothing heavy; each exported name is the object its module defines."""
+    import importlib
+
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (SRC, env.get("PYTHONPATH", "")) if p)
+    script = "import json, sys\nimport tcr_accuracy\nprint(json.dumps(sorted(sys.modules)))"
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert not set(json.loads(done.stdout.splitlines()[-1])) & {"numpy", "pinocchio", "scipy"}
+    for name, module in tcr_accuracy._EXPORTS.items():
+        defined = getattr(importlib.import_module(f"tcr_accuracy.{module}"), name)
+        assert getattr(tcr_accuracy, name) is defined, name
+    with pytest.raises(AttributeError, match="no attribute 'diagnosis_of'"):
+        tcr_accuracy.diagnosis_of  # noqa: B018

@@ -1,8 +1,54 @@
 """tcr-accuracy: motion accuracy of serial robots, built on Pinocchio.
 
-Layers (each imports only from those before it): ``robot`` -> ``errors`` ->
-``kinematics`` -> analyses -> edges (``report``, ``viewer``, ``cli``). See the
-project's DESIGN notes and README.
+One folder per layer, each importing only from the layers before it (the README's
+"Architecture" section draws them): ``model`` (robot, URDF, error model, kinematics, gravity)
+-> ``io`` (measurement CSV) -> ``effects`` (the effect library) -> ``analysis`` (Monte Carlo,
+sensitivity, simulation, sampling) -> ``diagnosis`` -> ``prediction`` (predictors,
+compensation) -> ``view`` (reports, plots, meshcat) -> ``cli``.
+
+The names most scripts need are importable from here; they load on first use, so
+``import tcr_accuracy`` stays light::
+
+    import numpy as np
+    import tcr_accuracy as tcr
+
+    robot = tcr.load_robot("ur5")
+    poses = tcr.tcp_poses(robot, np.zeros(robot.n_joints))
 """
 
 __version__ = "0.1.0"
+
+#: public name -> module that defines it (loaded on first access, PEP 562)
+_EXPORTS = {
+    "load_robot": "model.robot", "RobotModel": "model.robot",
+    "ErrorModel": "model.errors", "ErrorBudget": "model.errors", "seed_budget": "model.errors",
+    "tcp_poses": "model.kinematics", "pose_error": "model.kinematics",
+    "error_jacobian": "model.jacobians", "error_jacobians": "model.jacobians",
+    "gravity_torque": "model.gravity", "as_built_urdf": "model.asbuilt",
+    "MeasurementSet": "io.measurements", "read_measurements": "io.measurements",
+    "write_measurements": "io.measurements",
+    "make_effect": "effects", "vocabulary": "effects", "Effect": "effects",
+    "run_monte_carlo": "analysis.montecarlo", "simulate_measurements": "analysis.simulate",
+    "random_scenario": "analysis.simulate", "load_scenario": "analysis.scenario",
+    "diagnose": "diagnosis.diagnose", "GapDiagnosis": "diagnosis.diagnose",
+    "make_predictor": "prediction.estimators", "MeasuredErrorModel": "prediction.estimators",
+    "compensate_joints": "prediction.compensation", "register_tracker": "prediction.registration",
+    "Scene": "view.viewer",
+}
+
+__all__ = ["__version__", *_EXPORTS]
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'tcr_accuracy' has no attribute {name!r}")
+    from importlib import import_module
+
+    value = getattr(import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)
