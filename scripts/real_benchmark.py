@@ -261,6 +261,7 @@ def main(argv=None) -> int:
     parser.add_argument("--methods", default="diagnosis+gp,diagnosis,calibration+gp,calibration,gp,kriging-pf,kriging",
                         help="comma-separated predict methods (default: %(default)s)")
     parser.add_argument("--no-predict", action="store_true", help="diagnose only")
+    parser.add_argument("--only", default=None, metavar="NAMES", help="comma-separated data set folders to run")
     args = parser.parse_args(argv)
     data = Path(args.data)
     if not data.is_dir():
@@ -270,6 +271,8 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         for name, settings, why in discover(data):
+            if args.only and name not in args.only.split(","):
+                continue
             if settings is None:
                 print(f"\n=== {name}: skipped: {why}")
                 results[name] = {"skipped": why}

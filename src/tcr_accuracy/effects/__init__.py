@@ -25,6 +25,7 @@ from .base import (
     Effect,
     EffectJacobian,
     EffectOutput,
+    ErrorVectorEffect,
     LinearEffect,
     PerJointEffect,
     effect_class,
@@ -51,7 +52,7 @@ for _module in pkgutil.iter_modules(__path__):
         importlib.import_module(f"{__name__}.{_module.name}")
 
 __all__ = [
-    "Effect", "EffectJacobian", "EffectOutput", "LinearEffect", "PerJointEffect", "effect_class",
+    "Effect", "EffectJacobian", "EffectOutput", "ErrorVectorEffect", "LinearEffect", "PerJointEffect", "effect_class",
     "effect_classes", "make_effect", "parameter_names", "plugged_in", "predict_poses", "predict_positions",
     "prediction_jacobian", "reference_poses", "split_parameters", "total_perturbation", "unregister",
     "vocabulary",

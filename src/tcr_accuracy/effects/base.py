@@ -233,6 +233,22 @@ class LinearEffect(Effect):
         return EffectOutput(dq=dq, x=x)
 
 
+class ErrorVectorEffect(LinearEffect):
+    """An effect whose parameters are entries of the error vector itself: ``<name>.<entry>``
+    sets the :class:`~tcr_accuracy.model.errors.ErrorModel` entry ``<entry>`` (``j3.dy``,
+    ``base.rz``); translations in m, rotations in rad."""
+
+    def parameter_units(self):
+        return ["m" if n.split(".")[-1].startswith("d") else "rad" for n in self.parameter_names()]
+
+    def parameter_jacobian(self, params, q, context):
+        em = self.error_model
+        cols = [em.index(n[len(self.name) + 1:]) for n in self.parameter_names()]
+        dx = np.zeros((em.size, len(cols)))
+        dx[cols, np.arange(len(cols))] = 1.0
+        return EffectJacobian(x=dx)
+
+
 class PerJointEffect(LinearEffect):
     """A joint-side effect with one parameter per joint: ``dq_j = p_j * signal_j(q, context)``.
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.errors import PLACEMENT_COMPONENTS
-from .base import EffectJacobian, LinearEffect
+from .base import ErrorVectorEffect
 
 
-class Frames(LinearEffect):
+class Frames(ErrorVectorEffect):
     """Unknown base (tracker) frame and TCP offset.
 
     Parameters: ``frames.base.dx .. rz`` (a twist applied on the left of the whole
@@ -34,17 +34,8 @@ class Frames(LinearEffect):
         return ([f"frames.base.{c}" for c in PLACEMENT_COMPONENTS]
                 + [f"frames.tool.{c}" for c in self._tool_components()])
 
-    def parameter_units(self):
-        return ["m" if n.split(".")[-1].startswith("d") else "rad" for n in self.parameter_names()]
-
     def parameter_scales(self):
         # the tracker sits anywhere: centimetres and degrees; the TCP offset: a millimetre
         scales = {"base.d": 1e-2, "base.r": 1e-2, "tool.d": 1e-3, "tool.r": 1e-3}
         return np.array([scales[".".join(n.split(".")[1:])[:6]] for n in self.parameter_names()])
 
-    def parameter_jacobian(self, params, q, context):
-        em = self.error_model
-        cols = [em.index(n[len("frames."):]) for n in self.parameter_names()]
-        dx = np.zeros((em.size, len(cols)))
-        dx[cols, np.arange(len(cols))] = 1.0
-        return EffectJacobian(x=dx)

@@ -6,10 +6,10 @@ import numpy as np
 
 from ..model.errors import PLACEMENT_COMPONENTS
 from ..exceptions import InputError
-from .base import EffectJacobian, LinearEffect
+from .base import ErrorVectorEffect
 
 
-class Geometry(LinearEffect):
+class Geometry(ErrorVectorEffect):
     """Error screws on every joint placement: ``parentMjoint <- parentMjoint * exp6(xi_j)``.
 
     Parameters ``geometry.<joint>.<dx|dy|dz|rx|ry|rz>`` [m, rad], the twist components
@@ -40,15 +40,6 @@ class Geometry(LinearEffect):
             names = [n for n in names if n in keep]
         return names
 
-    def parameter_units(self):
-        return ["m" if n.split(".")[-1].startswith("d") else "rad" for n in self.parameter_names()]
-
     def parameter_scales(self):
         return np.full(self.n_params, 2e-4)  # 0.2 mm, 0.2 mrad
 
-    def parameter_jacobian(self, params, q, context):
-        em = self.error_model
-        cols = [em.index(n[len("geometry."):]) for n in self.parameter_names()]
-        dx = np.zeros((em.size, len(cols)))
-        dx[cols, np.arange(len(cols))] = 1.0
-        return EffectJacobian(x=dx)
