@@ -173,8 +173,24 @@ def format_summary(robot, d, source: str) -> str:
                        f"{r['own_share_heldout_rms_mm']:9.4f} ({r['own_share_increase_mm']:+.4f})")
     for e in d.eliminated:
         out.append(f"   dropped again in backward elimination: {e['effect']} (z = {e['z']:.1f})")
-    out.append(f"   primary effect: {d.primary_effect or 'none beyond frames'}"
-               + (" (the largest own share)" if d.primary_effect else ""))
+    for swap in d.swaps:
+        out.append(f"   swapped after forward selection: {swap['in']} for {swap['out']} (as good held out, fewer "
+                   f"parameters: {swap['n_parameters'][swap['in']]} against {swap['n_parameters'][swap['out']]})")
+    if d.ambiguous:
+        out.append("   the data cannot tell apart (each swapped for the chosen one and refitted; held-out RMS, "
+                   "parameters):")
+        for group in d.ambiguous:
+            members = ", ".join(f"{m['effect']} {m['heldout_rms_mm']:.4f} mm / {m['n_parameters']}"
+                                for m in group["members"])
+            out.append(f"     {{{', '.join(group['effects'])}}}: {members}")
+    if d.primary_effect:
+        out.append(f"   primary effect: {d.primary_effect} (the largest own share)")
+    elif len(d.primary_group) > 1:
+        out.append(f"   primary effect: one of {{{', '.join(d.primary_group)}}} (the largest own share is "
+                   f"{d.primary_group[0]}'s, but the others explain the data as well: measure poses that separate "
+                   "them, see plan-poses)")
+    else:
+        out.append("   primary effect: none beyond frames")
     final = d.steps[-1].heldout.rms
     noise = d.noise
     source = "tracker" if noise is None or noise.source == "given" else f"estimated from the {noise.source}"
@@ -184,10 +200,19 @@ def format_summary(robot, d, source: str) -> str:
         out.append(f"   noise: {noise.detail}")
     st = d.structure
     along = ", ".join(robot.joint_names[j] for j in st.get("along_joints", []))
-    out.append(f"   structure remains: {'YES' if st['remains'] else 'no'} (k-NN along {along}: share "
+    verdict = {"yes": "YES", "no": "no", "cannot tell": f"cannot tell with {d.n_measurements} poses"}[
+        st.get("verdict", "yes" if st["remains"] else "no")]
+    out.append(f"   structure remains: {verdict} (k-NN along {along}: share "
                f"{st['gain_over_null']:+.3f} "
                f"beyond chance, z = {st['z']:.1f}; ridge on joint features share {st['ridge_explained_share']:+.3f}, "
                f"z = {st['ridge_z']:.1f}; limits: share > {st['min_explained']}, p < {st['alpha']})")
+    power = st.get("power", {})
+    if power:
+        seen = power.get("smallest_detectable_mm")
+        out.append(f"   power: {st.get('reason', '')}; "
+                   + (f"smallest structure it sees with {power['n_poses']} poses {seen:.4g} mm RMS"
+                      if seen is not None else
+                      f"some leftovers go unseen up to {power['largest_probed_mm']:.4g} mm with {power['n_poses']} poses"))
     sc = d.scatter
     if sc.get("tested", True):
         out.append(f"   random scatter beyond the tracker: {'YES' if sc['detected'] else 'no'} "

@@ -53,8 +53,10 @@ from ..exceptions import AnalysisError, InputError
 from .fitting import EffectBasis, FitEngine, Part, UnionBasis, ordered, paired_z, position_jacobians, register, stacked
 from ..model.gravity import gravity_torque
 from ..model.kinematics import tcp_poses
-from .residuals import NoiseEstimate, noise_from_repeats, noise_from_residual, scatter_test, structure_test, \
-    where_analysis
+from .ambiguity import ambiguity_report, settle_swaps, stand_in_shapes, swap_alternatives
+from .residuals import NoiseEstimate, noise_from_repeats, noise_from_residual, where_analysis
+from .structure import StructureDetector, scatter_test, smallest_detectable_structure, smooth_shape, \
+    structure_verdict
 from ..model.robot import RobotModel
 
 #: Noise figure [m per axis] the identifiability test resolves down to a tenth of when the
@@ -241,12 +243,19 @@ class GapDiagnosis:
         steps = [Step("frames", ("frames",), result["n_parameters"], ErrorStats.of(result["train_residual"]).rms,
                       ErrorStats.of(result["heldout_residual"]), None)]
         current = self._forward(engine, testable, steps, candidates, say)
+        resized = self._judge_at_fitted_sizes(engine, current, notes)
+        current, swaps = settle_swaps(engine, current, testable, self.selection_z, say)
         current, loo, eliminated = self._backward(engine, current, say)
-        selected = list(current)  # forward order, without what backward elimination dropped
+        selected = list(current)  # forward order, swaps in place, without what backward elimination dropped
         chosen = [e for e in selected if e != "frames"]
         final = engine.evaluate(ordered(current))
+        groups = swap_alternatives(engine, current, testable, self.selection_z)
+        ambiguous = ambiguity_report(groups)
         primary = max(loo, key=lambda row: row["own_share_increase_mm"])["dropped"] if loo else None
-        if eliminated:  # rebuild the shrink table along the forward order of what stayed
+        primary_group = [r["effect"] for r in groups.get(primary, [])] or ([primary] if primary else [])
+        if len(primary_group) > 1:
+            primary = None  # the data cannot say which of the group it is
+        if eliminated or swaps or resized:  # rebuild the shrink table along the forward order of what stayed
             steps = steps[:1]
             for k in range(1, len(selected)):
                 r = engine.evaluate(ordered(selected[:k + 1]))
@@ -254,8 +263,14 @@ class GapDiagnosis:
                 steps.append(Step(selected[k], tuple(ordered(selected[:k + 1])), r["n_parameters"],
                                   ErrorStats.of(r["train_residual"]).rms, ErrorStats.of(r["heldout_residual"]),
                                   paired_z(p_["heldout_residual"], r["heldout_residual"])))
+        if eliminated:
             notes.append("dropped again after forward selection (no significant held-out loss without them): "
                          + ", ".join(f"{e['effect']} (z = {e['z']:.1f})" for e in eliminated))
+        for swap in swaps:
+            notes.append(f"{swap['in']} replaces {swap['out']} (one-standard-error rule: held-out RMS "
+                         f"{swap['heldout_rms_mm'][swap['in']]:.4g} mm with {swap['n_parameters'][swap['in']]} "
+                         f"parameters against {swap['heldout_rms_mm'][swap['out']]:.4g} mm with "
+                         f"{swap['n_parameters'][swap['out']]})")
 
         # where (on the frames-only residual), structure, noise and scatter (on the final residual)
         say("where the gap lies")
@@ -264,9 +279,20 @@ class GapDiagnosis:
         where, semis = where_analysis(robot, obs.q, nominal[0].position, first(gap_residual), tau, context, rng=rng)
         say("testing the final residual")
         final_train = first(final["train_residual"])
-        structure = structure_test(obs.q, final_train, rng, kinds=robot.joint_kinds)
+        detector = StructureDetector(obs.q, rng, kinds=robot.joint_kinds)
+        structure = detector.test(final_train, rng)
         noise = self._noise(repeats, obs.q, final_train, final["n_parameters"], structure["remains"])
-        scatter = self._scatter(noise, final, stochastic, structure, notes)
+        scatter = self._scatter(noise, final, stochastic)
+        say("probing the structure test's power")
+        probe_rng = np.random.default_rng([self.seed, 1])
+        shapes = stand_in_shapes(engine, current, testable, probe_rng) or \
+            {"smooth joint function": smooth_shape(detector, probe_rng)}
+        structure["power"] = smallest_detectable_structure(detector, shapes, noise.per_axis, probe_rng)
+        leftover = math.sqrt(3.0) * (scatter["estimated_noise_per_axis_mm"] * 1e-3 if scatter["tested"]
+                                     else float(np.sqrt(np.mean(final_train**2))))
+        structure.update(structure_verdict(structure, structure["power"], scatter, math.sqrt(3.0) * noise.per_axis,
+                                           leftover))
+        self._name_scatter(scatter, structure, stochastic, noise, notes)
 
         # fitted parameters, as-built geometry, tracker frame
         keep, ident = engine.identify(tuple(ordered(selected)))
@@ -312,7 +338,8 @@ class GapDiagnosis:
             heldout_residual=first(held), gap_residual=first(gap_residual), q=obs.q,
             nominal_position=nominal[0].position, gravity_torque=tau, notes=notes, semivariograms=semis,
             effect_parameters=full_parameters, registration=(rot, trans), eliminated=eliminated,
-            n_fits=engine.n_fits, contribution=contribution, noise=noise,
+            n_fits=engine.n_fits, contribution=contribution, noise=noise, ambiguous=ambiguous, swaps=swaps,
+            primary_group=primary_group,
             frames_measured=[p.label for p in parts], heldout_by_frame=by_frame, orientation=orientation,
         )
         self.robot_ = robot
@@ -449,7 +476,7 @@ class GapDiagnosis:
         return noise_from_residual(q, residual, n_parameters, structured)
 
     @staticmethod
-    def _scatter(noise, final, stochastic, structure, notes) -> dict:
+    def _scatter(noise, final, stochastic) -> dict:
         if not noise.independent:
             return {"tested": False, "detected": False,
                     "why": "the noise was estimated from this residual; give the instrument's (--noise-mm) or "
@@ -459,12 +486,47 @@ class GapDiagnosis:
         scatter["tested"] = True
         if stochastic:
             scatter["stochastic_effects"] = stochastic
-        if scatter["detected"] and not structure["remains"]:
+        return scatter
+
+    @staticmethod
+    def _name_scatter(scatter, structure, stochastic, noise, notes) -> None:
+        """Scatter beyond the instrument without structure is named only when the structure
+        test could have seen a leftover of its size."""
+        if not scatter["detected"]:
+            return
+        if structure["verdict"] == "no":
             scatter["named"] = "clearance" if "clearance" in stochastic else "random scatter"
             notes.append(f"random scatter beyond the tracker noise: {scatter['estimated_noise_per_axis_mm']:.4f} mm "
                          f"per axis vs {noise.per_axis * 1e3:.4f} mm, without spatial structure: joint play "
                          "(clearance) or a noisier instrument")
-        return scatter
+        elif structure["verdict"] == "cannot tell":
+            notes.append(f"{scatter['estimated_noise_per_axis_mm']:.4f} mm per axis left against "
+                         f"{noise.per_axis * 1e3:.4f} mm of noise: whether it is structure or scatter cannot be told "
+                         f"({structure['reason']}); measure more poses")
+
+    def _judge_at_fitted_sizes(self, engine, current, notes, factor: float = 2.0) -> bool:
+        """Identifiability was judged at typical sizes; an effect fitted at more than ``factor``
+        times its typical size is re-judged at its fitted size (RMS of its scaled parameters), so
+        that columns too small to resolve at the typical size but not at the fitted one come back."""
+        final = engine.evaluate(ordered(current))
+        factors, offset = {}, 0
+        for e in ordered(current):
+            size = final["keep"][e].size
+            phi = final["phi"][offset:offset + size]
+            offset += size
+            if e != "frames" and size and float(np.sqrt(np.mean(phi**2))) > factor:
+                factors[e] = float(np.sqrt(np.mean(phi**2)))
+        before = {e: tuple(v) for e, v in engine.identify(tuple(ordered(current)))[0].items()}
+        if not engine.resize(factors):
+            return False
+        after = {e: tuple(v) for e, v in engine.identify(tuple(ordered(current)))[0].items()}
+        if after != before:
+            notes.append("identifiability re-judged at the fitted sizes ("
+                         + ", ".join(f"{e} {f:.3g} x typical" for e, f in factors.items())
+                         + f"): {sum(len(v) for v in after.values()) - sum(len(v) for v in before.values()):+d} "
+                         "parameters")
+            return True
+        return False
 
     @staticmethod
     def _contributions(part, bases, chosen, full_parameters, nominal) -> dict:

@@ -178,14 +178,15 @@ def paired_z(before: np.ndarray, after: np.ndarray) -> float:
 
     before, after : (N, 3) or (n_parts, N, 3) position errors; parts of a row add up.
     """
-    d = _row_squares(before) - _row_squares(after)
+    d = row_squares(before) - row_squares(after)
     sd = d.std(ddof=1)
     if sd == 0:
         return 0.0 if d.mean() == 0 else math.copysign(math.inf, d.mean())
     return float(d.mean() / (sd / math.sqrt(d.size)))
 
 
-def _row_squares(residual: np.ndarray) -> np.ndarray:
+def row_squares(residual: np.ndarray) -> np.ndarray:
+    """(N,) squared position error of each row, the parts of a row added up."""
     residual = np.asarray(residual)
     if residual.ndim == 2:
         return np.sum(residual**2, axis=1)
@@ -222,7 +223,20 @@ class FitEngine:
         self._full_cache: dict = {}
         self._keep_cache: dict = {}
         self._last: dict = {}  # effect -> last fitted full-length scaled parameters
+        self.size_factors: dict = {}  # effect -> fitted size / typical size (>= 1), see resize
         self.n_fits = 0
+
+    def resize(self, factors: dict) -> bool:
+        """Judge identifiability at fitted sizes: an effect fitted at f times its typical size
+        resolves columns f times smaller (min_motion / f). Returns whether anything changed
+        (the caches are then cleared: every set is re-identified and refitted)."""
+        factors = {e: float(f) for e, f in factors.items() if f > 1.0}
+        if factors == self.size_factors:
+            return False
+        self.size_factors = factors
+        self._keep_cache.clear()
+        self._full_cache.clear()
+        return True
 
     # -- identifiability -------------------------------------------------------------
     def identify(self, effects) -> tuple[dict, dict]:
@@ -241,8 +255,10 @@ class FitEngine:
             borrowed = "geometry" in order and "joint_offsets" not in order and "joint_offsets" in self.bases
             if borrowed:
                 order = ordered(order + ["joint_offsets"])
-            keep, report = identifiability({e: self.bases[e] for e in order}, order, self.rank_tol,
-                                           self.min_motion)
+            thresholds = {e: self.min_motion / self.size_factors.get(e, 1.0) for e in order}
+            keep, report = identifiability({e: self.bases[e] for e in order}, order, self.rank_tol, thresholds)
+            if self.size_factors:
+                report["fitted_size_factors"] = dict(self.size_factors)
             if borrowed:
                 keep.pop("joint_offsets")
                 report["effects"].pop("joint_offsets")

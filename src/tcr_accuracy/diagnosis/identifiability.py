@@ -11,7 +11,7 @@ import numpy as np
 from scipy import linalg
 
 
-def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: float = 0.0) -> tuple[dict, dict]:
+def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: float | dict = 0.0) -> tuple[dict, dict]:
     """Kept columns per effect and a report of what was removed and why.
 
     Each parameter's column of the identification Jacobian (N poses x 3 rows) is taken
@@ -21,14 +21,18 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
     (as FIGAROH does): the pivot is the motion of the part of the column that no earlier
     column explains. A column is unidentifiable when that independent motion is below
     ``min_motion`` [m RMS] (the measurements cannot resolve it) or below ``rank_tol``
-    times the column's own motion (a numerical duplicate).
+    times the column's own motion (a numerical duplicate). ``min_motion`` may be a dict
+    (effect -> threshold [m]) when effects are judged at sizes other than their typical ones.
     """
     kept_q = None  # orthonormal basis of the kept span, (3N, r)
     kept_cols, kept_names = [], []  # normalised kept columns and names, for naming duplicates
     keep: dict = {}
-    report: dict = {"rank_tol": rank_tol, "min_motion_mm": min_motion * 1e3, "effects": {}}
+    thresholds = min_motion if isinstance(min_motion, dict) else dict.fromkeys(order, min_motion)
+    report: dict = {"rank_tol": rank_tol, "min_motion_mm": max(thresholds.values(), default=0.0) * 1e3,
+                    "effects": {}}
     for name in order:
         b = bases[name]
+        threshold = thresholds.get(name, 0.0)
         n_pose = max(b.g.shape[0], 1)
         cols = (b.g * b.scales).reshape(-1, len(b.names))
         norms = np.linalg.norm(cols, axis=0)
@@ -41,7 +45,7 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
         rank = 0
         for k in range(diag.size):
             col = piv[k]
-            if diag[k] / math.sqrt(n_pose) > min_motion and diag[k] > rank_tol * norms[col]:
+            if diag[k] / math.sqrt(n_pose) > threshold and diag[k] > rank_tol * norms[col]:
                 rank += 1
             else:
                 break

@@ -1,11 +1,10 @@
-"""What is left after a fit: where a residual lies, whether it has structure, how noisy it is.
+"""What is left after a fit: where a residual lies and how noisy the measurements are.
 
 The diagnosis breaks the gap down over the workspace and the conditions
-(:func:`where_analysis`), tests whether its final residual can still be predicted from the
-joint values (:func:`structure_test`), estimates the measurement scatter when the
-instrument's is not given (:func:`estimate_noise`) and tests for scatter beyond a known
-instrument noise (:func:`scatter_test`). Lengths in m inside, mm in the returned dicts'
-``_mm`` keys.
+(:func:`where_analysis`) and estimates the measurement scatter when the instrument's is not
+given (:func:`noise_from_repeats`, :func:`noise_from_residual`); whether the final residual
+still has structure is :mod:`tcr_accuracy.diagnosis.structure`'s. Lengths in m inside, mm
+in the returned dicts' ``_mm`` keys.
 """
 
 from __future__ import annotations
@@ -14,7 +13,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 from ..model.robot import RobotModel
 from ..analysis.semivariogram import (
@@ -150,137 +148,6 @@ def where_analysis(robot: RobotModel, q: np.ndarray, nominal: np.ndarray, residu
     pairs.sort(key=lambda r: -r["knn_explained_share"])
     where["along_joint_pairs"] = pairs
     return where, semis
-
-
-def _nugget_ratio(semi, column) -> float:
-    try:
-        return float(fit_gaussian_variogram(semi, column).nugget_ratio)
-    except (ValueError, np.linalg.LinAlgError):
-        return 1.0
-
-
-
-# ---------------------------------------------------------------------------------------
-# Structure and scatter of the final residual
-# ---------------------------------------------------------------------------------------
-def _smooth_features(q: np.ndarray, kinds) -> np.ndarray:
-    """Smooth functions of the joints (N, F): per joint sin/cos of q and 2q (standardised
-    value and its square for prismatic joints) and the pairwise products of the first
-    harmonics, which is what a serial chain's kinematics is made of."""
-    first, cols = [], []
-    for j, kind in enumerate(kinds):
-        v = q[:, j]
-        if kind == "revolute":
-            a = [np.sin(v), np.cos(v)]
-            cols += a + [np.sin(2 * v), np.cos(2 * v)]
-        else:
-            z = (v - v.mean()) / (v.std() or 1.0)
-            a = [z]
-            cols += [z, z**2]
-        first.append(a)
-    for i in range(len(first)):
-        for k in range(i + 1, len(first)):
-            cols += [u * w for u in first[i] for w in first[k]]
-    return np.stack(cols, axis=1)
-
-
-def structure_test(q: np.ndarray, residual: np.ndarray, rng: np.random.Generator, kinds=None, k: int = 10,
-                   n_permutations: int = 100, alpha: float = 1e-3, min_explained: float = 0.05,
-                   folds: int = 5) -> dict:
-    """Is the residual (N, 3) still predictable from the joint values?
-
-    Two predictors, each judged out of sample:
-
-    * local: each residual predicted by the mean of its k nearest neighbours in
-      standardised joint space (scikit-learn), over all joints, each joint and each
-      pair of joints, compared with the same statistic after shuffling residuals over
-      poses (z against the permutation distribution, Bonferroni over the subsets);
-    * global: ridge regression (scikit-learn ``RidgeCV``) on smooth joint features
-      (:func:`_smooth_features`), k-fold cross-validated predictions, with a one-sided
-      paired z-test of the cut in squared residuals.
-
-    Structure remains when either predictor explains more than ``min_explained`` of the
-    residual variance beyond chance (p < alpha, resp. z above the matching quantile).
-    """
-    from sklearn.linear_model import RidgeCV
-    from sklearn.model_selection import KFold, cross_val_predict
-    from sklearn.neighbors import NearestNeighbors
-    from sklearn.pipeline import make_pipeline
-    from sklearn.preprocessing import StandardScaler
-
-    qs, _, _ = standardize(q)
-    centred = residual - residual.mean(axis=0)
-    total = np.sum(centred**2)
-    # an unmodelled effect often depends on a few joints: in all of joint space 6-D
-    # neighbours are far apart, along one joint or a pair they are close. Test all
-    # joints, each joint and each pair; Bonferroni over the subsets.
-    n_j = q.shape[1]
-    moving = [j for j in range(n_j) if np.std(q[:, j]) > 0]
-    subsets = [tuple(moving)] + [(j,) for j in moving]
-    subsets += [(a, b) for i, a in enumerate(moving) for b in moving[i + 1:]]
-    m = len(subsets)
-    perms = [rng.permutation(len(centred)) for _ in range(n_permutations)]
-    best = None
-    for subset in subsets:
-        nn = NearestNeighbors(n_neighbors=k + 1).fit(qs[:, subset])
-        idx = nn.kneighbors(qs[:, subset], return_distance=False)[:, 1:]
-
-        def explained(r, idx=idx):
-            return 1.0 - np.sum((r - r[idx].mean(axis=1)) ** 2) / total
-
-        actual = explained(centred)
-        null = np.array([explained(centred[perm]) for perm in perms])
-        gain = float(actual - null.mean())
-        # a few hundred permutations cannot resolve small p by counting: use their spread
-        z_sub = gain / max(float(null.std(ddof=1)), 1e-12)
-        row = {"joints": list(subset), "explained_share": float(actual), "null_mean": float(null.mean()),
-               "null_std": float(null.std(ddof=1)), "gain": gain, "z": z_sub}
-        if best is None or z_sub > best["z"]:
-            best = row
-    z_knn = best["z"]
-    gain = best["gain"]
-    p_knn = float(min(1.0, stats.norm.sf(z_knn) * m))
-    local = bool(p_knn < alpha and gain > min_explained)
-    actual, null_mean, null_std = best["explained_share"], best["null_mean"], best["null_std"]
-
-    kinds = kinds if kinds is not None else ["revolute"] * q.shape[1]
-    features = _smooth_features(q, kinds)
-    model = make_pipeline(StandardScaler(), RidgeCV(alphas=np.logspace(-3, 3, 13)))
-    split = KFold(n_splits=folds, shuffle=True, random_state=int(rng.integers(2**31 - 1)))
-    predicted = cross_val_predict(model, features, centred, cv=split)
-    ridge_share = float(1.0 - np.sum((centred - predicted) ** 2) / total)
-    d = np.sum(centred**2, axis=1) - np.sum((centred - predicted) ** 2, axis=1)
-    z = float(d.mean() / (d.std(ddof=1) / math.sqrt(d.size))) if d.std() > 0 else 0.0
-    z_crit = float(stats.norm.isf(alpha))
-    global_ = bool(z > z_crit and ridge_share > min_explained)
-
-    semi = empirical_semivariogram(q, residual, n_bins=12, rng=rng)
-    ratios = [_nugget_ratio(semi, c) for c in range(3)]
-    return {"statistic": "share of residual variance predicted out of sample from the joint values: "
-                         "k-NN (permutation test) and ridge on smooth joint features (paired z-test)",
-            "k": k, "explained_share": float(actual), "null_mean": null_mean, "null_std": null_std,
-            "z": z_knn, "p_value": p_knn, "gain_over_null": gain, "n_subsets": m,
-            "along_joints": best["joints"],
-            "ridge_explained_share": ridge_share, "ridge_z": z, "z_critical": z_crit,
-            "alpha": alpha, "min_explained": min_explained,
-            "semivariogram_nugget_ratio_xyz": ratios,
-            "local": local, "global": global_,
-            "remains": bool(local or global_)}
-
-
-def scatter_test(residual: np.ndarray, n_parameters: int, tracker_noise: float, alpha: float = 1e-3,
-                 min_ratio: float = 1.1) -> dict:
-    """Random scatter beyond the tracker noise (chi-square on the in-sample residual)."""
-    dof = max(residual.size - n_parameters, 1)
-    rss = float(np.sum(residual**2))
-    sigma = math.sqrt(rss / dof)
-    chi2_stat = rss / tracker_noise**2 if tracker_noise > 0 else math.inf
-    p = float(stats.chi2.sf(chi2_stat, dof)) if tracker_noise > 0 else 0.0
-    ratio = sigma / tracker_noise if tracker_noise > 0 else math.inf
-    extra = math.sqrt(max(sigma**2 - tracker_noise**2, 0.0))
-    return {"estimated_noise_per_axis_mm": sigma * 1e3, "tracker_noise_per_axis_mm": tracker_noise * 1e3,
-            "ratio": ratio, "p_value": p, "extra_per_axis_mm": extra * 1e3,
-            "detected": bool(p < alpha and ratio > min_ratio)}
 
 
 

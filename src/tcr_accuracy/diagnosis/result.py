@@ -136,6 +136,9 @@ class Diagnosis:
     frames_measured: list = field(default_factory=list)
     heldout_by_frame: dict = field(default_factory=dict)
     orientation: dict = field(default_factory=dict)
+    ambiguous: list = field(default_factory=list)  # groups of effects the data cannot tell apart
+    swaps: list = field(default_factory=list)  # one-standard-error swaps made after forward selection
+    primary_group: list = field(default_factory=list)  # the primary effect and what stands in for it
 
     def predict(self, robot: RobotModel, q: np.ndarray, context: MeasurementContext | None = None) -> np.ndarray:
         """TCP positions (N, 3) in the tracker frame [m] that the fitted model predicts
@@ -162,6 +165,9 @@ class Diagnosis:
             "steps": [s.to_dict() for s in self.steps],
             "selected_effects": list(self.selected_effects),
             "primary_effect": self.primary_effect,
+            "primary_group": list(self.primary_group),
+            "ambiguous": self.ambiguous,
+            "swaps": self.swaps,
             "leave_one_out": self.leave_one_out,
             "backward_eliminated": self.eliminated,
             "noise_floor_mm": self.noise_floor * 1e3,
@@ -171,6 +177,7 @@ class Diagnosis:
             "final_over_noise": last.heldout.rms / self.noise_floor if self.noise_floor > 0 else None,
             "extra_scatter": self.scatter,
             "structure_remains": self.structure_remains,
+            "structure_verdict": self.structure.get("verdict"),
             "structure": self.structure,
             "parameters": {e: {k: float(v) for k, v in p.items()} for e, p in self.parameters.items()},
             "parameter_units": self.parameter_units,

@@ -1,0 +1,141 @@
+"""Which chosen effects the data cannot tell from an unchosen one, and which of them to keep.
+
+Forward selection takes, at each step, the effect that cuts the held-out error most; an
+effect that can mimic another over the measured poses (an offset and two harmonics of a
+joint against a scale error on it, over a short range) may enter first and leave the
+other nothing to explain. Here every chosen effect is swapped for every unchosen one and
+the model refitted (the engine's k-fold held-out errors, same folds):
+
+* an alternative *stands in* for a chosen effect when the model with it is not
+  significantly worse (paired one-sided z of the per-measurement squared held-out errors
+  below ``selection_z``) yet explains significantly more than the model without either
+  (z above ``selection_z``);
+* the chosen effect and its stand-ins form an ambiguity group, reported with each
+  member's held-out figures;
+* within a group the **one-standard-error rule** picks the member to keep: of those whose
+  held-out mean squared error is within one standard error (of the paired difference) of
+  the group's best, the one with the fewest parameters; a swap the rule asks for is made
+  and the check repeated.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .fitting import FitEngine, ordered, paired_z, row_squares
+from .result import ErrorStats
+
+
+def swap_alternatives(engine: FitEngine, current: list, pool, selection_z: float) -> dict:
+    """For each chosen effect (not ``frames``), what stands in for it among the unchosen
+    effects of ``pool``: one effect, or one effect with a companion (an encoder scale error
+    needs the joint offsets that a transmission error's terms bring along). Returns chosen
+    effect -> list of rows (the chosen effect itself first), each with ``effects`` (what
+    replaces it), its held-out figures [mm], the model's parameter count and the two z values."""
+    final = engine.evaluate(ordered(current))
+    unchosen = [u for u in pool if u not in current]
+    groups = {}
+    for chosen in [e for e in current if e != "frames"]:
+        rest = [s for s in current if s != chosen]
+        without = engine.evaluate(ordered(rest))
+
+        def judged(replacement):
+            swapped = engine.evaluate(ordered(rest + list(replacement)))
+            return (swapped, paired_z(swapped["heldout_residual"], final["heldout_residual"]),
+                    paired_z(without["heldout_residual"], swapped["heldout_residual"]))
+
+        rows = [_row([chosen], final, z_worse=0.0, z_explains=paired_z(without["heldout_residual"],
+                                                                          final["heldout_residual"]))]
+        for alternative in unchosen:
+            swapped, z_worse, z_explains = judged([alternative])
+            if z_explains > selection_z and z_worse >= selection_z:  # explains, but not all: a companion?
+                completions = [(judged([alternative, w]), w) for w in unchosen if w != alternative]
+                if completions:
+                    (swapped, z_worse, z_explains), w = min(completions, key=lambda c: c[0][1])
+                    alternative = [alternative, w]
+            if z_worse < selection_z and z_explains > selection_z:
+                rows.append(_row(alternative if isinstance(alternative, list) else [alternative], swapped,
+                                 z_worse, z_explains))
+        groups[chosen] = rows
+    return groups
+
+
+def _row(effects: list, result: dict, z_worse: float, z_explains: float) -> dict:
+    held = ErrorStats.of(result["heldout_residual"])
+    return {"effect": "+".join(effects), "effects": list(effects), "heldout_rms_mm": held.rms * 1e3,
+            "heldout_mean_mm": held.mean * 1e3, "heldout_max_mm": held.max * 1e3,
+            "n_parameters": result["n_parameters"], "z_worse_than_chosen": z_worse, "z_over_neither": z_explains,
+            "_squares": row_squares(result["heldout_residual"])}
+
+
+def one_standard_error_choice(rows: list) -> dict:
+    """The row to keep: fewest parameters among those within one standard error of the best
+    held-out mean squared error (paired differences); ties go to the lower error."""
+    best = min(rows, key=lambda r: r["_squares"].mean())
+    within = []
+    for r in rows:
+        d = r["_squares"] - best["_squares"]
+        se = d.std(ddof=1) / math.sqrt(d.size) if d.size > 1 else 0.0
+        if d.mean() <= se:
+            within.append(r)
+    return min(within, key=lambda r: (r["n_parameters"], r["_squares"].mean()))
+
+
+def settle_swaps(engine: FitEngine, current: list, pool, selection_z: float, say) -> tuple[list, list]:
+    """Apply the one-standard-error rule to every ambiguity group until no swap is asked for
+    (each set is visited once, so it ends). Returns the new set and the swaps made."""
+    current = list(current)
+    swaps, seen = [], {frozenset(current)}
+    while True:
+        say("checking what the data cannot tell apart")
+        groups = swap_alternatives(engine, current, pool, selection_z)
+        move = None
+        for chosen, rows in groups.items():
+            if len(rows) > 1:
+                keep = one_standard_error_choice(rows)
+                at = current.index(chosen)
+                candidate = current[:at] + keep["effects"] + current[at + 1:]
+                if keep["effects"] != [chosen] and frozenset(candidate) not in seen:
+                    move = (rows[0], keep, candidate)
+                    break
+        if move is None:
+            return current, swaps
+        out, keep, current = move
+        seen.add(frozenset(current))
+        swaps.append({"out": out["effect"], "in": keep["effect"],
+                      "heldout_rms_mm": {out["effect"]: out["heldout_rms_mm"], keep["effect"]: keep["heldout_rms_mm"]},
+                      "n_parameters": {out["effect"]: out["n_parameters"], keep["effect"]: keep["n_parameters"]}})
+
+
+def ambiguity_report(groups: dict) -> list:
+    """The groups with more than one member, as JSON-ready dicts (largest group first)."""
+    out = []
+    for chosen, rows in groups.items():
+        if len(rows) > 1:
+            out.append({"chosen": chosen, "effects": [r["effect"] for r in rows],
+                        "members": [{k: v for k, v in r.items() if not k.startswith("_")} for r in rows]})
+    out.sort(key=lambda g: -len(g["effects"]))
+    return out
+
+
+def stand_in_shapes(engine: FitEngine, current: list, pool, rng: np.random.Generator) -> dict:
+    """(N, 3) TCP motion patterns of each unchosen effect of ``pool`` at a random draw of
+    its typical size, minus what the chosen model's own columns absorb (least squares on
+    the first measured frame): the kind of leftover an effect the model lacks would leave.
+    For the structure test's power probe."""
+    final_cols = engine.columns(ordered(current))
+    basis, g, idx = final_cols.per_part[0]
+    model = g[:, :3, :].reshape(-1, g.shape[2]) * final_cols.scale[idx] if g.shape[2] else None
+    shapes = {}
+    for u in [e for e in pool if e not in current and e in engine.bases]:
+        b = engine.bases[u]
+        g_u = b.per_part[0].g[:, :3, :]  # (N, 3, k) per unit of the union parameters' local columns
+        draw = rng.standard_normal(g_u.shape[2]) * b.scales[b.index[0]]
+        motion = (g_u @ draw).reshape(-1)
+        if model is not None:
+            motion = motion - model @ np.linalg.lstsq(model, motion, rcond=None)[0]
+        if np.any(motion):
+            shapes[u] = motion.reshape(-1, 3)
+    return shapes

@@ -1,0 +1,134 @@
+"""Which poses to measure next: a D-optimal design on the identification Jacobian.
+
+Effects the measured poses cannot tell apart (an ambiguity group of the diagnosis) become
+separable where their TCP motions differ: outside the joint range the data covered, or
+at combinations of joints it missed. Given the poses already measured and the effects to
+separate, :func:`plan_poses` picks K candidate configurations that add the most
+information about all their parameters together: greedy D-optimal design, each step
+taking the candidate that maximises log det(M + G_c^T G_c), where M is the Fisher
+information (J^T J of the columns at their typical sizes) of the poses so far and G_c the
+candidate's 3 x P block. With M^-1 known, the gain of every candidate is
+log det(I_3 + G_c M^-1 G_c^T) (matrix determinant lemma) and M^-1 is updated by Woodbury,
+so a step costs one batched 3 x 3 determinant per candidate.
+
+Hand-written: FIGAROH and Kalibrot design geometric calibration poses for their own
+parameterisations; neither takes the compliance, gear and scale effects of this
+project's vocabulary or a prior information matrix from poses already measured, and the
+greedy update is a few lines of numpy.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..effects import effect_class, make_effect
+from ..exceptions import InputError
+from ..model.context import MeasurementContext
+from ..model.errors import ErrorModel
+from ..model.robot import JointLimitWarning, RobotModel
+from .fitting import EffectBasis, Part, ordered, position_jacobians
+
+
+@dataclass
+class PosePlan:
+    """K suggested joint configurations and how much they add.
+
+    q : (K, n_joints) [rad, m], in the order they were picked
+    effects : the effects whose parameters the design is for
+    n_parameters : columns of the design
+    log_det_gain : log det of the information with the plan minus without (nats)
+    gain_per_pose : (K,) what each pick added at its turn
+    worst_std_before / worst_std_after : the largest parameter standard deviation in units
+        of its typical size, per unit measurement noise, before and after (A-criterion
+        companions of the D-criterion)
+    """
+
+    q: np.ndarray
+    effects: list
+    n_parameters: int
+    log_det_gain: float
+    gain_per_pose: np.ndarray
+    worst_std_before: float
+    worst_std_after: float
+
+
+def _design_columns(robot: RobotModel, q: np.ndarray, effects: list, context: MeasurementContext) -> np.ndarray:
+    """(N, 3, P) TCP position sensitivity of every parameter of ``effects`` at its typical size."""
+    part = Part(robot, q, np.zeros((len(q), 3)), context, robot.tool_frame)
+    em = ErrorModel(robot)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", JointLimitWarning)
+        jac_x = position_jacobians(robot, q)
+    blocks = []
+    for name in ordered(effects):
+        basis = EffectBasis(make_effect(name, robot), part, em, jac_x)
+        blocks.append(basis.g[:, :3, :] * basis.scales)
+    return np.concatenate(blocks, axis=2)
+
+
+def candidate_configurations(robot: RobotModel, n: int, rng: np.random.Generator) -> np.ndarray:
+    """(n, n_joints) joint values drawn uniformly within the joint limits (+-pi where a revolute
+    joint has none; a prismatic joint without limits cannot be sampled and is an input error)."""
+    lo, hi = robot.joint_bounds()
+    for j, kind in enumerate(robot.joint_kinds):
+        if kind != "revolute" and (np.isnan(robot.lower_limits[j]) or np.isnan(robot.upper_limits[j])):
+            raise InputError(f"joint {robot.joint_names[j]} is prismatic without limits: give --candidates")
+    return lo + (hi - lo) * rng.random((n, robot.n_joints))
+
+
+def plan_poses(robot: RobotModel, measured_q: np.ndarray, effects, k: int, *, candidates: np.ndarray | None = None,
+               n_candidates: int = 3000, payload_kg: float = 0.0, rng: np.random.Generator | None = None) -> PosePlan:
+    """Choose k configurations among ``candidates`` (default: ``n_candidates`` uniform within
+    the limits) that, added to the poses ``measured_q`` (N, n) [rad, m], best determine the
+    parameters of ``effects`` (``frames`` is always included) -- greedy D-optimal design.
+
+    payload_kg : the payload the new poses will be measured with (compliance's torques).
+    """
+    rng = rng if rng is not None else np.random.default_rng(0)
+    if k < 1:
+        raise InputError(f"-k {k}: need at least one pose")
+    effects = ordered(set(effects) | {"frames"})
+    stochastic = [e for e in effects if effect_class(e).stochastic]
+    if stochastic:
+        raise InputError(f"{', '.join(stochastic)}: stochastic effects have no parameters to design for")
+    if candidates is None:
+        candidates = candidate_configurations(robot, n_candidates, rng)
+    if len(candidates) < k:
+        raise InputError(f"{len(candidates)} candidate configurations for -k {k}: need at least k")
+
+    def context(n):
+        return MeasurementContext.defaults(n, robot.n_joints, payload_kg=payload_kg)
+
+    g_measured = _design_columns(robot, measured_q, effects, context(len(measured_q)))
+    g_cand = _design_columns(robot, candidates, effects, context(len(candidates)))
+    p = g_cand.shape[2]
+    info = np.einsum("nip,niq->pq", g_measured, g_measured)
+    # directions no pose so far moves: a small ridge keeps M invertible; its size (1e-6 of the
+    # mean diagonal, a typical-size parameter seen through a micrometre) leaves the ranking of
+    # candidates that do move them unaffected
+    ridge = 1e-6 * max(float(np.trace(info)) / p, float(np.mean(np.sum(g_cand**2, axis=(0, 1)))))
+    info = info + ridge * np.eye(p)
+    info_inv = np.linalg.inv(info)
+    worst_before = math.sqrt(float(np.max(np.diag(info_inv))))
+    start_logdet = np.linalg.slogdet(info)[1]
+    available = np.ones(len(candidates), dtype=bool)
+    picked, gains = [], []
+    for _ in range(k):
+        projected = np.einsum("nip,pq,njq->nij", g_cand, info_inv, g_cand)  # (n_c, 3, 3)
+        gain = np.linalg.slogdet(np.eye(3) + projected)[1]
+        gain[~available] = -np.inf
+        best = int(np.argmax(gain))
+        picked.append(best)
+        gains.append(float(gain[best]))
+        available[best] = False
+        block = g_cand[best]  # (3, p)
+        middle = np.linalg.inv(np.eye(3) + block @ info_inv @ block.T)
+        info_inv = info_inv - info_inv @ block.T @ middle @ block @ info_inv  # Woodbury
+        info = info + block.T @ block
+    return PosePlan(q=candidates[picked], effects=effects, n_parameters=p,
+                    log_det_gain=float(np.linalg.slogdet(info)[1] - start_logdet), gain_per_pose=np.array(gains),
+                    worst_std_before=worst_before, worst_std_after=math.sqrt(float(np.max(np.diag(info_inv)))))

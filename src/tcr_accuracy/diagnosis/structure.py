@@ -1,0 +1,251 @@
+"""Is a residual still predictable from the joint values, could the test have seen it, and is
+there scatter beyond the instrument's?
+
+* :class:`StructureDetector` -- the structure test (k-NN along joint subsets against a
+  permutation null, ridge on smooth joint features against a paired z), set up once for a
+  set of poses so that many residuals can be tested on the same neighbours and folds.
+* :func:`smallest_detectable_structure` -- its power: the smallest leftover of a given
+  shape that the test flags when added to the residual, found by injection. A test that
+  finds nothing says little unless it could have found something of the size in question.
+* :func:`structure_verdict` -- "yes", "no" or "cannot tell with N poses" from the test, its
+  power and the scatter test.
+* :func:`scatter_test` -- chi-square of the residual against a known instrument noise.
+
+Lengths in m inside; the returned dicts carry mm in ``_mm`` keys.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import stats
+
+from ..analysis.semivariogram import empirical_semivariogram, fit_gaussian_variogram, standardize
+
+#: Amplitudes [x the per-axis noise, RMS per axis] at which the power probe injects a
+#: leftover, smallest first; beyond the last the test is said to see nothing of that shape.
+PROBE_AMPLITUDES = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0)
+
+
+def _smooth_features(q: np.ndarray, kinds) -> np.ndarray:
+    """Smooth functions of the joints (N, F): per joint sin/cos of q and 2q (standardised
+    value and its square for prismatic joints) and the pairwise products of the first
+    harmonics, which is what a serial chain's kinematics is made of."""
+    first, cols = [], []
+    for j, kind in enumerate(kinds):
+        v = q[:, j]
+        if kind == "revolute":
+            a = [np.sin(v), np.cos(v)]
+            cols += a + [np.sin(2 * v), np.cos(2 * v)]
+        else:
+            z = (v - v.mean()) / (v.std() or 1.0)
+            a = [z]
+            cols += [z, z**2]
+        first.append(a)
+    for i in range(len(first)):
+        for k in range(i + 1, len(first)):
+            cols += [u * w for u in first[i] for w in first[k]]
+    return np.stack(cols, axis=1)
+
+
+def _nugget_ratio(semi, column) -> float:
+    try:
+        return float(fit_gaussian_variogram(semi, column).nugget_ratio)
+    except (ValueError, np.linalg.LinAlgError):
+        return 1.0
+
+
+class StructureDetector:
+    """The structure test on fixed poses q (N, n): is a residual (N, 3) predictable from q?
+
+    Two predictors, each judged out of sample:
+
+    * local: each residual predicted by the mean of its k nearest neighbours in
+      standardised joint space (scikit-learn), over all joints, each joint and each pair
+      of joints, compared with the same statistic after shuffling residuals over poses (z
+      against the permutation distribution, Bonferroni over the subsets);
+    * global: ridge regression (scikit-learn ``RidgeCV``) on smooth joint features
+      (:func:`_smooth_features`), k-fold cross-validated predictions, with a one-sided
+      paired z-test of the cut in squared residuals.
+
+    Structure remains when either predictor explains more than ``min_explained`` of the
+    residual variance beyond chance (p < alpha, resp. z above the matching quantile).
+    The neighbours, permutations and folds are drawn once (from ``rng``, in that order).
+    """
+
+    def __init__(self, q: np.ndarray, rng: np.random.Generator, kinds=None, k: int = 10,
+                 n_permutations: int = 100, alpha: float = 1e-3, min_explained: float = 0.05, folds: int = 5):
+        from sklearn.model_selection import KFold
+        from sklearn.neighbors import NearestNeighbors
+
+        self.q, self.k, self.alpha, self.min_explained = q, k, alpha, min_explained
+        qs, _, _ = standardize(q)
+        # an unmodelled effect often depends on a few joints: in all of joint space 6-D
+        # neighbours are far apart, along one joint or a pair they are close. Test all
+        # joints, each joint and each pair; Bonferroni over the subsets.
+        moving = [j for j in range(q.shape[1]) if np.std(q[:, j]) > 0]
+        subsets = [tuple(moving)] + [(j,) for j in moving]
+        subsets += [(a, b) for i, a in enumerate(moving) for b in moving[i + 1:]]
+        self.neighbours = []
+        for subset in subsets:
+            nn = NearestNeighbors(n_neighbors=min(k + 1, len(q))).fit(qs[:, subset])
+            self.neighbours.append((subset, nn.kneighbors(qs[:, subset], return_distance=False)[:, 1:]))
+        self.perms = [rng.permutation(len(q)) for _ in range(n_permutations)]
+        kinds = kinds if kinds is not None else ["revolute"] * q.shape[1]
+        self.features = _smooth_features(q, kinds)
+        self.split = KFold(n_splits=folds, shuffle=True, random_state=int(rng.integers(2**31 - 1)))
+
+    def _local(self, centred: np.ndarray, total: float) -> dict:
+        best = None
+        for subset, idx in self.neighbours:
+            def explained(r, idx=idx):
+                return 1.0 - np.sum((r - r[idx].mean(axis=1)) ** 2) / total
+
+            actual = explained(centred)
+            null = np.array([explained(centred[perm]) for perm in self.perms])
+            gain = float(actual - null.mean())
+            # a few hundred permutations cannot resolve small p by counting: use their spread
+            z_sub = gain / max(float(null.std(ddof=1)), 1e-12)
+            if best is None or z_sub > best["z"]:
+                best = {"joints": list(subset), "explained_share": float(actual), "null_mean": float(null.mean()),
+                        "null_std": float(null.std(ddof=1)), "gain": gain, "z": z_sub}
+        return best
+
+    def _global(self, centred: np.ndarray, total: float) -> tuple[float, float]:
+        from sklearn.linear_model import RidgeCV
+        from sklearn.model_selection import cross_val_predict
+        from sklearn.pipeline import make_pipeline
+        from sklearn.preprocessing import StandardScaler
+
+        model = make_pipeline(StandardScaler(), RidgeCV(alphas=np.logspace(-3, 3, 13)))
+        predicted = cross_val_predict(model, self.features, centred, cv=self.split)
+        share = float(1.0 - np.sum((centred - predicted) ** 2) / total)
+        d = np.sum(centred**2, axis=1) - np.sum((centred - predicted) ** 2, axis=1)
+        z = float(d.mean() / (d.std(ddof=1) / math.sqrt(d.size))) if d.std() > 0 else 0.0
+        return share, z
+
+    def remains(self, residual: np.ndarray) -> bool:
+        """Only the verdict (no semivariogram): what the power probe needs."""
+        return self.test(residual, rng=None)["remains"]
+
+    def test(self, residual: np.ndarray, rng: np.random.Generator | None = None) -> dict:
+        """The test's statistics and verdict for a residual (N, 3) [m]; with ``rng`` also the
+        nugget ratio of the residual's semivariogram per axis (for the report)."""
+        centred = residual - residual.mean(axis=0)
+        total = float(np.sum(centred**2)) or 1e-300
+        best = self._local(centred, total)
+        m = len(self.neighbours)
+        p_knn = float(min(1.0, stats.norm.sf(best["z"]) * m))
+        local = bool(p_knn < self.alpha and best["gain"] > self.min_explained)
+        ridge_share, ridge_z = self._global(centred, total)
+        z_crit = float(stats.norm.isf(self.alpha))
+        global_ = bool(ridge_z > z_crit and ridge_share > self.min_explained)
+        out = {"statistic": "share of residual variance predicted out of sample from the joint values: "
+                            "k-NN (permutation test) and ridge on smooth joint features (paired z-test)",
+               "k": self.k, "explained_share": best["explained_share"], "null_mean": best["null_mean"],
+               "null_std": best["null_std"], "z": best["z"], "p_value": p_knn, "gain_over_null": best["gain"],
+               "n_subsets": m, "along_joints": best["joints"], "ridge_explained_share": ridge_share,
+               "ridge_z": ridge_z, "z_critical": z_crit, "alpha": self.alpha, "min_explained": self.min_explained,
+               "local": local, "global": global_, "remains": bool(local or global_)}
+        if rng is not None:
+            semi = empirical_semivariogram(self.q, residual, n_bins=12, rng=rng)
+            out["semivariogram_nugget_ratio_xyz"] = [_nugget_ratio(semi, c) for c in range(3)]
+        return out
+
+
+def structure_test(q: np.ndarray, residual: np.ndarray, rng: np.random.Generator, kinds=None, **options) -> dict:
+    """:class:`StructureDetector` on q, applied once to ``residual`` (N, 3) [m]."""
+    return StructureDetector(q, rng, kinds, **options).test(residual, rng)
+
+
+def smooth_shape(detector: StructureDetector, rng: np.random.Generator) -> np.ndarray:
+    """(N, 3) a random smooth function of the joints (the detector's smooth features with
+    normal weights): a generic leftover for the power probe when no effect suggests one."""
+    features = detector.features - detector.features.mean(axis=0)
+    features = features / np.where(features.std(axis=0) > 0, features.std(axis=0), 1.0)
+    return features @ rng.standard_normal((features.shape[1], 3))
+
+
+def smallest_detectable_structure(detector: StructureDetector, shapes: dict, noise_per_axis: float,
+                                  rng: np.random.Generator) -> dict:
+    """Power of the structure test: the smallest leftover of each shape it flags on top of
+    the measurement noise.
+
+    shapes : name -> (N, 3) pattern (any scale), e.g. the TCP motion an effect that is not
+        in the model would leave once the model's own parameters have absorbed what they
+        can. Each is scaled to RMS per axis a x ``noise_per_axis`` for a in
+        :data:`PROBE_AMPLITUDES`, added to Gaussian noise of ``noise_per_axis`` [m] and
+        tested; the smallest amplitude flagged (found by bisection: detection grows with
+        the amplitude) is that shape's detectable size. The result's
+        ``smallest_detectable_mm`` is the largest over the shapes (RMS of the 3-D leftover):
+        a leftover of any of them at least that large would have been seen; None when some
+        shape was not seen even at the largest amplitude.
+    """
+    noise = rng.standard_normal((detector.q.shape[0], 3)) * noise_per_axis
+    per_shape = {}
+    for name, shape in shapes.items():
+        rms = math.sqrt(float(np.mean(shape**2)))
+        if rms == 0:
+            continue
+        # detection grows with the amplitude: bisect over the ladder (3 tests for 8 levels)
+        lo, hi = -1, len(PROBE_AMPLITUDES)  # not seen at lo (or below the ladder), seen at hi (or never)
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if detector.remains(noise + shape * (PROBE_AMPLITUDES[mid] * noise_per_axis / rms)):
+                hi = mid
+            else:
+                lo = mid
+        seen = PROBE_AMPLITUDES[hi] * noise_per_axis * math.sqrt(3.0) if hi < len(PROBE_AMPLITUDES) else None
+        per_shape[name] = None if seen is None else seen * 1e3
+        if seen is None:
+            break  # some leftover goes unseen: the answer is None whatever the other shapes give
+    sizes = list(per_shape.values())
+    worst = None if (not sizes or any(s is None for s in sizes)) else max(sizes)
+    return {"smallest_detectable_mm": worst, "per_shape_mm": per_shape,
+            "largest_probed_mm": PROBE_AMPLITUDES[-1] * noise_per_axis * math.sqrt(3.0) * 1e3,
+            "n_poses": int(detector.q.shape[0]),
+            "method": f"each shape added to Gaussian noise of {noise_per_axis * 1e3:.3g} mm per axis at RMS "
+                      "0.5, 1, 2, ... 64 x that and tested; the smallest flagged size, largest over the shapes"}
+
+
+def structure_verdict(structure: dict, power: dict, scatter: dict, noise_floor: float, residual_rms: float) -> dict:
+    """"yes" (structure found), "no" (none, and the test could have seen a leftover of the
+    size the data leave beyond the noise), or "cannot tell" (none found, but a leftover of
+    that size could hide from it with these poses). Sizes in m (noise floor and residual
+    RMS are 3-D RMS)."""
+    n = power.get("n_poses")
+    if structure["remains"]:
+        return {"verdict": "yes", "reason": "the structure test found it"}
+    smallest = power.get("smallest_detectable_mm")
+    excess = math.sqrt(max(residual_rms**2 - noise_floor**2, 0.0)) * 1e3
+    beyond_noise = bool(scatter.get("detected")) if scatter.get("tested") else False
+    if smallest is None:
+        blind = f"the test saw none of the probed leftovers even at {power.get('largest_probed_mm', 0):.3g} mm"
+        if beyond_noise or not scatter.get("tested"):
+            return {"verdict": "cannot tell", "reason": f"{blind} with {n} poses"}
+        return {"verdict": "no", "reason": f"no scatter beyond the noise to explain ({blind})"}
+    if beyond_noise and excess < smallest:
+        return {"verdict": "cannot tell",
+                "reason": f"{excess:.3g} mm RMS are left beyond the noise, but with {n} poses the test only sees "
+                          f"structure from {smallest:.3g} mm"}
+    if not scatter.get("tested") and smallest > noise_floor * 1e3:
+        return {"verdict": "cannot tell",
+                "reason": f"the noise was estimated from this residual, and with {n} poses the test only sees "
+                          f"structure from {smallest:.3g} mm, above the {noise_floor * 1e3:.3g} mm noise floor"}
+    return {"verdict": "no", "reason": f"the test would have seen a leftover from {smallest:.3g} mm RMS"}
+
+
+def scatter_test(residual: np.ndarray, n_parameters: int, tracker_noise: float, alpha: float = 1e-3,
+                 min_ratio: float = 1.1) -> dict:
+    """Random scatter beyond the tracker noise (chi-square on the in-sample residual)."""
+    dof = max(residual.size - n_parameters, 1)
+    rss = float(np.sum(residual**2))
+    sigma = math.sqrt(rss / dof)
+    chi2_stat = rss / tracker_noise**2 if tracker_noise > 0 else math.inf
+    p = float(stats.chi2.sf(chi2_stat, dof)) if tracker_noise > 0 else 0.0
+    ratio = sigma / tracker_noise if tracker_noise > 0 else math.inf
+    extra = math.sqrt(max(sigma**2 - tracker_noise**2, 0.0))
+    return {"estimated_noise_per_axis_mm": sigma * 1e3, "tracker_noise_per_axis_mm": tracker_noise * 1e3,
+            "ratio": ratio, "p_value": p, "extra_per_axis_mm": extra * 1e3,
+            "detected": bool(p < alpha and ratio > min_ratio)}
