@@ -183,14 +183,7 @@ def format_summary(robot, d, source: str) -> str:
             members = ", ".join(f"{m['effect']} {m['heldout_rms_mm']:.4f} mm / {m['n_parameters']}"
                                 for m in group["members"])
             out.append(f"     {{{', '.join(group['effects'])}}}: {members}")
-    if d.primary_effect:
-        out.append(f"   primary effect: {d.primary_effect} (the largest own share)")
-    elif len(d.primary_group) > 1:
-        out.append(f"   primary effect: one of {{{', '.join(d.primary_group)}}} (the largest own share is "
-                   f"{d.primary_group[0]}'s, but the others explain the data as well: measure poses that separate "
-                   "them, see plan-poses)")
-    else:
-        out.append("   primary effect: none beyond frames")
+    out.append(f"   primary effect: {_primary_text(d)}")
     final = d.steps[-1].heldout.rms
     noise = d.noise
     source = "tracker" if noise is None or noise.source == "given" else f"estimated from the {noise.source}"
@@ -200,9 +193,7 @@ def format_summary(robot, d, source: str) -> str:
         out.append(f"   noise: {noise.detail}")
     st = d.structure
     along = ", ".join(robot.joint_names[j] for j in st.get("along_joints", []))
-    verdict = {"yes": "YES", "no": "no", "cannot tell": f"cannot tell with {d.n_measurements} poses"}[
-        st.get("verdict", "yes" if st["remains"] else "no")]
-    out.append(f"   structure remains: {verdict} (k-NN along {along}: share "
+    out.append(f"   structure remains: {_verdict_text(d)} (k-NN along {along}: share "
                f"{st['gain_over_null']:+.3f} "
                f"beyond chance, z = {st['z']:.1f}; ridge on joint features share {st['ridge_explained_share']:+.3f}, "
                f"z = {st['ridge_z']:.1f}; limits: share > {st['min_explained']}, p < {st['alpha']})")
@@ -233,6 +224,21 @@ def format_summary(robot, d, source: str) -> str:
     for note in d.notes:
         out.append(f"   note: {note}")
     return "\n".join(out)
+
+
+def _primary_text(d) -> str:
+    if d.primary_effect:
+        return f"{d.primary_effect} (the largest own share)"
+    if len(d.primary_group) > 1:
+        return (f"one of {{{', '.join(d.primary_group)}}} (the largest own share is {d.primary_group[0]}'s, but "
+                "the others explain the data as well: measure poses that separate them, see plan-poses)")
+    return "none beyond frames"
+
+
+def _verdict_text(d) -> str:
+    st = d.structure
+    verdict = st.get("verdict", "yes" if st["remains"] else "no")
+    return {"yes": "YES", "no": "no", "cannot tell": f"cannot tell with {d.n_measurements} poses"}[verdict]
 
 
 def _strongest(where: dict) -> list:
@@ -332,10 +338,20 @@ def _report_tables(out, robot, d, source: str) -> None:
                   [(s.effect if i == 0 else "+" + s.effect, s.n_parameters, s.train_rms * mm, s.heldout.mean * mm,
                     s.heldout.rms * mm, s.heldout.max * mm) for i, s in enumerate(d.steps)],
                   units=["", "", "mm", "mm", "mm", "mm"],
-                  note=f"primary effect: {d.primary_effect or 'none beyond frames'}; final held-out RMS = "
+                  note=f"primary effect: {_primary_text(d)}; final held-out RMS = "
                        f"{d.steps[-1].heldout.rms / d.noise_floor:.2f} x the noise floor "
-                       f"{d.noise_floor * mm:.4f} mm; structure remains: "
-                       f"{'YES' if d.structure['remains'] else 'no'}")
+                       f"{d.noise_floor * mm:.4f} mm; structure remains: {_verdict_text(d)} "
+                       f"({d.structure.get('reason', '')})")
+    if d.ambiguous:
+        out.add_table("What the data cannot tell apart",
+                      ["group", "member", "held-out RMS", "held-out mean", "parameters", "z (worse than chosen)"],
+                      [("{" + ", ".join(g["effects"]) + "}", m["effect"], m["heldout_rms_mm"], m["heldout_mean_mm"],
+                        m["n_parameters"], m["z_worse_than_chosen"]) for g in d.ambiguous for m in g["members"]],
+                      units=["", "", "mm", "mm", "", ""],
+                      note="each chosen effect swapped for each unchosen one (with a companion effect where it "
+                           "needs one) and refitted: a member is no significantly worse than the chosen one (paired "
+                           "z < the selection threshold) yet explains significantly more than neither. "
+                           "tcr-accuracy plan-poses suggests poses that separate them.")
     if d.leave_one_out:
         out.add_table("Leave one out of the chosen set",
                       ["dropped", "held-out RMS (others refitted)", "increase", "held-out RMS (own share)",

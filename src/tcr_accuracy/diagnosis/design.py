@@ -19,7 +19,6 @@ greedy update is a few lines of numpy.
 
 from __future__ import annotations
 
-import math
 import warnings
 from dataclasses import dataclass
 
@@ -42,9 +41,9 @@ class PosePlan:
     n_parameters : columns of the design
     log_det_gain : log det of the information with the plan minus without (nats)
     gain_per_pose : (K,) what each pick added at its turn
-    worst_std_before / worst_std_after : the largest parameter standard deviation in units
-        of its typical size, per unit measurement noise, before and after (A-criterion
-        companions of the D-criterion)
+    resolved_before / resolved_after : how many independent parameter combinations the
+        measurements determine to better than their typical size at the given noise
+        (eigenvalues of the information above noise^2), before and after the plan
     """
 
     q: np.ndarray
@@ -52,8 +51,8 @@ class PosePlan:
     n_parameters: int
     log_det_gain: float
     gain_per_pose: np.ndarray
-    worst_std_before: float
-    worst_std_after: float
+    resolved_before: int
+    resolved_after: int
 
 
 def _design_columns(robot: RobotModel, q: np.ndarray, effects: list, context: MeasurementContext) -> np.ndarray:
@@ -81,12 +80,14 @@ def candidate_configurations(robot: RobotModel, n: int, rng: np.random.Generator
 
 
 def plan_poses(robot: RobotModel, measured_q: np.ndarray, effects, k: int, *, candidates: np.ndarray | None = None,
-               n_candidates: int = 3000, payload_kg: float = 0.0, rng: np.random.Generator | None = None) -> PosePlan:
+               n_candidates: int = 3000, payload_kg: float = 0.0, noise_m: float = 2e-5,
+               rng: np.random.Generator | None = None) -> PosePlan:
     """Choose k configurations among ``candidates`` (default: ``n_candidates`` uniform within
     the limits) that, added to the poses ``measured_q`` (N, n) [rad, m], best determine the
     parameters of ``effects`` (``frames`` is always included) -- greedy D-optimal design.
 
     payload_kg : the payload the new poses will be measured with (compliance's torques).
+    noise_m : measurement noise per axis [m], for counting the resolved parameter combinations.
     """
     rng = rng if rng is not None else np.random.default_rng(0)
     if k < 1:
@@ -111,9 +112,12 @@ def plan_poses(robot: RobotModel, measured_q: np.ndarray, effects, k: int, *, ca
     # mean diagonal, a typical-size parameter seen through a micrometre) leaves the ranking of
     # candidates that do move them unaffected
     ridge = 1e-6 * max(float(np.trace(info)) / p, float(np.mean(np.sum(g_cand**2, axis=(0, 1)))))
+    def resolved(information):
+        return int(np.sum(np.linalg.eigvalsh(information) > noise_m**2))
+
+    resolved_before = resolved(info)
     info = info + ridge * np.eye(p)
     info_inv = np.linalg.inv(info)
-    worst_before = math.sqrt(float(np.max(np.diag(info_inv))))
     start_logdet = np.linalg.slogdet(info)[1]
     available = np.ones(len(candidates), dtype=bool)
     picked, gains = [], []
@@ -131,4 +135,4 @@ def plan_poses(robot: RobotModel, measured_q: np.ndarray, effects, k: int, *, ca
         info = info + block.T @ block
     return PosePlan(q=candidates[picked], effects=effects, n_parameters=p,
                     log_det_gain=float(np.linalg.slogdet(info)[1] - start_logdet), gain_per_pose=np.array(gains),
-                    worst_std_before=worst_before, worst_std_after=math.sqrt(float(np.max(np.diag(info_inv)))))
+                    resolved_before=resolved_before, resolved_after=resolved(info - ridge * np.eye(p)))

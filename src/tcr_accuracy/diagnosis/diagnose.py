@@ -18,16 +18,24 @@ own frame, optional context); the nominal model is a
    (:mod:`tcr_accuracy.diagnosis.identifiability`): a parameter whose own part moves the TCP less
    than a tenth of the noise is named and removed with what it duplicates. Effects
    enter by forward selection on k-fold held-out error when a one-sided paired test on
-   the per-measurement held-out squared errors gives z > ``selection_z``; backward
-   elimination drops a chosen effect that the others can replace (same test).
+   the per-measurement held-out squared errors gives z > ``selection_z``. Identifiability
+   is then re-judged at the fitted sizes (an effect fitted at 13x its typical size
+   resolves columns 13x smaller). Forward selection is greedy: every chosen effect is
+   swapped for every unchosen one (:mod:`tcr_accuracy.diagnosis.ambiguity`); where the
+   data cannot tell them apart, the one-standard-error rule keeps the one with fewer
+   parameters, and the group is reported. Backward elimination drops a chosen effect
+   that the others can replace (same test).
 4. **How far it shrinks.** Held-out mean/RMS/max after each step; a leave-one-out table
    over the chosen set, two ways: with the others refitted and free to take the dropped
    effect's place (what backward elimination uses), and with the others held to the
    parameters they have in the final model (the dropped effect's *own share*, under the
    vocabulary's convention that an earlier effect keeps what a later one duplicates);
-   the **primary effect** is the one with the largest own share. Then the final residual
-   next to the noise floor, whether structure remains in joint space and whether there
-   is scatter beyond the instrument's (:mod:`tcr_accuracy.diagnosis.residuals`).
+   the **primary effect** is the one with the largest own share, named only when nothing
+   stands in for it (else the answer is its ambiguity group). Then the final residual
+   next to the noise floor, whether structure remains in joint space, whether the test
+   had the power to see a leftover of the size left (else "cannot tell"), whether there
+   is scatter beyond the instrument's (:mod:`tcr_accuracy.diagnosis.structure`), and
+   whether the deflections are small enough for the first-order effect models.
 
 The noise is not assumed: without ``tracker_noise`` it comes from repeated poses, else
 from the final residual (:func:`~tcr_accuracy.diagnosis.residuals.noise_from_residual`), and the
@@ -48,6 +56,7 @@ from scipy.spatial.transform import Rotation
 from ..model.context import CONTEXT_FIELDS, MeasurementContext
 from .result import Diagnosis, ErrorStats, Observations, Step, observations_from
 from ..effects import effect_class, make_effect, vocabulary
+from ..effects.compose import fixed_point_motion
 from ..model.errors import ErrorModel
 from ..exceptions import AnalysisError, InputError
 from .fitting import EffectBasis, FitEngine, Part, UnionBasis, ordered, paired_z, position_jacobians, register, stacked
@@ -314,6 +323,7 @@ class GapDiagnosis:
             if effect_class(e).geometric:
                 as_built += b.per_part[0].basis[0] @ full
         contribution = self._contributions(parts[0], bases, chosen, full_parameters, nominal[0].position)
+        second_order = self._second_order(parts[0], full_parameters, math.sqrt(3.0) * noise.per_axis, notes)
         base_twist = as_built[em.base_slice].copy()
         as_built[em.base_slice] = 0.0  # the base twist belongs to the tracker frame, not the robot
         tracker = np.eye(4)
@@ -339,7 +349,7 @@ class GapDiagnosis:
             nominal_position=nominal[0].position, gravity_torque=tau, notes=notes, semivariograms=semis,
             effect_parameters=full_parameters, registration=(rot, trans), eliminated=eliminated,
             n_fits=engine.n_fits, contribution=contribution, noise=noise, ambiguous=ambiguous, swaps=swaps,
-            primary_group=primary_group,
+            primary_group=primary_group, second_order=second_order,
             frames_measured=[p.label for p in parts], heldout_by_frame=by_frame, orientation=orientation,
         )
         self.robot_ = robot
@@ -527,6 +537,23 @@ class GapDiagnosis:
                          "parameters")
             return True
         return False
+
+    @staticmethod
+    def _second_order(part, full_parameters, noise_floor, notes) -> dict:
+        """The fitted model is first order in its joint deflections (gravity at the commanded
+        pose): how much one fixed-point step (gravity at the deflected pose) would move the TCP,
+        against the noise floor; a note when it is more than a quarter of it."""
+        effects = [make_effect(e, part.robot) for e in full_parameters]
+        motion = fixed_point_motion(part.robot, effects, list(full_parameters.values()), part.q, part.context)
+        rms = float(np.sqrt(np.mean(np.sum(motion**2, axis=1))))
+        out = {"fixed_point_step_rms_mm": rms * 1e3, "fixed_point_step_max_mm": float(
+            np.max(np.linalg.norm(motion, axis=1))) * 1e3, "over_noise_floor": rms / noise_floor if noise_floor else None,
+            "within_range": bool(rms <= 0.25 * noise_floor)}
+        if not out["within_range"]:
+            notes.append(f"the fitted deflections are large enough that first order is not enough: evaluated at the "
+                         f"deflected pose (gravity where the arm sags to) they move the TCP by {rms * 1e3:.4g} mm RMS "
+                         f"more, {rms / noise_floor:.2g} x the noise floor; what is left may partly be that")
+        return out
 
     @staticmethod
     def _contributions(part, bases, chosen, full_parameters, nominal) -> dict:

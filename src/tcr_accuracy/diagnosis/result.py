@@ -139,6 +139,7 @@ class Diagnosis:
     ambiguous: list = field(default_factory=list)  # groups of effects the data cannot tell apart
     swaps: list = field(default_factory=list)  # one-standard-error swaps made after forward selection
     primary_group: list = field(default_factory=list)  # the primary effect and what stands in for it
+    second_order: dict = field(default_factory=dict)  # what one fixed-point step of the deflections adds
 
     def predict(self, robot: RobotModel, q: np.ndarray, context: MeasurementContext | None = None) -> np.ndarray:
         """TCP positions (N, 3) in the tracker frame [m] that the fitted model predicts
@@ -168,6 +169,7 @@ class Diagnosis:
             "primary_group": list(self.primary_group),
             "ambiguous": self.ambiguous,
             "swaps": self.swaps,
+            "second_order": self.second_order,
             "leave_one_out": self.leave_one_out,
             "backward_eliminated": self.eliminated,
             "noise_floor_mm": self.noise_floor * 1e3,

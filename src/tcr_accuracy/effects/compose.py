@@ -60,6 +60,25 @@ def predict_poses(robot: RobotModel, effects: Sequence[Effect], params_list, q,
     return tcp_poses(robot, q + dq, x if x.any() else None, em if x.any() else None)
 
 
+def fixed_point_motion(robot: RobotModel, effects: Sequence[Effect], params_list, q,
+                       context: MeasurementContext | None = None) -> np.ndarray:
+    """(N, 3) [m] how far the TCP moves when the effects' joint offsets are evaluated at the
+    deflected joints q + dq instead of the commanded q (one fixed-point step).
+
+    The effects are first order in their own deflection: compliance takes the gravity
+    torque at the commanded pose, not at the pose it sags to. This is the size of what that
+    leaves out (zero for offsets that do not depend on q, tiny for scale errors).
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    context = _as_context(context, q.shape[0], robot.n_joints)
+    dq, x = total_perturbation(robot, effects, params_list, q, context)
+    dq_at_deflected, _ = total_perturbation(robot, effects, params_list, q + dq, context)
+    em = ErrorModel(robot)
+    first = tcp_poses(robot, q + dq, x if x.any() else None, em if x.any() else None).position
+    second = tcp_poses(robot, q + dq_at_deflected, x if x.any() else None, em if x.any() else None).position
+    return second - first
+
+
 def predict_positions(robot: RobotModel, effects: Sequence[Effect], params_list, q,
                       context: MeasurementContext | None = None) -> np.ndarray:
     """(N, 3) TCP positions [m] of the robot the effects describe (see :func:`predict_poses`)."""

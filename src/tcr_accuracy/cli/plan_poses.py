@@ -1,0 +1,138 @@
+"""``tcr-accuracy plan-poses``: which poses to measure next so that the diagnosis can tell
+apart what the measured ones cannot.
+
+Edge layer: reads the measurement CSV, runs the diagnosis (unless ``--effects`` names what
+to design for), runs :func:`tcr_accuracy.diagnosis.design.plan_poses`, prints what the
+plan adds and writes the poses as a CSV of joint values (deg, mm) ready to measure.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from .common import add_robot_arguments, emit_json
+
+
+def add_parsers(sub) -> None:
+    p = sub.add_parser(
+        "plan-poses", help="choose the next poses to measure (D-optimal, separates ambiguous effects)",
+        description="From the measured poses and the effects of their diagnosis (the chosen ones and "
+                    "every effect the data cannot tell apart from them), choose K joint configurations "
+                    "within the joint limits (or from a candidate CSV) that add the most information "
+                    "about all their parameters together (greedy D-optimal design on the identification "
+                    "Jacobian), and write them as a CSV of joint values (deg, mm) to measure.",
+    )
+    p.add_argument("measurements", metavar="MEASUREMENTS.csv", help="the measurements so far (see README)")
+    add_robot_arguments(p)
+    p.add_argument("-k", "--poses", type=int, default=30, help="how many poses to suggest (default 30)")
+    p.add_argument("--out", required=True, metavar="FILE.csv", help="where to write the suggested poses")
+    p.add_argument("--effects", default=None, metavar="LIST",
+                   help="comma-separated effects to design for (default: diagnose the measurements and take "
+                        "the chosen effects and their ambiguity groups)")
+    p.add_argument("--candidates", default=None, metavar="FILE.csv",
+                   help="choose among these joint configurations (a CSV with the robot's joint columns, "
+                        "e.g. the reachable poses of a task); default: uniform within the joint limits")
+    p.add_argument("--n-candidates", type=int, default=3000,
+                   help="random candidates when --candidates is not given (default 3000)")
+    p.add_argument("--payload-kg", type=float, default=None,
+                   help="payload the new poses will be measured with [kg] (default: the measurements' mean)")
+    p.add_argument("--noise-mm", type=float, default=None,
+                   help="the instrument's noise, std per axis [mm], for the diagnosis and for counting the "
+                        "determined parameter combinations (default: the diagnosis' estimate; 0.02 with --effects)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the candidates and of the diagnosis")
+    p.add_argument("--json", default=None, metavar="FILE", help="also write the plan as JSON ('-' for stdout)")
+    p.set_defaults(run=_run_plan_poses)
+
+
+def _check(args) -> None:
+    from ..exceptions import InputError
+
+    if args.poses < 1:
+        raise InputError(f"-k {args.poses}: need at least 1 pose")
+    if args.n_candidates < args.poses:
+        raise InputError(f"--n-candidates {args.n_candidates}: need at least -k ({args.poses})")
+    for name, value in (("--payload-kg", args.payload_kg), ("--noise-mm", args.noise_mm)):
+        if value is not None and not (math.isfinite(value) and value >= 0):
+            raise InputError(f"{name} {value}: must be a finite number >= 0")
+    if args.noise_mm == 0:
+        raise InputError("--noise-mm 0: must be positive")
+    if not Path(args.out).resolve().parent.is_dir():
+        raise InputError(f"--out {args.out}: the folder {Path(args.out).parent} does not exist")
+
+
+def _run_plan_poses(args) -> int:
+    import numpy as np
+
+    from ..atomic import write_text_atomically
+    from ..diagnosis.design import plan_poses
+    from ..diagnosis.diagnose import diagnose
+    from ..effects import vocabulary
+    from ..exceptions import InputError
+    from ..io.measurements import read_measurements
+    from ..model.robot import load_robot
+
+    _check(args)
+    robot = load_robot(args.robot, args.tool)
+    measured = read_measurements(args.measurements, robot)
+    groups = []
+    noise_m = 2e-5 if args.noise_mm is None else args.noise_mm * 1e-3
+    if args.effects:
+        effects = [e.strip() for e in args.effects.split(",") if e.strip()]
+        unknown = [e for e in effects if e not in vocabulary()]
+        if unknown:
+            raise InputError(f"--effects: unknown {', '.join(unknown)} (vocabulary: {', '.join(vocabulary())})")
+    else:
+        result = diagnose(robot, measured, seed=args.seed,
+                          tracker_noise=None if args.noise_mm is None else args.noise_mm * 1e-3)
+        groups = [g["effects"] for g in result.ambiguous]
+        noise_m = result.tracker_noise
+        effects = set(result.selected_effects)
+        for group in result.ambiguous:
+            for member in group["members"]:
+                effects.update(member["effects"])
+        effects = sorted(effects)
+    candidates = None
+    if args.candidates:
+        candidates = read_measurements(args.candidates, robot, require_position=False).q
+    payload = args.payload_kg
+    if payload is None:
+        payload = float(np.mean(measured.payload_kg)) if measured.payload_kg is not None else 0.0
+    plan = plan_poses(robot, measured.q, effects, args.poses, candidates=candidates, n_candidates=args.n_candidates,
+                      payload_kg=payload, noise_m=noise_m,
+                      rng=np.random.default_rng(args.seed))
+    text = _plan_csv(robot, plan.q, args, plan.effects)
+    write_text_atomically(Path(args.out), text)
+    summary = {"measurements": str(args.measurements), "n_measured": len(measured), "k": args.poses,
+               "effects": plan.effects, "ambiguous": groups, "n_parameters": plan.n_parameters,
+               "log_det_gain": plan.log_det_gain, "resolved_before": plan.resolved_before,
+               "resolved_after": plan.resolved_after, "payload_kg": payload, "out": str(args.out),
+               "q_display": (plan.q * robot.display_scale).tolist()}
+    if args.json:
+        emit_json(summary, args.json)
+    if args.json != "-":
+        print(f"designed for: {', '.join(plan.effects)} ({plan.n_parameters} parameters)")
+        for group in groups:
+            print(f"  the measurements cannot tell apart: {{{', '.join(group)}}}")
+        print(f"{args.poses} poses chosen from {len(candidates) if candidates is not None else args.n_candidates} "
+              f"candidates: information log det +{plan.log_det_gain:.1f}; parameter combinations determined to "
+              f"better than their typical size: {plan.resolved_before} -> {plan.resolved_after} of "
+              f"{plan.n_parameters}")
+        print(f"written: {args.out}")
+    return 0
+
+
+def _plan_csv(robot, q, args, effects) -> str:
+    """Joint values in deg / mm, one pose per row, with a comment on how they were chosen."""
+    import io
+
+    units = {"revolute": "deg", "prismatic": "mm"}
+    header = [f"{n}_{units.get(k, 'mm')}" for n, k in zip(robot.joint_names, robot.joint_kinds)]
+    out = io.StringIO()
+    out.write(f"# {len(q)} poses to measure next, chosen by tcr-accuracy plan-poses from {args.measurements}\n")
+    out.write(f"# (D-optimal for {', '.join(effects)}); add the measured x_mm,y_mm,z_mm columns and diagnose "
+              "both files together\n")
+    out.write(",".join(header) + "\n")
+    for row in q * robot.display_scale:
+        out.write(",".join(format(v, ".10g") for v in row) + "\n")
+    return out.getvalue()
