@@ -83,12 +83,10 @@ def run_seed(robot, seed: int, n: int, k: int, fraction: float) -> dict:
         row["ambiguous_before"] = False
         return row
     row["ambiguous_before"] = True
-    effects = set(before.selected_effects)
-    for group in before.ambiguous:
-        for member in group["members"]:
-            effects.update(member["effects"])
+    rivals = {name for group in before.ambiguous for member in group["members"] for name in member["effects"]}
     start = time.perf_counter()
-    plan = plan_poses(robot, first.q, sorted(effects), k, rng=np.random.default_rng(seed + 1000))
+    plan = plan_poses(robot, first.q, sorted(set(before.selected_effects) | rivals), k, separate=sorted(rivals),
+                      rng=np.random.default_rng(seed + 1000))
     row["plan_seconds"] = time.perf_counter() - start
     for label, q in (("planned", plan.q), ("random", task_poses(robot, k, fraction, np.random.default_rng(seed + 2000)))):
         extra, _ = simulate_measurements(robot, scenario, k, np.random.default_rng(seed + 3000), q=q)

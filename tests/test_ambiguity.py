@@ -143,7 +143,7 @@ def test_d_optimal_plan_adds_the_information_it_claims_and_more_than_random(tool
     assert np.all((plan.q >= lo - 1e-12) & (plan.q <= hi + 1e-12))
 
     def information(q):  # J^T J of the design columns, recomputed here from the effects' Jacobian
-        g = _design_columns(tool_changer, q, plan.effects, MeasurementContext.defaults(len(q), 6))
+        g, _ = _design_columns(tool_changer, q, plan.effects, MeasurementContext.defaults(len(q), 6))
         return np.einsum("nip,niq->pq", g, g)
 
     before = information(measured)

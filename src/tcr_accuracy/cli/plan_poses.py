@@ -75,7 +75,7 @@ def _run_plan_poses(args) -> int:
     _check(args)
     robot = load_robot(args.robot, args.tool)
     measured = read_measurements(args.measurements, robot)
-    groups = []
+    groups, separate = [], None
     noise_m = 2e-5 if args.noise_mm is None else args.noise_mm * 1e-3
     if args.effects:
         effects = [e.strip() for e in args.effects.split(",") if e.strip()]
@@ -87,31 +87,30 @@ def _run_plan_poses(args) -> int:
                           tracker_noise=None if args.noise_mm is None else args.noise_mm * 1e-3)
         groups = [g["effects"] for g in result.ambiguous]
         noise_m = result.tracker_noise
-        effects = set(result.selected_effects)
-        for group in result.ambiguous:
-            for member in group["members"]:
-                effects.update(member["effects"])
-        effects = sorted(effects)
+        rivals = {name for group in result.ambiguous for member in group["members"] for name in member["effects"]}
+        effects = sorted(set(result.selected_effects) | rivals)
+        separate = sorted(rivals) or None
     candidates = None
     if args.candidates:
         candidates = read_measurements(args.candidates, robot, require_position=False).q
     payload = args.payload_kg
     if payload is None:
         payload = float(np.mean(measured.payload_kg)) if measured.payload_kg is not None else 0.0
-    plan = plan_poses(robot, measured.q, effects, args.poses, candidates=candidates, n_candidates=args.n_candidates,
+    plan = plan_poses(robot, measured.q, effects, args.poses, separate=separate, candidates=candidates, n_candidates=args.n_candidates,
                       payload_kg=payload, noise_m=noise_m,
                       rng=np.random.default_rng(args.seed))
     text = _plan_csv(robot, plan.q, args, plan.effects)
     write_text_atomically(Path(args.out), text)
     summary = {"measurements": str(args.measurements), "n_measured": len(measured), "k": args.poses,
-               "effects": plan.effects, "ambiguous": groups, "n_parameters": plan.n_parameters,
+               "effects": plan.effects, "separate": plan.separate, "ambiguous": groups, "n_parameters": plan.n_parameters,
                "log_det_gain": plan.log_det_gain, "resolved_before": plan.resolved_before,
                "resolved_after": plan.resolved_after, "payload_kg": payload, "out": str(args.out),
                "q_display": (plan.q * robot.display_scale).tolist()}
     if args.json:
         emit_json(summary, args.json)
     if args.json != "-":
-        print(f"designed for: {', '.join(plan.effects)} ({plan.n_parameters} parameters)")
+        print(f"designed for: {', '.join(plan.effects)} ({plan.n_parameters} parameters)"
+              + (f"; to tell {', '.join(plan.separate)} apart from the rest (Ds-optimal)" if plan.separate else ""))
         for group in groups:
             print(f"  the measurements cannot tell apart: {{{', '.join(group)}}}")
         print(f"{args.poses} poses chosen from {len(candidates) if candidates is not None else args.n_candidates} "

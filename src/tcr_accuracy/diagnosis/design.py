@@ -1,4 +1,4 @@
-"""Which poses to measure next: a D-optimal design on the identification Jacobian.
+"""Which poses to measure next: a D- (or Ds-) optimal design on the identification Jacobian.
 
 Effects the measured poses cannot tell apart (an ambiguity group of the diagnosis) become
 separable where their TCP motions differ: outside the joint range the data covered, or
@@ -9,7 +9,9 @@ taking the candidate that maximises log det(M + G_c^T G_c), where M is the Fishe
 information (J^T J of the columns at their typical sizes) of the poses so far and G_c the
 candidate's 3 x P block. With M^-1 known, the gain of every candidate is
 log det(I_3 + G_c M^-1 G_c^T) (matrix determinant lemma) and M^-1 is updated by Woodbury,
-so a step costs one batched 3 x 3 determinant per candidate.
+so a step costs one batched 3 x 3 determinant per candidate. To separate rival effects (an
+ambiguity group), the criterion is, summed over the rivals, the information about each
+one's parameters beyond what all the others absorb (Ds-optimality).
 
 Hand-written: FIGAROH and Kalibrot design geometric calibration poses for their own
 parameterisations; neither takes the compliance, gear and scale effects of this
@@ -38,6 +40,7 @@ class PosePlan:
 
     q : (K, n_joints) [rad, m], in the order they were picked
     effects : the effects whose parameters the design is for
+    separate : the rival effects it is to tell apart (Ds-optimal), or empty
     n_parameters : columns of the design
     log_det_gain : log det of the information with the plan minus without (nats)
     gain_per_pose : (K,) what each pick added at its turn
@@ -53,20 +56,44 @@ class PosePlan:
     gain_per_pose: np.ndarray
     resolved_before: int
     resolved_after: int
+    separate: list
 
 
-def _design_columns(robot: RobotModel, q: np.ndarray, effects: list, context: MeasurementContext) -> np.ndarray:
-    """(N, 3, P) TCP position sensitivity of every parameter of ``effects`` at its typical size."""
+def _design_columns(robot: RobotModel, q: np.ndarray, effects: list, context: MeasurementContext
+                    ) -> tuple[np.ndarray, list]:
+    """(N, 3, P) TCP position sensitivity of every parameter of ``effects`` (vocabulary order) at
+    its typical size, and the effect each column belongs to."""
     part = Part(robot, q, np.zeros((len(q), 3)), context, robot.tool_frame)
     em = ErrorModel(robot)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", JointLimitWarning)
         jac_x = position_jacobians(robot, q)
-    blocks = []
+    blocks, owner = [], []
     for name in ordered(effects):
         basis = EffectBasis(make_effect(name, robot), part, em, jac_x)
         blocks.append(basis.g[:, :3, :] * basis.scales)
-    return np.concatenate(blocks, axis=2)
+        owner += [name] * basis.g.shape[2]
+    return np.concatenate(blocks, axis=2), owner
+
+
+class _Information:
+    """Fisher information J^T J of a set of columns (plus a ridge) and its inverse, grown
+    pose by pose: the gain of adding a pose's 3 rows is log det(I + G M^-1 G^T)
+    (matrix determinant lemma), the inverse follows by Woodbury."""
+
+    def __init__(self, g_measured: np.ndarray, ridge: float):
+        p = g_measured.shape[2]
+        self.info = np.einsum("nip,niq->pq", g_measured, g_measured) + ridge * np.eye(p)
+        self.inv = np.linalg.inv(self.info)
+
+    def gains(self, g: np.ndarray) -> np.ndarray:
+        projected = np.einsum("nip,pq,njq->nij", g, self.inv, g)  # (n_candidates, 3, 3)
+        return np.linalg.slogdet(np.eye(3) + projected)[1]
+
+    def add(self, block: np.ndarray) -> None:
+        middle = np.linalg.inv(np.eye(3) + block @ self.inv @ block.T)
+        self.inv = self.inv - self.inv @ block.T @ middle @ block @ self.inv
+        self.info = self.info + block.T @ block
 
 
 def candidate_configurations(robot: RobotModel, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -79,20 +106,27 @@ def candidate_configurations(robot: RobotModel, n: int, rng: np.random.Generator
     return lo + (hi - lo) * rng.random((n, robot.n_joints))
 
 
-def plan_poses(robot: RobotModel, measured_q: np.ndarray, effects, k: int, *, candidates: np.ndarray | None = None,
-               n_candidates: int = 3000, payload_kg: float = 0.0, noise_m: float = 2e-5,
-               rng: np.random.Generator | None = None) -> PosePlan:
+def plan_poses(robot: RobotModel, measured_q: np.ndarray, effects, k: int, *, separate=None,
+               candidates: np.ndarray | None = None, n_candidates: int = 3000, payload_kg: float = 0.0,
+               noise_m: float = 2e-5, rng: np.random.Generator | None = None) -> PosePlan:
     """Choose k configurations among ``candidates`` (default: ``n_candidates`` uniform within
     the limits) that, added to the poses ``measured_q`` (N, n) [rad, m], best determine the
-    parameters of ``effects`` (``frames`` is always included) -- greedy D-optimal design.
+    parameters of ``effects`` (``frames`` is always included).
 
+    separate : effects to tell apart from one another (the members of ambiguity groups, the
+        chosen one included): the design then maximises, summed over these effects, the
+        information about each one's parameters *beyond what all the other effects can
+        absorb* (log det M - log det M_without_it, the Schur complement: Ds-optimality),
+        each term divided by the effect's parameter count so that a large effect does not
+        drown a small one -- what a paired test between the rival models can see. None:
+        D-optimal for all parameters.
     payload_kg : the payload the new poses will be measured with (compliance's torques).
     noise_m : measurement noise per axis [m], for counting the resolved parameter combinations.
     """
     rng = rng if rng is not None else np.random.default_rng(0)
     if k < 1:
         raise InputError(f"-k {k}: need at least one pose")
-    effects = ordered(set(effects) | {"frames"})
+    effects = ordered(set(effects) | {"frames"} | set(separate or ()))
     stochastic = [e for e in effects if effect_class(e).stochastic]
     if stochastic:
         raise InputError(f"{', '.join(stochastic)}: stochastic effects have no parameters to design for")
@@ -104,35 +138,44 @@ def plan_poses(robot: RobotModel, measured_q: np.ndarray, effects, k: int, *, ca
     def context(n):
         return MeasurementContext.defaults(n, robot.n_joints, payload_kg=payload_kg)
 
-    g_measured = _design_columns(robot, measured_q, effects, context(len(measured_q)))
-    g_cand = _design_columns(robot, candidates, effects, context(len(candidates)))
+    g_measured, owner = _design_columns(robot, measured_q, effects, context(len(measured_q)))
+    g_cand, _ = _design_columns(robot, candidates, effects, context(len(candidates)))
     p = g_cand.shape[2]
-    info = np.einsum("nip,niq->pq", g_measured, g_measured)
     # directions no pose so far moves: a small ridge keeps M invertible; its size (1e-6 of the
     # mean diagonal, a typical-size parameter seen through a micrometre) leaves the ranking of
     # candidates that do move them unaffected
-    ridge = 1e-6 * max(float(np.trace(info)) / p, float(np.mean(np.sum(g_cand**2, axis=(0, 1)))))
-    def resolved(information):
-        return int(np.sum(np.linalg.eigvalsh(information) > noise_m**2))
+    ridge = 1e-6 * max(float(np.sum(g_measured**2)) / p,
+                       float(np.mean(np.sum(g_cand**2, axis=(0, 1)))))
+    full = _Information(g_measured, ridge)
+    owner = np.array(owner)
+    rivals = []  # (columns without the effect, its tracker, its parameter count)
+    for effect in ordered(set(separate or ())):
+        without = owner != effect
+        if without.all() or not without.any():
+            continue
+        rivals.append((without, _Information(g_measured[:, :, without], ridge), int(np.sum(~without))))
 
-    resolved_before = resolved(info)
-    info = info + ridge * np.eye(p)
-    info_inv = np.linalg.inv(info)
-    start_logdet = np.linalg.slogdet(info)[1]
+    def resolved(information):
+        return int(np.sum(np.linalg.eigvalsh(information - ridge * np.eye(information.shape[0])) > noise_m**2))
+
+    resolved_before = resolved(full.info)
+    start_logdet = np.linalg.slogdet(full.info)[1]
     available = np.ones(len(candidates), dtype=bool)
     picked, gains = [], []
     for _ in range(k):
-        projected = np.einsum("nip,pq,njq->nij", g_cand, info_inv, g_cand)  # (n_c, 3, 3)
-        gain = np.linalg.slogdet(np.eye(3) + projected)[1]
+        if rivals:
+            whole = full.gains(g_cand)
+            gain = sum((whole - tracker.gains(g_cand[:, :, cols])) / size for cols, tracker, size in rivals)
+        else:
+            gain = full.gains(g_cand)
         gain[~available] = -np.inf
         best = int(np.argmax(gain))
         picked.append(best)
         gains.append(float(gain[best]))
         available[best] = False
-        block = g_cand[best]  # (3, p)
-        middle = np.linalg.inv(np.eye(3) + block @ info_inv @ block.T)
-        info_inv = info_inv - info_inv @ block.T @ middle @ block @ info_inv  # Woodbury
-        info = info + block.T @ block
+        full.add(g_cand[best])
+        for cols, tracker, _ in rivals:
+            tracker.add(g_cand[best][:, cols])
     return PosePlan(q=candidates[picked], effects=effects, n_parameters=p,
-                    log_det_gain=float(np.linalg.slogdet(info)[1] - start_logdet), gain_per_pose=np.array(gains),
-                    resolved_before=resolved_before, resolved_after=resolved(info - ridge * np.eye(p)))
+                    log_det_gain=float(np.linalg.slogdet(full.info)[1] - start_logdet), gain_per_pose=np.array(gains),
+                    resolved_before=resolved_before, resolved_after=resolved(full.info), separate=list(separate or []))

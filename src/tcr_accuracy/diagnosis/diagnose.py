@@ -323,7 +323,7 @@ class GapDiagnosis:
             if effect_class(e).geometric:
                 as_built += b.per_part[0].basis[0] @ full
         contribution = self._contributions(parts[0], bases, chosen, full_parameters, nominal[0].position)
-        second_order = self._second_order(parts[0], full_parameters, math.sqrt(3.0) * noise.per_axis, notes)
+        second_order = self._second_order(parts[0], bases, full_parameters, math.sqrt(3.0) * noise.per_axis, notes)
         base_twist = as_built[em.base_slice].copy()
         as_built[em.base_slice] = 0.0  # the base twist belongs to the tracker frame, not the robot
         tracker = np.eye(4)
@@ -539,11 +539,11 @@ class GapDiagnosis:
         return False
 
     @staticmethod
-    def _second_order(part, full_parameters, noise_floor, notes) -> dict:
+    def _second_order(part, bases, full_parameters, noise_floor, notes) -> dict:
         """The fitted model is first order in its joint deflections (gravity at the commanded
         pose): how much one fixed-point step (gravity at the deflected pose) would move the TCP,
         against the noise floor; a note when it is more than a quarter of it."""
-        effects = [make_effect(e, part.robot) for e in full_parameters]
+        effects = [bases[e].per_part[0].effect for e in full_parameters]  # with the options they were fitted with
         motion = fixed_point_motion(part.robot, effects, list(full_parameters.values()), part.q, part.context)
         rms = float(np.sqrt(np.mean(np.sum(motion**2, axis=1))))
         out = {"fixed_point_step_rms_mm": rms * 1e3, "fixed_point_step_max_mm": float(
