@@ -8,7 +8,7 @@ of the tool-changer (the case where an offset plus two harmonics of the same joi
 poses of a task region (the middle ``--range-fraction`` of every joint's range, as a
 robot measured where it works) with a 0.02 mm tracker and diagnoses them. Where the diagnosis reports the encoder
 scale in an ambiguity group, K more poses are measured two ways -- the K that
-:func:`tcr_accuracy.diagnosis.design.plan_poses` picks within the joint limits and K more
+:func:`tcr_accuracy.diagnosis.design.plan_discriminating_poses` picks within the joint limits and K more
 random ones of the task region -- and each enlarged
 set is diagnosed again. Separated: the encoder scale is chosen and no longer in a group.
 
@@ -29,8 +29,8 @@ import numpy as np
 
 from tcr_accuracy.analysis.simulate import simulate_measurements
 from tcr_accuracy.atomic import write_text_atomically
-from tcr_accuracy.diagnosis.design import plan_poses
-from tcr_accuracy.diagnosis.diagnose import diagnose
+from tcr_accuracy.diagnosis.design import plan_discriminating_poses
+from tcr_accuracy.diagnosis.diagnose import GapDiagnosis, diagnose, rival_models
 from tcr_accuracy.io.measurements import MeasurementSet
 from tcr_accuracy.model.robot import load_robot
 
@@ -76,19 +76,19 @@ def run_seed(robot, seed: int, n: int, k: int, fraction: float) -> dict:
     rng = np.random.default_rng(seed)
     first, truth = simulate_measurements(robot, hidden_truth(rng), n, rng, q=task_poses(robot, n, fraction, rng))
     scenario = fixed(truth)
-    before = diagnose(robot, first, seed=seed, tracker_noise=NOISE_M)
+    estimator = GapDiagnosis(seed=seed, tracker_noise=NOISE_M).fit(robot, first)
+    before = estimator.result_
     row = {"seed": seed, "before": verdict(before)}
     ambiguous = [g for g in before.ambiguous if any("encoder_scale" in m["effects"] for m in g["members"])]
     if not ambiguous:
         row["ambiguous_before"] = False
         return row
     row["ambiguous_before"] = True
-    rivals = {name for group in before.ambiguous for member in group["members"] for name in member["effects"]}
     start = time.perf_counter()
-    plan = plan_poses(robot, first.q, sorted(set(before.selected_effects) | rivals), k, separate=sorted(rivals),
-                      rng=np.random.default_rng(seed + 1000))
+    planned = plan_discriminating_poses(robot, first.q, rival_models(estimator), k,
+                                        rng=np.random.default_rng(seed + 1000))
     row["plan_seconds"] = time.perf_counter() - start
-    for label, q in (("planned", plan.q), ("random", task_poses(robot, k, fraction, np.random.default_rng(seed + 2000)))):
+    for label, q in (("planned", planned), ("random", task_poses(robot, k, fraction, np.random.default_rng(seed + 2000)))):
         extra, _ = simulate_measurements(robot, scenario, k, np.random.default_rng(seed + 3000), q=q)
         row[label] = verdict(diagnose(robot, joined(first, extra), seed=seed, tracker_noise=NOISE_M))
     return row

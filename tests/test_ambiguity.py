@@ -11,10 +11,11 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from tcr_accuracy.analysis.simulate import simulate_measurements
 from tcr_accuracy.diagnosis.ambiguity import one_standard_error_choice
-from tcr_accuracy.diagnosis.design import _design_columns, plan_poses
+from tcr_accuracy.diagnosis.design import _design_columns, _Discrepancy, plan_discriminating_poses, plan_poses
 from tcr_accuracy.diagnosis.diagnose import diagnose
 from tcr_accuracy.diagnosis.structure import PROBE_AMPLITUDES, StructureDetector, smallest_detectable_structure, \
     structure_verdict
@@ -180,3 +181,45 @@ def test_cli_plan_poses_writes_poses_within_limits_and_refuses_bad_k(tmp_path, t
                          cwd=REPO)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "-k" in bad.stderr
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_discriminating_design_tracks_the_rival_refit_as_least_squares_does(tool_changer):
+    """The recursive refit of the rival model, pose by pose, against numpy's least squares on
+    the whole design: the discrepancy it cannot absorb must be the same."""
+    rng = np.random.default_rng(6)
+    lo, hi = tool_changer.joint_bounds()
+    q = lo + (hi - lo) * rng.random((50, 6))
+    context = MeasurementContext.defaults(50, 6)
+    scale = make_effect("encoder_scale", tool_changer)
+    truth = ([make_effect("frames", tool_changer), scale],
+             [np.zeros(9), np.array([0.0, 4e-4, -3e-4, 0.0, 2e-4, 0.0])])
+    rival = ([make_effect("frames", tool_changer), make_effect("transmission", tool_changer)],
+             [np.zeros(9), np.zeros(make_effect("transmission", tool_changer).n_params)])
+    from tcr_accuracy.effects import predict_positions
+
+    d = predict_positions(tool_changer, *truth, q, context) - predict_positions(tool_changer, *rival, q, context)
+    g, _ = _design_columns(tool_changer, q, ["frames", "transmission"], context)
+    tracker = _Discrepancy(g[:20], d[:20], ridge=1e-12)
+    for i in range(20, 50):
+        tracker.add(g[i], d[i])
+    # direct: refit on all 50 poses, the residual's squared norm ...
+    jac = g.reshape(-1, g.shape[2])
+    theta, *_ = np.linalg.lstsq(jac, d.ravel(), rcond=None)
+    direct = jac @ theta - d.ravel()
+    recursive = np.einsum("nip,p->ni", g, tracker.theta).ravel() - d.ravel()
+    assert np.sum(recursive**2) == pytest.approx(np.sum(direct**2), rel=1e-3)
+    # ... and the design puts its poses where the rival cannot follow: more discrepancy than random
+    start = q[:20]
+    planned = plan_discriminating_poses(tool_changer, start, [(truth, rival)], 10, n_candidates=400,
+                                        rng=np.random.default_rng(1))
+    random_q = lo + (hi - lo) * np.random.default_rng(2).random((10, 6))
+
+    def unabsorbed(extra):
+        qq = np.vstack([start, extra])
+        c = MeasurementContext.defaults(len(qq), 6)
+        dd = predict_positions(tool_changer, *truth, qq, c) - predict_positions(tool_changer, *rival, qq, c)
+        gg, _ = _design_columns(tool_changer, qq, ["frames", "transmission"], c)
+        jj = gg.reshape(-1, gg.shape[2])
+        return float(np.sum((jj @ np.linalg.lstsq(jj, dd.ravel(), rcond=None)[0] - dd.ravel()) ** 2))
+
+    assert unabsorbed(planned) > 1.3 * unabsorbed(random_q)

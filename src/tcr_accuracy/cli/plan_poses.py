@@ -16,12 +16,13 @@ from .common import add_robot_arguments, emit_json
 
 def add_parsers(sub) -> None:
     p = sub.add_parser(
-        "plan-poses", help="choose the next poses to measure (D-optimal, separates ambiguous effects)",
-        description="From the measured poses and the effects of their diagnosis (the chosen ones and "
-                    "every effect the data cannot tell apart from them), choose K joint configurations "
-                    "within the joint limits (or from a candidate CSV) that add the most information "
-                    "about all their parameters together (greedy D-optimal design on the identification "
-                    "Jacobian), and write them as a CSV of joint values (deg, mm) to measure.",
+        "plan-poses", help="choose the next poses to measure (separates what the diagnosis cannot tell apart)",
+        description="Diagnose the measured poses; where the diagnosis reports effects it cannot tell apart, "
+                    "choose K joint configurations within the joint limits (or from a candidate CSV) where "
+                    "the rival fitted models disagree by more than either can fit away (greedy T-optimal "
+                    "design); otherwise (or with --effects) those that add the most information about all "
+                    "the parameters together (greedy D-optimal design on the identification Jacobian). "
+                    "Writes them as a CSV of joint values (deg, mm) to measure.",
     )
     p.add_argument("measurements", metavar="MEASUREMENTS.csv", help="the measurements so far (see README)")
     add_robot_arguments(p)
@@ -65,8 +66,8 @@ def _run_plan_poses(args) -> int:
     import numpy as np
 
     from ..atomic import write_text_atomically
-    from ..diagnosis.design import plan_poses
-    from ..diagnosis.diagnose import diagnose
+    from ..diagnosis.design import plan_discriminating_poses, plan_poses
+    from ..diagnosis.diagnose import GapDiagnosis, rival_models
     from ..effects import vocabulary
     from ..exceptions import InputError
     from ..io.measurements import read_measurements
@@ -75,7 +76,13 @@ def _run_plan_poses(args) -> int:
     _check(args)
     robot = load_robot(args.robot, args.tool)
     measured = read_measurements(args.measurements, robot)
-    groups, separate = [], None
+    candidates = None
+    if args.candidates:
+        candidates = read_measurements(args.candidates, robot, require_position=False).q
+    payload = args.payload_kg
+    if payload is None:
+        payload = float(np.mean(measured.payload_kg)) if measured.payload_kg is not None else 0.0
+    groups, separate, pairs = [], None, []
     noise_m = 2e-5 if args.noise_mm is None else args.noise_mm * 1e-3
     if args.effects:
         effects = [e.strip() for e in args.effects.split(",") if e.strip()]
@@ -83,40 +90,41 @@ def _run_plan_poses(args) -> int:
         if unknown:
             raise InputError(f"--effects: unknown {', '.join(unknown)} (vocabulary: {', '.join(vocabulary())})")
     else:
-        result = diagnose(robot, measured, seed=args.seed,
-                          tracker_noise=None if args.noise_mm is None else args.noise_mm * 1e-3)
+        estimator = GapDiagnosis(seed=args.seed, tracker_noise=None if args.noise_mm is None
+                                 else args.noise_mm * 1e-3).fit(robot, measured)
+        result = estimator.result_
         groups = [g["effects"] for g in result.ambiguous]
         noise_m = result.tracker_noise
         rivals = {name for group in result.ambiguous for member in group["members"] for name in member["effects"]}
         effects = sorted(set(result.selected_effects) | rivals)
         separate = sorted(rivals) or None
-    candidates = None
-    if args.candidates:
-        candidates = read_measurements(args.candidates, robot, require_position=False).q
-    payload = args.payload_kg
-    if payload is None:
-        payload = float(np.mean(measured.payload_kg)) if measured.payload_kg is not None else 0.0
-    plan = plan_poses(robot, measured.q, effects, args.poses, separate=separate, candidates=candidates, n_candidates=args.n_candidates,
-                      payload_kg=payload, noise_m=noise_m,
+        pairs = rival_models(estimator) if separate else []
+    if pairs:  # rival fitted models: the poses where they differ beyond refitting (T-optimal)
+        candidates = plan_discriminating_poses(robot, measured.q, pairs, args.poses, candidates=candidates,
+                                               n_candidates=args.n_candidates, payload_kg=payload,
+                                               rng=np.random.default_rng(args.seed))
+    # D-optimal otherwise; with rivals, over exactly the poses picked above (for its figures)
+    plan = plan_poses(robot, measured.q, effects, args.poses, separate=separate, candidates=candidates,
+                      n_candidates=args.n_candidates, payload_kg=payload, noise_m=noise_m,
                       rng=np.random.default_rng(args.seed))
-    text = _plan_csv(robot, plan.q, args, plan.effects)
-    write_text_atomically(Path(args.out), text)
+    write_text_atomically(Path(args.out), _plan_csv(robot, plan.q, args, plan.effects))
     summary = {"measurements": str(args.measurements), "n_measured": len(measured), "k": args.poses,
-               "effects": plan.effects, "separate": plan.separate, "ambiguous": groups, "n_parameters": plan.n_parameters,
-               "log_det_gain": plan.log_det_gain, "resolved_before": plan.resolved_before,
-               "resolved_after": plan.resolved_after, "payload_kg": payload, "out": str(args.out),
-               "q_display": (plan.q * robot.display_scale).tolist()}
+               "design": "T-optimal between rival fitted models" if pairs else "D-optimal",
+               "effects": plan.effects, "separate": plan.separate, "ambiguous": groups,
+               "n_parameters": plan.n_parameters, "log_det_gain": plan.log_det_gain,
+               "resolved_before": plan.resolved_before, "resolved_after": plan.resolved_after,
+               "payload_kg": payload, "out": str(args.out), "q_display": (plan.q * robot.display_scale).tolist()}
     if args.json:
         emit_json(summary, args.json)
     if args.json != "-":
-        print(f"designed for: {', '.join(plan.effects)} ({plan.n_parameters} parameters)"
-              + (f"; to tell {', '.join(plan.separate)} apart from the rest (Ds-optimal)" if plan.separate else ""))
+        print(f"designed for: {', '.join(plan.effects)} ({plan.n_parameters} parameters); "
+              + (f"to tell apart {', '.join(plan.separate)}: where the rival fitted models differ beyond refitting "
+                 "(T-optimal)" if pairs else "D-optimal"))
         for group in groups:
             print(f"  the measurements cannot tell apart: {{{', '.join(group)}}}")
-        print(f"{args.poses} poses chosen from {len(candidates) if candidates is not None else args.n_candidates} "
-              f"candidates: information log det +{plan.log_det_gain:.1f}; parameter combinations determined to "
-              f"better than their typical size: {plan.resolved_before} -> {plan.resolved_after} of "
-              f"{plan.n_parameters}")
+        print(f"{args.poses} poses chosen: information log det +{plan.log_det_gain:.1f}; parameter combinations "
+              f"determined to better than their typical size: {plan.resolved_before} -> {plan.resolved_after} "
+              f"of {plan.n_parameters}")
         print(f"written: {args.out}")
     return 0
 

@@ -1,4 +1,5 @@
-"""Which poses to measure next: a D- (or Ds-) optimal design on the identification Jacobian.
+"""Which poses to measure next: a D- (or Ds-) optimal design on the identification Jacobian,
+or a T-optimal one that tells rival fitted models apart.
 
 Effects the measured poses cannot tell apart (an ambiguity group of the diagnosis) become
 separable where their TCP motions differ: outside the joint range the data covered, or
@@ -11,7 +12,11 @@ candidate's 3 x P block. With M^-1 known, the gain of every candidate is
 log det(I_3 + G_c M^-1 G_c^T) (matrix determinant lemma) and M^-1 is updated by Woodbury,
 so a step costs one batched 3 x 3 determinant per candidate. To separate rival effects (an
 ambiguity group), the criterion is, summed over the rivals, the information about each
-one's parameters beyond what all the others absorb (Ds-optimality).
+one's parameters beyond what all the others absorb (Ds-optimality). When the rival models
+are fitted already, :func:`plan_discriminating_poses` goes straight for what a test between
+them sees: the poses where one model's prediction differs most from the best the other can
+do after refitting (T-optimality, Atkinson and Fedorov), the refit updated pose by pose by
+recursive least squares.
 
 Hand-written: FIGAROH and Kalibrot design geometric calibration poses for their own
 parameterisations; neither takes the compliance, gear and scale effects of this
@@ -27,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..effects import effect_class, make_effect
+from ..effects.compose import predict_positions
 from ..exceptions import InputError
 from ..model.context import MeasurementContext
 from ..model.errors import ErrorModel
@@ -179,3 +185,76 @@ def plan_poses(robot: RobotModel, measured_q: np.ndarray, effects, k: int, *, se
     return PosePlan(q=candidates[picked], effects=effects, n_parameters=p,
                     log_det_gain=float(np.linalg.slogdet(full.info)[1] - start_logdet), gain_per_pose=np.array(gains),
                     resolved_before=resolved_before, resolved_after=resolved(full.info), separate=list(separate or []))
+
+
+class _Discrepancy:
+    """One rival model R refitted (linearised, columns at typical sizes) to the predictions
+    of another, T: the squared discrepancy R cannot absorb grows by r^T S^-1 r when a pose
+    with residual r = d - G theta and S = I + G M^-1 G^T is added (recursive least squares)."""
+
+    def __init__(self, g_measured: np.ndarray, d_measured: np.ndarray, ridge: float):
+        self.information = _Information(g_measured, ridge)
+        self.theta = self.information.inv @ np.einsum("nip,ni->p", g_measured, d_measured)
+
+    def gains(self, g: np.ndarray, d: np.ndarray) -> np.ndarray:
+        residual = d - np.einsum("nip,p->ni", g, self.theta)
+        s = np.eye(3) + np.einsum("nip,pq,njq->nij", g, self.information.inv, g)
+        return np.einsum("ni,ni->n", residual, np.linalg.solve(s, residual[:, :, None])[:, :, 0])
+
+    def add(self, g: np.ndarray, d: np.ndarray) -> None:
+        inv = self.information.inv
+        s = np.eye(3) + g @ inv @ g.T
+        gain = inv @ g.T @ np.linalg.inv(s)
+        self.theta = self.theta + gain @ (d - g @ self.theta)
+        self.information.add(g)
+
+
+def plan_discriminating_poses(robot: RobotModel, measured_q: np.ndarray, rivals, k: int, *,
+                              candidates: np.ndarray | None = None, n_candidates: int = 3000,
+                              payload_kg: float = 0.0, rng: np.random.Generator | None = None) -> np.ndarray:
+    """Choose k configurations (among ``candidates``, default uniform within the limits) where
+    rival fitted models disagree in a way neither can fit away: greedy T-optimal design.
+
+    rivals : list of pairs of fitted models, each model (effect instances, parameter
+        vectors [SI]) as :meth:`GapDiagnosis.fitted_model` gives it. For each pair, both
+        ways round, the refitted model's share of the other's prediction is removed on the
+        poses so far (linearised at typical sizes) and the candidate that adds most squared
+        discrepancy [m^2] is taken; the sum over pairs and directions decides.
+    Returns (k, n_joints) joint values [rad, m].
+    """
+    rng = rng if rng is not None else np.random.default_rng(0)
+    if k < 1:
+        raise InputError(f"-k {k}: need at least one pose")
+    if candidates is None:
+        candidates = candidate_configurations(robot, n_candidates, rng)
+    if len(candidates) < k:
+        raise InputError(f"{len(candidates)} candidate configurations for -k {k}: need at least k")
+
+    def context(n):
+        return MeasurementContext.defaults(n, robot.n_joints, payload_kg=payload_kg)
+
+    trackers = []
+    for model_a, model_b in rivals:
+        for truth, refit in ((model_a, model_b), (model_b, model_a)):
+            names = [e.name for e in refit[0]]
+            d_meas = (predict_positions(robot, *truth, measured_q, context(len(measured_q)))
+                      - predict_positions(robot, *refit, measured_q, context(len(measured_q))))
+            d_cand = (predict_positions(robot, *truth, candidates, context(len(candidates)))
+                      - predict_positions(robot, *refit, candidates, context(len(candidates))))
+            g_meas, _ = _design_columns(robot, measured_q, names, context(len(measured_q)))
+            g_cand, _ = _design_columns(robot, candidates, names, context(len(candidates)))
+            ridge = 1e-6 * max(float(np.sum(g_meas**2)) / g_meas.shape[2], 1e-300)
+            trackers.append((_Discrepancy(g_meas, d_meas, ridge), g_cand, d_cand))
+    if not trackers:
+        raise InputError("plan_discriminating_poses: no rival models given")
+    available = np.ones(len(candidates), dtype=bool)
+    picked = []
+    for _ in range(k):
+        gain = sum(t.gains(g, d) for t, g, d in trackers)
+        gain[~available] = -np.inf
+        best = int(np.argmax(gain))
+        picked.append(best)
+        available[best] = False
+        for t, g, d in trackers:
+            t.add(g[best], d[best])
+    return candidates[picked]

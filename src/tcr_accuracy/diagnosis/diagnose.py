@@ -381,6 +381,30 @@ class GapDiagnosis:
             previous = r
         return steps
 
+    def fitted_model(self, effects) -> tuple[list, list]:
+        """The effects of a set (``frames`` added) as fitted to all the data, for the first
+        measured frame: (effect instances, their full parameter vectors [SI]) -- e.g. the
+        rival models of an ambiguity group, to predict them where they differ."""
+        if not hasattr(self, "engine_"):
+            raise AnalysisError("GapDiagnosis.fitted_model: call fit first")
+        engine = self.engine_
+        names = ordered(set(effects) | {"frames"})
+        missing = [e for e in names if e not in engine.bases]
+        if missing:
+            raise InputError(f"fitted_model: {', '.join(missing)} cannot be fitted on these data")
+        with _one_blas_thread():
+            result = engine.evaluate(names)
+        theta = result["phi"] * result["scale"]
+        instances, vectors, offset = [], [], 0
+        for e in names:
+            b, keep = engine.bases[e], result["keep"][e]
+            union = np.zeros(len(b.names))
+            union[keep] = theta[offset:offset + keep.size]
+            offset += keep.size
+            instances.append(b.per_part[0].effect)
+            vectors.append(union[b.index[0]])
+        return instances, vectors
+
     def predict(self, q: np.ndarray, context: MeasurementContext | None = None) -> np.ndarray:
         """(N, 3) TCP positions [m] in the tracker frame that the fitted model predicts at q (N, n)."""
         if not hasattr(self, "result_"):
@@ -569,6 +593,21 @@ class GapDiagnosis:
             rigid = frames_cols @ np.linalg.lstsq(frames_cols, motion, rcond=None)[0]
             contribution[e] = float(np.sqrt(np.mean((motion - rigid) ** 2) * 3))
         return contribution
+
+
+def rival_models(estimator: GapDiagnosis) -> list:
+    """For every ambiguity group of a fitted diagnosis, the chosen model against each model
+    with a stand-in in the chosen effect's place, both fitted: a list of pairs of
+    (effect instances, parameter vectors) for
+    :func:`~tcr_accuracy.diagnosis.design.plan_discriminating_poses`."""
+    result = estimator.result_
+    chosen_model = estimator.fitted_model(result.selected_effects)
+    pairs = []
+    for group in result.ambiguous:
+        rest = [e for e in result.selected_effects if e != group["chosen"]]
+        for member in group["members"][1:]:
+            pairs.append((chosen_model, estimator.fitted_model(rest + member["effects"])))
+    return pairs
 
 
 def _part_names(effect, part: Part, n_parts: int) -> list[str]:
