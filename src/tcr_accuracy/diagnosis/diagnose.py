@@ -574,9 +574,10 @@ class GapDiagnosis:
             np.max(np.linalg.norm(motion, axis=1))) * 1e3, "over_noise_floor": rms / noise_floor if noise_floor else None,
             "within_range": bool(rms <= 0.25 * noise_floor)}
         if not out["within_range"]:
-            notes.append(f"the fitted deflections are large enough that first order is not enough: evaluated at the "
-                         f"deflected pose (gravity where the arm sags to) they move the TCP by {rms * 1e3:.4g} mm RMS "
-                         f"more, {rms / noise_floor:.2g} x the noise floor; what is left may partly be that")
+            notes.append(f"the fitted joint deflections are large enough that first order is not enough: evaluated at "
+                         f"the deflected joints (gravity where the arm sags to, gear errors where the joint really is) "
+                         f"they move the TCP by {rms * 1e3:.4g} mm RMS more, {rms / noise_floor:.2g} x the noise floor; "
+                         "what is left, and any effect chosen late for it, may partly be that")
         return out
 
     @staticmethod
