@@ -195,6 +195,7 @@ class _Discrepancy:
     def __init__(self, g_measured: np.ndarray, d_measured: np.ndarray, ridge: float):
         self.information = _Information(g_measured, ridge)
         self.theta = self.information.inv @ np.einsum("nip,ni->p", g_measured, d_measured)
+        self.total = float(np.sum((d_measured - np.einsum("nip,p->ni", g_measured, self.theta)) ** 2))
 
     def gains(self, g: np.ndarray, d: np.ndarray) -> np.ndarray:
         residual = d - np.einsum("nip,p->ni", g, self.theta)
@@ -204,14 +205,17 @@ class _Discrepancy:
     def add(self, g: np.ndarray, d: np.ndarray) -> None:
         inv = self.information.inv
         s = np.eye(3) + g @ inv @ g.T
+        residual = d - g @ self.theta
+        self.total += float(residual @ np.linalg.solve(s, residual))
         gain = inv @ g.T @ np.linalg.inv(s)
-        self.theta = self.theta + gain @ (d - g @ self.theta)
+        self.theta = self.theta + gain @ residual
         self.information.add(g)
 
 
 def plan_discriminating_poses(robot: RobotModel, measured_q: np.ndarray, rivals, k: int, *,
                               candidates: np.ndarray | None = None, n_candidates: int = 3000,
-                              payload_kg: float = 0.0, rng: np.random.Generator | None = None) -> np.ndarray:
+                              payload_kg: float = 0.0, noise_m: float = 2e-5,
+                              rng: np.random.Generator | None = None) -> np.ndarray:
     """Choose k configurations (among ``candidates``, default uniform within the limits) where
     rival fitted models disagree in a way neither can fit away: greedy T-optimal design.
 
@@ -219,7 +223,9 @@ def plan_discriminating_poses(robot: RobotModel, measured_q: np.ndarray, rivals,
         vectors [SI]) as :meth:`GapDiagnosis.fitted_model` gives it. For each pair, both
         ways round, the refitted model's share of the other's prediction is removed on the
         poses so far (linearised at typical sizes) and the candidate that adds most squared
-        discrepancy [m^2] is taken; the sum over pairs and directions decides.
+        discrepancy is taken. Pairs are balanced: a candidate's worth is the sum over pairs and
+        directions of log(1 + its added discrepancy / the discrepancy so far, at least
+        noise_m^2), so a pair that is already far apart does not take every pose.
     Returns (k, n_joints) joint values [rad, m].
     """
     rng = rng if rng is not None else np.random.default_rng(0)
@@ -250,7 +256,7 @@ def plan_discriminating_poses(robot: RobotModel, measured_q: np.ndarray, rivals,
     available = np.ones(len(candidates), dtype=bool)
     picked = []
     for _ in range(k):
-        gain = sum(t.gains(g, d) for t, g, d in trackers)
+        gain = sum(np.log1p(t.gains(g, d) / max(t.total, noise_m**2)) for t, g, d in trackers)
         gain[~available] = -np.inf
         best = int(np.argmax(gain))
         picked.append(best)
