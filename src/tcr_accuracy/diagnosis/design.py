@@ -112,6 +112,22 @@ def candidate_configurations(robot: RobotModel, n: int, rng: np.random.Generator
     return lo + (hi - lo) * rng.random((n, robot.n_joints))
 
 
+def _candidates_and_context(robot, k, candidates, n_candidates, payload_kg, rng):
+    """The candidate configurations (given, or uniform within the limits) checked against k,
+    and the context the poses will be measured in (the payload, no other conditions)."""
+    if k < 1:
+        raise InputError(f"-k {k}: need at least one pose")
+    if candidates is None:
+        candidates = candidate_configurations(robot, n_candidates, rng if rng is not None else np.random.default_rng(0))
+    if len(candidates) < k:
+        raise InputError(f"{len(candidates)} candidate configurations for -k {k}: need at least k")
+
+    def context(n):
+        return MeasurementContext.defaults(n, robot.n_joints, payload_kg=payload_kg)
+
+    return candidates, context
+
+
 def plan_poses(robot: RobotModel, measured_q: np.ndarray, effects, k: int, *, separate=None,
                candidates: np.ndarray | None = None, n_candidates: int = 3000, payload_kg: float = 0.0,
                noise_m: float = 2e-5, rng: np.random.Generator | None = None) -> PosePlan:
@@ -129,20 +145,11 @@ def plan_poses(robot: RobotModel, measured_q: np.ndarray, effects, k: int, *, se
     payload_kg : the payload the new poses will be measured with (compliance's torques).
     noise_m : measurement noise per axis [m], for counting the resolved parameter combinations.
     """
-    rng = rng if rng is not None else np.random.default_rng(0)
-    if k < 1:
-        raise InputError(f"-k {k}: need at least one pose")
     effects = ordered(set(effects) | {"frames"} | set(separate or ()))
     stochastic = [e for e in effects if effect_class(e).stochastic]
     if stochastic:
         raise InputError(f"{', '.join(stochastic)}: stochastic effects have no parameters to design for")
-    if candidates is None:
-        candidates = candidate_configurations(robot, n_candidates, rng)
-    if len(candidates) < k:
-        raise InputError(f"{len(candidates)} candidate configurations for -k {k}: need at least k")
-
-    def context(n):
-        return MeasurementContext.defaults(n, robot.n_joints, payload_kg=payload_kg)
+    candidates, context = _candidates_and_context(robot, k, candidates, n_candidates, payload_kg, rng)
 
     g_measured, owner = _design_columns(robot, measured_q, effects, context(len(measured_q)))
     g_cand, _ = _design_columns(robot, candidates, effects, context(len(candidates)))
@@ -228,17 +235,7 @@ def plan_discriminating_poses(robot: RobotModel, measured_q: np.ndarray, rivals,
         noise_m^2), so a pair that is already far apart does not take every pose.
     Returns (k, n_joints) joint values [rad, m].
     """
-    rng = rng if rng is not None else np.random.default_rng(0)
-    if k < 1:
-        raise InputError(f"-k {k}: need at least one pose")
-    if candidates is None:
-        candidates = candidate_configurations(robot, n_candidates, rng)
-    if len(candidates) < k:
-        raise InputError(f"{len(candidates)} candidate configurations for -k {k}: need at least k")
-
-    def context(n):
-        return MeasurementContext.defaults(n, robot.n_joints, payload_kg=payload_kg)
-
+    candidates, context = _candidates_and_context(robot, k, candidates, n_candidates, payload_kg, rng)
     trackers = []
     for model_a, model_b in rivals:
         for truth, refit in ((model_a, model_b), (model_b, model_a)):
