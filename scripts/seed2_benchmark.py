@@ -40,7 +40,8 @@ from threadpoolctl import threadpool_limits
 from tcr_accuracy.atomic import write_text_atomically
 from tcr_accuracy.prediction.compensation import compensate_joints
 from tcr_accuracy.model.kinematics import tcp_poses
-from tcr_accuracy.prediction.estimators import METHODS, MeasuredErrorModel, make_predictor
+from tcr_accuracy.prediction.composed import MeasuredErrorModel
+from tcr_accuracy.prediction.methods import METHODS, make_predictor
 from tcr_accuracy.analysis.realrobot import make_stand_in_robot
 from tcr_accuracy.model.robot import load_robot
 from tcr_accuracy.analysis.sampling import TaskWorkspace, inverse_kinematics, sample_task_workspace

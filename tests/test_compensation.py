@@ -8,7 +8,7 @@ import pytest
 from tcr_accuracy.cli import main
 from tcr_accuracy.prediction.compensation import compensate_joints
 from tcr_accuracy.model.kinematics import tcp_poses
-from tcr_accuracy.prediction.estimators import JointKriging
+from tcr_accuracy.prediction.kriging import JointKriging
 from tcr_accuracy.analysis.realrobot import gravity_torques, make_stand_in_robot, model_with_payload
 from tcr_accuracy.analysis.sampling import TaskWorkspace, sample_task_workspace
 
