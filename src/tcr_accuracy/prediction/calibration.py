@@ -1,8 +1,8 @@
 """Parametric calibrations as error predictors: fit a model of the robot, predict with it.
 
 * :class:`GeometricCalibration` -- least squares of the identifiable geometric error
-  parameters (``jacobians.error_jacobian`` gives the identification Jacobian, a pivoted
-  QR picks the identifiable columns, scipy solves).
+  parameters (``jacobians.error_jacobians`` gives the identification Jacobian, the
+  diagnosis' identifiability test picks the identifiable columns, scipy solves).
 * :class:`DiagnosisCalibration` -- the whole effect library:
   :func:`tcr_accuracy.diagnosis.diagnose.diagnose` picks and fits the effects (geometry,
   compliance, gear errors, ...); predicts its fitted model minus the nominal one.
@@ -15,15 +15,15 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from scipy.linalg import qr
 from scipy.optimize import least_squares
 from sklearn.base import BaseEstimator, MultiOutputMixin, RegressorMixin
 from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from ..diagnosis.identifiability import SensitivityColumns, identifiability
 from ..exceptions import InputError
 from ..model.errors import ErrorModel
-from ..model.jacobians import error_jacobian
+from ..model.jacobians import error_jacobians
 from ..model.kinematics import tcp_poses
 from ..model.robot import JointLimitWarning
 
@@ -31,16 +31,20 @@ from ..model.robot import JointLimitWarning
 class GeometricCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
     """Least squares of the identifiable geometric error parameters from position errors.
 
-    The identification Jacobian stacks the position rows of
-    :func:`~tcr_accuracy.model.jacobians.error_jacobian` at every training pose; a QR
-    decomposition with column pivoting of its column-normalised form keeps the
-    identifiable parameters (|R_ii| > rank_tol |R_00|); scipy's least_squares then fits
-    them on the exact (nonlinear) forward kinematics. Predicts ``FK_x(q) - FK(q)``.
+    The identification Jacobian is the position rows of
+    :func:`~tcr_accuracy.model.jacobians.error_jacobians` at the training poses; the
+    diagnosis' identifiability test
+    (:func:`~tcr_accuracy.diagnosis.identifiability.identifiability`, a QR decomposition with
+    column pivoting) keeps the identifiable parameters of its column-normalised form (each
+    column at unit norm, so a pivot |R_ii| is the share of a column no earlier one
+    explains, kept above rank_tol); scipy's least_squares then fits them on the exact
+    (nonlinear) forward kinematics. Predicts ``FK_x(q) - FK(q)``.
 
     Parameters
     ----------
     robot : RobotModel
-    rank_tol : float, relative pivot threshold of the identifiability test
+    rank_tol : float, pivot threshold of the identifiability test, relative to the
+        column's own norm
 
     Attributes
     ----------
@@ -61,16 +65,19 @@ class GeometricCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
             raise InputError(f"GeometricCalibration: needs joint values (n, {self.robot.n_joints}) and "
                              f"position errors (n, 3), got {X.shape} and {y.shape}")
         em = ErrorModel(self.robot)
-        jac = np.vstack([error_jacobian(self.robot, q, em)[:3] for q in X])  # (3n, p)
+        sensitivity = error_jacobians(self.robot, X, None, em)[1][:, :3]  # (n, 3, p) [m per unit] at x = 0
+        jac = sensitivity.reshape(-1, em.size)  # (3n, p)
         norms = np.linalg.norm(jac, axis=0)
-        usable = np.flatnonzero(norms > 1e-12)
-        _, r, piv = qr(jac[:, usable] / norms[usable], mode="economic", pivoting=True)
-        diag = np.abs(np.diag(r))
-        rank = int((diag > self.rank_tol * diag[0]).sum())
-        ident = np.sort(usable[piv[:rank]])
-        if 3 * X.shape[0] < rank:
+        # only the parameters that move the TCP at all enter the test: zero columns would change
+        # the QR's rounding, and with it which member of a group of dependent columns is kept
+        moves = np.flatnonzero(norms > 1e-12)
+        unit = sensitivity[:, :, moves] / norms[moves]  # each column at unit norm
+        columns = SensitivityColumns([em.names[i] for i in moves], unit, np.ones(moves.size))
+        keep, _ = identifiability({"geometry": columns}, ["geometry"], self.rank_tol)
+        ident = moves[keep["geometry"]]
+        if 3 * X.shape[0] < ident.size:
             raise InputError(f"GeometricCalibration: {X.shape[0]} poses give {3 * X.shape[0]} equations for "
-                             f"{rank} identifiable parameters; measure more poses")
+                             f"{ident.size} identifiable parameters; measure more poses")
         nominal = tcp_poses(self.robot, X).position
         target = y.ravel()
         j_id = jac[:, ident]
