@@ -15,7 +15,7 @@ from tcr_accuracy.prediction.composed import MeasuredErrorModel, ResidualCorrect
 from tcr_accuracy.prediction.gaussian_process import JointGaussianProcess, make_gaussian_process
 from tcr_accuracy.prediction.kriging import JointKriging
 from tcr_accuracy.prediction.methods import METHODS, make_predictor
-from tcr_accuracy.analysis.realrobot import make_stand_in_robot
+from tcr_accuracy.analysis.stand_in import make_stand_in_robot
 from tcr_accuracy.analysis.similarity import pair_distances, spatial_similarity
 
 UR5_REF = np.array([0.3, -1.2, 1.5, -1.9, -1.57, 0.4])
