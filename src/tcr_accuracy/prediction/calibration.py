@@ -26,6 +26,7 @@ from ..model.errors import ErrorModel
 from ..model.jacobians import error_jacobians
 from ..model.kinematics import tcp_poses
 from ..model.robot import JointLimitWarning
+from .checks import check_joints_and_position_errors
 
 
 class GeometricCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
@@ -59,11 +60,7 @@ class GeometricCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
 
     def fit(self, X, y):
         X, y = validate_data(self, X, y, multi_output=True, y_numeric=True)
-        if self.robot is None:
-            raise InputError("GeometricCalibration needs a robot")
-        if y.ndim != 2 or y.shape[1] != 3 or X.shape[1] != self.robot.n_joints:
-            raise InputError(f"GeometricCalibration: needs joint values (n, {self.robot.n_joints}) and "
-                             f"position errors (n, 3), got {X.shape} and {y.shape}")
+        check_joints_and_position_errors(self.robot, X, y, type(self).__name__)
         em = ErrorModel(self.robot)
         sensitivity = error_jacobians(self.robot, X, None, em)[1][:, :3]  # (n, 3, p) [m per unit] at x = 0
         jac = sensitivity.reshape(-1, em.size)  # (3n, p)
@@ -148,11 +145,7 @@ class DiagnosisCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
         from ..io.measurements import MeasurementSet
 
         X, y = validate_data(self, X, y, multi_output=True, y_numeric=True)
-        if self.robot is None:
-            raise InputError("DiagnosisCalibration needs a robot")
-        if y.ndim != 2 or y.shape[1] != 3 or X.shape[1] != self.robot.n_joints:
-            raise InputError(f"DiagnosisCalibration: needs joint values (n, {self.robot.n_joints}) and position "
-                             f"errors (n, 3), got {X.shape} and {y.shape}")
+        check_joints_and_position_errors(self.robot, X, y, type(self).__name__)
         positions = tcp_poses(self.robot, X).position + y
         mset = MeasurementSet(joint_names=list(self.robot.joint_names), q=X, position=positions,
                               source="training errors", **_measured_context(context))
