@@ -22,14 +22,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..prediction.methods import DEFAULT_METHOD, METHODS
 from .common import add_robot_arguments, status
 from .output import RunOutput, add_output_arguments
-
-#: names of prediction.METHODS, repeated here so that --help does not import scikit-learn
-#: (a test checks that the two lists agree)
-METHODS = ("kriging", "kriging-pf", "gp", "idw-joint", "idw-cartesian", "mlp-cartesian", "calibration",
-           "calibration+gp", "diagnosis", "diagnosis+gp")
-DEFAULT_METHOD = "diagnosis+gp"
 
 JSON_HELP = "write a JSON summary (mm, unit-suffixed keys) to FILE, or to stdout without FILE"
 
@@ -145,7 +140,8 @@ def _fit(args, robot):
     from sklearn.exceptions import ConvergenceWarning
 
     from ..exceptions import InputError
-    from ..prediction.estimators import MeasuredErrorModel, make_predictor
+    from ..prediction.composed import MeasuredErrorModel
+    from ..prediction.methods import make_predictor
 
     q, pos, context = read_joint_csv(args.train, robot, need_positions=True)
     _check_training(args.train, q, robot.n_joints)
@@ -251,7 +247,7 @@ def _run_predict(args) -> int:
     import numpy as np
 
     from ..view.plots_prediction import plot_predicted_errors
-    from ..prediction.estimators import uncertainty_kind
+    from ..prediction.composed import uncertainty_kind
 
     robot, out = _start(args, "Error prediction")
     q_train, model = _fit(args, robot)
