@@ -179,13 +179,13 @@ def test_json_to_stdout_stays_pure_with_a_report(tmp_path, capsys):
 # Exit codes
 # ---------------------------------------------------------------------------------------
 @pytest.mark.parametrize("argv, message", [
-    (["montecarlo", "--seed", "-1"], "seeds are integers >= 0"),
-    (["sensitivity", "--seed", "x"], "'x' is not an integer"),
+    (["montecarlo", "--seed", "-1"], "--seed -1: want a seed, an integer >= 0"),
+    (["sensitivity", "--seed", "x"], "--seed x: not a number"),
     (["trajectory", "--open"], "--open needs --serve"),
     (["montecarlo", "--json", "/nonexistent-folder/r.json"], "the folder /nonexistent-folder does not exist"),
     (["trajectory", "--view", "/nonexistent-folder/v.html"], "the folder /nonexistent-folder does not exist"),
     (["montecarlo", "--view-samples", "0"], "--view-samples 0"),
-    (["simulate", "--seed", "-3", "--out", "x.csv"], "seeds are integers >= 0"),
+    (["simulate", "--seed", "-3", "--out", "x.csv"], "--seed -3: want a seed, an integer >= 0"),
 ])
 def test_bad_output_options_exit_2_with_one_line(argv, message, capsys):
     try:

@@ -20,7 +20,7 @@ import importlib.resources
 import json
 from pathlib import Path
 
-from .common import EXIT_OK, Parser, add_quiet_argument, seed_value, status
+from .common import EXIT_OK, MAX_COUNT, Parser, add_quiet_argument, integer, seed_value, status
 
 DATA = "data"
 MEASUREMENTS = "tool_changer_cutter.csv"
@@ -37,7 +37,7 @@ def add_parsers(sub) -> None:
     )
     p.add_argument("--out", default="tcr-accuracy-demo", metavar="DIR",
                    help="report folder (default: ./tcr-accuracy-demo); DIR/index.html is the report")
-    p.add_argument("--samples", type=int, default=20_000, help="Monte Carlo samples (default 20000)")
+    p.add_argument("--samples", type=integer(low=2, high=MAX_COUNT), default=20_000, help="Monte Carlo samples (default 20000)")
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
     add_quiet_argument(p)
     p.set_defaults(run=_run_demo)
@@ -70,8 +70,6 @@ def _run_demo(args) -> int:
     from ..exceptions import InputError
     from ..view.report import Report
 
-    if args.samples < 2:
-        raise InputError(f"--samples {args.samples}: need at least 2")
     out_dir = Path(args.out)
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"--out {out_dir}: exists and is not a folder")

@@ -22,7 +22,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import add_robot_arguments, status
+from .common import MAX_MM, add_robot_arguments, integer, number, seed_value, status
 from .output import RunOutput, add_output_arguments
 
 #: names of prediction.METHODS, repeated here so that --help does not import scikit-learn
@@ -63,9 +63,9 @@ def add_parsers(sub) -> None:
     )
     _common(c, METHODS)
     c.add_argument("--targets", required=True, metavar="CSV", help="target joint values (CSV)")
-    c.add_argument("--threshold-mm", type=float, default=0.001,
+    c.add_argument("--threshold-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=0.001,
                    help="stop when the predicted miss is below this [mm] (default 0.001)")
-    c.add_argument("--max-iter", type=int, default=20, help="most compensation cycles (default 20)")
+    c.add_argument("--max-iter", type=integer(low=1, high=10_000), default=20, help="most compensation cycles (default 20)")
     c.add_argument("--csv", metavar="FILE", help="write the compensated joint values [deg, mm], the "
                                                  "corrections and the predicted miss")
     add_output_arguments(c, plots=True, view=True, json_help=JSON_HELP)
@@ -82,7 +82,7 @@ def _common(p: argparse.ArgumentParser, methods) -> None:
                    help="fit: the positions are in a tracker's own frame; fit it and the TCP offset on the "
                         "training data (default); base: they are in the robot's base frame already (only the "
                         "TCP offset is fitted)")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the stochastic methods (default 0)")
+    p.add_argument("--seed", type=seed_value, default=0, help="random seed of the stochastic methods (default 0)")
 
 
 def read_joint_csv(path: str, robot, *, need_positions: bool):
@@ -388,10 +388,6 @@ def _run_compensate(args) -> int:
     from ..model.kinematics import tcp_poses
     from ..view.plots_prediction import plot_compensation
 
-    if args.threshold_mm <= 0:
-        raise InputError(f"--threshold-mm {args.threshold_mm}: must be > 0")
-    if args.max_iter < 1:
-        raise InputError(f"--max-iter {args.max_iter}: must be >= 1")
     robot, out = _start(args, "Joint compensation")
     q_train, model = _fit(args, robot)
     q, measured, context = read_joint_csv(args.targets, robot, need_positions=False)

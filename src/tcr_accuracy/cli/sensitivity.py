@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 
-from .common import add_sampler_arguments, error_sampler, format_joint_values, joint_values_si
+from .common import MAX_COUNT, add_sampler_arguments, error_sampler, format_joint_values, integer, joint_values_si
 from .output import RunOutput, add_output_arguments, progress_bar
 
 
@@ -24,7 +24,7 @@ def add_parsers(sub) -> None:
     )
     add_sampler_arguments(p, pose=True)
     add_output_arguments(p)
-    p.add_argument("--sobol-samples", type=int, default=1024, metavar="N",
+    p.add_argument("--sobol-samples", type=integer(low=2, high=MAX_COUNT), default=1024, metavar="N",
                    help="SALib base sample size, a power of two (model runs: N x (sources + 2)); default 1024")
     p.set_defaults(run=_run_sensitivity)
 

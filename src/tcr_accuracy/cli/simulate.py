@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from .common import EXIT_OK, add_quiet_argument, add_robot_arguments, seed_value, status
+from .common import (EXIT_OK, MAX_COUNT, MAX_MM, add_quiet_argument, add_robot_arguments, integer, number,
+                     seed_value, status)
 
 
 def add_parsers(sub) -> None:
@@ -21,12 +22,12 @@ def add_parsers(sub) -> None:
                         "or one or two drawn at random)")
     p.add_argument("--outside", metavar="EFFECT", default=None,
                    help="with --random: also hide an effect outside the vocabulary (unmodelled, link_bending)")
-    p.add_argument("--n", type=int, default=200, help="number of measurements (default 200)")
+    p.add_argument("--n", type=integer(low=1, high=MAX_COUNT), default=200, help="number of measurements (default 200)")
     p.add_argument("--poses", metavar="CSV", default=None,
                    help="commanded poses (joint columns, optional context columns) instead of random ones")
-    p.add_argument("--box", nargs=6, type=float, metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
+    p.add_argument("--box", nargs=6, type=number(low=-MAX_MM, high=MAX_MM, unit="mm"), metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
                    help="task box for random poses [mm], in the robot's base frame")
-    p.add_argument("--noise-mm", type=float, default=None,
+    p.add_argument("--noise-mm", type=number(low=0, high=MAX_MM, unit="mm"), default=None,
                    help="tracker noise, std per axis [mm] (default: the scenario's, else 0.02)")
     p.add_argument("--orientation", action="store_true", help="also write measured orientations (qw..qz)")
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
@@ -54,10 +55,6 @@ def _run_simulate(args) -> int:
         raise InputError("--scenario and --random: give one of them")
     if args.outside is not None and args.random is None:
         raise InputError("--outside: only with --random (in a scenario file, list the effect under effects)")
-    if args.noise_mm is not None and not args.noise_mm >= 0:
-        raise InputError(f"--noise-mm {args.noise_mm}: must be >= 0")
-    if args.n < 1:
-        raise InputError(f"--n {args.n}: need at least one measurement")
     extra = {}
     if args.scenario is not None:
         scenario = load_scenario(args.scenario)
