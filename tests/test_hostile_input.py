@@ -100,3 +100,51 @@ def test_12_10_diagnose_with_every_parameter_unidentifiable(measurements, tmp_pa
     assert steps[0]["n_parameters"] == 0
     # no parameter fitted: the held-out residual is the training residual
     assert steps[0]["heldout_rms_mm"] == pytest.approx(steps[0]["train_rms_mm"])
+
+
+# ---------------------------------------------------------------------------------------
+# 18, 19: measurement CSV cells and row numbers
+# ---------------------------------------------------------------------------------------
+def _with_comments(measurements, tmp_path, edit):
+    """The fixture's CSV behind three comment lines, its data rows changed by ``edit(rows)``;
+    returns (path, line of data row k = k + 4)."""
+    header, *rows = measurements.read_text().splitlines()
+    rows = [r.split(",") for r in rows]
+    edit(header.split(","), rows)
+    path = tmp_path / "c.csv"
+    path.write_text("# tracker: a comment\n#\n# another one\n" + header + "\n"
+                    + "\n".join(",".join(r) for r in rows) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("cell", ["1_5", "\uff11\uff15", "0x1f", "1e999"])
+def test_12_19_strict_numbers_in_a_measurement_csv(cell, measurements, tmp_path, capsys):
+    def edit(header, rows):
+        rows[2][header.index("x_mm")] = cell
+
+    path = _with_comments(measurements, tmp_path, edit)
+    code, out, err = run(["diagnose", path, "--effects", "joint_offsets"], capsys)
+    assert code == 2
+    assert_one_line(err, f"{path}: row 7, column x_mm")
+
+
+def test_12_19_strict_numbers_in_a_trajectory_csv(tmp_path, capsys):
+    path = tmp_path / "t.csv"
+    path.write_text("t_s,j1_deg,j2_deg,j3_deg,j4_mm,j5_deg,j6_deg\n0,0,0,0,0,0,0\n1,1_5,0,0,0,0,0\n")
+    code, out, err = run(["trajectory", "--file", path, "--samples", "10"], capsys)
+    assert code == 2
+    assert_one_line(err, f"{path}: row 3, column 'j1_deg'")
+
+
+def test_12_18_duplicate_training_poses_are_named_by_file_line(measurements, tmp_path, capsys):
+    def edit(header, rows):  # data row 12 takes data row 5's joint values, with another position
+        joints = [i for i, h in enumerate(header) if h.startswith("j") and h.endswith(("_deg", "_mm"))]
+        for i in joints:
+            rows[11][i] = rows[4][i]
+        rows[11][header.index("x_mm")] = str(float(rows[4][header.index("x_mm")]) + 0.5)
+
+    path = _with_comments(measurements, tmp_path, edit)
+    code, out, err = run(["predict", "--train", path, "--query", path, "--method", "kriging"], capsys)
+    assert code == 2
+    last = err.splitlines()[-1]
+    assert "rows 9 and 16 have the same joint values" in last, err

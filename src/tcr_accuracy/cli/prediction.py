@@ -85,17 +85,19 @@ def _common(p: argparse.ArgumentParser, methods) -> None:
     p.add_argument("--seed", type=seed_value, default=0, help="random seed of the stochastic methods (default 0)")
 
 
-def read_joint_csv(path: str, robot, *, need_positions: bool):
+def read_joint_csv(path: str, robot, *, need_positions: bool, rows: bool = False):
     """Joint values (N, n) [SI], measured positions (N, 3) [m] (None when the file has none)
     and the rows' context (payload, joints outside the TCP chain, ...), read and validated by
-    :func:`tcr_accuracy.io.measurements.read_measurements`."""
+    :func:`tcr_accuracy.io.measurements.read_measurements`; with ``rows``, also each row's
+    line in the file (N,), for messages."""
     import numpy as np
 
     from ..io.measurements import read_measurements
 
     mset = read_measurements(path, robot, require_position=need_positions)
     has_positions = need_positions or not np.isnan(mset.position).all()
-    return mset.q, (mset.position if has_positions else None), mset.context()
+    out = mset.q, (mset.position if has_positions else None), mset.context()
+    return (*out, mset.rows) if rows else out
 
 
 def _check_csv_target(path: str | None) -> None:
@@ -121,7 +123,8 @@ def _write_csv_atomically(args, what: str, header: list[str], rows) -> None:
     status(args, f"{what} written to {args.csv}")
 
 
-def _check_training(path: str, q, n_joints: int) -> None:
+def _check_training(path: str, q, lines, n_joints: int) -> None:
+    """Enough distinct training poses; ``lines`` (N,): each row's line in the file, for messages."""
     import numpy as np
 
     from ..exceptions import InputError
@@ -133,7 +136,7 @@ def _check_training(path: str, q, n_joints: int) -> None:
                                           return_counts=True)
     if (counts > 1).any():
         group = int(np.flatnonzero(counts > 1)[0])
-        rows = np.flatnonzero(inverse.ravel() == group)[:2] + 2
+        rows = np.asarray(lines)[np.flatnonzero(inverse.ravel() == group)[:2]]
         raise InputError(f"{path}: rows {rows[0]} and {rows[1]} have the same joint values (a singular "
                          "kriging covariance); average repeated measurements of a pose into one row")
 
@@ -147,8 +150,8 @@ def _fit(args, robot):
     from ..exceptions import InputError
     from ..prediction.estimators import MeasuredErrorModel, make_predictor
 
-    q, pos, context = read_joint_csv(args.train, robot, need_positions=True)
-    _check_training(args.train, q, robot.n_joints)
+    q, pos, context, lines = read_joint_csv(args.train, robot, need_positions=True, rows=True)
+    _check_training(args.train, q, lines, robot.n_joints)
     model = MeasuredErrorModel(robot=robot, estimator=make_predictor(args.method, robot, random_state=args.seed),
                                fit_frame=args.frame == "fit")
     try:
