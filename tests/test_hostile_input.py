@@ -148,3 +148,165 @@ def test_12_18_duplicate_training_poses_are_named_by_file_line(measurements, tmp
     assert code == 2
     last = err.splitlines()[-1]
     assert "rows 9 and 16 have the same joint values" in last, err
+
+
+# ---------------------------------------------------------------------------------------
+# 6, 8, 15, 16, 17, 22: URDF
+# ---------------------------------------------------------------------------------------
+_INERTIAL = ('<inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/>'
+             '</inertial>')
+
+
+def two_joint_urdf(*, j1_origin="0 0 0.5", j1_axis="0 0 1", j1_limit='lower="-1" upper="1"', j2_type="revolute",
+                   extra="", l1_visual=""):
+    """A two-joint arm base -j1-> l1 -j2-> l2; each argument replaces one piece of it."""
+    return f"""<robot name="r">
+  <link name="base"/>{extra}
+  <link name="l1">{l1_visual}{_INERTIAL}</link>
+  <link name="l2">{_INERTIAL}</link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><origin xyz="{j1_origin}"/>
+    <axis xyz="{j1_axis}"/><limit {j1_limit} effort="1" velocity="1"/></joint>
+  <joint name="j2" type="{j2_type}"><parent link="l1"/><child link="l2"/><origin xyz="0 0.5 0"/>
+    <axis xyz="1 0 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+</robot>"""
+
+
+def test_the_two_joint_urdf_itself_is_fine(tmp_path, capsys):
+    path = tmp_path / "ok.urdf"
+    path.write_text(two_joint_urdf())
+    code, out, err = run(["pose", "--robot", path, "--json"], capsys)
+    assert code == 0, err
+    assert json.loads(out)["position_m"] == pytest.approx([0.0, 0.5, 0.5])
+
+
+@pytest.mark.parametrize("case, urdf, fragment", [
+    ("6 link without a name", two_joint_urdf(extra="<link/>"), "link #2 (<link> element 2) has no name"),
+    ("8 huge origin", two_joint_urdf(j1_origin="0 1e308 0"), "joint j1 <origin>: xyz='0 1e308 0': 1e308 is beyond"),
+    ("8 inf origin", two_joint_urdf(j1_origin="0 inf 0"), "joint j1 <origin>: xyz='0 inf 0': 'inf' is not a finite"),
+    ("15 nan origin", two_joint_urdf(j1_origin="0 nan 0"), "'nan' is not a finite number"),
+    ("15 text in an origin", two_joint_urdf(j1_origin="0 abc 0"), "'abc' is not a finite number"),
+    ("15 two numbers", two_joint_urdf(j1_origin="0 1"), "needs three numbers"),
+    ("15 text in a limit", two_joint_urdf(j1_limit='lower="-1" upper="x"'), "joint j1: <limit>: upper='x'"),
+    ("15 nan in an axis", two_joint_urdf(j1_axis="0 nan 1"), "joint j1: <axis>"),
+    ("15 duplicate links", two_joint_urdf(extra='<link name="l2"/>'), "link l2 is defined twice"),
+    ("15 a loop", two_joint_urdf(extra='<joint name="back" type="fixed"><parent link="l2"/><child link="base"/>'
+                                       '</joint>'), "a loop through link"),
+    ("15 unknown joint type", two_joint_urdf(j2_type="spinning"), "joint j2: type 'spinning' is not a URDF joint"),
+    ("16 planar joint", two_joint_urdf(j2_type="planar"), "joint j2: joint type JointModelPlanar is not supported"),
+    ("16 floating joint", two_joint_urdf(j2_type="floating"), "joint j2: joint type JointModelFreeFlyer"),
+    ("17 zero-length axis", two_joint_urdf(j1_axis="0 0 0"), "joint j1: <axis xyz=...> has zero length"),
+    ("17 lower above upper", two_joint_urdf(j1_limit='lower="1" upper="-1"'), "joint j1: <limit> lower 1 is above"),
+])
+def test_12_06_08_15_16_17_bad_urdf_is_one_line(case, urdf, fragment, tmp_path, capfd):
+    path = tmp_path / "bad.urdf"
+    path.write_text(urdf)
+    try:
+        code = main(["pose", "--robot", str(path)])
+    except SystemExit as exc:
+        code = exc.code
+    out, err = capfd.readouterr()  # file descriptors: urdfdom writes to fd 2 itself
+    assert code == 2 and out == ""
+    assert_one_line(err, str(path), fragment)
+
+
+def test_12_15_urdfdom_complaints_stay_one_line(tmp_path, capfd):
+    # passes our checks, but urdfdom refuses it (a revolute joint without <limit>) on fd 2
+    text = two_joint_urdf().replace('<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>\n</robot>',
+                                    "</joint>\n</robot>")
+    path = tmp_path / "nolimit.urdf"
+    path.write_text(text)
+    code = main(["pose", "--robot", str(path)])
+    out, err = capfd.readouterr()
+    assert code == 2
+    assert_one_line(err, "Pinocchio cannot build a model", "does not specify limits")
+
+
+def test_12_15_a_huge_list_of_leaf_links_stays_short(tmp_path, capsys):
+    leaves = "".join(f'<link name="leaf{i}"/><joint name="f{i}" type="fixed"><parent link="base"/>'
+                     f'<child link="leaf{i}"/></joint>' for i in range(2000))
+    path = tmp_path / "many.urdf"
+    path.write_text(two_joint_urdf(extra=leaves))
+    code, out, err = run(["pose", "--robot", path], capsys)
+    assert code == 2
+    assert_one_line(err, "leaf links", "in all)")
+    assert len(err) < 600
+
+
+def test_12_22_a_mesh_outside_the_urdf_folder_is_refused(tmp_path, capsys):
+    secret = tmp_path / "secret"
+    secret.mkdir()
+    (secret / "x.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n# SECRET-CONTENT\n")
+    robot_dir = tmp_path / "a" / "b"
+    robot_dir.mkdir(parents=True)
+    visual = '<visual><geometry><mesh filename="{}"/></geometry></visual>'
+    bad = robot_dir / "bad.urdf"
+    bad.write_text(two_joint_urdf(l1_visual=visual.format("../../secret/x.obj")))
+    code, out, err = run(["view", "--robot", bad, "--html", tmp_path / "v.html"], capsys)
+    assert code == 2
+    assert_one_line(err, str(bad), "link l1: mesh '../../secret/x.obj' lies outside")
+    assert not (tmp_path / "v.html").exists()
+    # the same mesh inside the URDF's folder is drawn
+    (robot_dir / "x.obj").write_text((secret / "x.obj").read_text())
+    good = robot_dir / "good.urdf"
+    good.write_text(two_joint_urdf(l1_visual=visual.format("x.obj")))
+    code, out, err = run(["view", "--robot", good, "--html", tmp_path / "v.html", "--quiet"], capsys)
+    assert code == 0, err
+    assert (tmp_path / "v.html").exists()
+
+
+# ---------------------------------------------------------------------------------------
+# 11, 12, 21: config and scenario files
+# ---------------------------------------------------------------------------------------
+_DEEP = "[" * 5000 + "]" * 5000
+
+
+def _short_id(value):
+    return value[:40] if isinstance(value, str) else None
+
+
+@pytest.mark.parametrize("name, text, fragment", [
+    ("int-key.yaml", "1: 2\n", "1: keys must be names, not int"),
+    ("huge.yaml", "groups:\n  drive:\n    std_m: 1.0e+300\n    std_rad: 0.001\n",
+     "groups.drive.std_m: 1e+300 is outside"),
+    ("huge.toml", "[groups.drive]\nstd_m = 1e300\nstd_rad = 0.001\n", "groups.drive.std_m: 1e+300 is outside"),
+    ("nan.yaml", "groups:\n  drive:\n    std_m: .nan\n    std_rad: 0.001\n", "groups.drive.std_m: expected a finite"),
+    ("text.yaml", "groups:\n  drive:\n    std_m: wide\n    std_rad: 0.001\n", "groups.drive.std_m: expected a number"),
+    ("deep.yaml", f"name: {_DEEP}\n", "nested too deeply"),
+    ("deep.toml", f"name = {_DEEP}\n", "nested too deeply"),
+], ids=_short_id)
+def test_12_11_bad_config_files_are_one_line(name, text, fragment, tmp_path, capsys):
+    path = tmp_path / name
+    path.write_text(text)
+    code, out, err = run(["montecarlo", "--config", path, "--samples", "100", "--quiet"], capsys)
+    assert code == 2 and out == ""
+    assert_one_line(err, str(path), fragment)
+
+
+@pytest.mark.parametrize("text, fragment", [
+    ("context:\n  payload_fraction: abc\n", "context.payload_fraction: expected a number, got 'abc'"),
+    ("context:\n  payload_fraction: null\n", "context.payload_fraction: expected a number, got None"),
+    ("context:\n  payload_kg: heavy\n", "context.payload_kg: expected a number"),
+    ("context:\n  temperature_c: hot\n", "context.temperature_c: expected a number"),
+    ("context: [1]\n", "context: a mapping"),
+    ("1: 2\n", "1: keys must be names"),
+    (f"noise_mm: {_DEEP}\n", "nested too deeply"),
+    ("context:\n  payload_kg: -150\n", "context.payload_kg: -150 is outside"),  # 21
+    ("context:\n  temperature_spread_c: -5\n", "context.temperature_spread_c: -5 is outside"),  # 21
+    ("effects:\n  geometry:\n    tcp_rms_mm: -1\n", "effects.geometry.tcp_rms_mm: -1 is outside"),  # 21
+    ("effects:\n  compliance:\n    options:\n      link_mass_factors: abc\n", "effects.compliance.options"),
+], ids=_short_id)
+def test_12_12_12_21_bad_scenario_files_are_one_line_and_write_nothing(text, fragment, tmp_path, capsys):
+    path = tmp_path / "s.yaml"
+    path.write_text(text if text.startswith("effects") else "effects:\n  geometry: {}\n" + text)
+    code, out, err = run(["simulate", "--scenario", path, "--n", "5", "--out", tmp_path / "o.csv"], capsys)
+    assert code == 2 and out == ""
+    assert_one_line(err, str(path), fragment)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.yaml"]
+
+
+def test_12_21_an_empty_or_inverted_box_is_refused(tmp_path, capsys):
+    code, out, err = run(["simulate", "--random", "--box", "500", "-500", "0", "100", "0", "100",
+                          "--out", tmp_path / "o.csv"], capsys)
+    assert code == 2
+    assert_one_line(err, "--box")
+    assert list(tmp_path.iterdir()) == []

@@ -25,7 +25,8 @@ def add_parsers(sub) -> None:
     p.add_argument("--n", type=integer(low=1, high=MAX_COUNT), default=200, help="number of measurements (default 200)")
     p.add_argument("--poses", metavar="CSV", default=None,
                    help="commanded poses (joint columns, optional context columns) instead of random ones")
-    p.add_argument("--box", nargs=6, type=number(low=-MAX_MM, high=MAX_MM, unit="mm"), metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
+    p.add_argument("--box", nargs=6, type=number(low=-MAX_MM, high=MAX_MM, unit="mm"),
+                   metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
                    help="task box for random poses [mm], in the robot's base frame")
     p.add_argument("--noise-mm", type=number(low=0, high=MAX_MM, unit="mm"), default=None,
                    help="tracker noise, std per axis [mm] (default: the scenario's, else 0.02)")
@@ -67,6 +68,9 @@ def _run_simulate(args) -> int:
         poses = read_measurements(args.poses, robot, require_position=False)
         q, context = poses.q, poses.context(rng=rng)
     box = None if args.box is None else np.asarray(args.box, dtype=float).reshape(3, 2) * 1e-3
+    if box is not None and not (box[:, 0] < box[:, 1]).all():
+        raise InputError(f"--box {' '.join(f'{v:g}' for v in args.box)}: give XMIN XMAX YMIN YMAX ZMIN ZMAX "
+                         "[mm] with each min below its max")
     noise = None if args.noise_mm is None else args.noise_mm * 1e-3
     mset, truth = simulate_measurements(robot, scenario, args.n, rng, noise, q=q, context=context, box=box,
                                         orientation=args.orientation)
