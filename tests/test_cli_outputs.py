@@ -85,9 +85,9 @@ def test_plots_of_a_failed_run_are_whole_files_and_temporaries_are_gone(tmp_path
     monkeypatch.setattr(plots_montecarlo, "plot_projection_densities", _boom)
     assert main([*SMALL["montecarlo"], "--quiet", "--plots", str(tmp_path / "plots"),
                  "--json", str(tmp_path / "r.json")]) == 1
-    # the first plot was finished before the second failed; nothing else is there
-    assert sorted(p.name for p in tmp_path.rglob("*")) == ["cloud_3d.png", "plots"]
-    assert (tmp_path / "plots" / "cloud_3d.png").read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
+    # the first plot was drawn before the second failed, but a failed run writes nothing:
+    # no plot, no plot folder, no JSON, no temporary file (issue 12 #1)
+    assert sorted(p.name for p in tmp_path.rglob("*")) == []
 
 
 # ---------------------------------------------------------------------------------------
@@ -200,8 +200,9 @@ def test_bad_output_options_exit_2_with_one_line(argv, message, capsys):
 def test_report_folder_that_is_a_file_exits_2(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("x")
+    # refused when the command line is read, before any work
     assert main([*SMALL["tolerance"], "--quiet", "--out", str(blocker)]) == 2
-    assert "cannot create the report folder" in capsys.readouterr().err
+    assert f"--out {blocker}: cannot write here: it exists and is not a folder" in capsys.readouterr().err
     assert blocker.read_text() == "x"
 
 

@@ -310,3 +310,123 @@ def test_12_21_an_empty_or_inverted_box_is_refused(tmp_path, capsys):
     assert code == 2
     assert_one_line(err, "--box")
     assert list(tmp_path.iterdir()) == []
+
+
+# ---------------------------------------------------------------------------------------
+# 1-5: outputs
+# ---------------------------------------------------------------------------------------
+_MC = ["montecarlo", "--samples", "200", "--tail-samples", "0", "--view-samples", "20", "--quiet"]
+
+
+def test_12_01_output_paths_are_checked_before_any_work(tmp_path, capsys, monkeypatch):
+    from tcr_accuracy.analysis import montecarlo
+
+    monkeypatch.setattr(montecarlo, "run_monte_carlo", _must_not_run)
+    (tmp_path / "f").write_text("a file")
+    code, out, err = run([*_MC, "--json", tmp_path / "mc.json", "--view", tmp_path / "v.html",
+                          "--plots", tmp_path / "pl", "--out", tmp_path / "f"], capsys)
+    assert code == 2
+    assert_one_line(err, f"--out {tmp_path / 'f'}: cannot write here: it exists and is not a folder")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f"]
+
+
+def _must_not_run(*args, **kwargs):
+    raise AssertionError("the work started before the output paths were checked")
+
+
+@pytest.mark.parametrize("option, make", [
+    ("--json", lambda d: d / "missing" / "x.json"),  # its folder does not exist
+    ("--json", lambda d: d),  # a folder where a file is wanted
+    ("--view", lambda d: d / "missing" / "v.html"),
+    ("--plots", lambda d: d / "file" / "sub"),  # under a file
+])
+def test_12_01_bad_output_paths_are_refused_first(option, make, tmp_path, capsys):
+    (tmp_path / "file").write_text("x")
+    target = make(tmp_path)
+    code, out, err = run([*_MC, option, target], capsys)
+    assert code == 2
+    assert_one_line(err, f"{option} {target}: cannot write here")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]
+
+
+def test_12_02_a_failed_diagnose_leaves_no_as_built_urdf(measurements, tmp_path, capsys, monkeypatch):
+    def fail(payload, target):  # the JSON, written after the as-built URDF, cannot be written
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr("tcr_accuracy.cli.output.emit_json", fail)
+    code, out, err = run(["diagnose", measurements, "--effects", "joint_offsets", "--quiet",
+                          "--as-built-urdf", tmp_path / "ab.urdf", "--json", tmp_path / "d.json"], capsys)
+    assert code in (1, 2)
+    assert list(tmp_path.iterdir()) == []  # neither ab.urdf nor ab.effects.yaml
+
+
+def test_12_03_a_failed_simulate_leaves_no_csv(tmp_path, capsys, monkeypatch):
+    code, out, err = run(["simulate", "--random", "--n", "20", "--out", tmp_path / "st.csv",
+                          "--truth", tmp_path / "nowhere" / "t.yaml"], capsys)
+    assert code == 2
+    assert_one_line(err, "--truth", "does not exist")
+
+    def fail(path, truth):
+        raise RuntimeError("truth could not be written")
+
+    monkeypatch.setattr("tcr_accuracy.analysis.simulate.write_truth", fail)
+    code, out, err = run(["simulate", "--random", "--n", "20", "--out", tmp_path / "st.csv",
+                          "--truth", tmp_path / "t.yaml"], capsys)
+    assert code == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_12_04_sigterm_mid_run_leaves_nothing(tmp_path, capsys, monkeypatch):
+    import os
+    import signal
+
+    from tcr_accuracy.view import plots_montecarlo
+
+    real = plots_montecarlo.plot_projection_densities
+
+    def terminated(*args, **kwargs):  # the second plot: the first one and the JSON are staged
+        os.kill(os.getpid(), signal.SIGTERM)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(plots_montecarlo, "plot_projection_densities", terminated)
+    before = signal.getsignal(signal.SIGTERM)
+    code, out, err = run([*_MC, "--json", tmp_path / "mc.json", "--plots", tmp_path / "pl",
+                          "--out", tmp_path / "report"], capsys)
+    assert code == 130
+    assert list(tmp_path.rglob("*")) == []  # no JSON, plot, report or temporary file
+    assert signal.getsignal(signal.SIGTERM) == before
+
+
+def test_12_05_special_files_symlinks_and_modes(tmp_path, capsys):
+    import os
+    import stat
+    import threading
+
+    # a named pipe is written into, not renamed over
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    received = []
+    reader = threading.Thread(target=lambda: received.append(fifo.read_bytes()))
+    reader.start()
+    code, out, err = run(["pose", "--json", fifo], capsys)
+    reader.join(timeout=30)
+    assert code == 0, err
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
+    assert json.loads(received[0])["robot"] == "tool_changer"
+    # a symlink is written through; a private file stays private
+    real = tmp_path / "real.json"
+    real.write_text("{}")
+    real.chmod(0o600)
+    link = tmp_path / "link.json"
+    link.symlink_to(real)
+    assert run(["pose", "--json", link], capsys)[0] == 0
+    assert link.is_symlink() and json.loads(real.read_text())["robot"] == "tool_changer"
+    assert stat.S_IMODE(real.stat().st_mode) == 0o600
+    # a new file follows the umask
+    old = os.umask(0o027)
+    try:
+        assert run(["pose", "--json", tmp_path / "new.json"], capsys)[0] == 0
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "new.json").stat().st_mode) == 0o640
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link.json", "new.json", "pipe", "real.json"]

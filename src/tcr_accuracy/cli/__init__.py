@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 import warnings
+from contextlib import contextmanager
 
 from .. import __version__
 from . import demo, diagnose, montecarlo, pose, prediction, sensitivity, simulate, tolerance, trajectory, view
@@ -82,11 +83,17 @@ def _main(argv: list[str], debug: bool, command: str | None) -> int:
     name = f"tcr-accuracy {command}" if command else "tcr-accuracy"
     try:
         parser = build_parser()
-        args = parser.parse_args(argv)
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as exc:  # --help, --version, or a usage error already said in one line
+            return exc.code if isinstance(exc.code, int) else EXIT_INPUT
         args.argv = argv  # the command as typed, for reports
         name = f"tcr-accuracy {args.command}"
         debug = debug or getattr(args, "debug", False)  # also an abbreviated --deb
-        with warnings.catch_warnings():
+        from ..atomic import staged_outputs
+
+        # every file of the run is written at its end, together, or not at all
+        with warnings.catch_warnings(), staged_outputs(), _terminate_as_interrupt():
             warnings.simplefilter("default", UserWarning)
             warnings.showwarning = _show_warning
             return args.run(args)
@@ -117,6 +124,32 @@ def _main(argv: list[str], debug: bool, command: str | None) -> int:
         _report(f"{name}: unexpected error: {_describe(exc)}"
                 f"{'' if debug else ' (rerun with --debug for the traceback)'}", debug)
         return EXIT_ANALYSIS
+
+
+@contextmanager
+def _terminate_as_interrupt():
+    """SIGTERM (a kill, a job scheduler's stop) ends the run as Ctrl-C does: through the
+    exception handlers, so staged and temporary files are removed (outermost main, main
+    thread only)."""
+    import signal
+    import threading
+
+    if _depth > 1 or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, interrupt)
+    except (ValueError, OSError):  # no signals here (an embedded interpreter)
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _describe(exc: BaseException) -> str:

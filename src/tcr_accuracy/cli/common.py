@@ -29,8 +29,8 @@ class Parser(argparse.ArgumentParser):
         sys.exit(EXIT_INPUT)
 
 
-_TYPE_REFUSAL = re.compile(r"argument (?P<option>--[\w-]+)(?:/[\w-]+)*: (?P<rest>.+?: (?:want|not a number|non-finite).*)",
-                           re.DOTALL)
+_TYPE_REFUSAL = re.compile(r"argument (?P<option>--[\w-]+)(?:/[\w-]+)*: "
+                           r"(?P<rest>.+?: (?:want|not a number|non-finite|cannot write here).*)", re.DOTALL)
 
 
 def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
@@ -95,7 +95,28 @@ def integer(*, low: int | None = None, high: int | None = None, what: str = ""):
 
 def _shown(text: str) -> str:
     """An option's value as a message shows it: as typed, or quoted when empty, spaced or long."""
-    return text if text and len(text) <= 40 and not any(c.isspace() for c in text) else repr(text[:40])
+    return text if text and len(text) <= 200 and not any(c.isspace() for c in text) else repr(text[:200])
+
+
+def output_file(text: str) -> str:
+    """argparse type of an option naming a file the run writes (``-``: stdout): refused now,
+    before any work, if it could not be written at the end."""
+    from ..atomic import output_file_problem
+
+    problem = output_file_problem(text)
+    if problem:
+        raise argparse.ArgumentTypeError(f"{_shown(text)}: {problem}")
+    return text
+
+
+def output_folder(text: str) -> str:
+    """argparse type of an option naming a folder the run fills (see :func:`output_file`)."""
+    from ..atomic import output_folder_problem
+
+    problem = output_folder_problem(text)
+    if problem:
+        raise argparse.ArgumentTypeError(f"{_shown(text)}: {problem}")
+    return text
 
 
 #: argparse type of ``--seed``: an integer that numpy's SeedSequence accepts.

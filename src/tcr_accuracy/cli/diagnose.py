@@ -11,7 +11,7 @@ import math
 import sys
 from pathlib import Path
 
-from .common import MAX_MM, add_robot_arguments, integer, number, seed_value
+from .common import MAX_MM, add_robot_arguments, integer, number, output_file, seed_value
 from .output import RunOutput, add_output_arguments
 
 
@@ -34,7 +34,7 @@ def add_parsers(sub) -> None:
     p.add_argument("--noise-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
                    help="the instrument's noise, std per axis [mm]; noise floor = sqrt(3) x this (default: "
                         "estimated from repeated poses, else from the final residual, and said which)")
-    p.add_argument("--as-built-urdf", default=None, metavar="FILE",
+    p.add_argument("--as-built-urdf", default=None, type=output_file, metavar="FILE",
                    help="write the calibrated URDF to FILE and the other effects' parameters to "
                         "FILE with suffix .effects.yaml")
     add_output_arguments(p, view=True)

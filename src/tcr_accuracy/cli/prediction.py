@@ -22,7 +22,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import MAX_MM, add_robot_arguments, integer, number, seed_value, status
+from .common import MAX_MM, add_robot_arguments, integer, number, output_file, seed_value, status
 from .output import RunOutput, add_output_arguments
 
 #: names of prediction.METHODS, repeated here so that --help does not import scikit-learn
@@ -48,7 +48,7 @@ def add_parsers(sub) -> None:
     _common(p, METHODS)
     p.add_argument("--query", required=True, metavar="CSV",
                    help="joint values to predict at (CSV); with x/y/z columns also scored against them")
-    p.add_argument("--csv", metavar="FILE",
+    p.add_argument("--csv", type=output_file, metavar="FILE",
                    help="write the predictions: the query joints, ex_mm, ey_mm, ez_mm, e_norm_mm, their "
                         "standard deviations ex_std_mm ... (methods with one) and, for measured queries, "
                         "the measured error and the held-out miss")
@@ -66,7 +66,7 @@ def add_parsers(sub) -> None:
     c.add_argument("--threshold-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=0.001,
                    help="stop when the predicted miss is below this [mm] (default 0.001)")
     c.add_argument("--max-iter", type=integer(low=1, high=10_000), default=20, help="most compensation cycles (default 20)")
-    c.add_argument("--csv", metavar="FILE", help="write the compensated joint values [deg, mm], the "
+    c.add_argument("--csv", type=output_file, metavar="FILE", help="write the compensated joint values [deg, mm], the "
                                                  "corrections and the predicted miss")
     add_output_arguments(c, plots=True, view=True, json_help=JSON_HELP)
     c.set_defaults(run=_run_compensate)
@@ -98,14 +98,6 @@ def read_joint_csv(path: str, robot, *, need_positions: bool, rows: bool = False
     has_positions = need_positions or not np.isnan(mset.position).all()
     out = mset.q, (mset.position if has_positions else None), mset.context()
     return (*out, mset.rows) if rows else out
-
-
-def _check_csv_target(path: str | None) -> None:
-    """Fail before the computation when the --csv folder does not exist."""
-    if path is not None and not Path(path).resolve().parent.is_dir():
-        from ..exceptions import InputError
-
-        raise InputError(f"--csv {path}: the folder {Path(path).parent} does not exist")
 
 
 def _write_csv_atomically(args, what: str, header: list[str], rows) -> None:
@@ -225,7 +217,6 @@ def _start(args, title: str):
     """The robot and the run's outputs, checked before any work."""
     from ..model.robot import load_robot
 
-    _check_csv_target(args.csv)
     out = RunOutput(args, title)
     return load_robot(args.robot, args.tool), out
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .common import (EXIT_OK, MAX_COUNT, MAX_MM, add_quiet_argument, add_robot_arguments, integer, number,
-                     seed_value, status)
+                     output_file, seed_value, status)
 
 
 def add_parsers(sub) -> None:
@@ -34,8 +34,8 @@ def add_parsers(sub) -> None:
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
     p.add_argument("--unit", choices=("mm", "m"), default="mm",
                    help="CSV units: mm (joints in deg/mm) or m (rad/m) (default mm)")
-    p.add_argument("--out", required=True, metavar="CSV", help="measurement CSV to write")
-    p.add_argument("--truth", metavar="FILE", default=None,
+    p.add_argument("--out", required=True, type=output_file, metavar="CSV", help="measurement CSV to write")
+    p.add_argument("--truth", type=output_file, metavar="FILE", default=None,
                    help="write the hidden truth here (.yaml/.yml or JSON); keep it from the diagnosis")
     add_quiet_argument(p)
     p.set_defaults(run=_run_simulate)

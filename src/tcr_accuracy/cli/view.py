@@ -17,7 +17,7 @@ import argparse
 import sys
 
 from .common import (EXIT_OK, MAX_COUNT, add_quiet_argument, add_robot_arguments, format_joint_values, integer,
-                     joint_value, joint_values_si, number, seed_value, status)
+                     joint_value, joint_values_si, number, output_file, seed_value, status)
 
 DEFAULT_VIEW_FILE = "view.html"
 
@@ -30,12 +30,13 @@ def add_view_arguments(parser: argparse.ArgumentParser, *, always: bool = False)
         is asked for. Other commands get ``--view`` (off unless given).
     """
     if always:
-        parser.add_argument("--html", default=None, metavar="FILE",
+        parser.add_argument("--html", default=None, type=output_file, metavar="FILE",
                             help=f"write the view as one self-contained HTML file that opens in any "
                                  f"browser without a server (default: {DEFAULT_VIEW_FILE}, unless only "
                                  "--serve is given)")
     else:
-        parser.add_argument("--view", nargs="?", const=DEFAULT_VIEW_FILE, default=None, metavar="HTML",
+        parser.add_argument("--view", nargs="?", const=DEFAULT_VIEW_FILE, default=None, type=output_file,
+                            metavar="HTML",
                             help="also write a 3D view (meshcat) as one self-contained HTML file "
                                  f"(default name: {DEFAULT_VIEW_FILE})")
     parser.add_argument("--serve", action="store_true",
@@ -66,6 +67,10 @@ def serve_view(scene, args) -> None:
     if not args.serve:
         return
     import time
+
+    from ..atomic import commit_staged
+
+    commit_staged()  # the run's files are done: write them before serving until Ctrl-C
 
     live = scene.serve(open_browser=args.open)
     # on stderr (stdout may be --json -), and even with --quiet: the URL is what was asked for
