@@ -36,6 +36,7 @@ from ..exceptions import InputError
 from .tool_changer import DISC_CUTTER_MASS, WORKING_POSE, tool_changer_urdf
 from ..units import JOINT_DISPLAY, PRISMATIC, REVOLUTE  # noqa: F401 - PRISMATIC: part of this module's vocabulary
 from .urdf import (
+    MAX_CHAIN_JOINTS,
     check_mesh_paths,
     check_urdf,
     find_frame,
@@ -449,6 +450,9 @@ def robot_from_urdf_text(
     model = reduce_model(full, locked) if locked else full
     if model.njoints <= 1:
         raise InputError(f"--tool {tool}: no joint moves this frame in {source}")
+    if model.njoints - 1 > MAX_CHAIN_JOINTS:
+        raise InputError(f"--tool {tool}: {model.njoints - 1} joints move this frame in {source}, more than the "
+                         f"{MAX_CHAIN_JOINTS} of a serial chain tcr-accuracy models")
     for j in range(1, model.njoints):
         joint_kind(model.joints[j], f"{source}: joint {one_line(model.names[j])}")  # raises for unsupported kinds
     tool_frame_id = next(i for i, f in enumerate(model.frames) if f.name == tool and f.type == frame.type)

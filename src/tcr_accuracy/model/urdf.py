@@ -109,6 +109,10 @@ MAX_URDF_LENGTH = 1e4
 #: The largest angle [rad] (an origin's rpy, a revolute limit) and mass-property value a URDF may give.
 MAX_URDF_ANGLE = 1e4
 MAX_URDF_MASS = 1e9
+#: The most joints a URDF may have, and the most a chain from the base to the TCP may have:
+#: the error model grows with the chain and its Jacobians with its square.
+MAX_URDF_JOINTS = 1000
+MAX_CHAIN_JOINTS = 100
 
 
 def check_urdf(root: ElementTree.Element, source: str) -> None:
@@ -145,6 +149,9 @@ def check_urdf(root: ElementTree.Element, source: str) -> None:
         raise InputError(f"{source}: the URDF has no <link>")
     joints: set = set()
     parent_of: dict = {}
+    if len(root.findall("joint")) > MAX_URDF_JOINTS:
+        raise InputError(f"{source}: {len(root.findall('joint'))} joints, more than the {MAX_URDF_JOINTS} "
+                         "tcr-accuracy reads")
     for k, joint in enumerate(root.findall("joint")):
         name = joint.get("name")
         if not name:
