@@ -390,10 +390,9 @@ def test_12_04_sigterm_mid_run_leaves_nothing(tmp_path, capsys, monkeypatch):
 
     monkeypatch.setattr(plots_montecarlo, "plot_projection_densities", terminated)
     before = signal.getsignal(signal.SIGTERM)
-    code, out, err = run([*_MC, "--json", tmp_path / "mc.json", "--plots", tmp_path / "pl",
-                          "--out", tmp_path / "report"], capsys)
+    code, out, err = run([*_MC, "--json", tmp_path / "mc.json", "--plots", tmp_path / "pl"], capsys)
     assert code == 130
-    assert list(tmp_path.rglob("*")) == []  # no JSON, plot, report or temporary file
+    assert list(tmp_path.rglob("*")) == []  # no JSON, plot or temporary file
     assert signal.getsignal(signal.SIGTERM) == before
 
 
@@ -430,3 +429,93 @@ def test_12_05_special_files_symlinks_and_modes(tmp_path, capsys):
         os.umask(old)
     assert stat.S_IMODE((tmp_path / "new.json").stat().st_mode) == 0o640
     assert sorted(p.name for p in tmp_path.iterdir()) == ["link.json", "new.json", "pipe", "real.json"]
+
+
+# ---------------------------------------------------------------------------------------
+# 13, 14: memory, estimated before the work and refused above --max-memory-gb
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("argv, fragment", [
+    (["montecarlo", "--samples", "1000000000000"], "--samples 1000000000000 in chunks of 20000 needs about"),
+    (["montecarlo", "--view-samples", "1000000000"], "--view-samples 1000000000"),
+    (["simulate", "--random", "--n", "1000000000", "--out", "x.csv"], "--n 1000000000 needs about"),
+    (["sensitivity", "--sobol-samples", str(2**30)], f"--sobol-samples {2**30} over"),
+    (["tolerance", "--samples", "1000000000"], "--samples 1000000000 needs about"),
+    (["trajectory", "--samples", "100000000"], "--samples 100000000 along 121 steps"),
+    (["view", "--error-preset", "table1", "--samples", "1000000000"], "--samples 1000000000 needs about"),
+])
+def test_12_13_large_work_is_refused_before_it_starts(argv, fragment, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run(argv, capsys)
+    assert code == 2
+    assert_one_line(err, fragment, "more than the 4 GB allowed", "--max-memory-gb")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_12_13_max_memory_gb_sets_the_budget(tmp_path, capsys):
+    argv = ["montecarlo", "--samples", "1000", "--tail-samples", "0", "--quiet", "--json", tmp_path / "mc.json"]
+    code, out, err = run([*argv, "--max-memory-gb", "0.001"], capsys)  # 1 MB: the default chunk does not fit
+    assert code == 2
+    assert_one_line(err, "more than the 0.001 GB allowed")
+    assert not (tmp_path / "mc.json").exists()
+    assert run([*argv, "--max-memory-gb", "0.5"], capsys)[0] == 0
+    assert (tmp_path / "mc.json").exists()
+
+
+@pytest.fixture(scope="module")
+def tall_csv(measurements, tmp_path_factory):
+    """The fixture's rows repeated to 200,000 rows (about 30 MB)."""
+    header, *rows = measurements.read_text().splitlines()
+    path = tmp_path_factory.mktemp("tall") / "tall.csv"
+    body = "\n".join(rows) + "\n"
+    path.write_text(header + "\n" + body * (200_000 // len(rows)))
+    return path
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["predict", "--train", "TALL", "--query", "M", "--method", "gp"], "use fewer training rows, or --method calibration"),
+    (["diagnose", "TALL", "--max-memory-gb", "1"], "diagnosing"),
+])
+def test_12_14_a_huge_csv_is_refused_before_it_is_read(argv, fragment, tall_csv, measurements, capsys, monkeypatch):
+    from tcr_accuracy.io import measurements as reader
+
+    monkeypatch.setattr(reader, "read_user_text", _must_not_run)
+    argv = [str(tall_csv) if a == "TALL" else str(measurements) if a == "M" else a for a in argv]
+    code, out, err = run(argv, capsys)
+    assert code == 2
+    assert_one_line(err, str(tall_csv), "rows) needs about", fragment)
+
+
+def test_12_13_refusals_hold_under_an_address_space_limit(tmp_path):
+    # under ulimit -v 3 GB, a trillion samples is our one-line refusal, not a MemoryError
+    import resource
+    import subprocess
+    import sys
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (3 * 2**30, 3 * 2**30))
+
+    src = str(__import__("pathlib").Path(__import__("tcr_accuracy").__file__).parents[1])
+    result = subprocess.run([sys.executable, "-m", "tcr_accuracy", "montecarlo", "--samples", "1000000000000"],
+                            preexec_fn=limit, capture_output=True, text=True, cwd=tmp_path, timeout=120,
+                            env={"PYTHONPATH": src, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
+                                 "PATH": "/usr/bin:/bin"})
+    assert result.returncode == 2, result.stderr
+    assert_one_line(result.stderr, "needs about", "--max-memory-gb")
+
+
+def _chain_urdf(n):
+    links = "".join(f'<link name="l{i}">{_INERTIAL}</link>' for i in range(n + 1))
+    joints = "".join(f'<joint name="j{i}" type="revolute"><parent link="l{i}"/><child link="l{i + 1}"/>'
+                     f'<origin xyz="0 0 0.01"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" '
+                     f'velocity="1"/></joint>' for i in range(n))
+    return f'<robot name="chain">{links}{joints}</robot>'
+
+
+@pytest.mark.parametrize("n, fragment", [(3000, "3000 joints, more than the 1000"),
+                                         (300, "300 joints move this frame")])
+def test_12_07_a_chain_too_long_is_refused(n, fragment, tmp_path, capsys):
+    path = tmp_path / "chain.urdf"
+    path.write_text(_chain_urdf(n))
+    code, out, err = run(["pose", "--robot", path], capsys)
+    assert code == 2
+    assert_one_line(err, str(path), fragment)

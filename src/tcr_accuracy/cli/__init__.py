@@ -15,7 +15,7 @@ from contextlib import contextmanager
 
 from .. import __version__
 from . import demo, diagnose, montecarlo, pose, prediction, sensitivity, simulate, tolerance, trajectory, view
-from .common import EXIT_ANALYSIS, EXIT_INPUT, EXIT_OK, Parser
+from .common import EXIT_ANALYSIS, EXIT_INPUT, EXIT_OK, Parser, add_memory_argument
 
 
 # ---------------------------------------------------------------------------------------
@@ -35,6 +35,7 @@ def build_parser() -> argparse.ArgumentParser:
         # also accepted after the command; SUPPRESS keeps a --debug given before it
         command_parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                                     help=DEBUG_HELP)
+        add_memory_argument(command_parser)
     return parser
 
 

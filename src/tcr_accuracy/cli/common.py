@@ -134,6 +134,60 @@ MAX_MM = 1e6
 joint_value = number(low=-1e9, high=1e9)
 
 
+# ---------------------------------------------------------------------------------------
+# Memory: an estimate before large work, refused above a budget
+# ---------------------------------------------------------------------------------------
+#: The memory [GB] a run may plan for unless ``--max-memory-gb`` says otherwise.
+DEFAULT_MEMORY_GB = 4.0
+
+
+def add_memory_argument(parser: argparse.ArgumentParser) -> None:
+    """``--max-memory-gb``: the budget :func:`check_memory` holds an estimate to."""
+    parser.add_argument("--max-memory-gb", type=number(low=0, low_open=True, high=1e6, unit="GB"), default=None,
+                        metavar="GB", help=f"refuse work estimated to need more memory than this "
+                                           f"(default {DEFAULT_MEMORY_GB:g} GB)")
+
+
+def check_memory(args, what: str, n_bytes: float, hint: str = "make it smaller") -> None:
+    """Refuse, in one line, work whose memory estimate ``n_bytes`` exceeds the budget
+    (``--max-memory-gb``, default :data:`DEFAULT_MEMORY_GB`), before it starts; ``hint``
+    says what to do instead."""
+    budget = getattr(args, "max_memory_gb", None) or DEFAULT_MEMORY_GB
+    if n_bytes > budget * 1e9:
+        from ..exceptions import InputError
+
+        raise InputError(f"{what} needs about {n_bytes / 1e9:.3g} GB of memory, more than the {budget:g} GB "
+                         f"allowed; {hint}, or allow more with --max-memory-gb")
+
+
+def sample_bytes(robot) -> float:
+    """Working memory [bytes] one error sample or pose takes while a batch is evaluated
+    (error vector, joint placements and Jacobian columns, a few copies): a rough, generous
+    figure for :func:`check_memory`."""
+    n = robot.n_joints
+    return 8.0 * 4 * (7 * (n + 2) + 12 * n + 64)
+
+
+def check_csv_memory(args, path, what: str, row_bytes: float, fixed_bytes=lambda rows: 0.0,
+                     hint: str = "use fewer rows") -> int:
+    """Count the rows of a CSV (without reading it into memory) and refuse it with
+    :func:`check_memory` when reading it (about 12 bytes per byte of text, ``row_bytes``
+    per row) and ``fixed_bytes(rows)`` would exceed the budget; returns the row count
+    (0 when the file cannot be opened: its reader says why)."""
+    import os
+
+    try:
+        size = os.stat(path).st_size
+        rows = 0
+        with open(path, "rb") as handle:
+            for block in iter(lambda: handle.read(1 << 20), b""):
+                rows += block.count(b"\n")
+    except OSError:
+        return 0
+    check_memory(args, f"{what} {path} ({rows} rows)", 12.0 * size + rows * row_bytes + fixed_bytes(rows), hint)
+    return rows
+
+
 #: Error distributions ``--preset`` names: the seed's Table 1, Table 2 and Table 4 (joint clearance).
 PRESETS = ("table1", "table2", "clearance")
 

@@ -11,7 +11,7 @@ import math
 import sys
 from pathlib import Path
 
-from .common import MAX_MM, add_robot_arguments, integer, number, output_file, seed_value
+from .common import MAX_MM, add_robot_arguments, check_csv_memory, integer, number, output_file, seed_value
 from .output import RunOutput, add_output_arguments
 
 
@@ -41,6 +41,10 @@ def add_parsers(sub) -> None:
     p.set_defaults(run=_run_diagnose)
 
 
+#: Memory [bytes] the diagnosis plans per measurement (see check_csv_memory in _run_diagnose).
+DIAGNOSE_ROW_BYTES = 3 * 120 * 8 * 4
+
+
 def _run_diagnose(args) -> int:
     from ..diagnosis.diagnose import diagnose
     from ..effects import vocabulary
@@ -56,6 +60,9 @@ def _run_diagnose(args) -> int:
         if unknown:
             raise InputError(f"--effects: unknown {', '.join(unknown)} (vocabulary: {', '.join(vocabulary())})")
     min_rows = max(3 * args.folds, 12)
+    # the diagnosis holds each measurement's Jacobian over the whole effect vocabulary
+    # (3 rows x about 120 parameters) a few times over
+    check_csv_memory(args, args.measurements, "diagnosing", DIAGNOSE_ROW_BYTES)
     frames = measured_frames(args.measurements)
     if frames:  # several measured frames per row: one chain each, their shared parameters fitted once
         if args.tool is not None and args.tool not in frames:

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import math
 
-from .common import (MAX_COUNT, MAX_MM, PRESETS, add_robot_arguments, format_joint_values, integer, joint_value,
-                     joint_values_si, number, sampler_from_args, seed_value)
+from .common import (MAX_COUNT, MAX_MM, PRESETS, add_robot_arguments, check_memory, format_joint_values, integer,
+                     joint_value, joint_values_si, number, sample_bytes, sampler_from_args, seed_value)
 from .output import add_output_arguments, progress_bar
 
 #: What the "dp" column means (also written to the JSON).
@@ -104,6 +104,11 @@ def _run_montecarlo(args) -> int:
     sampler = sampler_from_args(robot, args.preset, args.config)
     tolerances_m = np.array(args.tol) * 1e-3
     chunk = args.chunk or CHUNK
+    per_sample = sample_bytes(robot)
+    check_memory(args, f"--samples {args.samples} in chunks of {chunk}",
+                 min(chunk, args.samples) * per_sample + -(-args.samples // chunk) * 1000.0)  # + a seed per chunk
+    check_memory(args, f"--view-samples {args.view_samples} and --tail-samples {args.tail_samples}",
+                 (args.view_samples + args.tail_samples) * per_sample)
     client, close_client = _client(args)
     update, close_bar = progress_bar(args.samples, "monte carlo", args.quiet, unit="sample", unit_scale=True)
     try:

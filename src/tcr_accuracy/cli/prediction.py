@@ -22,7 +22,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import MAX_MM, add_robot_arguments, integer, number, output_file, seed_value, status
+from .common import (MAX_MM, add_robot_arguments, check_csv_memory, integer, number, output_file, seed_value,
+                     status)
 from .output import RunOutput, add_output_arguments
 
 #: names of prediction.METHODS, repeated here so that --help does not import scikit-learn
@@ -133,6 +134,22 @@ def _check_training(path: str, q, lines, n_joints: int) -> None:
                          "kriging covariance); average repeated measurements of a pose into one row")
 
 
+#: Methods holding an n x n covariance of the n training rows (Gaussian processes, kriging).
+_QUADRATIC = ("kriging", "kriging-pf", "gp", "calibration+gp", "diagnosis+gp")
+
+
+def _training_row_bytes(method: str) -> float:
+    """Memory [bytes] a method plans per training row (the diagnosis' Jacobians for diagnosis*)."""
+    from .diagnose import DIAGNOSE_ROW_BYTES
+
+    return DIAGNOSE_ROW_BYTES if method.startswith("diagnosis") else 3 * 64 * 8.0
+
+
+def _training_pair_bytes(method: str):
+    """Memory [bytes] for n training rows beyond the per-row part: a few n x n matrices."""
+    return (lambda rows: 4 * 8.0 * rows * rows) if method in _QUADRATIC else (lambda rows: 0.0)
+
+
 def _fit(args, robot):
     """Read the training file, fit the tracker frame and the predictor: (q_train, MeasuredErrorModel)."""
     import warnings
@@ -142,6 +159,9 @@ def _fit(args, robot):
     from ..exceptions import InputError
     from ..prediction.estimators import MeasuredErrorModel, make_predictor
 
+    check_csv_memory(args, args.train, f"--method {args.method} on --train", _training_row_bytes(args.method),
+                     _training_pair_bytes(args.method), hint="use fewer training rows, or --method calibration "
+                                                           "(its memory grows only linearly with the rows)")
     q, pos, context, lines = read_joint_csv(args.train, robot, need_positions=True, rows=True)
     _check_training(args.train, q, lines, robot.n_joints)
     model = MeasuredErrorModel(robot=robot, estimator=make_predictor(args.method, robot, random_state=args.seed),
@@ -249,6 +269,7 @@ def _run_predict(args) -> int:
 
     robot, out = _start(args, "Error prediction")
     q_train, model = _fit(args, robot)
+    check_csv_memory(args, args.query, "--query", 3 * 64 * 8.0)
     q, measured, context = read_joint_csv(args.query, robot, need_positions=False)
     scale = robot.display_scale
     pred, std = _predict(args, model, q, context)
@@ -384,6 +405,7 @@ def _run_compensate(args) -> int:
 
     robot, out = _start(args, "Joint compensation")
     q_train, model = _fit(args, robot)
+    check_csv_memory(args, args.targets, "--targets", 3 * 64 * 8.0)
     q, measured, context = read_joint_csv(args.targets, robot, need_positions=False)
     units, scale = robot.display_units, robot.display_scale
     # the predictor of the base-frame error (TCP offset + method): targets and commands are base-frame

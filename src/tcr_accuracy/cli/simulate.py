@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from .common import (EXIT_OK, MAX_COUNT, MAX_MM, add_quiet_argument, add_robot_arguments, integer, number,
-                     output_file, seed_value, status)
+from .common import (EXIT_OK, MAX_COUNT, MAX_MM, add_quiet_argument, add_robot_arguments, check_csv_memory,
+                     check_memory, integer, number, output_file, sample_bytes, seed_value, status)
 
 
 def add_parsers(sub) -> None:
@@ -51,6 +51,10 @@ def _run_simulate(args) -> int:
     from ..analysis.simulate import random_scenario, simulate_measurements, write_truth
 
     robot = load_robot(args.robot, args.tool)
+    # the poses, their context and the CSV text: a few hundred bytes a measurement
+    check_memory(args, f"--n {args.n}", args.n * (sample_bytes(robot) + 400.0))
+    if args.poses is not None:
+        check_csv_memory(args, args.poses, "--poses", sample_bytes(robot))
     rng = np.random.default_rng(args.seed)
     if args.scenario is not None and args.random is not None:
         raise InputError("--scenario and --random: give one of them")

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import math
 
-from .common import (MAX_COUNT, MAX_MM, add_sampler_arguments, error_sampler, format_joint_values, integer,
-                     joint_values_si, number)
+from .common import (MAX_COUNT, MAX_MM, add_sampler_arguments, check_memory, error_sampler, format_joint_values,
+                     integer, joint_values_si, number, sample_bytes)
 from .output import RunOutput, add_output_arguments, progress_bar
 
 
@@ -48,6 +48,7 @@ def _run_tolerance(args) -> int:
     out = RunOutput(args, "Tolerance allocation")
     robot = load_robot(args.robot, args.tool)
     q = joint_values_si(robot, args.q)
+    check_memory(args, f"--samples {args.samples}", args.samples * sample_bytes(robot))
     sampler, label = error_sampler(robot, args)
     inputs = random_inputs(sampler)
     known = sorted({g for g, ok in zip(inputs.groups, inputs.scalable) if ok})

@@ -7,7 +7,8 @@ inside the run function so that ``--help`` stays instant.
 
 from __future__ import annotations
 
-from .common import MAX_COUNT, add_sampler_arguments, error_sampler, integer
+from .common import (MAX_COUNT, add_sampler_arguments, check_csv_memory, check_memory, error_sampler, integer,
+                     sample_bytes)
 from .output import RunOutput, add_output_arguments, progress_bar
 
 
@@ -37,9 +38,14 @@ def _run_trajectory(args) -> int:
     out = RunOutput(args, "TCP error along a trajectory")
     robot = load_robot(args.robot, args.tool)
     if args.file:
+        check_csv_memory(args, args.file, "--file", 8.0 * (robot.n_joints + 1))
         traj = read_trajectory_csv(args.file, robot)
     else:
+        check_memory(args, f"--steps {args.steps}", args.steps * 8.0 * 64)
         traj = tool_change_motion(robot, n_steps=args.steps)
+    # every sample's TCP error at every step is kept for the bands (6 numbers each)
+    check_memory(args, f"--samples {args.samples} along {len(traj)} steps",
+                 args.samples * (sample_bytes(robot) + 8.0 * 6 * len(traj)))
     sampler, label = error_sampler(robot, args)
     update, close = progress_bar(len(traj), "trajectory", args.quiet)
     try:

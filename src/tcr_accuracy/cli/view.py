@@ -16,8 +16,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import (EXIT_OK, MAX_COUNT, add_quiet_argument, add_robot_arguments, format_joint_values, integer,
-                     joint_value, joint_values_si, number, output_file, seed_value, status)
+from .common import (EXIT_OK, MAX_COUNT, add_quiet_argument, add_robot_arguments, check_memory, format_joint_values,
+                     integer, joint_value, joint_values_si, number, output_file, sample_bytes, seed_value, status)
 
 DEFAULT_VIEW_FILE = "view.html"
 
@@ -124,6 +124,7 @@ def _run_view(args) -> int:
     scene = Scene(f"{robot.name} at {format_joint_values(robot, q)}")
     scene.add_robot(robot, q, "nominal")
     if args.error_preset is not None:
+        check_memory(args, f"--samples {args.samples}", args.samples * sample_bytes(robot))
         budget = seed_budget(robot, args.error_preset)
         x = budget.sample(args.samples, np.random.default_rng(args.seed))
         magnify = scene.add_tcp_error_cloud(robot, q, x, budget.error_model, magnify=args.magnify)
