@@ -202,7 +202,7 @@ def test_report_folder_that_is_a_file_exits_2(tmp_path, capsys):
     blocker.write_text("x")
     # refused when the command line is read, before any work
     assert main([*SMALL["tolerance"], "--quiet", "--out", str(blocker)]) == 2
-    assert f"--out {blocker}: cannot write here: it exists and is not a folder" in capsys.readouterr().err
+    assert f"--out {blocker}: exists and is not a folder" in capsys.readouterr().err
     assert blocker.read_text() == "x"
 
 

@@ -146,14 +146,14 @@ def output_file_problem(path) -> str | None:
         return None
     path = Path(path)
     if path.is_dir():
-        return "cannot write here: it is a folder; give a file name"
+        return "is a folder; give a file name"
     if _is_special(path):
-        return None if os.access(path, os.W_OK) else "cannot write here: not writable"
+        return None if os.access(path, os.W_OK) else "not writable"
     folder = Path(os.path.realpath(path)).parent
     if not folder.is_dir():
-        return f"cannot write here: the folder {path.parent if not path.parent.is_dir() else folder} does not exist"
+        return f"the folder {path.parent if not path.parent.is_dir() else folder} does not exist"
     if not os.access(folder, os.W_OK | os.X_OK):
-        return f"cannot write here: the folder {folder} is not writable"
+        return f"the folder {folder} is not writable"
     return None
 
 
@@ -164,14 +164,14 @@ def output_folder_problem(path) -> str | None:
         return None
     path = Path(path)
     if path.exists() and not path.is_dir():
-        return "cannot write here: it exists and is not a folder"
+        return "exists and is not a folder"
     existing = Path(os.path.realpath(path))
     while not existing.exists():
         existing = existing.parent
     if not existing.is_dir():
-        return f"cannot write here: {existing} is a file, not a folder"
+        return f"the folder {existing} is a file"
     if not os.access(existing, os.W_OK | os.X_OK):
-        return f"cannot write here: the folder {existing} is not writable"
+        return f"the folder {existing} is not writable"
     return None
 
 

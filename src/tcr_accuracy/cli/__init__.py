@@ -159,12 +159,20 @@ def _describe(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {message}" if message else type(exc).__name__
 
 
+#: The longest error line [characters]: a message quoting a huge file's content is cut.
+MAX_LINE = 1000
+
+
 def _report(line: str, debug: bool) -> None:
-    """One line on stderr; with --debug, the traceback of the exception being handled first."""
+    """One line on stderr, at most MAX_LINE long; with --debug, the traceback of the exception
+    being handled first."""
     if debug:
         import traceback
 
         traceback.print_exc(file=sys.stderr)
+    line = " ".join(line.split())
+    if len(line) > MAX_LINE:
+        line = line[: MAX_LINE - 3] + "..."
     sys.stderr.write(line + "\n")
 
 

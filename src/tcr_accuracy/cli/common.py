@@ -29,8 +29,11 @@ class Parser(argparse.ArgumentParser):
         sys.exit(EXIT_INPUT)
 
 
+#: What the argparse types of this module say after the value ("--x VALUE: <one of these>...").
+_REFUSALS = ("want", "not a number", "non-finite", "the folder", "is a folder", "exists and is not a folder",
+             "not writable")
 _TYPE_REFUSAL = re.compile(r"argument (?P<option>--[\w-]+)(?:/[\w-]+)*: "
-                           r"(?P<rest>.+?: (?:want|not a number|non-finite|cannot write here).*)", re.DOTALL)
+                           rf"(?P<rest>.+?: (?:{'|'.join(map(re.escape, _REFUSALS))}).*)", re.DOTALL)
 
 
 def add_robot_arguments(parser: argparse.ArgumentParser) -> None:

@@ -20,7 +20,8 @@ import importlib.resources
 import json
 from pathlib import Path
 
-from .common import EXIT_ANALYSIS, EXIT_OK, MAX_COUNT, Parser, add_quiet_argument, integer, output_folder, seed_value, status
+from .common import (EXIT_ANALYSIS, EXIT_OK, MAX_COUNT, Parser, add_quiet_argument, integer, output_folder, seed_value,
+                     status)
 
 DATA = "data"
 MEASUREMENTS = "tool_changer_cutter.csv"
@@ -37,7 +38,8 @@ def add_parsers(sub) -> None:
     )
     p.add_argument("--out", default="tcr-accuracy-demo", type=output_folder, metavar="DIR",
                    help="report folder (default: ./tcr-accuracy-demo); DIR/index.html is the report")
-    p.add_argument("--samples", type=integer(low=2, high=MAX_COUNT), default=20_000, help="Monte Carlo samples (default 20000)")
+    p.add_argument("--samples", type=integer(low=2, high=MAX_COUNT), default=20_000,
+                   help="Monte Carlo samples (default 20000)")
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
     add_quiet_argument(p)
     p.set_defaults(run=_run_demo)

@@ -29,7 +29,8 @@ def add_parsers(sub) -> None:
     p.add_argument("--effects", default=None, metavar="LIST",
                    help="comma-separated effects to consider (default: the whole vocabulary; frames is "
                         "always in)")
-    p.add_argument("--folds", type=integer(low=2, high=1000), default=5, help="k of the k-fold cross-validation (default 5)")
+    p.add_argument("--folds", type=integer(low=2, high=1000), default=5,
+                   help="k of the k-fold cross-validation (default 5)")
     p.add_argument("--seed", type=seed_value, default=0, help="seed of the fold split and permutation tests")
     p.add_argument("--noise-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
                    help="the instrument's noise, std per axis [mm]; noise floor = sqrt(3) x this (default: "

@@ -34,13 +34,16 @@ def add_parsers(sub) -> None:
                         help="the seed's error distributions: table1, table2 (default) or clearance (Table 4)")
     source.add_argument("--config", default=None, metavar="FILE",
                         help="TOML or YAML file of error distributions (see README, 'Monte Carlo')")
-    p.add_argument("--samples", type=integer(low=2, high=MAX_COUNT), default=20_000, help="Monte Carlo samples (default 20000)")
+    p.add_argument("--samples", type=integer(low=2, high=MAX_COUNT), default=20_000,
+                   help="Monte Carlo samples (default 20000)")
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
     p.add_argument("--q", nargs="+", type=joint_value, metavar="VALUE",
                    help="joint values: revolute [deg], prismatic [mm] (default: working pose)")
-    p.add_argument("--tol", nargs="+", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=[0.15, 0.25], metavar="MM",
+    p.add_argument("--tol", nargs="+", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"),
+                   default=[0.15, 0.25], metavar="MM",
                    help="position tolerances T [mm] (default 0.15 0.25)")
-    p.add_argument("--angle-tol", type=number(low=0, low_open=True, high=math.pi, unit="rad"), default=0.002, metavar="RAD",
+    p.add_argument("--angle-tol", type=number(low=0, low_open=True, high=math.pi, unit="rad"), default=0.002,
+                   metavar="RAD",
                    help="attitude tolerance R per ZYX angle [rad] (default 0.002)")
     p.add_argument("--tail-samples", type=integer(low=0, high=MAX_COUNT), default=20_000, metavar="N",
                    help="importance samples per tolerance for the tail P(|dP| > T) (default 20000; 0: skip)")

@@ -66,7 +66,8 @@ def add_parsers(sub) -> None:
     c.add_argument("--targets", required=True, metavar="CSV", help="target joint values (CSV)")
     c.add_argument("--threshold-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=0.001,
                    help="stop when the predicted miss is below this [mm] (default 0.001)")
-    c.add_argument("--max-iter", type=integer(low=1, high=10_000), default=20, help="most compensation cycles (default 20)")
+    c.add_argument("--max-iter", type=integer(low=1, high=10_000), default=20,
+                   help="most compensation cycles (default 20)")
     c.add_argument("--csv", type=output_file, metavar="FILE", help="write the compensated joint values [deg, mm], the "
                                                  "corrections and the predicted miss")
     add_output_arguments(c, plots=True, view=True, json_help=JSON_HELP)

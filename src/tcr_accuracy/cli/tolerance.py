@@ -24,16 +24,19 @@ def add_parsers(sub) -> None:
     )
     add_sampler_arguments(p, pose=True)
     add_output_arguments(p, plots=False)
-    p.add_argument("--target-tol", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=0.25, metavar="MM",
+    p.add_argument("--target-tol", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=0.25,
+                   metavar="MM",
                    help="position tolerance T on |dP| [mm] (default 0.25)")
-    p.add_argument("--target-prob", type=number(low=0, high=1, low_open=True, high_open=True), default=0.95, metavar="P",
+    p.add_argument("--target-prob", type=number(low=0, high=1, low_open=True, high_open=True), default=0.95,
+                   metavar="P",
                    help="required probability P(|dP| < T), in (0, 1) (default 0.95)")
     p.add_argument("--groups", default=None, metavar="G1,G2",
                    help="scale only these groups (table1/table2: link_length, drive, axis_deflection; "
                         "clearance: axial, radial, deflection); default all")
     p.add_argument("--per-group", action="store_true",
                    help="also the allowance of each group alone, the others at their spreads")
-    p.add_argument("--samples", type=integer(low=10, high=MAX_COUNT), default=50_000, help="Monte Carlo samples (default 50000)")
+    p.add_argument("--samples", type=integer(low=10, high=MAX_COUNT), default=50_000,
+                   help="Monte Carlo samples (default 50000)")
     p.set_defaults(run=_run_tolerance)
 
 

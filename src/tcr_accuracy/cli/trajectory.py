@@ -24,8 +24,10 @@ def add_parsers(sub) -> None:
     add_sampler_arguments(p)
     add_output_arguments(p, view=True)
     p.add_argument("--file", default=None, metavar="CSV", help="joint trajectory CSV file")
-    p.add_argument("--samples", type=integer(low=2, high=MAX_COUNT), default=2000, help="Monte Carlo samples (default 2000)")
-    p.add_argument("--steps", type=integer(low=2, high=MAX_COUNT), default=121, help="time steps of the built-in motion (default 121)")
+    p.add_argument("--samples", type=integer(low=2, high=MAX_COUNT), default=2000,
+                   help="Monte Carlo samples (default 2000)")
+    p.add_argument("--steps", type=integer(low=2, high=MAX_COUNT), default=121,
+                   help="time steps of the built-in motion (default 121)")
     p.set_defaults(run=_run_trajectory)
 
 

@@ -99,7 +99,8 @@ def add_parsers(sub) -> None:
                    help="joint values: revolute [deg], prismatic [mm] (default: working pose)")
     p.add_argument("--error-preset", choices=("table1", "table2"), default=None,
                    help="add a TCP error cloud sampled from the seed's Table 1 or Table 2 errors")
-    p.add_argument("--samples", type=integer(low=1, high=MAX_COUNT), default=1000, help="error samples for the cloud (default 1000)")
+    p.add_argument("--samples", type=integer(low=1, high=MAX_COUNT), default=1000,
+                   help="error samples for the cloud (default 1000)")
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
     p.add_argument("--magnify", type=number(low=0, low_open=True, high=1e9), default=None,
                    help="magnification of the error cloud (default: a round factor that draws "
