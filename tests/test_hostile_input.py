@@ -535,3 +535,32 @@ def test_12_15_an_error_line_is_one_bounded_line(tmp_path, capsys, monkeypatch):
     assert code == 1
     assert_one_line(err, "tcr-accuracy pose: unexpected error: ValueError: line one x")
     assert len(err) <= 1001
+
+
+def test_12_04_a_signal_during_the_renames_waits_for_them(tmp_path, monkeypatch):
+    # SIGTERM arriving while a run's files are renamed into place: all of them land, then it stops
+    import os
+    import signal
+
+    from tcr_accuracy import atomic
+
+    renamed = []
+    real_replace = os.replace
+
+    def replace(src, dst):
+        if not renamed:
+            os.kill(os.getpid(), signal.SIGTERM)  # held until the commit is done
+        renamed.append(dst)
+        real_replace(src, dst)
+
+    monkeypatch.setattr(atomic.os, "replace", replace)
+    stopped = []
+    previous = signal.signal(signal.SIGTERM, lambda *a: stopped.append(len(renamed)))
+    try:
+        with atomic.staged_outputs():
+            for name in ("a.png", "b.png", "index.html"):
+                atomic.write_text_atomically(tmp_path / name, name)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert stopped == [3]  # delivered after the third rename, not after the first
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png", "b.png", "index.html"]

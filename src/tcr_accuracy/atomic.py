@@ -47,8 +47,9 @@ class _Stage:
             for path, data in files.items():
                 _make_parent(path, created)
                 prepared.append(_prepare(path, data))
-            for tmp, target, data in prepared:
-                _finish(tmp, target, data)
+            with _signals_held():  # Ctrl-C or a kill waits until every rename is done
+                for tmp, target, data in prepared:
+                    _finish(tmp, target, data)
         except BaseException:
             for tmp, _, _ in prepared:
                 if tmp is not None:
@@ -59,6 +60,33 @@ class _Stage:
                 except OSError:
                     pass
             raise
+
+
+@contextmanager
+def _signals_held():
+    """Hold SIGINT and SIGTERM for the block (the renames of a commit take milliseconds), so
+    that a run stopped then has either all its files or none; a signal that came meanwhile is
+    raised again after it. Python runs signal handlers in the main thread only, so the
+    handlers are swapped for a recorder there (elsewhere the block runs as it is)."""
+    import signal
+
+    came: list[int] = []
+    previous = {}
+    try:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous[sig] = signal.signal(sig, lambda signum, frame: came.append(signum))
+    except ValueError:  # not the main thread
+        for sig, handler in previous.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+        yield
+        return
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)  # None: set outside Python
+        for sig in dict.fromkeys(came):
+            signal.raise_signal(sig)
 
 
 _stage: ContextVar[_Stage | None] = ContextVar("tcr_accuracy_stage", default=None)
