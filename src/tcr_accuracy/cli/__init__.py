@@ -1,9 +1,14 @@
 """Command line: ``tcr-accuracy <command> ...`` (``main``), built from one module per topic.
 
 Exit codes: 0 ok, 1 the analysis failed (or an unexpected error), 2 bad input,
-130 interrupted. Every failure is one line on stderr naming the command and what
-went wrong; ``--debug`` (before or after the command) prints the full traceback
-as well.
+130 interrupted (Ctrl-C or SIGTERM). Every failure is one line on stderr naming the
+command and what went wrong; ``--debug`` (before or after the command) prints the full
+traceback as well.
+
+Every command runs inside :func:`tcr_accuracy.atomic.staged_outputs`: its files are
+written together when it ends without an error, and not at all otherwise. Output paths
+are checked when the command line is read, and large work is estimated first and
+refused above ``--max-memory-gb`` (every command takes it; default 4 GB).
 """
 
 from __future__ import annotations
