@@ -564,3 +564,63 @@ def test_12_04_a_signal_during_the_renames_waits_for_them(tmp_path, monkeypatch)
         signal.signal(signal.SIGTERM, previous)
     assert stopped == [3]  # delivered after the third rename, not after the first
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png", "b.png", "index.html"]
+
+
+# ---------------------------------------------------------------------------------------
+# Fuzz: option values, settings files, URDF origins (hypothesis, derandomized)
+# ---------------------------------------------------------------------------------------
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+FUZZ = settings(max_examples=200, deadline=None, derandomize=True)
+
+
+@FUZZ
+@given(st.text(max_size=30))
+def test_fuzz_a_numeric_option_is_a_finite_number_in_range_or_one_refusal(text):
+    import argparse
+    import math
+    import re
+
+    from tcr_accuracy.cli.common import number
+
+    convert = number(low=0, low_open=True, high=1e6, unit="mm")
+    try:
+        value = convert(text)
+    except argparse.ArgumentTypeError as exc:
+        assert "\n" not in str(exc) or "\n" in text
+        return
+    assert math.isfinite(value) and 0 < value <= 1e6
+    # only plain ASCII decimals get through: no 1_5, no full-width digits, no hex, no inf/nan
+    assert re.fullmatch(r"\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*", text, re.ASCII)
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(st.recursive(st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=8),
+                    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(
+                        st.integers() | st.text(max_size=6), inner, max_size=3), max_leaves=12))
+def test_fuzz_any_yaml_value_in_a_scenario_context_is_accepted_or_one_input_error(value):
+    import yaml
+
+    from tcr_accuracy.analysis.scenario import scenario_from_dict
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.io.budget_file import parse_table
+
+    text = yaml.safe_dump({"effects": {"geometry": {}}, "context": {"payload_fraction": value}})
+    try:
+        scenario_from_dict(parse_table(text, "s.yaml"), source="s.yaml")
+    except InputError as exc:
+        assert str(exc).startswith("s.yaml: ") and "\n" not in str(exc)
+
+
+@settings(max_examples=80, deadline=None, derandomize=True)
+@given(st.lists(st.text(alphabet="0123456789.eE+-_nainf x\uff11", max_size=6), min_size=1, max_size=4))
+def test_fuzz_an_origin_is_three_finite_numbers_or_one_input_error(parts):
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.model.robot import robot_from_urdf_text
+
+    try:
+        robot = robot_from_urdf_text(two_joint_urdf(j1_origin=" ".join(parts)), None, source="f.urdf")
+    except InputError as exc:
+        assert str(exc).startswith("f.urdf: ") and "\n" not in str(exc)
+        return
+    assert all(abs(v) <= 1e4 for v in robot.model.jointPlacements[1].translation)

@@ -80,6 +80,7 @@ def display_value(value: float, unit: str) -> tuple[float, str]:
 #: that read user text go through :func:`parse_number` instead.
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _INTEGER = re.compile(r"[+-]?[0-9]+")
+_ASCII_SPACE = " \t\r\n\f\v"
 
 
 def parse_number(text: str, *, finite: bool = True) -> float:
@@ -93,7 +94,7 @@ def parse_number(text: str, *, finite: bool = True) -> float:
     ValueError
         The text is not such a number; the message says why.
     """
-    text = text.strip()
+    text = text.strip(_ASCII_SPACE)
     if not finite and text.lower().lstrip("+-") in ("nan", "inf", "infinity"):
         return float(text)
     if not _NUMBER.fullmatch(text):
@@ -106,7 +107,7 @@ def parse_number(text: str, *, finite: bool = True) -> float:
 
 def parse_integer(text: str) -> int:
     """User text to an int, strictly (ASCII digits and an optional sign, as :func:`parse_number`)."""
-    text = text.strip()
+    text = text.strip(_ASCII_SPACE)
     if not _INTEGER.fullmatch(text) or len(text) > 30:
         raise ValueError(f"{text!r} is not an integer")
     return int(text)
