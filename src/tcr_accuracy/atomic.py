@@ -49,6 +49,10 @@ class _Stage:
                 prepared.append(_prepare(path, data))
             with _signals_held():  # Ctrl-C or a kill waits until every rename is done
                 for tmp, target, data in prepared:
+                    if tmp is not None:
+                        _finish(tmp, target, data)
+            for tmp, target, data in prepared:  # special files last: a pipe may wait for its reader
+                if tmp is None:
                     _finish(tmp, target, data)
         except BaseException:
             for tmp, _, _ in prepared:
