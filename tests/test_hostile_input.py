@@ -381,19 +381,20 @@ def test_12_04_sigterm_mid_run_leaves_nothing(tmp_path, capsys, monkeypatch):
     import os
     import signal
 
-    from tcr_accuracy.view import plots_montecarlo
+    from tcr_accuracy.analysis import simulate
 
-    real = plots_montecarlo.plot_projection_densities
+    real = simulate.write_truth
 
-    def terminated(*args, **kwargs):  # the second plot: the first one and the JSON are staged
+    def terminated(path, truth):  # the CSV is written (staged) when the kill comes
         os.kill(os.getpid(), signal.SIGTERM)
-        return real(*args, **kwargs)
+        return real(path, truth)
 
-    monkeypatch.setattr(plots_montecarlo, "plot_projection_densities", terminated)
+    monkeypatch.setattr(simulate, "write_truth", terminated)
     before = signal.getsignal(signal.SIGTERM)
-    code, out, err = run([*_MC, "--json", tmp_path / "mc.json", "--plots", tmp_path / "pl"], capsys)
+    code, out, err = run(["simulate", "--random", "--n", "20", "--out", tmp_path / "st.csv",
+                          "--truth", tmp_path / "t.yaml"], capsys)
     assert code == 130
-    assert list(tmp_path.rglob("*")) == []  # no JSON, plot or temporary file
+    assert list(tmp_path.rglob("*")) == []  # no CSV, truth or temporary file
     assert signal.getsignal(signal.SIGTERM) == before
 
 
@@ -453,13 +454,13 @@ def test_12_13_large_work_is_refused_before_it_starts(argv, fragment, tmp_path, 
 
 
 def test_12_13_max_memory_gb_sets_the_budget(tmp_path, capsys):
-    argv = ["montecarlo", "--samples", "1000", "--tail-samples", "0", "--quiet", "--json", tmp_path / "mc.json"]
-    code, out, err = run([*argv, "--max-memory-gb", "0.001"], capsys)  # 1 MB: the default chunk does not fit
+    argv = ["simulate", "--random", "--n", "200", "--out", tmp_path / "st.csv"]
+    code, out, err = run([*argv, "--max-memory-gb", "0.0001"], capsys)  # 100 kB: 200 poses do not fit
     assert code == 2
-    assert_one_line(err, "more than the 0.001 GB allowed")
-    assert not (tmp_path / "mc.json").exists()
+    assert_one_line(err, "--n 200 needs about", "more than the 0.0001 GB allowed")
+    assert not (tmp_path / "st.csv").exists()
     assert run([*argv, "--max-memory-gb", "0.5"], capsys)[0] == 0
-    assert (tmp_path / "mc.json").exists()
+    assert (tmp_path / "st.csv").exists()
 
 
 @pytest.fixture(scope="module")
