@@ -57,8 +57,8 @@ def test_pose_json_to_file(tmp_path, capsys):
     (["pose", "--q", "1", "2", "3", "4", "5", "nan"], "non-finite"),
     (["pose", "--robot", "nowhere.urdf"], "no such file"),
     (["pose", "--tool", "flange"], "no such frame"),
-    (["pose", "--q", "1", "x"], "invalid float"),
-    (["demo", "--samples", "1"], "at least 2"),
+    (["pose", "--q", "1", "x"], "--q x: not a number"),
+    (["demo", "--samples", "1"], "want an integer >= 2"),
 ])
 def test_bad_input_is_one_line_and_exit_code_2(argv, message, capsys):
     code, out, err = run(argv, capsys)

@@ -14,6 +14,7 @@ into an SI factor, or an SI value into what a report shows, lives here:
 from __future__ import annotations
 
 import math
+import re
 
 REVOLUTE = "revolute"
 PRISMATIC = "prismatic"
@@ -72,3 +73,41 @@ def display_value(value: float, unit: str) -> tuple[float, str]:
     """An SI parameter value in its display unit: (2e-4, "rad") -> (0.01146, "deg")."""
     label, factor = DISPLAY_UNITS.get(unit, (unit, 1.0))
     return float(value) * factor, label
+
+
+#: A decimal number as people write it: ASCII digits, one optional sign, point and exponent.
+#: Python's float() also takes ``1_5``, full-width digits, ``infinity`` and ``nan``; edges
+#: that read user text go through :func:`parse_number` instead.
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_INTEGER = re.compile(r"[+-]?[0-9]+")
+_ASCII_SPACE = " \t\r\n\f\v"
+
+
+def parse_number(text: str, *, finite: bool = True) -> float:
+    """User text to a float, strictly: ``'1.5e-3'`` yes; ``'1_5'``, ``'１５'``, ``'0x1p3'`` no.
+
+    ``nan``, ``inf`` and ``-inf`` (any case), and a number too large for a float (``1e999``,
+    read as inf), pass only with ``finite=False``.
+
+    Raises
+    ------
+    ValueError
+        The text is not such a number; the message says why.
+    """
+    text = text.strip(_ASCII_SPACE)
+    if not finite and text.lower().lstrip("+-") in ("nan", "inf", "infinity"):
+        return float(text)
+    if not _NUMBER.fullmatch(text):
+        raise ValueError(f"{text!r} is not a number")
+    value = float(text)
+    if finite and not math.isfinite(value):
+        raise ValueError(f"{text!r} is too large for a number")
+    return value
+
+
+def parse_integer(text: str) -> int:
+    """User text to an int, strictly (ASCII digits and an optional sign, as :func:`parse_number`)."""
+    text = text.strip(_ASCII_SPACE)
+    if not _INTEGER.fullmatch(text) or len(text) > 30:
+        raise ValueError(f"{text!r} is not an integer")
+    return int(text)

@@ -1,9 +1,14 @@
 """Command line: ``tcr-accuracy <command> ...`` (``main``), built from one module per topic.
 
 Exit codes: 0 ok, 1 the analysis failed (or an unexpected error), 2 bad input,
-130 interrupted. Every failure is one line on stderr naming the command and what
-went wrong; ``--debug`` (before or after the command) prints the full traceback
-as well.
+130 interrupted (Ctrl-C or SIGTERM). Every failure is one line on stderr naming the
+command and what went wrong; ``--debug`` (before or after the command) prints the full
+traceback as well.
+
+Every command runs inside :func:`tcr_accuracy.atomic.staged_outputs`: its files are
+written together when it ends without an error, and not at all otherwise. Output paths
+are checked when the command line is read, and large work is estimated first and
+refused above ``--max-memory-gb`` (every command takes it; default 4 GB).
 """
 
 from __future__ import annotations
@@ -11,10 +16,11 @@ from __future__ import annotations
 import argparse
 import sys
 import warnings
+from contextlib import contextmanager
 
 from .. import __version__
 from . import demo, diagnose, montecarlo, pose, prediction, sensitivity, simulate, tolerance, trajectory, view
-from .common import EXIT_ANALYSIS, EXIT_INPUT, EXIT_OK, Parser
+from .common import EXIT_ANALYSIS, EXIT_INPUT, EXIT_OK, Parser, add_memory_argument
 
 
 # ---------------------------------------------------------------------------------------
@@ -34,6 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
         # also accepted after the command; SUPPRESS keeps a --debug given before it
         command_parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                                     help=DEBUG_HELP)
+        add_memory_argument(command_parser)
     return parser
 
 
@@ -82,11 +89,17 @@ def _main(argv: list[str], debug: bool, command: str | None) -> int:
     name = f"tcr-accuracy {command}" if command else "tcr-accuracy"
     try:
         parser = build_parser()
-        args = parser.parse_args(argv)
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as exc:  # --help, --version, or a usage error already said in one line
+            return exc.code if isinstance(exc.code, int) else EXIT_INPUT
         args.argv = argv  # the command as typed, for reports
         name = f"tcr-accuracy {args.command}"
         debug = debug or getattr(args, "debug", False)  # also an abbreviated --deb
-        with warnings.catch_warnings():
+        from ..atomic import staged_outputs
+
+        # every file of the run is written at its end, together, or not at all
+        with warnings.catch_warnings(), staged_outputs(), _terminate_as_interrupt():
             warnings.simplefilter("default", UserWarning)
             warnings.showwarning = _show_warning
             return args.run(args)
@@ -119,18 +132,52 @@ def _main(argv: list[str], debug: bool, command: str | None) -> int:
         return EXIT_ANALYSIS
 
 
+@contextmanager
+def _terminate_as_interrupt():
+    """SIGTERM (a kill, a job scheduler's stop) ends the run as Ctrl-C does: through the
+    exception handlers, so staged and temporary files are removed (outermost main, main
+    thread only)."""
+    import signal
+    import threading
+
+    if _depth > 1 or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, interrupt)
+    except (ValueError, OSError):  # no signals here (an embedded interpreter)
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _describe(exc: BaseException) -> str:
     """``Type: message`` on one line (a message over several lines is joined with spaces)."""
     message = " ".join(str(exc).split())
     return f"{type(exc).__name__}: {message}" if message else type(exc).__name__
 
 
+#: The longest error line [characters]: a message quoting a huge file's content is cut.
+MAX_LINE = 1000
+
+
 def _report(line: str, debug: bool) -> None:
-    """One line on stderr; with --debug, the traceback of the exception being handled first."""
+    """One line on stderr, at most MAX_LINE long; with --debug, the traceback of the exception
+    being handled first."""
     if debug:
         import traceback
 
         traceback.print_exc(file=sys.stderr)
+    line = " ".join(line.split())
+    if len(line) > MAX_LINE:
+        line = line[: MAX_LINE - 3] + "..."
     sys.stderr.write(line + "\n")
 
 

@@ -11,7 +11,7 @@ import math
 import sys
 from pathlib import Path
 
-from .common import add_robot_arguments
+from .common import MAX_MM, add_robot_arguments, check_csv_memory, integer, number, output_file, seed_value
 from .output import RunOutput, add_output_arguments
 
 
@@ -29,16 +29,21 @@ def add_parsers(sub) -> None:
     p.add_argument("--effects", default=None, metavar="LIST",
                    help="comma-separated effects to consider (default: the whole vocabulary; frames is "
                         "always in)")
-    p.add_argument("--folds", type=int, default=5, help="k of the k-fold cross-validation (default 5)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the fold split and permutation tests")
-    p.add_argument("--noise-mm", type=float, default=None,
+    p.add_argument("--folds", type=integer(low=2, high=1000), default=5,
+                   help="k of the k-fold cross-validation (default 5)")
+    p.add_argument("--seed", type=seed_value, default=0, help="seed of the fold split and permutation tests")
+    p.add_argument("--noise-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
                    help="the instrument's noise, std per axis [mm]; noise floor = sqrt(3) x this (default: "
                         "estimated from repeated poses, else from the final residual, and said which)")
-    p.add_argument("--as-built-urdf", default=None, metavar="FILE",
+    p.add_argument("--as-built-urdf", default=None, type=output_file, metavar="FILE",
                    help="write the calibrated URDF to FILE and the other effects' parameters to "
                         "FILE with suffix .effects.yaml")
     add_output_arguments(p, view=True)
     p.set_defaults(run=_run_diagnose)
+
+
+#: Memory [bytes] the diagnosis plans per measurement (see check_csv_memory in _run_diagnose).
+DIAGNOSE_ROW_BYTES = 3 * 120 * 8 * 4
 
 
 def _run_diagnose(args) -> int:
@@ -49,10 +54,6 @@ def _run_diagnose(args) -> int:
     from ..view.plots_diagnose import write_plots
     from ..model.robot import load_robot
 
-    if args.folds < 2:
-        raise InputError(f"--folds {args.folds}: need at least 2")
-    if args.noise_mm is not None and not (args.noise_mm > 0 and math.isfinite(args.noise_mm)):
-        raise InputError(f"--noise-mm {args.noise_mm}: must be a positive number")
     effects = None
     if args.effects:
         effects = [e.strip() for e in args.effects.split(",") if e.strip()]
@@ -60,6 +61,9 @@ def _run_diagnose(args) -> int:
         if unknown:
             raise InputError(f"--effects: unknown {', '.join(unknown)} (vocabulary: {', '.join(vocabulary())})")
     min_rows = max(3 * args.folds, 12)
+    # the diagnosis holds each measurement's Jacobian over the whole effect vocabulary
+    # (3 rows x about 120 parameters) a few times over
+    check_csv_memory(args, args.measurements, "diagnosing", DIAGNOSE_ROW_BYTES)
     frames = measured_frames(args.measurements)
     if frames:  # several measured frames per row: one chain each, their shared parameters fitted once
         if args.tool is not None and args.tool not in frames:

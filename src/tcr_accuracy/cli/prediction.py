@@ -23,7 +23,8 @@ import argparse
 from pathlib import Path
 
 from ..prediction.methods import DEFAULT_METHOD, METHODS
-from .common import add_robot_arguments, status
+from .common import (MAX_MM, add_robot_arguments, check_csv_memory, integer, number, output_file, seed_value,
+                     status)
 from .output import RunOutput, add_output_arguments
 
 JSON_HELP = "write a JSON summary (mm, unit-suffixed keys) to FILE, or to stdout without FILE"
@@ -43,7 +44,7 @@ def add_parsers(sub) -> None:
     _common(p, METHODS)
     p.add_argument("--query", required=True, metavar="CSV",
                    help="joint values to predict at (CSV); with x/y/z columns also scored against them")
-    p.add_argument("--csv", metavar="FILE",
+    p.add_argument("--csv", type=output_file, metavar="FILE",
                    help="write the predictions: the query joints, ex_mm, ey_mm, ez_mm, e_norm_mm, their "
                         "standard deviations ex_std_mm ... (methods with one) and, for measured queries, "
                         "the measured error and the held-out miss")
@@ -58,10 +59,11 @@ def add_parsers(sub) -> None:
     )
     _common(c, METHODS)
     c.add_argument("--targets", required=True, metavar="CSV", help="target joint values (CSV)")
-    c.add_argument("--threshold-mm", type=float, default=0.001,
+    c.add_argument("--threshold-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=0.001,
                    help="stop when the predicted miss is below this [mm] (default 0.001)")
-    c.add_argument("--max-iter", type=int, default=20, help="most compensation cycles (default 20)")
-    c.add_argument("--csv", metavar="FILE", help="write the compensated joint values [deg, mm], the "
+    c.add_argument("--max-iter", type=integer(low=1, high=10_000), default=20,
+                   help="most compensation cycles (default 20)")
+    c.add_argument("--csv", type=output_file, metavar="FILE", help="write the compensated joint values [deg, mm], the "
                                                  "corrections and the predicted miss")
     add_output_arguments(c, plots=True, view=True, json_help=JSON_HELP)
     c.set_defaults(run=_run_compensate)
@@ -77,28 +79,22 @@ def _common(p: argparse.ArgumentParser, methods) -> None:
                    help="fit: the positions are in a tracker's own frame; fit it and the TCP offset on the "
                         "training data (default); base: they are in the robot's base frame already (only the "
                         "TCP offset is fitted)")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the stochastic methods (default 0)")
+    p.add_argument("--seed", type=seed_value, default=0, help="random seed of the stochastic methods (default 0)")
 
 
-def read_joint_csv(path: str, robot, *, need_positions: bool):
+def read_joint_csv(path: str, robot, *, need_positions: bool, rows: bool = False):
     """Joint values (N, n) [SI], measured positions (N, 3) [m] (None when the file has none)
     and the rows' context (payload, joints outside the TCP chain, ...), read and validated by
-    :func:`tcr_accuracy.io.measurements.read_measurements`."""
+    :func:`tcr_accuracy.io.measurements.read_measurements`; with ``rows``, also each row's
+    line in the file (N,), for messages."""
     import numpy as np
 
     from ..io.measurements import read_measurements
 
     mset = read_measurements(path, robot, require_position=need_positions)
     has_positions = need_positions or not np.isnan(mset.position).all()
-    return mset.q, (mset.position if has_positions else None), mset.context()
-
-
-def _check_csv_target(path: str | None) -> None:
-    """Fail before the computation when the --csv folder does not exist."""
-    if path is not None and not Path(path).resolve().parent.is_dir():
-        from ..exceptions import InputError
-
-        raise InputError(f"--csv {path}: the folder {Path(path).parent} does not exist")
+    out = mset.q, (mset.position if has_positions else None), mset.context()
+    return (*out, mset.rows) if rows else out
 
 
 def _write_csv_atomically(args, what: str, header: list[str], rows) -> None:
@@ -116,7 +112,8 @@ def _write_csv_atomically(args, what: str, header: list[str], rows) -> None:
     status(args, f"{what} written to {args.csv}")
 
 
-def _check_training(path: str, q, n_joints: int) -> None:
+def _check_training(path: str, q, lines, n_joints: int) -> None:
+    """Enough distinct training poses; ``lines`` (N,): each row's line in the file, for messages."""
     import numpy as np
 
     from ..exceptions import InputError
@@ -128,9 +125,25 @@ def _check_training(path: str, q, n_joints: int) -> None:
                                           return_counts=True)
     if (counts > 1).any():
         group = int(np.flatnonzero(counts > 1)[0])
-        rows = np.flatnonzero(inverse.ravel() == group)[:2] + 2
+        rows = np.asarray(lines)[np.flatnonzero(inverse.ravel() == group)[:2]]
         raise InputError(f"{path}: rows {rows[0]} and {rows[1]} have the same joint values (a singular "
                          "kriging covariance); average repeated measurements of a pose into one row")
+
+
+#: Methods holding an n x n covariance of the n training rows (Gaussian processes, kriging).
+_QUADRATIC = ("kriging", "kriging-pf", "gp", "calibration+gp", "diagnosis+gp")
+
+
+def _training_row_bytes(method: str) -> float:
+    """Memory [bytes] a method plans per training row (the diagnosis' Jacobians for diagnosis*)."""
+    from .diagnose import DIAGNOSE_ROW_BYTES
+
+    return DIAGNOSE_ROW_BYTES if method.startswith("diagnosis") else 3 * 64 * 8.0
+
+
+def _training_pair_bytes(method: str):
+    """Memory [bytes] for n training rows beyond the per-row part: a few n x n matrices."""
+    return (lambda rows: 4 * 8.0 * rows * rows) if method in _QUADRATIC else (lambda rows: 0.0)
 
 
 def _fit(args, robot):
@@ -143,8 +156,11 @@ def _fit(args, robot):
     from ..prediction.composed import MeasuredErrorModel
     from ..prediction.methods import make_predictor
 
-    q, pos, context = read_joint_csv(args.train, robot, need_positions=True)
-    _check_training(args.train, q, robot.n_joints)
+    check_csv_memory(args, args.train, f"--method {args.method} on --train", _training_row_bytes(args.method),
+                     _training_pair_bytes(args.method), hint="use fewer training rows, or --method calibration "
+                                                           "(its memory grows only linearly with the rows)")
+    q, pos, context, lines = read_joint_csv(args.train, robot, need_positions=True, rows=True)
+    _check_training(args.train, q, lines, robot.n_joints)
     model = MeasuredErrorModel(robot=robot, estimator=make_predictor(args.method, robot, random_state=args.seed),
                                fit_frame=args.frame == "fit")
     try:
@@ -218,7 +234,6 @@ def _start(args, title: str):
     """The robot and the run's outputs, checked before any work."""
     from ..model.robot import load_robot
 
-    _check_csv_target(args.csv)
     out = RunOutput(args, title)
     return load_robot(args.robot, args.tool), out
 
@@ -251,6 +266,7 @@ def _run_predict(args) -> int:
 
     robot, out = _start(args, "Error prediction")
     q_train, model = _fit(args, robot)
+    check_csv_memory(args, args.query, "--query", 3 * 64 * 8.0)
     q, measured, context = read_joint_csv(args.query, robot, need_positions=False)
     scale = robot.display_scale
     pred, std = _predict(args, model, q, context)
@@ -384,12 +400,9 @@ def _run_compensate(args) -> int:
     from ..model.kinematics import tcp_poses
     from ..view.plots_prediction import plot_compensation
 
-    if args.threshold_mm <= 0:
-        raise InputError(f"--threshold-mm {args.threshold_mm}: must be > 0")
-    if args.max_iter < 1:
-        raise InputError(f"--max-iter {args.max_iter}: must be >= 1")
     robot, out = _start(args, "Joint compensation")
     q_train, model = _fit(args, robot)
+    check_csv_memory(args, args.targets, "--targets", 3 * 64 * 8.0)
     q, measured, context = read_joint_csv(args.targets, robot, need_positions=False)
     units, scale = robot.display_units, robot.display_scale
     # the predictor of the base-frame error (TCP offset + method): targets and commands are base-frame

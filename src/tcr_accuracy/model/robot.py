@@ -36,11 +36,16 @@ from ..exceptions import InputError
 from .tool_changer import DISC_CUTTER_MASS, WORKING_POSE, tool_changer_urdf
 from ..units import JOINT_DISPLAY, PRISMATIC, REVOLUTE  # noqa: F401 - PRISMATIC: part of this module's vocabulary
 from .urdf import (
+    MAX_CHAIN_JOINTS,
+    check_mesh_paths,
+    check_urdf,
     find_frame,
     joint_kind,
     mimic_rules,
     parse_urdf_xml,
     read_urdf_text,
+    one_line,
+    quiet_native_stderr,
     reduce_model,
     single_leaf_link,
 )
@@ -304,13 +309,18 @@ class RobotModel:
         Raises
         ------
         InputError
-            The URDF's visuals cannot be read (missing mesh file, ...).
+            The URDF's visuals cannot be read (missing mesh file, ...), or a mesh lies outside
+            the URDF's folder and the package folders.
         """
-        try:
-            geometry = pin.buildGeomFromUrdfString(self.full_model, self.urdf_text, pin.GeometryType.VISUAL,
-                                                   package_dirs=list(self.package_dirs))
-        except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
-            raise InputError(f"{self.name}: cannot read the URDF visuals ({exc})") from None
+        roots = ([str(self.urdf_path.parent)] if self.urdf_path is not None else []) + list(self.package_dirs)
+        source = str(self.urdf_path) if self.urdf_path is not None else self.name
+        check_mesh_paths(parse_urdf_xml(self.urdf_text, source), source, list(dict.fromkeys(roots)))
+        with quiet_native_stderr() as said:
+            try:
+                geometry = pin.buildGeomFromUrdfString(self.full_model, self.urdf_text, pin.GeometryType.VISUAL,
+                                                       package_dirs=list(self.package_dirs))
+            except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
+                raise InputError(f"{self.name}: cannot read the URDF visuals ({one_line(said() or exc)})") from None
         chain = set(self.chain_joint_ids)
         locked = [j for j in range(1, self.full_model.njoints) if j not in chain]
         if not locked:
@@ -423,12 +433,16 @@ def robot_from_urdf_text(
 ) -> RobotModel:
     """Build a :class:`RobotModel` from URDF text (see :func:`load_robot`)."""
     root = parse_urdf_xml(text, source)
+    check_urdf(root, source)
     if tool is None:
         tool = single_leaf_link(root, source)
-    try:
-        full = pin.buildModelFromXML(text)
-    except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
-        raise InputError(f"{source}: Pinocchio cannot build a model from this URDF ({exc})") from None
+    with quiet_native_stderr() as said:  # urdfdom writes its complaints to fd 2, several lines each
+        try:
+            full = pin.buildModelFromXML(text)
+        except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
+            first = said()
+            raise InputError(f"{source}: Pinocchio cannot build a model from this URDF "
+                             f"({one_line(first or exc)})") from None
     frame_id = find_frame(full, tool, source)
     frame = full.frames[frame_id]
     chain = set(full.supports[frame.parentJoint])
@@ -436,8 +450,11 @@ def robot_from_urdf_text(
     model = reduce_model(full, locked) if locked else full
     if model.njoints <= 1:
         raise InputError(f"--tool {tool}: no joint moves this frame in {source}")
+    if model.njoints - 1 > MAX_CHAIN_JOINTS:
+        raise InputError(f"--tool {tool}: {model.njoints - 1} joints move this frame in {source}, more than the "
+                         f"{MAX_CHAIN_JOINTS} of a serial chain tcr-accuracy models")
     for j in range(1, model.njoints):
-        joint_kind(model.joints[j])  # raises for unsupported kinds
+        joint_kind(model.joints[j], f"{source}: joint {one_line(model.names[j])}")  # raises for unsupported kinds
     tool_frame_id = next(i for i, f in enumerate(model.frames) if f.name == tool and f.type == frame.type)
     robot = RobotModel(
         model=model,

@@ -32,7 +32,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from .. import __version__
-from ..atomic import write_bytes_atomically
+from ..atomic import read_output, write_bytes_atomically
 from ..exceptions import InputError
 
 #: Distributions whose versions every report lists (when installed).
@@ -188,7 +188,7 @@ class Report:
         else:
             path = Path(figure)
             try:
-                png = path.read_bytes()
+                png = read_output(path)  # a plot of this run may still be staged
             except OSError as exc:
                 raise InputError(f"{path}: cannot read figure ({exc.strerror})") from None
             if not png.startswith(b"\x89PNG\r\n\x1a\n"):
@@ -286,12 +286,8 @@ class Report:
         Every file goes through a temporary file and a rename; ``index.html`` comes last.
         Other files in ``out_dir`` are left alone. Returns the path of ``index.html``.
         """
-        out_dir = Path(out_dir)
-        try:
-            out_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise InputError(f"{out_dir}: cannot create the report folder ({exc.strerror})") from None
-        if not out_dir.is_dir():
+        out_dir = Path(out_dir)  # created, if missing, with the files
+        if out_dir.exists() and not out_dir.is_dir():
             raise InputError(f"{out_dir}: not a folder")
         for item in self.items:
             if isinstance(item, _Figure):
