@@ -1,3 +1,4 @@
+#!/usr/bin/env python3
 """Screenshots for the README: the 3D view and a sample report, drawn by headless Chromium.
 
     python scripts/make_readme_screenshots.py [--out docs/img] [--samples 2000] [--seed 0]

@@ -1,3 +1,4 @@
+#!/usr/bin/env python3
 """The second seed's experiment on simulated data: predict the remaining TCP error in
 joint space and compensate it, next to what a user would otherwise pick.
 
