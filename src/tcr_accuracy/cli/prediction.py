@@ -359,18 +359,19 @@ def _print(robot, args, q_train, *lines: str) -> None:
 
 def _predict_scene(robot, q, pred, norm, args):
     from ..model.kinematics import tcp_poses
-    from ..view.viewer import Scene, auto_magnification
+    from ..view.viewer import Scene, data_extent, point_size, segment_magnification
 
     nominal = tcp_poses(robot, q).position
-    magnify = auto_magnification(float(norm.max()), drawn_m=0.3)
-    scene = Scene(f"{robot.name}: error predicted by {args.method}")
+    extent = data_extent(nominal)
+    magnify = segment_magnification(float(norm.max()), extent)
+    scene = Scene(f"{robot.name}: error predicted by {args.method}", frame="data")
     shown = _median_index(norm)
     scene.add_robot(robot, q[shown], name="nominal robot", opacity=0.5)  # the TCP points sit in the tool
     scene.add_point_cloud(nominal, norm * 1e3, name="query TCP", label="predicted TCP error |e| [mm]",
-                          size_m=0.025)
+                          size_m=1.6 * point_size(extent))
     scene.add_error_segments(nominal, nominal + pred, magnify=magnify, name="predicted error",
                              start_label="nominal TCP at the query joints",
-                             end_label="predicted real TCP", size_m=0.015)
+                             end_label="predicted real TCP")
     scene.add_note(f"{len(q)} query poses, {args.method} fitted to {args.train}; robot at query row {shown + 2} "
                    f"(median |e|); segments magnified x {magnify:g}")
     return scene, (f"Query TCP points coloured by the predicted |e|; segments to the predicted real TCP, "
@@ -474,18 +475,18 @@ def _run_compensate(args) -> int:
 
 
 def _compensate_scene(robot, q, result, before_tcp, after_tcp, before, args):
-    from ..view.viewer import COLORS, Scene, auto_magnification
+    from ..view.viewer import COLORS, Scene, data_extent, segment_magnification
 
-    magnify = auto_magnification(float(before.max()), drawn_m=0.3)
-    scene = Scene(f"{robot.name}: compensation with {args.method}")
+    extent = data_extent(result.target)
+    magnify = segment_magnification(float(before.max()), extent)
+    scene = Scene(f"{robot.name}: compensation with {args.method}", frame="data")
     shown = _median_index(before)
     scene.add_robot(robot, result.q[shown], name="compensated command", opacity=0.5)
     scene.add_error_segments(result.target, before_tcp, magnify=magnify, name="before",
-                             start_label="target TCP", end_label="predicted real TCP, uncompensated command",
-                             size_m=0.02)
+                             start_label="target TCP", end_label="predicted real TCP, uncompensated command")
     scene.add_error_segments(result.target, after_tcp, magnify=magnify, name="after",
                              start_label="target TCP", end_label="predicted real TCP, compensated command",
-                             end_color=COLORS["trajectory"], size_m=0.02)
+                             end_color=COLORS["trajectory"])
     del scene.legend[-2]  # the targets' entry, already in the legend once
     scene.add_note(f"{len(q)} targets of {args.targets}; robot at target row {shown + 2} (median error before); "
                    f"segments magnified x {magnify:g}")
