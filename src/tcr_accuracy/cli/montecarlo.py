@@ -30,7 +30,8 @@ def add_parsers(sub) -> None:
     add_robot_arguments(p)
     source = p.add_mutually_exclusive_group()
     source.add_argument("--preset", choices=PRESETS, default=None,
-                        help="the seed's error distributions: table1, table2 (default) or clearance (Table 4)")
+                        help="the seed's error distributions: table1, table2 or clearance (Table 4); default table2 "
+                             "for the tool-changer and table1 (built from the robot's own joints) for any other robot")
     source.add_argument("--config", default=None, metavar="FILE",
                         help="TOML or YAML file of error distributions (see README, 'Monte Carlo')")
     p.add_argument("--samples", type=int, default=20_000, help="Monte Carlo samples (default 20000)")
@@ -113,7 +114,7 @@ def _run_montecarlo(args) -> int:
 
     from .output import RunOutput
     from ..analysis.montecarlo import CHUNK, STAT_COLUMNS, run_monte_carlo
-    from ..model.errors import ErrorBudget
+    from ..model.errors import ErrorBudget, default_preset
     from ..analysis.reliability import binomial_interval, first_order, gaussian_exceedance, importance_exceedance
     from ..model.robot import load_robot
 
@@ -160,7 +161,7 @@ def _run_montecarlo(args) -> int:
     payload = {
         "robot": robot.name,
         "tool_frame": robot.tool_frame,
-        "preset": None if args.config else (args.preset or "table2"),
+        "preset": None if args.config else (args.preset or default_preset(robot)),
         "config": args.config,
         "sampler": sampler.name,
         "samples": result.n_samples,
@@ -212,8 +213,15 @@ def _scene(robot, q, sampler, args):
 
 
 def _setup_lines(robot, q, sampler, args, result, payload) -> list[str]:
-    source = f"--config {args.config}" if args.config else f"preset {payload['preset']}"
-    return [f"Monte Carlo of {source} ({sampler.name}): {result.n_samples} samples, seed {args.seed}",
+    if args.config:
+        source = f"--config {args.config} ({sampler.name})"
+    elif args.preset:
+        source = f"preset {payload['preset']}"
+    else:  # say which preset was taken, and why
+        source = f"preset {payload['preset']} (the default for " + (
+            "the tool-changer's joints)" if payload["preset"] == "table2" else
+            f"{robot.name}: the seed's Table 1 spreads on its own joints; the tool-changer's Table 2 does not fit it)")
+    return [f"Monte Carlo of {source}: {result.n_samples} samples, seed {args.seed}",
             f"  {robot.name}, TCP '{robot.tool_frame}' at {format_joint_values(robot, q)}",
             "  nominal TCP [mm]: x = {:.3f}, y = {:.3f}, z = {:.3f}".format(*payload["nominal_position_mm"])]
 

@@ -79,7 +79,9 @@ class RobotModel:
     package_dirs : list of str
         Folders in which ``package://`` mesh paths are resolved.
     working_pose : ndarray of shape (n_joints,)
-        A representative pose [rad, m] (the seed's pose for the tool-changer, zero otherwise).
+        A representative pose [rad, m] (the seed's pose for the tool-changer; otherwise zero for
+        every joint whose limits hold zero and the middle of its range for the others, see
+        :func:`default_working_pose`).
     full_model : pin.Model or None
         Every joint of the URDF (None: the same as ``model``). Gravity uses it.
     chain_joint_ids : tuple of int
@@ -108,7 +110,7 @@ class RobotModel:
 
     def __post_init__(self) -> None:
         if self.working_pose is None:
-            self.working_pose = np.zeros(self.n_joints)
+            self.working_pose = default_working_pose(self.lower_limits, self.upper_limits)
         if self.full_model is None:
             self.full_model = self.model
             self.chain_joint_ids = tuple(range(1, self.model.njoints))
@@ -338,6 +340,29 @@ class RobotModel:
 
 class JointLimitWarning(UserWarning):
     """A joint value lies outside the URDF limits (the analysis still runs)."""
+
+
+def default_working_pose(lower, upper) -> np.ndarray:
+    """Joint values [rad, m] for a robot without a named working pose: zero where the limits
+    hold it, else the middle of the joint's range (the Panda's joint 4 lives in
+    [-176, -4] deg), so that the default pose is one the robot can take.
+
+    Parameters
+    ----------
+    lower, upper : array-like of shape (n_joints,)
+        Limits [rad, m]; NaN for an unbounded side.
+    """
+    lower = np.asarray(lower, dtype=float)
+    upper = np.asarray(upper, dtype=float)
+    q = np.zeros(lower.shape)
+    outside = (lower > 0) | (upper < 0)  # NaN compares False: an unbounded side holds zero
+    both = outside & np.isfinite(lower) & np.isfinite(upper)
+    q[both] = 0.5 * (lower[both] + upper[both])
+    only_low = outside & ~both & (lower > 0)
+    q[only_low] = lower[only_low]
+    only_high = outside & ~both & (upper < 0)
+    q[only_high] = upper[only_high]
+    return q
 
 
 def example_robot_data_dir() -> Path:
