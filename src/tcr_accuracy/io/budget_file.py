@@ -73,7 +73,10 @@ def read_table(path: Path) -> dict:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
     suffix = path.suffix.lower()
     if suffix == ".toml":
-        import tomllib
+        try:
+            import tomllib
+        except ModuleNotFoundError:  # Python 3.10: the same parser as the tomli package
+            import tomli as tomllib
 
         try:
             data = tomllib.loads(text)
