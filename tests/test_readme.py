@@ -3,7 +3,7 @@
 The README marks what this test runs with an HTML comment on the line before a code block:
 
 - ``<!-- test: runs -->`` before a ```` ```bash ```` block: the block runs in bash (``-e``: every
-  command must exit 0) in a fresh directory holding the repository's ``examples/``, ``scripts/``
+  command must exit 0); before a ```` ```python ```` block, in this Python, in a fresh directory holding the repository's ``examples/``, ``scripts/``
   and ``robots/``, with ``tcr-accuracy``, ``python`` and ``python3`` on the PATH running this
   checkout.
 - ``<!-- test: prints -->`` before a plain ```` ``` ```` block: its lines are printed, in this
@@ -68,7 +68,7 @@ def readme_blocks(path: Path = README) -> list[Block]:
         block = Block("output" if marker["command"] else kind, i + 1, "\n".join(lines[i + 2:end]),
                       command=marker["command"] or "", lang=fence["lang"])
         if kind == "runs":
-            assert block.lang in ("bash", "sh"), f"README.md:{i + 1}: 'runs' marks a bash block"
+            assert block.lang in ("bash", "sh", "python"), f"README.md:{i + 1}: 'runs' marks a bash or python block"
             last_runs = block.line
         elif kind == "prints":
             assert last_runs, f"README.md:{i + 1}: 'prints' with no 'runs' block above it"
@@ -112,6 +112,11 @@ def _bash(script: str, cwd: Path, env: dict) -> subprocess.CompletedProcess:
 
 def _execute(block: Block, tmp: Path) -> Run:
     cwd, env = _workdir(tmp)
+    if block.kind == "runs" and block.lang == "python":
+        (cwd / "snippet.py").write_text(block.text + "\n")
+        done = subprocess.run([sys.executable, "snippet.py"], cwd=cwd, env=env, capture_output=True, text=True,
+                              timeout=600)
+        return Run(done.returncode, done.stdout, done.stderr)
     if block.kind == "runs":
         done = _bash(block.text, cwd, env)
         return Run(done.returncode, done.stdout, done.stderr)
