@@ -11,9 +11,13 @@ import math
 import sys
 from pathlib import Path
 
-from .common import add_robot_arguments
+from .common import add_robot_arguments, status
 from .output import RunOutput, add_output_arguments
 
+
+#: The diagnosis' progress line; tqdm puts ", " before the postfix, so this reads
+#: "diagnose, step 2: trying geometry [00:04]".
+PROGRESS_FORMAT = "{desc}{postfix} [{elapsed}]"
 
 def add_parsers(sub) -> None:
     p = sub.add_parser(
@@ -75,7 +79,7 @@ def _run_diagnose(args) -> int:
     out = RunOutput(args, f"Sim-to-real gap diagnosis: {robot.name}")
     from tqdm import tqdm
 
-    bar = tqdm(desc="diagnose", file=sys.stderr, bar_format="{desc}: {postfix} [{elapsed}]",
+    bar = tqdm(desc="diagnose", file=sys.stderr, bar_format=PROGRESS_FORMAT,
                disable=args.quiet or not sys.stderr.isatty())
     try:
         result = diagnose(robot, data, effects=effects, folds=args.folds, seed=args.seed,
@@ -92,7 +96,8 @@ def _run_diagnose(args) -> int:
                       "Measured TCP points (base frame) and the gap to the nominal model, magnified; "
                       "nominal robot and the calibrated as-built robot (geometric errors magnified)")
     if args.as_built_urdf:
-        write_as_built(robot, result, Path(args.as_built_urdf))
+        urdf, side = write_as_built(robot, result, Path(args.as_built_urdf))
+        status(args, f"as-built URDF written to {urdf} (its other effects and the tracker frame: {side})")
     return out.finish(payload, lambda: print(format_summary(robot, result, source)))
 
 

@@ -140,6 +140,7 @@ def _check_training(path: str, q, n_joints: int) -> None:
 
 def _fit(args, robot):
     """Read the training file, fit the tracker frame and the predictor: (q_train, MeasuredErrorModel)."""
+    import time
     import warnings
 
     from sklearn.exceptions import ConvergenceWarning
@@ -151,6 +152,10 @@ def _fit(args, robot):
     _check_training(args.train, q, robot.n_joints)
     model = MeasuredErrorModel(robot=robot, estimator=make_predictor(args.method, robot, random_state=args.seed),
                                fit_frame=args.frame == "fit")
+    # the fit is the long part (seconds to minutes): say what runs, so the terminal is not blank
+    status(args, f"fitting {args.method} to {q.shape[0]} measured poses of {args.train} "
+                 f"({'tracker frame and ' if args.frame == 'fit' else ''}TCP offset first) ...")
+    started = time.perf_counter()
     try:
         with warnings.catch_warnings():
             # scikit-learn's optimisers warn at their iteration caps; the fit is still usable
@@ -160,6 +165,7 @@ def _fit(args, robot):
         hint = "; or choose a --method that needs fewer poses (gp, kriging)" if args.method.startswith(
             "diagnosis") and "too few" in str(exc) else ""
         raise InputError(f"{args.train}: {exc}{hint}") from None
+    status(args, f"fitted in {time.perf_counter() - started:.1f} s")
     return q, model
 
 

@@ -342,6 +342,19 @@ class JointLimitWarning(UserWarning):
     """A joint value lies outside the URDF limits (the analysis still runs)."""
 
 
+def urdf_robot_name(text: str) -> str | None:
+    """The ``name`` of a URDF's ``<robot>`` element, or None when the text does not say (or
+    does not parse: the model builder reports that, with its reasons)."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError:
+        return None
+    name = (root.get("name") or "").strip() if root.tag == "robot" else ""
+    return name or None
+
+
 def default_working_pose(lower, upper) -> np.ndarray:
     """Joint values [rad, m] for a robot without a named working pose: zero where the limits
     hold it, else the middle of the joint's range (the Panda's joint 4 lives in
@@ -409,10 +422,10 @@ def load_robot(source: str | Path | None = None, tool: str | None = None) -> Rob
     elif Path(source).is_file():
         urdf_path = Path(source).resolve()
         text = read_urdf_text(urdf_path)
-        name = urdf_path.stem
+        name = urdf_robot_name(text) or urdf_path.stem  # what the URDF calls itself, as for named robots
         package_dirs = [str(urdf_path.parent), str(urdf_path.parent.parent)]
         label = str(source)
-        if urdf_path.stem == "tool_changer":
+        if urdf_path.stem == BUILTIN_NAME or name.startswith(BUILTIN_NAME):  # a variant, its as-built model
             working_pose = WORKING_POSE.copy()
             payload_kg = DISC_CUTTER_MASS
     elif str(source).lower() in EXAMPLE_ROBOTS:
