@@ -13,7 +13,8 @@ import sys
 import warnings
 
 from .. import __version__
-from . import demo, diagnose, montecarlo, pose, prediction, sensitivity, simulate, tolerance, trajectory, view
+from . import (demo, diagnose, montecarlo, pose, prediction, sensitivity, simulate, tolerance, tracker_import,
+               trajectory, view)
 from .common import EXIT_ANALYSIS, EXIT_INPUT, EXIT_OK, Parser
 
 
@@ -43,7 +44,8 @@ DEBUG_HELP = "on an error, print the full Python traceback as well as the one-li
 #: The commands, one module per topic, in the order --help lists them; each module's
 #: ``add_parsers(sub)`` adds its subcommands. Every module imports only argparse and the
 #: shared helpers at the top (heavy imports wait inside each command), so --help is instant.
-COMMANDS = [pose, demo, montecarlo, sensitivity, tolerance, trajectory, simulate, view, diagnose, prediction]
+COMMANDS = [pose, demo, montecarlo, sensitivity, tolerance, trajectory, simulate, tracker_import, view, diagnose,
+            prediction]
 
 
 #: Joint-limit warnings already shown in this run, by what they say of the joint: the same
