@@ -48,7 +48,10 @@ def test_a_urdf_file_is_named_after_its_robot_element(tmp_path):
     assert load_robot(path).name == "cutter_arm_2"
 
 
-def test_predict_says_what_it_fits_before_the_long_part(tmp_path, capsys):
+def test_predict_says_what_it_fits_before_the_long_part(tmp_path, capsys, monkeypatch):
+    import sys
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)  # progress lines are for a terminal
     code, _, err = run(["predict", "--train", str(REPO / "examples" / "measured.csv"),
                         "--query", str(REPO / "examples" / "poses.csv"), "--method", "idw-joint"], capsys)
     assert code == 0
@@ -70,3 +73,11 @@ def test_no_internal_jargon_in_what_scripts_and_commands_print():
         for path in (REPO / folder).rglob("*.py"):
             text = path.read_text(encoding="utf-8")
             assert "the lead " not in text, f"{path}: 'the lead' is this project's internal role, not the user's"
+
+
+def test_predict_progress_stays_off_a_pipe_so_bad_input_is_one_line(tmp_path, capsys):
+    bad = tmp_path / "query.csv"
+    bad.write_text("j1_deg,j2_deg\n1,2\n")
+    code, _, err = run(["predict", "--train", str(REPO / "examples" / "measured.csv"), "--query", str(bad),
+                        "--method", "idw-joint"], capsys)
+    assert code == 2 and len(err.splitlines()) == 1 and err.startswith("tcr-accuracy predict: error: ")

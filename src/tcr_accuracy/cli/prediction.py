@@ -153,7 +153,7 @@ def _fit(args, robot):
     model = MeasuredErrorModel(robot=robot, estimator=make_predictor(args.method, robot, random_state=args.seed),
                                fit_frame=args.frame == "fit")
     # the fit is the long part (seconds to minutes): say what runs, so the terminal is not blank
-    status(args, f"fitting {args.method} to {q.shape[0]} measured poses of {args.train} "
+    _progress(args, f"fitting {args.method} to {q.shape[0]} measured poses of {args.train} "
                  f"({'tracker frame and ' if args.frame == 'fit' else ''}TCP offset first) ...")
     started = time.perf_counter()
     try:
@@ -165,8 +165,17 @@ def _fit(args, robot):
         hint = "; or choose a --method that needs fewer poses (gp, kriging)" if args.method.startswith(
             "diagnosis") and "too few" in str(exc) else ""
         raise InputError(f"{args.train}: {exc}{hint}") from None
-    status(args, f"fitted in {time.perf_counter() - started:.1f} s")
+    _progress(args, f"fitted in {time.perf_counter() - started:.1f} s")
     return q, model
+
+
+def _progress(args, message: str) -> None:
+    """A progress line on stderr, as the progress bars: only on a terminal and without --quiet
+    (a log or a pipe gets the results and the status lines, and bad input stays one line)."""
+    import sys
+
+    if not getattr(args, "quiet", False) and sys.stderr.isatty():
+        sys.stderr.write(message + "\n")
 
 
 def _predict(args, model, q, context=None):

@@ -23,6 +23,7 @@ Conventions, stated once:
 from __future__ import annotations
 
 import math
+import re
 import sys
 import warnings
 from dataclasses import dataclass, field
@@ -343,16 +344,15 @@ class JointLimitWarning(UserWarning):
 
 
 def urdf_robot_name(text: str) -> str | None:
-    """The ``name`` of a URDF's ``<robot>`` element, or None when the text does not say (or
-    does not parse: the model builder reports that, with its reasons)."""
-    import xml.etree.ElementTree as ET
+    """The ``name`` of a URDF's ``<robot>`` element, or None when the text does not say.
 
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError:
+    Read from the text alone, with no XML parser (the URDF reader, which refuses entity
+    tricks, parses it afterwards and reports any fault).
+    """
+    match = re.search(r"<robot\b[^>]*?\bname\s*=\s*(\"([^\"<>&]*)\"|'([^'<>&]*)')", text)
+    if match is None:
         return None
-    name = (root.get("name") or "").strip() if root.tag == "robot" else ""
-    return name or None
+    return (match.group(2) if match.group(2) is not None else match.group(3)).strip() or None
 
 
 def default_working_pose(lower, upper) -> np.ndarray:
