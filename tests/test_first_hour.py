@@ -2,6 +2,8 @@
 
 import io
 
+import pytest
+
 from tcr_accuracy.cli import main
 from tcr_accuracy.cli.diagnose import PROGRESS_FORMAT
 from tcr_accuracy.model.robot import load_robot
@@ -81,3 +83,22 @@ def test_predict_progress_stays_off_a_pipe_so_bad_input_is_one_line(tmp_path, ca
     code, _, err = run(["predict", "--train", str(REPO / "examples" / "measured.csv"), "--query", str(bad),
                         "--method", "idw-joint"], capsys)
     assert code == 2 and len(err.splitlines()) == 1 and err.startswith("tcr-accuracy predict: error: ")
+
+
+def test_montecarlo_angle_tolerance_in_degrees_like_every_angle_at_the_cli(tmp_path, capsys):
+    import json
+    import math
+
+    runs = {}
+    for name, option in (("deg", ["--angle-tol-deg", "0.5"]), ("rad", ["--angle-tol", "0.008726646259971648"])):
+        out = tmp_path / f"{name}.json"
+        code, printed, _ = run(["montecarlo", "--samples", "500", "--tail-samples", "0", *option,
+                                "--json", str(out), "--quiet"], capsys)
+        assert code == 0
+        runs[name] = (json.loads(out.read_text()), printed)
+    data, printed = runs["deg"]
+    assert data["angle_tolerance_rad"] == pytest.approx(math.radians(0.5), rel=1e-12)
+    assert data["reliability_angle"] == runs["rad"][0]["reliability_angle"]
+    assert "P(|d angle| < 0.00872665 rad = 0.5 deg)" in printed
+    code, _, err = run(["montecarlo", "--angle-tol-deg", "0"], capsys)
+    assert code == 2 and "--angle-tol-deg 0: must be finite and > 0 deg" in err

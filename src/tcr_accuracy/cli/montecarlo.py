@@ -40,8 +40,12 @@ def add_parsers(sub) -> None:
                    help="joint values: revolute [deg], prismatic [mm] (default: working pose)")
     p.add_argument("--tol", nargs="+", type=float, default=[0.15, 0.25], metavar="MM",
                    help="position tolerances T [mm] (default 0.15 0.25)")
-    p.add_argument("--angle-tol", type=float, default=0.002, metavar="RAD",
-                   help="attitude tolerance R per ZYX angle [rad] (default 0.002)")
+    angle = p.add_mutually_exclusive_group()
+    angle.add_argument("--angle-tol-deg", type=float, default=None, metavar="DEG",
+                       help="attitude tolerance R per ZYX angle [deg], like every angle at the command line "
+                            "(default 0.1146 deg = the seed's 0.002 rad)")
+    angle.add_argument("--angle-tol", type=float, default=0.002, metavar="RAD",
+                       help="the same in rad, as the seed states it (default 0.002)")
     p.add_argument("--tail-samples", type=int, default=20_000, metavar="N",
                    help="importance samples per tolerance for the tail P(|dP| > T) (default 20000; 0: skip)")
     p.add_argument("--chunk", type=int, default=None, metavar="N",
@@ -66,6 +70,10 @@ def _check_args(args) -> None:
     for t in args.tol:
         if not (t > 0) or not math.isfinite(t):
             raise InputError(f"--tol {t:g}: tolerances must be finite and > 0 mm")
+    if args.angle_tol_deg is not None:
+        if not (args.angle_tol_deg > 0) or not math.isfinite(args.angle_tol_deg):
+            raise InputError(f"--angle-tol-deg {args.angle_tol_deg:g}: must be finite and > 0 deg")
+        args.angle_tol = math.radians(args.angle_tol_deg)  # SI inside
     if not (args.angle_tol > 0) or not math.isfinite(args.angle_tol):
         raise InputError(f"--angle-tol {args.angle_tol:g}: must be finite and > 0 rad")
     if args.tail_samples < 0:
@@ -272,8 +280,9 @@ def _print_report(robot, q, sampler, args, result, payload) -> None:
         lo, hi = payload["reliability_position_ci95"][key]
         print(f"    P(|dP| < {key} mm) = {payload['reliability_position'][key]:.4f}  [{lo:.4f}, {hi:.4f}]")
     ra = payload["reliability_angle"]
-    print(f"    P(|d angle| < {args.angle_tol:g} rad) = ({ra['d_alpha_z']:.4f}, {ra['d_beta_y']:.4f}, "
-          f"{ra['d_gamma_x']:.4f})  (alpha about z, beta about y, gamma about x)")
+    print(f"    P(|d angle| < {args.angle_tol:g} rad = {math.degrees(args.angle_tol):.4g} deg) = "
+          f"({ra['d_alpha_z']:.4f}, {ra['d_beta_y']:.4f}, {ra['d_gamma_x']:.4f})  "
+          "(alpha about z, beta about y, gamma about x)")
     print("\n  Tail P(|dP| > T): Monte Carlo [95% CI] | first-order Gaussian | importance sampling [95% CI]:")
     for key, tail in payload["tail_position"].items():
         lo, hi = tail["monte_carlo_ci95"]
