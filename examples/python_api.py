@@ -8,6 +8,8 @@ Every name used comes from the package root (``import tcr_accuracy as tcr``); SI
 throughout (m, rad); the printed lines convert to mm and deg.
 """
 
+from pathlib import Path
+
 import numpy as np
 
 import tcr_accuracy as tcr
@@ -26,7 +28,7 @@ print(f"P(|dP| < 0.25 mm) = {mc.inside_position[0] / mc.n_samples:.4f} over {mc.
 
 # %% Measurements of the as-built robot: simulated here from an example scenario;
 # a real robot's come from tcr.read_measurements("measured.csv", robot)
-scenario = tcr.load_scenario("examples/scenario_compliance.yaml")
+scenario = tcr.load_scenario(Path(__file__).with_name("scenario_compliance.yaml"))
 measured, truth = tcr.simulate_measurements(robot, scenario, 200, np.random.default_rng(1))
 print(f"{len(measured.q)} measurements, hidden effects: {', '.join(truth['effects'])}")
 
