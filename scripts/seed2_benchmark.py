@@ -1,3 +1,4 @@
+#!/usr/bin/env python3
 """The second seed's experiment on simulated data: predict the remaining TCP error in
 joint space and compensate it, next to what a user would otherwise pick.
 
@@ -245,7 +246,7 @@ def print_report(results: list[dict]) -> None:
     for r in results:
         print(f"  {r['robot']}: " + "; ".join(f"{k}: {v['pcc_joint']:.3f} | {v['pcc_cartesian']:.3f}"
                                              for k, v in r["similarity"].items()))
-    print("\nSpeed (shared machine; the lead re-measures)")
+    print("\nSpeed (wall time on this machine; it may be shared with other jobs)")
     for r in results:
         s = r["speed"]
         timings = ", ".join(f"{k[:-len('_predict_10000_s')]} {v:.3f} s" for k, v in s.items()

@@ -214,6 +214,13 @@ def test_demo_runs_both_analyses_and_writes_one_report(tmp_path, capsys):
     assert diagnosis["steps"][-1]["heldout_rms_mm"] < 1.5 * diagnosis["noise_floor_mm"]
     index = (out_dir / "index.html").read_text()
     assert "accuracy/index.html" in index and "diagnosis/index.html" in index
+    # the summary the terminal shows, all of it, in the index's summary table
+    assert "<td>diagnosis vs hidden truth</td><td>all hidden effects found, none invented</td>" in index
+    assert "diagnosis vs hidden truth" in out
+    # the diagnosis report's printed summary, aligned as printed
+    diagnosis_page = (out_dir / "diagnosis" / "index.html").read_text()
+    printed = diagnosis_page.split('<pre class="printed">', 1)[1].split("</pre>", 1)[0]
+    assert printed.startswith("Diagnosis of ") and "\n4. How far it shrinks" in printed
     assert (out_dir / "accuracy" / "index.html").is_file() and (out_dir / "diagnosis" / "index.html").is_file()
     assert (out_dir / "tool_changer_as_built.urdf").is_file()
     assert "primary effect found" in out and "compliance" in out

@@ -55,6 +55,13 @@ JOINT_COLUMN_UNITS: dict[str, dict[str, float]] = {REVOLUTE: {"deg": DEG, "rad":
 #: Suffixes of a measured position column -> factor to m.
 POSITION_UNITS: dict[str, float] = {"mm": 1e-3, "m": 1.0}
 
+#: Units a tracker export or a joint log may write in a header or a cell (``X [mm]``,
+#: ``1234,5 in``) -> (SI unit, factor to SI): the suffixes above plus inch and foot.
+IMPORT_UNITS: dict[str, tuple[str, float]] = {
+    **{u: ("m", f) for u, f in suffixes_of("m").items()}, "in": ("m", 0.0254), "ft": ("m", 0.3048),
+    **{u: ("rad", f) for u, f in suffixes_of("rad").items()}, "kg": ("kg", 1.0), "c": ("degC", 1.0),
+}
+
 #: What the edges show for a joint value of each kind: (unit label, factor from SI).
 JOINT_DISPLAY: dict[str, tuple[str, float]] = {REVOLUTE: ("deg", 180.0 / math.pi), PRISMATIC: ("mm", 1000.0)}
 

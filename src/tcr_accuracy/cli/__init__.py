@@ -19,7 +19,8 @@ import warnings
 from contextlib import contextmanager
 
 from .. import __version__
-from . import demo, diagnose, montecarlo, pose, prediction, sensitivity, simulate, tolerance, trajectory, view
+from . import (demo, diagnose, montecarlo, pose, prediction, sensitivity, simulate, tolerance, tracker_import,
+               trajectory, view)
 from .common import EXIT_ANALYSIS, EXIT_INPUT, EXIT_OK, Parser, add_memory_argument
 
 
@@ -50,11 +51,26 @@ DEBUG_HELP = "on an error, print the full Python traceback as well as the one-li
 #: The commands, one module per topic, in the order --help lists them; each module's
 #: ``add_parsers(sub)`` adds its subcommands. Every module imports only argparse and the
 #: shared helpers at the top (heavy imports wait inside each command), so --help is instant.
-COMMANDS = [pose, demo, montecarlo, sensitivity, tolerance, trajectory, simulate, view, diagnose, prediction]
+COMMANDS = [pose, demo, montecarlo, sensitivity, tolerance, trajectory, simulate, tracker_import, view, diagnose,
+            prediction]
+
+
+#: Joint-limit warnings already shown in this run, by what they say of the joint: the same
+#: joint values are checked by several steps (the parser, the analysis, each robot drawn in
+#: the 3D view), and the user needs to read it once, named after their own argument.
+_shown_limit_warnings: set[str] = set()
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    sys.stderr.write(f"tcr-accuracy: warning: {message}\n")
+    from ..model.robot import JointLimitWarning
+
+    text = str(message)
+    if issubclass(category, JointLimitWarning):
+        key = text[text.find("joint "):]  # without the source ("--q: ", "q: ", "nominal: q: ")
+        if key in _shown_limit_warnings:
+            return
+        _shown_limit_warnings.add(key)
+    sys.stderr.write(f"tcr-accuracy: warning: {text}\n")
 
 
 #: How many main() calls are running (``demo`` runs ``montecarlo`` and ``diagnose`` through
@@ -76,6 +92,8 @@ def main(argv: list[str] | None = None) -> int:
     # read before parsing too, so that a failure while building the parser is traced as well
     debug = "--debug" in argv
     command = next((a for a in argv if not a.startswith("-")), None)
+    if _depth == 0:
+        _shown_limit_warnings.clear()
     _depth += 1
     try:
         return _main(argv, debug, command)

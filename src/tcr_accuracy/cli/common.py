@@ -212,18 +212,18 @@ def add_sampler_arguments(parser: argparse.ArgumentParser, *, pose: bool = False
 
 
 def sampler_from_args(robot, preset: str | None, config: str | None):
-    """The error sampler of --preset (default table2) or --config FILE."""
+    """The error sampler of --preset (default: ``model.errors.default_preset``) or --config FILE."""
     if config is not None:
         from ..io.budget_file import load_budget_file
 
         return load_budget_file(config, robot)
-    preset = preset or "table2"
+    from ..model.errors import default_preset, seed_budget
+
+    preset = preset or default_preset(robot)
     if preset == "clearance":
         from ..model.clearance import ClearanceModel
 
         return ClearanceModel.from_robot(robot)
-    from ..model.errors import seed_budget
-
     return seed_budget(robot, preset)
 
 
@@ -231,7 +231,9 @@ def error_sampler(robot, args) -> tuple[object, str]:
     """The error sampler of ``--preset`` or ``--config`` (an ErrorBudget or a ClearanceModel)
     and a label for reports (the preset's name, or ``config FILE``)."""
     sampler = sampler_from_args(robot, args.preset, args.config)
-    return sampler, args.preset or ("table2" if args.config is None else f"config {args.config}")
+    from ..model.errors import default_preset
+
+    return sampler, args.preset or (default_preset(robot) if args.config is None else f"config {args.config}")
 
 
 def add_quiet_argument(parser: argparse.ArgumentParser) -> None:

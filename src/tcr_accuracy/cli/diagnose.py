@@ -11,9 +11,13 @@ import math
 import sys
 from pathlib import Path
 
-from .common import MAX_MM, add_robot_arguments, check_csv_memory, integer, number, output_file, seed_value
+from .common import MAX_MM, add_robot_arguments, check_csv_memory, integer, number, output_file, seed_value, status
 from .output import RunOutput, add_output_arguments
 
+
+#: The diagnosis' progress line; tqdm puts ", " before the postfix, so this reads
+#: "diagnose, step 2: trying geometry [00:04]".
+PROGRESS_FORMAT = "{desc}{postfix} [{elapsed}]"
 
 def add_parsers(sub) -> None:
     p = sub.add_parser(
@@ -79,7 +83,7 @@ def _run_diagnose(args) -> int:
     out = RunOutput(args, f"Sim-to-real gap diagnosis: {robot.name}")
     from tqdm import tqdm
 
-    bar = tqdm(desc="diagnose", file=sys.stderr, bar_format="{desc}: {postfix} [{elapsed}]",
+    bar = tqdm(desc="diagnose", file=sys.stderr, bar_format=PROGRESS_FORMAT,
                disable=args.quiet or not sys.stderr.isatty())
     try:
         result = diagnose(robot, data, effects=effects, folds=args.folds, seed=args.seed,
@@ -96,7 +100,8 @@ def _run_diagnose(args) -> int:
                       "Measured TCP points (base frame) and the gap to the nominal model, magnified; "
                       "nominal robot and the calibrated as-built robot (geometric errors magnified)")
     if args.as_built_urdf:
-        write_as_built(robot, result, Path(args.as_built_urdf))
+        urdf, side = write_as_built(robot, result, Path(args.as_built_urdf))
+        status(args, f"as-built URDF written to {urdf} (its other effects and the tracker frame: {side})")
     return out.finish(payload, lambda: print(format_summary(robot, result, source)))
 
 
@@ -326,7 +331,7 @@ def _report_tables(out, robot, d, source: str) -> None:
                            "elimination uses this); own share: they keep the parameters they have in the final "
                            "model, so an effect is not credited with what a later one of the vocabulary duplicates. "
                            "The primary effect has the largest own share.")
-    out.add_text(format_summary(robot, d, source), heading="Full printed summary")
+    out.add_preformatted(format_summary(robot, d, source), heading="Full printed summary")
 
 
 def _scene(robot, d, measurements):
@@ -334,22 +339,23 @@ def _scene(robot, d, measurements):
     import numpy as np
 
     from ..model.errors import ErrorModel
-    from ..view.viewer import Scene, auto_magnification
+    from ..view.viewer import Scene, data_extent, point_size, segment_magnification
 
     context = measurements.context()
     model_final = d.predict(robot, d.q, context)
     measured = model_final - d.final_residual  # in the robot's base frame
     nominal_model = measured + d.gap_residual  # the model with the tracker frame only
     gap = np.linalg.norm(d.gap_residual, axis=1)
-    magnify = auto_magnification(float(gap.max()), drawn_m=0.15)
-    scene = Scene(f"{robot.name}: sim-to-real gap")
+    extent = data_extent(measured)
+    magnify = segment_magnification(float(gap.max()), extent)
+    scene = Scene(f"{robot.name}: sim-to-real gap", frame="data")
     q_show = robot.working_pose
     scene.add_robot(robot, q_show, name="nominal robot")
     em = ErrorModel(robot)
     as_built = em.perturbed_robot(magnify * np.asarray(d.as_built_x))
     scene.add_robot(as_built, q_show, name=f"as-built robot, geometric errors x {magnify:g}",
                     color=(0.85, 0.2, 0.2), opacity=0.35, include_base=False)
-    scene.add_point_cloud(measured, gap * 1e3, name="measured",
+    scene.add_point_cloud(measured, gap * 1e3, name="measured", size_m=1.4 * point_size(extent),
                           label="gap after the tracker frame |dP| [mm]")
     scene.add_error_segments(measured, nominal_model, magnify=magnify, name="gap",
                              start_label="measured", end_label="nominal model")

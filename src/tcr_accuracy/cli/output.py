@@ -102,6 +102,11 @@ class RunOutput:
         if self.report is not None:
             self.report.add_text(text, heading)
 
+    def add_preformatted(self, text: str, heading: str | None = None) -> None:
+        """Printed text kept as printed (line breaks and alignment) in the report."""
+        if self.report is not None:
+            self.report.add_preformatted(text, heading)
+
     def add_table(self, title: str, columns, rows, units=None, *, note: str | None = None,
                   float_format: str = "{:.4g}") -> None:
         """A table of the report (values in display units, named in ``units`` or the column names)."""

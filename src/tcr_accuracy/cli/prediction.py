@@ -148,6 +148,7 @@ def _training_pair_bytes(method: str):
 
 def _fit(args, robot):
     """Read the training file, fit the tracker frame and the predictor: (q_train, MeasuredErrorModel)."""
+    import time
     import warnings
 
     from sklearn.exceptions import ConvergenceWarning
@@ -163,6 +164,10 @@ def _fit(args, robot):
     _check_training(args.train, q, lines, robot.n_joints)
     model = MeasuredErrorModel(robot=robot, estimator=make_predictor(args.method, robot, random_state=args.seed),
                                fit_frame=args.frame == "fit")
+    # the fit is the long part (seconds to minutes): say what runs, so the terminal is not blank
+    _progress(args, f"fitting {args.method} to {q.shape[0]} measured poses of {args.train} "
+                 f"({'tracker frame and ' if args.frame == 'fit' else ''}TCP offset first) ...")
+    started = time.perf_counter()
     try:
         with warnings.catch_warnings():
             # scikit-learn's optimisers warn at their iteration caps; the fit is still usable
@@ -172,7 +177,17 @@ def _fit(args, robot):
         hint = "; or choose a --method that needs fewer poses (gp, kriging)" if args.method.startswith(
             "diagnosis") and "too few" in str(exc) else ""
         raise InputError(f"{args.train}: {exc}{hint}") from None
+    _progress(args, f"fitted in {time.perf_counter() - started:.1f} s")
     return q, model
+
+
+def _progress(args, message: str) -> None:
+    """A progress line on stderr, as the progress bars: only on a terminal and without --quiet
+    (a log or a pipe gets the results and the status lines, and bad input stays one line)."""
+    import sys
+
+    if not getattr(args, "quiet", False) and sys.stderr.isatty():
+        sys.stderr.write(message + "\n")
 
 
 def _predict(args, model, q, context=None):
@@ -371,18 +386,19 @@ def _print(robot, args, q_train, *lines: str) -> None:
 
 def _predict_scene(robot, q, pred, norm, args):
     from ..model.kinematics import tcp_poses
-    from ..view.viewer import Scene, auto_magnification
+    from ..view.viewer import Scene, data_extent, point_size, segment_magnification
 
     nominal = tcp_poses(robot, q).position
-    magnify = auto_magnification(float(norm.max()), drawn_m=0.3)
-    scene = Scene(f"{robot.name}: error predicted by {args.method}")
+    extent = data_extent(nominal)
+    magnify = segment_magnification(float(norm.max()), extent)
+    scene = Scene(f"{robot.name}: error predicted by {args.method}", frame="data")
     shown = _median_index(norm)
     scene.add_robot(robot, q[shown], name="nominal robot", opacity=0.5)  # the TCP points sit in the tool
     scene.add_point_cloud(nominal, norm * 1e3, name="query TCP", label="predicted TCP error |e| [mm]",
-                          size_m=0.025)
+                          size_m=1.6 * point_size(extent))
     scene.add_error_segments(nominal, nominal + pred, magnify=magnify, name="predicted error",
                              start_label="nominal TCP at the query joints",
-                             end_label="predicted real TCP", size_m=0.015)
+                             end_label="predicted real TCP")
     scene.add_note(f"{len(q)} query poses, {args.method} fitted to {args.train}; robot at query row {shown + 2} "
                    f"(median |e|); segments magnified x {magnify:g}")
     return scene, (f"Query TCP points coloured by the predicted |e|; segments to the predicted real TCP, "
@@ -483,18 +499,18 @@ def _run_compensate(args) -> int:
 
 
 def _compensate_scene(robot, q, result, before_tcp, after_tcp, before, args):
-    from ..view.viewer import COLORS, Scene, auto_magnification
+    from ..view.viewer import COLORS, Scene, data_extent, segment_magnification
 
-    magnify = auto_magnification(float(before.max()), drawn_m=0.3)
-    scene = Scene(f"{robot.name}: compensation with {args.method}")
+    extent = data_extent(result.target)
+    magnify = segment_magnification(float(before.max()), extent)
+    scene = Scene(f"{robot.name}: compensation with {args.method}", frame="data")
     shown = _median_index(before)
     scene.add_robot(robot, result.q[shown], name="compensated command", opacity=0.5)
     scene.add_error_segments(result.target, before_tcp, magnify=magnify, name="before",
-                             start_label="target TCP", end_label="predicted real TCP, uncompensated command",
-                             size_m=0.02)
+                             start_label="target TCP", end_label="predicted real TCP, uncompensated command")
     scene.add_error_segments(result.target, after_tcp, magnify=magnify, name="after",
                              start_label="target TCP", end_label="predicted real TCP, compensated command",
-                             end_color=COLORS["trajectory"], size_m=0.02)
+                             end_color=COLORS["trajectory"])
     del scene.legend[-2]  # the targets' entry, already in the legend once
     scene.add_note(f"{len(q)} targets of {args.targets}; robot at target row {shown + 2} (median error before); "
                    f"segments magnified x {magnify:g}")

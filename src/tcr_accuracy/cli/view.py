@@ -26,11 +26,12 @@ def add_view_arguments(parser: argparse.ArgumentParser, *, always: bool = False)
     """Add ``--view [HTML]``, ``--serve`` and ``--open`` to a subcommand's parser.
 
     always : bool
-        For ``view`` itself: ``--html`` names the file, written unless only ``--serve``
-        is asked for. Other commands get ``--view`` (off unless given).
+        For ``view`` itself: ``--view FILE`` (as on every other command; ``--html`` is
+        kept as its older name) names the file, written unless only ``--serve`` is asked
+        for. Other commands get ``--view`` (off unless given).
     """
     if always:
-        parser.add_argument("--html", default=None, type=output_file, metavar="FILE",
+        parser.add_argument("--view", "--html", dest="html", default=None, type=output_file, metavar="FILE",
                             help=f"write the view as one self-contained HTML file that opens in any "
                                  f"browser without a server (default: {DEFAULT_VIEW_FILE}, unless only "
                                  "--serve is given)")

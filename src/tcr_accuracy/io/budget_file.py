@@ -91,7 +91,10 @@ def parse_table(text: str, source: str, kind: str = "yaml") -> dict:
         raise InputError(f"{source}: tables or lists nested too deeply (at most {MAX_NESTING} levels)")
     try:
         if kind == "toml":
-            import tomllib
+            try:
+                import tomllib
+            except ModuleNotFoundError:  # Python 3.10: the same parser as the tomli package
+                import tomli as tomllib
 
             try:
                 data = tomllib.loads(text)

@@ -23,6 +23,7 @@ Conventions, stated once:
 from __future__ import annotations
 
 import math
+import re
 import sys
 import warnings
 from dataclasses import dataclass, field
@@ -84,7 +85,9 @@ class RobotModel:
     package_dirs : list of str
         Folders in which ``package://`` mesh paths are resolved.
     working_pose : ndarray of shape (n_joints,)
-        A representative pose [rad, m] (the seed's pose for the tool-changer, zero otherwise).
+        A representative pose [rad, m] (the seed's pose for the tool-changer; otherwise zero for
+        every joint whose limits hold zero and the middle of its range for the others, see
+        :func:`default_working_pose`).
     full_model : pin.Model or None
         Every joint of the URDF (None: the same as ``model``). Gravity uses it.
     chain_joint_ids : tuple of int
@@ -113,7 +116,7 @@ class RobotModel:
 
     def __post_init__(self) -> None:
         if self.working_pose is None:
-            self.working_pose = np.zeros(self.n_joints)
+            self.working_pose = default_working_pose(self.lower_limits, self.upper_limits)
         if self.full_model is None:
             self.full_model = self.model
             self.chain_joint_ids = tuple(range(1, self.model.njoints))
@@ -350,6 +353,41 @@ class JointLimitWarning(UserWarning):
     """A joint value lies outside the URDF limits (the analysis still runs)."""
 
 
+def urdf_robot_name(text: str) -> str | None:
+    """The ``name`` of a URDF's ``<robot>`` element, or None when the text does not say.
+
+    Read from the text alone, with no XML parser (the URDF reader, which refuses entity
+    tricks, parses it afterwards and reports any fault).
+    """
+    match = re.search(r"<robot\b[^>]*?\bname\s*=\s*(\"([^\"<>&]*)\"|'([^'<>&]*)')", text)
+    if match is None:
+        return None
+    return (match.group(2) if match.group(2) is not None else match.group(3)).strip() or None
+
+
+def default_working_pose(lower, upper) -> np.ndarray:
+    """Joint values [rad, m] for a robot without a named working pose: zero where the limits
+    hold it, else the middle of the joint's range (the Panda's joint 4 lives in
+    [-176, -4] deg), so that the default pose is one the robot can take.
+
+    Parameters
+    ----------
+    lower, upper : array-like of shape (n_joints,)
+        Limits [rad, m]; NaN for an unbounded side.
+    """
+    lower = np.asarray(lower, dtype=float)
+    upper = np.asarray(upper, dtype=float)
+    q = np.zeros(lower.shape)
+    outside = (lower > 0) | (upper < 0)  # NaN compares False: an unbounded side holds zero
+    both = outside & np.isfinite(lower) & np.isfinite(upper)
+    q[both] = 0.5 * (lower[both] + upper[both])
+    only_low = outside & ~both & (lower > 0)
+    q[only_low] = lower[only_low]
+    only_high = outside & ~both & (upper < 0)
+    q[only_high] = upper[only_high]
+    return q
+
+
 def example_robot_data_dir() -> Path:
     """The ``share`` folder of the example-robot-data wheel (holds robots/...)."""
     for entry in sys.path:
@@ -394,10 +432,10 @@ def load_robot(source: str | Path | None = None, tool: str | None = None) -> Rob
     elif Path(source).is_file():
         urdf_path = Path(source).resolve()
         text = read_urdf_text(urdf_path)
-        name = urdf_path.stem
+        name = urdf_robot_name(text) or urdf_path.stem  # what the URDF calls itself, as for named robots
         package_dirs = [str(urdf_path.parent), str(urdf_path.parent.parent)]
         label = str(source)
-        if urdf_path.stem == "tool_changer":
+        if urdf_path.stem == BUILTIN_NAME or name.startswith(BUILTIN_NAME):  # a variant, its as-built model
             working_pose = WORKING_POSE.copy()
             payload_kg = DISC_CUTTER_MASS
     elif str(source).lower() in EXAMPLE_ROBOTS:

@@ -46,6 +46,12 @@ class _Text:
 
 
 @dataclass(frozen=True)
+class _Preformatted:
+    text: str
+    heading: str | None
+
+
+@dataclass(frozen=True)
 class _Table:
     title: str
     columns: tuple[str, ...]
@@ -143,6 +149,11 @@ class Report:
         """A paragraph (blank lines start new paragraphs), optionally under a heading."""
         self.items.append(_Text(str(text), heading))
 
+    def add_preformatted(self, text: str, heading: str | None = None) -> None:
+        """Text shown as printed, in a fixed-width font with its line breaks and alignment kept
+        (a command's printed summary with its aligned tables)."""
+        self.items.append(_Preformatted(str(text).rstrip("\n"), heading))
+
     def add_table(self, title: str, columns, rows, units=None, *, note: str | None = None,
                   float_format: str = "{:.4g}") -> None:
         """A table.
@@ -222,6 +233,10 @@ class Report:
                 for para in (p.strip() for p in item.text.split("\n\n")):
                     if para:
                         body.append(f"<p>{esc(para)}</p>")
+            elif isinstance(item, _Preformatted):
+                if item.heading:
+                    body.append(f"<h2>{esc(item.heading)}</h2>")
+                body.append(f'<pre class="printed">{esc(item.text)}</pre>')
             elif isinstance(item, _Table):
                 body.append(f"<h2>{esc(item.title)}</h2>")
                 head = "".join(f"<th>{esc(c)}</th>" for c in item.columns)
@@ -261,6 +276,10 @@ class Report:
                 if item.heading:
                     out += [f"## {item.heading}", ""]
                 out += [item.text.strip(), ""]
+            elif isinstance(item, _Preformatted):
+                if item.heading:
+                    out += [f"## {item.heading}", ""]
+                out += ["```", item.text, "```", ""]
             elif isinstance(item, _Table):
                 out += [f"## {item.title}", "",
                         "| " + " | ".join(md(c) for c in item.columns) + " |",
@@ -315,6 +334,8 @@ figure { margin: 1em 0; }
 img { max-width: 100%; border: 1px solid #e3e3e3; }
 iframe { width: 100%; border: 1px solid #ccc; }
 pre.command { background: #f5f5f5; padding: 8px 10px; overflow-x: auto; }
+pre.printed { background: #f7f7f7; border: 1px solid #e3e3e3; padding: 8px 10px; overflow-x: auto;
+  font-size: 0.82em; line-height: 1.3; white-space: pre; }
 """
 
 _PAGE = """<!DOCTYPE html>
