@@ -1,3 +1,4 @@
+#!/usr/bin/env python3
 """Speed of ``diagnose``: 1,000 measurements, every effect, 5-fold cross-validation.
 
 Ours: the whole diagnosis (identifiability, forward selection and backward elimination

@@ -1,3 +1,4 @@
+#!/usr/bin/env python3
 """Monte Carlo engine versus the plain per-sample Pinocchio loop, side by side.
 
 Table 2 error sources of the seed paper on the built-in tool-changer at its working

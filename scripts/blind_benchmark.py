@@ -1,3 +1,4 @@
+#!/usr/bin/env python3
 """Blind benchmark of ``diagnose``: hidden effects drawn at random, judged against the truth.
 
 For each scenario (seeded): a robot (the tool-changer or an example-robot-data arm),

@@ -1,3 +1,4 @@
+#!/usr/bin/env python3
 """Write the demo's bundled measurement set of a simulated as-built tool-changer.
 
     python scripts/make_demo_data.py

@@ -1,3 +1,4 @@
+#!/usr/bin/env python3
 """Write the tool-changer URDF from its named dimensions.
 
     python scripts/make_tool_changer_urdf.py                  # rewrite robots/tool_changer.urdf

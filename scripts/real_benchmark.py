@@ -1,3 +1,4 @@
+#!/usr/bin/env python3
 """Real robots as the judge: the diagnosis and the predictors on every real data set in a folder.
 
 For each data set under ``--data`` (a folder per robot: measurements, a URDF or a robot name,

@@ -1,8 +1,9 @@
+#!/usr/bin/env python3
 """The second seed's experiment on simulated data: predict the remaining TCP error in
 joint space and compensate it, next to what a user would otherwise pick.
 
 A simulated real robot (hidden geometric errors, gravity compliance under a heavy
-payload, a 0.02 mm laser tracker; tcr_accuracy.analysis.realrobot) is measured at 160 poses
+payload, a 0.02 mm laser tracker; tcr_accuracy.analysis.stand_in) is measured at 160 poses
 picked by the seed's task-workspace sampling (dense Cartesian targets, IK, per-joint
 stratified pick) and at 80 random test poses with varied orientation. Every method is
 fitted to the 160 and scored on the 80 (|predicted - measured error|, as the seed
@@ -40,8 +41,9 @@ from threadpoolctl import threadpool_limits
 from tcr_accuracy.atomic import write_text_atomically
 from tcr_accuracy.prediction.compensation import compensate_joints
 from tcr_accuracy.model.kinematics import tcp_poses
-from tcr_accuracy.prediction.estimators import METHODS, MeasuredErrorModel, make_predictor
-from tcr_accuracy.analysis.realrobot import make_stand_in_robot
+from tcr_accuracy.prediction.composed import MeasuredErrorModel
+from tcr_accuracy.prediction.methods import METHODS, make_predictor
+from tcr_accuracy.analysis.stand_in import make_stand_in_robot
 from tcr_accuracy.model.robot import load_robot
 from tcr_accuracy.analysis.sampling import TaskWorkspace, inverse_kinematics, sample_task_workspace
 from tcr_accuracy.analysis.scenario import truth_as_scenario
@@ -64,7 +66,7 @@ SETUPS = {
 
 
 class SimulatedRobot:
-    """The same interface as realrobot.StandInRobot, on tcr_accuracy.analysis.simulate's effect library:
+    """The same interface as stand_in.StandInRobot, on tcr_accuracy.analysis.simulate's effect library:
     geometry 0.2 mm / 0.2 mrad, joint offsets 1 mrad, gravity compliance scaled to 3 mm RMS
     at the TCP under the payload over q_scale, tracker noise 0.02 mm. The hidden parameters
     are drawn once and replayed for every measurement (truth_as_scenario)."""
@@ -244,7 +246,7 @@ def print_report(results: list[dict]) -> None:
     for r in results:
         print(f"  {r['robot']}: " + "; ".join(f"{k}: {v['pcc_joint']:.3f} | {v['pcc_cartesian']:.3f}"
                                              for k, v in r["similarity"].items()))
-    print("\nSpeed (shared machine; the lead re-measures)")
+    print("\nSpeed (wall time on this machine; it may be shared with other jobs)")
     for r in results:
         s = r["speed"]
         timings = ", ".join(f"{k[:-len('_predict_10000_s')]} {v:.3f} s" for k, v in s.items()
@@ -262,7 +264,7 @@ def main(argv=None) -> int:
     parser.add_argument("--json", metavar="FILE")
     parser.add_argument("--plots", metavar="DIR", type=Path)
     parser.add_argument("--truth", choices=("standin", "simulate"), default="standin",
-                        help="hidden truth: realrobot's stand-in (geometry + gravity compliance) or "
+                        help="hidden truth: analysis.stand_in's stand-in (geometry + gravity compliance) or "
                              "tcr_accuracy.analysis.simulate's effect library (geometry, joint offsets, compliance)")
     parser.add_argument("--frame", choices=("fit", "base"), default="fit",
                         help="fit: register the tracker frame on the training data, as predict does (default); "

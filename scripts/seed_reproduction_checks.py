@@ -1,3 +1,4 @@
+#!/usr/bin/env python3
 """Numbers behind docs/seed-reproduction.md: which inputs could give the seed's outputs.
 
 Run from the repository root:

@@ -195,3 +195,30 @@ def test_montecarlo_report_shows_its_statistics_and_its_cloud(chromium, tmp_path
     image = _legend_free(_screenshot(chromium, tmp_path, out / "scene-1.html", "mc-scene"))
     assert _paint_fraction(image) > 0.01, "the robot is not on the report's 3D view"
     assert _viridis_pixels(image) > 150, "the TCP error cloud is not on the report's 3D view"
+
+
+def test_printed_summary_renders_as_aligned_lines_in_chromium(chromium, tmp_path):
+    """The diagnosis report's "Full printed summary": Chromium keeps its lines and columns."""
+    import re
+
+    summary = ("4. How far it shrinks (k-fold held-out) [mm]\n"
+               "   step               params  train RMS\n"
+               "   frames                  9     1.4700\n"
+               "   +compliance            13     0.3195")
+    report = Report("Browser check", command=["diagnose", "m.csv"])
+    report.add_preformatted(summary, heading="Full printed summary")
+    index = report.write(tmp_path / "report")
+    dom = _dom(chromium, tmp_path, index)
+    blocks = re.findall(r'<pre class="printed">(.*?)</pre>', dom, flags=re.S)
+    assert blocks == [summary]
+    # drawn line by line: the same text as a paragraph runs together into one or two lines, so
+    # the page with the <pre> is taller by several lines (same content below it)
+    def last_text_row(page, name):
+        image = _screenshot(chromium, tmp_path, page, name, size=(1000, 1400))
+        return int(np.flatnonzero((image.mean(axis=2) < 0.5).any(axis=1)).max())
+
+    as_paragraph = Report("Browser check", command=["diagnose", "m.csv"])
+    as_paragraph.add_text(summary, heading="Full printed summary")
+    paragraph_index = as_paragraph.write(tmp_path / "paragraph")
+    taller = last_text_row(index, "pre") - last_text_row(paragraph_index, "paragraph")
+    assert taller > 30, f"the printed summary is only {taller} px taller than as a paragraph"

@@ -57,8 +57,8 @@ def test_pose_json_to_file(tmp_path, capsys):
     (["pose", "--q", "1", "2", "3", "4", "5", "nan"], "non-finite"),
     (["pose", "--robot", "nowhere.urdf"], "no such file"),
     (["pose", "--tool", "flange"], "no such frame"),
-    (["pose", "--q", "1", "x"], "invalid float"),
-    (["demo", "--samples", "1"], "at least 2"),
+    (["pose", "--q", "1", "x"], "--q x: not a number"),
+    (["demo", "--samples", "1"], "want an integer >= 2"),
 ])
 def test_bad_input_is_one_line_and_exit_code_2(argv, message, capsys):
     code, out, err = run(argv, capsys)
@@ -214,6 +214,13 @@ def test_demo_runs_both_analyses_and_writes_one_report(tmp_path, capsys):
     assert diagnosis["steps"][-1]["heldout_rms_mm"] < 1.5 * diagnosis["noise_floor_mm"]
     index = (out_dir / "index.html").read_text()
     assert "accuracy/index.html" in index and "diagnosis/index.html" in index
+    # the summary the terminal shows, all of it, in the index's summary table
+    assert "<td>diagnosis vs hidden truth</td><td>all hidden effects found, none invented</td>" in index
+    assert "diagnosis vs hidden truth" in out
+    # the diagnosis report's printed summary, aligned as printed
+    diagnosis_page = (out_dir / "diagnosis" / "index.html").read_text()
+    printed = diagnosis_page.split('<pre class="printed">', 1)[1].split("</pre>", 1)[0]
+    assert printed.startswith("Diagnosis of ") and "\n4. How far it shrinks" in printed
     assert (out_dir / "accuracy" / "index.html").is_file() and (out_dir / "diagnosis" / "index.html").is_file()
     assert (out_dir / "tool_changer_as_built.urdf").is_file()
     assert "primary effect found" in out and "compliance" in out

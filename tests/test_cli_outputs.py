@@ -85,9 +85,9 @@ def test_plots_of_a_failed_run_are_whole_files_and_temporaries_are_gone(tmp_path
     monkeypatch.setattr(plots_montecarlo, "plot_projection_densities", _boom)
     assert main([*SMALL["montecarlo"], "--quiet", "--plots", str(tmp_path / "plots"),
                  "--json", str(tmp_path / "r.json")]) == 1
-    # the first plot was finished before the second failed; nothing else is there
-    assert sorted(p.name for p in tmp_path.rglob("*")) == ["cloud_3d.png", "plots"]
-    assert (tmp_path / "plots" / "cloud_3d.png").read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
+    # the first plot was drawn before the second failed, but a failed run writes nothing:
+    # no plot, no plot folder, no JSON, no temporary file (issue 12 #1)
+    assert sorted(p.name for p in tmp_path.rglob("*")) == []
 
 
 # ---------------------------------------------------------------------------------------
@@ -179,13 +179,13 @@ def test_json_to_stdout_stays_pure_with_a_report(tmp_path, capsys):
 # Exit codes
 # ---------------------------------------------------------------------------------------
 @pytest.mark.parametrize("argv, message", [
-    (["montecarlo", "--seed", "-1"], "seeds are integers >= 0"),
-    (["sensitivity", "--seed", "x"], "'x' is not an integer"),
+    (["montecarlo", "--seed", "-1"], "--seed -1: want a seed, an integer >= 0"),
+    (["sensitivity", "--seed", "x"], "--seed x: not a number"),
     (["trajectory", "--open"], "--open needs --serve"),
     (["montecarlo", "--json", "/nonexistent-folder/r.json"], "the folder /nonexistent-folder does not exist"),
     (["trajectory", "--view", "/nonexistent-folder/v.html"], "the folder /nonexistent-folder does not exist"),
     (["montecarlo", "--view-samples", "0"], "--view-samples 0"),
-    (["simulate", "--seed", "-3", "--out", "x.csv"], "seeds are integers >= 0"),
+    (["simulate", "--seed", "-3", "--out", "x.csv"], "--seed -3: want a seed, an integer >= 0"),
 ])
 def test_bad_output_options_exit_2_with_one_line(argv, message, capsys):
     try:
@@ -200,8 +200,9 @@ def test_bad_output_options_exit_2_with_one_line(argv, message, capsys):
 def test_report_folder_that_is_a_file_exits_2(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("x")
+    # refused when the command line is read, before any work
     assert main([*SMALL["tolerance"], "--quiet", "--out", str(blocker)]) == 2
-    assert "cannot create the report folder" in capsys.readouterr().err
+    assert f"--out {blocker}: exists and is not a folder" in capsys.readouterr().err
     assert blocker.read_text() == "x"
 
 

@@ -9,20 +9,13 @@ from sklearn.utils.estimator_checks import check_estimator
 
 from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.model.kinematics import tcp_poses
-from tcr_accuracy.prediction.estimators import (
-    DiagnosisCalibration,
-    GeometricCalibration,
-    InverseDistanceWeighting,
-    JointGaussianProcess,
-    JointKriging,
-    MeasuredErrorModel,
-    ResidualCorrected,
-    TcpOffset,
-    make_gaussian_process,
-    make_predictor,
-    uncertainty_kind,
-)
-from tcr_accuracy.analysis.realrobot import make_stand_in_robot
+from tcr_accuracy.prediction.baselines import InverseDistanceWeighting
+from tcr_accuracy.prediction.calibration import DiagnosisCalibration, GeometricCalibration
+from tcr_accuracy.prediction.composed import MeasuredErrorModel, ResidualCorrected, TcpOffset, uncertainty_kind
+from tcr_accuracy.prediction.gaussian_process import JointGaussianProcess, make_gaussian_process
+from tcr_accuracy.prediction.kriging import JointKriging
+from tcr_accuracy.prediction.methods import METHODS, make_predictor
+from tcr_accuracy.analysis.stand_in import make_stand_in_robot
 from tcr_accuracy.analysis.similarity import pair_distances, spatial_similarity
 
 UR5_REF = np.array([0.3, -1.2, 1.5, -1.9, -1.57, 0.4])
@@ -114,6 +107,24 @@ def test_predictors_beat_the_mean_on_a_hidden_geometric_error_field(hidden_geome
             warnings.simplefilter("ignore", ConvergenceWarning)
             model.fit(q_train, e_train)
         assert _rms(model.predict(q_test) - e_test) < baseline / factor, type(model).__name__
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_every_method_name_builds_an_estimator_that_predicts_the_hidden_error(method, hidden_geometry):
+    """The names the commands offer (--method reads METHODS) each build an estimator that fits
+    the hidden error field and predicts it at unseen poses better than no correction."""
+    robot, real, q_train, e_train, q_test, e_test = hidden_geometry
+    model = make_predictor(method, robot, random_state=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)  # noise-free data; the MLP's iteration cap
+        predicted = model.fit(q_train, e_train).predict(q_test)
+    assert predicted.shape == e_test.shape
+    assert _rms(predicted - e_test) < 0.5 * _rms(e_test)
+
+
+def test_an_unknown_method_name_lists_the_known_ones(ur5):
+    with pytest.raises(InputError, match="unknown prediction method 'krigin'; choose one of kriging, kriging-pf"):
+        make_predictor("krigin", ur5)
 
 
 def test_calibration_recovers_the_hidden_error_and_reports_identifiable_parameters(hidden_geometry):

@@ -183,7 +183,8 @@ def test_lateral_compliance_tilts_joints_as_a_rebuilt_urdf_does(branched):
 def test_prediction_feeds_the_other_joints_to_the_gravity_effects(branched):
     """The side joint swings a 5 kg mass on link j1: the j1 sag follows it. A predictor that is
     given every row's context sees that; one that freezes the side joint cannot."""
-    from tcr_accuracy.prediction.estimators import DiagnosisCalibration, MeasuredErrorModel
+    from tcr_accuracy.prediction.calibration import DiagnosisCalibration
+    from tcr_accuracy.prediction.composed import MeasuredErrorModel
 
     rng = np.random.default_rng(21)
     n = 160

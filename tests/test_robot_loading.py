@@ -28,7 +28,8 @@ def test_urdf_file_with_default_leaf_tool(tmp_path):
     path = tmp_path / "arm.urdf"
     path.write_text(text)
     robot = load_robot(str(path))
-    assert robot.tool_frame == "tool" and robot.name == "arm"
+    # labelled by the URDF's own <robot name>, as named robots are, not by the file name
+    assert robot.tool_frame == "tool" and robot.name == "tool_changer"
 
 
 def test_two_link_closed_form():

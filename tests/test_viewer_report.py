@@ -308,10 +308,11 @@ def test_view_command_writes_a_static_page_with_the_error_cloud(tmp_path, capsys
 
 @pytest.mark.parametrize("argv, message", [
     (["view", "--samples", "0", "--error-preset", "table1"], "--samples 0"),
-    (["view", "--magnify", "0"], "--magnify 0.0"),
+    (["view", "--magnify", "0"], "--magnify 0:"),
     (["view", "--open"], "--open needs --serve"),
     (["view", "--q", "1", "2"], "expected 6 joint values"),
-    (["view", "--html", "/nonexistent-dir/v.html"], "cannot write"),
+    (["view", "--html", "/nonexistent-dir/v.html"],
+     "--html /nonexistent-dir/v.html: the folder /nonexistent-dir does not exist"),
 ])
 def test_view_command_bad_input_is_one_line_and_exit_2(argv, message, capsys):
     assert main(argv) == 2

@@ -31,7 +31,7 @@ _EXPORTS = {
     "run_monte_carlo": "analysis.montecarlo", "simulate_measurements": "analysis.simulate",
     "random_scenario": "analysis.simulate", "load_scenario": "analysis.scenario",
     "diagnose": "diagnosis.diagnose", "GapDiagnosis": "diagnosis.diagnose",
-    "make_predictor": "prediction.estimators", "MeasuredErrorModel": "prediction.estimators",
+    "make_predictor": "prediction.methods", "MeasuredErrorModel": "prediction.composed",
     "compensate_joints": "prediction.compensation", "register_tracker": "prediction.registration",
     "Scene": "view.viewer",
 }

@@ -14,6 +14,7 @@ into an SI factor, or an SI value into what a report shows, lives here:
 from __future__ import annotations
 
 import math
+import re
 
 REVOLUTE = "revolute"
 PRISMATIC = "prismatic"
@@ -54,6 +55,13 @@ JOINT_COLUMN_UNITS: dict[str, dict[str, float]] = {REVOLUTE: {"deg": DEG, "rad":
 #: Suffixes of a measured position column -> factor to m.
 POSITION_UNITS: dict[str, float] = {"mm": 1e-3, "m": 1.0}
 
+#: Units a tracker export or a joint log may write in a header or a cell (``X [mm]``,
+#: ``1234,5 in``) -> (SI unit, factor to SI): the suffixes above plus inch and foot.
+IMPORT_UNITS: dict[str, tuple[str, float]] = {
+    **{u: ("m", f) for u, f in suffixes_of("m").items()}, "in": ("m", 0.0254), "ft": ("m", 0.3048),
+    **{u: ("rad", f) for u, f in suffixes_of("rad").items()}, "kg": ("kg", 1.0), "c": ("degC", 1.0),
+}
+
 #: What the edges show for a joint value of each kind: (unit label, factor from SI).
 JOINT_DISPLAY: dict[str, tuple[str, float]] = {REVOLUTE: ("deg", 180.0 / math.pi), PRISMATIC: ("mm", 1000.0)}
 
@@ -72,3 +80,41 @@ def display_value(value: float, unit: str) -> tuple[float, str]:
     """An SI parameter value in its display unit: (2e-4, "rad") -> (0.01146, "deg")."""
     label, factor = DISPLAY_UNITS.get(unit, (unit, 1.0))
     return float(value) * factor, label
+
+
+#: A decimal number as people write it: ASCII digits, one optional sign, point and exponent.
+#: Python's float() also takes ``1_5``, full-width digits, ``infinity`` and ``nan``; edges
+#: that read user text go through :func:`parse_number` instead.
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_INTEGER = re.compile(r"[+-]?[0-9]+")
+_ASCII_SPACE = " \t\r\n\f\v"
+
+
+def parse_number(text: str, *, finite: bool = True) -> float:
+    """User text to a float, strictly: ``'1.5e-3'`` yes; ``'1_5'``, ``'１５'``, ``'0x1p3'`` no.
+
+    ``nan``, ``inf`` and ``-inf`` (any case), and a number too large for a float (``1e999``,
+    read as inf), pass only with ``finite=False``.
+
+    Raises
+    ------
+    ValueError
+        The text is not such a number; the message says why.
+    """
+    text = text.strip(_ASCII_SPACE)
+    if not finite and text.lower().lstrip("+-") in ("nan", "inf", "infinity"):
+        return float(text)
+    if not _NUMBER.fullmatch(text):
+        raise ValueError(f"{text!r} is not a number")
+    value = float(text)
+    if finite and not math.isfinite(value):
+        raise ValueError(f"{text!r} is too large for a number")
+    return value
+
+
+def parse_integer(text: str) -> int:
+    """User text to an int, strictly (ASCII digits and an optional sign, as :func:`parse_number`)."""
+    text = text.strip(_ASCII_SPACE)
+    if not _INTEGER.fullmatch(text) or len(text) > 30:
+        raise ValueError(f"{text!r} is not an integer")
+    return int(text)

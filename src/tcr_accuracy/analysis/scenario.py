@@ -48,7 +48,6 @@ constraint) it reads from the effect's class.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -57,6 +56,7 @@ import numpy as np
 from ..model.context import REFERENCE_TEMPERATURE_C
 from ..effects import Effect, effect_class
 from ..exceptions import InputError
+from ..io.budget_file import parse_table, setting_number
 from ..io.measurements import read_user_text
 from ..model.robot import RobotModel
 from ..units import SUFFIXES, split_suffix
@@ -88,15 +88,10 @@ _CONTEXT_KEYS = {"payload_kg", "payload_fraction", "temperature_c", "temperature
 
 def load_scenario(path: str | Path) -> Scenario:
     """Read a scenario YAML file (see the module docstring)."""
-    import yaml
-
     path = Path(path)
     text = read_user_text(path, "scenario file")
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise InputError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
-    return scenario_from_dict(data or {}, source=str(path))
+    data = parse_table(text, str(path), "toml" if path.suffix.lower() == ".toml" else "yaml")
+    return scenario_from_dict(data, source=str(path))
 
 
 def scenario_from_dict(data: dict, source: str = "<scenario>") -> Scenario:
@@ -114,15 +109,7 @@ def scenario_from_dict(data: dict, source: str = "<scenario>") -> Scenario:
         effect_class(name, source=source)  # raises for unknown names
         if spec is not None and not isinstance(spec, dict):
             raise InputError(f"{source}: effects.{name}: settings must be a mapping (or empty)")
-    ctx = data.get("context") or {}
-    if not isinstance(ctx, dict) or set(ctx) - _CONTEXT_KEYS:
-        raise InputError(f"{source}: context: unknown key(s) {', '.join(sorted(set(ctx) - _CONTEXT_KEYS))} "
-                         f"(keys: {', '.join(sorted(_CONTEXT_KEYS))})")
-    context = ContextSpec(**{k: ctx[k] for k in ctx})
-    if context.directions not in ("random", "none"):
-        raise InputError(f"{source}: context.directions: 'random' or 'none', got {context.directions!r}")
-    if not 0.0 <= float(context.payload_fraction) <= 1.0:
-        raise InputError(f"{source}: context.payload_fraction must lie in [0, 1]")
+    context = _context(data.get("context") or {}, source)
     noise = None
     if "noise_mm" in data:
         noise = _number(data["noise_mm"], f"{source}: noise_mm") * 1e-3
@@ -130,18 +117,42 @@ def scenario_from_dict(data: dict, source: str = "<scenario>") -> Scenario:
         noise = _number(data["noise_m"], f"{source}: noise_m")
     if noise is not None and noise < 0:
         raise InputError(f"{source}: noise must be >= 0")
+    if "tcp_rms_mm" in data:
+        raise InputError(f"{source}: tcp_rms_mm: belongs to an effect (effects.<name>.tcp_rms_mm)")
     return Scenario(effects={k: dict(v or {}) for k, v in effects.items()}, context=context,
                     noise_m=noise, source=source)
 
 
-def _number(value, where: str) -> float:
-    try:
-        out = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{where}: {value!r} is not a number") from None
-    if not math.isfinite(out):
-        raise InputError(f"{where}: non-finite value")
-    return out
+#: Bounds of the context settings: key -> (low, high) [kg, 1, degC, K].
+_CONTEXT_RANGES = {"payload_kg": (0.0, 1e6), "payload_fraction": (0.0, 1.0),
+                   "temperature_c": (-273.15, 1000.0), "temperature_spread_c": (0.0, 1000.0)}
+
+
+def _context(ctx, source: str) -> ContextSpec:
+    """The ``context:`` mapping of a scenario, every value checked (a number in its range)."""
+    if not isinstance(ctx, dict):
+        raise InputError(f"{source}: context: a mapping with keys {', '.join(sorted(_CONTEXT_KEYS))}")
+    unknown = sorted(set(ctx) - _CONTEXT_KEYS)
+    if unknown:
+        raise InputError(f"{source}: context: unknown key(s) {', '.join(unknown)} "
+                         f"(keys: {', '.join(sorted(_CONTEXT_KEYS))})")
+    values = {}
+    for key, value in ctx.items():
+        if key == "directions":
+            if value not in ("random", "none"):
+                raise InputError(f"{source}: context.directions: 'random' or 'none', got {value!r:.60}")
+            values[key] = value
+        elif key == "payload_kg" and value is None:
+            values[key] = None  # the robot's typical payload
+        else:
+            low, high = _CONTEXT_RANGES[key]
+            values[key] = setting_number(value, f"{source}: context.{key}", low=low, high=high)
+    return ContextSpec(**values)
+
+
+def _number(value, where: str, *, low: float | None = None) -> float:
+    """A number of a scenario (finite, of sane size; ``low``: the least it may be)."""
+    return setting_number(value, where) if low is None else setting_number(value, where, low=low)
 
 
 def _selected(sub: str, selector: str) -> bool:
@@ -162,14 +173,14 @@ def resolve_effect(robot: RobotModel, name: str, spec: dict, rng: np.random.Gene
     options = dict(spec.get("options") or {})
     mass_spread = options.pop("link_mass_spread", None)
     if mass_spread is not None:
-        spread = _number(mass_spread, f"{where}.options.link_mass_spread")
+        spread = _number(mass_spread, f"{where}.options.link_mass_spread", low=0.0)
         options["link_mass_factors"] = np.clip(1.0 + spread * rng.standard_normal(robot.n_joints), 0.1, None)
-    if "link_mass_factors" in options:
-        options["link_mass_factors"] = np.asarray(options["link_mass_factors"], dtype=float)
     try:
+        if "link_mass_factors" in options:
+            options["link_mass_factors"] = np.asarray(options["link_mass_factors"], dtype=float)
         effect = cls(robot, **options)
-    except TypeError as exc:  # an option the effect does not have (misspelt?)
-        raise InputError(f"{where}.options: {exc}") from None
+    except (TypeError, ValueError) as exc:  # an option the effect does not have (misspelt?), or a bad value
+        raise InputError(f"{where}.options: {' '.join(str(exc).split())[:200]}") from None
     names = effect.parameter_names()
     subs = [n[len(name) + 1:] for n in names]
     units = effect.parameter_units()
@@ -180,7 +191,7 @@ def resolve_effect(robot: RobotModel, name: str, spec: dict, rng: np.random.Gene
         if key == "options":
             continue
         if key == "tcp_rms_mm":
-            tcp_rms = _number(value, f"{where}.tcp_rms_mm") * 1e-3
+            tcp_rms = _number(value, f"{where}.tcp_rms_mm", low=0.0) * 1e-3
             continue
         if key == "parameters":
             if not isinstance(value, dict):

@@ -253,7 +253,7 @@ def random_scenario(robot: RobotModel, rng: np.random.Generator, dominant: list[
     candidates = dominant_candidates()
     if dominant is None:
         k = n_dominant if n_dominant is not None else int(rng.integers(1, 3))
-        dominant = list(rng.choice(candidates, size=k, replace=False))
+        dominant = [str(name) for name in rng.choice(candidates, size=k, replace=False)]
     for name in dominant:
         if name not in candidates:
             raise InputError(f"dominant effect {name!r}: choose from {', '.join(candidates)}")
@@ -327,7 +327,25 @@ def random_scenario(robot: RobotModel, rng: np.random.Generator, dominant: list[
         "outside_vocabulary": [outside] if outside else [],
         "notes": {k: float(v) for k, v in notes.items()},
     }
-    return scenario
+    return _plain(scenario)
+
+
+def _plain(value):
+    """The same nested value in plain Python types (str keys; float, int, bool, str, list
+    values), so that ``yaml.safe_dump`` and ``json.dumps`` take it as it is."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value)
+    if isinstance(value, np.str_):
+        return str(value)
+    return value
 
 
 def write_truth(path: str | Path, truth: dict) -> None:

@@ -26,7 +26,7 @@ from ..exceptions import InputError
 from ..model.jacobians import error_jacobian
 from ..model.kinematics import tcp_poses
 from ..model.robot import JointLimitWarning, RobotModel
-from ..units import JOINT_COLUMN_UNITS, PRISMATIC
+from ..units import JOINT_COLUMN_UNITS, PRISMATIC, parse_number
 
 #: Joint column suffixes and their factor to SI, per joint kind.
 UNIT_SUFFIXES = JOINT_COLUMN_UNITS
@@ -134,7 +134,7 @@ def read_trajectory_csv(path: str | Path, robot: RobotModel) -> JointTrajectory:
 
 def _number(cell: str, path: Path, line: int, column: str) -> float:
     try:
-        value = float(cell)
+        value = parse_number(cell, finite=False)  # strict: 1_5 and full-width digits are no numbers
     except ValueError:
         raise InputError(f"{path}: row {line}, column {column.strip()!r}: {cell.strip()!r} is not a number") from None
     if not math.isfinite(value):

@@ -1,9 +1,14 @@
 """Command line: ``tcr-accuracy <command> ...`` (``main``), built from one module per topic.
 
 Exit codes: 0 ok, 1 the analysis failed (or an unexpected error), 2 bad input,
-130 interrupted. Every failure is one line on stderr naming the command and what
-went wrong; ``--debug`` (before or after the command) prints the full traceback
-as well.
+130 interrupted (Ctrl-C or SIGTERM). Every failure is one line on stderr naming the
+command and what went wrong; ``--debug`` (before or after the command) prints the full
+traceback as well.
+
+Every command runs inside :func:`tcr_accuracy.atomic.staged_outputs`: its files are
+written together when it ends without an error, and not at all otherwise. Output paths
+are checked when the command line is read, and large work is estimated first and
+refused above ``--max-memory-gb`` (every command takes it; default 4 GB).
 """
 
 from __future__ import annotations
@@ -11,11 +16,12 @@ from __future__ import annotations
 import argparse
 import sys
 import warnings
+from contextlib import contextmanager
 
 from .. import __version__
-from . import demo, diagnose, montecarlo, plan_poses, pose, prediction, sensitivity, simulate, tolerance, trajectory, \
-    view
-from .common import EXIT_ANALYSIS, EXIT_INPUT, EXIT_OK, Parser
+from . import (demo, diagnose, montecarlo, plan_poses, pose, prediction, sensitivity, simulate, tolerance,
+               tracker_import, trajectory, view)
+from .common import EXIT_ANALYSIS, EXIT_INPUT, EXIT_OK, Parser, add_memory_argument
 
 
 # ---------------------------------------------------------------------------------------
@@ -35,6 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
         # also accepted after the command; SUPPRESS keeps a --debug given before it
         command_parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                                     help=DEBUG_HELP)
+        add_memory_argument(command_parser)
     return parser
 
 
@@ -44,12 +51,26 @@ DEBUG_HELP = "on an error, print the full Python traceback as well as the one-li
 #: The commands, one module per topic, in the order --help lists them; each module's
 #: ``add_parsers(sub)`` adds its subcommands. Every module imports only argparse and the
 #: shared helpers at the top (heavy imports wait inside each command), so --help is instant.
-COMMANDS = [pose, demo, montecarlo, sensitivity, tolerance, trajectory, simulate, view, diagnose, plan_poses,
-            prediction]
+COMMANDS = [pose, demo, montecarlo, sensitivity, tolerance, trajectory, simulate, tracker_import, view, diagnose,
+            plan_poses, prediction]
+
+
+#: Joint-limit warnings already shown in this run, by what they say of the joint: the same
+#: joint values are checked by several steps (the parser, the analysis, each robot drawn in
+#: the 3D view), and the user needs to read it once, named after their own argument.
+_shown_limit_warnings: set[str] = set()
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    sys.stderr.write(f"tcr-accuracy: warning: {message}\n")
+    from ..model.robot import JointLimitWarning
+
+    text = str(message)
+    if issubclass(category, JointLimitWarning):
+        key = text[text.find("joint "):]  # without the source ("--q: ", "q: ", "nominal: q: ")
+        if key in _shown_limit_warnings:
+            return
+        _shown_limit_warnings.add(key)
+    sys.stderr.write(f"tcr-accuracy: warning: {text}\n")
 
 
 #: How many main() calls are running (``demo`` runs ``montecarlo`` and ``diagnose`` through
@@ -71,6 +92,8 @@ def main(argv: list[str] | None = None) -> int:
     # read before parsing too, so that a failure while building the parser is traced as well
     debug = "--debug" in argv
     command = next((a for a in argv if not a.startswith("-")), None)
+    if _depth == 0:
+        _shown_limit_warnings.clear()
     _depth += 1
     try:
         return _main(argv, debug, command)
@@ -84,11 +107,17 @@ def _main(argv: list[str], debug: bool, command: str | None) -> int:
     name = f"tcr-accuracy {command}" if command else "tcr-accuracy"
     try:
         parser = build_parser()
-        args = parser.parse_args(argv)
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as exc:  # --help, --version, or a usage error already said in one line
+            return exc.code if isinstance(exc.code, int) else EXIT_INPUT
         args.argv = argv  # the command as typed, for reports
         name = f"tcr-accuracy {args.command}"
         debug = debug or getattr(args, "debug", False)  # also an abbreviated --deb
-        with warnings.catch_warnings():
+        from ..atomic import staged_outputs
+
+        # every file of the run is written at its end, together, or not at all
+        with warnings.catch_warnings(), staged_outputs(), _terminate_as_interrupt():
             warnings.simplefilter("default", UserWarning)
             warnings.showwarning = _show_warning
             return args.run(args)
@@ -121,18 +150,52 @@ def _main(argv: list[str], debug: bool, command: str | None) -> int:
         return EXIT_ANALYSIS
 
 
+@contextmanager
+def _terminate_as_interrupt():
+    """SIGTERM (a kill, a job scheduler's stop) ends the run as Ctrl-C does: through the
+    exception handlers, so staged and temporary files are removed (outermost main, main
+    thread only)."""
+    import signal
+    import threading
+
+    if _depth > 1 or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, interrupt)
+    except (ValueError, OSError):  # no signals here (an embedded interpreter)
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _describe(exc: BaseException) -> str:
     """``Type: message`` on one line (a message over several lines is joined with spaces)."""
     message = " ".join(str(exc).split())
     return f"{type(exc).__name__}: {message}" if message else type(exc).__name__
 
 
+#: The longest error line [characters]: a message quoting a huge file's content is cut.
+MAX_LINE = 1000
+
+
 def _report(line: str, debug: bool) -> None:
-    """One line on stderr; with --debug, the traceback of the exception being handled first."""
+    """One line on stderr, at most MAX_LINE long; with --debug, the traceback of the exception
+    being handled first."""
     if debug:
         import traceback
 
         traceback.print_exc(file=sys.stderr)
+    line = " ".join(line.split())
+    if len(line) > MAX_LINE:
+        line = line[: MAX_LINE - 3] + "..."
     sys.stderr.write(line + "\n")
 
 

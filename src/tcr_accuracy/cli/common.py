@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import re
 import sys
 
 EXIT_OK, EXIT_ANALYSIS, EXIT_INPUT = 0, 1, 2
@@ -18,8 +20,20 @@ class Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one line and exit code 2."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
+        # "argument --tol: 0: want ..." (an option's type refusing a value) -> "--tol 0: want ..."
+        match = _TYPE_REFUSAL.fullmatch(message)
+        if match:
+            message = f"{match['option']} {match['rest']}"
+        message = " ".join(message.split())[:500]
         sys.stderr.write(f"{self.prog}: error: {message} (see {self.prog} --help)\n")
         sys.exit(EXIT_INPUT)
+
+
+#: What the argparse types of this module say after the value ("--x VALUE: <one of these>...").
+_REFUSALS = ("want", "not a number", "non-finite", "the folder", "is a folder", "exists and is not a folder",
+             "not writable")
+_TYPE_REFUSAL = re.compile(r"argument (?P<option>--[\w-]+)(?:/[\w-]+)*: "
+                           rf"(?P<rest>.+?: (?:{'|'.join(map(re.escape, _REFUSALS))}).*)", re.DOTALL)
 
 
 def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
@@ -31,15 +45,150 @@ def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
                              "flange frame for named robots, the single leaf link of a URDF)")
 
 
-def seed_value(text: str) -> int:
-    """argparse type of ``--seed``: an integer >= 0 (what numpy's SeedSequence accepts)."""
+def number(*, low: float | None = None, high: float | None = None, low_open: bool = False,
+           high_open: bool = False, unit: str = ""):
+    """argparse type of a real-valued option: a finite decimal number within [low, high].
+
+    ``low_open``/``high_open`` exclude the bound itself (``low=0, low_open=True``: > 0). The
+    text is read by :func:`tcr_accuracy.units.parse_number` (no ``nan``, ``inf``, ``1_5`` or
+    full-width digits), so a bad value is argparse's one line naming the option.
+    """
+    unit = f" {unit}" if unit else ""
+    parts = ([f"{'>' if low_open else '>='} {low:g}{unit}"] if low is not None else []) + \
+            ([f"{'<' if high_open else '<='} {high:g}{unit}"] if high is not None else [])
+    wanted = "a number" + (" " + " and ".join(parts) if parts else "")
+
+    def convert(text: str) -> float:
+        from ..units import parse_number
+
+        try:
+            value = parse_number(text, finite=False)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{_shown(text)}: not a number (want {wanted})") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"{_shown(text)}: non-finite (want {wanted})")
+        if (low is not None and (value < low or (low_open and value == low))) or \
+                (high is not None and (value > high or (high_open and value == high))):
+            raise argparse.ArgumentTypeError(f"{_shown(text)}: want {wanted}")
+        return value
+
+    convert.__name__ = "number"
+    return convert
+
+
+def integer(*, low: int | None = None, high: int | None = None, what: str = ""):
+    """argparse type of an integer option within [low, high] (ASCII digits only; see :func:`number`)."""
+    parts = ([f">= {low}"] if low is not None else []) + ([f"<= {high}"] if high is not None else [])
+    wanted = (what or "an integer") + (" " + " and ".join(parts) if parts else "")
+
+    def convert(text: str) -> int:
+        from ..units import parse_integer
+
+        try:
+            value = parse_integer(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{_shown(text)}: not a number (want {wanted})") from None
+        if (low is not None and value < low) or (high is not None and value > high):
+            raise argparse.ArgumentTypeError(f"{_shown(text)}: want {wanted}")
+        return value
+
+    convert.__name__ = "integer"
+    return convert
+
+
+def _shown(text: str) -> str:
+    """An option's value as a message shows it: as typed, or quoted when empty, spaced or long."""
+    return text if text and len(text) <= 200 and not any(c.isspace() for c in text) else repr(text[:200])
+
+
+def output_file(text: str) -> str:
+    """argparse type of an option naming a file the run writes (``-``: stdout): refused now,
+    before any work, if it could not be written at the end."""
+    from ..atomic import output_file_problem
+
+    problem = output_file_problem(text)
+    if problem:
+        raise argparse.ArgumentTypeError(f"{_shown(text)}: {problem}")
+    return text
+
+
+def output_folder(text: str) -> str:
+    """argparse type of an option naming a folder the run fills (see :func:`output_file`)."""
+    from ..atomic import output_folder_problem
+
+    problem = output_folder_problem(text)
+    if problem:
+        raise argparse.ArgumentTypeError(f"{_shown(text)}: {problem}")
+    return text
+
+
+#: argparse type of ``--seed``: an integer that numpy's SeedSequence accepts.
+seed_value = integer(low=0, high=2**32 - 1, what="a seed, an integer")
+
+#: Most samples, poses or iterations any count option takes before the memory budget is even
+#: asked (a bound on the number itself, so that no estimate overflows).
+MAX_COUNT = 10**12
+
+#: The largest length [mm] an option takes (1 km): beyond it a value is a typo, not a robot.
+MAX_MM = 1e6
+
+#: argparse type of joint values on the command line: finite numbers (deg or mm; the robot's
+#: limits are checked later, by :func:`joint_values_si`).
+joint_value = number(low=-1e9, high=1e9)
+
+
+# ---------------------------------------------------------------------------------------
+# Memory: an estimate before large work, refused above a budget
+# ---------------------------------------------------------------------------------------
+#: The memory [GB] a run may plan for unless ``--max-memory-gb`` says otherwise.
+DEFAULT_MEMORY_GB = 4.0
+
+
+def add_memory_argument(parser: argparse.ArgumentParser) -> None:
+    """``--max-memory-gb``: the budget :func:`check_memory` holds an estimate to."""
+    parser.add_argument("--max-memory-gb", type=number(low=0, low_open=True, high=1e6, unit="GB"), default=None,
+                        metavar="GB", help=f"refuse work estimated to need more memory than this "
+                                           f"(default {DEFAULT_MEMORY_GB:g} GB)")
+
+
+def check_memory(args, what: str, n_bytes: float, hint: str = "make it smaller") -> None:
+    """Refuse, in one line, work whose memory estimate ``n_bytes`` exceeds the budget
+    (``--max-memory-gb``, default :data:`DEFAULT_MEMORY_GB`), before it starts; ``hint``
+    says what to do instead."""
+    budget = getattr(args, "max_memory_gb", None) or DEFAULT_MEMORY_GB
+    if n_bytes > budget * 1e9:
+        from ..exceptions import InputError
+
+        raise InputError(f"{what} needs about {n_bytes / 1e9:.3g} GB of memory, more than the {budget:g} GB "
+                         f"allowed; {hint}, or allow more with --max-memory-gb")
+
+
+def sample_bytes(robot) -> float:
+    """Working memory [bytes] one error sample or pose takes while a batch is evaluated
+    (error vector, joint placements and Jacobian columns, a few copies): a rough, generous
+    figure for :func:`check_memory`."""
+    n = robot.n_joints
+    return 8.0 * 4 * (7 * (n + 2) + 12 * n + 64)
+
+
+def check_csv_memory(args, path, what: str, row_bytes: float, fixed_bytes=lambda rows: 0.0,
+                     hint: str = "use fewer rows") -> int:
+    """Count the rows of a CSV (without reading it into memory) and refuse it with
+    :func:`check_memory` when reading it (about 12 bytes per byte of text, ``row_bytes``
+    per row) and ``fixed_bytes(rows)`` would exceed the budget; returns the row count
+    (0 when the file cannot be opened: its reader says why)."""
+    import os
+
     try:
-        seed = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if seed < 0:
-        raise argparse.ArgumentTypeError(f"{seed}: seeds are integers >= 0")
-    return seed
+        size = os.stat(path).st_size
+        rows = 0
+        with open(path, "rb") as handle:
+            for block in iter(lambda: handle.read(1 << 20), b""):
+                rows += block.count(b"\n")
+    except OSError:
+        return 0
+    check_memory(args, f"{what} {path} ({rows} rows)", 12.0 * size + rows * row_bytes + fixed_bytes(rows), hint)
+    return rows
 
 
 #: Error distributions ``--preset`` names: the seed's Table 1, Table 2 and Table 4 (joint clearance).
@@ -51,7 +200,7 @@ def add_sampler_arguments(parser: argparse.ArgumentParser, *, pose: bool = False
     ``--q``, ``--preset`` or ``--config``, and ``--seed`` (read with :func:`error_sampler`)."""
     add_robot_arguments(parser)
     if pose:
-        parser.add_argument("--q", nargs="+", type=float, metavar="VALUE",
+        parser.add_argument("--q", nargs="+", type=joint_value, metavar="VALUE",
                             help="joint values: revolute [deg], prismatic [mm] (default: the working pose)")
     source = parser.add_mutually_exclusive_group()
     source.add_argument("--preset", choices=PRESETS, default=None,
@@ -63,18 +212,18 @@ def add_sampler_arguments(parser: argparse.ArgumentParser, *, pose: bool = False
 
 
 def sampler_from_args(robot, preset: str | None, config: str | None):
-    """The error sampler of --preset (default table2) or --config FILE."""
+    """The error sampler of --preset (default: ``model.errors.default_preset``) or --config FILE."""
     if config is not None:
         from ..io.budget_file import load_budget_file
 
         return load_budget_file(config, robot)
-    preset = preset or "table2"
+    from ..model.errors import default_preset, seed_budget
+
+    preset = preset or default_preset(robot)
     if preset == "clearance":
         from ..model.clearance import ClearanceModel
 
         return ClearanceModel.from_robot(robot)
-    from ..model.errors import seed_budget
-
     return seed_budget(robot, preset)
 
 
@@ -82,7 +231,9 @@ def error_sampler(robot, args) -> tuple[object, str]:
     """The error sampler of ``--preset`` or ``--config`` (an ErrorBudget or a ClearanceModel)
     and a label for reports (the preset's name, or ``config FILE``)."""
     sampler = sampler_from_args(robot, args.preset, args.config)
-    return sampler, args.preset or ("table2" if args.config is None else f"config {args.config}")
+    from ..model.errors import default_preset
+
+    return sampler, args.preset or (default_preset(robot) if args.config is None else f"config {args.config}")
 
 
 def add_quiet_argument(parser: argparse.ArgumentParser) -> None:

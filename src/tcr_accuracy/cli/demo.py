@@ -20,11 +20,21 @@ import importlib.resources
 import json
 from pathlib import Path
 
-from .common import EXIT_OK, Parser, add_quiet_argument, seed_value, status
+from .common import (EXIT_ANALYSIS, EXIT_OK, MAX_COUNT, Parser, add_quiet_argument, integer, output_folder, seed_value,
+                     status)
 
 DATA = "data"
 MEASUREMENTS = "tool_changer_cutter.csv"
 TRUTH = "tool_changer_cutter_truth.yaml"
+
+
+def truth_verdict(hidden: list[str], selected: list[str]) -> str:
+    """The diagnosis' effects against the hidden ones, in words."""
+    missed = [e for e in hidden if e not in selected]
+    extra = [e for e in selected if e not in hidden]
+    if not missed and not extra:
+        return "all hidden effects found, none invented"
+    return f"missed: {', '.join(missed) or 'none'}; not hidden but selected: {', '.join(extra) or 'none'}"
 
 
 def add_parsers(sub) -> None:
@@ -35,9 +45,10 @@ def add_parsers(sub) -> None:
                     "diagnosis of a bundled measurement set of a simulated as-built tool-changer "
                     "carrying a 150 kg disc cutter, and an HTML report of both in --out DIR.",
     )
-    p.add_argument("--out", default="tcr-accuracy-demo", metavar="DIR",
+    p.add_argument("--out", default="tcr-accuracy-demo", type=output_folder, metavar="DIR",
                    help="report folder (default: ./tcr-accuracy-demo); DIR/index.html is the report")
-    p.add_argument("--samples", type=int, default=20_000, help="Monte Carlo samples (default 20000)")
+    p.add_argument("--samples", type=integer(low=2, high=MAX_COUNT), default=20_000,
+                   help="Monte Carlo samples (default 20000)")
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
     add_quiet_argument(p)
     p.set_defaults(run=_run_demo)
@@ -65,19 +76,28 @@ def _run_step(argv: list[str]) -> int:
 
 
 def _run_demo(args) -> int:
+    out_dir = Path(args.out)  # checked by its argparse type
+    new_folder = not out_dir.exists()
+    out_dir.mkdir(parents=True, exist_ok=True)  # the steps' output options are checked against it
+    code = EXIT_ANALYSIS
+    try:
+        code = _demo_steps(args, out_dir)
+        return code
+    finally:
+        if code != EXIT_OK and new_folder:  # every file waits for the end of the run: still empty
+            try:
+                out_dir.rmdir()
+            except OSError:
+                pass
+
+
+def _demo_steps(args, out_dir: Path) -> int:
     import yaml
 
-    from ..exceptions import InputError
     from ..view.report import Report
 
-    if args.samples < 2:
-        raise InputError(f"--samples {args.samples}: need at least 2")
-    out_dir = Path(args.out)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(f"--out {out_dir}: exists and is not a folder")
     quiet = ["--quiet"] if args.quiet else []
     accuracy_json, diagnosis_json = out_dir / "accuracy.json", out_dir / "diagnosis.json"
-    out_dir.mkdir(parents=True, exist_ok=True)
 
     print("=" * 78)
     print("1/2  Accuracy by design: Monte Carlo of the seed's Table 2 errors at its working pose")
@@ -101,8 +121,11 @@ def _run_demo(args) -> int:
     if code != EXIT_OK:
         return code
 
-    accuracy = json.loads(accuracy_json.read_text())
-    diagnosis = json.loads(diagnosis_json.read_text())
+    from ..atomic import read_output
+
+    # the steps' files are staged with the demo's own, written together at its end
+    accuracy = json.loads(read_output(accuracy_json))
+    diagnosis = json.loads(read_output(diagnosis_json))
     # the hidden truth, read only now that the diagnosis is done
     truth = yaml.safe_load(bundled_file(TRUTH).read_text())
     hidden = [name for name in truth["effects"]]
@@ -123,18 +146,14 @@ def _run_demo(args) -> int:
                                          f"({final['heldout_rms_mm'] / diagnosis['noise_floor_mm']:.2f} x the "
                                          f"noise floor {diagnosis['noise_floor_mm']:.4f} mm)"),
         ("structure remains", "yes" if diagnosis.get("structure_remains") else "no"),
+        ("diagnosis vs hidden truth", truth_verdict(hidden, selected)),
     ]
     print()
     print("=" * 78)
     print("Summary")
     print("=" * 78)
-    for label, value in summary_rows:
+    for label, value in summary_rows:  # the report's summary table has the same rows
         print(f"  {label:44s} {value}")
-    missed = [e for e in hidden if e not in selected]
-    extra = [e for e in selected if e not in hidden]
-    print(f"  {'diagnosis vs hidden truth':44s} "
-          + ("all hidden effects found, none invented" if not missed and not extra else
-             f"missed: {', '.join(missed) or 'none'}; not hidden but selected: {', '.join(extra) or 'none'}"))
 
     report = Report("tcr-accuracy demo: the shield-machine tool-changer", command=getattr(args, "argv", None))
     report.add_text(

@@ -11,9 +11,13 @@ import math
 import sys
 from pathlib import Path
 
-from .common import add_robot_arguments
+from .common import MAX_MM, add_robot_arguments, check_csv_memory, integer, number, output_file, seed_value, status
 from .output import RunOutput, add_output_arguments
 
+
+#: The diagnosis' progress line; tqdm puts ", " before the postfix, so this reads
+#: "diagnose, step 2: trying geometry [00:04]".
+PROGRESS_FORMAT = "{desc}{postfix} [{elapsed}]"
 
 def add_parsers(sub) -> None:
     p = sub.add_parser(
@@ -29,16 +33,21 @@ def add_parsers(sub) -> None:
     p.add_argument("--effects", default=None, metavar="LIST",
                    help="comma-separated effects to consider (default: the whole vocabulary; frames is "
                         "always in)")
-    p.add_argument("--folds", type=int, default=5, help="k of the k-fold cross-validation (default 5)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the fold split and permutation tests")
-    p.add_argument("--noise-mm", type=float, default=None,
+    p.add_argument("--folds", type=integer(low=2, high=1000), default=5,
+                   help="k of the k-fold cross-validation (default 5)")
+    p.add_argument("--seed", type=seed_value, default=0, help="seed of the fold split and permutation tests")
+    p.add_argument("--noise-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
                    help="the instrument's noise, std per axis [mm]; noise floor = sqrt(3) x this (default: "
                         "estimated from repeated poses, else from the final residual, and said which)")
-    p.add_argument("--as-built-urdf", default=None, metavar="FILE",
+    p.add_argument("--as-built-urdf", default=None, type=output_file, metavar="FILE",
                    help="write the calibrated URDF to FILE and the other effects' parameters to "
                         "FILE with suffix .effects.yaml")
     add_output_arguments(p, view=True)
     p.set_defaults(run=_run_diagnose)
+
+
+#: Memory [bytes] the diagnosis plans per measurement (see check_csv_memory in _run_diagnose).
+DIAGNOSE_ROW_BYTES = 3 * 120 * 8 * 4
 
 
 def _run_diagnose(args) -> int:
@@ -49,10 +58,6 @@ def _run_diagnose(args) -> int:
     from ..view.plots_diagnose import write_plots
     from ..model.robot import load_robot
 
-    if args.folds < 2:
-        raise InputError(f"--folds {args.folds}: need at least 2")
-    if args.noise_mm is not None and not (args.noise_mm > 0 and math.isfinite(args.noise_mm)):
-        raise InputError(f"--noise-mm {args.noise_mm}: must be a positive number")
     effects = None
     if args.effects:
         effects = [e.strip() for e in args.effects.split(",") if e.strip()]
@@ -60,6 +65,9 @@ def _run_diagnose(args) -> int:
         if unknown:
             raise InputError(f"--effects: unknown {', '.join(unknown)} (vocabulary: {', '.join(vocabulary())})")
     min_rows = max(3 * args.folds, 12)
+    # the diagnosis holds each measurement's Jacobian over the whole effect vocabulary
+    # (3 rows x about 120 parameters) a few times over
+    check_csv_memory(args, args.measurements, "diagnosing", DIAGNOSE_ROW_BYTES)
     frames = measured_frames(args.measurements)
     if frames:  # several measured frames per row: one chain each, their shared parameters fitted once
         if args.tool is not None and args.tool not in frames:
@@ -75,7 +83,7 @@ def _run_diagnose(args) -> int:
     out = RunOutput(args, f"Sim-to-real gap diagnosis: {robot.name}")
     from tqdm import tqdm
 
-    bar = tqdm(desc="diagnose", file=sys.stderr, bar_format="{desc}: {postfix} [{elapsed}]",
+    bar = tqdm(desc="diagnose", file=sys.stderr, bar_format=PROGRESS_FORMAT,
                disable=args.quiet or not sys.stderr.isatty())
     try:
         result = diagnose(robot, data, effects=effects, folds=args.folds, seed=args.seed,
@@ -92,7 +100,8 @@ def _run_diagnose(args) -> int:
                       "Measured TCP points (base frame) and the gap to the nominal model, magnified; "
                       "nominal robot and the calibrated as-built robot (geometric errors magnified)")
     if args.as_built_urdf:
-        write_as_built(robot, result, Path(args.as_built_urdf))
+        urdf, side = write_as_built(robot, result, Path(args.as_built_urdf))
+        status(args, f"as-built URDF written to {urdf} (its other effects and the tracker frame: {side})")
     return out.finish(payload, lambda: print(format_summary(robot, result, source)))
 
 
@@ -363,7 +372,7 @@ def _report_tables(out, robot, d, source: str) -> None:
                            "elimination uses this); own share: they keep the parameters they have in the final "
                            "model, so an effect is not credited with what a later one of the vocabulary duplicates. "
                            "The primary effect has the largest own share.")
-    out.add_text(format_summary(robot, d, source), heading="Full printed summary")
+    out.add_preformatted(format_summary(robot, d, source), heading="Full printed summary")
 
 
 def _scene(robot, d, measurements):
@@ -371,22 +380,23 @@ def _scene(robot, d, measurements):
     import numpy as np
 
     from ..model.errors import ErrorModel
-    from ..view.viewer import Scene, auto_magnification
+    from ..view.viewer import Scene, data_extent, point_size, segment_magnification
 
     context = measurements.context()
     model_final = d.predict(robot, d.q, context)
     measured = model_final - d.final_residual  # in the robot's base frame
     nominal_model = measured + d.gap_residual  # the model with the tracker frame only
     gap = np.linalg.norm(d.gap_residual, axis=1)
-    magnify = auto_magnification(float(gap.max()), drawn_m=0.15)
-    scene = Scene(f"{robot.name}: sim-to-real gap")
+    extent = data_extent(measured)
+    magnify = segment_magnification(float(gap.max()), extent)
+    scene = Scene(f"{robot.name}: sim-to-real gap", frame="data")
     q_show = robot.working_pose
     scene.add_robot(robot, q_show, name="nominal robot")
     em = ErrorModel(robot)
     as_built = em.perturbed_robot(magnify * np.asarray(d.as_built_x))
     scene.add_robot(as_built, q_show, name=f"as-built robot, geometric errors x {magnify:g}",
                     color=(0.85, 0.2, 0.2), opacity=0.35, include_base=False)
-    scene.add_point_cloud(measured, gap * 1e3, name="measured",
+    scene.add_point_cloud(measured, gap * 1e3, name="measured", size_m=1.4 * point_size(extent),
                           label="gap after the tracker frame |dP| [mm]")
     scene.add_error_segments(measured, nominal_model, magnify=magnify, name="gap",
                              start_label="measured", end_label="nominal model")

@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import math
 
-from .common import PRESETS, add_robot_arguments, format_joint_values, joint_values_si, sampler_from_args, seed_value
+from .common import (MAX_COUNT, MAX_MM, PRESETS, add_robot_arguments, check_memory, format_joint_values, integer,
+                     joint_value, joint_values_si, number, sample_bytes, sampler_from_args, seed_value)
 from .output import add_output_arguments, progress_bar
 
 #: What the "dp" column means (also written to the JSON).
@@ -30,51 +31,45 @@ def add_parsers(sub) -> None:
     add_robot_arguments(p)
     source = p.add_mutually_exclusive_group()
     source.add_argument("--preset", choices=PRESETS, default=None,
-                        help="the seed's error distributions: table1, table2 (default) or clearance (Table 4)")
+                        help="the seed's error distributions: table1, table2 or clearance (Table 4); default table2 "
+                             "for the tool-changer and table1 (built from the robot's own joints) for any other robot")
     source.add_argument("--config", default=None, metavar="FILE",
                         help="TOML or YAML file of error distributions (see README, 'Monte Carlo')")
-    p.add_argument("--samples", type=int, default=20_000, help="Monte Carlo samples (default 20000)")
+    p.add_argument("--samples", type=integer(low=2, high=MAX_COUNT), default=20_000,
+                   help="Monte Carlo samples (default 20000)")
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
-    p.add_argument("--q", nargs="+", type=float, metavar="VALUE",
+    p.add_argument("--q", nargs="+", type=joint_value, metavar="VALUE",
                    help="joint values: revolute [deg], prismatic [mm] (default: working pose)")
-    p.add_argument("--tol", nargs="+", type=float, default=[0.15, 0.25], metavar="MM",
+    p.add_argument("--tol", nargs="+", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"),
+                   default=[0.15, 0.25], metavar="MM",
                    help="position tolerances T [mm] (default 0.15 0.25)")
-    p.add_argument("--angle-tol", type=float, default=0.002, metavar="RAD",
-                   help="attitude tolerance R per ZYX angle [rad] (default 0.002)")
-    p.add_argument("--tail-samples", type=int, default=20_000, metavar="N",
+    angle = p.add_mutually_exclusive_group()
+    angle.add_argument("--angle-tol-deg", type=number(low=0, low_open=True, high=180.0, unit="deg"), default=None,
+                       metavar="DEG",
+                       help="attitude tolerance R per ZYX angle [deg], like every angle at the command line "
+                            "(default 0.1146 deg = the seed's 0.002 rad)")
+    angle.add_argument("--angle-tol", type=number(low=0, low_open=True, high=math.pi, unit="rad"), default=0.002,
+                       metavar="RAD", help="the same in rad, as the seed states it (default 0.002)")
+    p.add_argument("--tail-samples", type=integer(low=0, high=MAX_COUNT), default=20_000, metavar="N",
                    help="importance samples per tolerance for the tail P(|dP| > T) (default 20000; 0: skip)")
-    p.add_argument("--chunk", type=int, default=None, metavar="N",
+    p.add_argument("--chunk", type=integer(low=1, high=MAX_COUNT), default=None, metavar="N",
                    help="samples per chunk (default 20000; part of the random stream)")
     add_output_arguments(p, view=True, json_help="write JSON (keys in README, 'Monte Carlo') to FILE, or to "
                                                  "stdout without FILE")
-    p.add_argument("--view-samples", type=int, default=2000, metavar="N",
+    p.add_argument("--view-samples", type=integer(low=1, high=MAX_COUNT), default=2000, metavar="N",
                    help="samples drawn for the 3D view's TCP error cloud (default 2000)")
     cluster = p.add_mutually_exclusive_group()
     cluster.add_argument("--dask", default=None, metavar="ADDRESS",
                          help="run the chunks on the Dask scheduler at ADDRESS (e.g. tcp://host:8786)")
-    cluster.add_argument("--workers", type=int, default=None, metavar="N",
+    cluster.add_argument("--workers", type=integer(low=1, high=1024), default=None, metavar="N",
                          help="run the chunks on a local Dask cluster of N processes (1 thread each)")
     p.set_defaults(run=_run_montecarlo)
 
 
 def _check_args(args) -> None:
-    from ..exceptions import InputError
-
-    if args.samples < 2:
-        raise InputError(f"--samples {args.samples}: need at least 2")
-    for t in args.tol:
-        if not (t > 0) or not math.isfinite(t):
-            raise InputError(f"--tol {t:g}: tolerances must be finite and > 0 mm")
-    if not (args.angle_tol > 0) or not math.isfinite(args.angle_tol):
-        raise InputError(f"--angle-tol {args.angle_tol:g}: must be finite and > 0 rad")
-    if args.tail_samples < 0:
-        raise InputError(f"--tail-samples {args.tail_samples}: must be >= 0")
-    if args.chunk is not None and args.chunk < 1:
-        raise InputError(f"--chunk {args.chunk}: must be >= 1")
-    if args.workers is not None and args.workers < 1:
-        raise InputError(f"--workers {args.workers}: must be >= 1")
-    if args.view_samples < 1:
-        raise InputError(f"--view-samples {args.view_samples}: need at least 1")
+    """The options' types check each value; here, what depends on two of them."""
+    if args.angle_tol_deg is not None:
+        args.angle_tol = math.radians(args.angle_tol_deg)  # SI inside
 
 
 def _client(args):
@@ -113,7 +108,7 @@ def _run_montecarlo(args) -> int:
 
     from .output import RunOutput
     from ..analysis.montecarlo import CHUNK, STAT_COLUMNS, run_monte_carlo
-    from ..model.errors import ErrorBudget
+    from ..model.errors import ErrorBudget, default_preset
     from ..analysis.reliability import binomial_interval, first_order, gaussian_exceedance, importance_exceedance
     from ..model.robot import load_robot
 
@@ -124,6 +119,11 @@ def _run_montecarlo(args) -> int:
     sampler = sampler_from_args(robot, args.preset, args.config)
     tolerances_m = np.array(args.tol) * 1e-3
     chunk = args.chunk or CHUNK
+    per_sample = sample_bytes(robot)
+    check_memory(args, f"--samples {args.samples} in chunks of {chunk}",
+                 min(chunk, args.samples) * per_sample + -(-args.samples // chunk) * 1000.0)  # + a seed per chunk
+    check_memory(args, f"--view-samples {args.view_samples} and --tail-samples {args.tail_samples}",
+                 (args.view_samples + args.tail_samples) * per_sample)
     client, close_client = _client(args)
     update, close_bar = progress_bar(args.samples, "monte carlo", args.quiet, unit="sample", unit_scale=True)
     try:
@@ -160,7 +160,7 @@ def _run_montecarlo(args) -> int:
     payload = {
         "robot": robot.name,
         "tool_frame": robot.tool_frame,
-        "preset": None if args.config else (args.preset or "table2"),
+        "preset": None if args.config else (args.preset or default_preset(robot)),
         "config": args.config,
         "sampler": sampler.name,
         "samples": result.n_samples,
@@ -212,8 +212,15 @@ def _scene(robot, q, sampler, args):
 
 
 def _setup_lines(robot, q, sampler, args, result, payload) -> list[str]:
-    source = f"--config {args.config}" if args.config else f"preset {payload['preset']}"
-    return [f"Monte Carlo of {source} ({sampler.name}): {result.n_samples} samples, seed {args.seed}",
+    if args.config:
+        source = f"--config {args.config} ({sampler.name})"
+    elif args.preset:
+        source = f"preset {payload['preset']}"
+    else:  # say which preset was taken, and why
+        source = f"preset {payload['preset']} (the default for " + (
+            "the tool-changer's joints)" if payload["preset"] == "table2" else
+            f"{robot.name}: the seed's Table 1 spreads on its own joints; the tool-changer's Table 2 does not fit it)")
+    return [f"Monte Carlo of {source}: {result.n_samples} samples, seed {args.seed}",
             f"  {robot.name}, TCP '{robot.tool_frame}' at {format_joint_values(robot, q)}",
             "  nominal TCP [mm]: x = {:.3f}, y = {:.3f}, z = {:.3f}".format(*payload["nominal_position_mm"])]
 
@@ -264,8 +271,9 @@ def _print_report(robot, q, sampler, args, result, payload) -> None:
         lo, hi = payload["reliability_position_ci95"][key]
         print(f"    P(|dP| < {key} mm) = {payload['reliability_position'][key]:.4f}  [{lo:.4f}, {hi:.4f}]")
     ra = payload["reliability_angle"]
-    print(f"    P(|d angle| < {args.angle_tol:g} rad) = ({ra['d_alpha_z']:.4f}, {ra['d_beta_y']:.4f}, "
-          f"{ra['d_gamma_x']:.4f})  (alpha about z, beta about y, gamma about x)")
+    print(f"    P(|d angle| < {args.angle_tol:g} rad = {math.degrees(args.angle_tol):.4g} deg) = "
+          f"({ra['d_alpha_z']:.4f}, {ra['d_beta_y']:.4f}, {ra['d_gamma_x']:.4f})  "
+          "(alpha about z, beta about y, gamma about x)")
     print("\n  Tail P(|dP| > T): Monte Carlo [95% CI] | first-order Gaussian | importance sampling [95% CI]:")
     for key, tail in payload["tail_position"].items():
         lo, hi = tail["monte_carlo_ci95"]

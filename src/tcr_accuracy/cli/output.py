@@ -13,11 +13,13 @@ its 3D view go, as asked, to ``--out DIR`` (an HTML report, ``DIR/index.html``, 
         out.set_scene(build_scene(...), "TCP error cloud")
     return out.finish(payload, lambda: print_results(...))
 
-Nothing is written before :meth:`RunOutput.finish`, once everything has been computed
-(plots asked for by ``--out`` alone are drawn in a temporary folder and kept in
-memory), and every file goes through a temporary file and a rename; the report's
-``index.html`` comes last. So a run that fails half-way leaves no report and no JSON,
-and never half a file. Status lines (which file was written) go to stderr and are
+The output options are checked when the command line is read (their argparse types), so
+a path that cannot be written fails before any work. Every file of the run, plots
+included, is staged (:func:`tcr_accuracy.atomic.staged_outputs`, around every command)
+and written only when the command ends without an error, each through a temporary file
+and a rename (plots asked for by ``--out`` alone are drawn in a temporary folder and kept
+in memory). So a run that fails half-way leaves no report, no plots and no JSON, and
+never half a file. Status lines (which file was written) go to stderr and are
 silenced by ``--quiet``; results go to stdout.
 """
 
@@ -28,7 +30,7 @@ import sys
 from pathlib import Path
 from typing import Callable
 
-from .common import EXIT_OK, add_quiet_argument, emit_json, status
+from .common import EXIT_OK, add_quiet_argument, emit_json, output_file, output_folder, status
 
 
 def add_output_arguments(parser: argparse.ArgumentParser, *, plots: bool = True, view: bool = False,
@@ -36,12 +38,14 @@ def add_output_arguments(parser: argparse.ArgumentParser, *, plots: bool = True,
                                           "without FILE") -> None:
     """Add ``--json [FILE]``, ``--out DIR``, ``--quiet`` and, as asked, ``--plots DIR`` and
     ``--view [HTML]`` / ``--serve`` / ``--open``."""
-    parser.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE", help=json_help)
-    parser.add_argument("--out", default=None, metavar="DIR",
+    parser.add_argument("--json", nargs="?", const="-", default=None, type=output_file, metavar="FILE",
+                        help=json_help)
+    parser.add_argument("--out", default=None, type=output_folder, metavar="DIR",
                         help="write an HTML report to DIR/index.html (tables, plots, 3D view, the command "
                              "and the versions; also DIR/report.md)")
     if plots:
-        parser.add_argument("--plots", default=None, metavar="DIR", help="write the PNG plots to DIR")
+        parser.add_argument("--plots", default=None, type=output_folder, metavar="DIR",
+                            help="write the PNG plots to DIR")
     if view:
         from .view import add_view_arguments
 
@@ -74,12 +78,6 @@ class RunOutput:
             from ..exceptions import InputError
 
             raise InputError("--open needs --serve")
-        for option in ("json", "view"):  # fail before the computation, not after it
-            target = getattr(args, option, None)
-            if target not in (None, "-") and not Path(target).resolve().parent.is_dir():
-                from ..exceptions import InputError
-
-                raise InputError(f"--{option} {target}: the folder {Path(target).parent} does not exist")
         self.args = args
         self.plot_files: list[str] = []
         self.scene = None
@@ -103,6 +101,11 @@ class RunOutput:
     def add_text(self, text: str, heading: str | None = None) -> None:
         if self.report is not None:
             self.report.add_text(text, heading)
+
+    def add_preformatted(self, text: str, heading: str | None = None) -> None:
+        """Printed text kept as printed (line breaks and alignment) in the report."""
+        if self.report is not None:
+            self.report.add_preformatted(text, heading)
 
     def add_table(self, title: str, columns, rows, units=None, *, note: str | None = None,
                   float_format: str = "{:.4g}") -> None:
@@ -136,7 +139,9 @@ class RunOutput:
             return files
         import tempfile
 
-        with tempfile.TemporaryDirectory(prefix="tcr-plots-") as tmp:
+        from ..atomic import unstaged
+
+        with tempfile.TemporaryDirectory(prefix="tcr-plots-") as tmp, unstaged():
             self._add_figures([str(f) for f in write(Path(tmp))], captions)  # read into memory here
         return []
 

@@ -8,10 +8,9 @@ plan adds and writes the poses as a CSV of joint values (deg, mm) ready to measu
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
-from .common import add_robot_arguments, emit_json
+from .common import MAX_MM, add_robot_arguments, emit_json, integer, number, output_file, seed_value
 
 
 def add_parsers(sub) -> None:
@@ -26,40 +25,35 @@ def add_parsers(sub) -> None:
     )
     p.add_argument("measurements", metavar="MEASUREMENTS.csv", help="the measurements so far (see README)")
     add_robot_arguments(p)
-    p.add_argument("-k", "--poses", type=int, default=30, help="how many poses to suggest (default 30)")
-    p.add_argument("--out", required=True, metavar="FILE.csv", help="where to write the suggested poses")
+    p.add_argument("-k", "--poses", type=integer(low=1, high=100_000), default=30,
+                   help="how many poses to suggest (default 30)")
+    p.add_argument("--out", required=True, type=output_file, metavar="FILE.csv",
+                   help="where to write the suggested poses")
     p.add_argument("--effects", default=None, metavar="LIST",
                    help="comma-separated effects to design for (default: diagnose the measurements and take "
                         "the chosen effects and their ambiguity groups)")
     p.add_argument("--candidates", default=None, metavar="FILE.csv",
                    help="choose among these joint configurations (a CSV with the robot's joint columns, "
                         "e.g. the reachable poses of a task); default: uniform within the joint limits")
-    p.add_argument("--n-candidates", type=int, default=3000,
+    p.add_argument("--n-candidates", type=integer(low=1, high=1_000_000), default=3000,
                    help="random candidates when --candidates is not given (default 3000)")
-    p.add_argument("--payload-kg", type=float, default=None,
+    p.add_argument("--payload-kg", type=number(low=0, high=1e6, unit="kg"), default=None,
                    help="payload the new poses will be measured with [kg] (default: the measurements' mean)")
-    p.add_argument("--noise-mm", type=float, default=None,
+    p.add_argument("--noise-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
                    help="the instrument's noise, std per axis [mm], for the diagnosis and for counting the "
                         "determined parameter combinations (default: the diagnosis' estimate; 0.02 with --effects)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the candidates and of the diagnosis")
-    p.add_argument("--json", default=None, metavar="FILE", help="also write the plan as JSON ('-' for stdout)")
+    p.add_argument("--seed", type=seed_value, default=0, help="seed of the candidates and of the diagnosis")
+    p.add_argument("--json", default=None, type=output_file, metavar="FILE",
+                   help="also write the plan as JSON ('-' for stdout)")
     p.set_defaults(run=_run_plan_poses)
 
 
 def _check(args) -> None:
+    """What the options' types cannot check alone."""
     from ..exceptions import InputError
 
-    if args.poses < 1:
-        raise InputError(f"-k {args.poses}: need at least 1 pose")
     if args.n_candidates < args.poses:
         raise InputError(f"--n-candidates {args.n_candidates}: need at least -k ({args.poses})")
-    for name, value in (("--payload-kg", args.payload_kg), ("--noise-mm", args.noise_mm)):
-        if value is not None and not (math.isfinite(value) and value >= 0):
-            raise InputError(f"{name} {value}: must be a finite number >= 0")
-    if args.noise_mm == 0:
-        raise InputError("--noise-mm 0: must be positive")
-    if not Path(args.out).resolve().parent.is_dir():
-        raise InputError(f"--out {args.out}: the folder {Path(args.out).parent} does not exist")
 
 
 def _run_plan_poses(args) -> int:

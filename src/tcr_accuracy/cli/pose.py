@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from .common import EXIT_OK, add_quiet_argument, add_robot_arguments, emit_json, format_joint_values, joint_values_si
+from .common import (EXIT_OK, add_quiet_argument, add_robot_arguments, emit_json, format_joint_values, joint_value,
+                     joint_values_si, output_file)
 
 
 # ---------------------------------------------------------------------------------------
@@ -14,9 +15,9 @@ def add_parsers(sub) -> None:
                     "the robot's working pose (the seed paper's for the tool-changer).",
     )
     add_robot_arguments(p)
-    p.add_argument("--q", nargs="+", type=float, metavar="VALUE",
+    p.add_argument("--q", nargs="+", type=joint_value, metavar="VALUE",
                    help="joint values: revolute [deg], prismatic [mm]")
-    p.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE",
+    p.add_argument("--json", nargs="?", const="-", default=None, type=output_file, metavar="FILE",
                    help="write JSON (SI units, unit-suffixed keys) to FILE, or to stdout without FILE")
     add_quiet_argument(p)
     p.set_defaults(run=_run_pose)

@@ -22,14 +22,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import add_robot_arguments, status
+from ..prediction.methods import DEFAULT_METHOD, METHODS
+from .common import (MAX_MM, add_robot_arguments, check_csv_memory, integer, number, output_file, seed_value,
+                     status)
 from .output import RunOutput, add_output_arguments
-
-#: names of prediction.METHODS, repeated here so that --help does not import scikit-learn
-#: (a test checks that the two lists agree)
-METHODS = ("kriging", "kriging-pf", "gp", "idw-joint", "idw-cartesian", "mlp-cartesian", "calibration",
-           "calibration+gp", "diagnosis", "diagnosis+gp")
-DEFAULT_METHOD = "diagnosis+gp"
 
 JSON_HELP = "write a JSON summary (mm, unit-suffixed keys) to FILE, or to stdout without FILE"
 
@@ -48,7 +44,7 @@ def add_parsers(sub) -> None:
     _common(p, METHODS)
     p.add_argument("--query", required=True, metavar="CSV",
                    help="joint values to predict at (CSV); with x/y/z columns also scored against them")
-    p.add_argument("--csv", metavar="FILE",
+    p.add_argument("--csv", type=output_file, metavar="FILE",
                    help="write the predictions: the query joints, ex_mm, ey_mm, ez_mm, e_norm_mm, their "
                         "standard deviations ex_std_mm ... (methods with one) and, for measured queries, "
                         "the measured error and the held-out miss")
@@ -63,10 +59,11 @@ def add_parsers(sub) -> None:
     )
     _common(c, METHODS)
     c.add_argument("--targets", required=True, metavar="CSV", help="target joint values (CSV)")
-    c.add_argument("--threshold-mm", type=float, default=0.001,
+    c.add_argument("--threshold-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=0.001,
                    help="stop when the predicted miss is below this [mm] (default 0.001)")
-    c.add_argument("--max-iter", type=int, default=20, help="most compensation cycles (default 20)")
-    c.add_argument("--csv", metavar="FILE", help="write the compensated joint values [deg, mm], the "
+    c.add_argument("--max-iter", type=integer(low=1, high=10_000), default=20,
+                   help="most compensation cycles (default 20)")
+    c.add_argument("--csv", type=output_file, metavar="FILE", help="write the compensated joint values [deg, mm], the "
                                                  "corrections and the predicted miss")
     add_output_arguments(c, plots=True, view=True, json_help=JSON_HELP)
     c.set_defaults(run=_run_compensate)
@@ -82,28 +79,22 @@ def _common(p: argparse.ArgumentParser, methods) -> None:
                    help="fit: the positions are in a tracker's own frame; fit it and the TCP offset on the "
                         "training data (default); base: they are in the robot's base frame already (only the "
                         "TCP offset is fitted)")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the stochastic methods (default 0)")
+    p.add_argument("--seed", type=seed_value, default=0, help="random seed of the stochastic methods (default 0)")
 
 
-def read_joint_csv(path: str, robot, *, need_positions: bool):
+def read_joint_csv(path: str, robot, *, need_positions: bool, rows: bool = False):
     """Joint values (N, n) [SI], measured positions (N, 3) [m] (None when the file has none)
     and the rows' context (payload, joints outside the TCP chain, ...), read and validated by
-    :func:`tcr_accuracy.io.measurements.read_measurements`."""
+    :func:`tcr_accuracy.io.measurements.read_measurements`; with ``rows``, also each row's
+    line in the file (N,), for messages."""
     import numpy as np
 
     from ..io.measurements import read_measurements
 
     mset = read_measurements(path, robot, require_position=need_positions)
     has_positions = need_positions or not np.isnan(mset.position).all()
-    return mset.q, (mset.position if has_positions else None), mset.context()
-
-
-def _check_csv_target(path: str | None) -> None:
-    """Fail before the computation when the --csv folder does not exist."""
-    if path is not None and not Path(path).resolve().parent.is_dir():
-        from ..exceptions import InputError
-
-        raise InputError(f"--csv {path}: the folder {Path(path).parent} does not exist")
+    out = mset.q, (mset.position if has_positions else None), mset.context()
+    return (*out, mset.rows) if rows else out
 
 
 def _write_csv_atomically(args, what: str, header: list[str], rows) -> None:
@@ -121,7 +112,8 @@ def _write_csv_atomically(args, what: str, header: list[str], rows) -> None:
     status(args, f"{what} written to {args.csv}")
 
 
-def _check_training(path: str, q, n_joints: int) -> None:
+def _check_training(path: str, q, lines, n_joints: int) -> None:
+    """Enough distinct training poses; ``lines`` (N,): each row's line in the file, for messages."""
     import numpy as np
 
     from ..exceptions import InputError
@@ -133,24 +125,49 @@ def _check_training(path: str, q, n_joints: int) -> None:
                                           return_counts=True)
     if (counts > 1).any():
         group = int(np.flatnonzero(counts > 1)[0])
-        rows = np.flatnonzero(inverse.ravel() == group)[:2] + 2
+        rows = np.asarray(lines)[np.flatnonzero(inverse.ravel() == group)[:2]]
         raise InputError(f"{path}: rows {rows[0]} and {rows[1]} have the same joint values (a singular "
                          "kriging covariance); average repeated measurements of a pose into one row")
 
 
+#: Methods holding an n x n covariance of the n training rows (Gaussian processes, kriging).
+_QUADRATIC = ("kriging", "kriging-pf", "gp", "calibration+gp", "diagnosis+gp")
+
+
+def _training_row_bytes(method: str) -> float:
+    """Memory [bytes] a method plans per training row (the diagnosis' Jacobians for diagnosis*)."""
+    from .diagnose import DIAGNOSE_ROW_BYTES
+
+    return DIAGNOSE_ROW_BYTES if method.startswith("diagnosis") else 3 * 64 * 8.0
+
+
+def _training_pair_bytes(method: str):
+    """Memory [bytes] for n training rows beyond the per-row part: a few n x n matrices."""
+    return (lambda rows: 4 * 8.0 * rows * rows) if method in _QUADRATIC else (lambda rows: 0.0)
+
+
 def _fit(args, robot):
     """Read the training file, fit the tracker frame and the predictor: (q_train, MeasuredErrorModel)."""
+    import time
     import warnings
 
     from sklearn.exceptions import ConvergenceWarning
 
     from ..exceptions import InputError
-    from ..prediction.estimators import MeasuredErrorModel, make_predictor
+    from ..prediction.composed import MeasuredErrorModel
+    from ..prediction.methods import make_predictor
 
-    q, pos, context = read_joint_csv(args.train, robot, need_positions=True)
-    _check_training(args.train, q, robot.n_joints)
+    check_csv_memory(args, args.train, f"--method {args.method} on --train", _training_row_bytes(args.method),
+                     _training_pair_bytes(args.method), hint="use fewer training rows, or --method calibration "
+                                                           "(its memory grows only linearly with the rows)")
+    q, pos, context, lines = read_joint_csv(args.train, robot, need_positions=True, rows=True)
+    _check_training(args.train, q, lines, robot.n_joints)
     model = MeasuredErrorModel(robot=robot, estimator=make_predictor(args.method, robot, random_state=args.seed),
                                fit_frame=args.frame == "fit")
+    # the fit is the long part (seconds to minutes): say what runs, so the terminal is not blank
+    _progress(args, f"fitting {args.method} to {q.shape[0]} measured poses of {args.train} "
+                 f"({'tracker frame and ' if args.frame == 'fit' else ''}TCP offset first) ...")
+    started = time.perf_counter()
     try:
         with warnings.catch_warnings():
             # scikit-learn's optimisers warn at their iteration caps; the fit is still usable
@@ -160,7 +177,17 @@ def _fit(args, robot):
         hint = "; or choose a --method that needs fewer poses (gp, kriging)" if args.method.startswith(
             "diagnosis") and "too few" in str(exc) else ""
         raise InputError(f"{args.train}: {exc}{hint}") from None
+    _progress(args, f"fitted in {time.perf_counter() - started:.1f} s")
     return q, model
+
+
+def _progress(args, message: str) -> None:
+    """A progress line on stderr, as the progress bars: only on a terminal and without --quiet
+    (a log or a pipe gets the results and the status lines, and bad input stays one line)."""
+    import sys
+
+    if not getattr(args, "quiet", False) and sys.stderr.isatty():
+        sys.stderr.write(message + "\n")
 
 
 def _predict(args, model, q, context=None):
@@ -222,7 +249,6 @@ def _start(args, title: str):
     """The robot and the run's outputs, checked before any work."""
     from ..model.robot import load_robot
 
-    _check_csv_target(args.csv)
     out = RunOutput(args, title)
     return load_robot(args.robot, args.tool), out
 
@@ -251,10 +277,11 @@ def _run_predict(args) -> int:
     import numpy as np
 
     from ..view.plots_prediction import plot_predicted_errors
-    from ..prediction.estimators import uncertainty_kind
+    from ..prediction.composed import uncertainty_kind
 
     robot, out = _start(args, "Error prediction")
     q_train, model = _fit(args, robot)
+    check_csv_memory(args, args.query, "--query", 3 * 64 * 8.0)
     q, measured, context = read_joint_csv(args.query, robot, need_positions=False)
     scale = robot.display_scale
     pred, std = _predict(args, model, q, context)
@@ -359,18 +386,19 @@ def _print(robot, args, q_train, *lines: str) -> None:
 
 def _predict_scene(robot, q, pred, norm, args):
     from ..model.kinematics import tcp_poses
-    from ..view.viewer import Scene, auto_magnification
+    from ..view.viewer import Scene, data_extent, point_size, segment_magnification
 
     nominal = tcp_poses(robot, q).position
-    magnify = auto_magnification(float(norm.max()), drawn_m=0.3)
-    scene = Scene(f"{robot.name}: error predicted by {args.method}")
+    extent = data_extent(nominal)
+    magnify = segment_magnification(float(norm.max()), extent)
+    scene = Scene(f"{robot.name}: error predicted by {args.method}", frame="data")
     shown = _median_index(norm)
     scene.add_robot(robot, q[shown], name="nominal robot", opacity=0.5)  # the TCP points sit in the tool
     scene.add_point_cloud(nominal, norm * 1e3, name="query TCP", label="predicted TCP error |e| [mm]",
-                          size_m=0.025)
+                          size_m=1.6 * point_size(extent))
     scene.add_error_segments(nominal, nominal + pred, magnify=magnify, name="predicted error",
                              start_label="nominal TCP at the query joints",
-                             end_label="predicted real TCP", size_m=0.015)
+                             end_label="predicted real TCP")
     scene.add_note(f"{len(q)} query poses, {args.method} fitted to {args.train}; robot at query row {shown + 2} "
                    f"(median |e|); segments magnified x {magnify:g}")
     return scene, (f"Query TCP points coloured by the predicted |e|; segments to the predicted real TCP, "
@@ -388,12 +416,9 @@ def _run_compensate(args) -> int:
     from ..model.kinematics import tcp_poses
     from ..view.plots_prediction import plot_compensation
 
-    if args.threshold_mm <= 0:
-        raise InputError(f"--threshold-mm {args.threshold_mm}: must be > 0")
-    if args.max_iter < 1:
-        raise InputError(f"--max-iter {args.max_iter}: must be >= 1")
     robot, out = _start(args, "Joint compensation")
     q_train, model = _fit(args, robot)
+    check_csv_memory(args, args.targets, "--targets", 3 * 64 * 8.0)
     q, measured, context = read_joint_csv(args.targets, robot, need_positions=False)
     units, scale = robot.display_units, robot.display_scale
     # the predictor of the base-frame error (TCP offset + method): targets and commands are base-frame
@@ -474,18 +499,18 @@ def _run_compensate(args) -> int:
 
 
 def _compensate_scene(robot, q, result, before_tcp, after_tcp, before, args):
-    from ..view.viewer import COLORS, Scene, auto_magnification
+    from ..view.viewer import COLORS, Scene, data_extent, segment_magnification
 
-    magnify = auto_magnification(float(before.max()), drawn_m=0.3)
-    scene = Scene(f"{robot.name}: compensation with {args.method}")
+    extent = data_extent(result.target)
+    magnify = segment_magnification(float(before.max()), extent)
+    scene = Scene(f"{robot.name}: compensation with {args.method}", frame="data")
     shown = _median_index(before)
     scene.add_robot(robot, result.q[shown], name="compensated command", opacity=0.5)
     scene.add_error_segments(result.target, before_tcp, magnify=magnify, name="before",
-                             start_label="target TCP", end_label="predicted real TCP, uncompensated command",
-                             size_m=0.02)
+                             start_label="target TCP", end_label="predicted real TCP, uncompensated command")
     scene.add_error_segments(result.target, after_tcp, magnify=magnify, name="after",
                              start_label="target TCP", end_label="predicted real TCP, compensated command",
-                             end_color=COLORS["trajectory"], size_m=0.02)
+                             end_color=COLORS["trajectory"])
     del scene.legend[-2]  # the targets' entry, already in the legend once
     scene.add_note(f"{len(q)} targets of {args.targets}; robot at target row {shown + 2} (median error before); "
                    f"segments magnified x {magnify:g}")

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import math
 
-from .common import add_sampler_arguments, error_sampler, format_joint_values, joint_values_si
+from .common import (MAX_COUNT, add_sampler_arguments, check_memory, error_sampler, format_joint_values, integer,
+                     joint_values_si, sample_bytes)
 from .output import RunOutput, add_output_arguments, progress_bar
 
 
@@ -24,7 +25,7 @@ def add_parsers(sub) -> None:
     )
     add_sampler_arguments(p, pose=True)
     add_output_arguments(p)
-    p.add_argument("--sobol-samples", type=int, default=1024, metavar="N",
+    p.add_argument("--sobol-samples", type=integer(low=2, high=MAX_COUNT), default=1024, metavar="N",
                    help="SALib base sample size, a power of two (model runs: N x (sources + 2)); default 1024")
     p.set_defaults(run=_run_sensitivity)
 
@@ -61,6 +62,9 @@ def _run_sensitivity(args) -> int:
 
         clearance = clearance_sweeps(ClearanceModel.from_robot(robot), q)
     n_inputs = len(random_inputs(sampler).sources)
+    # SALib keeps every model run's inputs and outputs: N (sources + 2) rows of both
+    check_memory(args, f"--sobol-samples {n} over {n_inputs} error sources",
+                 n * (n_inputs + 2) * (8.0 * (2 * n_inputs + 16) + sample_bytes(robot)))
     update, close = progress_bar(n * (n_inputs + 2), "Sobol", args.quiet)
     try:
         indices = sobol_indices(sampler, q, n_base=n, seed=args.seed, progress=update)

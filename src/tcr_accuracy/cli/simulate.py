@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from .common import EXIT_OK, add_quiet_argument, add_robot_arguments, seed_value, status
+from .common import (EXIT_OK, MAX_COUNT, MAX_MM, add_quiet_argument, add_robot_arguments, check_csv_memory,
+                     check_memory, integer, number, output_file, sample_bytes, seed_value, status)
 
 
 def add_parsers(sub) -> None:
@@ -21,19 +22,20 @@ def add_parsers(sub) -> None:
                         "or one or two drawn at random)")
     p.add_argument("--outside", metavar="EFFECT", default=None,
                    help="with --random: also hide an effect outside the vocabulary (unmodelled, link_bending)")
-    p.add_argument("--n", type=int, default=200, help="number of measurements (default 200)")
+    p.add_argument("--n", type=integer(low=1, high=MAX_COUNT), default=200, help="number of measurements (default 200)")
     p.add_argument("--poses", metavar="CSV", default=None,
                    help="commanded poses (joint columns, optional context columns) instead of random ones")
-    p.add_argument("--box", nargs=6, type=float, metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
+    p.add_argument("--box", nargs=6, type=number(low=-MAX_MM, high=MAX_MM, unit="mm"),
+                   metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
                    help="task box for random poses [mm], in the robot's base frame")
-    p.add_argument("--noise-mm", type=float, default=None,
+    p.add_argument("--noise-mm", type=number(low=0, high=MAX_MM, unit="mm"), default=None,
                    help="tracker noise, std per axis [mm] (default: the scenario's, else 0.02)")
     p.add_argument("--orientation", action="store_true", help="also write measured orientations (qw..qz)")
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
     p.add_argument("--unit", choices=("mm", "m"), default="mm",
                    help="CSV units: mm (joints in deg/mm) or m (rad/m) (default mm)")
-    p.add_argument("--out", required=True, metavar="CSV", help="measurement CSV to write")
-    p.add_argument("--truth", metavar="FILE", default=None,
+    p.add_argument("--out", required=True, type=output_file, metavar="CSV", help="measurement CSV to write")
+    p.add_argument("--truth", type=output_file, metavar="FILE", default=None,
                    help="write the hidden truth here (.yaml/.yml or JSON); keep it from the diagnosis")
     add_quiet_argument(p)
     p.set_defaults(run=_run_simulate)
@@ -49,15 +51,15 @@ def _run_simulate(args) -> int:
     from ..analysis.simulate import random_scenario, simulate_measurements, write_truth
 
     robot = load_robot(args.robot, args.tool)
+    # the poses, their context and the CSV text: a few hundred bytes a measurement
+    check_memory(args, f"--n {args.n}", args.n * (sample_bytes(robot) + 400.0))
+    if args.poses is not None:
+        check_csv_memory(args, args.poses, "--poses", sample_bytes(robot))
     rng = np.random.default_rng(args.seed)
     if args.scenario is not None and args.random is not None:
         raise InputError("--scenario and --random: give one of them")
     if args.outside is not None and args.random is None:
         raise InputError("--outside: only with --random (in a scenario file, list the effect under effects)")
-    if args.noise_mm is not None and not args.noise_mm >= 0:
-        raise InputError(f"--noise-mm {args.noise_mm}: must be >= 0")
-    if args.n < 1:
-        raise InputError(f"--n {args.n}: need at least one measurement")
     extra = {}
     if args.scenario is not None:
         scenario = load_scenario(args.scenario)
@@ -70,6 +72,9 @@ def _run_simulate(args) -> int:
         poses = read_measurements(args.poses, robot, require_position=False)
         q, context = poses.q, poses.context(rng=rng)
     box = None if args.box is None else np.asarray(args.box, dtype=float).reshape(3, 2) * 1e-3
+    if box is not None and not (box[:, 0] < box[:, 1]).all():
+        raise InputError(f"--box {' '.join(f'{v:g}' for v in args.box)}: give XMIN XMAX YMIN YMAX ZMIN ZMAX "
+                         "[mm] with each min below its max")
     noise = None if args.noise_mm is None else args.noise_mm * 1e-3
     mset, truth = simulate_measurements(robot, scenario, args.n, rng, noise, q=q, context=context, box=box,
                                         orientation=args.orientation)

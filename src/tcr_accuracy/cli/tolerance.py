@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import math
 
-from .common import add_sampler_arguments, error_sampler, format_joint_values, joint_values_si
+from .common import (MAX_COUNT, MAX_MM, add_sampler_arguments, check_memory, error_sampler, format_joint_values,
+                     integer, joint_values_si, number, sample_bytes)
 from .output import RunOutput, add_output_arguments, progress_bar
 
 
@@ -23,16 +24,19 @@ def add_parsers(sub) -> None:
     )
     add_sampler_arguments(p, pose=True)
     add_output_arguments(p, plots=False)
-    p.add_argument("--target-tol", type=float, default=0.25, metavar="MM",
+    p.add_argument("--target-tol", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=0.25,
+                   metavar="MM",
                    help="position tolerance T on |dP| [mm] (default 0.25)")
-    p.add_argument("--target-prob", type=float, default=0.95, metavar="P",
+    p.add_argument("--target-prob", type=number(low=0, high=1, low_open=True, high_open=True), default=0.95,
+                   metavar="P",
                    help="required probability P(|dP| < T), in (0, 1) (default 0.95)")
     p.add_argument("--groups", default=None, metavar="G1,G2",
                    help="scale only these groups (table1/table2: link_length, drive, axis_deflection; "
                         "clearance: axial, radial, deflection); default all")
     p.add_argument("--per-group", action="store_true",
                    help="also the allowance of each group alone, the others at their spreads")
-    p.add_argument("--samples", type=int, default=50_000, help="Monte Carlo samples (default 50000)")
+    p.add_argument("--samples", type=integer(low=10, high=MAX_COUNT), default=50_000,
+                   help="Monte Carlo samples (default 50000)")
     p.set_defaults(run=_run_tolerance)
 
 
@@ -44,15 +48,10 @@ def _run_tolerance(args) -> int:
     from ..model.robot import load_robot
     from ..analysis.tolerance import allocate_tolerance
 
-    if not (args.target_tol > 0 and math.isfinite(args.target_tol)):
-        raise InputError(f"--target-tol {args.target_tol}: the tolerance must be a number > 0 [mm]")
-    if not (0.0 < args.target_prob < 1.0):
-        raise InputError(f"--target-prob {args.target_prob}: the probability must lie strictly between 0 and 1")
-    if args.samples < 10:
-        raise InputError(f"--samples {args.samples}: need at least 10")
     out = RunOutput(args, "Tolerance allocation")
     robot = load_robot(args.robot, args.tool)
     q = joint_values_si(robot, args.q)
+    check_memory(args, f"--samples {args.samples}", args.samples * sample_bytes(robot))
     sampler, label = error_sampler(robot, args)
     inputs = random_inputs(sampler)
     known = sorted({g for g, ok in zip(inputs.groups, inputs.scalable) if ok})

@@ -7,7 +7,8 @@ inside the run function so that ``--help`` stays instant.
 
 from __future__ import annotations
 
-from .common import add_sampler_arguments, error_sampler
+from .common import (MAX_COUNT, add_sampler_arguments, check_csv_memory, check_memory, error_sampler, integer,
+                     sample_bytes)
 from .output import RunOutput, add_output_arguments, progress_bar
 
 
@@ -23,28 +24,30 @@ def add_parsers(sub) -> None:
     add_sampler_arguments(p)
     add_output_arguments(p, view=True)
     p.add_argument("--file", default=None, metavar="CSV", help="joint trajectory CSV file")
-    p.add_argument("--samples", type=int, default=2000, help="Monte Carlo samples (default 2000)")
-    p.add_argument("--steps", type=int, default=121, help="time steps of the built-in motion (default 121)")
+    p.add_argument("--samples", type=integer(low=2, high=MAX_COUNT), default=2000,
+                   help="Monte Carlo samples (default 2000)")
+    p.add_argument("--steps", type=integer(low=2, high=MAX_COUNT), default=121,
+                   help="time steps of the built-in motion (default 121)")
     p.set_defaults(run=_run_trajectory)
 
 
 def _run_trajectory(args) -> int:
     import numpy as np
 
-    from ..exceptions import InputError
     from ..model.robot import load_robot
     from ..analysis.trajectory import read_trajectory_csv, tool_change_motion, trajectory_error_bands
 
-    if args.samples < 2:
-        raise InputError(f"--samples {args.samples}: need at least 2")
     out = RunOutput(args, "TCP error along a trajectory")
     robot = load_robot(args.robot, args.tool)
     if args.file:
+        check_csv_memory(args, args.file, "--file", 8.0 * (robot.n_joints + 1))
         traj = read_trajectory_csv(args.file, robot)
     else:
-        if args.steps < 2:
-            raise InputError(f"--steps {args.steps}: need at least 2")
+        check_memory(args, f"--steps {args.steps}", args.steps * 8.0 * 64)
         traj = tool_change_motion(robot, n_steps=args.steps)
+    # every sample's TCP error at every step is kept for the bands (6 numbers each)
+    check_memory(args, f"--samples {args.samples} along {len(traj)} steps",
+                 args.samples * (sample_bytes(robot) + 8.0 * 6 * len(traj)))
     sampler, label = error_sampler(robot, args)
     update, close = progress_bar(len(traj), "trajectory", args.quiet)
     try:

@@ -16,8 +16,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import (EXIT_OK, add_quiet_argument, add_robot_arguments, format_joint_values, joint_values_si,
-                  seed_value, status)
+from .common import (EXIT_OK, MAX_COUNT, add_quiet_argument, add_robot_arguments, check_memory, format_joint_values,
+                     integer, joint_value, joint_values_si, number, output_file, sample_bytes, seed_value, status)
 
 DEFAULT_VIEW_FILE = "view.html"
 
@@ -26,16 +26,18 @@ def add_view_arguments(parser: argparse.ArgumentParser, *, always: bool = False)
     """Add ``--view [HTML]``, ``--serve`` and ``--open`` to a subcommand's parser.
 
     always : bool
-        For ``view`` itself: ``--html`` names the file, written unless only ``--serve``
-        is asked for. Other commands get ``--view`` (off unless given).
+        For ``view`` itself: ``--view FILE`` (as on every other command; ``--html`` is
+        kept as its older name) names the file, written unless only ``--serve`` is asked
+        for. Other commands get ``--view`` (off unless given).
     """
     if always:
-        parser.add_argument("--html", default=None, metavar="FILE",
+        parser.add_argument("--view", "--html", dest="html", default=None, type=output_file, metavar="FILE",
                             help=f"write the view as one self-contained HTML file that opens in any "
                                  f"browser without a server (default: {DEFAULT_VIEW_FILE}, unless only "
                                  "--serve is given)")
     else:
-        parser.add_argument("--view", nargs="?", const=DEFAULT_VIEW_FILE, default=None, metavar="HTML",
+        parser.add_argument("--view", nargs="?", const=DEFAULT_VIEW_FILE, default=None, type=output_file,
+                            metavar="HTML",
                             help="also write a 3D view (meshcat) as one self-contained HTML file "
                                  f"(default name: {DEFAULT_VIEW_FILE})")
     parser.add_argument("--serve", action="store_true",
@@ -67,6 +69,10 @@ def serve_view(scene, args) -> None:
         return
     import time
 
+    from ..atomic import commit_staged
+
+    commit_staged()  # the run's files are done: write them before serving until Ctrl-C
+
     live = scene.serve(open_browser=args.open)
     # on stderr (stdout may be --json -), and even with --quiet: the URL is what was asked for
     sys.stderr.write(f"3D view served at {live.url} (localhost only); Ctrl-C to stop\n")
@@ -90,13 +96,14 @@ def add_parsers(sub) -> None:
                     "shown in the legend, and the worst sample's as-built robot as a ghost.",
     )
     add_robot_arguments(p)
-    p.add_argument("--q", nargs="+", type=float, metavar="VALUE",
+    p.add_argument("--q", nargs="+", type=joint_value, metavar="VALUE",
                    help="joint values: revolute [deg], prismatic [mm] (default: working pose)")
     p.add_argument("--error-preset", choices=("table1", "table2"), default=None,
                    help="add a TCP error cloud sampled from the seed's Table 1 or Table 2 errors")
-    p.add_argument("--samples", type=int, default=1000, help="error samples for the cloud (default 1000)")
+    p.add_argument("--samples", type=integer(low=1, high=MAX_COUNT), default=1000,
+                   help="error samples for the cloud (default 1000)")
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
-    p.add_argument("--magnify", type=float, default=None,
+    p.add_argument("--magnify", type=number(low=0, low_open=True, high=1e9), default=None,
                    help="magnification of the error cloud (default: a round factor that draws "
                         "the largest error about 0.8 m long)")
     add_view_arguments(p, always=True)
@@ -112,10 +119,6 @@ def _run_view(args) -> int:
     from ..model.robot import load_robot
     from ..view.viewer import Scene
 
-    if args.samples < 1:
-        raise InputError(f"--samples {args.samples}: need at least 1")
-    if args.magnify is not None and not (np.isfinite(args.magnify) and args.magnify > 0):
-        raise InputError(f"--magnify {args.magnify}: must be a positive number")
     if args.open and not args.serve:
         raise InputError("--open needs --serve")
     robot = load_robot(args.robot, args.tool)
@@ -123,6 +126,7 @@ def _run_view(args) -> int:
     scene = Scene(f"{robot.name} at {format_joint_values(robot, q)}")
     scene.add_robot(robot, q, "nominal")
     if args.error_preset is not None:
+        check_memory(args, f"--samples {args.samples}", args.samples * sample_bytes(robot))
         budget = seed_budget(robot, args.error_preset)
         x = budget.sample(args.samples, np.random.default_rng(args.seed))
         magnify = scene.add_tcp_error_cloud(robot, q, x, budget.error_model, magnify=args.magnify)

@@ -329,6 +329,10 @@ class FitEngine:
         """Scaled parameters phi minimising the residual on rows, and the residual per part."""
         self.n_fits += 1
         k = cols.scale.size
+        if k == 0:  # nothing identifiable at this noise: the residual is the data's own
+            phi = np.zeros(0)
+            return phi, self._fit_residual([(basis[rows][:, :, :0], idx) for basis, _, idx in cols.per_part],
+                                           phi, rows)
         blocks = []
         for basis, g, idx in cols.per_part:
             gr = g[rows]

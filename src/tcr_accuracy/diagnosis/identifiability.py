@@ -6,9 +6,25 @@ Used by the diagnosis (per candidate model) and by the geometric calibration est
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import linalg
+
+
+@dataclass
+class SensitivityColumns:
+    """One block of parameters as :func:`identifiability` reads it (the diagnosis'
+    ``EffectBasis`` and ``UnionBasis`` carry the same three fields).
+
+    names : (P,) parameter names
+    g : (N, r, P) TCP sensitivity per pose to each parameter [m per parameter unit]
+    scales : (P,) typical size of each parameter [its unit]; the test takes ``g * scales``
+    """
+
+    names: list
+    g: np.ndarray
+    scales: np.ndarray
 
 
 def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: float | dict = 0.0) -> tuple[dict, dict]:

@@ -41,6 +41,7 @@ reported as one line naming the file and the key.
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -64,33 +65,101 @@ SOURCE_GROUPS = ("link_length", "drive", "axis_deflection", "placement", "base",
 CLEARANCE_KEYS = {"axial_std": LENGTH_UNITS, "radial_std": LENGTH_UNITS, "deflection_std": ANGLE_UNITS}
 
 
+#: The deepest nesting of tables and lists a settings file may have (real files use 3 or 4).
+MAX_NESTING = 20
+#: The largest magnitude a number of a settings file may have, in the unit its key names.
+MAX_SETTING = 1e6
+
+
 def read_table(path: Path) -> dict:
     """Parse a TOML (.toml) or YAML (.yaml/.yml) file into a dict; one-line errors."""
     path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".toml", ".yaml", ".yml"):
+        raise InputError(f"{path}: unknown file type {suffix!r} (use .toml, .yaml or .yml)")
     try:
         text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    suffix = path.suffix.lower()
-    if suffix == ".toml":
-        import tomllib
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
+    return parse_table(text, str(path), "toml" if suffix == ".toml" else "yaml")
 
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise InputError(f"{path}: not valid TOML: {exc}") from None
-    elif suffix in (".yaml", ".yml"):
-        import yaml
 
-        try:
-            data = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise InputError(f"{path}: not valid YAML: {' '.join(str(exc).split())}") from None
-    else:
-        raise InputError(f"{path}: unknown file type {suffix!r} (use .toml, .yaml or .yml)")
+def parse_table(text: str, source: str, kind: str = "yaml") -> dict:
+    """TOML or YAML settings text to a dict whose keys are all strings, nested at most
+    :data:`MAX_NESTING` deep; anything else is one InputError line naming ``source``."""
+    if _bracket_depth(text) > MAX_NESTING:  # before the parser recurses into it
+        raise InputError(f"{source}: tables or lists nested too deeply (at most {MAX_NESTING} levels)")
+    try:
+        if kind == "toml":
+            try:
+                import tomllib
+            except ModuleNotFoundError:  # Python 3.10: the same parser as the tomli package
+                import tomli as tomllib
+
+            try:
+                data = tomllib.loads(text)
+            except tomllib.TOMLDecodeError as exc:
+                raise InputError(f"{source}: not valid TOML: {_one_line(exc)}") from None
+        else:
+            import yaml
+
+            try:
+                data = yaml.safe_load(text)
+            except yaml.YAMLError as exc:
+                raise InputError(f"{source}: not valid YAML: {_one_line(exc)}") from None
+    except RecursionError:
+        raise InputError(f"{source}: tables or lists nested too deeply (at most {MAX_NESTING} levels)") from None
+    if data is None:
+        data = {}
     if not isinstance(data, dict):
-        raise InputError(f"{path}: expected a table of settings at the top level")
+        raise InputError(f"{source}: expected a table of settings at the top level")
+    _check_structure(data, source)
     return data
+
+
+def _bracket_depth(text: str) -> int:
+    """The deepest nesting of [ ] and { } in text (brackets inside quoted strings count too:
+    a settings file has no reason for twenty of them)."""
+    depth = deepest = 0
+    for ch in re.sub(r"[^\[\]{}]", "", text):
+        depth = depth + 1 if ch in "[{" else max(depth - 1, 0)
+        deepest = max(deepest, depth)
+    return deepest
+
+
+def _one_line(exc, limit: int = 300) -> str:
+    text = " ".join(str(exc).split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _check_structure(data: dict, source: str) -> None:
+    """Keys are strings, nesting is bounded (walked without recursion)."""
+    stack = [(data, "", 1)]
+    while stack:
+        node, where, depth = stack.pop()
+        if depth > MAX_NESTING:
+            raise InputError(f"{source}: {where or 'top level'}: tables or lists nested more than "
+                             f"{MAX_NESTING} deep")
+        if isinstance(node, dict):
+            for key, value in node.items():
+                if not isinstance(key, str):
+                    raise InputError(f"{source}: {where + '.' if where else ''}{_one_line(key, 60)}: keys must "
+                                     f"be names, not {type(key).__name__} (quote it)")
+                stack.append((value, f"{where}.{key}" if where else key, depth + 1))
+        elif isinstance(node, list):
+            stack.extend((value, f"{where}[{i}]", depth + 1) for i, value in enumerate(node))
+
+
+def setting_number(raw, where: str, *, low: float = -MAX_SETTING, high: float = MAX_SETTING) -> float:
+    """A number of a settings file: an int or float (not a bool, not text), finite, in [low, high]."""
+    if isinstance(raw, bool) or not isinstance(raw, (int, float)):
+        raise InputError(f"{where}: expected a number, got {_one_line(repr(raw), 60)}")
+    value = float(raw) if abs(raw) < 1e308 else math.inf  # a huge YAML/TOML int overflows float()
+    if not math.isfinite(value):
+        raise InputError(f"{where}: expected a finite number, got {_one_line(repr(raw), 60)}")
+    if not low <= value <= high:
+        raise InputError(f"{where}: {value:g} is outside [{low:g}, {high:g}]")
+    return value
 
 
 def _unit_of(unit: str) -> dict:
@@ -124,11 +193,10 @@ def _distribution_values(path: Path, where: str, spec, unit: str, strict: bool =
             continue  # the other kind of unit: in a mixed group it applies to other parameters
         if field in values:
             raise InputError(f"{path}: {where}.{key}: {field} given twice")
-        if isinstance(raw, bool) or not isinstance(raw, (int, float)) or not math.isfinite(raw):
-            raise InputError(f"{path}: {where}.{key}: expected a finite number, got {raw!r}")
-        values[field] = float(raw) * allowed[suffix]
+        raw = setting_number(raw, f"{path}: {where}.{key}")
+        values[field] = raw * allowed[suffix]
         if field == "std" and raw < 0:
-            raise InputError(f"{path}: {where}.{key}: spread must be >= 0, got {raw}")
+            raise InputError(f"{path}: {where}.{key}: spread must be >= 0, got {raw:g}")
     need = {"normal": ("std",), "uniform": ("low", "high"), "truncnormal": ("std", "low", "high")}[dist]
     missing = [f for f in need if f not in values]
     if missing:
@@ -235,7 +303,5 @@ def _clearance(path, robot, em, spec, name):
         units = CLEARANCE_KEYS[field]
         if suffix not in units:
             raise InputError(f"{path}: clearance.{key}: unit {suffix!r} does not fit (use {', '.join(units)})")
-        if isinstance(raw, bool) or not isinstance(raw, (int, float)) or not math.isfinite(raw) or raw < 0:
-            raise InputError(f"{path}: clearance.{key}: expected a finite number >= 0, got {raw!r}")
-        spreads[field] = float(raw) * units[suffix]
+        spreads[field] = setting_number(raw, f"{path}: clearance.{key}", low=0.0) * units[suffix]
     return ClearanceModel.from_robot(robot, em, name=name, **spreads)

@@ -36,7 +36,7 @@ from ..model.robot import RobotModel
 from ..units import JOINT_COLUMN_UNITS as _JOINT_UNITS
 from ..units import JOINT_DISPLAY
 from ..units import POSITION_UNITS as _POSITION_UNITS
-from ..units import REVOLUTE
+from ..units import REVOLUTE, parse_number
 
 #: Largest |quaternion norm - 1| accepted before normalising.
 QUATERNION_TOLERANCE = 1e-3
@@ -250,7 +250,7 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
         for c, cell in enumerate(cells):
             cell = cell.strip()
             try:
-                value = float(cell)
+                value = parse_number(cell, finite=False)  # strict: 1_5 and full-width digits are no numbers
             except ValueError:
                 what = "an empty cell" if not cell else f"{cell!r} is not a number"
                 raise InputError(f"{source}: row {line_no}, column {shown[c]}: {what}") from None

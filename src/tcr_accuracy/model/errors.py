@@ -373,6 +373,17 @@ def drive_source(robot: RobotModel, j: int, error_model: ErrorModel, std: float)
     return ErrorSource(f"{name} drive", "drive", direction, unit, std=std)
 
 
+#: The joint kinds the seed's Table 2 lists, in order: the tool-changer's 5R + 1P.
+TABLE2_JOINT_KINDS = [REVOLUTE, REVOLUTE, REVOLUTE, PRISMATIC, REVOLUTE, REVOLUTE]
+
+
+def default_preset(robot: RobotModel) -> str:
+    """The error preset an analysis takes when none is named: the seed's ``table2`` for a
+    robot with the tool-changer's joints, else ``table1``, which is built from any robot's
+    own joints (every link length, drive and axis tilt with the seed's Table 1 spreads)."""
+    return "table2" if list(robot.joint_kinds) == TABLE2_JOINT_KINDS else "table1"
+
+
 def seed_budget(robot: RobotModel, preset: str) -> ErrorBudget:
     """The seed paper's error distributions as an :class:`ErrorBudget`.
 
@@ -402,8 +413,7 @@ def seed_budget(robot: RobotModel, preset: str) -> ErrorBudget:
                 sources.append(ErrorSource(f"{name} axis tilt {label}", "axis_deflection", direction, "rad",
                                            std=SEED_TABLE1["axis_deflection"]))
     elif preset == "table2":
-        expected = [REVOLUTE, REVOLUTE, REVOLUTE, PRISMATIC, REVOLUTE, REVOLUTE]
-        if kinds != expected:
+        if list(kinds) != TABLE2_JOINT_KINDS:
             raise InputError(
                 f"--preset table2: the seed's Table 2 lists the tool-changer's joints (5R + 1P); "
                 f"robot {robot.name} has {len(kinds)} joints ({', '.join(k[0].upper() for k in kinds)}); "

@@ -23,6 +23,7 @@ Conventions, stated once:
 from __future__ import annotations
 
 import math
+import re
 import sys
 import warnings
 from dataclasses import dataclass, field
@@ -36,11 +37,16 @@ from ..exceptions import InputError
 from .tool_changer import DISC_CUTTER_MASS, WORKING_POSE, tool_changer_urdf
 from ..units import JOINT_DISPLAY, PRISMATIC, REVOLUTE  # noqa: F401 - PRISMATIC: part of this module's vocabulary
 from .urdf import (
+    MAX_CHAIN_JOINTS,
+    check_mesh_paths,
+    check_urdf,
     find_frame,
     joint_kind,
     mimic_rules,
     parse_urdf_xml,
     read_urdf_text,
+    one_line,
+    quiet_native_stderr,
     reduce_model,
     single_leaf_link,
 )
@@ -79,7 +85,9 @@ class RobotModel:
     package_dirs : list of str
         Folders in which ``package://`` mesh paths are resolved.
     working_pose : ndarray of shape (n_joints,)
-        A representative pose [rad, m] (the seed's pose for the tool-changer, zero otherwise).
+        A representative pose [rad, m] (the seed's pose for the tool-changer; otherwise zero for
+        every joint whose limits hold zero and the middle of its range for the others, see
+        :func:`default_working_pose`).
     full_model : pin.Model or None
         Every joint of the URDF (None: the same as ``model``). Gravity uses it.
     chain_joint_ids : tuple of int
@@ -108,7 +116,7 @@ class RobotModel:
 
     def __post_init__(self) -> None:
         if self.working_pose is None:
-            self.working_pose = np.zeros(self.n_joints)
+            self.working_pose = default_working_pose(self.lower_limits, self.upper_limits)
         if self.full_model is None:
             self.full_model = self.model
             self.chain_joint_ids = tuple(range(1, self.model.njoints))
@@ -304,13 +312,18 @@ class RobotModel:
         Raises
         ------
         InputError
-            The URDF's visuals cannot be read (missing mesh file, ...).
+            The URDF's visuals cannot be read (missing mesh file, ...), or a mesh lies outside
+            the URDF's folder and the package folders.
         """
-        try:
-            geometry = pin.buildGeomFromUrdfString(self.full_model, self.urdf_text, pin.GeometryType.VISUAL,
-                                                   package_dirs=list(self.package_dirs))
-        except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
-            raise InputError(f"{self.name}: cannot read the URDF visuals ({exc})") from None
+        roots = ([str(self.urdf_path.parent)] if self.urdf_path is not None else []) + list(self.package_dirs)
+        source = str(self.urdf_path) if self.urdf_path is not None else self.name
+        check_mesh_paths(parse_urdf_xml(self.urdf_text, source), source, list(dict.fromkeys(roots)))
+        with quiet_native_stderr() as said:
+            try:
+                geometry = pin.buildGeomFromUrdfString(self.full_model, self.urdf_text, pin.GeometryType.VISUAL,
+                                                       package_dirs=list(self.package_dirs))
+            except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
+                raise InputError(f"{self.name}: cannot read the URDF visuals ({one_line(said() or exc)})") from None
         chain = set(self.chain_joint_ids)
         locked = [j for j in range(1, self.full_model.njoints) if j not in chain]
         if not locked:
@@ -338,6 +351,41 @@ class RobotModel:
 
 class JointLimitWarning(UserWarning):
     """A joint value lies outside the URDF limits (the analysis still runs)."""
+
+
+def urdf_robot_name(text: str) -> str | None:
+    """The ``name`` of a URDF's ``<robot>`` element, or None when the text does not say.
+
+    Read from the text alone, with no XML parser (the URDF reader, which refuses entity
+    tricks, parses it afterwards and reports any fault).
+    """
+    match = re.search(r"<robot\b[^>]*?\bname\s*=\s*(\"([^\"<>&]*)\"|'([^'<>&]*)')", text)
+    if match is None:
+        return None
+    return (match.group(2) if match.group(2) is not None else match.group(3)).strip() or None
+
+
+def default_working_pose(lower, upper) -> np.ndarray:
+    """Joint values [rad, m] for a robot without a named working pose: zero where the limits
+    hold it, else the middle of the joint's range (the Panda's joint 4 lives in
+    [-176, -4] deg), so that the default pose is one the robot can take.
+
+    Parameters
+    ----------
+    lower, upper : array-like of shape (n_joints,)
+        Limits [rad, m]; NaN for an unbounded side.
+    """
+    lower = np.asarray(lower, dtype=float)
+    upper = np.asarray(upper, dtype=float)
+    q = np.zeros(lower.shape)
+    outside = (lower > 0) | (upper < 0)  # NaN compares False: an unbounded side holds zero
+    both = outside & np.isfinite(lower) & np.isfinite(upper)
+    q[both] = 0.5 * (lower[both] + upper[both])
+    only_low = outside & ~both & (lower > 0)
+    q[only_low] = lower[only_low]
+    only_high = outside & ~both & (upper < 0)
+    q[only_high] = upper[only_high]
+    return q
 
 
 def example_robot_data_dir() -> Path:
@@ -384,10 +432,10 @@ def load_robot(source: str | Path | None = None, tool: str | None = None) -> Rob
     elif Path(source).is_file():
         urdf_path = Path(source).resolve()
         text = read_urdf_text(urdf_path)
-        name = urdf_path.stem
+        name = urdf_robot_name(text) or urdf_path.stem  # what the URDF calls itself, as for named robots
         package_dirs = [str(urdf_path.parent), str(urdf_path.parent.parent)]
         label = str(source)
-        if urdf_path.stem == "tool_changer":
+        if urdf_path.stem == BUILTIN_NAME or name.startswith(BUILTIN_NAME):  # a variant, its as-built model
             working_pose = WORKING_POSE.copy()
             payload_kg = DISC_CUTTER_MASS
     elif str(source).lower() in EXAMPLE_ROBOTS:
@@ -423,12 +471,16 @@ def robot_from_urdf_text(
 ) -> RobotModel:
     """Build a :class:`RobotModel` from URDF text (see :func:`load_robot`)."""
     root = parse_urdf_xml(text, source)
+    check_urdf(root, source)
     if tool is None:
         tool = single_leaf_link(root, source)
-    try:
-        full = pin.buildModelFromXML(text)
-    except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
-        raise InputError(f"{source}: Pinocchio cannot build a model from this URDF ({exc})") from None
+    with quiet_native_stderr() as said:  # urdfdom writes its complaints to fd 2, several lines each
+        try:
+            full = pin.buildModelFromXML(text)
+        except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
+            first = said()
+            raise InputError(f"{source}: Pinocchio cannot build a model from this URDF "
+                             f"({one_line(first or exc)})") from None
     frame_id = find_frame(full, tool, source)
     frame = full.frames[frame_id]
     chain = set(full.supports[frame.parentJoint])
@@ -436,8 +488,11 @@ def robot_from_urdf_text(
     model = reduce_model(full, locked) if locked else full
     if model.njoints <= 1:
         raise InputError(f"--tool {tool}: no joint moves this frame in {source}")
+    if model.njoints - 1 > MAX_CHAIN_JOINTS:
+        raise InputError(f"--tool {tool}: {model.njoints - 1} joints move this frame in {source}, more than the "
+                         f"{MAX_CHAIN_JOINTS} of a serial chain tcr-accuracy models")
     for j in range(1, model.njoints):
-        joint_kind(model.joints[j])  # raises for unsupported kinds
+        joint_kind(model.joints[j], f"{source}: joint {one_line(model.names[j])}")  # raises for unsupported kinds
     tool_frame_id = next(i for i, f in enumerate(model.frames) if f.name == tool and f.type == frame.type)
     robot = RobotModel(
         model=model,

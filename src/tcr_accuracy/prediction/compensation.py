@@ -2,7 +2,7 @@
 
 The commanded joints q_target put the nominal TCP on the target ``p* = FK(q_target)``.
 The real robot lands near ``FK(q) + e(q)`` instead, with e predicted by a fitted
-estimator (see :mod:`tcr_accuracy.prediction.estimators`). The cyclic search repeats
+estimator (see :mod:`tcr_accuracy.prediction.methods`). The cyclic search repeats
 
 1. predicted real position ``p = FK(q) + e_hat(q)``;
 2. miss ``d = p* - p``; stop when ``|d| < threshold``;
@@ -21,7 +21,7 @@ import numpy as np
 
 from ..exceptions import InputError
 from ..model.kinematics import tcp_poses
-from .estimators import predict_with_context
+from .composed import predict_with_context
 from ..model.robot import RobotModel
 from ..analysis.sampling import inverse_kinematics
 

@@ -6,7 +6,6 @@ import io
 from pathlib import Path
 
 from ..atomic import write_bytes_atomically
-from ..exceptions import InputError
 
 
 def pyplot():
@@ -30,10 +29,6 @@ def save_figure(fig, path, *, dpi: int = 110, tight: bool = False) -> Path:
             fig.tight_layout()
         buffer = io.BytesIO()
         fig.savefig(buffer, format="png", dpi=dpi)
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise InputError(f"{path}: cannot write the plot ({exc.strerror})") from None
-        return write_bytes_atomically(path, buffer.getvalue())
+        return write_bytes_atomically(path, buffer.getvalue())  # creates the folder
     finally:
         pyplot().close(fig)

@@ -47,15 +47,30 @@ def plot_steps(diagnosis, path: Path) -> Path:
 
 
 def plot_axes(diagnosis, path: Path) -> Path:
+    """Histograms per axis: the residual after frames (top row) and the final held-out one
+    (bottom row), each on its own scale: the final residual is often a hundred times
+    narrower, and on a shared axis it would be a sliver."""
     plt = pyplot()
-    fig, axes = plt.subplots(1, 3, figsize=(9, 3))
-    for c, ax in enumerate(axes):
-        ax.hist(diagnosis.gap_residual[:, c] * 1e3, bins=30, alpha=0.6, label="after frames")
-        ax.hist(diagnosis.heldout_residual[:, c] * 1e3, bins=30, alpha=0.6, label="final, held-out")
-        ax.set_xlabel(f"{'xyz'[c]} error [mm]")
-    axes[0].set_ylabel("measurements")
-    axes[0].legend(fontsize=7)
-    fig.suptitle("Residual per axis")
+    fig, axes = plt.subplots(2, 3, figsize=(9, 5.2))
+    rows = (("after fitting the tracker frame (frames)", diagnosis.gap_residual, "C0"),
+            ("final model, held-out", diagnosis.heldout_residual, "C1"))
+    per_axis_noise = diagnosis.noise_floor / np.sqrt(3.0) * 1e3
+    for r, (label, residual, color) in enumerate(rows):
+        for c in range(3):
+            ax = axes[r][c]
+            values = residual[:, c] * 1e3
+            ax.hist(values, bins=30, color=color, alpha=0.8)
+            ax.set_xlabel(f"{'xyz'[c]} error [mm]")
+            ax.tick_params(labelsize=7)
+            if r == 1:  # the noise per axis, for scale: +-1 std
+                for sign in (-1, 1):
+                    ax.axvline(sign * per_axis_noise, color="k", ls="--", lw=0.8)
+        axes[r][0].set_ylabel("measurements")
+        axes[r][1].set_title(f"{label}: RMS {np.sqrt(np.mean(np.sum(residual ** 2, axis=1))) * 1e3:.4g} mm",
+                             fontsize=9)
+    axes[1][2].legend(handles=[plt.Line2D([], [], color="k", ls="--", lw=0.8)],
+                      labels=[f"+-noise {per_axis_noise:.3g} mm"], fontsize=7)
+    fig.suptitle("Residual per axis (each row on its own scale)")
     fig.tight_layout()
     return save_figure(fig, path)
 
@@ -93,10 +108,39 @@ def plot_joints(diagnosis, robot, path: Path) -> Path:
                    "Residual after frames against each joint (|e| grey, binned mean per axis)")
 
 
+def joints_with_gravity_torque(torque, rel_tol: float = 1e-6) -> np.ndarray:
+    """Indices of the joints whose gravity torque is more than rounding noise.
+
+    Parameters
+    ----------
+    torque : array-like of shape (n_measurements, n_joints)
+        Gravity torque (N m) or force (N) of each joint at each measurement.
+    rel_tol : float
+        A joint whose largest |torque| stays below ``rel_tol`` times the largest of any
+        joint carries none (a vertical first axis, a wrist turning about the vertical):
+        a panel of it would bin numerical noise.
+    """
+    peak = np.max(np.abs(np.asarray(torque, dtype=float)), axis=0)
+    if peak.size == 0 or not np.max(peak) > 0:
+        return np.zeros(0, dtype=int)
+    return np.flatnonzero(peak > rel_tol * np.max(peak))
+
+
 def plot_gravity(diagnosis, robot, path: Path) -> Path:
     units = ["Nm" if k == "revolute" else "N" for k in robot.joint_kinds]
-    return _versus(diagnosis, diagnosis.gravity_torque, [f"tau_g {n}" for n in robot.joint_names], units, path,
-                   "Residual after frames against gravity torque")
+    keep = joints_with_gravity_torque(diagnosis.gravity_torque)
+    left_out = [n for j, n in enumerate(robot.joint_names) if j not in set(keep.tolist())]
+    title = "Residual after frames against gravity torque"
+    if left_out:
+        title += f" (no gravity torque on {', '.join(left_out)}: not shown)"
+    if keep.size == 0:  # no joint carries any: one note instead of panels of noise
+        plt = pyplot()
+        fig, ax = plt.subplots(figsize=(6, 1.2))
+        ax.axis("off")
+        ax.text(0.5, 0.5, "No joint carries a gravity torque at these poses.", ha="center", va="center")
+        return save_figure(fig, path)
+    return _versus(diagnosis, diagnosis.gravity_torque[:, keep], [f"tau_g {robot.joint_names[j]}" for j in keep],
+                   [units[j] for j in keep], path, title)
 
 
 def plot_semivariograms(diagnosis, robot, path: Path) -> Path:

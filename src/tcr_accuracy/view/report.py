@@ -32,7 +32,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from .. import __version__
-from ..atomic import write_bytes_atomically
+from ..atomic import read_output, write_bytes_atomically
 from ..exceptions import InputError
 
 #: Distributions whose versions every report lists (when installed).
@@ -41,6 +41,12 @@ VERSION_PACKAGES = ("pin", "numpy", "scipy", "meshcat", "matplotlib", "scikit-le
 
 @dataclass(frozen=True)
 class _Text:
+    text: str
+    heading: str | None
+
+
+@dataclass(frozen=True)
+class _Preformatted:
     text: str
     heading: str | None
 
@@ -143,6 +149,11 @@ class Report:
         """A paragraph (blank lines start new paragraphs), optionally under a heading."""
         self.items.append(_Text(str(text), heading))
 
+    def add_preformatted(self, text: str, heading: str | None = None) -> None:
+        """Text shown as printed, in a fixed-width font with its line breaks and alignment kept
+        (a command's printed summary with its aligned tables)."""
+        self.items.append(_Preformatted(str(text).rstrip("\n"), heading))
+
     def add_table(self, title: str, columns, rows, units=None, *, note: str | None = None,
                   float_format: str = "{:.4g}") -> None:
         """A table.
@@ -188,7 +199,7 @@ class Report:
         else:
             path = Path(figure)
             try:
-                png = path.read_bytes()
+                png = read_output(path)  # a plot of this run may still be staged
             except OSError as exc:
                 raise InputError(f"{path}: cannot read figure ({exc.strerror})") from None
             if not png.startswith(b"\x89PNG\r\n\x1a\n"):
@@ -222,6 +233,10 @@ class Report:
                 for para in (p.strip() for p in item.text.split("\n\n")):
                     if para:
                         body.append(f"<p>{esc(para)}</p>")
+            elif isinstance(item, _Preformatted):
+                if item.heading:
+                    body.append(f"<h2>{esc(item.heading)}</h2>")
+                body.append(f'<pre class="printed">{esc(item.text)}</pre>')
             elif isinstance(item, _Table):
                 body.append(f"<h2>{esc(item.title)}</h2>")
                 head = "".join(f"<th>{esc(c)}</th>" for c in item.columns)
@@ -261,6 +276,10 @@ class Report:
                 if item.heading:
                     out += [f"## {item.heading}", ""]
                 out += [item.text.strip(), ""]
+            elif isinstance(item, _Preformatted):
+                if item.heading:
+                    out += [f"## {item.heading}", ""]
+                out += ["```", item.text, "```", ""]
             elif isinstance(item, _Table):
                 out += [f"## {item.title}", "",
                         "| " + " | ".join(md(c) for c in item.columns) + " |",
@@ -286,12 +305,8 @@ class Report:
         Every file goes through a temporary file and a rename; ``index.html`` comes last.
         Other files in ``out_dir`` are left alone. Returns the path of ``index.html``.
         """
-        out_dir = Path(out_dir)
-        try:
-            out_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise InputError(f"{out_dir}: cannot create the report folder ({exc.strerror})") from None
-        if not out_dir.is_dir():
+        out_dir = Path(out_dir)  # created, if missing, with the files
+        if out_dir.exists() and not out_dir.is_dir():
             raise InputError(f"{out_dir}: not a folder")
         for item in self.items:
             if isinstance(item, _Figure):
@@ -319,6 +334,8 @@ figure { margin: 1em 0; }
 img { max-width: 100%; border: 1px solid #e3e3e3; }
 iframe { width: 100%; border: 1px solid #ccc; }
 pre.command { background: #f5f5f5; padding: 8px 10px; overflow-x: auto; }
+pre.printed { background: #f7f7f7; border: 1px solid #e3e3e3; padding: 8px 10px; overflow-x: auto;
+  font-size: 0.82em; line-height: 1.3; white-space: pre; }
 """
 
 _PAGE = """<!DOCTYPE html>

@@ -107,9 +107,15 @@ class Scene:
         Shown above the view and as the page title.
     grid : bool
         Show meshcat's ground grid (z = 0 plane, 0.5 m squares).
+    frame : {"all", "data"}
+        What the camera frames: everything drawn, or the data (point clouds, points, error
+        segments, trajectories) so that they fill the view when they are what the view is
+        about; the robots may then reach out of it.
     """
 
-    def __init__(self, title: str = "tcr-accuracy", *, grid: bool = True):
+    def __init__(self, title: str = "tcr-accuracy", *, grid: bool = True, frame: str = "all"):
+        if frame not in ("all", "data"):
+            raise InputError(f"scene frame {frame!r}: use 'all' or 'data'")
         meshcat, self._mg = import_meshcat()
         self.title = title
         self._window = RecordingWindow()
@@ -118,6 +124,8 @@ class Scene:
         self.legend: list[LegendEntry] = []
         self.notes: list[str] = []
         self._bounds = _Bounds()
+        self._data_bounds = _Bounds()  # points, clouds, segments, trajectories: the data
+        self._frame = frame
         self._camera: tuple[np.ndarray, np.ndarray] | None = None
         self._grid = grid
         self._finished = False
@@ -206,11 +214,11 @@ class Scene:
             raise InputError(f"colormap {cmap!r} is not a matplotlib colormap") from None
         rgb = colormap(np.clip((values - lo) / (hi - lo), 0.0, 1.0))[:, :3]
         if size_m is None:
-            extent = float(np.max(np.ptp(points, axis=0))) if len(points) > 1 else 0.0
-            size_m = max(extent / 60.0, 0.002)
+            size_m = max(data_extent(points) / 60.0, 0.002)
         self.vis[_node(name)].set_object(
             self._mg.PointCloud(points.T.astype(np.float32), rgb.T.astype(np.float32), size=size_m))
         self._bounds.add(points)
+        self._data_bounds.add(points)
         bar = ColorBar(label, lo, hi, tuple(tuple(float(c) for c in colormap(t)[:3])
                                            for t in np.linspace(0.0, 1.0, 11)))
         self.color_bars.append(bar)
@@ -290,12 +298,13 @@ class Scene:
         self.vis[_node(name)].set_object(
             self._mg.PointCloud(points.T.astype(np.float32), rgb, size=size_m))
         self._bounds.add(points)
+        self._data_bounds.add(points)
         self.legend.append(LegendEntry(label or name, tuple(color)))
 
     def add_error_segments(self, start_m, end_m, magnify: float = 1.0, name: str = "errors", *,
                            start_label: str = "measured", end_label: str = "predicted",
                            start_color=COLORS["measured"], end_color=COLORS["predicted"],
-                           size_m: float = 0.01) -> None:
+                           size_m: float | None = None) -> None:
         """Pairs of points joined by segments, the gap magnified.
 
         Parameters
@@ -305,6 +314,9 @@ class Scene:
         magnify : float
             Each end is drawn at ``start + magnify * (end - start)``; the factor is
             written in the legend.
+        size_m : float, optional
+            Size of the points at both ends [m] (default: :func:`point_size` of the start
+            points' extent).
         """
         start = _as_points(start_m, f"{name}: start")
         end = _as_points(end_m, f"{name}: end")
@@ -313,6 +325,8 @@ class Scene:
         if not (math.isfinite(magnify) and magnify > 0):
             raise InputError(f"{name}: magnification {magnify} must be a positive number")
         drawn_end = start + magnify * (end - start)
+        if size_m is None:
+            size_m = point_size(data_extent(start))
         segments = np.empty((2 * len(start), 3))
         segments[0::2], segments[1::2] = start, drawn_end
         mg = self._mg
@@ -323,8 +337,9 @@ class Scene:
         for key, pts, rgb in (("start", start, start_color), ("end", drawn_end, end_color)):
             colors = np.tile(np.asarray(rgb, dtype=np.float32)[:3, None], (1, len(pts)))
             node[key].set_object(mg.PointCloud(pts.T.astype(np.float32), colors, size=size_m))
-        self._bounds.add(start)
-        self._bounds.add(drawn_end)
+        for pts in (start, drawn_end):
+            self._bounds.add(pts)
+            self._data_bounds.add(pts)
         self.legend.append(LegendEntry(start_label, tuple(start_color)))
         self.legend.append(LegendEntry(
             f"{end_label} (segments magnified x {magnify:g})" if magnify != 1.0 else end_label,
@@ -340,6 +355,7 @@ class Scene:
             mg.PointsGeometry(points.T.astype(np.float32)),
             mg.LineBasicMaterial(color=meshcat_color(color), linewidth=2)))
         self._bounds.add(points)
+        self._data_bounds.add(points)
         self.legend.append(LegendEntry(name, tuple(color)))
 
     def add_frame(self, placement, name: str, length_m: float = 0.15) -> None:
@@ -371,13 +387,18 @@ class Scene:
         """(target, camera position) [m]: the one set, or one framing everything drawn."""
         if self._camera is not None:
             return self._camera
-        if self._bounds.empty:
+        data = self._frame == "data" and not self._data_bounds.empty
+        bounds = self._data_bounds if data else self._bounds
+        if bounds.empty:
             return None
-        lo, hi = self._bounds.lo, self._bounds.hi
+        lo, hi = bounds.lo, bounds.hi
         target = 0.5 * (lo + hi)
-        radius = max(0.5 * float(np.linalg.norm(hi - lo)), 0.3)
+        radius = max(0.5 * float(np.linalg.norm(hi - lo)), 0.05 if data else 0.3)
         direction = np.array([1.0, -0.55, 0.45])
-        return target, target + 2.2 * radius * direction / np.linalg.norm(direction)
+        # meshcat's camera sees 75 deg vertically: a sphere of the radius fills the view at
+        # 1.3 radii; the data get a little margin, the whole scene more
+        distance = (1.55 if data else 2.2) * radius
+        return target, target + distance * direction / np.linalg.norm(direction)
 
     def _finish(self) -> None:
         """Camera, ground grid and base axes, set once before output.
@@ -438,6 +459,24 @@ class Scene:
 
     def _legend(self) -> str:
         return legend_html(self.title, self.color_bars, self.legend, self.notes)
+
+
+def data_extent(points_m) -> float:
+    """The largest side of the bounding box of (N, 3) points [m] (0 for fewer than two)."""
+    points = np.asarray(points_m, dtype=float).reshape(-1, 3)
+    return float(np.max(np.ptp(points, axis=0))) if len(points) > 1 else 0.0
+
+
+def point_size(extent_m: float) -> float:
+    """A point size [m] that reads at a glance when the view frames data of this extent
+    (1/70 of it, between 3 mm and 8 cm)."""
+    return float(np.clip(extent_m / 70.0, 0.003, 0.08))
+
+
+def segment_magnification(largest_error_m: float, extent_m: float) -> float:
+    """A round factor that draws the largest error segment about 15 % of the data's extent
+    long (at least 5 cm), so the segments read against the spread of the points."""
+    return auto_magnification(largest_error_m, drawn_m=max(0.15 * extent_m, 0.05))
 
 
 def auto_magnification(largest_error_m: float, drawn_m: float = 0.8) -> float:

@@ -1,14 +1,19 @@
 """A simulated "real robot" for prediction and compensation: hidden errors and a tracker.
 
-Stand-in until ``measurements.simulate`` lands; prediction and compensation only see
-its ``measure(q)``, so swapping it is one line. The hidden truth is
+Prediction and compensation only see its ``measure(q)``, so a real robot or another
+simulation (``scripts/seed2_benchmark.py --truth simulate``) takes its place in one line.
+The hidden truth is
 
 * geometric errors: a random error vector x (placement twists, drive offsets, base
   and tool twists) of :class:`~tcr_accuracy.model.errors.ErrorModel`;
-* gravity compliance: each joint deflects by ``dq_j = c_j * tau_j(q)`` where tau is
-  the gravity torque (Pinocchio's ``computeGeneralizedGravity``) of the robot's own
-  links plus a payload point mass at the TCP;
-* a laser tracker: isotropic Gaussian noise of std ``noise_m`` on each axis.
+* gravity compliance: each joint moves by ``dq_j = -c_j * tau_j(q)`` [rad, m], with c_j
+  its compliance [rad/(N m), m/N] and tau the torque gravity exerts on it
+  (:func:`~tcr_accuracy.model.gravity.gravity_torque`: the robot's links plus a payload
+  point mass at the TCP), so a joint moves along the torque its drive holds the arm with.
+  That is against the sag of :mod:`tcr_accuracy.effects.compliance` (whose non-negative
+  compliance cannot fit it); the stand-in has always moved this way, and keeps doing so
+  that the benchmarks' hidden truth stays the one their figures come from;
+* a laser tracker: isotropic Gaussian noise of std ``noise_m`` [m] on each axis.
 
 So the TCP the tracker sees at commanded q is ``FK_x(q + dq(q)) + noise``. Stiffness is
 a property of the robot and stays fixed when the payload changes
@@ -20,37 +25,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import pinocchio as pin
 
 from ..model.errors import ErrorModel
+from ..model.gravity import gravity_torque
 from ..model.kinematics import tcp_poses
 from ..model.robot import REVOLUTE, RobotModel
-
-
-def model_with_payload(robot: RobotModel, payload_kg: float) -> pin.Model:
-    """A copy of the robot's Pinocchio model with a point mass at the TCP frame.
-
-    The mass is added to the inertia of the TCP frame's parent joint, at the TCP
-    origin; the robot's own model is left untouched.
-    """
-    model = pin.Model(robot.model)
-    if payload_kg > 0:
-        frame = model.frames[robot.tool_frame_id]
-        joint = frame.parentJoint
-        lever = frame.placement.translation.copy()
-        model.inertias[joint] = model.inertias[joint] + pin.Inertia(
-            float(payload_kg), lever, np.eye(3) * 1e-6 * payload_kg)
-    return model
-
-
-def gravity_torques(model: pin.Model, robot: RobotModel, q: np.ndarray) -> np.ndarray:
-    """Gravity torques [N m or N] of ``model`` at joint values q (N, n) -> (N, n)."""
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    data = model.createData()
-    out = np.empty_like(q)
-    for i, qi in enumerate(q):
-        out[i] = pin.computeGeneralizedGravity(model, data, robot.to_pinocchio_q(qi))
-    return out
 
 
 @dataclass
@@ -74,11 +53,9 @@ class StandInRobot:
     noise_m: float
     rng: np.random.Generator
     error_model: ErrorModel = field(init=False)
-    gravity_model: pin.Model = field(init=False)
 
     def __post_init__(self) -> None:
         self.error_model = ErrorModel(self.robot)
-        self.gravity_model = model_with_payload(self.robot, self.payload_kg)
 
     def with_payload(self, payload_kg: float) -> "StandInRobot":
         """The same robot (same errors, stiffness, noise stream) carrying another payload."""
@@ -86,7 +63,7 @@ class StandInRobot:
 
     def joint_deflection(self, q: np.ndarray) -> np.ndarray:
         """(N, n) gravity deflection of each joint at commanded q (N, n) [rad, m]."""
-        return self.compliance * gravity_torques(self.gravity_model, self.robot, q)
+        return -self.compliance * gravity_torque(self.robot, q, payload_kg=self.payload_kg)
 
     def true_positions(self, q: np.ndarray) -> np.ndarray:
         """(N, 3) noise-free real TCP positions at commanded q (N, n) [m]."""
@@ -134,7 +111,7 @@ def make_stand_in_robot(robot: RobotModel, rng: np.random.Generator, *, payload_
     hi = np.where(np.isfinite(robot.upper_limits), robot.upper_limits, np.pi)
     lo, hi = np.maximum(lo, -np.pi), np.minimum(hi, np.pi)
     q = rng.uniform(lo, hi, (64, n))
-    tau = gravity_torques(model_with_payload(robot, payload_kg), robot, q)
+    tau = gravity_torque(robot, q, payload_kg=payload_kg)
     rms = np.sqrt((tau**2).mean(axis=0))
     scale = np.where(revolute, deflection_rad, 0.1 * deflection_rad) * rng.uniform(0.5, 1.5, n)
     compliance = np.where(rms > 1e-6 * max(rms.max(), 1e-12), scale / np.maximum(rms, 1e-300), 0.0)

@@ -1,0 +1,384 @@
+"""Tracker exports and joint logs in, the measurement CSV out (``tcr-accuracy import``).
+
+A laser tracker (Leica, FARO, API) or a motion-capture system (Vicon) exports its points
+as delimited text in its own dialect: semicolons or tabs, decimal commas, a few lines of
+metadata above the header, the unit in the header (``X [mm]``, ``Y (m)``, ``Z_in``) or in
+each cell (``1234,56 mm``), a timestamp per point. The robot controller logs its joints
+with timestamps of its own. This module reads both, maps their columns onto the
+measurement CSV's (:mod:`tcr_accuracy.io.measurements`), and joins each tracker point to
+the joint-log sample nearest in time, within a tolerance. Points without a sample that
+close are returned, never dropped silently.
+
+Column maps name the target column (a measurement-CSV column with its unit, or ``time_s``
+for the timestamp) and the source column as the file's header spells it::
+
+    {"x_mm": "Point X", "y_mm": "Point Y", "z_mm": "Point Z", "time_s": "Timestamp"}
+
+Without a map, columns named like the targets pass through, and the tracker's position and
+time columns are found by their names (``X``, ``Point X``, ``X [mm]``, ``time``,
+``timestamp``, ...). A value's unit, when the header or cell gives one, is converted to the
+target's; without one, the value is taken in the target's unit. Timestamps are seconds, or
+dates and times of day (``2026-11-23 10:15:02,125``, ``10:15:02.125``): both files must use
+the same kind.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+import re
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+
+from ..exceptions import InputError
+from ..units import IMPORT_UNITS
+
+TIME = "time_s"
+#: Header names (lower case, unit removed) taken as the timestamp column when no map names it.
+TIME_NAMES = ("time_s", "time", "t", "timestamp", "stamp", "date/time", "datetime", "zeit", "t_s")
+AXES = ("x", "y", "z")
+_UNIT_IN_HEADER = re.compile(r"^(?P<base>.*?)\s*(?:\[(?P<b>[^\]]+)\]|\((?P<p>[^)]+)\)|/\s*(?P<s>\w+))\s*$")
+_NUMBER = re.compile(r"^(?P<number>[+-]?(?:\d+(?:[.,]\d*)?|[.,]\d+)(?:[eE][+-]?\d+)?)\s*(?P<unit>[A-Za-z]+)?$")
+_TIME_OF_DAY = re.compile(r"^(?P<h>\d{1,2}):(?P<m>\d{2}):(?P<s>\d{2}(?:[.,]\d+)?)$")
+
+
+@dataclass
+class Table:
+    """A delimited file as read: header cells, data rows (cells as text) and their line numbers."""
+
+    path: Path
+    header: list[str]
+    rows: list[list[str]]
+    lines: list[int]
+    delimiter: str
+    decimal_comma: bool
+
+    def column(self, name: str) -> int:
+        try:
+            return self.header.index(name)
+        except ValueError:
+            raise InputError(f"{self.path}: no column {name!r} (the header has: "
+                             f"{', '.join(repr(h) for h in self.header)})") from None
+
+
+@dataclass
+class Unjoined:
+    """A tracker point with no joint-log sample within the tolerance."""
+
+    line: int            # its line in the tracker file
+    time: str            # its timestamp as written
+    nearest_s: float     # the time to the nearest joint-log sample [s] (inf: the log is empty)
+
+
+@dataclass
+class ImportResult:
+    """The measurement CSV's columns and rows (display units, as text), and what was left out."""
+
+    columns: list[str]
+    rows: list[list[str]] = field(default_factory=list)
+    unjoined: list[Unjoined] = field(default_factory=list)
+    n_tracker_rows: int = 0
+    tracker: Table | None = None
+    log: Table | None = None
+
+    def csv_text(self, comment: str | None = None) -> str:
+        lines = [f"# {line}" for line in (comment or "").splitlines()]
+        lines.append(",".join(self.columns))
+        lines += [",".join(row) for row in self.rows]
+        return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------------------------------
+# Reading delimited text
+# ---------------------------------------------------------------------------------------
+def _split(line: str, delimiter: str) -> list[str]:
+    import csv
+
+    return [cell.strip() for cell in next(csv.reader([line], delimiter=delimiter))]
+
+
+def _normal(name: str) -> str:
+    """A header name without its unit, in lower case: 'Point X [mm]', 'point_x_mm' -> 'point x'."""
+    match = _UNIT_IN_HEADER.match(name.strip())
+    base = match["base"] if match else name.strip()
+    head, _, suffix = base.rpartition("_")
+    if match is None and head and suffix.lower() in IMPORT_UNITS:
+        base = head
+    return " ".join(base.replace("_", " ").split()).lower()
+
+
+def header_unit(name: str) -> str | None:
+    """The unit a header names: 'X [mm]', 'X (m)', 'X / in', 'x_mm' -> 'mm', 'm', 'in', 'mm'."""
+    match = _UNIT_IN_HEADER.match(name.strip())
+    if match:
+        unit = (match["b"] or match["p"] or match["s"]).strip().lower()
+        return unit if unit in IMPORT_UNITS else None
+    base, _, suffix = name.strip().rpartition("_")
+    return suffix.lower() if base and suffix.lower() in IMPORT_UNITS else None
+
+
+def read_table(path, wanted: list[str] | None = None, *, header_test=None) -> Table:
+    """Read a delimited file whose header is the first line that names every ``wanted``
+    column (or passes ``header_test(cells)``); lines above it (an export's metadata),
+    empty lines and lines starting with ``#`` are skipped.
+
+    The delimiter is the header's ``;``, tab or ``,`` (in that order of preference); decimal
+    commas are recognised when the delimiter is not a comma.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        text = path.read_text(encoding="latin-1")  # older exports on Windows
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    lines = text.splitlines()
+    for i, line in enumerate(lines):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        delimiter = ";" if ";" in line else "\t" if "\t" in line else ","
+        cells = _split(line, delimiter)
+        found = all(w in cells for w in wanted) if wanted else bool(header_test and header_test(cells))
+        if not found:
+            continue
+        rows, numbers = [], []
+        for k in range(i + 1, len(lines)):
+            if not lines[k].strip() or lines[k].lstrip().startswith("#"):
+                continue
+            row = _split(lines[k], delimiter)
+            if len(row) != len(cells):
+                raise InputError(f"{path}: row {k + 1}: {len(row)} cells for the header's {len(cells)} "
+                                 f"(delimiter {delimiter!r}, header on row {i + 1})")
+            rows.append(row)
+            numbers.append(k + 1)
+        if not rows:
+            raise InputError(f"{path}: no data rows below the header on row {i + 1}")
+        decimal_comma = delimiter != "," and any(re.match(r"^[+-]?\d+,\d+", c) for r in rows[:50] for c in r)
+        return Table(path, cells, rows, numbers, delimiter, decimal_comma)
+    if wanted:
+        raise InputError(f"{path}: no header line names the columns {', '.join(repr(w) for w in wanted)}")
+    raise InputError(f"{path}: no header line found (expected the names of the columns to import)")
+
+
+def parse_value(table: Table, row: int, col: int, target_unit: str | None) -> float:
+    """The cell as a number in ``target_unit`` (its unit from the cell or the header, if any)."""
+    cell = table.rows[row][col]
+    where = f"{table.path}: row {table.lines[row]}, column {table.header[col]!r}"
+    match = _NUMBER.match(cell.replace("\u2212", "-"))
+    if not match:
+        raise InputError(f"{where}: {cell!r} is not a number")
+    number = match["number"]
+    if table.decimal_comma:
+        number = number.replace(",", ".")
+    elif "," in number:
+        raise InputError(f"{where}: {cell!r} has a decimal comma in a comma-separated file")
+    value = float(number)
+    if not math.isfinite(value):
+        raise InputError(f"{where}: {cell!r} is not finite")
+    unit = (match["unit"] or "").lower() or header_unit(table.header[col])
+    if unit is not None and unit not in IMPORT_UNITS:
+        raise InputError(f"{where}: unknown unit {unit!r} (known: {', '.join(IMPORT_UNITS)})")
+    if unit is None or target_unit is None or unit == target_unit:
+        return value
+    (kind, factor), (target_kind, target_factor) = IMPORT_UNITS[unit], IMPORT_UNITS[target_unit]
+    if kind != target_kind:
+        raise InputError(f"{where}: a value in {unit} cannot fill a column in {target_unit}")
+    return value * factor / target_factor
+
+
+def parse_time(table: Table, row: int, col: int) -> tuple[float, str]:
+    """A timestamp in seconds and its kind ('seconds' or 'clock': a date and/or time of day)."""
+    cell = table.rows[row][col].strip()
+    where = f"{table.path}: row {table.lines[row]}, column {table.header[col]!r}"
+    text = cell.replace(",", ".") if table.decimal_comma or ":" in cell else cell
+    try:
+        value = float(text.removesuffix("s").strip())
+        if math.isfinite(value):
+            return value, "seconds"
+    except ValueError:
+        pass
+    match = _TIME_OF_DAY.match(text)
+    if match:
+        return int(match["h"]) * 3600 + int(match["m"]) * 60 + float(match["s"]), "clock"
+    try:
+        stamp = datetime.fromisoformat(text.replace("/", "-"))
+    except ValueError:
+        raise InputError(f"{where}: {cell!r} is not a time (seconds, hh:mm:ss.fff or a date and time)") from None
+    if stamp.tzinfo is not None:
+        return stamp.timestamp(), "clock"
+    seconds = (stamp - datetime(stamp.year, stamp.month, stamp.day)).total_seconds()
+    return stamp.toordinal() * 86400.0 + seconds, "clock"
+
+
+# ---------------------------------------------------------------------------------------
+# Column maps
+# ---------------------------------------------------------------------------------------
+def parse_map(items, option: str = "--map") -> dict[str, str]:
+    """``['x_mm=Point X', ...]`` -> {target: source}; one-line errors naming the option."""
+    out: dict[str, str] = {}
+    for item in items or []:
+        target, sep, source = item.partition("=")
+        target, source = target.strip(), source.strip().strip('"').strip("'")
+        if not sep or not target or not source:
+            raise InputError(f"{option} {item!r}: expected TARGET=SOURCE, e.g. x_mm=\"Point X\"")
+        if target in out:
+            raise InputError(f"{option} {item!r}: {target} is mapped twice")
+        out[target] = source
+    return out
+
+
+def target_unit(target: str) -> str | None:
+    """'x_mm' -> 'mm', 'j2_deg' -> 'deg', 'time_s' -> None (times are parsed on their own)."""
+    if target == TIME:
+        return None
+    _, _, suffix = target.rpartition("_")
+    return suffix if suffix in IMPORT_UNITS else None
+
+
+def _auto_tracker_map(header: list[str]) -> dict[str, str]:
+    """Position and time columns found by name: 'X', 'Point X', 'X [mm]', 'Meas. X (m)', 'Time'."""
+    found: dict[str, str] = {}
+    for axis in AXES:
+        hits = [h for h in header if _normal(h) == axis or _normal(h).endswith(" " + axis)]
+        if len(hits) == 1:
+            unit = header_unit(hits[0])
+            found[f"{axis}_{'m' if unit == 'm' else 'mm'}"] = hits[0]
+    times = [h for h in header if _normal(h) in TIME_NAMES or h.strip().lower() in TIME_NAMES]
+    if len(times) == 1:
+        found[TIME] = times[0]
+    return found
+
+
+def _auto_log_map(header: list[str]) -> dict[str, str]:
+    times = [h for h in header if _normal(h) in TIME_NAMES or h.strip().lower() in TIME_NAMES]
+    found = {TIME: times[0]} if len(times) == 1 else {}
+    for h in header:  # columns named like the measurement CSV's pass through
+        if h not in times and (target_unit(h) is not None or h in ("payload_kg", "temperature_c")
+                               or h.endswith("_dir")):
+            found[h] = h
+    return found
+
+
+def _columns(table: Table, mapping: dict[str, str], what: str) -> list[tuple[str, int]]:
+    out = []
+    for target, source in mapping.items():
+        if source not in table.header:
+            raise InputError(f"{table.path}: {what}: no column {source!r} for {target} (the header has: "
+                             f"{', '.join(repr(h) for h in table.header)})")
+        out.append((target, table.header.index(source)))
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# The import
+# ---------------------------------------------------------------------------------------
+def _format(value: float) -> str:
+    return f"{value:.10g}"
+
+
+def _cell(table: Table, row: int, col: int, target: str) -> str:
+    if target.endswith("_dir"):
+        value = parse_value(table, row, col, None)
+        if value not in (-1.0, 1.0):
+            raise InputError(f"{table.path}: row {table.lines[row]}, column {table.header[col]!r}: "
+                             f"a direction is +1 or -1, got {table.rows[row][col]!r}")
+        return "+1" if value > 0 else "-1"
+    return _format(parse_value(table, row, col, target_unit(target)))
+
+
+def import_tracker(tracker_path, tracker_map: dict[str, str] | None = None, log_path=None,
+                   log_map: dict[str, str] | None = None, tolerance_s: float = 0.05) -> ImportResult:
+    """Read a tracker export (and a joint log) into measurement-CSV rows.
+
+    Parameters
+    ----------
+    tracker_path : path
+        The tracker's export (points, optionally their timestamps and joint columns).
+    tracker_map, log_map : dict of target -> source column, optional
+        See the module docstring; the tracker's needs the positions (found by name when
+        absent), and a timestamp (``time_s``) when a joint log is given.
+    log_path : path, optional
+        The robot's joint log: a timestamp and the joint columns (``<joint>_<unit>``, or
+        mapped), optionally ``payload_kg``, ``temperature_c``, ``<joint>_dir``.
+    tolerance_s : float
+        Largest |tracker time - joint-log time| that joins a point to a log sample [s].
+
+    Returns
+    -------
+    ImportResult
+        The joined rows in display units (deg, mm as the targets name them), and the
+        tracker points that found no log sample within the tolerance.
+    """
+    if not (math.isfinite(tolerance_s) and tolerance_s >= 0):
+        raise InputError(f"--tolerance-ms {tolerance_s * 1e3:g}: must be a number >= 0")
+    wanted = list(tracker_map.values()) if tracker_map else None
+    tracker = read_table(tracker_path, wanted, header_test=lambda cells: all(
+        f"{a}_mm" in _auto_tracker_map(cells) or f"{a}_m" in _auto_tracker_map(cells) for a in AXES))
+    mapping = dict(tracker_map or {})
+    auto = _auto_tracker_map(tracker.header)
+    for axis in AXES:
+        if not any(t in mapping for t in (f"{axis}_mm", f"{axis}_m")):
+            key = next((k for k in (f"{axis}_mm", f"{axis}_m") if k in auto), None)
+            if key is None:
+                raise InputError(f"{tracker.path}: no column for the {axis} position: name it with "
+                                 f"--map {axis}_mm=\"HEADER\" (the header has: "
+                                 f"{', '.join(repr(h) for h in tracker.header)})")
+            mapping[key] = auto[key]
+    if log_path is not None and TIME not in mapping:
+        if TIME not in auto:
+            raise InputError(f"{tracker.path}: no timestamp column to join the joint log on: name it with "
+                             f"--map time_s=\"HEADER\"")
+        mapping[TIME] = auto[TIME]
+    tracker_cols = [(t, c) for t, c in _columns(tracker, mapping, "--map") if t != TIME]
+    columns = [t for t, _ in tracker_cols]
+    result = ImportResult(columns=[], n_tracker_rows=len(tracker.rows), tracker=tracker)
+
+    if log_path is None:
+        result.columns = columns
+        result.rows = [[_cell(tracker, r, c, t) for t, c in tracker_cols] for r in range(len(tracker.rows))]
+        return result
+
+    log_wanted = list(log_map.values()) if log_map else None
+    log = read_table(log_path, log_wanted, header_test=lambda cells: TIME in _auto_log_map(cells))
+    result.log = log
+    log_mapping = dict(log_map or {})
+    if TIME not in log_mapping:
+        auto_log = _auto_log_map(log.header)
+        if TIME not in auto_log:
+            raise InputError(f"{log.path}: no timestamp column: name it with --log-map time_s=\"HEADER\"")
+        log_mapping[TIME] = auto_log[TIME]
+    if not [t for t in log_mapping if t != TIME]:
+        log_mapping.update({k: v for k, v in _auto_log_map(log.header).items() if k != TIME})
+    log_cols = [(t, c) for t, c in _columns(log, log_mapping, "--log-map") if t != TIME]
+    if not log_cols:
+        raise InputError(f"{log.path}: no joint columns: name them like the measurement CSV (j1_deg, ...) "
+                         "or map them with --log-map j1_deg=\"HEADER\"")
+    both = set(columns) & {t for t, _ in log_cols}
+    if both:
+        raise InputError(f"{', '.join(sorted(both))}: given by both the tracker file and the joint log")
+
+    log_time_col = log.column(log_mapping[TIME])
+    stamps = [parse_time(log, r, log_time_col) for r in range(len(log.rows))]
+    kinds = {kind for _, kind in stamps}
+    order = sorted(range(len(log.rows)), key=lambda r: stamps[r][0])
+    times = [stamps[r][0] for r in order]
+    tracker_time_col = tracker.column(mapping[TIME])
+    result.columns = [t for t, _ in log_cols] + columns
+    for r in range(len(tracker.rows)):
+        t, kind = parse_time(tracker, r, tracker_time_col)
+        if kinds and kind not in kinds:
+            raise InputError(f"{tracker.path}: row {tracker.lines[r]}: the tracker's time {tracker.rows[r][tracker_time_col]!r} "
+                             f"is a {'clock time' if kind == 'clock' else 'number of seconds'}, the joint log's "
+                             f"are {'clock times' if 'clock' in kinds else 'seconds'}: use one kind in both files")
+        k = bisect.bisect_left(times, t)
+        near = [i for i in (k - 1, k) if 0 <= i < len(times)]
+        best = min(near, key=lambda i: abs(times[i] - t)) if near else None
+        gap = abs(times[best] - t) if best is not None else math.inf
+        if gap > tolerance_s:
+            result.unjoined.append(Unjoined(tracker.lines[r], tracker.rows[r][tracker_time_col], gap))
+            continue
+        log_row = order[best]
+        result.rows.append([_cell(log, log_row, c, t_) for t_, c in log_cols]
+                           + [_cell(tracker, r, c, t_) for t_, c in tracker_cols])
+    return result

@@ -1,0 +1,55 @@
+"""What a Python user meets: Python 3.10 without tomllib, scenarios that serialise, the
+top-level names."""
+
+import json
+import sys
+import types
+
+import numpy as np
+import pytest
+import yaml
+
+import tcr_accuracy
+from tcr_accuracy.analysis.simulate import random_scenario, simulate_measurements
+from tcr_accuracy.io.budget_file import read_table
+
+
+def test_toml_files_are_read_with_tomli_where_tomllib_is_missing(tmp_path, monkeypatch):
+    """Python 3.10 has no tomllib: the tomli package (same API) takes its place."""
+    import tomllib as real
+
+    calls = []
+    fake_tomli = types.ModuleType("tomli")
+    fake_tomli.TOMLDecodeError = real.TOMLDecodeError
+    fake_tomli.loads = lambda text: calls.append(text) or real.loads(text)
+    monkeypatch.setitem(sys.modules, "tomllib", None)  # `import tomllib` raises ModuleNotFoundError
+    monkeypatch.setitem(sys.modules, "tomli", fake_tomli)
+    path = tmp_path / "b.toml"
+    path.write_text('name = "x"\n[groups.drive]\nstd_deg = 0.3\n')
+    assert read_table(path) == {"name": "x", "groups": {"drive": {"std_deg": 0.3}}}
+    assert len(calls) == 1
+
+
+def test_pyproject_asks_for_tomli_before_python_3_11():
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "pyproject.toml").read_text()
+    assert "tomli>=1.1; python_version < '3.11'" in text
+
+
+def test_random_scenario_survives_yaml_and_json_and_simulates_the_same(tool_changer):
+    scenario = random_scenario(tool_changer, np.random.default_rng(5), n_dominant=2, outside="unmodelled")
+    text = yaml.safe_dump(scenario)            # raised on numpy str keys before
+    loaded = yaml.safe_load(text)
+    assert json.loads(json.dumps(scenario)) == loaded
+    a, _ = simulate_measurements(tool_changer, scenario, 20, np.random.default_rng(1))
+    b, _ = simulate_measurements(tool_changer, loaded, 20, np.random.default_rng(1))
+    assert np.array_equal(a.q, b.q) and np.array_equal(a.position, b.position)
+
+
+def test_top_level_names_load_and_are_listed():
+    for name in ("load_robot", "run_monte_carlo", "diagnose", "make_predictor", "compensate_joints",
+                 "simulate_measurements", "read_measurements"):
+        assert name in dir(tcr_accuracy) and callable(getattr(tcr_accuracy, name))
+    with pytest.raises(AttributeError, match="no attribute 'not_a_name'"):
+        tcr_accuracy.not_a_name  # noqa: B018
