@@ -39,11 +39,11 @@ FRAMES = {"base_mm": {"dx": 1250.0, "dy": -830.0, "dz": -410.0}, "base_deg": {"r
           "tool_mm": {"dx": 0.8, "dy": -0.5, "dz": 1.2}}
 
 
-def hidden_truth(rng: np.random.Generator) -> dict:
-    scales = rng.choice([-1.0, 1.0], 3) * rng.uniform(2e-4, 5e-4, 3)
+def hidden_truth(rng: np.random.Generator, joints) -> dict:
+    scales = rng.choice([-1.0, 1.0], len(joints)) * rng.uniform(2e-4, 5e-4, len(joints))
     return {"effects": {"frames": FRAMES, "geometry": {"spread_mm": 0.05, "spread_mrad": 0.05},
                         "encoder_scale": {"parameters": {f"encoder_scale.{j}": float(v)
-                                                         for j, v in zip(("j2", "j3", "j5"), scales)}}},
+                                                         for j, v in zip(joints, scales)}}},
             "noise_mm": NOISE_M * 1e3, "context": {"payload_kg": 0, "payload_fraction": 0.0, "directions": "none"}}
 
 
@@ -72,9 +72,10 @@ def task_poses(robot, n: int, fraction: float, rng: np.random.Generator) -> np.n
     return mid - half + 2 * half * rng.random((n, robot.n_joints))
 
 
-def run_seed(robot, seed: int, n: int, k: int, fraction: float) -> dict:
+def run_seed(robot, seed: int, n: int, k: int, fraction: float, joints=("j2", "j3", "j5")) -> dict:
     rng = np.random.default_rng(seed)
-    first, truth = simulate_measurements(robot, hidden_truth(rng), n, rng, q=task_poses(robot, n, fraction, rng))
+    first, truth = simulate_measurements(robot, hidden_truth(rng, joints), n, rng,
+                                         q=task_poses(robot, n, fraction, rng))
     scenario = fixed(truth)
     estimator = GapDiagnosis(seed=seed, tracker_noise=NOISE_M).fit(robot, first)
     before = estimator.result_
@@ -101,13 +102,14 @@ def main(argv=None) -> int:
     parser.add_argument("-k", type=int, default=30, help="poses added (default 30)")
     parser.add_argument("--range-fraction", type=float, default=0.5,
                         help="the task region: this middle fraction of every joint's range (default 0.5)")
+    parser.add_argument("--joints", default="j2,j3,j5", help="joints with the hidden scale error (default j2,j3,j5)")
     parser.add_argument("--json", default=None, metavar="FILE")
     args = parser.parse_args(argv)
     robot = load_robot(None)
     rows = []
     print(f"{'seed':>4s} {'ambiguous':9s} {'planned: separated':18s} {'random: separated':17s}")
     for seed in range(args.seeds):
-        row = run_seed(robot, seed, args.n, args.k, args.range_fraction)
+        row = run_seed(robot, seed, args.n, args.k, args.range_fraction, tuple(args.joints.split(",")))
         rows.append(row)
         if row["ambiguous_before"]:
             print(f"{seed:4d} {'yes':9s} {str(row['planned']['separated']):18s} {str(row['random']['separated']):17s}"
