@@ -101,4 +101,4 @@ def test_montecarlo_angle_tolerance_in_degrees_like_every_angle_at_the_cli(tmp_p
     assert data["reliability_angle"] == runs["rad"][0]["reliability_angle"]
     assert "P(|d angle| < 0.00872665 rad = 0.5 deg)" in printed
     code, _, err = run(["montecarlo", "--angle-tol-deg", "0"], capsys)
-    assert code == 2 and "--angle-tol-deg 0: must be finite and > 0 deg" in err
+    assert code == 2 and "--angle-tol-deg 0: want a number > 0 deg" in err

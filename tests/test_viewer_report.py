@@ -311,8 +311,8 @@ def test_view_command_writes_a_static_page_with_the_error_cloud(tmp_path, capsys
     (["view", "--magnify", "0"], "--magnify 0:"),
     (["view", "--open"], "--open needs --serve"),
     (["view", "--q", "1", "2"], "expected 6 joint values"),
-    (["view", "--html", "/nonexistent-dir/v.html"],
-     "--html /nonexistent-dir/v.html: the folder /nonexistent-dir does not exist"),
+    (["view", "--html", "/nonexistent-dir/v.html"],  # --html is --view's older name: the error says --view
+     "--view /nonexistent-dir/v.html: the folder /nonexistent-dir does not exist"),
 ])
 def test_view_command_bad_input_is_one_line_and_exit_2(argv, message, capsys):
     assert main(argv) == 2

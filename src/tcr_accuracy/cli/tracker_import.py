@@ -39,7 +39,7 @@ def _run_import(args) -> int:
 
     from ..atomic import write_text_atomically
     from ..exceptions import InputError
-    from ..io.measurements import read_measurements
+    from ..io.measurements import parse_measurements
     from ..io.tracker_import import import_tracker, parse_map
     from ..model.robot import load_robot
 
@@ -56,15 +56,11 @@ def _run_import(args) -> int:
                          "clocks agree? a larger --tolerance-ms, or shift one file's times")
     joined = f", joined with {args.joints} within {args.tolerance_ms:g} ms" if args.joints else ""
     text = result.csv_text(f"imported by tcr-accuracy import from {args.tracker}{joined}")
-    # checked as diagnose will read it, before it takes the --out name
-    check = out.with_name(f".{out.name}.import-check.csv")
-    write_text_atomically(check, text)
+    # checked as diagnose will read it (the same parser, on the text), before anything is written
     try:
-        read_measurements(check, robot, min_rows=1)
+        parse_measurements(text, robot, source=str(out), min_rows=1)
     except InputError as exc:
-        raise InputError(str(exc).replace(str(check), str(out)) + " (in the imported rows)") from None
-    finally:
-        check.unlink(missing_ok=True)
+        raise InputError(f"{exc} (in the imported rows)") from None
     write_text_atomically(out, text)
     print(f"{len(result.rows)} of {result.n_tracker_rows} tracker points from {args.tracker}{joined} "
           f"-> {out} ({robot.name}: {', '.join(result.columns)})")
