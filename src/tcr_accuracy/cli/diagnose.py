@@ -208,11 +208,14 @@ def format_summary(robot, d, source: str) -> str:
                f"z = {st['ridge_z']:.1f}; limits: share > {st['min_explained']}, p < {st['alpha']})")
     power = st.get("power", {})
     if power:
-        seen = power.get("smallest_detectable_mm")
-        out.append(f"   power: {st.get('reason', '')}; "
-                   + (f"smallest structure it sees with {power['n_poses']} poses {seen:.4g} mm RMS"
-                      if seen is not None else
-                      f"some leftovers go unseen up to {power['largest_probed_mm']:.4g} mm with {power['n_poses']} poses"))
+        seen, n = power.get("smallest_detectable_mm"), power["n_poses"]
+        shapes = ", ".join(power.get("per_shape_mm", {}))
+        if seen is not None:
+            text = f"with {n} poses the test sees a leftover from {seen:.4g} mm RMS (the largest over {shapes})"
+        else:
+            unseen = ", ".join(k for k, v in power.get("per_shape_mm", {}).items() if v is None)
+            text = f"with {n} poses the leftover of {unseen} goes unseen up to {power['largest_probed_mm']:.4g} mm"
+        out.append(f"   power: {text}" + (f"; {st['reason']}" if st.get("verdict") == "cannot tell" else ""))
     sc = d.scatter
     if sc.get("tested", True):
         out.append(f"   random scatter beyond the tracker: {'YES' if sc['detected'] else 'no'} "

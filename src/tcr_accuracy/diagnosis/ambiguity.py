@@ -24,6 +24,7 @@ import math
 
 import numpy as np
 
+from ..effects import effect_class
 from .fitting import FitEngine, ordered, paired_z, row_squares
 from .result import ErrorStats
 
@@ -124,12 +125,17 @@ def stand_in_shapes(engine: FitEngine, current: list, pool, rng: np.random.Gener
     """(N, 3) TCP motion patterns of each unchosen effect of ``pool`` at a random draw of
     its typical size, minus what the chosen model's own columns absorb (least squares on
     the first measured frame): the kind of leftover an effect the model lacks would leave.
-    For the structure test's power probe."""
+    For the structure test's power probe; effects driven by the approach direction or the
+    temperature are left out (their leftover is not a function of the joint values)."""
     final_cols = engine.columns(ordered(current))
     basis, g, idx = final_cols.per_part[0]
     model = g[:, :3, :].reshape(-1, g.shape[2]) * final_cols.scale[idx] if g.shape[2] else None
     shapes = {}
-    for u in [e for e in pool if e not in current and e in engine.bases]:
+    # the structure test looks for what the joint values predict: an effect driven by the
+    # approach direction or the temperature leaves a pattern it is not built to see (the
+    # "where" breakdown by direction and temperature is), so it is no yardstick of its power
+    joint_driven = [e for e in pool if not set(effect_class(e).context_columns) & {"<joint>_dir", "temperature_c"}]
+    for u in [e for e in joint_driven if e not in current and e in engine.bases]:
         b = engine.bases[u]
         g_u = b.per_part[0].g[:, :3, :]  # (N, 3, k) per unit of the union parameters' local columns
         draw = rng.standard_normal(g_u.shape[2]) * b.scales[b.index[0]]
