@@ -86,9 +86,9 @@ def test_power_probe_flags_each_shape_at_the_amplitude_it_reports(tool_changer):
     # replay the probe by hand: same noise draw, the shape at the reported and at the level below
     noise = np.random.default_rng(2).standard_normal((80, 3)) * NOISE
     unit = shape / math.sqrt(np.mean(shape**2))
-    assert detector.test(noise + unit * PROBE_AMPLITUDES[level] * NOISE)["remains"]
+    assert detector.remains(noise + unit * PROBE_AMPLITUDES[level] * NOISE)
     if level > 0:
-        assert not detector.test(noise + unit * PROBE_AMPLITUDES[level - 1] * NOISE)["remains"]
+        assert not detector.remains(noise + unit * PROBE_AMPLITUDES[level - 1] * NOISE)
 
 
 def test_no_verdict_without_the_power_to_see_the_leftover():

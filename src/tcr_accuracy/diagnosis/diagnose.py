@@ -253,12 +253,15 @@ class GapDiagnosis:
                       ErrorStats.of(result["heldout_residual"]), None)]
         current = self._forward(engine, testable, steps, candidates, say)
         resized = self._judge_at_fitted_sizes(engine, current, notes)
-        current, swaps = settle_swaps(engine, current, testable, self.selection_z, say)
+        # a stand-in must explain the gap on its own, as an effect entering first would have to
+        # (its paired z against frames alone at the first step): the rest cannot replace anything
+        rivals = [e for e in testable if candidates.get(e, {}).get("z", 0.0) > self.selection_z]
+        current, swaps = settle_swaps(engine, current, rivals, self.selection_z, say)
         current, loo, eliminated = self._backward(engine, current, say)
         selected = list(current)  # forward order, swaps in place, without what backward elimination dropped
         chosen = [e for e in selected if e != "frames"]
         final = engine.evaluate(ordered(current))
-        groups = swap_alternatives(engine, current, testable, self.selection_z)
+        groups = swap_alternatives(engine, current, rivals, self.selection_z)
         ambiguous = ambiguity_report(groups)
         primary = max(loo, key=lambda row: row["own_share_increase_mm"])["dropped"] if loo else None
         primary_group = [r["effect"] for r in groups.get(primary, [])] or ([primary] if primary else [])
