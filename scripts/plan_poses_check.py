@@ -35,7 +35,8 @@ import numpy as np
 from tcr_accuracy.analysis.simulate import simulate_measurements
 from tcr_accuracy.atomic import write_text_atomically
 from tcr_accuracy.diagnosis.design import plan_discriminating_poses
-from tcr_accuracy.diagnosis.diagnose import GapDiagnosis, diagnose, rival_models
+from tcr_accuracy.diagnosis.ambiguity import rival_models
+from tcr_accuracy.diagnosis.diagnose import GapDiagnosis, diagnose
 from tcr_accuracy.io.measurements import MeasurementSet
 from tcr_accuracy.model.robot import load_robot
 

@@ -61,7 +61,8 @@ def _run_plan_poses(args) -> int:
 
     from ..atomic import write_text_atomically
     from ..diagnosis.design import plan_discriminating_poses, plan_poses
-    from ..diagnosis.diagnose import GapDiagnosis, rival_models
+    from ..diagnosis.ambiguity import rival_models
+    from ..diagnosis.diagnose import GapDiagnosis
     from ..effects import vocabulary
     from ..exceptions import InputError
     from ..io.measurements import read_measurements

@@ -145,3 +145,18 @@ def stand_in_shapes(engine: FitEngine, current: list, pool, rng: np.random.Gener
         if np.any(motion):
             shapes[u] = motion.reshape(-1, 3)
     return shapes
+
+
+def rival_models(estimator) -> list:
+    """For every ambiguity group of a fitted diagnosis (a fitted ``GapDiagnosis``), the chosen model against each model
+    with a stand-in in the chosen effect's place, both fitted: a list of pairs of
+    (effect instances, parameter vectors) for
+    :func:`~tcr_accuracy.diagnosis.design.plan_discriminating_poses`."""
+    result = estimator.result_
+    chosen_model = estimator.fitted_model(result.selected_effects)
+    pairs = []
+    for group in result.ambiguous:
+        rest = [e for e in result.selected_effects if e != group["chosen"]]
+        for member in group["members"][1:]:
+            pairs.append((chosen_model, estimator.fitted_model(rest + member["effects"])))
+    return pairs

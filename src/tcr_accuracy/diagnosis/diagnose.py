@@ -56,7 +56,6 @@ from scipy.spatial.transform import Rotation
 from ..model.context import CONTEXT_FIELDS, MeasurementContext
 from .result import Diagnosis, ErrorStats, Observations, Step, observations_from
 from ..effects import effect_class, make_effect, vocabulary
-from ..effects.compose import fixed_point_motion
 from ..model.errors import ErrorModel
 from ..exceptions import AnalysisError, InputError
 from .fitting import EffectBasis, FitEngine, Part, UnionBasis, ordered, paired_z, position_jacobians, register, stacked
@@ -64,8 +63,9 @@ from ..model.gravity import gravity_torque
 from ..model.kinematics import tcp_poses
 from .ambiguity import ambiguity_report, settle_swaps, stand_in_shapes, swap_alternatives
 from .residuals import NoiseEstimate, noise_from_repeats, noise_from_residual, where_analysis
-from .structure import StructureDetector, scatter_test, smallest_detectable_structure, smooth_shape, \
-    structure_verdict
+from .attribution import contributions, fixed_point_check
+from .structure import StructureDetector, name_scatter, scatter_beyond_noise, smallest_detectable_structure, \
+    smooth_shape, structure_verdict
 from ..model.robot import RobotModel
 
 #: Noise figure [m per axis] the identifiability test resolves down to a tenth of when the
@@ -294,7 +294,7 @@ class GapDiagnosis:
         detector = StructureDetector(obs.q, rng, kinds=robot.joint_kinds)
         structure = detector.test(final_train, rng)
         noise = self._noise(repeats, obs.q, final_train, final["n_parameters"], structure["remains"])
-        scatter = self._scatter(noise, final, stochastic)
+        scatter = scatter_beyond_noise(noise, final, stochastic)
         say("probing the structure test's power")
         probe_rng = np.random.default_rng([self.seed, 1])
         shapes = stand_in_shapes(engine, current, testable, probe_rng) or \
@@ -304,7 +304,7 @@ class GapDiagnosis:
                                      else float(np.sqrt(np.mean(final_train**2))))
         structure.update(structure_verdict(structure, structure["power"], scatter, math.sqrt(3.0) * noise.per_axis,
                                            leftover))
-        self._name_scatter(scatter, structure, stochastic, noise, notes)
+        name_scatter(scatter, structure, stochastic, noise, notes)
 
         # fitted parameters, as-built geometry, tracker frame
         keep, ident = engine.identify(tuple(ordered(selected)))
@@ -325,8 +325,8 @@ class GapDiagnosis:
             full_parameters[e] = full
             if effect_class(e).geometric:
                 as_built += b.per_part[0].basis[0] @ full
-        contribution = self._contributions(parts[0], bases, chosen, full_parameters, nominal[0].position)
-        second_order = self._second_order(parts[0], bases, full_parameters, math.sqrt(3.0) * noise.per_axis, notes)
+        contribution = contributions(parts[0], bases, chosen, full_parameters, nominal[0].position)
+        second_order = fixed_point_check(parts[0], bases, full_parameters, math.sqrt(3.0) * noise.per_axis, notes)
         base_twist = as_built[em.base_slice].copy()
         as_built[em.base_slice] = 0.0  # the base twist belongs to the tracker frame, not the robot
         tracker = np.eye(4)
@@ -512,35 +512,6 @@ class GapDiagnosis:
             return repeats
         return noise_from_residual(q, residual, n_parameters, structured)
 
-    @staticmethod
-    def _scatter(noise, final, stochastic) -> dict:
-        if not noise.independent:
-            return {"tested": False, "detected": False,
-                    "why": "the noise was estimated from this residual; give the instrument's (--noise-mm) or "
-                           "measure repeated poses to test for scatter beyond it",
-                    "estimated_noise_per_axis_mm": noise.per_axis * 1e3}
-        scatter = scatter_test(stacked(final["train_residual"]), final["n_parameters"], noise.per_axis)
-        scatter["tested"] = True
-        if stochastic:
-            scatter["stochastic_effects"] = stochastic
-        return scatter
-
-    @staticmethod
-    def _name_scatter(scatter, structure, stochastic, noise, notes) -> None:
-        """Scatter beyond the instrument without structure is named only when the structure
-        test could have seen a leftover of its size."""
-        if not scatter["detected"]:
-            return
-        if structure["verdict"] == "no":
-            scatter["named"] = "clearance" if "clearance" in stochastic else "random scatter"
-            notes.append(f"random scatter beyond the tracker noise: {scatter['estimated_noise_per_axis_mm']:.4f} mm "
-                         f"per axis vs {noise.per_axis * 1e3:.4f} mm, without spatial structure: joint play "
-                         "(clearance) or a noisier instrument")
-        elif structure["verdict"] == "cannot tell":
-            notes.append(f"{scatter['estimated_noise_per_axis_mm']:.4f} mm per axis left against "
-                         f"{noise.per_axis * 1e3:.4f} mm of noise: whether it is structure or scatter cannot be told "
-                         f"({structure['reason']}); measure more poses")
-
     def _judge_at_fitted_sizes(self, engine, current, notes, factor: float = 2.0) -> bool:
         """Identifiability was judged at typical sizes; an effect fitted at more than ``factor``
         times its typical size is re-judged at its fitted size (RMS of its scaled parameters), so
@@ -565,53 +536,6 @@ class GapDiagnosis:
             return True
         return False
 
-    @staticmethod
-    def _second_order(part, bases, full_parameters, noise_floor, notes) -> dict:
-        """The fitted model is first order in its joint deflections (gravity at the commanded
-        pose): how much one fixed-point step (gravity at the deflected pose) would move the TCP,
-        against the noise floor; a note when it is more than a quarter of it."""
-        effects = [bases[e].per_part[0].effect for e in full_parameters]  # with the options they were fitted with
-        motion = fixed_point_motion(part.robot, effects, list(full_parameters.values()), part.q, part.context)
-        rms = float(np.sqrt(np.mean(np.sum(motion**2, axis=1))))
-        out = {"fixed_point_step_rms_mm": rms * 1e3, "fixed_point_step_max_mm": float(
-            np.max(np.linalg.norm(motion, axis=1))) * 1e3, "over_noise_floor": rms / noise_floor if noise_floor else None,
-            "within_range": bool(rms <= 0.25 * noise_floor)}
-        if not out["within_range"]:
-            notes.append(f"the fitted joint deflections are large enough that first order is not enough: evaluated at "
-                         f"the deflected joints (gravity where the arm sags to, gear errors where the joint really is) "
-                         f"they move the TCP by {rms * 1e3:.4g} mm RMS more, {rms / noise_floor:.2g} x the noise floor; "
-                         "what is left, and any effect chosen late for it, may partly be that")
-        return out
-
-    @staticmethod
-    def _contributions(part, bases, chosen, full_parameters, nominal) -> dict:
-        """How much of the gap each chosen effect accounts for: the TCP motion its fitted
-        parameters cause, after taking out what a rigid frame change could absorb."""
-        frames_g = bases["frames"].per_part[0].g[:, :3]
-        frames_cols = frames_g.reshape(-1, frames_g.shape[2])
-        em = ErrorModel(part.robot)
-        contribution = {}
-        for e in chosen:
-            x_e = bases[e].per_part[0].basis @ full_parameters[e]
-            motion = (tcp_poses(part.robot, part.q, x_e, em).position - nominal).ravel()
-            rigid = frames_cols @ np.linalg.lstsq(frames_cols, motion, rcond=None)[0]
-            contribution[e] = float(np.sqrt(np.mean((motion - rigid) ** 2) * 3))
-        return contribution
-
-
-def rival_models(estimator: GapDiagnosis) -> list:
-    """For every ambiguity group of a fitted diagnosis, the chosen model against each model
-    with a stand-in in the chosen effect's place, both fitted: a list of pairs of
-    (effect instances, parameter vectors) for
-    :func:`~tcr_accuracy.diagnosis.design.plan_discriminating_poses`."""
-    result = estimator.result_
-    chosen_model = estimator.fitted_model(result.selected_effects)
-    pairs = []
-    for group in result.ambiguous:
-        rest = [e for e in result.selected_effects if e != group["chosen"]]
-        for member in group["members"][1:]:
-            pairs.append((chosen_model, estimator.fitted_model(rest + member["effects"])))
-    return pairs
 
 
 def _part_names(effect, part: Part, n_parts: int) -> list[str]:

@@ -9,7 +9,9 @@ there scatter beyond the instrument's?
   finds nothing says little unless it could have found something of the size in question.
 * :func:`structure_verdict` -- "yes", "no" or "cannot tell with N poses" from the test, its
   power and the scatter test.
-* :func:`scatter_test` -- chi-square of the residual against a known instrument noise.
+* :func:`scatter_test` -- chi-square of the residual against a known instrument noise;
+  :func:`scatter_beyond_noise` runs it on a fit when the noise is independent of it, and
+  :func:`name_scatter` names what is found (clearance) only when the verdict allows.
 
 Lengths in m inside; the returned dicts carry mm in ``_mm`` keys.
 """
@@ -22,6 +24,7 @@ import numpy as np
 from scipy import stats
 
 from ..analysis.semivariogram import empirical_semivariogram, fit_gaussian_variogram, standardize
+from .fitting import stacked
 
 #: Amplitudes [x the per-axis noise, RMS per axis] at which the power probe injects a
 #: leftover, smallest first; beyond the last the test is said to see nothing of that shape.
@@ -254,3 +257,33 @@ def scatter_test(residual: np.ndarray, n_parameters: int, tracker_noise: float, 
     return {"estimated_noise_per_axis_mm": sigma * 1e3, "tracker_noise_per_axis_mm": tracker_noise * 1e3,
             "ratio": ratio, "p_value": p, "extra_per_axis_mm": extra * 1e3,
             "detected": bool(p < alpha and ratio > min_ratio)}
+
+
+def scatter_beyond_noise(noise, final, stochastic) -> dict:
+    """Scatter beyond the instrument's noise in the final fit's residual (chi-square), when the
+    noise comes from outside that residual (given, or repeated poses); else why not tested."""
+    if not noise.independent:
+        return {"tested": False, "detected": False,
+                "why": "the noise was estimated from this residual; give the instrument's (--noise-mm) or "
+                       "measure repeated poses to test for scatter beyond it",
+                "estimated_noise_per_axis_mm": noise.per_axis * 1e3}
+    scatter = scatter_test(stacked(final["train_residual"]), final["n_parameters"], noise.per_axis)
+    scatter["tested"] = True
+    if stochastic:
+        scatter["stochastic_effects"] = stochastic
+    return scatter
+
+def name_scatter(scatter, structure, stochastic, noise, notes) -> None:
+    """Scatter beyond the instrument without structure is named only when the structure
+    test could have seen a leftover of its size."""
+    if not scatter["detected"]:
+        return
+    if structure["verdict"] == "no":
+        scatter["named"] = "clearance" if "clearance" in stochastic else "random scatter"
+        notes.append(f"random scatter beyond the tracker noise: {scatter['estimated_noise_per_axis_mm']:.4f} mm "
+                     f"per axis vs {noise.per_axis * 1e3:.4f} mm, without spatial structure: joint play "
+                     "(clearance) or a noisier instrument")
+    elif structure["verdict"] == "cannot tell":
+        notes.append(f"{scatter['estimated_noise_per_axis_mm']:.4f} mm per axis left against "
+                     f"{noise.per_axis * 1e3:.4f} mm of noise: whether it is structure or scatter cannot be told "
+                     f"({structure['reason']}); measure more poses")

@@ -1,0 +1,51 @@
+"""What the fitted model attributes to each effect, and where its first-order effect models end.
+
+* :func:`contributions` -- the TCP motion each chosen effect's fitted parameters cause,
+  beyond what a rigid frame change could absorb.
+* :func:`fixed_point_check` -- the effects are first order in their own joint deflections
+  (compliance takes gravity at the commanded pose): how far one fixed-point step would move
+  the TCP, against the noise floor.
+
+Lengths in m inside; the returned dicts carry mm in ``_mm`` keys.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..effects.compose import fixed_point_motion
+from ..model.errors import ErrorModel
+from ..model.kinematics import tcp_poses
+
+
+def contributions(part, bases, chosen, full_parameters, nominal) -> dict:
+    """How much of the gap each chosen effect accounts for: the TCP motion its fitted
+    parameters cause, after taking out what a rigid frame change could absorb."""
+    frames_g = bases["frames"].per_part[0].g[:, :3]
+    frames_cols = frames_g.reshape(-1, frames_g.shape[2])
+    em = ErrorModel(part.robot)
+    contribution = {}
+    for e in chosen:
+        x_e = bases[e].per_part[0].basis @ full_parameters[e]
+        motion = (tcp_poses(part.robot, part.q, x_e, em).position - nominal).ravel()
+        rigid = frames_cols @ np.linalg.lstsq(frames_cols, motion, rcond=None)[0]
+        contribution[e] = float(np.sqrt(np.mean((motion - rigid) ** 2) * 3))
+    return contribution
+
+
+def fixed_point_check(part, bases, full_parameters, noise_floor, notes) -> dict:
+    """The fitted model is first order in its joint deflections (gravity at the commanded
+    pose): how much one fixed-point step (gravity at the deflected pose) would move the TCP,
+    against the noise floor; a note when it is more than a quarter of it."""
+    effects = [bases[e].per_part[0].effect for e in full_parameters]  # with the options they were fitted with
+    motion = fixed_point_motion(part.robot, effects, list(full_parameters.values()), part.q, part.context)
+    rms = float(np.sqrt(np.mean(np.sum(motion**2, axis=1))))
+    out = {"fixed_point_step_rms_mm": rms * 1e3, "fixed_point_step_max_mm": float(
+        np.max(np.linalg.norm(motion, axis=1))) * 1e3, "over_noise_floor": rms / noise_floor if noise_floor else None,
+        "within_range": bool(rms <= 0.25 * noise_floor)}
+    if not out["within_range"]:
+        notes.append(f"the fitted joint deflections are large enough that first order is not enough: evaluated at "
+                     f"the deflected joints (gravity where the arm sags to, gear errors where the joint really is) "
+                     f"they move the TCP by {rms * 1e3:.4g} mm RMS more, {rms / noise_floor:.2g} x the noise floor; "
+                     "what is left, and any effect chosen late for it, may partly be that")
+    return out
