@@ -177,6 +177,21 @@ def test_readme_block_runs(block, runs):
                                  f"{run.stderr[-3000:]}")
 
 
+DOCS = sorted((REPO / "docs").glob("*.md"))
+DOC_BLOCKS = [(doc, b) for doc in DOCS for b in readme_blocks(doc) if b.kind == "runs"]
+
+
+def test_docs_have_their_regeneration_commands_marked():
+    assert any(doc.name == "seed-reproduction.md" for doc, _ in DOC_BLOCKS)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("doc,block", DOC_BLOCKS, ids=lambda v: v.name if isinstance(v, Path) else f"line{v.line}")
+def test_docs_commands_run_as_written(doc, block, tmp_path):
+    run = _execute(block, tmp_path / "docs")
+    assert run.returncode == 0, f"docs/{doc.name}:{block.line}: the block exits {run.returncode}:\n{run.stderr[-3000:]}"
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("block", [b for b in BLOCKS if b.kind in ("prints", "output")], ids=lambda b: f"line{b.line}")
 def test_readme_quoted_output_is_printed(block, runs):
