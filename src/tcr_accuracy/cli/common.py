@@ -36,6 +36,21 @@ _TYPE_REFUSAL = re.compile(r"argument (?P<option>--[\w-]+)(?:/[\w-]+)*: "
                            rf"(?P<rest>.+?: (?:{'|'.join(map(re.escape, _REFUSALS))}).*)", re.DOTALL)
 
 
+def effect_names(text: str | None) -> list[str] | None:
+    """The effects named by ``--effects a,b,...`` (None when not given), each checked against the
+    vocabulary: one line naming the unknown ones."""
+    if not text:
+        return None
+    from ..effects import vocabulary
+    from ..exceptions import InputError
+
+    effects = [e.strip() for e in text.split(",") if e.strip()]
+    unknown = [e for e in effects if e not in vocabulary()]
+    if unknown:
+        raise InputError(f"--effects: unknown {', '.join(unknown)} (vocabulary: {', '.join(vocabulary())})")
+    return effects
+
+
 def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default=None, metavar="URDF|NAME",
                         help="URDF file or example-robot-data name (ur3, ur5, ur10, panda, z1, xarm7); "

@@ -11,7 +11,8 @@ import math
 import sys
 from pathlib import Path
 
-from .common import MAX_MM, add_robot_arguments, check_csv_memory, integer, number, output_file, seed_value, status
+from .common import (MAX_MM, add_robot_arguments, check_csv_memory, effect_names, integer, number, output_file,
+                     seed_value, status)
 from .output import RunOutput, add_output_arguments
 
 
@@ -52,18 +53,12 @@ DIAGNOSE_ROW_BYTES = 3 * 120 * 8 * 4
 
 def _run_diagnose(args) -> int:
     from ..diagnosis.diagnose import diagnose
-    from ..effects import vocabulary
     from ..exceptions import InputError
     from ..io.measurements import measured_frames, read_measurements
     from ..view.plots_diagnose import write_plots
     from ..model.robot import load_robot
 
-    effects = None
-    if args.effects:
-        effects = [e.strip() for e in args.effects.split(",") if e.strip()]
-        unknown = [e for e in effects if e not in vocabulary()]
-        if unknown:
-            raise InputError(f"--effects: unknown {', '.join(unknown)} (vocabulary: {', '.join(vocabulary())})")
+    effects = effect_names(args.effects)
     min_rows = max(3 * args.folds, 12)
     # the diagnosis holds each measurement's Jacobian over the whole effect vocabulary
     # (3 rows x about 120 parameters) a few times over

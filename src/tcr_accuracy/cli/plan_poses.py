@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import MAX_MM, add_robot_arguments, emit_json, integer, number, output_file, seed_value
+from .common import MAX_MM, add_robot_arguments, effect_names, emit_json, integer, number, output_file, seed_value
 
 
 def add_parsers(sub) -> None:
@@ -63,8 +63,6 @@ def _run_plan_poses(args) -> int:
     from ..diagnosis.design import plan_discriminating_poses, plan_poses
     from ..diagnosis.ambiguity import rival_models
     from ..diagnosis.diagnose import GapDiagnosis
-    from ..effects import vocabulary
-    from ..exceptions import InputError
     from ..io.measurements import read_measurements
     from ..model.robot import load_robot
 
@@ -79,12 +77,8 @@ def _run_plan_poses(args) -> int:
         payload = float(np.mean(measured.payload_kg)) if measured.payload_kg is not None else 0.0
     groups, separate, pairs = [], None, []
     noise_m = 2e-5 if args.noise_mm is None else args.noise_mm * 1e-3
-    if args.effects:
-        effects = [e.strip() for e in args.effects.split(",") if e.strip()]
-        unknown = [e for e in effects if e not in vocabulary()]
-        if unknown:
-            raise InputError(f"--effects: unknown {', '.join(unknown)} (vocabulary: {', '.join(vocabulary())})")
-    else:
+    effects = effect_names(args.effects)
+    if effects is None:
         estimator = GapDiagnosis(seed=args.seed, tracker_noise=None if args.noise_mm is None
                                  else args.noise_mm * 1e-3).fit(robot, measured)
         result = estimator.result_

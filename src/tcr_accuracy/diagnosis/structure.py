@@ -162,11 +162,6 @@ class StructureDetector:
         return out
 
 
-def structure_test(q: np.ndarray, residual: np.ndarray, rng: np.random.Generator, kinds=None, **options) -> dict:
-    """:class:`StructureDetector` on q, applied once to ``residual`` (N, 3) [m]."""
-    return StructureDetector(q, rng, kinds, **options).test(residual, rng)
-
-
 def smooth_shape(detector: StructureDetector, rng: np.random.Generator) -> np.ndarray:
     """(N, 3) a random smooth function of the joints (the detector's smooth features with
     normal weights): a generic leftover for the power probe when no effect suggests one."""
