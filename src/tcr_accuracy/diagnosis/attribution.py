@@ -26,7 +26,7 @@ def contributions(part, bases, chosen, full_parameters, nominal) -> dict:
     em = ErrorModel(part.robot)
     contribution = {}
     for e in chosen:
-        x_e = bases[e].per_part[0].basis @ full_parameters[e]
+        x_e = bases[e].per_part[0].basis.errors(full_parameters[e])
         motion = (tcp_poses(part.robot, part.q, x_e, em).position - nominal).ravel()
         rigid = frames_cols @ np.linalg.lstsq(frames_cols, motion, rcond=None)[0]
         contribution[e] = float(np.sqrt(np.mean((motion - rigid) ** 2) * 3))

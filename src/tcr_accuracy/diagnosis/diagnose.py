@@ -224,7 +224,7 @@ class GapDiagnosis:
         phi, _ = pre.fit(frames_cols, np.arange(n))
         for p, part in enumerate(parts):
             basis, _, idx = frames_cols.per_part[p]
-            x_frames = basis[0] @ (phi[idx] * frames_cols.scale[idx])
+            x_frames = basis.errors(phi[idx] * frames_cols.scale[idx], rows=[0])[0]
             jac_x = position_jacobians(part.robot, part.q, x_frames,
                                        weight if part.target_rotation is not None else None)
             for b in bases.values():
@@ -324,7 +324,7 @@ class GapDiagnosis:
             full = union[b.index[0]]  # the first frame's own parameter vector
             full_parameters[e] = full
             if effect_class(e).geometric:
-                as_built += b.per_part[0].basis[0] @ full
+                as_built += b.per_part[0].basis.errors(full, rows=[0])[0]
         contribution = contributions(parts[0], bases, chosen, full_parameters, nominal[0].position)
         second_order = fixed_point_check(parts[0], bases, full_parameters, math.sqrt(3.0) * noise.per_axis, notes)
         base_twist = as_built[em.base_slice].copy()
@@ -417,6 +417,7 @@ class GapDiagnosis:
     # -- pieces ------------------------------------------------------------------------
     def _bases(self, parts, names, measured, notes):
         bases, candidates, stochastic = {}, {}, []
+        jacobians = {}  # per part, the error Jacobians at the nominal model: the same for every effect
         for name in names:
             cls = effect_class(name)
             if cls.stochastic:
@@ -429,14 +430,16 @@ class GapDiagnosis:
                 continue
             try:
                 per_part = []
-                for part in parts:
+                for p, part in enumerate(parts):
                     options = {"tool_rotation": True} if name == "frames" and part.target_rotation is not None else {}
                     effect = make_effect(name, part.robot, **options)
                     labels = _part_names(effect, part, len(parts))
                     em = ErrorModel(part.robot)
-                    jac_x = position_jacobians(part.robot, part.q, None,
-                                               part.orientation_weight if part.target_rotation is not None else None)
-                    per_part.append(EffectBasis(effect, part, em, jac_x, labels))
+                    if p not in jacobians:
+                        jacobians[p] = position_jacobians(
+                            part.robot, part.q, None,
+                            part.orientation_weight if part.target_rotation is not None else None)
+                    per_part.append(EffectBasis(effect, part, em, jacobians[p], labels))
                 basis = UnionBasis(per_part)
             except InputError as exc:
                 candidates[name] = {"tried": False, "why": f"not testable on these data: {exc}"}

@@ -13,8 +13,8 @@ pose (:class:`EffectBasis`: joint-side offsets go into the drive slice of
 :class:`~tcr_accuracy.model.errors.ErrorModel`); chained with Pinocchio's error Jacobian
 (:func:`~tcr_accuracy.model.jacobians.error_jacobians`) this gives each parameter's column of
 the identification Jacobian. :class:`FitEngine` fits sets of effects by nonlinear least
-squares (scipy ``least_squares``; exact batched forward kinematics as the residual, the
-chained Jacobian as ``jac``) and scores them by k-fold held-out error.
+squares (Gauss-Newton: exact batched forward kinematics as the residual, the chained
+Jacobian as the constant Jacobian) and scores them by k-fold held-out error.
 
 Residual rows per measured frame: the three position components [m], and with measured
 orientation three rotation-vector components [rad] multiplied by the part's
@@ -29,13 +29,14 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from ..model.context import MeasurementContext
 from ..effects import vocabulary
+from ..effects.base import LinearEffect
 from ..model.errors import ErrorModel
-from .identifiability import identifiability
+from .error_map import ErrorMap
+from .identifiability import compressed, identifiability
 from ..model.jacobians import error_jacobians
 from ..model.kinematics import tcp_poses
 from ..model.robot import JointLimitWarning, RobotModel
@@ -74,8 +75,9 @@ class Part:
 class EffectBasis:
     """One effect on one part, linearised: x_total(theta) = basis @ theta per pose.
 
-    ``basis`` has shape (N, p_em, P): error-vector columns for every parameter, with
-    joint-side offsets dq placed in the drive slice (``q + dq`` is a drive offset).
+    ``basis`` (:class:`~tcr_accuracy.diagnosis.error_map.ErrorMap`) gives the error vectors
+    (N, p_em) of the parameters, with joint-side offsets dq placed in the drive slice
+    (``q + dq`` is a drive offset).
     ``g`` (N, r, P) is the TCP sensitivity (error Jacobian chained with it): position
     rows, then weighted orientation rows when the part measures orientation.
     """
@@ -88,14 +90,12 @@ class EffectBasis:
         self.units = list(effect.parameter_units())
         n, k = part.q.shape[0], len(self.names)
         maps = effect.parameter_jacobian(np.zeros(k), part.q, part.context)
-        basis = np.zeros((n, em.size, k))
-        if maps.x is not None:
-            basis += maps.x if maps.x.ndim == 3 else maps.x[None]
-        if maps.dq is not None:
-            basis[:, em.drive_slice, :] += maps.dq
-        self.basis = basis
+        self.basis = ErrorMap.of(n, em.size, em.drive_slice, maps.x, maps.dq, k)
         self.relinearise(jac_x)
-        # linear effects only: check perturb against the map at one point
+        self.nonlinearity = 0.0
+        if type(effect).perturb is LinearEffect.perturb:
+            return  # perturb is this very map: nothing to check
+        # check perturb against the map at one point
         probe = self.scales * np.linspace(-1.0, 1.0, k) if k > 1 else self.scales
         out = effect.perturb(probe, part.q, part.context)
         total = np.zeros((n, em.size))
@@ -104,11 +104,11 @@ class EffectBasis:
         if out.dq is not None:
             total[:, em.drive_slice] += out.dq
         size = max(float(np.abs(total).max()), 1e-300)
-        self.nonlinearity = float(np.abs(total - basis @ probe).max() / size)
+        self.nonlinearity = float(np.abs(total - self.basis.errors(probe)).max() / size)
 
     def relinearise(self, jac_x: np.ndarray) -> None:
         """TCP sensitivity (N, r, P) for error Jacobians jac_x (N, r, p_em)."""
-        self.g = np.einsum("nip,npk->nik", jac_x, self.basis)
+        self.g = self.basis.sensitivity(jac_x)
 
 
 class UnionBasis:
@@ -147,8 +147,8 @@ class UnionBasis:
         self.g = np.concatenate(blocks, axis=0)
 
     @property
-    def basis(self) -> np.ndarray:
-        """The first part's basis (N, p_em, P_part): the robot of a single-frame diagnosis."""
+    def basis(self) -> ErrorMap:
+        """The first part's error map: the robot of a single-frame diagnosis."""
         return self.per_part[0].basis
 
 
@@ -222,6 +222,7 @@ class FitEngine:
         self.n_rows = parts[0].q.shape[0]
         self._full_cache: dict = {}
         self._keep_cache: dict = {}
+        self._compressed = None  # the bases with the poses folded away, for identify
         self._last: dict = {}  # effect -> last fitted full-length scaled parameters
         self.size_factors: dict = {}  # effect -> fitted size / typical size (>= 1), see resize
         self.n_fits = 0
@@ -256,15 +257,16 @@ class FitEngine:
             if borrowed:
                 order = ordered(order + ["joint_offsets"])
             thresholds = {e: self.min_motion / self.size_factors.get(e, 1.0) for e in order}
-            keep, report = identifiability({e: self.bases[e] for e in order}, order, self.rank_tol, thresholds)
+            if self._compressed is None:
+                self._compressed = compressed(self.bases)
+            keep, report = identifiability(self._compressed, order, self.rank_tol, thresholds)
             if self.size_factors:
                 report["fitted_size_factors"] = dict(self.size_factors)
             if borrowed:
                 keep.pop("joint_offsets")
                 report["effects"].pop("joint_offsets")
                 report["note"] = "geometry excludes rotations about the joint axes (the joint_offsets effect)"
-                cols = [(self.bases[e].g * self.bases[e].scales)[:, :, keep[e]].reshape(-1, keep[e].size)
-                        for e in effects if keep[e].size]  # an effect may keep no column at all
+                cols = [self._compressed[e].g[:, 0, keep[e]] for e in effects if keep[e].size]  # may keep none
                 report["rank"] = int(sum(c.shape[1] for c in cols))
                 if cols:
                     mat = np.concatenate(cols, axis=1)
@@ -294,11 +296,11 @@ class FitEngine:
                 local = ub.per_part[p]
                 position = {u: i for i, u in enumerate(keep[e])}  # union column -> kept position
                 cols = [c for c, u in enumerate(ub.index[p]) if u in position]
-                bases.append(local.basis[:, :, cols])
+                bases.append(local.basis.take(cols))
                 gs.append(local.g[:, :, cols])
                 idx.append(offset + np.array([position[ub.index[p][c]] for c in cols], dtype=int))
                 offset += keep[e].size
-            per_part.append((np.concatenate(bases, axis=2), np.concatenate(gs, axis=2),
+            per_part.append((ErrorMap.concatenate(bases), np.concatenate(gs, axis=2),
                              np.concatenate(idx) if idx else np.zeros(0, dtype=int)))
         return Columns(names=names, scale=scale, per_part=per_part)
 
@@ -318,45 +320,75 @@ class FitEngine:
     def predict_residual(self, cols: "Columns", phi: np.ndarray, rows) -> list[np.ndarray]:
         """Residual rows of every part at scaled parameters phi (theta = phi * scale)."""
         theta = phi * cols.scale
-        return [self._pose_residual(p, rows, basis[rows] @ theta[idx])
+        return [self._pose_residual(p, rows, basis.errors(theta[idx], rows))
                 for p, (basis, _, idx) in enumerate(cols.per_part)]
 
-    def _fit_residual(self, scaled: list, phi: np.ndarray, rows) -> list[np.ndarray]:
-        """As predict_residual, with each part's basis already multiplied by the scales."""
-        return [self._pose_residual(p, rows, bs @ phi[idx]) for p, (bs, idx) in enumerate(scaled)]
+    def _jacobians(self, cols: "Columns") -> list[np.ndarray]:
+        """Per part, the chained Jacobian (N, r, k) of the residual in phi, over all rows."""
+        k = cols.scale.size
+        out = []
+        for _, g, idx in cols.per_part:
+            block = np.zeros((g.shape[0], g.shape[1], k))
+            block[:, :, idx] = g * cols.scale[idx]
+            out.append(block)
+        return out
 
     def fit(self, cols: "Columns", rows, start=None):
         """Scaled parameters phi minimising the residual on rows, and the residual per part."""
-        self.n_fits += 1
+        rows = None if rows is None or len(rows) == self.n_rows else np.asarray(rows)
         k = cols.scale.size
+        phi = np.zeros(k) if start is None else np.asarray(start, dtype=float)
+        residual = self.predict_residual(cols, phi, _rows(rows, self.n_rows))
         if k == 0:  # nothing identifiable at this noise: the residual is the data's own
-            phi = np.zeros(0)
-            return phi, self._fit_residual([(basis[rows][:, :, :0], idx) for basis, _, idx in cols.per_part],
-                                           phi, rows)
-        blocks = []
-        for basis, g, idx in cols.per_part:
-            gr = g[rows]
-            block = np.zeros((gr.shape[0], gr.shape[1], k))
-            block[:, :, idx] = gr * cols.scale[idx]
-            blocks.append(block.reshape(-1, k))
-        jac = np.concatenate(blocks, axis=0)
+            self.n_fits += 1
+            return phi, residual
+        jacs = self._jacobians(cols)
+        return self._minimise(cols, jacs, rows, _gram(jacs, rows), phi, residual)
 
-        scaled = [(basis[rows] * cols.scale[idx], idx) for basis, _, idx in cols.per_part]
+    def _minimise(self, cols: "Columns", jacs: list, rows, gram: np.ndarray, phi: np.ndarray,
+                  residual: list[np.ndarray]):
+        """Levenberg-Marquardt from phi (with its residual on rows) to the least squares
+        optimum on rows, the chained Jacobian held constant (the effects are linearised per
+        pose; the residual is the exact kinematics), columns scaled to unit norm as MINPACK's
+        ``x_scale='jac'``.
 
-        def residual(phi):
-            return np.concatenate([r.ravel() for r in self._fit_residual(scaled, phi, rows)])
+        Hand-written on the normal equations: one eigendecomposition of the small Gram
+        matrix serves every iteration and damping, and a k-fold split's Gram matrices are
+        the full one less each fold's held-out rows'. scipy's least_squares refactorises
+        the tall constant matrix at each iteration, which at 10^5 poses was most of the
+        diagnosis' time.
+        """
+        self.n_fits += 1
+        every = _rows(rows, self.n_rows)
+        damped = _DampedSolver(gram)
+        flat = _flat(residual)
+        cost = float(flat @ flat)
+        # first an undamped step: the model is nearly linear, so it usually lands on the optimum
+        damping, growth = 0.0, 2.0
+        for _ in range(self.MAX_EVALUATIONS):
+            step, predicted = damped.step(_gradient(jacs, residual, rows, self.n_rows), damping)
+            if predicted <= self.COST_TOLERANCE * cost:
+                break  # the linear model cannot lower the cost any further
+            trial = phi + step
+            trial_residual = self.predict_residual(cols, trial, every)
+            trial_flat = _flat(trial_residual)
+            trial_cost = float(trial_flat @ trial_flat)
+            if trial_cost < cost:
+                gain = cost - trial_cost
+                phi, residual, cost = trial, trial_residual, trial_cost
+                damping *= max(1.0 / 3.0, 1.0 - (2.0 * gain / predicted - 1.0) ** 3)  # Nielsen's rule
+                growth = 2.0
+                if gain <= self.COST_TOLERANCE * cost:
+                    break
+            else:
+                damping = damped.first_damping if damping == 0.0 else damping * growth
+                growth *= 2.0
+        return phi, residual
 
-        if start is None:
-            start = np.zeros(k)
-        # one Gauss-Newton step from the warm start: the model is nearly linear, so this
-        # lands next to the optimum and least_squares only polishes
-        r0 = residual(start)
-        step = start + np.linalg.lstsq(jac, -r0, rcond=None)[0]
-        if np.sum(residual(step) ** 2) < np.sum(r0**2):
-            start = step
-        fit = least_squares(residual, start, jac=lambda phi: jac, method="lm", x_scale="jac", xtol=1e-7, ftol=1e-7,
-                            max_nfev=30)
-        return fit.x, self._split(fit.fun)
+    #: the fit stops when a step lowers the cost (or could lower it) by less than this share of it
+    COST_TOLERANCE = 1e-7
+    #: residual evaluations per fit at most (scipy's ``max_nfev`` before)
+    MAX_EVALUATIONS = 30
 
     def _split(self, flat: np.ndarray) -> list[np.ndarray]:
         out, start = [], 0
@@ -383,10 +415,9 @@ class FitEngine:
             return self._full_cache[key]
         keep = keep if keep is not None else self.identify(effects)[0]
         cols = self.columns(effects, keep)
-        every = np.arange(self.n_rows)
         # warm start: each effect's last fitted values, zeros for an effect new to the model
         start = np.concatenate([self._last.get(e, np.zeros(len(self.bases[e].names)))[keep[e]] for e in effects])
-        phi, train = self.fit(cols, every, start=start)
+        phi, train = self.fit(cols, None, start=start)
         offset = 0
         for e in effects:
             full = np.zeros(len(self.bases[e].names))
@@ -394,8 +425,15 @@ class FitEngine:
             self._last[e] = full
             offset += keep[e].size
         oof = [np.empty((self.n_rows, p.rows_per_pose)) for p in self.parts]
+        if cols.scale.size:
+            jacs = self._jacobians(cols)
+            gram = _gram(jacs, None)
         for train_rows, test in self.folds:
-            phi_k, _ = self.fit(cols, train_rows, start=phi)
+            if cols.scale.size:  # from the full fit, on the normal equations less the held-out rows
+                phi_k, _ = self._minimise(cols, jacs, train_rows, gram - _gram(jacs, test), phi,
+                                          [r[train_rows] for r in train])
+            else:
+                phi_k = phi
             for p, r in enumerate(self.predict_residual(cols, phi_k, test)):
                 oof[p][test] = r
         result = {"phi": phi, "scale": cols.scale, "names": cols.names, "keep": keep,
@@ -424,3 +462,55 @@ class Columns:
     names: list
     scale: np.ndarray
     per_part: list
+
+
+def _flat(per_part: list[np.ndarray]) -> np.ndarray:
+    return np.concatenate([r.ravel() for r in per_part])
+
+
+def _rows(rows, n: int) -> np.ndarray:
+    return np.arange(n) if rows is None else rows
+
+
+def _gram(jacs: list[np.ndarray], rows) -> np.ndarray:
+    """J^T J over the given rows (None: all) of the parts' Jacobians (N, r, k)."""
+    k = jacs[0].shape[2]
+    blocks = [(j if rows is None else j[rows]).reshape(-1, k) for j in jacs]
+    return sum(b.T @ b for b in blocks)
+
+
+def _gradient(jacs: list[np.ndarray], residual: list[np.ndarray], rows, n: int) -> np.ndarray:
+    """J^T r for residuals on the given rows (None: all): zero-padded to all rows, so the
+    Jacobians' rows are never copied."""
+    k = jacs[0].shape[2]
+    total = np.zeros(k)
+    for j, r in zip(jacs, residual):
+        if rows is not None:
+            padded = np.zeros((n, r.shape[1]))
+            padded[rows] = r
+            r = padded
+        total += j.reshape(-1, k).T @ r.ravel()
+    return total
+
+
+class _DampedSolver:
+    """Levenberg-Marquardt steps from a fixed Gram matrix J^T J (k, k): columns scaled to
+    unit norm, one eigendecomposition, so that a step for any damping is two small products."""
+
+    def __init__(self, gram: np.ndarray):
+        self.norms = np.sqrt(np.clip(np.diag(gram), 0.0, None))
+        self.norms[self.norms == 0] = 1.0
+        self.values, self.vectors = np.linalg.eigh(gram / np.outer(self.norms, self.norms))
+        top = float(self.values[-1]) if self.values.size else 0.0
+        # eigenvalues within round-off of zero carry no information (lstsq drops them too)
+        self.kept = self.values > top * self.values.size * np.finfo(float).eps * 10
+        self.first_damping = 1e-3 * top if top > 0 else 1.0
+
+    def step(self, gradient: np.ndarray, damping: float) -> tuple[np.ndarray, float]:
+        """The step d minimising |r + J d|^2 + damping |D d|^2 (D: the column norms) for
+        gradient J^T r, and the cost cut the linear model predicts for it."""
+        c = self.vectors.T @ (gradient / self.norms)
+        coefficient = np.zeros_like(c)
+        coefficient[self.kept] = -c[self.kept] / (self.values[self.kept] + damping)
+        predicted = -float(2.0 * c @ coefficient + self.values @ coefficient**2)
+        return (self.vectors @ coefficient) / self.norms, predicted

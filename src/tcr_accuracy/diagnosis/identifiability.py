@@ -25,6 +25,27 @@ class SensitivityColumns:
     names: list
     g: np.ndarray
     scales: np.ndarray
+    #: the number of poses the columns' RMS is taken over (None: g's first dimension)
+    n_poses: int | None = None
+
+
+def compressed(bases: dict) -> dict:
+    """The same columns with the poses folded away: each block's ``g * scales`` replaced by
+    its rows in the triangular factor R of one QR of all blocks side by side (A = Q R).
+    Q has orthonormal columns, so every inner product, norm, projection and pivoted QR that
+    :func:`identifiability` takes is the same on R as on A, at a cost that no longer grows
+    with the number of poses: one QR of the (rows x P) matrix instead of one per call.
+    """
+    names = list(bases)
+    blocks = [(bases[e].g * bases[e].scales).reshape(-1, len(bases[e].names)) for e in names]
+    n_poses = max(bases[names[0]].g.shape[0], 1) if names else 1
+    r = np.linalg.qr(np.concatenate(blocks, axis=1), mode="r")
+    out, start = {}, 0
+    for e, block in zip(names, blocks):
+        width = block.shape[1]
+        out[e] = SensitivityColumns(list(bases[e].names), r[:, None, start:start + width], np.ones(width), n_poses)
+        start += width
+    return out
 
 
 def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: float | dict = 0.0) -> tuple[dict, dict]:
@@ -49,7 +70,7 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
     for name in order:
         b = bases[name]
         threshold = thresholds.get(name, 0.0)
-        n_pose = max(b.g.shape[0], 1)
+        n_pose = b.n_poses if getattr(b, "n_poses", None) else max(b.g.shape[0], 1)
         cols = (b.g * b.scales).reshape(-1, len(b.names))
         norms = np.linalg.norm(cols, axis=0)
         proj = cols if kept_q is None else cols - kept_q @ (kept_q.T @ cols)
