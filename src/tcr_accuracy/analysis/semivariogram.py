@@ -69,7 +69,7 @@ def empirical_semivariogram(q: np.ndarray, errors: np.ndarray, n_bins: int = 20,
     n_bins : equal-width distance bins between the smallest and largest distance
     joint : distance along this joint only, or over all joints (None)
     standardise : standardise q and errors column-wise first
-    max_pairs : above this many pairs a random subset of pairs is used (rng)
+    max_pairs : above this many pairs, this many pairs drawn at random (rng) are used
     """
     q = np.asarray(q, dtype=float)
     errors = np.asarray(errors, dtype=float)
@@ -86,13 +86,17 @@ def empirical_semivariogram(q: np.ndarray, errors: np.ndarray, n_bins: int = 20,
         errors, _, _ = standardize(errors)
     if joint is not None:
         q = q[:, [joint]]
-    distance = pdist(q)
     n = q.shape[0]
-    i, k = np.triu_indices(n, 1)
-    if distance.size > max_pairs:
+    if n * (n - 1) // 2 > max_pairs:
+        # draw the pairs, not all n^2/2 distances (10^5 poses would need 40 GB for them)
         rng = rng or np.random.default_rng(0)
-        keep = rng.choice(distance.size, max_pairs, replace=False)
-        distance, i, k = distance[keep], i[keep], k[keep]
+        i = rng.integers(0, n, max_pairs)
+        k = rng.integers(0, n - 1, max_pairs)
+        k += k >= i  # a pose other than i, uniformly
+        distance = np.sqrt(np.sum((q[i] - q[k]) ** 2, axis=1))
+    else:
+        distance = pdist(q)
+        i, k = np.triu_indices(n, 1)
     squared = 0.5 * (errors[i] - errors[k]) ** 2
     edges = np.linspace(distance.min(), distance.max(), n_bins + 1)
     which = np.clip(np.searchsorted(edges, distance, side="right") - 1, 0, n_bins - 1)

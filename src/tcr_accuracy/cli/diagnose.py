@@ -203,7 +203,7 @@ def format_summary(robot, d, source: str) -> str:
                f"z = {st['ridge_z']:.1f}; limits: share > {st['min_explained']}, p < {st['alpha']})")
     power = st.get("power", {})
     if power:
-        seen, n = power.get("smallest_detectable_mm"), power["n_poses"]
+        seen, n = power.get("smallest_detectable_mm"), _tested_poses(power)
         shapes = ", ".join(power.get("per_shape_mm", {}))
         if seen is not None:
             text = f"with {n} poses the test sees a leftover from {seen:.4g} mm RMS (the largest over {shapes})"
@@ -245,7 +245,14 @@ def _primary_text(d) -> str:
 def _verdict_text(d) -> str:
     st = d.structure
     verdict = st.get("verdict", "yes" if st["remains"] else "no")
-    return {"yes": "YES", "no": "no", "cannot tell": f"cannot tell with {d.n_measurements} poses"}[verdict]
+    tested = _tested_poses(st.get("power") or {"n_poses": d.n_measurements})
+    return {"yes": "YES", "no": "no", "cannot tell": f"cannot tell with {tested} poses"}[verdict]
+
+
+def _tested_poses(power: dict) -> str:
+    """"2000" or, when the structure test ran on a random subset, "20000 of the 100000"."""
+    n, of = power["n_poses"], power.get("of_poses", power["n_poses"])
+    return f"{n}" if of == n else f"{n} (a random subset) of the {of}"
 
 
 def _strongest(where: dict) -> list:

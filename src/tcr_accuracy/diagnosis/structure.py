@@ -59,6 +59,14 @@ def _nugget_ratio(semi, column) -> float:
         return 1.0
 
 
+def _averaging(neighbours: np.ndarray):
+    """The sparse (N, N) matrix whose row i averages the rows ``neighbours[i]`` (N, k)."""
+    from scipy import sparse
+
+    n, k = neighbours.shape
+    return sparse.csr_matrix((np.full(n * k, 1.0 / k), neighbours.ravel(), np.arange(0, n * k + 1, k)), shape=(n, n))
+
+
 class StructureDetector:
     """The structure test on fixed poses q (N, n): is a residual (N, 3) predictable from q?
 
@@ -77,11 +85,22 @@ class StructureDetector:
     The neighbours, permutations and folds are drawn once (from ``rng``, in that order).
     """
 
+    #: above this many poses the test runs on a random subset of this size: its cost is
+    #: (subsets x permutations x poses), minutes at 10^5 poses, and 2 x 10^4 poses already
+    #: see a leftover of a fraction of the noise
+    MAX_POSES = 20_000
+
     def __init__(self, q: np.ndarray, rng: np.random.Generator, kinds=None, k: int = 10,
-                 n_permutations: int = 100, alpha: float = 1e-3, min_explained: float = 0.05, folds: int = 5):
+                 n_permutations: int = 100, alpha: float = 1e-3, min_explained: float = 0.05, folds: int = 5,
+                 max_poses: int | None = None):
         from sklearn.model_selection import KFold
         from sklearn.neighbors import NearestNeighbors
 
+        max_poses = self.MAX_POSES if max_poses is None else max_poses
+        self.n_total, self.rows = len(q), None
+        if len(q) > max_poses:
+            self.rows = np.sort(rng.choice(len(q), max_poses, replace=False))
+            q = q[self.rows]
         self.q, self.k, self.alpha, self.min_explained = q, k, alpha, min_explained
         qs, _, _ = standardize(q)
         # an unmodelled effect often depends on a few joints: in all of joint space 6-D
@@ -90,10 +109,10 @@ class StructureDetector:
         moving = [j for j in range(q.shape[1]) if np.std(q[:, j]) > 0]
         subsets = [tuple(moving)] + [(j,) for j in moving]
         subsets += [(a, b) for i, a in enumerate(moving) for b in moving[i + 1:]]
-        self.neighbours = []
+        self.neighbours = []  # (subset, sparse (N, N) matrix averaging each pose's k neighbours)
         for subset in subsets:
             nn = NearestNeighbors(n_neighbors=min(k + 1, len(q))).fit(qs[:, subset])
-            self.neighbours.append((subset, nn.kneighbors(qs[:, subset], return_distance=False)[:, 1:]))
+            self.neighbours.append((subset, _averaging(nn.kneighbors(qs[:, subset], return_distance=False)[:, 1:])))
         self.perms = [rng.permutation(len(q)) for _ in range(n_permutations)]
         kinds = kinds if kinds is not None else ["revolute"] * q.shape[1]
         self.features = _smooth_features(q, kinds)
@@ -101,18 +120,18 @@ class StructureDetector:
 
     def _local(self, centred: np.ndarray, total: float, perms=None) -> dict:
         perms = self.perms if perms is None else perms
+        # the residual and its shuffles side by side: one sparse product per subset
+        stack = np.concatenate([centred] + [centred[perm] for perm in perms], axis=1)
         best = None
-        for subset, idx in self.neighbours:
-            def explained(r, idx=idx):
-                return 1.0 - np.sum((r - r[idx].mean(axis=1)) ** 2) / total
-
-            actual = explained(centred)
-            null = np.array([explained(centred[perm]) for perm in perms])
+        for subset, average in self.neighbours:
+            error = stack - average @ stack
+            shares = 1.0 - np.sum((error * error).reshape(len(centred), -1, 3), axis=(0, 2)) / total
+            actual, null = float(shares[0]), shares[1:]
             gain = float(actual - null.mean())
             # a few hundred permutations cannot resolve small p by counting: use their spread
             z_sub = gain / max(float(null.std(ddof=1)), 1e-12)
             if best is None or z_sub > best["z"]:
-                best = {"joints": list(subset), "explained_share": float(actual), "null_mean": float(null.mean()),
+                best = {"joints": list(subset), "explained_share": actual, "null_mean": float(null.mean()),
                         "null_std": float(null.std(ddof=1)), "gain": gain, "z": z_sub}
         return best
 
@@ -137,9 +156,15 @@ class StructureDetector:
         """Only the verdict (no semivariogram, fewer permutations): what the power probe needs."""
         return self.test(residual, rng=None, perms=self.perms[:self.PROBE_PERMUTATIONS])["remains"]
 
+    def restrict(self, values: np.ndarray) -> np.ndarray:
+        """Rows of all N poses -> the rows of the poses the test runs on."""
+        values = np.asarray(values)
+        return values[self.rows] if self.rows is not None and len(values) == self.n_total else values
+
     def test(self, residual: np.ndarray, rng: np.random.Generator | None = None, perms=None) -> dict:
         """The test's statistics and verdict for a residual (N, 3) [m]; with ``rng`` also the
         nugget ratio of the residual's semivariogram per axis (for the report)."""
+        residual = self.restrict(residual)
         centred = residual - residual.mean(axis=0)
         total = float(np.sum(centred**2)) or 1e-300
         best = self._local(centred, total, perms)
@@ -153,7 +178,8 @@ class StructureDetector:
                             "k-NN (permutation test) and ridge on smooth joint features (paired z-test)",
                "k": self.k, "explained_share": best["explained_share"], "null_mean": best["null_mean"],
                "null_std": best["null_std"], "z": best["z"], "p_value": p_knn, "gain_over_null": best["gain"],
-               "n_subsets": m, "along_joints": best["joints"], "ridge_explained_share": ridge_share,
+               "n_subsets": m, "n_poses_tested": int(self.q.shape[0]), "along_joints": best["joints"],
+               "ridge_explained_share": ridge_share,
                "ridge_z": ridge_z, "z_critical": z_crit, "alpha": self.alpha, "min_explained": self.min_explained,
                "local": local, "global": global_, "remains": bool(local or global_)}
         if rng is not None:
@@ -188,6 +214,7 @@ def smallest_detectable_structure(detector: StructureDetector, shapes: dict, noi
     noise = rng.standard_normal((detector.q.shape[0], 3)) * noise_per_axis
     per_shape = {}
     for name, shape in shapes.items():
+        shape = detector.restrict(shape)
         rms = math.sqrt(float(np.mean(shape**2)))
         if rms == 0:
             continue
@@ -207,7 +234,7 @@ def smallest_detectable_structure(detector: StructureDetector, shapes: dict, noi
     worst = None if (not sizes or any(s is None for s in sizes)) else max(sizes)
     return {"smallest_detectable_mm": worst, "per_shape_mm": per_shape,
             "largest_probed_mm": PROBE_AMPLITUDES[-1] * noise_per_axis * math.sqrt(3.0) * 1e3,
-            "n_poses": int(detector.q.shape[0]),
+            "n_poses": int(detector.q.shape[0]), "of_poses": int(detector.n_total),
             "method": f"each shape added to Gaussian noise of {noise_per_axis * 1e3:.3g} mm per axis at RMS "
                       "0.5, 1, 2, ... 64 x that and tested; the smallest flagged size, largest over the shapes"}
 
