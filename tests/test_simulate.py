@@ -92,6 +92,20 @@ def test_truth_recreates_the_same_measurements(tool_changer):
     np.testing.assert_allclose(again.position, mset.position, atol=1e-15)
 
 
+def test_a_truth_file_read_back_as_a_scenario_is_the_same_robot(tool_changer, tmp_path):
+    """``simulate --truth`` then ``--scenario`` of that file: more poses of the same hidden robot
+    (a test set), every parameter as written."""
+    from tcr_accuracy.analysis.simulate import write_truth
+
+    spec = {"effects": {"geometry": {"spread_mm": 0.2, "spread_mrad": 0.2}, "compliance": {}, "transmission": {}}}
+    mset, truth = simulate_measurements(tool_changer, spec, 30, np.random.default_rng(4), noise_m=0.0)
+    write_truth(tmp_path / "truth.yaml", truth)
+    scenario = load_scenario(tmp_path / "truth.yaml")
+    again, _ = simulate_measurements(tool_changer, scenario, 30, np.random.default_rng(9), noise_m=0.0,
+                                     q=mset.q, context=mset.context())
+    np.testing.assert_allclose(again.position, mset.position, atol=1e-12)
+
+
 def test_unmodelled_effect_leaves_structure_the_vocabulary_cannot_fit(tool_changer):
     """Least squares over every deterministic effect of the vocabulary (linearised)."""
     spec = {"effects": {"unmodelled": {"amplitude_mm": 0.5}}}

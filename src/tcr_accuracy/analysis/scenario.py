@@ -91,7 +91,18 @@ def load_scenario(path: str | Path) -> Scenario:
     path = Path(path)
     text = read_user_text(path, "scenario file")
     data = parse_table(text, str(path), "toml" if path.suffix.lower() == ".toml" else "yaml")
+    if _is_truth(data):  # a --truth file: the same robot again (more poses, a test set)
+        data = truth_as_scenario(data)
     return scenario_from_dict(data, source=str(path))
+
+
+def _is_truth(data) -> bool:
+    """Whether a mapping is a hidden truth as ``simulate --truth`` writes it (each effect with
+    its exact parameters and their units)."""
+    effects = data.get("effects") if isinstance(data, dict) else None
+    return (isinstance(effects, dict) and bool(effects) and isinstance(data.get("context"), dict)
+            and all(isinstance(s, dict) and isinstance(s.get("parameters"), dict) and "units" in s
+                    for s in effects.values()))
 
 
 def scenario_from_dict(data: dict, source: str = "<scenario>") -> Scenario:
