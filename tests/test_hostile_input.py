@@ -475,7 +475,7 @@ def tall_csv(measurements, tmp_path_factory):
 
 @pytest.mark.parametrize("argv, fragment", [
     (["predict", "--train", "TALL", "--query", "M", "--method", "gp"],
-     "use fewer training rows, or --method calibration"),
+     "use fewer training rows, or --method local-gp"),
     (["diagnose", "TALL", "--max-memory-gb", "1"], "diagnosing"),
 ])
 def test_12_14_a_huge_csv_is_refused_before_it_is_read(argv, fragment, tall_csv, measurements, capsys, monkeypatch):

@@ -14,6 +14,7 @@ from tcr_accuracy.prediction.calibration import DiagnosisCalibration, GeometricC
 from tcr_accuracy.prediction.composed import MeasuredErrorModel, ResidualCorrected, TcpOffset, uncertainty_kind
 from tcr_accuracy.prediction.gaussian_process import JointGaussianProcess, make_gaussian_process
 from tcr_accuracy.prediction.kriging import JointKriging
+from tcr_accuracy.prediction.local_gp import LocalGaussianProcess
 from tcr_accuracy.prediction.methods import METHODS, make_predictor
 from tcr_accuracy.analysis.stand_in import make_stand_in_robot
 from tcr_accuracy.analysis.similarity import pair_distances, spatial_similarity
@@ -347,3 +348,42 @@ def test_measured_error_model_predicts_tracker_readings_of_a_robot_in_a_tracker_
                                    model.registration_.vectors_to_base(true.position - model.predict(q_test)),
                                    atol=1e-12)
         assert np.abs(model.predict_error(q_test)).max() < 0.06  # the 40 mm TCP offset and tenths of mm
+
+
+def test_local_gp_is_the_full_gaussian_process_where_the_neighbourhoods_hold_the_weight():
+    """Neighbourhood models (300 of 3000 poses each) against one Gaussian process with the same
+    kernel conditioned on all 3000 (scikit-learn's, by hand): the same predictions to a few per
+    cent of the field, and as close to the noise-free truth; with no more poses than a
+    neighbourhood, the very same numbers."""
+    from sklearn.gaussian_process import GaussianProcessRegressor
+
+    rng = np.random.default_rng(0)
+
+    def field(x):
+        return np.stack([np.sin(2 * x[:, 0]) * np.cos(x[:, 1]), x[:, 0] * x[:, 1] + np.cos(3 * x[:, 1])], axis=1)
+
+    x = rng.uniform(-2, 2, (3000, 2))
+    y = field(x) + 0.01 * rng.standard_normal((3000, 2))
+    x_test = rng.uniform(-1.8, 1.8, (200, 2))
+    local = LocalGaussianProcess(expert_size=300, random_state=0).fit(x, y)
+    assert local.centres_.shape[0] == 20 and local.members_.shape == (20, 300)
+    hyper = local.hyper_
+    xs = (x - hyper.x_mean_) / hyper.x_scale_
+    full = np.stack([GaussianProcessRegressor(kernel=k, optimizer=None).fit(xs, (y[:, i] - hyper.y_mean_[i])
+                                                                            / hyper.y_scale_[i])
+                     .predict((x_test - hyper.x_mean_) / hyper.x_scale_) * hyper.y_scale_[i] + hyper.y_mean_[i]
+                     for i, k in enumerate(hyper.kernels_)], axis=1)
+    mean, std = local.predict(x_test, return_std=True)
+    truth = field(x_test)
+    scale = _rms(truth - truth.mean(axis=0))
+    assert _rms(mean - full) < 0.03 * scale
+    assert _rms(mean - truth) < 1.5 * _rms(full - truth) + 0.01
+    assert std.shape == mean.shape and np.all(std > 0)
+    # at most a neighbourhood's poses: one Gaussian process on all of them
+    small = LocalGaussianProcess(expert_size=300, random_state=0).fit(x[:300], y[:300])
+    xs = (x[:300] - small.hyper_.x_mean_) / small.hyper_.x_scale_
+    one = GaussianProcessRegressor(kernel=small.hyper_.kernels_[0], optimizer=None).fit(
+        xs, (y[:300, 0] - small.hyper_.y_mean_[0]) / small.hyper_.y_scale_[0])
+    expected = one.predict((x_test - small.hyper_.x_mean_) / small.hyper_.x_scale_) * small.hyper_.y_scale_[0] \
+        + small.hyper_.y_mean_[0]
+    np.testing.assert_allclose(small.predict(x_test)[:, 0], expected, rtol=1e-9, atol=1e-9)

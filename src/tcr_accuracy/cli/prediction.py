@@ -158,8 +158,8 @@ def _fit(args, robot):
     from ..prediction.methods import make_predictor
 
     check_csv_memory(args, args.train, f"--method {args.method} on --train", _training_row_bytes(args.method),
-                     _training_pair_bytes(args.method), hint="use fewer training rows, or --method calibration "
-                                                           "(its memory grows only linearly with the rows)")
+                     _training_pair_bytes(args.method), hint="use fewer training rows, or --method local-gp or "
+                                                           "calibration+local-gp (memory linear in the rows)")
     q, pos, context, lines = read_joint_csv(args.train, robot, need_positions=True, rows=True)
     _check_training(args.train, q, lines, robot.n_joints)
     model = MeasuredErrorModel(robot=robot, estimator=make_predictor(args.method, robot, random_state=args.seed),
@@ -203,14 +203,16 @@ def _predict(args, model, q, context=None):
     return pred, (None if std is None else np.asarray(std, dtype=float).reshape(-1, 3))
 
 
-def _heldout(model, q, measured, context=None):
-    """Held-out miss at measured poses: (residual (N, 3) [m], measured error (N, 3) [m], summary dict [mm])."""
+def _heldout(model, q, measured, context=None, predicted=None):
+    """Held-out miss at measured poses: (residual (N, 3) [m], measured error (N, 3) [m], summary dict [mm]).
+    ``predicted``: the model's errors at q when already computed (a local model predicts slowly)."""
     import numpy as np
 
     from ..model.kinematics import tcp_poses
 
     measured_error = model.registration_.to_base(measured) - tcp_poses(model.robot, q).position
-    residual = model.heldout_residual(q, measured, context=context)
+    residual = (model.heldout_residual(q, measured, context=context) if predicted is None
+                else measured_error - predicted)
     norm = np.linalg.norm(residual, axis=1)
     summary = {"mean_mm": float(norm.mean() * 1e3), "rms_mm": float(np.sqrt(np.mean(norm**2)) * 1e3),
                "max_mm": float(norm.max() * 1e3), "count": int(norm.size)}
@@ -294,7 +296,7 @@ def _run_predict(args) -> int:
     }
     heldout = residual = measured_error = None
     if measured is not None:
-        residual, measured_error, heldout = _heldout(model, q, measured, context)
+        residual, measured_error, heldout = _heldout(model, q, measured, context, predicted=pred)
         if std is not None:
             heldout.update(_coverage(residual, std))
     payload = {

@@ -23,6 +23,7 @@ from ..exceptions import InputError
 from ..model.kinematics import tcp_poses
 from .gaussian_process import JointGaussianProcess
 from .kriging import JointKriging
+from .local_gp import LocalGaussianProcess
 
 
 class ResidualCorrected(MultiOutputMixin, RegressorMixin, BaseEstimator):
@@ -145,7 +146,7 @@ def uncertainty_kind(estimator) -> str | None:
     """
     if isinstance(estimator, JointKriging):
         return "kriging standard deviation"
-    if isinstance(estimator, JointGaussianProcess):
+    if isinstance(estimator, (JointGaussianProcess, LocalGaussianProcess)):
         return "Gaussian process predictive standard deviation"
     if isinstance(estimator, ResidualCorrected):
         model = getattr(estimator, "residual_", estimator.residual)

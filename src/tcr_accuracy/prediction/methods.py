@@ -13,8 +13,8 @@ from __future__ import annotations
 
 from ..exceptions import InputError
 
-METHODS = ("kriging", "kriging-pf", "gp", "idw-joint", "idw-cartesian", "mlp-cartesian", "calibration",
-           "calibration+gp", "diagnosis", "diagnosis+gp")
+METHODS = ("kriging", "kriging-pf", "gp", "local-gp", "idw-joint", "idw-cartesian", "mlp-cartesian", "calibration",
+           "calibration+gp", "calibration+local-gp", "diagnosis", "diagnosis+gp")
 
 #: the diagnosis' fitted effect model plus a Gaussian process of what it leaves
 DEFAULT_METHOD = "diagnosis+gp"
@@ -27,6 +27,7 @@ def make_predictor(method: str, robot, *, random_state=None):
     from .composed import ResidualCorrected
     from .gaussian_process import make_gaussian_process
     from .kriging import JointKriging
+    from .local_gp import LocalGaussianProcess
 
     if method == "kriging":
         return JointKriging()
@@ -34,6 +35,8 @@ def make_predictor(method: str, robot, *, random_state=None):
         return JointKriging(weight_search="particle_filter", random_state=random_state)
     if method == "gp":
         return make_gaussian_process(robot.n_joints, random_state=random_state)
+    if method == "local-gp":
+        return LocalGaussianProcess(random_state=random_state)
     if method == "idw-joint":
         return InverseDistanceWeighting()
     if method == "idw-cartesian":
@@ -45,6 +48,9 @@ def make_predictor(method: str, robot, *, random_state=None):
     if method == "calibration+gp":
         return ResidualCorrected(base=GeometricCalibration(robot=robot),
                                  residual=make_gaussian_process(robot.n_joints, random_state=random_state))
+    if method == "calibration+local-gp":
+        return ResidualCorrected(base=GeometricCalibration(robot=robot),
+                                 residual=LocalGaussianProcess(random_state=random_state))
     if method == "diagnosis":
         return DiagnosisCalibration(robot=robot, random_state=random_state)
     if method == "diagnosis+gp":

@@ -190,6 +190,12 @@ def rigid_fit(nominal, measured) -> tuple[np.ndarray, np.ndarray]:
     return r, mm - r @ mn
 
 
+#: poses the refinement of :func:`register_tracker` uses at most (a random subset above):
+#: nine parameters are fixed to noise / sqrt(N), and each iteration's exact Jacobian costs
+#: seconds at 10^5 poses
+REGISTRATION_MAX_POSES = 20_000
+
+
 def register_tracker(robot: RobotModel, q, measured, *, context: MeasurementContext | None = None,
                      fit_base: bool = True, fit_tool: bool = True, max_nfev: int = 50) -> Registration:
     """Fit the tracker frame (and the TCP offset) to measured TCP positions.
@@ -228,6 +234,11 @@ def register_tracker(robot: RobotModel, q, measured, *, context: MeasurementCont
         r0, t0 = rigid_fit(nominal, measured)
     else:
         r0, t0 = np.eye(3), np.zeros(3)
+    all_q, all_measured, all_context = q, measured, context
+    if q.shape[0] > REGISTRATION_MAX_POSES:
+        rows = np.sort(np.random.default_rng(0).choice(q.shape[0], REGISTRATION_MAX_POSES, replace=False))
+        q, measured = q[rows], measured[rows]
+        context = None if context is None else context.subset(rows)
     target = (measured - t0) @ r0  # measured points in the closed-form base frame
     frames = make_effect("frames", robot)
     names = tuple(frames.parameter_names())
@@ -265,11 +276,11 @@ def register_tracker(robot: RobotModel, q, measured, *, context: MeasurementCont
     translation = r0 @ twist.translation + t0
     tool_only = params.copy()
     tool_only[[i for i, n in enumerate(names) if n.startswith("frames.base.")]] = 0.0
-    model = predict_positions(robot, [frames], [tool_only], q, context)
-    rms = float(np.sqrt(np.mean(np.sum((model @ rotation.T + translation - measured) ** 2, axis=1))))
+    model = predict_positions(robot, [frames], [tool_only], all_q, all_context)
+    rms = float(np.sqrt(np.mean(np.sum((model @ rotation.T + translation - all_measured) ** 2, axis=1))))
     return Registration(rotation=rotation, translation=translation, frames_parameters=params,
                         parameter_names=names, fitted=tuple(fitted), closed_form_rotation=r0,
-                        closed_form_translation=t0, residual_rms=rms, n_points=int(q.shape[0]))
+                        closed_form_translation=t0, residual_rms=rms, n_points=int(all_q.shape[0]))
 
 
 def _identifiable(columns: np.ndarray) -> list[int]:
