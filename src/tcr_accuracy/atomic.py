@@ -14,7 +14,9 @@ Every file the package writes goes through :func:`write_bytes_atomically`:
 Inside :func:`staged_outputs` (the command line runs every command in one) writes are
 only collected; they reach the disk together when the block ends without an error, and
 not at all otherwise: a run that fails half-way, or is stopped, leaves nothing behind.
-:func:`output_file_problem` and :func:`output_folder_problem` test a target before the work.
+:func:`output_file_problem` and :func:`output_folder_problem` test a target before the work,
+by creating a file there and removing it (permission bits alone say yes to root on /proc,
+/sys or a read-only mount).
 
 A failure to write is one :class:`~tcr_accuracy.exceptions.InputError` line naming the path.
 """
@@ -184,9 +186,7 @@ def output_file_problem(path) -> str | None:
     folder = Path(os.path.realpath(path)).parent
     if not folder.is_dir():
         return f"the folder {path.parent if not path.parent.is_dir() else folder} does not exist"
-    if not os.access(folder, os.W_OK | os.X_OK):
-        return f"the folder {folder} is not writable"
-    return None
+    return _creation_problem(folder)
 
 
 def output_folder_problem(path) -> str | None:
@@ -202,8 +202,19 @@ def output_folder_problem(path) -> str | None:
         existing = existing.parent
     if not existing.is_dir():
         return f"the folder {existing} is a file"
-    if not os.access(existing, os.W_OK | os.X_OK):
-        return f"the folder {existing} is not writable"
+    return _creation_problem(existing)
+
+
+def _creation_problem(folder: Path) -> str | None:
+    """Why no file can be created in the existing ``folder``, or None: found by creating one
+    and removing it, since ``os.access`` reads permission bits only and says yes to root on
+    /proc, /sys and chmod 0o555 folders."""
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".tcr-accuracy-probe.", suffix=".tmp", dir=folder)
+    except OSError as exc:
+        return f"the folder {folder} is not writable ({exc.strerror})"
+    os.close(fd)
+    os.unlink(probe)
     return None
 
 
