@@ -94,6 +94,27 @@ def test_a_folder_is_swapped_in_whole_and_keeps_the_users_files(old_report):
     assert temporary_leftovers(old_report.parent) == []
 
 
+def test_a_report_run_over_an_old_report_keeps_a_user_file(tmp_path, capsys):
+    out = tmp_path / "r"
+    assert run([*_MC, "--seed", "1", "--out", out], capsys)[0] == 0
+    old = {p.name: p.read_bytes() for p in out.iterdir()}
+    (out / "notes.txt").write_text("mine")
+    folder_before = out.stat().st_ino
+    code, _, err = run([*_MC, "--seed", "2", "--out", out, "--plots", out / "plots"], capsys)
+    assert code == 0, err
+    assert out.stat().st_ino != folder_before  # swapped in whole, plots inside it
+    new = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    assert set(old) <= set(new)
+    assert all(new[name] != old[name] for name in old), "a file of the old report survived"
+    assert b"--seed 2" in new["index.html"] and b"--seed 2" in new["report.md"]
+    assert new["notes.txt"] == b"mine"
+    assert sorted(p.suffix for p in (out / "plots").iterdir()) == [".png", ".png"]
+    plots_before = (out / "plots").stat().st_ino
+    assert run([*_MC, "--seed", "3", "--plots", out / "plots"], capsys)[0] == 0
+    assert (out / "plots").stat().st_ino != plots_before  # --plots alone: its folder swapped in whole
+    assert temporary_leftovers(tmp_path) == []
+
+
 def test_a_new_folder_follows_the_umask_a_replaced_one_keeps_its_mode(tmp_path):
     old_umask = os.umask(0o027)
     try:
@@ -224,6 +245,28 @@ def test_b_a_failed_commit_of_a_new_folder_leaves_nothing(tmp_path, monkeypatch)
     with pytest.raises(InputError):
         write_report(tmp_path / "a" / "b" / "report", "new")
     assert list(tmp_path.iterdir()) == []  # nor the parents made for it
+
+
+def test_b_sigterm_while_the_new_folder_is_prepared_leaves_the_old_one(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "r"
+    assert run([*_MC, "--out", out], capsys)[0] == 0
+    (out / "notes.txt").write_text("mine")
+    before = snapshot(out)
+    real = atomic._carry
+
+    def terminated(old, new, device):  # the CLI turns SIGTERM into an interrupt
+        os.kill(os.getpid(), signal.SIGTERM)
+        return real(old, new, device)
+
+    monkeypatch.setattr(atomic, "_carry", terminated)
+    previous = signal.signal(signal.SIGTERM, lambda *a: None)  # were the CLI's handler gone: no death
+    try:
+        code, _, err = run([*_MC, "--seed", "5", "--out", out], capsys)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert code == 130, err
+    assert snapshot(out) == before
+    assert temporary_leftovers(tmp_path) == []
 
 
 # ---------------------------------------------------------------------------------------
