@@ -398,6 +398,30 @@ def test_12_04_sigterm_mid_run_leaves_nothing(tmp_path, capsys, monkeypatch):
     assert signal.getsignal(signal.SIGTERM) == before
 
 
+def test_12_04_sigterm_during_the_commit_leaves_nothing(tmp_path, capsys, monkeypatch):
+    # the commit writes its temporary files after the command returns: SIGTERM then is still
+    # an interrupt that removes them, not a death that leaves them beside the targets
+    import os
+    import signal
+
+    from tcr_accuracy import atomic
+
+    real = atomic._prepare
+
+    def terminated(path, data):
+        os.kill(os.getpid(), signal.SIGTERM)
+        return real(path, data)
+
+    monkeypatch.setattr(atomic, "_prepare", terminated)
+    previous = signal.signal(signal.SIGTERM, lambda *a: None)  # were the CLI's handler gone: no death
+    try:
+        code, out, err = run(["pose", "--json", tmp_path / "p.json"], capsys)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert code == 130, err
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_12_05_special_files_symlinks_and_modes(tmp_path, capsys):
     import os
     import stat

@@ -116,8 +116,9 @@ def _main(argv: list[str], debug: bool, command: str | None) -> int:
         debug = debug or getattr(args, "debug", False)  # also an abbreviated --deb
         from ..atomic import staged_outputs
 
-        # every file of the run is written at its end, together, or not at all
-        with warnings.catch_warnings(), staged_outputs(), _terminate_as_interrupt():
+        # every file of the run is written at its end, together, or not at all; SIGTERM is an
+        # interrupt until the commit is done, so that one during the commit still cleans up
+        with warnings.catch_warnings(), _terminate_as_interrupt(), staged_outputs():
             warnings.simplefilter("default", UserWarning)
             warnings.showwarning = _show_warning
             return args.run(args)

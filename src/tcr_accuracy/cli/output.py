@@ -18,9 +18,12 @@ a path that cannot be written fails before any work. Every file of the run, plot
 included, is staged (:func:`tcr_accuracy.atomic.staged_outputs`, around every command)
 and written only when the command ends without an error, each through a temporary file
 and a rename (plots asked for by ``--out`` alone are drawn in a temporary folder and kept
-in memory). So a run that fails half-way leaves no report, no plots and no JSON, and
-never half a file. Status lines (which file was written) go to stderr and are
-silenced by ``--quiet``; results go to stdout.
+in memory). The ``--out`` and ``--plots`` folders are written whole
+(:func:`tcr_accuracy.atomic.stage_folder`): new content beside the old, swapped in at once,
+other files of the old folder carried over. So a run that fails half-way leaves no report,
+no plots and no JSON, never half a file, and never a report folder mixing two runs. Status
+lines (which file was written) go to stderr and are silenced by ``--quiet``; results go to
+stdout.
 """
 
 from __future__ import annotations
@@ -133,6 +136,9 @@ class RunOutput:
             return []
         folder = getattr(self.args, "plots", None)
         if folder is not None:
+            from ..atomic import stage_folder
+
+            stage_folder(folder)  # its PNGs are swapped in together at the end of the run
             files = [str(f) for f in write(Path(folder))]
             self._add_figures(files, captions)
             self.plot_files += files

@@ -32,7 +32,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from .. import __version__
-from ..atomic import read_output, write_bytes_atomically
+from ..atomic import read_output, stage_folder, write_bytes_atomically
 from ..exceptions import InputError
 
 #: Distributions whose versions every report lists (when installed).
@@ -303,11 +303,15 @@ class Report:
         """Write ``out_dir/index.html``, ``out_dir/report.md``, PNGs and scene pages.
 
         Every file goes through a temporary file and a rename; ``index.html`` comes last.
-        Other files in ``out_dir`` are left alone. Returns the path of ``index.html``.
+        Other files in ``out_dir`` are kept. Inside a staged run (the command line) the
+        folder is declared written whole (:func:`~tcr_accuracy.atomic.stage_folder`): the
+        report's files replace the old ones in one swap of the folder, never a mix of old and
+        new. Returns the path of ``index.html``.
         """
         out_dir = Path(out_dir)  # created, if missing, with the files
         if out_dir.exists() and not out_dir.is_dir():
             raise InputError(f"{out_dir}: not a folder")
+        stage_folder(out_dir)
         for item in self.items:
             if isinstance(item, _Figure):
                 write_bytes_atomically(out_dir / item.filename, item.png)
