@@ -237,8 +237,18 @@ def _primary_text(d) -> str:
     if d.primary_effect:
         return f"{d.primary_effect} (the largest own share)"
     if len(d.primary_group) > 1:
+        tied = [e for e in d.primary_tied[1:] if e in d.primary_group]
+        stand_ins = [e for e in d.primary_group[1:] if e not in tied]
+        share = {r["dropped"]: r["own_share_increase_mm"] for r in d.leave_one_out}
+        why = []
+        if stand_ins:
+            why.append(f"{', '.join(stand_ins)} explain the data as well: measure poses that separate them, "
+                       "see plan-poses")
+        if tied:
+            why.append("own shares not ranked apart by the held-out rows: " + ", ".join(
+                f"{e} +{share[e]:.4g} mm" for e in [d.primary_group[0], *tied]))
         return (f"one of {{{', '.join(d.primary_group)}}} (the largest own share is {d.primary_group[0]}'s, but "
-                "the others explain the data as well: measure poses that separate them, see plan-poses)")
+                + "; ".join(why) + ")")
     return "none beyond frames"
 
 

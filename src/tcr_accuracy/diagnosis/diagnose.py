@@ -63,7 +63,7 @@ from ..model.gravity import gravity_torque
 from ..model.kinematics import tcp_poses
 from .ambiguity import ambiguity_report, settle_swaps, stand_in_shapes, swap_alternatives
 from .residuals import NoiseEstimate, noise_from_repeats, noise_from_residual, where_analysis
-from .attribution import contributions, fixed_point_check
+from .attribution import contributions, fixed_point_check, tied_own_shares
 from .structure import StructureDetector, name_scatter, scatter_beyond_noise, smallest_detectable_structure, \
     smooth_shape, structure_verdict
 from ..model.robot import RobotModel
@@ -263,8 +263,10 @@ class GapDiagnosis:
         final = engine.evaluate(ordered(current))
         groups = swap_alternatives(engine, current, rivals, self.selection_z)
         ambiguous = ambiguity_report(groups)
-        primary = max(loo, key=lambda row: row["own_share_increase_mm"])["dropped"] if loo else None
+        tied = tied_own_shares(engine, current, loo, self.selection_z)
+        primary = tied[0] if tied else None
         primary_group = [r["effect"] for r in groups.get(primary, [])] or ([primary] if primary else [])
+        primary_group += [e for e in tied[1:] if e not in primary_group]
         if len(primary_group) > 1:
             primary = None  # the data cannot say which of the group it is
         if eliminated or swaps or resized:  # rebuild the shrink table along the forward order of what stayed
@@ -352,7 +354,7 @@ class GapDiagnosis:
             nominal_position=nominal[0].position, gravity_torque=tau, notes=notes, semivariograms=semis,
             effect_parameters=full_parameters, registration=(rot, trans), eliminated=eliminated,
             n_fits=engine.n_fits, contribution=contribution, noise=noise, ambiguous=ambiguous, swaps=swaps,
-            primary_group=primary_group, second_order=second_order,
+            primary_group=primary_group, primary_tied=tied, second_order=second_order,
             frames_measured=[p.label for p in parts], heldout_by_frame=by_frame, orientation=orientation,
         )
         self.robot_ = robot

@@ -139,6 +139,7 @@ class Diagnosis:
     ambiguous: list = field(default_factory=list)  # groups of effects the data cannot tell apart
     swaps: list = field(default_factory=list)  # one-standard-error swaps made after forward selection
     primary_group: list = field(default_factory=list)  # the primary effect and what stands in for it
+    primary_tied: list = field(default_factory=list)  # the largest own share and those not ranked below it
     second_order: dict = field(default_factory=dict)  # what one fixed-point step of the deflections adds
 
     def predict(self, robot: RobotModel, q: np.ndarray, context: MeasurementContext | None = None) -> np.ndarray:
@@ -167,6 +168,7 @@ class Diagnosis:
             "selected_effects": list(self.selected_effects),
             "primary_effect": self.primary_effect,
             "primary_group": list(self.primary_group),
+            "primary_tied": list(self.primary_tied),
             "ambiguous": self.ambiguous,
             "swaps": self.swaps,
             "second_order": self.second_order,
