@@ -47,8 +47,10 @@ def add_parsers(sub) -> None:
     p.set_defaults(run=_run_diagnose)
 
 
-#: Memory [bytes] the diagnosis plans per measurement (see check_csv_memory in _run_diagnose).
-DIAGNOSE_ROW_BYTES = 3 * 120 * 8 * 4
+#: Memory [bytes] the diagnosis plans per measurement (see check_csv_memory in _run_diagnose):
+#: measured 3.15 GB peak for 100,000 poses of the tool-changer and 0.66 GB for 10,000
+#: (scripts/bench_scale.py), about 30 kB a pose beyond the 0.2 GB the libraries take.
+DIAGNOSE_ROW_BYTES = 32_000
 
 
 def _run_diagnose(args) -> int:
@@ -60,8 +62,8 @@ def _run_diagnose(args) -> int:
 
     effects = effect_names(args.effects)
     min_rows = max(3 * args.folds, 12)
-    # the diagnosis holds each measurement's Jacobian over the whole effect vocabulary
-    # (3 rows x about 120 parameters) a few times over
+    # the diagnosis holds each measurement's Jacobians over the whole effect vocabulary and
+    # the error maps of the pose-dependent effects
     check_csv_memory(args, args.measurements, "diagnosing", DIAGNOSE_ROW_BYTES)
     frames = measured_frames(args.measurements)
     if frames:  # several measured frames per row: one chain each, their shared parameters fitted once

@@ -74,7 +74,8 @@ def _common(p: argparse.ArgumentParser, methods) -> None:
     p.add_argument("--train", required=True, metavar="CSV", help="measured poses: joints and x/y/z (CSV)")
     p.add_argument("--method", default=DEFAULT_METHOD, choices=methods,
                    help=f"predictor (default {DEFAULT_METHOD}: the diagnosis' fitted effect model plus a "
-                        "Gaussian process of what it leaves; kriging-pf is the seed's method)")
+                        "Gaussian process of what it leaves; kriging-pf is the seed's method; local-gp for "
+                        "10,000 training poses and more)")
     p.add_argument("--frame", default="fit", choices=("fit", "base"),
                    help="fit: the positions are in a tracker's own frame; fit it and the TCP offset on the "
                         "training data (default); base: they are in the robot's base frame already (only the "
