@@ -104,6 +104,11 @@ def test_a_truth_file_read_back_as_a_scenario_is_the_same_robot(tool_changer, tm
     again, _ = simulate_measurements(tool_changer, scenario, 30, np.random.default_rng(9), noise_m=0.0,
                                      q=mset.q, context=mset.context())
     np.testing.assert_allclose(again.position, mset.position, atol=1e-12)
+    # a unit changed by hand is refused, naming it: the values stay SI whatever the file says
+    text = (tmp_path / "truth.yaml").read_text().replace("geometry.j1.dx: m\n", "geometry.j1.dx: mm\n", 1)
+    (tmp_path / "edited.yaml").write_text(text)
+    with pytest.raises(InputError, match=r"effects.geometry.units.geometry.j1.dx: 'mm', but the parameter is in m"):
+        simulate_measurements(tool_changer, load_scenario(tmp_path / "edited.yaml"), 5, np.random.default_rng(0))
 
 
 def test_unmodelled_effect_leaves_structure_the_vocabulary_cannot_fit(tool_changer):

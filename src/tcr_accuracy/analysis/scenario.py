@@ -204,6 +204,14 @@ def resolve_effect(robot: RobotModel, name: str, spec: dict, rng: np.random.Gene
         if key == "tcp_rms_mm":
             tcp_rms = _number(value, f"{where}.tcp_rms_mm", low=0.0) * 1e-3
             continue
+        if key == "units":  # a --truth file read back: its units must be this effect's own
+            if not isinstance(value, dict):
+                raise InputError(f"{where}.units: a mapping full parameter name -> unit")
+            for pname, unit in value.items():
+                if pname in names and str(unit) != units[names.index(pname)]:
+                    raise InputError(f"{where}.units.{pname}: {unit!r}, but the parameter is in "
+                                     f"{units[names.index(pname)]} (a truth file's values are SI)")
+            continue
         if key == "parameters":
             if not isinstance(value, dict):
                 raise InputError(f"{where}.parameters: a mapping full parameter name -> SI value")
@@ -252,6 +260,8 @@ def truth_as_scenario(truth: dict) -> dict:
     effects = {}
     for name, spec in truth["effects"].items():
         entry = {"parameters": dict(spec["parameters"])}
+        if isinstance(spec.get("units"), dict):
+            entry["units"] = dict(spec["units"])
         if spec.get("options"):
             entry["options"] = dict(spec["options"])
         effects[name] = entry
