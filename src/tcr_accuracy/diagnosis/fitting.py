@@ -333,8 +333,10 @@ class FitEngine:
             out.append(block)
         return out
 
-    def fit(self, cols: "Columns", rows, start=None):
-        """Scaled parameters phi minimising the residual on rows, and the residual per part."""
+    def fit(self, cols: "Columns", rows, start=None, jacobians=None, gram=None):
+        """Scaled parameters phi minimising the residual on rows, and the residual per part.
+        ``jacobians``, ``gram``: :meth:`_jacobians` of cols and their Gram matrix on the rows,
+        when the caller has them already."""
         rows = None if rows is None or len(rows) == self.n_rows else np.asarray(rows)
         k = cols.scale.size
         phi = np.zeros(k) if start is None else np.asarray(start, dtype=float)
@@ -342,8 +344,8 @@ class FitEngine:
         if k == 0:  # nothing identifiable at this noise: the residual is the data's own
             self.n_fits += 1
             return phi, residual
-        jacs = self._jacobians(cols)
-        return self._minimise(cols, jacs, rows, _gram(jacs, rows), phi, residual)
+        jacs = self._jacobians(cols) if jacobians is None else jacobians
+        return self._minimise(cols, jacs, rows, _gram(jacs, rows) if gram is None else gram, phi, residual)
 
     def _minimise(self, cols: "Columns", jacs: list, rows, gram: np.ndarray, phi: np.ndarray,
                   residual: list[np.ndarray]):
@@ -390,15 +392,6 @@ class FitEngine:
     #: residual evaluations per fit at most (scipy's ``max_nfev`` before)
     MAX_EVALUATIONS = 30
 
-    def _split(self, flat: np.ndarray) -> list[np.ndarray]:
-        out, start = [], 0
-        n = flat.size // sum(p.rows_per_pose for p in self.parts)
-        for part in self.parts:
-            size = n * part.rows_per_pose
-            out.append(flat[start:start + size].reshape(n, part.rows_per_pose))
-            start += size
-        return out
-
     def evaluate(self, effects, keep: dict | None = None):
         """Full-data fit and k-fold out-of-fold residuals for a set of effects.
 
@@ -417,7 +410,9 @@ class FitEngine:
         cols = self.columns(effects, keep)
         # warm start: each effect's last fitted values, zeros for an effect new to the model
         start = np.concatenate([self._last.get(e, np.zeros(len(self.bases[e].names)))[keep[e]] for e in effects])
-        phi, train = self.fit(cols, None, start=start)
+        jacs = self._jacobians(cols) if cols.scale.size else []
+        gram = _gram(jacs, None) if jacs else None
+        phi, train = self.fit(cols, None, start=start, jacobians=jacs, gram=gram)
         offset = 0
         for e in effects:
             full = np.zeros(len(self.bases[e].names))
@@ -425,9 +420,6 @@ class FitEngine:
             self._last[e] = full
             offset += keep[e].size
         oof = [np.empty((self.n_rows, p.rows_per_pose)) for p in self.parts]
-        if cols.scale.size:
-            jacs = self._jacobians(cols)
-            gram = _gram(jacs, None)
         for train_rows, test in self.folds:
             if cols.scale.size:  # from the full fit, on the normal equations less the held-out rows
                 phi_k, _ = self._minimise(cols, jacs, train_rows, gram - _gram(jacs, test), phi,
