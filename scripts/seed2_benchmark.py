@@ -222,20 +222,20 @@ def print_report(results: list[dict]) -> None:
     print(f"\nPrediction error on {results[0]['n_test']} test poses, {results[0]['n_train']} training poses, "
           f"hidden truth: {results[0]['truth']}, frame: {results[0]['frame']} "
           f"(|predicted - measured error|; 'vs truth': against the noise-free error)")
-    print(f"{'method':15s} {'seed (real KUKA)':>17s}{head}")
+    print(f"{'method':20s} {'seed (real KUKA)':>17s}{head}")
     for m in results[0]["methods"]:
         seed = SEED_TABLE3_MM.get(m)
         seed_txt = f"{seed[0]:.3f}/{seed[1]:.3f}" if seed else ""
         row = "".join(f" | {r['methods'][m]['mean_mm']:12.4f} /{r['methods'][m]['max_mm']:7.4f}    "
                       f"{r['methods'][m]['truth_mean_mm']:7.4f}/{r['methods'][m]['truth_max_mm']:6.4f}"
                       for r in results)
-        print(f"{m:15s} {seed_txt:>17s}{row}")
-    print(f"{'best':15s} {SEED_METHOD:>17s}" + "".join(f" | {r['best_method']:>42s}" for r in results))
+        print(f"{m:20s} {seed_txt:>17s}{row}")
+    print(f"{'best':20s} {SEED_METHOD:>17s}" + "".join(f" | {r['best_method']:>42s}" for r in results))
     print("\nCompensation of the test targets, measured by the simulated tracker [mm] "
           f"(seed: {SEED_COMPENSATION_MM[0]} -> {SEED_COMPENSATION_MM[1]} mean)")
     for r in results:
         for m, c in r["compensation_by_method"].items():
-            print(f"  {r['robot']:12s} {m:15s} before {c['before_mean_mm']:.3f} mean / {c['before_max_mm']:.3f} max"
+            print(f"  {r['robot']:12s} {m:20s} before {c['before_mean_mm']:.3f} mean / {c['before_max_mm']:.3f} max"
                   f" -> after {c['after_mean_mm']:.4f} mean / {c['after_max_mm']:.4f} max "
                   f"(noise-free {c['after_truth_mean_mm']:.4f}); converged {c['converged']}/{c['targets']}, "
                   f"<= {c['cycles_max']} cycles")
