@@ -148,6 +148,10 @@ class JointGaussianProcess(MultiOutputMixin, RegressorMixin, BaseEstimator):
         self.noise_std_ = np.array(noise)
         return self
 
+    def standardise(self, X) -> np.ndarray:
+        """Joint values in the standardised units the fitted kernels' length scales are in."""
+        return (X - self.x_mean_) / np.where(self.x_scale_ > 0, self.x_scale_, 1.0)
+
     def predict(self, X, return_std=False):
         """Predicted errors at X (m, n_joints), and optionally their standard deviation.
 
@@ -167,7 +171,7 @@ class JointGaussianProcess(MultiOutputMixin, RegressorMixin, BaseEstimator):
         """
         check_is_fitted(self, "estimators_")
         X = validate_data(self, X, reset=False)
-        Xs = (X - self.x_mean_) / np.where(self.x_scale_ > 0, self.x_scale_, 1.0)
+        Xs = self.standardise(X)
         mean = np.empty((X.shape[0], len(self.estimators_)))
         std = np.empty_like(mean)
         for k, gp in enumerate(self.estimators_):

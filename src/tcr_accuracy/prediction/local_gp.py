@@ -77,7 +77,7 @@ class LocalGaussianProcess(MultiOutputMixin, RegressorMixin, BaseEstimator):
         self.hyper_ = JointGaussianProcess(kernel=self.kernel, max_optimize_samples=self.max_optimize_samples,
                                            random_state=rng.randint(np.iinfo(np.int32).max)).fit(X[subset], Y[subset])
         self.noise_std_ = self.hyper_.noise_std_
-        self._X, self._Y = self._standard_x(X), self._standard_y(Y)
+        self._X, self._Y = self.hyper_.standardise(X), (Y - self.hyper_.y_mean_) / self.hyper_.y_scale_
         size = min(n, int(self.expert_size))
         if n <= size:
             self.centres_ = self._X.mean(axis=0, keepdims=True)
@@ -91,13 +91,6 @@ class LocalGaussianProcess(MultiOutputMixin, RegressorMixin, BaseEstimator):
             self.centres_, return_distance=False)
         return self
 
-    def _standard_x(self, X):
-        hyper = self.hyper_
-        return (X - hyper.x_mean_) / np.where(hyper.x_scale_ > 0, hyper.x_scale_, 1.0)
-
-    def _standard_y(self, Y):
-        return (Y - self.hyper_.y_mean_) / self.hyper_.y_scale_
-
     def predict(self, X, return_std=False):
         """Predicted errors at X (m, n_joints), and optionally their standard deviation
         (the neighbourhood model's predictive spread of a new measurement, fitted white
@@ -106,7 +99,7 @@ class LocalGaussianProcess(MultiOutputMixin, RegressorMixin, BaseEstimator):
 
         check_is_fitted(self, "members_")
         X = validate_data(self, X, reset=False)
-        Xs = self._standard_x(X)
+        Xs = self.hyper_.standardise(X)
         expert = NearestNeighbors(n_neighbors=1).fit(self.centres_).kneighbors(Xs, return_distance=False)[:, 0]
         n_out = self._Y.shape[1]
         mean, std = np.empty((X.shape[0], n_out)), np.empty((X.shape[0], n_out))
