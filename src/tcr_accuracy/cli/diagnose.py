@@ -165,18 +165,22 @@ def format_summary(robot, d, source: str) -> str:
         n_removed = sum(len(i["removed"]) for i in everything["effects"].values())
         out.append(f"   (whole vocabulary in one model: {everything.get('rank', 0)} identifiable, {n_removed} removed, "
                    f"condition number {everything.get('condition_number', float('nan')):.3g})")
-    out.append("\n4. How far it shrinks (k-fold held-out) [mm]")
-    out.append(f"   {'step':18s} {'params':>6s} {'train RMS':>10s} {'mean':>9s} {'RMS':>9s} {'max':>9s}")
+    out.append("\n4. How far it shrinks (k-fold held-out, in the order the effects explain the data) [mm]")
+    out.append(f"   {'step':18s} {'params':>6s} {'train RMS':>10s} {'mean':>9s} {'RMS':>9s} {'max':>9s}"
+               f"   gain in RMS [95 % interval]")
     for i, s in enumerate(d.steps):
         label = s.effect if i == 0 else "+" + s.effect
+        gain = "" if s.gain is None else f"   {s.gain[0] * mm:+.4f} [{s.gain[1] * mm:+.4f}, {s.gain[2] * mm:+.4f}]"
         out.append(f"   {label:18s} {s.n_parameters:6d} {s.train_rms * mm:10.4f} {s.heldout.mean * mm:9.4f} "
-                   f"{s.heldout.rms * mm:9.4f} {s.heldout.max * mm:9.4f}")
+                   f"{s.heldout.rms * mm:9.4f} {s.heldout.max * mm:9.4f}{gain}")
     if d.leave_one_out:
         out.append("   leave one out of the chosen set (held-out RMS without it; the others refitted and free to "
-                   "take its place / held to their own parameters):")
+                   "take its place / held to their own parameters, own share [95 % interval]):")
         for r in d.leave_one_out:
+            low, high = r["own_share_interval_mm"]
             out.append(f"     without {r['dropped']:18s} {r['heldout_rms_mm']:9.4f} ({r['increase_mm']:+.4f})  /  "
-                       f"{r['own_share_heldout_rms_mm']:9.4f} ({r['own_share_increase_mm']:+.4f})")
+                       f"{r['own_share_heldout_rms_mm']:9.4f} ({r['own_share_increase_mm']:+.4f} "
+                       f"[{low:+.4f}, {high:+.4f}])")
     for e in d.eliminated:
         out.append(f"   dropped again in backward elimination: {e['effect']} (z = {e['z']:.1f})")
     for swap in d.swaps:
@@ -190,11 +194,24 @@ def format_summary(robot, d, source: str) -> str:
                                 for m in group["members"])
             out.append(f"     {{{', '.join(group['effects'])}}}: {members}")
     out.append(f"   primary effect: {_primary_text(d)}")
+    selection = d.selection
+    if selection.get("frequency"):
+        chosen = [e for e in d.selected_effects if e != "frames"]
+        others = [e for e, f in selection["frequency"].items() if e not in chosen and f > 0]
+        out.append(f"   stability: chosen in {selection['n_replays']} bootstrap replays of the selection: "
+                   + (", ".join(f"{e} {selection['frequency'].get(e, 0.0):.0%}" for e in chosen) or "nothing")
+                   + (" (also chosen: " + ", ".join(f"{e} {selection['frequency'][e]:.0%}" for e in others) + ")"
+                      if others else ""))
+    out.extend(_parameter_lines(d))
     final = d.steps[-1].heldout.rms
     noise = d.noise
     source = "tracker" if noise is None or noise.source == "given" else f"estimated from the {noise.source}"
-    out.append(f"   final held-out RMS {final * mm:.4f} mm = {final / d.noise_floor:.2f} x the noise floor "
-               f"{d.noise_floor * mm:.4f} mm ({source} {d.tracker_noise * mm:.4f} mm per axis)")
+    if noise is not None and not noise.independent:
+        out.append(f"   final held-out RMS {final * mm:.4f} mm; noise floor at most {d.noise_floor * mm:.4f} mm "
+                   f"({source} {d.tracker_noise * mm:.4f} mm per axis: an upper bound, so no verdict against it)")
+    else:
+        out.append(f"   final held-out RMS {final * mm:.4f} mm = {final / d.noise_floor:.2f} x the noise floor "
+                   f"{d.noise_floor * mm:.4f} mm ({source} {d.tracker_noise * mm:.4f} mm per axis)")
     if noise is not None and noise.source != "given":
         out.append(f"   noise: {noise.detail}")
     st = d.structure
@@ -235,12 +252,39 @@ def format_summary(robot, d, source: str) -> str:
     return "\n".join(out)
 
 
+def _parameter_lines(d, per_effect: int = 4) -> list[str]:
+    """The fitted parameters, the largest of each effect (relative to its standard error),
+    with unit, standard error, 95 % interval and physical range."""
+    if not d.parameter_table:
+        return []
+    out = ["   fitted parameters (value +- standard error, 95 % interval, physical range; SI units; all in the JSON "
+           "and the report):"]
+    for e, table in d.parameter_table.items():
+        if e == "frames":
+            continue
+        units = d.parameter_units.get(e, {})
+        names = sorted(table["values"], key=lambda n: -abs(table["values"][n]))[:per_effect]
+        out.append(f"     {e} ({len(table['values'])} parameters; {d.physics.get(e, '')})")
+        for n in names:
+            v, s = table["values"][n], table["std"][n]
+            low, high = table["interval"][n]
+            lo, hi = table["range"][n]
+            out.append(f"       {n} = {v:+.4g} +- {s:.2g} {units.get(n, '')} [{low:+.3g}, {high:+.3g}], "
+                       f"range {lo:.3g} to {hi:.3g}")
+        if table["pinned"]:
+            out.append(f"       held on a physical bound: " + ", ".join(
+                f"{p['parameter']} ({p['bound']})" for p in table["pinned"][:6])
+                + (f" and {len(table['pinned']) - 6} more" if len(table["pinned"]) > 6 else ""))
+    return out
+
+
 def _primary_text(d) -> str:
     if d.primary_effect:
         return f"{d.primary_effect} (the largest own share)"
     if len(d.primary_group) > 1:
+        largest = d.primary_tied[0] if d.primary_tied else d.primary_group[0]
         tied = [e for e in d.primary_tied[1:] if e in d.primary_group]
-        stand_ins = [e for e in d.primary_group[1:] if e not in tied]
+        stand_ins = [e for e in d.primary_group if e not in tied and e != largest]
         share = {r["dropped"]: r["own_share_increase_mm"] for r in d.leave_one_out}
         why = []
         if stand_ins:
@@ -248,8 +292,8 @@ def _primary_text(d) -> str:
                        "see plan-poses")
         if tied:
             why.append("own shares not ranked apart by the held-out rows: " + ", ".join(
-                f"{e} +{share[e]:.4g} mm" for e in [d.primary_group[0], *tied]))
-        return (f"one of {{{', '.join(d.primary_group)}}} (the largest own share is {d.primary_group[0]}'s, but "
+                f"{e} +{share[e]:.4g} mm" for e in [largest, *tied]))
+        return (f"one of {{{', '.join(d.primary_group)}}} (the largest own share is {largest}'s, but "
                 + "; ".join(why) + ")")
     return "none beyond frames"
 
@@ -315,13 +359,32 @@ def write_as_built(robot, d, path: Path) -> tuple[Path, Path]:
                              "are among the parameters"} if len(d.frames_measured) > 1 else {}),
         "selected_effects": list(d.selected_effects),
         "effects": {e: {"parameters": {k: float(v) for k, v in p.items()},
-                        "units": dict(d.parameter_units.get(e, {}))}
+                        "units": dict(d.parameter_units.get(e, {})), **_uncertainty(d, e)}
                     for e, p in d.parameters.items() if not effect_class(e).geometric},
-        "geometric_parameters_in_urdf": {e: {k: float(v) for k, v in p.items()}
+        "geometric_parameters_in_urdf": {e: {"parameters": {k: float(v) for k, v in p.items()},
+                                             "units": dict(d.parameter_units.get(e, {})), **_uncertainty(d, e)}
                                          for e, p in d.parameters.items() if effect_class(e).geometric},
+        "uncertainty_note": "std: standard error from the fit's Jacobian and residual (noise only, not model "
+                            "error); interval_95: value +- 1.96 std cut to the physical range; physical_range: "
+                            "where the effect's parameters can lie on a real robot, the fit stays inside it",
     }
     write_text_atomically(side, yaml.safe_dump(doc, sort_keys=False))
     return path, side
+
+
+def _uncertainty(d, effect: str) -> dict:
+    """An effect's standard errors, 95 % intervals, physical range and what the bounds hold (YAML-ready)."""
+    table = d.parameter_table.get(effect)
+    if not table:
+        return {}
+    finite = lambda v: float(v) if math.isfinite(v) else None  # noqa: E731
+    out = {"std": {k: finite(v) for k, v in table["std"].items()},
+           "interval_95": {k: [finite(a), finite(b)] for k, (a, b) in table["interval"].items()},
+           "physical_range": {k: [finite(a), finite(b)] for k, (a, b) in table["range"].items()},
+           "physics": d.physics.get(effect, "")}
+    if table["pinned"]:
+        out["held_on_physical_bound"] = [dict(p) for p in table["pinned"]]
+    return out
 
 
 # ---------------------------------------------------------------------------------------
@@ -359,15 +422,41 @@ def _report_tables(out, robot, d, source: str) -> None:
     out.add_table("3. Which effect: each effect added to frames alone",
                   ["effect", "held-out RMS", "gain", "paired z", "identifiable parameters"], rows,
                   units=["", "mm", "mm", "", ""])
-    out.add_table("4. How far it shrinks (k-fold held-out)",
-                  ["step", "parameters", "train RMS", "held-out mean", "held-out RMS", "held-out max"],
+    noise_said = (f"noise floor at most {d.noise_floor * mm:.4f} mm (from the residual: an upper bound)"
+                  if d.noise is not None and not d.noise.independent else
+                  f"final held-out RMS = {d.steps[-1].heldout.rms / d.noise_floor:.2f} x the noise floor "
+                  f"{d.noise_floor * mm:.4f} mm")
+    out.add_table("4. How far it shrinks (k-fold held-out, in the order the effects explain the data)",
+                  ["step", "parameters", "train RMS", "held-out mean", "held-out RMS", "held-out max", "gain",
+                   "gain 95 % interval"],
                   [(s.effect if i == 0 else "+" + s.effect, s.n_parameters, s.train_rms * mm, s.heldout.mean * mm,
-                    s.heldout.rms * mm, s.heldout.max * mm) for i, s in enumerate(d.steps)],
-                  units=["", "", "mm", "mm", "mm", "mm"],
-                  note=f"primary effect: {_primary_text(d)}; final held-out RMS = "
-                       f"{d.steps[-1].heldout.rms / d.noise_floor:.2f} x the noise floor "
-                       f"{d.noise_floor * mm:.4f} mm; structure remains: {_verdict_text(d)} "
-                       f"({d.structure.get('reason', '')})")
+                    s.heldout.rms * mm, s.heldout.max * mm, "" if s.gain is None else s.gain[0] * mm,
+                    "" if s.gain is None else f"{s.gain[1] * mm:+.4f} to {s.gain[2] * mm:+.4f}")
+                   for i, s in enumerate(d.steps)],
+                  units=["", "", "mm", "mm", "mm", "mm", "mm", "mm"],
+                  note=f"primary effect: {_primary_text(d)}; {noise_said}; structure remains: {_verdict_text(d)} "
+                       f"({d.structure.get('reason', '')}); stability (share of {d.selection.get('n_replays', 0)} "
+                       "bootstrap replays of the selection that chose each effect): " + ", ".join(
+                           f"{e} {f:.0%}" for e, f in d.selection.get("frequency", {}).items() if f > 0))
+    rows = []
+    for e, table in d.parameter_table.items():
+        units = d.parameter_units.get(e, {})
+        for name, value in table["values"].items():
+            low, high = table["interval"][name]
+            lo, hi = table["range"][name]
+            pinned = any(p["parameter"] == name for p in table["pinned"])
+            rows.append((name, f"{value:+.4g}", f"{table['std'][name]:.2g}", f"{low:+.4g} to {high:+.4g}",
+                         units.get(name, ""), f"{lo:.3g} to {hi:.3g}" + (" (held on a bound)" if pinned else "")))
+    if rows:
+        out.add_table("Fitted parameters", ["parameter", "value", "standard error", "95 % interval", "unit",
+                                            "physical range"], rows,
+                      note="standard errors from the fit's Jacobian and residual (the noise, not model error); the "
+                           "fit stays inside each effect's physical range: " + "; ".join(
+                               f"{e}: {why}" for e, why in d.physics.items() if why))
+    for finding in d.outside_physics:
+        out.add_text(f"{finding['description']} (with {finding['effect']} unbounded the held-out RMS would be "
+                     f"{finding['heldout_rms_mm']:.4g} mm instead of {finding['heldout_rms_bounded_mm']:.4g} mm)",
+                     heading="What the data fit only outside physics")
     if d.ambiguous:
         out.add_table("What the data cannot tell apart",
                       ["group", "member", "held-out RMS", "held-out mean", "parameters", "z (worse than chosen)"],

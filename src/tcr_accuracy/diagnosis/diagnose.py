@@ -62,7 +62,9 @@ from .fitting import EffectBasis, FitEngine, Part, UnionBasis, ordered, paired_z
 from ..model.gravity import gravity_torque
 from ..model.kinematics import tcp_poses
 from .ambiguity import ambiguity_report, settle_swaps, stand_in_shapes, swap_alternatives
-from .residuals import NoiseEstimate, noise_from_repeats, noise_from_residual, where_analysis
+from .residuals import NoiseEstimate, noise_from_repeats, noise_from_residual, noise_from_rigid_frames, \
+    where_analysis
+from .uncertainty import difference_interval, outside_physics, parameter_table, selection_frequency
 from .attribution import contributions, fixed_point_check, tied_own_shares
 from .structure import StructureDetector, name_scatter, scatter_beyond_noise, smallest_detectable_structure, \
     smooth_shape, structure_verdict
@@ -135,8 +137,9 @@ class GapDiagnosis:
 
     def __init__(self, *, effects=None, folds: int = 5, seed: int = 0, tracker_noise: float | None = None,
                  selection_z: float = 3.0, min_relative_gain: float = 0.002, rank_tol: float = 1e-6,
-                 orientation_weight: float | None = None):
+                 orientation_weight: float | None = None, stability_replays: int = 50):
         self.effects = effects
+        self.stability_replays = stability_replays
         self.folds = folds
         self.seed = seed
         self.tracker_noise = tracker_noise
@@ -233,8 +236,12 @@ class GapDiagnosis:
             b.restack()
         kfold = KFold(n_splits=self.folds, shuffle=True, random_state=int(rng.integers(2**31 - 1)))
         split = [(np.asarray(a), np.asarray(b)) for a, b in kfold.split(np.arange(n))]
-        repeats = noise_from_repeats(obs.q, obs.position, _context_table(obs)) if self.tracker_noise is None \
-            else None
+        # the instrument's noise from the data's own redundancy: reflectors on one rigid body, else repeated poses
+        repeats = None
+        if self.tracker_noise is None:
+            repeats = noise_from_rigid_frames([p.position for p in nominal], [o.position for _, o, _ in frames],
+                                              [label for _, _, label in frames]) or \
+                noise_from_repeats(obs.q, obs.position, _context_table(obs))
         resolution = self.tracker_noise or (repeats.per_axis if repeats else RESOLUTION_NOISE)
         engine = FitEngine(parts, bases, split, self.rank_tol, min_motion=0.1 * resolution)
         _, ident_all = engine.identify(order)
@@ -252,7 +259,7 @@ class GapDiagnosis:
         steps = [Step("frames", ("frames",), result["n_parameters"], ErrorStats.of(result["train_residual"]).rms,
                       ErrorStats.of(result["heldout_residual"]), None)]
         current = self._forward(engine, testable, steps, candidates, say)
-        resized = self._judge_at_fitted_sizes(engine, current, notes)
+        self._judge_at_fitted_sizes(engine, current, notes)
         # a stand-in must explain the gap on its own, as an effect entering first would have to
         # (its paired z against frames alone at the first step): the rest cannot replace anything
         rivals = [e for e in testable if candidates.get(e, {}).get("z", 0.0) > self.selection_z]
@@ -263,20 +270,22 @@ class GapDiagnosis:
         final = engine.evaluate(ordered(current))
         groups = swap_alternatives(engine, current, rivals, self.selection_z)
         ambiguous = ambiguity_report(groups)
+        # the largest own share and those it does not clear, compared on the same held-out rows (paired: the
+        # two shares' own intervals overlap more than their difference's does)
         tied = tied_own_shares(engine, current, loo, self.selection_z)
         primary = tied[0] if tied else None
         primary_group = [r["effect"] for r in groups.get(primary, [])] or ([primary] if primary else [])
         primary_group += [e for e in tied[1:] if e not in primary_group]
         if len(primary_group) > 1:
             primary = None  # the data cannot say which of the group it is
-        if eliminated or swaps or resized:  # rebuild the shrink table along the forward order of what stayed
-            steps = steps[:1]
-            for k in range(1, len(selected)):
-                r = engine.evaluate(ordered(selected[:k + 1]))
-                p_ = engine.evaluate(ordered(selected[:k]))
-                steps.append(Step(selected[k], tuple(ordered(selected[:k + 1])), r["n_parameters"],
-                                  ErrorStats.of(r["train_residual"]).rms, ErrorStats.of(r["heldout_residual"]),
-                                  paired_z(p_["heldout_residual"], r["heldout_residual"])))
+            primary_group = ordered(primary_group)
+        # the shrink table in the order the chosen effects explain the data
+        steps = self._explanation_ladder(engine, selected, steps[0])
+        say("selection stability")
+        selection = selection_frequency(engine, testable, self.selection_z, self.min_relative_gain,
+                                        self.stability_replays, np.random.default_rng([self.seed, 2]), say)
+        say("what the data fit only outside physics")
+        beyond = outside_physics(engine, current, [e for e in testable], self.selection_z, self.min_relative_gain)
         if eliminated:
             notes.append("dropped again after forward selection (no significant held-out loss without them): "
                          + ", ".join(f"{e['effect']} (z = {e['z']:.1f})" for e in eliminated))
@@ -311,6 +320,16 @@ class GapDiagnosis:
         # fitted parameters, as-built geometry, tracker frame
         keep, ident = engine.identify(tuple(ordered(selected)))
         ident = {**ident, "all_effects": ident_all}
+        table = parameter_table(final, bases, ordered(selected))
+        for e, rows in table.items():
+            for pinned in rows["pinned"]:
+                if not (pinned["bound"] == "lower" and rows["range"][pinned["parameter"]][0] == 0.0):
+                    notes.append(f"{pinned['parameter']} is held at its physical {pinned['bound']} bound "
+                                 f"({effect_class(e).physics}): the data push beyond it")
+        for finding in beyond:
+            notes.append(f"outside physics: {finding['description']} (with {finding['effect']} unbounded the "
+                         f"held-out RMS would be {finding['heldout_rms_mm']:.4g} mm instead of "
+                         f"{finding['heldout_rms_bounded_mm']:.4g} mm, z = {finding['z']:.1f}; not named as a cause)")
         theta = final["phi"] * final["scale"]
         parameters, units, full_parameters = {}, {}, {}
         em = ErrorModel(robot)
@@ -356,6 +375,8 @@ class GapDiagnosis:
             n_fits=engine.n_fits, contribution=contribution, noise=noise, ambiguous=ambiguous, swaps=swaps,
             primary_group=primary_group, primary_tied=tied, second_order=second_order,
             frames_measured=[p.label for p in parts], heldout_by_frame=by_frame, orientation=orientation,
+            parameter_table=table, selection=selection, outside_physics=beyond,
+            physics={e: effect_class(e).physics for e in table},
         )
         self.robot_ = robot
         self.engine_ = engine
@@ -497,7 +518,9 @@ class GapDiagnosis:
                 r = engine.evaluate(rest)
                 own = engine.evaluate(rest, keep={s: keep[s] for s in rest})
                 held, held_own = ErrorStats.of(r["heldout_residual"]), ErrorStats.of(own["heldout_residual"])
+                share = difference_interval(own["heldout_residual"], final["heldout_residual"])
                 loo.append({"dropped": e, "heldout_rms_mm": held.rms * 1e3, "heldout_mean_mm": held.mean * 1e3,
+                            "own_share_interval_mm": [share[1] * 1e3, share[2] * 1e3],
                             "heldout_max_mm": held.max * 1e3, "increase_mm": (held.rms - final_rms) * 1e3,
                             "z": paired_z(r["heldout_residual"], final["heldout_residual"]),
                             "own_share_heldout_rms_mm": held_own.rms * 1e3,
@@ -509,6 +532,26 @@ class GapDiagnosis:
             eliminated.append({"effect": weakest["dropped"], "z": weakest["z"],
                                "increase_mm": weakest["increase_mm"]})
             current.remove(weakest["dropped"])
+
+    def _explanation_ladder(self, engine, selected, first: Step) -> list[Step]:
+        """The shrink table in the order of explanation: from frames, each step adds the chosen
+        effect that lowers the held-out error most given those before it, with its gain and
+        the gain's 95 % interval."""
+        steps, current = [first], ["frames"]
+        previous = engine.evaluate(["frames"])
+        remaining = [e for e in selected if e != "frames"]
+        while remaining:
+            trials = {e: engine.evaluate(ordered(current + [e])) for e in remaining}
+            best = min(trials, key=lambda e: ErrorStats.of(trials[e]["heldout_residual"]).rms)
+            r = trials[best]
+            current.append(best)
+            remaining.remove(best)
+            steps.append(Step(best, tuple(ordered(current)), r["n_parameters"], ErrorStats.of(r["train_residual"]).rms,
+                              ErrorStats.of(r["heldout_residual"]),
+                              paired_z(previous["heldout_residual"], r["heldout_residual"]),
+                              difference_interval(previous["heldout_residual"], r["heldout_residual"])))
+            previous = r
+        return steps
 
     def _noise(self, repeats, q, residual, n_parameters, structured) -> NoiseEstimate:
         if self.tracker_noise is not None:

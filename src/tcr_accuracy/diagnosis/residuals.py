@@ -230,3 +230,34 @@ def noise_from_residual(q: np.ndarray, residual: np.ndarray, n_parameters: int, 
                          "part of the structured final residual that does not vary with the joints "
                          f"(semivariogram at zero joint distance; the whole residual is {sigma_rss * 1e3:.4g} mm "
                          "per axis); measure some poses twice to pin it down")
+
+
+def noise_from_rigid_frames(nominal: list[np.ndarray], measured: list[np.ndarray], labels: list[str],
+                            tolerance: float = 1e-9, min_rows: int = 6) -> NoiseEstimate | None:
+    """The instrument's scatter from several measured frames on one rigid body, or None.
+
+    nominal, measured : per frame (N, 3) positions [m], in the robot's and the tracker's
+    frame. Two frames whose nominal distance does not change with the pose (reflectors on
+    the same link) keep their measured distance too, whatever the robot's errors; with
+    independent isotropic noise sigma per axis on each point, the distance varies by
+    sigma * sqrt(2) (the noise of both points projected on the line between them). The
+    pairs' variances are pooled. Needs at least ``min_rows`` rows.
+    """
+    if len(nominal) < 2 or nominal[0].shape[0] < min_rows:
+        return None
+    variances, pairs = [], []
+    for a in range(len(nominal)):
+        for b in range(a + 1, len(nominal)):
+            model = np.linalg.norm(nominal[a] - nominal[b], axis=1)
+            if model.mean() <= 1e-6 or np.ptp(model) > tolerance + 1e-9 * model.mean():
+                continue  # not on one rigid body, or the same point
+            distance = np.linalg.norm(measured[a] - measured[b], axis=1)
+            variances.append(float(np.var(distance, ddof=1)) / 2.0)
+            pairs.append(f"{labels[a]}-{labels[b]}")
+    if not variances:
+        return None
+    sigma = math.sqrt(float(np.mean(variances)))
+    n = nominal[0].shape[0]
+    return NoiseEstimate(sigma, "rigid frames", True,
+                         f"scatter of the distances between measured frames on one rigid body ({', '.join(pairs)}; "
+                         f"{n} rows): the instrument's own noise, whatever the robot does")

@@ -83,12 +83,18 @@ class Step:
     train_rms: float
     heldout: ErrorStats
     z_statistic: float | None  # paired test against the previous step (None for frames)
+    #: (gain, low, high) [m]: how much this step lowers the held-out RMS, with its 95 % interval
+    gain: tuple | None = None
 
     def to_dict(self) -> dict:
-        return {"effect": self.effect, "effects": list(self.effects), "n_parameters": self.n_parameters,
-                "train_rms_mm": self.train_rms * 1e3, "heldout_rms_mm": self.heldout.rms * 1e3,
-                "heldout_mean_mm": self.heldout.mean * 1e3, "heldout_max_mm": self.heldout.max * 1e3,
-                "z_vs_previous": self.z_statistic}
+        out = {"effect": self.effect, "effects": list(self.effects), "n_parameters": self.n_parameters,
+               "train_rms_mm": self.train_rms * 1e3, "heldout_rms_mm": self.heldout.rms * 1e3,
+               "heldout_mean_mm": self.heldout.mean * 1e3, "heldout_max_mm": self.heldout.max * 1e3,
+               "z_vs_previous": self.z_statistic}
+        if self.gain is not None:
+            out["gain_heldout_rms_mm"] = self.gain[0] * 1e3
+            out["gain_interval_mm"] = [self.gain[1] * 1e3, self.gain[2] * 1e3]
+        return out
 
 
 @dataclass
@@ -141,6 +147,10 @@ class Diagnosis:
     primary_group: list = field(default_factory=list)  # the primary effect and what stands in for it
     primary_tied: list = field(default_factory=list)  # the largest own share and those not ranked below it
     second_order: dict = field(default_factory=dict)  # what one fixed-point step of the deflections adds
+    parameter_table: dict = field(default_factory=dict)  # effect -> values, std, interval, range, pinned [SI]
+    selection: dict = field(default_factory=dict)  # how often each effect is chosen over bootstrap replays
+    outside_physics: list = field(default_factory=list)  # what the data fit only outside an effect's physics
+    physics: dict = field(default_factory=dict)  # effect -> why its parameters lie in their range
 
     def predict(self, robot: RobotModel, q: np.ndarray, context: MeasurementContext | None = None) -> np.ndarray:
         """TCP positions (N, 3) in the tracker frame [m] that the fitted model predicts
@@ -184,7 +194,16 @@ class Diagnosis:
             "structure_verdict": self.structure.get("verdict"),
             "structure": self.structure,
             "parameters": {e: {k: float(v) for k, v in p.items()} for e, p in self.parameters.items()},
+            "parameter_std": {e: {k: (v if np.isfinite(v) else None) for k, v in t["std"].items()}
+                              for e, t in self.parameter_table.items()},
+            "parameter_interval_95": {e: dict(t["interval"]) for e, t in self.parameter_table.items()},
             "parameter_units": self.parameter_units,
+            "physical": {e: {"plausible": True, "range": dict(t["range"]), "pinned": list(t["pinned"]),
+                             "reason": self.physics.get(e, "")}
+                         for e, t in self.parameter_table.items()},
+            "outside_physics": list(self.outside_physics),
+            "selection_frequency": dict(self.selection.get("frequency", {})),
+            "selection": {k: v for k, v in self.selection.items() if k != "frequency"},
             "tracker_transform": self.tracker_transform.tolist(),
             "notes": list(self.notes),
             "n_fits": self.n_fits,

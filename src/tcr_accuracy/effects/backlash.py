@@ -9,7 +9,7 @@ import numpy as np
 from ..model.context import context_column
 from ..model.gravity import gravity_torque
 from ..units import REVOLUTE
-from .base import PerJointEffect, joint_unit
+from .base import PerJointEffect, joint_unit, per_joint_kind
 
 
 class Backlash(PerJointEffect):
@@ -29,6 +29,8 @@ class Backlash(PerJointEffect):
     context_columns = ("payload_kg", "<joint>_dir")
     non_negative = True
     dominant_candidate = 2
+    physics = ("a dead band is a width (positive) and stays below 0.5 deg (0.5 mm) in any gearbox that still "
+               "holds a load")
 
     def __init__(self, robot, *, link_mass_factors=None) -> None:
         super().__init__(robot)
@@ -52,6 +54,21 @@ class Backlash(PerJointEffect):
             direction = np.asarray(context.direction, dtype=float)
             s = np.where(direction != 0, -direction, s)
         return s
+
+    def physical_range(self):
+        return np.zeros(self.n_params), per_joint_kind(self.robot, math.radians(0.5), 5e-4)
+
+    def outside_physics(self, values):
+        lead = [(n.split(".", 1)[1], v, u) for n, v, u in zip(self.parameter_names(), values, self.parameter_units())
+                if v < 0]
+        if lead:
+            lead.sort(key=lambda t: t[1])
+            said = ", ".join(f"{j} {(-v / 2) * (180 / math.pi) if u == 'rad' else -v / 2 * 1e3:.3g} "
+                             f"{'deg' if u == 'rad' else 'mm'}" for j, v, u in lead[:4])
+            return (f"the joints end ahead of their motion, not behind it ({said}): not a dead band; check the "
+                    "controller's backlash (lost-motion) compensation, which may be set too high, and the time "
+                    "offset between the tracker and the joint log")
+        return super().outside_physics(values)
 
     def signal(self, q, context):
         return 0.5 * self.side(q, context)

@@ -23,6 +23,8 @@ class attribute             meaning
                             same scenarios when effects are added), or None
 ``in_vocabulary``           False for effects only ``simulate`` can hide (a diagnosis must
                             admit what it cannot name)
+``physics``                 one line: why the parameters lie where :meth:`Effect.physical_range`
+                            says (the diagnosis fits inside that range and reports it)
 ==========================  ===========================================================
 
 Options are explicit keyword-only arguments of the class's ``__init__`` (a misspelt
@@ -105,6 +107,8 @@ class Effect(abc.ABC):
     in_vocabulary: ClassVar[bool] = True
     #: False when parameter_jacobian falls back to finite differences.
     analytic_jacobian: ClassVar[bool] = True
+    #: why the parameters lie in :meth:`physical_range` (reports print it next to the range)
+    physics: ClassVar[str] = ""
 
     def __init_subclass__(cls, **kwargs) -> None:
         super().__init_subclass__(**kwargs)
@@ -153,6 +157,27 @@ class Effect(abc.ABC):
     @property
     def n_params(self) -> int:
         return len(self.parameter_names())
+
+    def physical_range(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) of each parameter on a real robot [SI]: the diagnosis fits inside it.
+
+        Default: a magnitude (``non_negative``) is at least zero, anything else is free.
+        Effects with a physics of their own override this and say why in ``physics``.
+        """
+        k = self.n_params
+        return (np.zeros(k) if self.non_negative else np.full(k, -np.inf)), np.full(k, np.inf)
+
+    def outside_physics(self, values: np.ndarray) -> str:
+        """What the data show, in physical words, when they fit this effect only with
+        ``values`` (k,) [SI] outside :meth:`physical_range` (one sentence, no effect name
+        claimed as the cause). Effects override it where the phenomenon has a name."""
+        lower, upper = self.physical_range()
+        names, units = self.parameter_names(), self.parameter_units()
+        out = [i for i in np.argsort(-np.abs(values)) if values[i] < lower[i] or values[i] > upper[i]]
+        listed = ", ".join(f"{names[i]} = {values[i]:.3g} {units[i]} (range {lower[i]:.3g} to {upper[i]:.3g})"
+                           for i in out[:3])
+        return (f"the data fit {self.name} only with {len(out)} parameter(s) outside what a real joint can have: "
+                f"{listed}; another cause with the same signature is more likely")
 
     def zeros(self) -> np.ndarray:
         return np.zeros(self.n_params)
@@ -274,6 +299,11 @@ class PerJointEffect(LinearEffect):
 def joint_unit(kind: str) -> str:
     """SI unit of a joint value of this kind."""
     return "rad" if kind == REVOLUTE else "m"
+
+
+def per_joint_kind(robot: RobotModel, revolute: float, prismatic: float) -> np.ndarray:
+    """(n_joints,) one value per joint by its kind (e.g. a bound in rad or in m)."""
+    return np.array([revolute if k == REVOLUTE else prismatic for k in robot.joint_kinds], dtype=float)
 
 
 # ---------------------------------------------------------------------------------------

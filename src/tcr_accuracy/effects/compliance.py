@@ -30,6 +30,8 @@ class Compliance(PerJointEffect):
     context_columns = ("payload_kg",)
     non_negative = True
     dominant_candidate = 1
+    physics = ("a joint gives way to gravity (positive), by less than 2 deg (10 mm) under its typical gravity load "
+               "(200 x the typical compliance): a softer joint would be felt by hand")
 
     def __init__(self, robot, *, link_mass_factors=None) -> None:
         super().__init__(robot)
@@ -48,6 +50,18 @@ class Compliance(PerJointEffect):
         tau = gravity_torque(self.robot, reference_poses(self.robot), self.robot.typical_payload_kg,
                              self.link_mass_factors)
         return loaded_joint_scales(self.robot, np.sqrt(np.mean(tau**2, axis=0)), math.radians(0.01), 5e-5)
+
+    def physical_range(self):
+        return np.zeros(self.n_params), 200.0 * self.parameter_scales()
+
+    def outside_physics(self, values):
+        lower, _ = self.physical_range()
+        negative = [n.split(".", 1)[1] for n, v in zip(self.parameter_names(), values) if v < 0]
+        if negative:
+            return (f"the joints {', '.join(negative[:4])} move against the gravity torque they carry, which no elastic "
+                    "joint does: a gravity compensation in the controller that over-corrects, or masses and centres "
+                    "of mass in the URDF far from the real ones")
+        return super().outside_physics(values)
 
     def signal(self, q, context):
         payload = context_column(context, "payload_kg", q.shape[0], 0.0)

@@ -14,12 +14,16 @@ class EncoderScale(PerJointEffect):
     order = 55.0
     summary = "gear ratio (scale) error per joint"
     dominant_candidate = 5
+    physics = "a gear ratio the controller has wrong by more than 1 % would be seen as a joint that misses its end stops"
 
     def parameter_units(self):
         return ["1"] * self.n_params
 
     def parameter_scales(self):
         return np.full(self.n_params, 3e-4)
+
+    def physical_range(self):
+        return np.full(self.n_params, -0.01), np.full(self.n_params, 0.01)
 
     def signal(self, q, context):
         return q

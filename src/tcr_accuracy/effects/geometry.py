@@ -25,6 +25,8 @@ class Geometry(ErrorVectorEffect):
     order = 20.0
     summary = "error screws on the joint placements"
     geometric = True
+    physics = ("link machining and assembly: a placement off by more than 20 mm or 3 deg is a URDF that describes "
+               "another robot")
 
     def __init__(self, robot, *, components=None) -> None:
         super().__init__(robot)
@@ -42,4 +44,9 @@ class Geometry(ErrorVectorEffect):
 
     def parameter_scales(self):
         return np.full(self.n_params, 2e-4)  # 0.2 mm, 0.2 mrad
+
+    def physical_range(self):
+        rotation = np.array([n.split(".")[-1].startswith("r") for n in self.parameter_names()])
+        bound = np.where(rotation, np.radians(3.0), 0.02)
+        return -bound, bound
 

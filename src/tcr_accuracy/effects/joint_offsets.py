@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from ..units import REVOLUTE
-from .base import PerJointEffect, joint_unit
+from .base import PerJointEffect, joint_unit, per_joint_kind
 
 
 class JointOffsets(PerJointEffect):
@@ -17,6 +17,8 @@ class JointOffsets(PerJointEffect):
     order = 10.0
     summary = "encoder zero offsets"
     geometric = True
+    physics = ("an encoder zero off by more than 10 deg (20 mm on a prismatic joint) is a joint mastered on the "
+               "wrong mark, not a calibration error")
 
     def parameter_units(self):
         return [joint_unit(k) for k in self.robot.joint_kinds]
@@ -24,6 +26,10 @@ class JointOffsets(PerJointEffect):
     def parameter_scales(self):
         # 0.03 deg, 0.05 mm
         return np.array([math.radians(0.03) if k == REVOLUTE else 5e-5 for k in self.robot.joint_kinds])
+
+    def physical_range(self):
+        bound = per_joint_kind(self.robot, math.radians(10.0), 0.02)
+        return -bound, bound
 
     def signal(self, q, context):
         return np.ones_like(q)

@@ -38,6 +38,8 @@ class LateralCompliance(LinearEffect):
     summary = "joint tilt across each axis under the gravity wrench it carries"
     context_columns = ("payload_kg",)
     non_negative = True
+    physics = ("a bearing tilts the way the gravity moment pushes it (positive), by less than 2 deg under its "
+               "typical moment (200 x the typical compliance)")
 
     def __init__(self, robot, *, link_mass_factors=None) -> None:
         super().__init__(robot)
@@ -84,6 +86,9 @@ class LateralCompliance(LinearEffect):
         rms = np.array([np.sqrt(np.mean((moment[:, j] @ e) ** 2)) for j, _, e in self._axes()])
         per_joint = rms.reshape(self.robot.n_joints, 2)
         return loaded_joint_scales(self.robot, per_joint, math.radians(0.01), math.radians(0.01)).reshape(-1)
+
+    def physical_range(self):
+        return np.zeros(self.n_params), 200.0 * self.parameter_scales()
 
     def parameter_jacobian(self, params, q, context):
         q = np.atleast_2d(np.asarray(q, dtype=float))

@@ -25,6 +25,9 @@ class Thermal(LinearEffect):
     context_columns = ("temperature_c",)
     requires_context = True
     dominant_candidate = 3
+    non_negative = True
+    physics = ("links expand with temperature, between invar (1.2e-6/K) and aluminium (2.3e-5/K): 0 to 2.5e-5 "
+               "per K")
 
     def __init__(self, robot, *, per_link: bool = False,
                  reference_temperature_c: float = REFERENCE_TEMPERATURE_C) -> None:
@@ -50,6 +53,9 @@ class Thermal(LinearEffect):
 
     def parameter_scales(self):
         return np.full(self.n_params, 1.2e-5)  # steel
+
+    def physical_range(self):
+        return np.zeros(self.n_params), np.full(self.n_params, 2.5e-5)
 
     def growth_directions(self) -> np.ndarray:
         """(n_error_params, k): d(x)/d(alpha dT) for each parameter."""

@@ -22,6 +22,8 @@ class Transmission(LinearEffect):
     order = 60.0
     summary = "periodic gear error (harmonics of each joint angle)"
     dominant_candidate = 4
+    physics = ("cyclic gear and encoder errors are arc-minutes; more than 0.25 deg (15 arc-min) per harmonic is a "
+               "damaged gear or a loose encoder, not a periodic error")
 
     def __init__(self, robot, *, harmonics=(1, 2)) -> None:
         super().__init__(robot)
@@ -40,6 +42,9 @@ class Transmission(LinearEffect):
 
     def parameter_scales(self):
         return np.full(self.n_params, math.radians(0.01))
+
+    def physical_range(self):
+        return np.full(self.n_params, -math.radians(0.25)), np.full(self.n_params, math.radians(0.25))
 
     def parameter_jacobian(self, params, q, context):
         q = np.atleast_2d(np.asarray(q, dtype=float))

@@ -1,0 +1,158 @@
+"""How sure the diagnosis is: parameter intervals, each effect's share and each step's gain
+with their intervals, how stable the selection is, and what the data fit only outside physics.
+
+* :func:`parameter_table` -- every fitted parameter [SI] with its standard error (from the
+  fit's Jacobian and residual: s^2 (J^T J)^-1), its 95 % interval, its physical range and
+  whether the physics holds it on a bound (the data push beyond it).
+* :func:`difference_interval` -- a held-out RMS difference between two models on the same
+  rows, with its 95 % interval from the paired per-row squared errors.
+* :func:`selection_frequency` -- the forward selection replayed on bootstrap resamples of
+  the rows (each model's held-out errors as fitted; the resampling moves which effect wins
+  each step and whether it passes the test): how often each effect is chosen.
+* :func:`outside_physics` -- effects that the data fit significantly better with their
+  parameters free of the physical bounds: what the data show instead, in physical words.
+
+Lengths in m inside; the returned dicts carry mm in ``_mm`` keys.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .fitting import ordered, paired_z, row_squares
+
+#: two-sided 95 % normal quantile
+Z95 = 1.959963984540054
+
+
+def parameter_table(result: dict, bases: dict, effects) -> dict:
+    """Per effect: {"values", "std", "interval", "range", "pinned"} by parameter name [SI].
+
+    ``result`` is a fit of :meth:`~tcr_accuracy.diagnosis.fitting.FitEngine.evaluate`.
+    The interval is value +- 1.96 std cut to the physical range; ``pinned`` lists the
+    parameters the physics holds on a bound, with the side.
+    """
+    theta = result["phi"] * result["scale"]
+    std = result["phi_std"] * result["scale"]
+    lower, upper = result["lower"] * result["scale"], result["upper"] * result["scale"]
+    out, offset = {}, 0
+    for e in effects:
+        size = result["keep"][e].size
+        block = slice(offset, offset + size)
+        offset += size
+        names = result["names"][block]
+        rows = {"values": {}, "std": {}, "interval": {}, "range": {}, "pinned": []}
+        for name, v, s, lo, hi, pinned in zip(names, theta[block], std[block], lower[block], upper[block],
+                                             result["at_bound"][block]):
+            rows["values"][name] = float(v)
+            rows["std"][name] = float(s)
+            rows["interval"][name] = [float(max(v - Z95 * s, lo)), float(min(v + Z95 * s, hi))]
+            rows["range"][name] = [float(lo), float(hi)]
+            if pinned and (np.isfinite(lo) or np.isfinite(hi)):
+                rows["pinned"].append({"parameter": name,
+                                       "bound": "lower" if abs(v - lo) <= abs(v - hi) else "upper"})
+        out[e] = rows
+    return out
+
+
+def difference_interval(before: np.ndarray, after: np.ndarray) -> tuple[float, float, float]:
+    """How much lower the held-out RMS of ``after`` is than that of ``before`` [m], with the
+    95 % interval: the mean cut in per-row squared errors and its standard error (paired,
+    rows independent), turned into RMS. before, after: (N, 3) or (n_parts, N, 3)."""
+    a, b = row_squares(before), row_squares(after)
+    n = a.size
+    d = a - b
+    se = float(d.std(ddof=1) / math.sqrt(n)) if n > 1 else 0.0
+    mean_a = float(a.mean())
+
+    def gain(cut):  # RMS before minus RMS after, for a cut in the mean squared error
+        return math.sqrt(mean_a) - math.sqrt(max(mean_a - cut, 0.0))
+
+    cut = float(d.mean())
+    return gain(cut), gain(cut - Z95 * se), gain(cut + Z95 * se)
+
+
+def selection_frequency(engine, testable: list, selection_z: float, min_relative_gain: float,
+                        n_replays: int, rng: np.random.Generator, say=lambda message: None) -> dict:
+    """Forward selection replayed on ``n_replays`` bootstrap resamples of the rows: each
+    step's candidates compared on the resampled rows' held-out errors (paired z and relative
+    gain as in the diagnosis); a model not fitted yet is fitted once and cached. Returns
+    {effect: share of the replays that chose it} for every testable effect, and the share of
+    replays that ended on each set (``sets``)."""
+    n = engine.n_rows
+    counts = {e: 0 for e in testable}
+    sets: dict = {}
+    for replay in range(n_replays):
+        if replay % 10 == 0:
+            say(f"selection stability: replay {replay + 1} of {n_replays}")
+        rows = rng.integers(0, n, n)
+        current, pool = ["frames"], list(testable)
+        while pool:
+            prev = engine.evaluate(ordered(current))["heldout_residual"]
+            prev_sq = row_squares(prev)[rows]
+            trials = {e: row_squares(engine.evaluate(ordered(current + [e]))["heldout_residual"])[rows] for e in pool}
+            best = min(trials, key=lambda e: trials[e].mean())
+            d = prev_sq - trials[best]
+            sd = d.std(ddof=1)
+            z = math.inf if sd == 0 and d.mean() > 0 else (d.mean() / (sd / math.sqrt(d.size)) if sd > 0 else 0.0)
+            if not (z > selection_z and math.sqrt(trials[best].mean()) < math.sqrt(prev_sq.mean())
+                    * (1.0 - min_relative_gain)):
+                break
+            current.append(best)
+            pool.remove(best)
+        for e in current[1:]:
+            counts[e] += 1
+        key = ", ".join(ordered(current))
+        sets[key] = sets.get(key, 0) + 1
+    return {"frequency": {e: c / n_replays for e, c in counts.items()},
+            "sets": {k: v / n_replays for k, v in sorted(sets.items(), key=lambda kv: -kv[1])},
+            "n_replays": n_replays,
+            "method": "forward selection replayed on bootstrap resamples of the rows (each model's out-of-fold "
+                      "errors as fitted once; the resampling changes which effect wins each step and whether "
+                      "it passes the paired test)"}
+
+
+def outside_physics(engine, current: list, candidates: list, selection_z: float, min_relative_gain: float) -> list:
+    """Effects the data fit significantly better with their parameters outside the physical
+    range: each candidate added to the final model (or, when chosen, freed in it) with its
+    own bounds lifted; where that beats the bounded model by the selection test, the
+    effect's own words for what the data show (``Effect.outside_physics``)."""
+    final = engine.evaluate(ordered(current))
+    final_rms = float(np.sqrt(row_squares(final["heldout_residual"]).mean()))
+    findings = []
+    for e in candidates:
+        basis = engine.bases[e]
+        if np.all(np.isneginf(basis.lower)) and np.all(np.isposinf(basis.upper)):
+            continue  # nothing bounds it
+        model = ordered(set(current) | {e})
+        free = engine.evaluate(model, free=(e,))
+        values = _effect_values(free, e, len(basis.names))
+        lower, upper = basis.lower, basis.upper
+        outside = (values < lower - 1e-12 * np.abs(lower)) | (values > upper + 1e-12 * np.abs(upper))
+        if not outside.any():
+            continue
+        z = paired_z(final["heldout_residual"], free["heldout_residual"])
+        rms = float(np.sqrt(row_squares(free["heldout_residual"]).mean()))
+        if z > selection_z and rms < final_rms * (1.0 - min_relative_gain):
+            effect = basis.per_part[0].effect
+            full = values[basis.index[0]]
+            findings.append({"effect": e, "heldout_rms_mm": rms * 1e3, "heldout_rms_bounded_mm": final_rms * 1e3,
+                             "z": z, "n_outside": int(outside.sum()),
+                             "description": effect.outside_physics(full)})
+    return findings
+
+
+def _effect_values(result: dict, effect: str, size_all: int) -> np.ndarray:
+    """(P,) an effect's fitted values in its union layout [SI] (zeros where not kept)."""
+    theta = result["phi"] * result["scale"]
+    offset = 0
+    for e in result["effects"]:
+        size = result["keep"][e].size
+        if e == effect:
+            values = np.zeros(size_all)
+            values[result["keep"][e]] = theta[offset:offset + size]
+            return values
+        offset += size
+    raise KeyError(effect)
