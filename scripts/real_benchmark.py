@@ -153,7 +153,12 @@ def diagnose_set(name: str, settings: dict, work: Path) -> dict:
                                          "heldout_max_mm")} for s in d["steps"]],
             "leave_one_out": [{k: r[k] for k in ("dropped", "heldout_mean_mm", "own_share_heldout_mean_mm")}
                               for r in d["leave_one_out"]],
-            "noise": d.get("noise"), "structure_remains": d["structure_remains"], "reference_order_ladder": ladder}
+            "noise": d.get("noise"), "structure_remains": d["structure_remains"], "reference_order_ladder": ladder,
+            "primary_group": d.get("primary_group", []), "selection_frequency": d.get("selection_frequency", {}),
+            "n_parameters": sum(len(p) for p in d.get("parameters", {}).values()),
+            "pinned": [p["parameter"] for e in d.get("physical", {}).values() for p in e.get("pinned", [])],
+            "outside_physics": [f["effect"] for f in d.get("outside_physics", [])],
+            "train_rms_mm": [s["train_rms_mm"] for s in d["steps"]]}
 
 
 def split(settings: dict, work: Path, name: str) -> tuple[Path, Path, str]:
@@ -213,9 +218,18 @@ def report(name: str, settings: dict, diagnosis: dict, prediction: dict | None) 
     if "error" in diagnosis:
         print(f"  diagnose: {diagnosis['error']}")
     else:
-        print(f"  diagnose: {diagnosis['seconds']:.1f} s; primary effect {diagnosis['primary_effect']}; "
-              f"noise {diagnosis['noise']['per_axis_mm']:.4f} mm per axis from {diagnosis['noise']['source']}")
-        print(f"  {'step (forward selection)':28s} {'params':>6s} {'held-out mean':>14s} {'max':>9s}")
+        primary = diagnosis["primary_effect"] or "one of {" + ", ".join(diagnosis["primary_group"]) + "}"
+        print(f"  diagnose: {diagnosis['seconds']:.1f} s (intervals and stability included); primary effect "
+              f"{primary}; noise {diagnosis['noise']['per_axis_mm']:.4f} mm per axis from "
+              f"{diagnosis['noise']['source']}")
+        train = diagnosis["train_rms_mm"]
+        rises = sum(b > a * (1 + 1e-9) for a, b in zip(train, train[1:]))
+        print(f"  physics: {diagnosis['n_parameters']} parameters, all inside their physical ranges; "
+              f"{len(diagnosis['pinned'])} held on a bound; fitted only outside physics: "
+              f"{', '.join(diagnosis['outside_physics']) or 'nothing'}; train RMS rises along the ladder: {rises}")
+        print("  stability (share of bootstrap replays choosing it): " + ", ".join(
+            f"{e} {f:.0%}" for e, f in diagnosis["selection_frequency"].items() if f > 0))
+        print(f"  {'step (order of explanation)':28s} {'params':>6s} {'held-out mean':>14s} {'max':>9s}")
         for s in diagnosis["steps"]:
             print(f"  {s['effect']:28s} {s['n_parameters']:6d} {s['heldout_mean_mm']:14.3f} {s['heldout_max_mm']:9.3f}")
         if diagnosis["reference_order_ladder"]:

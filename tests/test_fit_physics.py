@@ -262,3 +262,29 @@ def test_noise_from_three_reflectors_on_one_tool():
     assert d.noise.independent
     assert d.tracker_noise == pytest.approx(noise, rel=0.3)
     assert "rigid body" in d.noise.detail
+
+
+def test_scatter_is_named_only_when_the_joints_cannot_predict_it():
+    """A leftover 3 x the instrument's noise: a smooth function of two joints (structure a
+    joint-space predictor takes out of sample) is not called scatter; independent draws of
+    the same size are."""
+    from tcr_accuracy.diagnosis.residuals import NoiseEstimate
+    from tcr_accuracy.diagnosis.structure import StructureDetector, name_scatter, scatter_test
+
+    rng = np.random.default_rng(4)
+    n, instrument = 400, 1e-5
+    q = rng.uniform(-2, 2, (n, 4))
+    noise = NoiseEstimate(instrument, "given", True, "")
+    detector = StructureDetector(q, np.random.default_rng(0))
+    smooth = 2.8e-5 * np.stack([np.sin(1.5 * q[:, 0]) * np.cos(q[:, 1]), np.cos(2 * q[:, 0]), np.sin(q[:, 1])], 1)
+    cases = {"structure": smooth + instrument * rng.standard_normal((n, 3)),
+             "scatter": 3 * instrument * rng.standard_normal((n, 3))}
+    named = {}
+    for label, residual in cases.items():
+        scatter = scatter_test(residual, 0, instrument)
+        assert scatter["detected"]
+        notes = []
+        name_scatter(scatter, {"verdict": "no"}, [], noise, notes, detector, residual)
+        named[label] = scatter.get("named")
+    assert named["structure"] is None
+    assert named["scatter"] == "random scatter"

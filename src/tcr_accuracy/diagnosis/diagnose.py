@@ -315,7 +315,7 @@ class GapDiagnosis:
                                      else float(np.sqrt(np.mean(final_train**2))))
         structure.update(structure_verdict(structure, structure["power"], scatter, math.sqrt(3.0) * noise.per_axis,
                                            leftover))
-        name_scatter(scatter, structure, stochastic, noise, notes)
+        name_scatter(scatter, structure, stochastic, noise, notes, detector, final_train)
 
         # fitted parameters, as-built geometry, tracker frame
         keep, ident = engine.identify(tuple(ordered(selected)))

@@ -295,11 +295,44 @@ def scatter_beyond_noise(noise, final, stochastic) -> dict:
         scatter["stochastic_effects"] = stochastic
     return scatter
 
-def name_scatter(scatter, structure, stochastic, noise, notes) -> None:
+def predictable_leftover(detector: StructureDetector, residual: np.ndarray) -> float:
+    """RMS per axis [m] of what is left of a residual (N, 3) once it is predicted out of
+    sample from the joint values: the better of k-nearest neighbours (in all joints, along
+    each joint and each pair, as the structure test) and ridge regression on smooth joint
+    features, each scored on held-out folds."""
+    from sklearn.linear_model import RidgeCV
+    from sklearn.model_selection import cross_val_predict
+
+    residual = detector.restrict(residual)
+    centred = residual - residual.mean(axis=0)
+    best = float(np.mean(centred**2))
+    for _, averaging in detector.neighbours:  # leave-one-out: a pose's own value is not among its neighbours
+        best = min(best, float(np.mean((centred - averaging @ centred) ** 2)))
+    ridge = cross_val_predict(RidgeCV(alphas=np.logspace(-6, 3, 10)), detector.features, centred, cv=detector.split)
+    best = min(best, float(np.mean((centred - ridge) ** 2)))
+    return math.sqrt(best)
+
+
+def name_scatter(scatter, structure, stochastic, noise, notes, detector: StructureDetector | None = None,
+                 residual: np.ndarray | None = None) -> None:
     """Scatter beyond the instrument without structure is named only when the structure
-    test could have seen a leftover of its size."""
+    test could have seen a leftover of its size, and when the joints cannot predict it out
+    of sample: a leftover that k-NN or a ridge on joint features predicts to within half of
+    its excess variance over the instrument's is structure, not scatter."""
     if not scatter["detected"]:
         return
+    if detector is not None and residual is not None:
+        sigma = scatter["estimated_noise_per_axis_mm"] * 1e-3
+        after = predictable_leftover(detector, residual)
+        excess_before = max(sigma**2 - noise.per_axis**2, 0.0)
+        excess_after = max(after**2 - noise.per_axis**2, 0.0)
+        scatter["predicted_from_joints_left_per_axis_mm"] = after * 1e3
+        if excess_before > 0 and excess_after < 0.5 * excess_before:
+            scatter["named"] = None
+            notes.append(f"{sigma * 1e3:.4f} mm per axis is left against {noise.per_axis * 1e3:.4f} mm of noise, "
+                         f"but predicted from the joint values out of sample it leaves {after * 1e3:.4f} mm: "
+                         "structure the vocabulary does not express, not random scatter")
+            return
     if structure["verdict"] == "no":
         scatter["named"] = "clearance" if "clearance" in stochastic else "random scatter"
         notes.append(f"random scatter beyond the tracker noise: {scatter['estimated_noise_per_axis_mm']:.4f} mm "
