@@ -301,11 +301,14 @@ def random_scenario(robot: RobotModel, rng: np.random.Generator, dominant: list[
     notes = {"background_factor": 1.0, "dominant_factor": 1.0}
     need = dominance * background / max(strength[order[0]], 1e-300)
     if need > 1.0:
-        shrink = max(1.0 / need, 0.2)
+        # the dominant effects grow only as far as their physics allows (a real robot's
+        # parameters are inside their physical ranges), the background shrinks for the rest
+        room = min(_physical_room(*resolved[name]) for name in dominant)
+        grow = min(max(need * 0.2, 1.0), room)
+        shrink = max(grow / need, 0.02)
         for name in ("geometry", "joint_offsets"):
             resolved[name] = (resolved[name][0], resolved[name][1] * shrink)
         notes["background_factor"] = shrink
-        grow = need * shrink
         if grow > 1.0:
             for name in dominant:
                 resolved[name] = (resolved[name][0], resolved[name][1] * grow)
@@ -328,6 +331,15 @@ def random_scenario(robot: RobotModel, rng: np.random.Generator, dominant: list[
         "notes": {k: float(v) for k, v in notes.items()},
     }
     return _plain(scenario)
+
+
+def _physical_room(effect, params: np.ndarray) -> float:
+    """How many times the parameters can grow and stay inside the effect's physical range."""
+    lower, upper = effect.physical_range()
+    params = np.asarray(params, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        room = np.where(params > 0, upper / params, np.where(params < 0, lower / params, np.inf))
+    return float(np.min(room)) if room.size else np.inf
 
 
 def _plain(value):

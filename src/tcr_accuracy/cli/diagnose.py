@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import math
 import sys
+
+import numpy as np
 from pathlib import Path
 
 from .common import (MAX_MM, add_robot_arguments, check_csv_memory, effect_names, integer, number, output_file,
@@ -271,6 +273,19 @@ def _parameter_lines(d, per_effect: int = 4) -> list[str]:
             lo, hi = table["range"][n]
             out.append(f"       {n} = {v:+.4g} +- {s:.2g} {units.get(n, '')} [{low:+.3g}, {high:+.3g}], "
                        f"range {lo:.3g} to {hi:.3g}")
+        for joint, band in d.joint_function_bands.get(e, {}).items():
+            values = table["values"]
+            amplitude = {}
+            for name, v in values.items():
+                parts = name.split(".")
+                if parts[1] == joint:
+                    order = int(parts[-1][1:])
+                    amplitude[order] = amplitude.get(order, 0.0) + v * v
+            top = max(amplitude, key=amplitude.get) if amplitude else None
+            out.append(f"       {joint}: {np.sqrt(np.mean(band['value_rad'] ** 2)) * 1e6:.1f} urad RMS over "
+                       f"{np.degrees(band['angle_rad'][0]):.0f} to {np.degrees(band['angle_rad'][-1]):.0f} deg "
+                       f"(band +-{1.96 * np.mean(band['std_rad']) * 1e6:.1f} urad)"
+                       + (f", strongest {top} cycles per revolution" if top else ""))
         if table["pinned"]:
             out.append(f"       held on a physical bound: " + ", ".join(
                 f"{p['parameter']} ({p['bound']})" for p in table["pinned"][:6])
@@ -364,6 +379,14 @@ def write_as_built(robot, d, path: Path) -> tuple[Path, Path]:
         "geometric_parameters_in_urdf": {e: {"parameters": {k: float(v) for k, v in p.items()},
                                              "units": dict(d.parameter_units.get(e, {})), **_uncertainty(d, e)}
                                          for e, p in d.parameters.items() if effect_class(e).geometric},
+        **({"joint_functions": {e: {j: {"angle_deg": np.round(np.degrees(b["angle_rad"][::4]), 3).tolist(),
+                                          "error_rad": b["value_rad"][::4].tolist(),
+                                          "std_rad": b["std_rad"][::4].tolist()}
+                                      for j, b in joints.items()}
+                                  for e, joints in d.joint_function_bands.items()},
+            "joint_functions_note": "each joint's fitted error against its own angle over the measured range (add "
+                                    "error_rad to the joint's angle; interpolate between rows)"}
+           if d.joint_function_bands else {}),
         "uncertainty_note": "std: standard error from the fit's Jacobian and residual (noise only, not model "
                             "error); interval_95: value +- 1.96 std cut to the physical range; physical_range: "
                             "where the effect's parameters can lie on a real robot, the fit stays inside it",
@@ -398,6 +421,7 @@ PLOT_CAPTIONS = {
     "regions.png": "Residual after the tracker frame over the workspace (octants, radius, height) and against "
                    "payload, temperature and approach direction",
     "semivariograms.png": "Per-joint semivariograms of the residual (along which joints it varies)",
+    "cyclic_joints.png": "Cyclic joint errors: each joint's fitted error against its own angle, with its 95 % band",
 }
 
 

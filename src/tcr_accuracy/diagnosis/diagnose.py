@@ -64,7 +64,8 @@ from ..model.kinematics import tcp_poses
 from .ambiguity import ambiguity_report, settle_swaps, stand_in_shapes, swap_alternatives
 from .residuals import NoiseEstimate, noise_from_repeats, noise_from_residual, noise_from_rigid_frames, \
     where_analysis
-from .uncertainty import difference_interval, outside_physics, parameter_table, selection_frequency
+from .uncertainty import difference_interval, joint_function_bands, outside_physics, parameter_table, \
+    selection_frequency
 from .attribution import contributions, fixed_point_check, tied_own_shares
 from .structure import StructureDetector, name_scatter, scatter_beyond_noise, smallest_detectable_structure, \
     smooth_shape, structure_verdict
@@ -258,7 +259,18 @@ class GapDiagnosis:
         gap_residual = result["train_residual"]
         steps = [Step("frames", ("frames",), result["n_parameters"], ErrorStats.of(result["train_residual"]).rms,
                       ErrorStats.of(result["heldout_residual"]), None)]
-        current = self._forward(engine, testable, steps, candidates, say)
+        late = [e for e in testable if effect_class(e).last_resort]
+        current = self._forward(engine, [e for e in testable if e not in late], steps, candidates, say)
+        # a flexible effect of last resort is tried only where the others leave structure in joint space
+        say("testing what the first selection leaves")
+        detector = StructureDetector(obs.q, rng, kinds=robot.joint_kinds)
+        if late and detector.test(_first_frame(engine.evaluate(ordered(current))["train_residual"]), rng)["remains"]:
+            current = self._forward(engine, testable, steps, candidates, say, current)
+        else:
+            for e in late:
+                testable.remove(e)
+                candidates[e] = {"tried": False, "why": "tried only when the other effects leave structure in joint "
+                                                        "space, and they left none"}
         self._judge_at_fitted_sizes(engine, current, notes)
         # a stand-in must explain the gap on its own, as an effect entering first would have to
         # (its paired z against frames alone at the first step): the rest cannot replace anything
@@ -283,7 +295,8 @@ class GapDiagnosis:
         steps = self._explanation_ladder(engine, selected, steps[0])
         say("selection stability")
         selection = selection_frequency(engine, testable, self.selection_z, self.min_relative_gain,
-                                        self.stability_replays, np.random.default_rng([self.seed, 2]), say)
+                                        self.stability_replays, np.random.default_rng([self.seed, 2]), say,
+                                        late=[e for e in late if e in testable])
         say("what the data fit only outside physics")
         beyond = outside_physics(engine, current, [e for e in testable], self.selection_z, self.min_relative_gain)
         if eliminated:
@@ -302,7 +315,6 @@ class GapDiagnosis:
         where, semis = where_analysis(robot, obs.q, nominal[0].position, first(gap_residual), tau, context, rng=rng)
         say("testing the final residual")
         final_train = first(final["train_residual"])
-        detector = StructureDetector(obs.q, rng, kinds=robot.joint_kinds)
         structure = detector.test(final_train, rng)
         noise = self._noise(repeats, obs.q, final_train, final["n_parameters"], structure["remains"])
         scatter = scatter_beyond_noise(noise, final, stochastic)
@@ -377,6 +389,8 @@ class GapDiagnosis:
             frames_measured=[p.label for p in parts], heldout_by_frame=by_frame, orientation=orientation,
             parameter_table=table, selection=selection, outside_physics=beyond,
             physics={e: effect_class(e).physics for e in table},
+            effect_options={e: dict(bases[e].per_part[0].effect.options) for e in ordered(selected)},
+            joint_function_bands=joint_function_bands(final, bases, ordered(selected), obs.q),
         )
         self.robot_ = robot
         self.engine_ = engine
@@ -455,6 +469,7 @@ class GapDiagnosis:
                 per_part = []
                 for p, part in enumerate(parts):
                     options = {"tool_rotation": True} if name == "frames" and part.target_rotation is not None else {}
+                    options.update(cls.options_for_data(part.robot, part.q.shape[0]))
                     effect = make_effect(name, part.robot, **options)
                     labels = _part_names(effect, part, len(parts))
                     em = ErrorModel(part.robot)
@@ -473,9 +488,13 @@ class GapDiagnosis:
             bases[name] = basis
         return bases, candidates, stochastic
 
-    def _forward(self, engine, testable, steps, candidates, say) -> list:
-        current = ["frames"]
-        pool = list(testable)
+    def _forward(self, engine, testable, steps, candidates, say, start=None) -> list:
+        """Forward selection from ``start`` (default frames alone) over the testable effects;
+        each effect's first trial is recorded in ``candidates`` (against frames alone, or
+        against the model it was first tried on)."""
+        current = ["frames"] if start is None else list(start)
+        pool = [e for e in testable if e not in current]
+        fresh = [e for e in pool if "z" not in candidates.get(e, {})]
         while pool:
             trials = {}
             for e in pool:
@@ -483,13 +502,16 @@ class GapDiagnosis:
                 trials[e] = engine.evaluate(ordered(current + [e]))
             prev = engine.evaluate(ordered(current))
             prev_rms = ErrorStats.of(prev["heldout_residual"]).rms
-            if len(current) == 1:
-                for e, r in trials.items():
-                    rms = ErrorStats.of(r["heldout_residual"]).rms
-                    candidates[e] = {"tried": True, "heldout_rms_mm_with_frames": rms * 1e3,
-                                     "gain_mm": (prev_rms - rms) * 1e3,
-                                     "z": paired_z(prev["heldout_residual"], r["heldout_residual"]),
-                                     "n_parameters": r["n_parameters"] - prev["n_parameters"]}
+            for e in fresh:
+                r = trials[e]
+                rms = ErrorStats.of(r["heldout_residual"]).rms
+                candidates[e] = {"tried": True, "heldout_rms_mm_with_frames": rms * 1e3,
+                                 "gain_mm": (prev_rms - rms) * 1e3,
+                                 "z": paired_z(prev["heldout_residual"], r["heldout_residual"]),
+                                 "n_parameters": r["n_parameters"] - prev["n_parameters"]}
+                if len(current) > 1:
+                    candidates[e]["added_to"] = list(current)
+            fresh = []
             best = min(trials, key=lambda e: ErrorStats.of(trials[e]["heldout_residual"]).rms)
             r = trials[best]
             rms = ErrorStats.of(r["heldout_residual"]).rms

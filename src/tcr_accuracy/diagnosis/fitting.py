@@ -89,6 +89,8 @@ class EffectBasis:
         self.scales = np.asarray(effect.parameter_scales(), dtype=float)
         self.units = list(effect.parameter_units())
         self.lower, self.upper = (np.asarray(b, dtype=float) for b in effect.physical_range())
+        weights = effect.penalty_weights()
+        self.penalty = np.zeros(len(self.names)) if weights is None else np.asarray(weights, dtype=float)
         n, k = part.q.shape[0], len(self.names)
         maps = effect.parameter_jacobian(np.zeros(k), part.q, part.context)
         self.basis = ErrorMap.of(n, em.size, em.drive_slice, maps.x, maps.dq, k)
@@ -128,17 +130,21 @@ class UnionBasis:
         scales: list[float] = []
         units: list[str] = []
         bounds: list[tuple[float, float]] = []
+        penalty: list[float] = []
         for b in per_part:
-            for name, scale, unit, lo, hi in zip(b.names, b.scales, b.units, b.lower, b.upper):
+            for name, scale, unit, lo, hi, w in zip(b.names, b.scales, b.units, b.lower, b.upper, b.penalty):
                 if name not in names:
                     names.append(name)
                     scales.append(float(scale))
                     units.append(unit)
                     bounds.append((float(lo), float(hi)))
+                    penalty.append(float(w))
         self.names, self.scales, self.units = names, np.array(scales), units
         #: (P,) physical range of each parameter [SI] (the effect's ``physical_range``)
         self.lower = np.array([lo for lo, _ in bounds])
         self.upper = np.array([hi for _, hi in bounds])
+        #: (P,) smoothness-penalty weight of each parameter in scaled units (0: not penalised)
+        self.penalty = np.array(penalty)
         self.index = [np.array([names.index(n) for n in b.names], dtype=int) for b in per_part]
         self.nonlinearity = max(b.nonlinearity for b in per_part)
         self.restack()
@@ -289,17 +295,19 @@ class FitEngine:
         bounded by each parameter's physical range, except the effects named in ``free``
         (unbounded, to see where the data alone would put them)."""
         keep = keep if keep is not None else self.identify(effects)[0]
-        names, scale, lower, upper = [], [], [], []
+        names, scale, lower, upper, penalty = [], [], [], [], []
         for e in effects:
             b = self.bases[e]
             names += [b.names[k] for k in keep[e]]
             scale.append(b.scales[keep[e]])
+            penalty.append(b.penalty[keep[e]])
             unbounded = np.full(keep[e].size, np.inf)
             lower.append(-unbounded if e in free else b.lower[keep[e]] / b.scales[keep[e]])
             upper.append(unbounded if e in free else b.upper[keep[e]] / b.scales[keep[e]])
         scale = np.concatenate(scale) if scale else np.zeros(0)
         lower = np.concatenate(lower) if lower else np.zeros(0)
         upper = np.concatenate(upper) if upper else np.zeros(0)
+        penalty = np.concatenate(penalty) if penalty else np.zeros(0)
         per_part = []
         for p in range(len(self.parts)):
             bases, gs, idx = [], [], []
@@ -315,7 +323,7 @@ class FitEngine:
                 offset += keep[e].size
             per_part.append((ErrorMap.concatenate(bases), np.concatenate(gs, axis=2),
                              np.concatenate(idx) if idx else np.zeros(0, dtype=int)))
-        return Columns(names=names, scale=scale, per_part=per_part, lower=lower, upper=upper)
+        return Columns(names=names, scale=scale, per_part=per_part, lower=lower, upper=upper, penalty=penalty)
 
     # -- fits --------------------------------------------------------------------------
     def _pose_residual(self, p: int, rows, x: np.ndarray) -> np.ndarray:
@@ -361,7 +369,7 @@ class FitEngine:
         return self._minimise(cols, jacs, rows, _gram(jacs, rows) if gram is None else gram, phi, residual)
 
     def _minimise(self, cols: "Columns", jacs: list, rows, gram: np.ndarray, phi: np.ndarray,
-                  residual: list[np.ndarray]):
+                  residual: list[np.ndarray], penalty: float = 0.0):
         """Levenberg-Marquardt from phi (with its residual on rows) to the least squares
         optimum on rows inside the parameters' physical bounds, the chained Jacobian held
         constant (the effects are linearised per pose; the residual is the exact kinematics),
@@ -378,23 +386,27 @@ class FitEngine:
         the full one less each fold's held-out rows'. scipy's least_squares refactorises
         the tall constant matrix at each iteration, which at 10^5 poses was most of the
         diagnosis' time.
+
+        ``penalty``: lambda of the columns' smoothness penalty, lambda * sum(w phi^2) added to
+        the cost (its Gram matrix and gradient with it).
         """
         self.n_fits += 1
         every = _rows(rows, self.n_rows)
-        damped = _DampedSolver(gram)
+        weights = penalty * cols.penalty
+        damped = _DampedSolver(gram + np.diag(weights) if penalty else gram)
         flat = _flat(residual)
-        cost = float(flat @ flat)
+        cost = float(flat @ flat) + float(weights @ phi**2)
         # first an undamped step: the model is nearly linear, so it usually lands on the optimum
         damping, growth = 0.0, 2.0
         for _ in range(self.MAX_EVALUATIONS):
-            step, predicted = damped.step(_gradient(jacs, residual, rows, self.n_rows), damping,
+            step, predicted = damped.step(_gradient(jacs, residual, rows, self.n_rows) + weights * phi, damping,
                                           cols.lower - phi, cols.upper - phi)
             if predicted <= self.COST_TOLERANCE * cost:
                 break  # the linear model cannot lower the cost any further
             trial = cols.clip(phi + step)
             trial_residual = self.predict_residual(cols, trial, every)
             trial_flat = _flat(trial_residual)
-            trial_cost = float(trial_flat @ trial_flat)
+            trial_cost = float(trial_flat @ trial_flat) + float(weights @ trial**2)
             if trial_cost < cost:
                 gain = cost - trial_cost
                 phi, residual, cost = trial, trial_residual, trial_cost
@@ -426,6 +438,45 @@ class FitEngine:
             if cost < best_cost:
                 best, best_cost, best_residual = phi, cost, residual
         return best, best_residual
+
+    #: lambdas tried for a smoothness penalty, times the penalised columns' median Gram diagonal
+    PENALTY_GRID = np.logspace(-5, 3, 9)
+
+    def _penalties(self, cols: "Columns", jacs: list, fold_grams: list, residual: list, phi: np.ndarray) -> dict:
+        """Smoothness-penalty lambdas chosen by held-out error inside the training rows: for the
+        full fit by k-fold over all rows, for each fold's fit by (k-1)-fold over its training
+        rows only (never its held-out rows). The model is linearised at phi (residual on all
+        rows): one small solve per lambda and fold."""
+        n_folds = len(self.folds)
+        gradients = [_gradient(jacs, [r[test] for r in residual], test, self.n_rows) for _, test in self.folds]
+        penalised = cols.penalty > 0
+        base = float(np.median(np.diag(sum(fold_grams))[penalised])) if n_folds else 1.0
+        grid = base * self.PENALTY_GRID
+        ridge = 1e-12 * max(float(np.max(np.diag(sum(fold_grams)))) if n_folds else 1.0, 1e-300)
+
+        def choose(allowed: list[int]) -> float:
+            if len(allowed) < 2:
+                return float(grid[len(grid) // 2])
+            total_gram = sum(fold_grams[f] for f in allowed)
+            total_gradient = sum(gradients[f] for f in allowed)
+            scores = np.zeros(len(grid))
+            for h in allowed:
+                g_train = total_gram - fold_grams[h]
+                b_train = total_gradient - gradients[h]
+                test = self.folds[h][1]
+                for i, lam in enumerate(grid):
+                    step = _cholesky_solve(g_train + np.diag(lam * cols.penalty + ridge),
+                                           -(b_train + lam * cols.penalty * phi))
+                    scores[i] += sum(float(np.sum((r[test] + j[test] @ step) ** 2)) for r, j in zip(residual, jacs))
+            return float(grid[int(np.argmin(scores))])
+
+        every = list(range(n_folds))
+        return {"full": choose(every), "folds": [choose([g for g in every if g != f]) for f in every],
+                "grid_relative": [float(self.PENALTY_GRID[0]), float(self.PENALTY_GRID[-1])]}
+
+    def cached(self, effects, free=()) -> dict | None:
+        """The fit of a set of effects (own identifiability) if it was evaluated already, else None."""
+        return self._full_cache.get((tuple(effects), None, tuple(sorted(free))))
 
     def _inner(self, effects, free) -> dict | None:
         """The best-fitting model already evaluated whose effects lie inside ``effects``: its
@@ -481,8 +532,11 @@ class FitEngine:
         phi, train = self._best_start(cols, starts, every)
         jacs = self._jacobians(cols) if k else []
         gram = _gram(jacs, None) if jacs else None
+        fold_grams = [_gram(jacs, test) for _, test in self.folds] if k else []
+        penalties = self._penalties(cols, jacs, fold_grams, train, phi) if k and cols.penalty.any() else None
         if k:
-            phi, train = self._minimise(cols, jacs, None, gram, phi, train)
+            phi, train = self._minimise(cols, jacs, None, gram, phi, train,
+                                        penalties["full"] if penalties else 0.0)
         else:
             self.n_fits += 1
         if not free:
@@ -491,14 +545,16 @@ class FitEngine:
         fold_phi, fold_cost = [], []
         for f, (train_rows, test) in enumerate(self.folds):
             if k:  # from the full fit, on the normal equations less the held-out rows
+                lam = penalties["folds"][f] if penalties else 0.0
                 start, start_residual = phi, [r[train_rows] for r in train]
                 if inner is not None:  # or from the nested model's fit on this fold, if it fits these rows better
                     flat = _flat(start_residual)
-                    if inner["fold_cost"][f] < float(flat @ flat):
-                        start, start_residual = self._best_start(
-                            cols, [mapped(inner["names"], inner["fold_phi"][f])], train_rows)
-                phi_k, residual_k = self._minimise(cols, jacs, train_rows, gram - _gram(jacs, test), start,
-                                                   start_residual)
+                    candidate = mapped(inner["names"], inner["fold_phi"][f])
+                    if inner["fold_cost"][f] + lam * float(cols.penalty @ candidate**2) < \
+                            float(flat @ flat) + lam * float(cols.penalty @ phi**2):
+                        start, start_residual = self._best_start(cols, [candidate], train_rows)
+                phi_k, residual_k = self._minimise(cols, jacs, train_rows, gram - fold_grams[f], start,
+                                                   start_residual, lam)
             else:
                 phi_k, residual_k = phi, [r[train_rows] for r in train]
             flat = _flat(residual_k)
@@ -509,7 +565,11 @@ class FitEngine:
         flat = _flat(train)
         cost = float(flat @ flat)
         n_obs = flat.size
-        phi_std = _DampedSolver(gram).standard_errors(cost / max(n_obs - k, 1)) if k else np.zeros(0)
+        lam = penalties["full"] if penalties else 0.0
+        # with a smoothness penalty, the posterior covariance of the penalised fit (as for penalised splines)
+        solver = _DampedSolver(gram + np.diag(lam * cols.penalty)) if k else None
+        phi_std = solver.standard_errors(cost / max(n_obs - k, 1)) if k else np.zeros(0)
+        phi_cov = solver.covariance(cost / max(n_obs - k, 1)) if k and cols.penalty.any() else None
         span = np.maximum(np.abs(phi), 1.0) * 1e-9
         at_bound = (phi <= cols.lower + span) | (phi >= cols.upper - span)
         result = {"effects": tuple(effects), "free": free, "phi": phi, "scale": cols.scale,
@@ -518,7 +578,8 @@ class FitEngine:
                   "train_residual": self._positions(train), "heldout_residual": self._positions(oof),
                   "train_orientation": self._rotations(train), "heldout_orientation": self._rotations(oof),
                   "cost": cost, "fold_phi": fold_phi, "fold_cost": fold_cost, "phi_std": phi_std,
-                  "at_bound": at_bound, "n_observations": int(n_obs)}
+                  "at_bound": at_bound, "n_observations": int(n_obs), "phi_cov": phi_cov,
+                  "penalty": penalties, "penalty_weights": cols.penalty}
         self._full_cache[key] = result
         return result
 
@@ -544,6 +605,7 @@ class Columns:
     per_part: list
     lower: np.ndarray
     upper: np.ndarray
+    penalty: np.ndarray  # (k,) smoothness-penalty weights (0: not penalised), times lambda in a fit
 
     def clip(self, phi: np.ndarray) -> np.ndarray:
         """phi moved into the bounds."""
@@ -617,6 +679,11 @@ class _DampedSolver:
         low, high = room_low * self.norms, room_high * self.norms
         return box_quadratic(hessian, scaled_gradient, low, np.maximum(high, low)) / self.norms
 
+    def covariance(self, variance: float) -> np.ndarray:
+        """(k, k) s^2 (J^T J)^+ of the scaled parameters (directions the data do not see: 0)."""
+        inverse = np.where(self.kept, 1.0 / np.where(self.kept, self.values, 1.0), 0.0)
+        return variance * ((self.vectors * inverse) @ self.vectors.T) / np.outer(self.norms, self.norms)
+
     def standard_errors(self, variance: float) -> np.ndarray:
         """(k,) standard errors of the parameters, sqrt(diag(s^2 (J^T J)^+)), for residual
         variance s^2 per observation; directions the data do not see get inf."""
@@ -666,3 +733,13 @@ def box_quadratic(hessian: np.ndarray, gradient: np.ndarray, low: np.ndarray, hi
             return d
         fixed[np.flatnonzero(fixed)[int(np.argmax(wrong))]] = False
     return np.clip(d, low, high)
+
+
+def _cholesky_solve(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """matrix^-1 rhs for a symmetric positive definite matrix (LU where round-off breaks Cholesky)."""
+    from scipy.linalg import LinAlgError, cho_factor, cho_solve
+
+    try:
+        return cho_solve(cho_factor(matrix, check_finite=False), rhs, check_finite=False)
+    except LinAlgError:
+        return np.linalg.solve(matrix, rhs)

@@ -91,15 +91,18 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
         mat = np.stack(kept_cols + [unit_all[:, k] for k in kept_local], axis=1) if (kept_cols or kept_local) \
             else np.zeros((cols.shape[0], 0))
         span_names = kept_names + [b.names[k] for k in kept_local]
-        for k in piv[rank:]:
+        dropped = [int(k) for k in piv[rank:]]
+        # what each dropped column duplicates: one least-squares solve for all of them
+        coefs = np.linalg.lstsq(mat, unit_all[:, dropped], rcond=None)[0] if (mat.shape[1] and dropped) else None
+        for i, k in enumerate(dropped):
             motion = norms[k] / math.sqrt(n_pose)
             if motion < 1e-12:
                 removed.append({"parameter": b.names[k], "reason": "does not move the TCP position",
                                 "duplicates": []})
                 continue
             dup = []
-            if mat.shape[1]:
-                coef = np.linalg.lstsq(mat, unit_all[:, k], rcond=None)[0]
+            if coefs is not None:
+                coef = coefs[:, i]
                 dup = [span_names[t] for t in np.argsort(-np.abs(coef))[:3] if abs(coef[t]) > 1e-2]
             free = independent[k] / math.sqrt(n_pose)
             if free < 1e-3 * motion and dup:

@@ -151,11 +151,15 @@ class Diagnosis:
     selection: dict = field(default_factory=dict)  # how often each effect is chosen over bootstrap replays
     outside_physics: list = field(default_factory=list)  # what the data fit only outside an effect's physics
     physics: dict = field(default_factory=dict)  # effect -> why its parameters lie in their range
+    effect_options: dict = field(default_factory=dict)  # effect -> the options it was fitted with
+    #: effect -> joint -> {"angle_rad", "value_rad", "std_rad"} (M,) arrays: the fitted function of
+    #: each joint's own angle over its measured range with its standard error (effects with joint_basis)
+    joint_function_bands: dict = field(default_factory=dict)
 
     def predict(self, robot: RobotModel, q: np.ndarray, context: MeasurementContext | None = None) -> np.ndarray:
         """TCP positions (N, 3) in the tracker frame [m] that the fitted model predicts
         (the first measured frame's robot)."""
-        effects = [make_effect(e, robot) for e in self.effect_parameters]
+        effects = [make_effect(e, robot, **self.effect_options.get(e, {})) for e in self.effect_parameters]
         position = predict_positions(robot, effects, list(self.effect_parameters.values()), q, context)
         rot, trans = self.registration
         return position @ rot.T + trans
@@ -202,6 +206,11 @@ class Diagnosis:
                              "reason": self.physics.get(e, "")}
                          for e, t in self.parameter_table.items()},
             "outside_physics": list(self.outside_physics),
+            "effect_options": {e: {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in o.items()}
+                               for e, o in self.effect_options.items()},
+            "joint_functions": {e: {j: {k: np.asarray(v).tolist() for k, v in band.items()}
+                                    for j, band in joints.items()}
+                                for e, joints in self.joint_function_bands.items()},
             "selection_frequency": dict(self.selection.get("frequency", {})),
             "selection": {k: v for k, v in self.selection.items() if k != "frequency"},
             "tracker_transform": self.tracker_transform.tolist(),

@@ -57,6 +57,43 @@ def parameter_table(result: dict, bases: dict, effects) -> dict:
     return out
 
 
+def joint_function_bands(result: dict, bases: dict, effects, q: np.ndarray, n_points: int = 361) -> dict:
+    """For effects that are functions of each joint's own angle (those with ``joint_basis``,
+    e.g. ``cyclic``): effect -> joint -> {"angle_rad", "value_rad", "std_rad"} over the joint's
+    measured range, the standard error from the fit's covariance (the penalised fit's
+    posterior covariance, ``phi_cov``), or from the parameters' own standard errors when
+    the model has no full covariance."""
+    theta = result["phi"] * result["scale"]
+    index = {name: i for i, name in enumerate(result["names"])}
+    cov = result.get("phi_cov")
+    cov = None if cov is None else cov * np.outer(result["scale"], result["scale"])
+    std = result["phi_std"] * result["scale"]
+    out = {}
+    for e in effects:
+        effect = bases[e].per_part[0].effect
+        if not hasattr(effect, "joint_basis"):
+            continue
+        joints = {}
+        for j, joint in enumerate(effect.robot.joint_names):
+            angles = np.linspace(q[:, j].min(), q[:, j].max(), n_points)
+            names, basis = effect.joint_basis(joint, angles)
+            kept = [(c, index[n]) for c, n in enumerate(names) if n in index]
+            if not kept:
+                continue
+            columns = np.array([c for c, _ in kept])
+            rows = np.array([i for _, i in kept])
+            b = basis[:, columns]
+            value = b @ theta[rows]
+            if cov is not None:
+                spread = np.sqrt(np.maximum(np.einsum("mi,ij,mj->m", b, cov[np.ix_(rows, rows)], b), 0.0))
+            else:
+                spread = np.sqrt((b**2) @ np.where(np.isfinite(std[rows]), std[rows], 0.0) ** 2)
+            joints[joint] = {"angle_rad": angles, "value_rad": value, "std_rad": spread}
+        if joints:
+            out[e] = joints
+    return out
+
+
 def difference_interval(before: np.ndarray, after: np.ndarray) -> tuple[float, float, float]:
     """How much lower the held-out RMS of ``after`` is than that of ``before`` [m], with the
     95 % interval: the mean cut in per-row squared errors and its standard error (paired,
@@ -75,10 +112,11 @@ def difference_interval(before: np.ndarray, after: np.ndarray) -> tuple[float, f
 
 
 def selection_frequency(engine, testable: list, selection_z: float, min_relative_gain: float,
-                        n_replays: int, rng: np.random.Generator, say=lambda message: None) -> dict:
+                        n_replays: int, rng: np.random.Generator, say=lambda message: None, late=()) -> dict:
     """Forward selection replayed on ``n_replays`` bootstrap resamples of the rows: each
     step's candidates compared on the resampled rows' held-out errors (paired z and relative
-    gain as in the diagnosis); a model not fitted yet is fitted once and cached. Returns
+    gain as in the diagnosis); a model not fitted yet is fitted once and cached. Effects in
+    ``late`` (tried last in the diagnosis) are offered once the others are settled. Returns
     {effect: share of the replays that chose it} for every testable effect, and the share of
     replays that ended on each set (``sets``)."""
     n = engine.n_rows
@@ -88,20 +126,9 @@ def selection_frequency(engine, testable: list, selection_z: float, min_relative
         if replay % 10 == 0:
             say(f"selection stability: replay {replay + 1} of {n_replays}")
         rows = rng.integers(0, n, n)
-        current, pool = ["frames"], list(testable)
-        while pool:
-            prev = engine.evaluate(ordered(current))["heldout_residual"]
-            prev_sq = row_squares(prev)[rows]
-            trials = {e: row_squares(engine.evaluate(ordered(current + [e]))["heldout_residual"])[rows] for e in pool}
-            best = min(trials, key=lambda e: trials[e].mean())
-            d = prev_sq - trials[best]
-            sd = d.std(ddof=1)
-            z = math.inf if sd == 0 and d.mean() > 0 else (d.mean() / (sd / math.sqrt(d.size)) if sd > 0 else 0.0)
-            if not (z > selection_z and math.sqrt(trials[best].mean()) < math.sqrt(prev_sq.mean())
-                    * (1.0 - min_relative_gain)):
-                break
-            current.append(best)
-            pool.remove(best)
+        current = ["frames"]
+        for pool in ([e for e in testable if e not in late], [e for e in testable if e in late]):
+            _replay_forward(engine, current, pool, rows, selection_z, min_relative_gain)
         for e in current[1:]:
             counts[e] += 1
         key = ", ".join(ordered(current))
@@ -112,6 +139,25 @@ def selection_frequency(engine, testable: list, selection_z: float, min_relative
             "method": "forward selection replayed on bootstrap resamples of the rows (each model's out-of-fold "
                       "errors as fitted once; the resampling changes which effect wins each step and whether "
                       "it passes the paired test)"}
+
+
+def _replay_forward(engine, current: list, pool: list, rows: np.ndarray, selection_z: float,
+                    min_relative_gain: float) -> None:
+    """One forward selection on resampled rows, from ``current`` (extended in place)."""
+    pool = list(pool)
+    while pool:
+        prev = engine.evaluate(ordered(current))["heldout_residual"]
+        prev_sq = row_squares(prev)[rows]
+        trials = {e: row_squares(engine.evaluate(ordered(current + [e]))["heldout_residual"])[rows] for e in pool}
+        best = min(trials, key=lambda e: trials[e].mean())
+        d = prev_sq - trials[best]
+        sd = d.std(ddof=1)
+        z = math.inf if sd == 0 and d.mean() > 0 else (d.mean() / (sd / math.sqrt(d.size)) if sd > 0 else 0.0)
+        if not (z > selection_z and math.sqrt(trials[best].mean()) < math.sqrt(prev_sq.mean())
+                * (1.0 - min_relative_gain)):
+            return
+        current.append(best)
+        pool.remove(best)
 
 
 def outside_physics(engine, current: list, candidates: list, selection_z: float, min_relative_gain: float) -> list:
@@ -127,6 +173,11 @@ def outside_physics(engine, current: list, candidates: list, selection_z: float,
         if np.all(np.isneginf(basis.lower)) and np.all(np.isposinf(basis.upper)):
             continue  # nothing bounds it
         model = ordered(set(current) | {e})
+        bounded = engine.cached(model)
+        if bounded is not None and not _effect_values(
+                {**bounded, "phi": bounded["at_bound"].astype(float), "scale": np.ones(bounded["phi"].size)},
+                e, len(basis.names)).any():
+            continue  # the bounded fit holds none of its parameters on a bound: the data ask nothing beyond
         free = engine.evaluate(model, free=(e,))
         values = _effect_values(free, e, len(basis.names))
         lower, upper = basis.lower, basis.upper

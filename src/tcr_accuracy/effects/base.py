@@ -25,6 +25,8 @@ class attribute             meaning
                             admit what it cannot name)
 ``physics``                 one line: why the parameters lie where :meth:`Effect.physical_range`
                             says (the diagnosis fits inside that range and reports it)
+``last_resort``             a flexible effect the diagnosis tries only once the others leave
+                            structure in joint space (it could otherwise stand in for them)
 ==========================  ===========================================================
 
 Options are explicit keyword-only arguments of the class's ``__init__`` (a misspelt
@@ -109,6 +111,8 @@ class Effect(abc.ABC):
     analytic_jacobian: ClassVar[bool] = True
     #: why the parameters lie in :meth:`physical_range` (reports print it next to the range)
     physics: ClassVar[str] = ""
+    #: tried by the diagnosis only where the other effects leave structure in joint space
+    last_resort: ClassVar[bool] = False
 
     def __init_subclass__(cls, **kwargs) -> None:
         super().__init_subclass__(**kwargs)
@@ -166,6 +170,21 @@ class Effect(abc.ABC):
         """
         k = self.n_params
         return (np.zeros(k) if self.non_negative else np.full(k, -np.inf)), np.full(k, np.inf)
+
+    @classmethod
+    def options_for_data(cls, robot: RobotModel, n_rows: int) -> dict:
+        """Options the diagnosis builds the effect with for ``n_rows`` measurements (default
+        none): how many terms a flexible effect may have is a question of the data."""
+        return {}
+
+    def penalty_weights(self) -> np.ndarray | None:
+        """(k,) weights of a smoothness penalty on the parameters, or None (no penalty).
+
+        The fit adds ``lambda * sum(w * (theta / scale)^2)`` to its cost, with lambda chosen
+        by held-out error inside the training rows: for effects with many parameters whose
+        higher terms the data may not support (a Fourier series' roughness, ``cyclic``).
+        """
+        return None
 
     def outside_physics(self, values: np.ndarray) -> str:
         """What the data show, in physical words, when they fit this effect only with

@@ -211,10 +211,41 @@ def plot_regions(diagnosis, path: Path) -> Path:
     return save_figure(fig, path)
 
 
+def plot_joint_functions(diagnosis, effect: str, path: Path) -> Path:
+    """Each joint's fitted function of its own angle (a cyclic error) over the measured range,
+    with its 95 % band, one panel per joint, in microradians against degrees."""
+    plt = pyplot()
+    joints = diagnosis.joint_function_bands[effect]
+    n = len(joints)
+    cols = 2 if n > 1 else 1
+    rows = (n + cols - 1) // cols
+    fig, axes = plt.subplots(rows, cols, figsize=(9, 2.2 * rows + 0.6), squeeze=False)
+    for ax, (joint, band) in zip(axes.ravel(), joints.items()):
+        angle = np.degrees(band["angle_rad"])
+        value, spread = band["value_rad"] * 1e6, 1.96 * band["std_rad"] * 1e6
+        ax.fill_between(angle, value - spread, value + spread, color="tab:blue", alpha=0.25, lw=0,
+                        label="95 % band")
+        ax.plot(angle, value, color="tab:blue", lw=1, label="fitted")
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_title(joint, fontsize=9)
+        ax.set_xlabel("joint angle [deg]", fontsize=8)
+        ax.set_ylabel("error [urad]", fontsize=8)
+        ax.tick_params(labelsize=7)
+    for ax in axes.ravel()[n:]:
+        ax.set_visible(False)
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper right", fontsize=8, ncol=2)
+    fig.suptitle(f"{effect}: each joint's fitted error against its own angle", fontsize=10, x=0.02, ha="left")
+    fig.tight_layout(rect=(0, 0, 1, 0.94))
+    return save_figure(fig, path)
+
+
 def write_plots(diagnosis, robot, directory: Path) -> dict:
     """All figures into directory; returns {label: Path}."""
     directory = Path(directory)
-    return {
+    functions = {f"{effect} per joint": plot_joint_functions(diagnosis, effect, directory / f"{effect}_joints.png")
+                 for effect in getattr(diagnosis, "joint_function_bands", {})}
+    return {**functions,
         "Shrink table": plot_steps(diagnosis, directory / "steps.png"),
         "Residual per axis": plot_axes(diagnosis, directory / "axes.png"),
         "Against joint values": plot_joints(diagnosis, robot, directory / "joints.png"),

@@ -1,0 +1,99 @@
+"""``cyclic``: cyclic joint errors of high order, a smooth periodic function of each joint's angle."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..units import REVOLUTE
+from .base import EffectJacobian, LinearEffect
+
+
+class CyclicError(LinearEffect):
+    """Cyclic error of each revolute joint, many times per revolution, as a Fourier series of
+    its own angle: ``dq_j = sum_n a_n sin(n q_j) + b_n cos(n q_j)`` for n = 3 .. ``max_order``.
+
+    The physics: a strain-wave gear meshes its flexspline teeth twice per wave-generator
+    turn and its error repeats at the tooth and wave frequencies, reduced to tens of cycles
+    per output revolution; optical and magnetic encoders add their own interpolation and
+    eccentricity errors of many cycles. Each joint's output angle then differs from the
+    commanded one by a few hundred microradians, oscillating 10-60 times per revolution. The
+    first and second harmonics (once and twice per revolution: eccentricity of the gear and
+    the encoder) are ``transmission``'s; this effect takes the orders above.
+
+    The series is regularised by its roughness: the fit adds ``lambda * sum_n n^4 (a_n^2 +
+    b_n^2)`` (the integral of the squared second derivative of dq over a revolution, up to
+    a constant), with lambda chosen by held-out error inside the training rows
+    (:meth:`penalty_weights`; :class:`~tcr_accuracy.diagnosis.fitting.FitEngine`), so the
+    data choose how many orders they support. Parameters ``cyclic.<joint>.a<n>``,
+    ``cyclic.<joint>.b<n>`` [rad]. Prismatic joints have none. ``max_order``: the highest
+    order (default 30 cycles per revolution).
+    """
+
+    name = "cyclic"
+    order = 65.0
+    summary = "cyclic joint errors of high order (gear tooth mesh, encoder), smoothness-penalised"
+    physics = ("strain-wave gear and encoder cyclic errors are a few hundred microradians in all; one harmonic "
+               "above 1 mrad (3.4 arc-min) is a damaged gear, not a cyclic error")
+    last_resort = True
+    #: the lowest order: orders 1 and 2 are transmission's
+    FIRST_ORDER = 3
+
+    def __init__(self, robot, *, max_order: int = 30) -> None:
+        super().__init__(robot)
+        self.max_order = max_order
+
+    @classmethod
+    def options_for_data(cls, robot, n_rows: int) -> dict:
+        """The highest order the diagnosis fits: 30 cycles per revolution, fewer when the
+        measurements are few (at least 2 poses per parameter over the revolute joints: every
+        other joint's motion is noise to one joint's function)."""
+        revolute = sum(k == REVOLUTE for k in robot.joint_kinds)
+        return {"max_order": int(max(cls.FIRST_ORDER, min(30, 2 + n_rows // (4 * max(revolute, 1)))))}
+
+    def _terms(self):
+        orders = range(self.FIRST_ORDER, int(self.max_order) + 1)
+        return [(j, name, n, trig) for j, (name, kind) in enumerate(zip(self.robot.joint_names, self.robot.joint_kinds))
+                if kind == REVOLUTE for n in orders for trig in ("a", "b")]
+
+    def parameter_names(self):
+        return [f"cyclic.{name}.{trig}{n}" for _, name, n, trig in self._terms()]
+
+    def parameter_units(self):
+        return ["rad"] * self.n_params
+
+    def parameter_scales(self):
+        return np.full(self.n_params, 5e-5)  # 50 urad per harmonic
+
+    def physical_range(self):
+        return np.full(self.n_params, -1e-3), np.full(self.n_params, 1e-3)
+
+    def penalty_weights(self) -> np.ndarray:
+        """(k,) roughness weight of each parameter, (n / 3)^4: the fit's penalty is
+        lambda * sum(w * (theta / scale)^2)."""
+        return np.array([(n / self.FIRST_ORDER) ** 4 for _, _, n, _ in self._terms()], dtype=float)
+
+    def parameter_jacobian(self, params, q, context):
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        terms = self._terms()
+        ddq = np.zeros((q.shape[0], self.robot.n_joints, len(terms)))
+        for k, (j, _, n, trig) in enumerate(terms):
+            ddq[:, j, k] = np.sin(n * q[:, j]) if trig == "a" else np.cos(n * q[:, j])
+        return EffectJacobian(dq=ddq)
+
+    def joint_function(self, params, joint: str, angles: np.ndarray) -> np.ndarray:
+        """(M,) the fitted cyclic error [rad] of one joint at angles (M,) [rad]."""
+        params = self.check_params(params)
+        out = np.zeros(np.shape(angles))
+        for value, (_, name, n, trig) in zip(params, self._terms()):
+            if name == joint:
+                out += value * (np.sin(n * angles) if trig == "a" else np.cos(n * angles))
+        return out
+
+    def joint_basis(self, joint: str, angles: np.ndarray) -> tuple[list[str], np.ndarray]:
+        """The parameters of one joint and their basis (M, k_j) at angles (M,) [rad]."""
+        names, columns = [], []
+        for (_, name, n, trig), full in zip(self._terms(), self.parameter_names()):
+            if name == joint:
+                names.append(full)
+                columns.append(np.sin(n * angles) if trig == "a" else np.cos(n * angles))
+        return names, np.stack(columns, axis=1) if columns else np.zeros((len(angles), 0))
