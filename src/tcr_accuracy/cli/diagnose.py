@@ -31,7 +31,9 @@ def add_parsers(sub) -> None:
                     "identifiability, and say whether structure remains. Units: mm and deg in what "
                     "is printed, SI in the YAML.",
     )
-    p.add_argument("measurements", metavar="MEASUREMENTS.csv", help="measurement CSV (see README)")
+    p.add_argument("measurements", metavar="MEASUREMENTS.csv", nargs="+",
+                   help="measurement CSV (see README); several files are several sessions of one robot (each "
+                        "its own tracker frame, the robot's parameters shared), as is a session column")
     add_robot_arguments(p)
     p.add_argument("--effects", default=None, metavar="LIST",
                    help="comma-separated effects to consider (default: the whole vocabulary; frames is "
@@ -58,27 +60,41 @@ DIAGNOSE_ROW_BYTES = 32_000
 def _run_diagnose(args) -> int:
     from ..diagnosis.diagnose import diagnose
     from ..exceptions import InputError
-    from ..io.measurements import measured_frames, read_measurements
+    from ..io.measurements import join_sessions, measured_frames, read_measurements
     from ..view.plots_diagnose import write_plots
     from ..model.robot import load_robot
 
     effects = effect_names(args.effects)
     min_rows = max(3 * args.folds, 12)
+    files = list(args.measurements)
+    if len(set(map(str, files))) < len(files):
+        raise InputError(f"MEASUREMENTS.csv: {next(f for f in files if files.count(f) > 1)} is given twice")
     # the diagnosis holds each measurement's Jacobians over the whole effect vocabulary and
     # the error maps of the pose-dependent effects
-    check_csv_memory(args, args.measurements, "diagnosing", DIAGNOSE_ROW_BYTES)
-    frames = measured_frames(args.measurements)
+    for path in files:
+        check_csv_memory(args, path, "diagnosing", DIAGNOSE_ROW_BYTES)
+    frames = measured_frames(files[0])
+    for path in files[1:]:
+        if measured_frames(path) != frames:
+            raise InputError(f"{path}: measures {', '.join(measured_frames(path)) or 'the TCP'}, {files[0]} "
+                             f"{', '.join(frames) or 'the TCP'}: sessions must measure the same frames")
+    labels = _session_labels(files)
+    per_file = 3 if len(files) > 1 else min_rows  # a session needs 3 rows for its frame; the whole set more
     if frames:  # several measured frames per row: one chain each, their shared parameters fitted once
         if args.tool is not None and args.tool not in frames:
-            raise InputError(f"--tool {args.tool}: {args.measurements} measures {', '.join(frames)}")
+            raise InputError(f"--tool {args.tool}: {files[0]} measures {', '.join(frames)}")
         order = [args.tool] + [f for f in frames if f != args.tool] if args.tool else frames
         robots = [load_robot(args.robot, f) for f in order]
-        parts = [(r, read_measurements(args.measurements, r, min_rows=min_rows, frame=f))
-                 for r, f in zip(robots, order)]
+        parts = [(r, join_sessions([read_measurements(path, r, min_rows=per_file, frame=f) for path in files],
+                                   labels)) for r, f in zip(robots, order)]
         robot, measurements, data = robots[0], parts[0][1], parts
     else:
         robot = load_robot(args.robot, args.tool)
-        measurements = data = read_measurements(args.measurements, robot, min_rows=min_rows)
+        measurements = data = join_sessions([read_measurements(path, robot, min_rows=per_file) for path in files],
+                                            labels)
+    if len(measurements) < min_rows:
+        raise InputError(f"{', '.join(map(str, files))}: {len(measurements)} measurement rows, at least {min_rows} "
+                         f"are needed for {args.folds}-fold cross-validation")
     out = RunOutput(args, f"Sim-to-real gap diagnosis: {robot.name}")
     from tqdm import tqdm
 
@@ -90,8 +106,8 @@ def _run_diagnose(args) -> int:
                           progress=bar.set_postfix_str)
     finally:
         bar.close()
-    payload = jsonable({"measurements": str(args.measurements), **result.to_dict()})
-    source = str(args.measurements)
+    payload = jsonable({"measurements": ", ".join(map(str, files)), **result.to_dict()})
+    source = ", ".join(map(str, files))
     _report_tables(out, robot, result, source)
     out.add_plots(lambda folder: list(write_plots(result, robot, folder).values()), PLOT_CAPTIONS)
     if out.scene_wanted:
@@ -102,6 +118,18 @@ def _run_diagnose(args) -> int:
         urdf, side = write_as_built(robot, result, Path(args.as_built_urdf))
         status(args, f"as-built URDF written to {urdf} (its other effects and the tracker frame: {side})")
     return out.finish(payload, lambda: print(format_summary(robot, result, source)))
+
+
+def _session_labels(files) -> list[str]:
+    """One session label per file: its name without the suffix, made unique."""
+    labels = []
+    for path in files:
+        stem = Path(path).stem or "session"
+        label, k = stem, 2
+        while label in labels:
+            label, k = f"{stem}_{k}", k + 1
+        labels.append(label)
+    return labels
 
 
 def jsonable(value):
@@ -132,6 +160,12 @@ def format_summary(robot, d, source: str) -> str:
            f"{d.folds}-fold cross-validation"]
     out.append(f"\n1. Gap after fitting the tracker frame and TCP offset (frames): "
                f"mean {d.gap.mean * mm:.4f} mm, RMS {d.gap.rms * mm:.4f} mm, max {d.gap.max * mm:.4f} mm")
+    if d.sessions:
+        out.append(f"   {len(d.sessions)} sessions, each with its own tracker frame (the robot's parameters shared):")
+        for s in d.sessions:
+            t = s["temperature_c"]
+            out.append(f"     {s['session']:20s} {s['n_measurements']:6d} rows, gap RMS {s['gap']['rms_mm']:.4f} mm, "
+                       f"final held-out RMS {s['heldout']['rms_mm']:.4f} mm, temperature {t[0]:.1f} to {t[1]:.1f} degC")
     out.append("\n2. Where it lies (residual after frames)")
     axes = d.where["per_axis"]
     out.append("   per axis RMS [mm]: " + ", ".join(f"{a} {axes[a]['rms_mm']:.4f}" for a in "xyz"))

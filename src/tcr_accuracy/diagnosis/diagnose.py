@@ -192,11 +192,20 @@ class GapDiagnosis:
         notes: list = []
         measured = set().union(*(set(o.measured) for _, o, _ in frames))
 
-        # 1. register the tracker frame, then work in the robot's base frame
+        # 1. register the tracker frame (each session's own), then work in the robot's base frame
         say("registering the tracker frame")
         nominal = [tcp_poses(r, o.q) for r, o, _ in frames]
-        rot, trans = register(np.concatenate([p.position for p in nominal]),
-                              np.concatenate([o.position for _, o, _ in frames]))
+        sessions = list(obs.session_labels) if len(obs.session_labels) > 1 else []
+        session_of = obs.context.session if sessions else np.zeros(n, dtype=int)
+        stations = []
+        for s in range(max(len(sessions), 1)):
+            rows_s = np.flatnonzero(session_of == s)
+            if sessions and rows_s.size < 3:
+                raise InputError(f"session {sessions[s]}: {rows_s.size} measurements, a session's tracker frame "
+                                 "needs at least 3")
+            stations.append(register(np.concatenate([p.position[rows_s] for p in nominal]),
+                                     np.concatenate([o.position[rows_s] for _, o, _ in frames])))
+        rot, trans = stations[0]
         weight = self.orientation_weight
         if weight is None:
             points = np.concatenate([o.position for _, o, _ in frames])
@@ -207,8 +216,13 @@ class GapDiagnosis:
             if o.quaternion is not None:
                 w, x, y, z = o.quaternion.T
                 tracker_rotation = Rotation.from_quat(np.stack([x, y, z, w], axis=1)).as_matrix()
-                target_rotation = np.einsum("ji,njk->nik", rot, tracker_rotation)  # R^T R_tracker
-            parts.append(Part(r, o.q, (o.position - trans) @ rot, o.context, label, target_rotation, weight))
+                station_rotation = np.stack([stations[s][0] for s in session_of])
+                target_rotation = np.einsum("nji,njk->nik", station_rotation, tracker_rotation)  # R^T R_tracker
+            in_base = np.empty_like(o.position)
+            for s, (rot_s, trans_s) in enumerate(stations):
+                rows_s = session_of == s
+                in_base[rows_s] = (o.position[rows_s] - trans_s) @ rot_s
+            parts.append(Part(r, o.q, in_base, o.context, label, target_rotation, weight))
         if any(p.target_rotation is not None for p in parts):
             notes.append(f"measured orientation enters the fit: rotation errors [rad] weighted by {weight:.4g} m/rad "
                          "(an angle counts as the position error it makes at the measured points' RMS spread "
@@ -217,7 +231,7 @@ class GapDiagnosis:
 
         # effects as linear maps, and which can be tried at all
         say("building effect models")
-        bases, candidates, stochastic = self._bases(parts, names, measured, notes)
+        bases, candidates, stochastic = self._bases(parts, names, measured, notes, sessions)
         if "frames" not in bases:
             raise AnalysisError("the frames effect could not be built")
         order = ordered(bases)
@@ -228,7 +242,8 @@ class GapDiagnosis:
         phi, _ = pre.fit(frames_cols, np.arange(n))
         for p, part in enumerate(parts):
             basis, _, idx = frames_cols.per_part[p]
-            x_frames = basis.errors(phi[idx] * frames_cols.scale[idx], rows=[0])[0]
+            # the sessions' base twists differ a little after their own registrations: their mean
+            x_frames = basis.errors(phi[idx] * frames_cols.scale[idx]).mean(axis=0)
             jac_x = position_jacobians(part.robot, part.q, x_frames,
                                        weight if part.target_rotation is not None else None)
             for b in bases.values():
@@ -299,6 +314,17 @@ class GapDiagnosis:
                                         late=[e for e in late if e in testable])
         say("what the data fit only outside physics")
         beyond = outside_physics(engine, current, [e for e in testable], self.selection_z, self.min_relative_gain)
+        # an effect in the model that the data fit significantly better beyond its physics is not named as the cause
+        flagged = [f["effect"] for f in beyond if f["effect"] in current]
+        if flagged and (set(flagged) & set(primary_group)):
+            primary_group = [e for e in primary_group if e not in flagged]
+            if not primary_group:
+                shares = {r["dropped"]: r["own_share_increase_mm"] for r in loo if r["dropped"] not in flagged}
+                primary_group = [max(shares, key=shares.get)] if shares else []
+            primary = primary_group[0] if len(primary_group) == 1 else None
+            tied = [e for e in tied if e not in flagged]
+            notes.append(f"{', '.join(flagged)} stays in the model only at its physical bound and is not named as the "
+                         "cause: see what the data fit outside physics")
         if eliminated:
             notes.append("dropped again after forward selection (no significant held-out loss without them): "
                          + ", ".join(f"{e['effect']} (z = {e['z']:.1f})" for e in eliminated))
@@ -367,6 +393,17 @@ class GapDiagnosis:
         tracker = tracker @ pin.exp6(base_twist).homogeneous
 
         held = final["heldout_residual"]
+        by_session = []
+        for s, label in enumerate(sessions):
+            rows_s = np.flatnonzero(session_of == s)
+            station = np.eye(4)
+            station[:3, :3], station[:3, 3] = stations[s]
+            temperature = np.asarray(obs.context.temperature_c, dtype=float)[rows_s]
+            by_session.append({"session": label, "n_measurements": int(rows_s.size),
+                               "gap": ErrorStats.of(first(gap_residual)[rows_s]).to_dict(),
+                               "heldout": ErrorStats.of(first(held)[rows_s]).to_dict(),
+                               "temperature_c": [float(temperature.min()), float(temperature.max())],
+                               "registration_base_to_tracker": station.tolist()})
         by_frame = {}
         if len(parts) > 1:
             by_frame = {part.label: ErrorStats.of(held[p]) for p, part in enumerate(parts)}
@@ -390,6 +427,7 @@ class GapDiagnosis:
             parameter_table=table, selection=selection, outside_physics=beyond,
             physics={e: effect_class(e).physics for e in table},
             effect_options={e: dict(bases[e].per_part[0].effect.options) for e in ordered(selected)},
+            sessions=by_session,
             joint_function_bands=joint_function_bands(final, bases, ordered(selected), obs.q),
         )
         self.robot_ = robot
@@ -452,7 +490,7 @@ class GapDiagnosis:
         return self.result_.predict(self.robot_, q, context)
 
     # -- pieces ------------------------------------------------------------------------
-    def _bases(self, parts, names, measured, notes):
+    def _bases(self, parts, names, measured, notes, part_sessions=()):
         bases, candidates, stochastic = {}, {}, []
         jacobians = {}  # per part, the error Jacobians at the nominal model: the same for every effect
         for name in names:
@@ -469,7 +507,9 @@ class GapDiagnosis:
                 per_part = []
                 for p, part in enumerate(parts):
                     options = {"tool_rotation": True} if name == "frames" and part.target_rotation is not None else {}
-                    options.update(cls.options_for_data(part.robot, part.q.shape[0]))
+                    if name == "frames" and len(part_sessions) > 1:
+                        options["sessions"] = tuple(part_sessions)
+                    options.update(cls.options_for_data(part.robot, part.q, part.context))
                     effect = make_effect(name, part.robot, **options)
                     labels = _part_names(effect, part, len(parts))
                     em = ErrorModel(part.robot)

@@ -37,6 +37,7 @@ class Observations:
     context: MeasurementContext
     measured: tuple = ()
     quaternion: np.ndarray | None = None
+    session_labels: tuple = ()  # the sessions' labels (context.session numbers them); () for one session
 
     def __len__(self) -> int:
         return self.q.shape[0]
@@ -49,7 +50,8 @@ def observations_from(measurements) -> Observations:
     measured = tuple(k for k in ("payload_kg", "temperature_c", "direction")
                      if getattr(measurements, k, None) is not None)
     return Observations(np.asarray(measurements.q, dtype=float), np.asarray(measurements.position, dtype=float),
-                        measurements.context(), measured, getattr(measurements, "quaternion", None))
+                        measurements.context(), measured, getattr(measurements, "quaternion", None),
+                        tuple(getattr(measurements, "session_labels", ()) or ()))
 
 
 # ---------------------------------------------------------------------------------------
@@ -152,6 +154,7 @@ class Diagnosis:
     outside_physics: list = field(default_factory=list)  # what the data fit only outside an effect's physics
     physics: dict = field(default_factory=dict)  # effect -> why its parameters lie in their range
     effect_options: dict = field(default_factory=dict)  # effect -> the options it was fitted with
+    sessions: list = field(default_factory=list)  # per session: label, rows, gap and held-out stats, temperature
     #: effect -> joint -> {"angle_rad", "value_rad", "std_rad"} (M,) arrays: the fitted function of
     #: each joint's own angle over its measured range with its standard error (effects with joint_basis)
     joint_function_bands: dict = field(default_factory=dict)
@@ -202,10 +205,12 @@ class Diagnosis:
                               for e, t in self.parameter_table.items()},
             "parameter_interval_95": {e: dict(t["interval"]) for e, t in self.parameter_table.items()},
             "parameter_units": self.parameter_units,
-            "physical": {e: {"plausible": True, "range": dict(t["range"]), "pinned": list(t["pinned"]),
+            "physical": {e: {"plausible": e not in {f["effect"] for f in self.outside_physics},
+                             "range": dict(t["range"]), "pinned": list(t["pinned"]),
                              "reason": self.physics.get(e, "")}
                          for e, t in self.parameter_table.items()},
             "outside_physics": list(self.outside_physics),
+            "sessions": list(self.sessions),
             "effect_options": {e: {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in o.items()}
                                for e, o in self.effect_options.items()},
             "joint_functions": {e: {j: {k: np.asarray(v).tolist() for k, v in band.items()}

@@ -172,9 +172,10 @@ class Effect(abc.ABC):
         return (np.zeros(k) if self.non_negative else np.full(k, -np.inf)), np.full(k, np.inf)
 
     @classmethod
-    def options_for_data(cls, robot: RobotModel, n_rows: int) -> dict:
-        """Options the diagnosis builds the effect with for ``n_rows`` measurements (default
-        none): how many terms a flexible effect may have is a question of the data."""
+    def options_for_data(cls, robot: RobotModel, q: np.ndarray, context: MeasurementContext) -> dict:
+        """Options the diagnosis builds the effect with for measurements at joints q (N, n)
+        with their context (default none): how many terms a flexible effect may have, or
+        from which temperature links grow, is a question of the data."""
         return {}
 
     def penalty_weights(self) -> np.ndarray | None:

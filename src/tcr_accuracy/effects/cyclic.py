@@ -43,12 +43,12 @@ class CyclicError(LinearEffect):
         self.max_order = max_order
 
     @classmethod
-    def options_for_data(cls, robot, n_rows: int) -> dict:
+    def options_for_data(cls, robot, q, context) -> dict:
         """The highest order the diagnosis fits: 30 cycles per revolution, fewer when the
         measurements are few (at least 2 poses per parameter over the revolute joints: every
         other joint's motion is noise to one joint's function)."""
         revolute = sum(k == REVOLUTE for k in robot.joint_kinds)
-        return {"max_order": int(max(cls.FIRST_ORDER, min(30, 2 + n_rows // (4 * max(revolute, 1)))))}
+        return {"max_order": int(max(cls.FIRST_ORDER, min(30, 2 + len(q) // (4 * max(revolute, 1)))))}
 
     def _terms(self):
         orders = range(self.FIRST_ORDER, int(self.max_order) + 1)

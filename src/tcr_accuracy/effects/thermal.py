@@ -57,6 +57,21 @@ class Thermal(LinearEffect):
     def physical_range(self):
         return np.zeros(self.n_params), np.full(self.n_params, 2.5e-5)
 
+    @classmethod
+    def options_for_data(cls, robot, q, context) -> dict:
+        """Links grow from the data's mean temperature: at one temperature a uniform scale of
+        the links is a geometry question (geometry comes first in the vocabulary), so what
+        thermal can claim is how the length changes with the temperature, across the rows
+        (between sessions at different temperatures above all)."""
+        temperature = np.asarray(context.temperature_c, dtype=float)
+        return {"reference_temperature_c": float(np.round(temperature.mean(), 6))}
+
+    def outside_physics(self, values):
+        return (f"a length scale of {float(np.max(np.abs(values))):.3g} per K between the measurements, beyond any "
+                "material the arm can be made of (0 to 2.5e-5 per K): not thermal expansion but a difference "
+                "between the sessions (another day, station or floor, the tracker's own scale or its weather "
+                "station)")
+
     def growth_directions(self) -> np.ndarray:
         """(n_error_params, k): d(x)/d(alpha dT) for each parameter."""
         em = self.error_model

@@ -12,6 +12,10 @@ column                      meaning
 ``payload_kg``              optional payload at the TCP [kg] (absent: 0)
 ``temperature_c``           optional temperature of the arm [degC] (absent: reference, 20)
 ``<joint>_dir``             optional approach direction of a joint: +1 or -1
+``session``                 optional label of the measurement session (tracker station,
+                            day) a row belongs to: each session has its own tracker frame
+``time_s``                  optional time of the measurement [s] (any origin): the time
+                            axis of the tracker's drift seen by base references
 ==========================  ===============================================================
 
 Lines starting with ``#`` are comments. Row numbers in messages are the file's line
@@ -42,7 +46,9 @@ from ..units import REVOLUTE, parse_number
 QUATERNION_TOLERANCE = 1e-3
 
 QUATERNION_COLUMNS = ("qw", "qx", "qy", "qz")
-CONTEXT_COLUMNS = ("payload_kg", "temperature_c")
+CONTEXT_COLUMNS = ("payload_kg", "temperature_c", "time_s")
+#: columns whose cells are labels, not numbers
+LABEL_COLUMNS = ("session",)
 
 
 # ---------------------------------------------------------------------------------------
@@ -77,6 +83,10 @@ class MeasurementSet:
         Where the rows came from (file path or a label).
     rows : ndarray of shape (N,)
         Row (line) number of each measurement in the source file.
+    session : ndarray of shape (N,) of str, or None
+        Session label of each row (one tracker frame each); None: one session.
+    time_s : ndarray of shape (N,) or None
+        Time of each measurement [s]; None when the file has no ``time_s`` column.
     """
 
     joint_names: list[str]
@@ -89,6 +99,8 @@ class MeasurementSet:
     source: str = "<memory>"
     rows: np.ndarray | None = None
     outside_q: np.ndarray | None = None
+    session: np.ndarray | None = None
+    time_s: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.q = np.atleast_2d(np.asarray(self.q, dtype=float))
@@ -110,7 +122,20 @@ class MeasurementSet:
             direction=self.direction.copy() if self.direction is not None else np.zeros((n, nj)),
             rng=rng,
             outside_q=None if self.outside_q is None else self.outside_q.copy(),
+            session=self.session_index(),
         )
+
+    @property
+    def session_labels(self) -> list[str]:
+        """The sessions' labels in order of first appearance ([] without a session column)."""
+        return [] if self.session is None else list(dict.fromkeys(self.session.tolist()))
+
+    def session_index(self) -> np.ndarray | None:
+        """(N,) int: each row's session, numbered in order of first appearance (None: one session)."""
+        if self.session is None:
+            return None
+        number = {label: k for k, label in enumerate(self.session_labels)}
+        return np.array([number[label] for label in self.session.tolist()], dtype=int)
 
     def subset(self, rows) -> "MeasurementSet":
         """The measurements of some rows (index array or boolean mask), e.g. a fold."""
@@ -120,7 +145,8 @@ class MeasurementSet:
         return replace(self, q=self.q[rows], position=self.position[rows],
                        quaternion=pick(self.quaternion), payload_kg=pick(self.payload_kg),
                        temperature_c=pick(self.temperature_c), direction=pick(self.direction),
-                       rows=self.rows[rows], outside_q=pick(self.outside_q))
+                       rows=self.rows[rows], outside_q=pick(self.outside_q), session=pick(self.session),
+                       time_s=pick(self.time_s))
 
 
 # ---------------------------------------------------------------------------------------
@@ -142,7 +168,7 @@ def allowed_columns(robot: RobotModel) -> list[str]:
     for name, kind in _all_joints(robot):
         cols += [f"{name}_{u}" for u in _JOINT_UNITS[kind]]
     cols += [f"{a}_{u}" for u in _POSITION_UNITS for a in "xyz"]
-    cols += list(QUATERNION_COLUMNS) + list(CONTEXT_COLUMNS)
+    cols += list(QUATERNION_COLUMNS) + list(CONTEXT_COLUMNS) + list(LABEL_COLUMNS)
     cols += [f"{name}_dir" for name, _ in _all_joints(robot)]
     return cols
 
@@ -243,12 +269,21 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
     n_cols = len(header)
     values = np.empty((len(lines) - 1, n_cols))
     rows = np.empty(len(lines) - 1, dtype=int)
+    label_columns = {c: name for c, name in enumerate(header) if name in LABEL_COLUMNS}
+    labels = {name: [] for name in label_columns.values()}
     for k, (line_no, line) in enumerate(lines[1:]):
         cells = next(csv.reader(io.StringIO(line)))
         if len(cells) != n_cols:
             raise InputError(f"{source}: row {line_no}: {len(cells)} cells, the header has {n_cols} columns")
         for c, cell in enumerate(cells):
             cell = cell.strip()
+            if c in label_columns:
+                if not cell or not cell.isprintable() or not cell.isascii():
+                    raise InputError(f"{source}: row {line_no}, column {shown[c]}: a session label must be "
+                                     f"printable ASCII, got {cell!r}")
+                labels[label_columns[c]].append(cell)
+                values[k, c] = 0.0
+                continue
             try:
                 value = parse_number(cell, finite=False)  # strict: 1_5 and full-width digits are no numbers
             except ValueError:
@@ -329,11 +364,13 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
                                  f"+1 or -1, got {raw[r]:g}")
             direction[:, j] = raw
 
+    time_s = column("time_s") if "time_s" in header else None
+    session = np.array(labels["session"], dtype=object) if "session" in labels else None
     mset = MeasurementSet(
         joint_names=list(robot.joint_names), q=q,
         position=position if position is not None else np.full((len(rows), 3), np.nan),
         quaternion=quaternion, payload_kg=payload, temperature_c=temperature, direction=direction,
-        source=source, rows=rows, outside_q=outside_q,
+        source=source, rows=rows, outside_q=outside_q, session=session, time_s=time_s,
     )
     check_duplicates(mset, values, header, source, CONTEXT_COLUMNS)
     if check_units and position is not None:
@@ -477,3 +514,34 @@ __all__ = [
     "allowed_columns", "format_measurements", "measured_frames", "measurement_columns", "parse_measurements",
     "read_measurements", "read_user_text", "write_measurements",
 ]
+
+
+def join_sessions(sets: list[MeasurementSet], labels: list[str]) -> MeasurementSet:
+    """Several measurement sets of one robot as one, each its own session (its label, or
+    ``<label>:<session>`` where a set has a session column already); columns one set has and
+    another lacks take their defaults (no payload, the reference temperature, no direction)."""
+    if len(sets) == 1:
+        return sets[0]
+    n = [len(s) for s in sets]
+    session = np.concatenate([np.array([f"{label}:{v}" for v in s.session], dtype=object) if s.session is not None
+                              else np.full(len(s), label, dtype=object) for s, label in zip(sets, labels)])
+
+    def joined(attr, fill):
+        values = [getattr(s, attr) for s in sets]
+        if all(v is None for v in values):
+            return None
+        return np.concatenate([v if v is not None else fill(s) for v, s in zip(values, sets)])
+
+    nj = sets[0].q.shape[1]
+    return MeasurementSet(
+        joint_names=list(sets[0].joint_names), q=np.concatenate([s.q for s in sets]),
+        position=np.concatenate([s.position for s in sets]),
+        quaternion=joined("quaternion", lambda s: np.tile([1.0, 0.0, 0.0, 0.0], (len(s), 1))),
+        payload_kg=joined("payload_kg", lambda s: np.zeros(len(s))),
+        temperature_c=joined("temperature_c", lambda s: np.full(len(s), REFERENCE_TEMPERATURE_C)),
+        direction=joined("direction", lambda s: np.zeros((len(s), nj))),
+        source=", ".join(s.source for s in sets), rows=np.concatenate([s.rows for s in sets]),
+        outside_q=joined("outside_q", lambda s: np.zeros((len(s), next(
+            o.outside_q.shape[1] for o in sets if o.outside_q is not None)))),
+        session=session, time_s=joined("time_s", lambda s: np.full(len(s), np.nan)),
+    )

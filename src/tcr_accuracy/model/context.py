@@ -47,6 +47,8 @@ class MeasurementContext:
     direction: np.ndarray
     rng: np.random.Generator | None = None
     outside_q: np.ndarray | None = None
+    #: (N,) int: the measurement session of each row (its own tracker frame), or None: one session
+    session: np.ndarray | None = None
 
     @classmethod
     def defaults(cls, n_rows: int, n_joints: int, *, payload_kg: float = 0.0,
@@ -61,7 +63,8 @@ class MeasurementContext:
     def subset(self, rows) -> "MeasurementContext":
         """The context of some rows (index array or boolean mask)."""
         return MeasurementContext(self.payload_kg[rows], self.temperature_c[rows], self.direction[rows],
-                                  self.rng, None if self.outside_q is None else self.outside_q[rows])
+                                  self.rng, None if self.outside_q is None else self.outside_q[rows],
+                                  None if self.session is None else self.session[rows])
 
 
 def context_column(context: MeasurementContext | None, attr: str, n: int, default: float) -> np.ndarray:
