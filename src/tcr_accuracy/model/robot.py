@@ -36,6 +36,7 @@ import pinocchio as pin
 from ..exceptions import InputError
 from .tool_changer import DISC_CUTTER_MASS, WORKING_POSE, tool_changer_urdf
 from ..units import JOINT_DISPLAY, PRISMATIC, REVOLUTE  # noqa: F401 - PRISMATIC: part of this module's vocabulary
+from .mesh_resources import check_mesh_references
 from .urdf import (
     MAX_CHAIN_JOINTS,
     check_mesh_paths,
@@ -305,6 +306,17 @@ class RobotModel:
         return np.array([JOINT_DISPLAY[k][1] for k in self.joint_kinds])
 
     # -- visuals -----------------------------------------------------------------------
+    @property
+    def urdf_source(self) -> str:
+        """The URDF file's path, or the robot's name when it has no file, for messages."""
+        return str(self.urdf_path) if self.urdf_path is not None else self.name
+
+    def mesh_roots(self) -> list[str]:
+        """The folders meshes and the files they reference may come from: the URDF's folder and
+        the package folders."""
+        roots = ([str(self.urdf_path.parent)] if self.urdf_path is not None else []) + list(self.package_dirs)
+        return list(dict.fromkeys(roots))
+
     def visual_model(self) -> pin.GeometryModel:
         """Pinocchio's visual ``GeometryModel`` attached to ``model``'s joints (bodies of the
         locked joints at their neutral pose); meshes resolved through ``package_dirs``.
@@ -312,12 +324,14 @@ class RobotModel:
         Raises
         ------
         InputError
-            The URDF's visuals cannot be read (missing mesh file, ...), or a mesh lies outside
+            The URDF's visuals cannot be read (missing mesh file, ...), or a mesh or a file it
+            references (a COLLADA image, an OBJ's material library and its textures) lies outside
             the URDF's folder and the package folders.
         """
-        roots = ([str(self.urdf_path.parent)] if self.urdf_path is not None else []) + list(self.package_dirs)
-        source = str(self.urdf_path) if self.urdf_path is not None else self.name
-        check_mesh_paths(parse_urdf_xml(self.urdf_text, source), source, list(dict.fromkeys(roots)))
+        roots, source = self.mesh_roots(), self.urdf_source
+        for name, place in check_mesh_paths(parse_urdf_xml(self.urdf_text, source), source, roots):
+            if place.is_file():  # every place Pinocchio may take it from, before anything reads it
+                check_mesh_references(place, roots, source, name)
         with quiet_native_stderr() as said:
             try:
                 geometry = pin.buildGeomFromUrdfString(self.full_model, self.urdf_text, pin.GeometryType.VISUAL,

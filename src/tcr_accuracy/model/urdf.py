@@ -206,13 +206,15 @@ def check_urdf(root: ElementTree.Element, source: str) -> None:
                          "a URDF is one tree with one root")
 
 
-def check_mesh_paths(root: ElementTree.Element, source: str, roots: list) -> None:
+def check_mesh_paths(root: ElementTree.Element, source: str, roots: list) -> list[tuple[str, Path]]:
     """Refuse a visual mesh whose file lies outside ``roots`` (the URDF's folder and the package
     folders), in one line naming the link, so that no view or report reads and embeds
     ``../../secret/x.obj``.
 
     A ``package://`` or relative name is looked for under every root, as Pinocchio does;
     each place it could come from must stay inside one of the roots (symlinks followed).
+    Returns (mesh name as written, place) for every place, for the files a mesh references
+    to be checked in turn (:mod:`tcr_accuracy.model.mesh_resources`).
     """
     import os
 
@@ -221,6 +223,7 @@ def check_mesh_paths(root: ElementTree.Element, source: str, roots: list) -> Non
     def inside(path: Path) -> bool:
         return any(path == r or r in path.parents for r in roots)
 
+    places = []
     for link in root.findall("link"):
         for mesh in (m for visual in link.findall("visual") for m in visual.iter("mesh")):
             name = mesh.get("filename") or ""
@@ -235,6 +238,8 @@ def check_mesh_paths(root: ElementTree.Element, source: str, roots: list) -> Non
                 raise InputError(f"{source}: link {one_line(link.get('name'))}: mesh {one_line(name, 120)!r} lies "
                                  f"outside the URDF's folder and package folders ({one_line(folders, 200)}); "
                                  "refused")
+            places += [(name, c) for c in candidates]
+    return places
 
 
 def _number(element, key: str, where: str, low: float, high: float, default: float | None = None) -> float:

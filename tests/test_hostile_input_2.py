@@ -1,0 +1,165 @@
+"""The reproductions of issue 22 (a second attack on the command line), one test or more each.
+
+As in round one (``test_hostile_input.py``): every bad input ends in ONE line on stderr naming
+the file, row, column or option at fault, exit code 2, no traceback and nothing left behind.
+The numbers in the test names (``test_22_01_...``) are the rows of the issue's table.
+"""
+
+import base64
+import json
+import re
+
+import pytest
+
+from test_hostile_input import _INERTIAL, assert_one_line, run, two_joint_urdf
+from tcr_accuracy.cli import main
+
+
+# ---------------------------------------------------------------------------------------
+# 1: files a mesh references (COLLADA images, an OBJ's material library and its textures)
+# ---------------------------------------------------------------------------------------
+SECRET = b"SECRET-CONTENT-22-01\n"
+
+
+def collada_triangle(image: str | None) -> str:
+    """A valid COLLADA file with one triangle and, with ``image``, one image ``<init_from>``."""
+    images = (f"<library_images><image id='img' name='img'><init_from>{image}</init_from></image>"
+              "</library_images>") if image is not None else ""
+    return f"""<?xml version="1.0" encoding="utf-8"?>
+<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+  <asset><unit name="meter" meter="1"/><up_axis>Z_UP</up_axis></asset>{images}
+  <library_geometries><geometry id="tri" name="tri"><mesh>
+    <source id="p"><float_array id="pa" count="9">0 0 0 0.1 0 0 0 0.1 0</float_array>
+      <technique_common><accessor source="#pa" count="3" stride="3"><param name="X" type="float"/>
+        <param name="Y" type="float"/><param name="Z" type="float"/></accessor></technique_common></source>
+    <vertices id="v"><input semantic="POSITION" source="#p"/></vertices>
+    <triangles count="1"><input semantic="VERTEX" source="#v" offset="0"/><p>0 1 2</p></triangles>
+  </mesh></geometry></library_geometries>
+  <library_visual_scenes><visual_scene id="s"><node id="n"><instance_geometry url="#tri"/></node>
+  </visual_scene></library_visual_scenes>
+  <scene><instance_visual_scene url="#s"/></scene>
+</COLLADA>
+"""
+
+
+TRIANGLE_OBJ = "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n"
+
+
+@pytest.fixture
+def secret(tmp_path):
+    """A file outside every robot folder of the tests below."""
+    folder = tmp_path / "private"
+    folder.mkdir()
+    path = folder / "s.png"
+    path.write_bytes(SECRET)
+    return path
+
+
+def robot_with_mesh(tmp_path, mesh_name: str, files: dict) -> "Path":  # noqa: F821
+    """``ws/bot/r.urdf`` whose link l1 is drawn with ``ws/bot/meshes/<mesh_name>``; ``files`` are
+    written under ``ws/bot/meshes`` first. The robot may read ``ws`` (its package folder), not
+    ``tmp_path``."""
+    meshes = tmp_path / "ws" / "bot" / "meshes"
+    meshes.mkdir(parents=True)
+    for name, text in files.items():
+        (meshes / name).write_text(text)
+    urdf = tmp_path / "ws" / "bot" / "r.urdf"
+    urdf.write_text(two_joint_urdf(
+        l1_visual=f'<visual><geometry><mesh filename="meshes/{mesh_name}"/></geometry></visual>'))
+    return urdf
+
+
+def embedded_blobs(html: str) -> bytes:
+    """Everything a static view embeds, its base64 commands decoded and joined."""
+    return b"".join(base64.b64decode(b) for b in re.findall(r'"([A-Za-z0-9+/=]{64,})"', html))
+
+
+def _outside_cases(secret):
+    rel = "../../../private/s.png"  # from ws/bot/meshes
+    return {
+        "dae absolute image": ("t.dae", {"t.dae": collada_triangle(str(secret))}, str(secret)),
+        "dae relative image": ("t.dae", {"t.dae": collada_triangle(rel)}, rel),
+        "dae file url image": ("t.dae", {"t.dae": collada_triangle(f"file://{secret}")}, f"file://{secret}"),
+        "dae http image": ("t.dae", {"t.dae": collada_triangle("http://evil.example/x.png")}, "http://evil"),
+        "obj mtllib": ("t.obj", {"t.obj": f"mtllib {rel[:-5]}m.mtl\n" + TRIANGLE_OBJ}, "m.mtl"),
+        "obj map_Kd": ("t.obj", {"t.obj": "mtllib m.mtl\n" + TRIANGLE_OBJ,
+                                 "m.mtl": f"newmtl a\nmap_Kd -s 1 1 1 {secret}\n"}, str(secret)),
+        "obj bump with tabs": ("t.obj", {"t.obj": "mtllib\tm.mtl\n" + TRIANGLE_OBJ,
+                                         "m.mtl": f"newmtl a\nbump\t-bm 2 {rel}\n"}, rel),
+    }
+
+
+@pytest.mark.parametrize("case", ["dae absolute image", "dae relative image", "dae file url image",
+                                  "dae http image", "obj mtllib", "obj map_Kd", "obj bump with tabs"])
+def test_22_01_a_file_a_mesh_references_outside_the_robot_is_refused(case, secret, tmp_path, capsys):
+    if case == "obj mtllib":  # the library outside exists, so it would be read
+        (secret.parent / "m.mtl").write_text("newmtl a\n")
+    mesh, files, named = _outside_cases(secret)[case]
+    urdf = robot_with_mesh(tmp_path, mesh, files)
+    code, out, err = run(["view", "--robot", urdf, "--view", tmp_path / "v.html"], capsys)
+    assert code == 2 and out == ""
+    assert_one_line(err, str(urdf), f"mesh 'meshes/{mesh}' references", named)
+    assert not (tmp_path / "v.html").exists()
+
+
+@pytest.mark.parametrize("command", [
+    ["montecarlo", "--samples", "200", "--tail-samples", "0", "--view-samples", "20", "--view", "OUT/mc.html"],
+    ["diagnose", "CSV", "--effects", "joint_offsets", "--out", "OUT/rep"],
+    ["view", "--serve", "--quiet"],
+])
+def test_22_01_every_command_that_draws_the_robot_refuses_it(command, secret, tmp_path, capsys):
+    urdf = robot_with_mesh(tmp_path, "t.dae", {"t.dae": collada_triangle(str(secret))})
+    (tmp_path / "out").mkdir()
+    csv = tmp_path / "m.csv"  # simulate does not draw the robot
+    assert main(["simulate", "--robot", str(urdf), "--random", "--n", "30", "--seed", "1", "--out", str(csv),
+                 "--quiet"]) == 0
+    argv = [a.replace("OUT", str(tmp_path / "out")).replace("CSV", str(csv)) for a in command]
+    code, out, err = run([*argv, "--robot", urdf, "--quiet"], capsys)
+    assert code == 2
+    assert_one_line(err, str(urdf), "mesh 'meshes/t.dae' references", str(secret))
+    assert list((tmp_path / "out").iterdir()) == []
+
+
+def test_22_01_images_inside_the_robot_folder_are_embedded(tmp_path, capsys):
+    texture = b"A-TEXTURE-INSIDE-THE-ROBOT-FOLDER"
+    urdf = robot_with_mesh(tmp_path, "t.dae", {"t.dae": collada_triangle("../textures/t.png")})
+    (tmp_path / "ws" / "bot" / "textures").mkdir()
+    (tmp_path / "ws" / "bot" / "textures" / "t.png").write_bytes(texture)
+    code, out, err = run(["view", "--robot", urdf, "--view", tmp_path / "v.html", "--quiet"], capsys)
+    assert code == 0, err
+    assert base64.b64encode(texture) in embedded_blobs((tmp_path / "v.html").read_text())
+
+
+def test_22_01_a_symlink_out_of_the_folder_is_outside(secret, tmp_path, capsys):
+    urdf = robot_with_mesh(tmp_path, "t.dae", {"t.dae": collada_triangle("link.png")})
+    (tmp_path / "ws" / "bot" / "meshes" / "link.png").symlink_to(secret)
+    code, out, err = run(["view", "--robot", urdf, "--view", tmp_path / "v.html"], capsys)
+    assert code == 2
+    assert_one_line(err, "references 'link.png', which lies outside")
+
+
+def test_22_01_a_mesh_format_whose_references_are_unknown_is_not_drawn(tmp_path, capsys):
+    urdf = robot_with_mesh(tmp_path, "t.gltf", {"t.gltf": json.dumps({"buffers": [{"uri": "/etc/passwd"}]})})
+    code, out, err = run(["view", "--robot", urdf, "--view", tmp_path / "v.html"], capsys)
+    assert code == 2
+    assert_one_line(err, str(urdf), "format '.gltf' is not drawn")
+
+
+def test_22_01_nothing_unchecked_is_embedded(secret, tmp_path, monkeypatch):
+    # with both checks made blind, the view's own loader still embeds only the files it was
+    # handed as checked (here none): the image Pinocchio's loader would have read stays out
+    from tcr_accuracy.model import robot as robot_module
+    from tcr_accuracy.model.robot import load_robot
+    from tcr_accuracy.view import robot_visuals
+    from tcr_accuracy.view.viewer import Scene
+
+    urdf = robot_with_mesh(tmp_path, "t.dae", {"t.dae": collada_triangle(str(secret))})
+    monkeypatch.setattr(robot_module, "check_mesh_references", lambda *a: [])
+    monkeypatch.setattr(robot_visuals, "check_mesh_references", lambda *a: [])
+    robot = load_robot(str(urdf))
+    scene = Scene()
+    scene.add_robot(robot, robot.working_pose, "nominal")
+    scene.add_robot(robot, robot.working_pose, "ghost", color=(1, 0, 0), opacity=0.5)
+    blobs = embedded_blobs(scene.static_html())
+    assert b"<COLLADA" in blobs  # the mesh itself is drawn
+    assert base64.b64encode(SECRET) not in blobs and SECRET not in blobs
