@@ -163,3 +163,73 @@ def test_22_01_nothing_unchecked_is_embedded(secret, tmp_path, monkeypatch):
     blobs = embedded_blobs(scene.static_html())
     assert b"<COLLADA" in blobs  # the mesh itself is drawn
     assert base64.b64encode(SECRET) not in blobs and SECRET not in blobs
+
+
+# ---------------------------------------------------------------------------------------
+# 2, 31: YAML aliases (a "billion laughs" of nodes) and repeated keys
+# ---------------------------------------------------------------------------------------
+def alias_bomb() -> str:
+    """548 bytes standing for 10^9 nodes: nine levels of aliases, each a list of ten of the previous one."""
+    levels = ["      - &a0 [x,x,x,x,x,x,x,x,x,x]"]
+    levels += [f"      - &a{i} [" + ",".join([f"*a{i - 1}"] * 10) + "]" for i in range(1, 10)]
+    return "groups:\n  link_length:\n    std_m: 0.0001\n    junk:\n" + "\n".join(levels) + "\n"
+
+
+@pytest.mark.parametrize("argv", [["montecarlo", "--config", "F", "--samples", "100", "--quiet"],
+                                  ["simulate", "--scenario", "F", "--n", "5", "--out", "OUT/o.csv"]])
+def test_22_02_a_yaml_alias_bomb_is_refused_at_once(argv, tmp_path):
+    # in a child process with a timeout: were the bomb walked, the test fails instead of hanging
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text(alias_bomb())
+    (tmp_path / "out").mkdir()
+    result = cli_process([str(bomb) if a == "F" else a.replace("OUT", str(tmp_path / "out")) for a in argv],
+                         cwd=tmp_path, timeout=60)
+    assert result.returncode == 2 and result.stdout == ""
+    assert_one_line(result.stderr, f"{bomb}: line 6: YAML aliases (*a0) are refused")
+    assert list((tmp_path / "out").iterdir()) == []
+
+
+def cli_process(argv, *, cwd, timeout=120, **popen):
+    """``python -m tcr_accuracy argv`` in a child process, with this checkout's sources; (text) result."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import tcr_accuracy
+
+    src = str(Path(tcr_accuracy.__file__).parents[1])
+    return subprocess.run([sys.executable, "-m", "tcr_accuracy", *map(str, argv)], capture_output=True, text=True,
+                          cwd=cwd, timeout=timeout, env={"PYTHONPATH": src, "OPENBLAS_NUM_THREADS": "1",
+                                                         "PATH": "/usr/bin:/bin"}, **popen)
+
+
+@pytest.mark.parametrize("text, line, key", [
+    ("groups:\n  drive:\n    std_m: 0.001\n    std_rad: 0.001\n    std_m: 0.002\n", 5, "std_m"),
+    ("groups:\n  drive: {std_m: 0.001, std_rad: 0.001}\ngroups: {}\n", 3, "groups"),
+])
+def test_22_31_a_key_given_twice_is_refused(text, line, key, tmp_path, capsys):
+    path = tmp_path / "dup.yaml"
+    path.write_text(text)
+    code, out, err = run(["montecarlo", "--config", path, "--samples", "100", "--quiet"], capsys)
+    assert code == 2
+    assert_one_line(err, f"{path}: line {line}: key '{key}' is given twice")
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.lists(st.sampled_from(["a", "b", "c", "std_m"]), min_size=1, max_size=6))
+def test_fuzz_22_31_repeated_keys_are_refused_unique_ones_read(keys):
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.io.budget_file import parse_table
+
+    text = "t:\n" + "".join(f"  {k}: {i}\n" for i, k in enumerate(keys))
+    try:
+        data = parse_table(text, "s.yaml")
+    except InputError as exc:
+        assert len(set(keys)) < len(keys)
+        first_repeat = next(i for i, k in enumerate(keys) if k in keys[:i])
+        assert str(exc).startswith(f"s.yaml: line {first_repeat + 2}: key '{keys[first_repeat]}'")
+        return
+    assert len(set(keys)) == len(keys) and data == {"t": {k: i for i, k in enumerate(keys)}}
