@@ -147,6 +147,11 @@ MAX_COUNT = 10**12
 #: The largest length [mm] an option takes (1 km): beyond it a value is a typo, not a robot.
 MAX_MM = 1e6
 
+#: argparse type of an instrument's noise (``--noise-mm`` of diagnose and plan-poses), std per axis:
+#: 1 nm to 1 m. Below, no tracker resolves it and its square underflows the statistics' divisions;
+#: above, every parameter drowns in it and the fit's condition number is no number.
+noise_mm_value = number(low=1e-6, high=1e3, unit="mm")
+
 #: argparse type of joint values on the command line: finite numbers (deg or mm; the robot's
 #: limits are checked later, by :func:`joint_values_si`).
 joint_value = number(low=-1e9, high=1e9)

@@ -11,8 +11,8 @@ import math
 import sys
 from pathlib import Path
 
-from .common import (MAX_MM, add_robot_arguments, check_csv_memory, effect_names, integer, number, output_file,
-                     seed_value, status)
+from .common import (add_robot_arguments, check_csv_memory, effect_names, integer, noise_mm_value,
+                     output_file, seed_value, status)
 from .output import RunOutput, add_output_arguments
 
 
@@ -37,7 +37,7 @@ def add_parsers(sub) -> None:
     p.add_argument("--folds", type=integer(low=2, high=1000), default=5,
                    help="k of the k-fold cross-validation (default 5)")
     p.add_argument("--seed", type=seed_value, default=0, help="seed of the fold split and permutation tests")
-    p.add_argument("--noise-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
+    p.add_argument("--noise-mm", type=noise_mm_value, default=None,
                    help="the instrument's noise, std per axis [mm]; noise floor = sqrt(3) x this (default: "
                         "estimated from repeated poses, else from the final residual, and said which)")
     p.add_argument("--as-built-urdf", default=None, type=output_file, metavar="FILE",

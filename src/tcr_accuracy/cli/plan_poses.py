@@ -10,7 +10,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import MAX_MM, add_robot_arguments, effect_names, emit_json, integer, number, output_file, seed_value
+from .common import (add_robot_arguments, effect_names, emit_json, integer, noise_mm_value, number, output_file,
+                     seed_value)
 
 
 def add_parsers(sub) -> None:
@@ -39,7 +40,7 @@ def add_parsers(sub) -> None:
                    help="random candidates when --candidates is not given (default 3000)")
     p.add_argument("--payload-kg", type=number(low=0, high=1e6, unit="kg"), default=None,
                    help="payload the new poses will be measured with [kg] (default: the measurements' mean)")
-    p.add_argument("--noise-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
+    p.add_argument("--noise-mm", type=noise_mm_value, default=None,
                    help="the instrument's noise, std per axis [mm], for the diagnosis and for counting the "
                         "determined parameter combinations (default: the diagnosis' estimate; 0.02 with --effects)")
     p.add_argument("--seed", type=seed_value, default=0, help="seed of the candidates and of the diagnosis")
