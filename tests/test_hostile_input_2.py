@@ -233,3 +233,93 @@ def test_fuzz_22_31_repeated_keys_are_refused_unique_ones_read(keys):
         assert str(exc).startswith(f"s.yaml: line {first_repeat + 2}: key '{keys[first_repeat]}'")
         return
     assert len(set(keys)) == len(keys) and data == {"t": {k: i for i, k in enumerate(keys)}}
+
+
+# ---------------------------------------------------------------------------------------
+# 8, 9, 10: hidden crashes (exit 1 "unexpected error")
+# ---------------------------------------------------------------------------------------
+def mimic_urdf(finger_multiplier: str | None = None) -> str:
+    """[B]: a 3-link arm whose j3 follows j2 (``-1 x j2 + 0.1``), with, given a multiplier, a
+    50 kg prismatic finger following j2 too."""
+    links = "".join(f'<link name="l{i}">{_INERTIAL}</link>' for i in range(4))
+    limit = 'effort="1" velocity="1"'
+    text = f"""<robot name="mim"><link name="base"/>{links}<link name="tool"/>
+<joint name="j0" type="fixed"><parent link="base"/><child link="l0"/></joint>
+<joint name="j1" type="revolute"><parent link="l0"/><child link="l1"/><origin xyz="0 0 0.3"/><axis xyz="0 0 1"/>
+  <limit lower="-3" upper="3" {limit}/></joint>
+<joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0 0 0.3"/><axis xyz="1 0 0"/>
+  <limit lower="-2" upper="2" {limit}/></joint>
+<joint name="j3" type="revolute"><parent link="l2"/><child link="l3"/><origin xyz="0 0.4 0"/><axis xyz="1 0 0"/>
+  <limit lower="-2.2" upper="2.2" {limit}/><mimic joint="j2" multiplier="-1" offset="0.1"/></joint>
+<joint name="jt" type="fixed"><parent link="l3"/><child link="tool"/><origin xyz="0 0.3 0"/></joint>
+"""
+    if finger_multiplier is not None:
+        text += (f'<link name="finger"><inertial><mass value="50"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" '
+                 f'iyz="0"/></inertial></link><joint name="finger" type="prismatic"><parent link="l3"/>'
+                 f'<child link="finger"/><origin xyz="0 0.1 0"/><axis xyz="0 0 1"/><limit lower="0" upper="0.05" '
+                 f'{limit}/><mimic joint="j2" multiplier="{finger_multiplier}"/></joint>')
+    return text + "</robot>"
+
+
+@pytest.fixture(scope="module")
+def m60(tmp_path_factory):
+    """``simulate --scenario examples/scenario_compliance.yaml --n 60 --seed 2``."""
+    from conftest import REPO
+
+    path = tmp_path_factory.mktemp("m60") / "m60.csv"
+    assert main(["simulate", "--scenario", str(REPO / "examples" / "scenario_compliance.yaml"), "--n", "60",
+                 "--seed", "2", "--out", str(path), "--quiet"]) == 0
+    return path
+
+
+def test_22_08_positions_x10_without_the_mimic_joints_column_is_the_unit_message(tmp_path, capsys):
+    import csv
+
+    urdf = tmp_path / "mim2.urdf"
+    urdf.write_text(mimic_urdf())
+    full = tmp_path / "mm.csv"
+    assert main(["simulate", "--robot", str(urdf), "--tool", "tool", "--random", "--n", "60", "--seed", "3",
+                 "--out", str(full), "--quiet"]) == 0
+    rows = list(csv.DictReader(full.read_text().splitlines()))
+    path = tmp_path / "no_j3_x10.csv"
+    with path.open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["j1_deg", "j2_deg", "x_mm", "y_mm", "z_mm"])
+        # j3 follows its rule, so that no joint leaves its limits
+        writer.writerows([r["j1_deg"], r["j2_deg"], *(float(r[a]) * 10 for a in ("x_mm", "y_mm", "z_mm"))]
+                         for r in rows)
+    code, out, err = run(["diagnose", path, "--robot", urdf, "--tool", "tool"], capsys)
+    assert code == 2
+    assert_one_line(err, f"{path}: columns x_mm, y_mm, z_mm", "times); check the position units",
+                    "j3 (its <mimic> rule)")
+
+
+@pytest.mark.parametrize("command", [["diagnose", "M"], ["plan-poses", "M", "-k", "3"]])
+@pytest.mark.parametrize("value", ["1e-300", "1e-7", "1e6"])
+def test_22_09_30_an_instrument_noise_out_of_range_is_refused(command, value, m60, capsys):
+    code, out, err = run([str(m60) if a == "M" else a for a in command] + ["--noise-mm", value], capsys)
+    assert code == 2 and out == ""
+    assert_one_line(err, f"--noise-mm {value}", "want a number >= 1e-06 mm and <= 1000 mm")
+
+
+@pytest.mark.parametrize("attribute, fragment", [
+    ('multiplier="1e308"', "multiplier=1e308 is outside [-1000, 1000]"),
+    ('multiplier="nan"', "multiplier='nan' is not a finite number"),
+    ('multiplier="1" offset="1e5"', "offset=1e5 is outside [-10000, 10000]"),
+    ('multiplier="1_0"', "multiplier='1_0' is not a finite number"),
+])
+def test_22_10_a_mimic_rule_is_bounded_like_other_urdf_numbers(attribute, fragment, tmp_path, capsys):
+    path = tmp_path / "mim.urdf"
+    path.write_text(mimic_urdf("1").replace('multiplier="1"/>', attribute + "/>"))
+    code, out, err = run(["pose", "--robot", path, "--tool", "tool"], capsys)
+    assert code == 2
+    assert_one_line(err, f"{path}: joint finger: <mimic>: {fragment}")
+
+
+def test_22_10_a_bounded_mimic_rule_is_read(tmp_path, capsys):
+    from tcr_accuracy.model.robot import load_robot
+
+    path = tmp_path / "mim.urdf"
+    path.write_text(mimic_urdf("2.5"))
+    robot = load_robot(str(path), "tool")
+    assert (robot.mimic["finger"].multiplier, robot.mimic["j3"].multiplier, robot.mimic["j3"].offset) == (2.5, -1, 0.1)
