@@ -266,10 +266,13 @@ def status(args, message: str) -> None:
     """A status line (which file was written, ...) on stderr, unless ``--quiet``.
 
     Results go to stdout; what a run did besides goes here, so that ``--json -`` output
-    stays pure JSON and ``--quiet`` leaves only the results.
+    stays pure JSON and ``--quiet`` leaves only the results. Shown once the run's files are
+    written, not at all if they are not.
     """
     if not getattr(args, "quiet", False):
-        sys.stderr.write(message.rstrip("\n") + "\n")
+        from ..atomic import hold_message
+
+        hold_message(sys.stderr, message.rstrip("\n") + "\n", "status")  # after the files are written
 
 
 def joint_values_si(robot, values, source="--q"):
