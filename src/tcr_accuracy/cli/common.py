@@ -31,7 +31,7 @@ class Parser(argparse.ArgumentParser):
 
 #: What the argparse types of this module say after the value ("--x VALUE: <one of these>...").
 _REFUSALS = ("want", "not a number", "non-finite", "the folder", "is a folder", "exists and is not a folder",
-             "not writable")
+             "not writable", "not a regular file", "its side file")
 _TYPE_REFUSAL = re.compile(r"argument (?P<option>--[\w-]+)(?:/[\w-]+)*: "
                            rf"(?P<rest>.+?: (?:{'|'.join(map(re.escape, _REFUSALS))}).*)", re.DOTALL)
 
@@ -134,6 +134,31 @@ def output_folder(text: str) -> str:
     problem = output_folder_problem(text)
     if problem:
         raise argparse.ArgumentTypeError(f"{_shown(text)}: {problem}")
+    return text
+
+
+def effects_side_file(path) -> "Path":  # noqa: F821
+    """The file written beside an as-built URDF ``x.urdf``: ``x.effects.yaml`` (the effects a URDF cannot hold)."""
+    from pathlib import Path
+
+    path = Path(path)
+    return path.with_name(path.stem + ".effects.yaml")
+
+
+def as_built_file(text: str) -> str:
+    """argparse type of ``--as-built-urdf``: a regular file that can be written, with its side
+    file (:func:`effects_side_file`) too; a device or pipe is refused, as the pair would then
+    be one file written and another created beside the device (``/dev/null.effects.yaml``)."""
+    from ..atomic import is_special_file, output_file_problem
+
+    if text == "-" or is_special_file(text):
+        raise argparse.ArgumentTypeError(f"{_shown(text)}: not a regular file; the as-built model is two files "
+                                         f"(the URDF and {effects_side_file(text).name} beside it)")
+    output_file(text)
+    side = effects_side_file(text)
+    problem = output_file_problem(side) or ("is a device or pipe" if is_special_file(side) else None)
+    if problem:
+        raise argparse.ArgumentTypeError(f"{_shown(text)}: its side file {_shown(str(side))}: {problem}")
     return text
 
 

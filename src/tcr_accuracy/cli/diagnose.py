@@ -11,7 +11,7 @@ import math
 import sys
 from pathlib import Path
 
-from .common import (add_robot_arguments, check_csv_memory, effect_names, integer, noise_mm_value,
+from .common import (as_built_file, add_robot_arguments, effects_side_file, check_csv_memory, effect_names, integer, noise_mm_value,
                      output_file, seed_value, status)
 from .output import RunOutput, add_output_arguments
 
@@ -40,7 +40,7 @@ def add_parsers(sub) -> None:
     p.add_argument("--noise-mm", type=noise_mm_value, default=None,
                    help="the instrument's noise, std per axis [mm]; noise floor = sqrt(3) x this (default: "
                         "estimated from repeated poses, else from the final residual, and said which)")
-    p.add_argument("--as-built-urdf", default=None, type=output_file, metavar="FILE",
+    p.add_argument("--as-built-urdf", default=None, type=as_built_file, metavar="FILE",
                    help="write the calibrated URDF to FILE and the other effects' parameters to "
                         "FILE with suffix .effects.yaml")
     add_output_arguments(p, view=True)
@@ -301,7 +301,7 @@ def write_as_built(robot, d, path: Path) -> tuple[Path, Path]:
 
     text, tool_frame = as_built_urdf(robot, d.as_built_x, ErrorModel(robot), name=f"{robot.name}_as_built")
     write_text_atomically(path, text)
-    side = path.with_name(path.stem + ".effects.yaml")
+    side = effects_side_file(path)
     doc = {
         "robot": robot.name,
         "urdf": path.name,
