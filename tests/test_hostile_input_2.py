@@ -323,3 +323,117 @@ def test_22_10_a_bounded_mimic_rule_is_read(tmp_path, capsys):
     path.write_text(mimic_urdf("2.5"))
     robot = load_robot(str(path), "tool")
     assert (robot.mimic["finger"].multiplier, robot.mimic["j3"].multiplier, robot.mimic["j3"].offset) == (2.5, -1, 0.1)
+
+
+# ---------------------------------------------------------------------------------------
+# 3, 19, 25, 26, 27: what a failed or stopped run leaves behind
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("argv", [
+    ["diagnose", "M", "--effects", "joint_offsets", "--json", "/dev/full", "--as-built-urdf", "T/ab.urdf"],
+    ["diagnose", "M", "--effects", "joint_offsets", "--out", "T/rep", "--json", "/dev/full"],
+    ["predict", "--train", "M", "--query", "M", "--method", "kriging", "--csv", "T/p.csv", "--json", "/dev/full"],
+    ["simulate", "--n", "5", "--out", "/dev/full", "--truth", "T/t.yaml"],
+])
+def test_22_03_19_a_full_device_fails_before_any_regular_file_lands(argv, m60, tmp_path, capsys):
+    code, out, err = run([str(m60) if a == "M" else a.replace("T/", f"{tmp_path}/") for a in argv], capsys)
+    assert code == 2 and out == ""
+    assert_one_line(err, "/dev/full: cannot write (No space left on device)")  # no "written to" line first
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_22_25_json_on_stdout_only_once_the_files_are_written(m60, capsys):
+    code, out, err = run(["diagnose", m60, "--effects", "joint_offsets", "--json", "-", "--quiet",
+                          "--as-built-urdf", "/dev/full"], capsys)
+    assert code == 2 and out == ""
+    code, out, err = run(["diagnose", m60, "--effects", "joint_offsets", "--json", "-", "--quiet"], capsys)
+    assert code == 0 and json.loads(out)["steps"]
+
+
+def test_22_26_an_as_built_urdf_on_a_device_or_with_its_side_file_unwritable_is_refused(m60, tmp_path, capsys):
+    import os
+
+    code, out, err = run(["diagnose", m60, "--as-built-urdf", "/dev/null"], capsys)
+    assert code == 2
+    assert_one_line(err, "--as-built-urdf /dev/null: not a regular file", "null.effects.yaml")
+    assert not os.path.lexists("/dev/null.effects.yaml")
+    (tmp_path / "ab.effects.yaml").mkdir()
+    code, out, err = run(["diagnose", m60, "--as-built-urdf", tmp_path / "ab.urdf"], capsys)
+    assert code == 2
+    assert_one_line(err, f"--as-built-urdf {tmp_path / 'ab.urdf'}: its side file", "is a folder")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ab.effects.yaml"]
+
+
+def test_22_27_a_signal_during_the_renames_ends_the_run_with_exit_0(tmp_path, capsys, monkeypatch):
+    import os
+    import signal
+
+    from tcr_accuracy import atomic
+
+    real_replace = os.replace
+
+    def replace(src, dst):  # SIGTERM in the commit window: held, delivered after the renames
+        os.kill(os.getpid(), signal.SIGTERM)
+        real_replace(src, dst)
+
+    monkeypatch.setattr(atomic.os, "replace", replace)
+    code, out, err = run(["pose", "--json", tmp_path / "p.json"], capsys)
+    assert code == 0, err
+    assert "interrupted" not in err
+    assert json.loads((tmp_path / "p.json").read_text())["robot"] == "tool_changer"
+    assert [p.name for p in tmp_path.iterdir()] == ["p.json"]
+
+
+def test_22_27_sighup_mid_run_is_an_interrupt_that_leaves_nothing(tmp_path, capsys, monkeypatch):
+    import os
+    import signal
+
+    from tcr_accuracy.analysis import simulate
+
+    real = simulate.write_truth
+
+    def hung_up(path, truth):  # the terminal closes while the CSV is staged
+        os.kill(os.getpid(), signal.SIGHUP)
+        return real(path, truth)
+
+    monkeypatch.setattr(simulate, "write_truth", hung_up)
+    before = signal.getsignal(signal.SIGHUP)
+    code, out, err = run(["simulate", "--random", "--n", "20", "--out", tmp_path / "st.csv",
+                          "--truth", tmp_path / "t.yaml"], capsys)
+    assert code == 130
+    assert_one_line(err, "interrupted")
+    assert list(tmp_path.rglob("*")) == []
+    assert signal.getsignal(signal.SIGHUP) == before
+
+
+def test_22_27_leftovers_of_a_killed_run_are_cleaned_by_the_next_run_on_the_same_target(tmp_path, capsys):
+    import os
+
+    dead = 2**22 + 12345  # above Linux's largest pid (4194304): no such process
+    (tmp_path / f".p.json.{dead}.abc123.tmp").write_text("half a file")
+    (tmp_path / f".rep.{dead}.x1y2.tmp").mkdir()
+    (tmp_path / f".rep.{dead}.x1y2.tmp" / "index.html").write_text("half a report")
+    live = f".p.json.{os.getppid()}.zz9.tmp"  # a concurrent run's, still alive: kept
+    (tmp_path / live).write_text("being written")
+    (tmp_path / f".other.json.{dead}.q.tmp").write_text("another target's: not this run's business")
+    assert run(["pose", "--json", tmp_path / "p.json"], capsys)[0] == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([f".other.json.{dead}.q.tmp", live, "p.json",
+                                                                 f".rep.{dead}.x1y2.tmp"])
+    code, out, err = run(["montecarlo", "--samples", "100", "--tail-samples", "0", "--quiet", "--plots",
+                          tmp_path / "rep"], capsys)
+    assert code == 0, err
+    assert not (tmp_path / f".rep.{dead}.x1y2.tmp").exists() and (tmp_path / "rep").is_dir()
+
+
+def test_22_18_19_import_options_are_checked_before_the_work(tmp_path, capsys):
+    (tmp_path / "t.csv").write_text("X,Y,Z\n1,2,3\n")
+    for argv, fragment in [(["--tolerance-ms", "\u0665\u0660"], "--tolerance-ms \u0665\u0660: not a number"),
+                           (["--tolerance-ms", "1_000"], "--tolerance-ms 1_000: not a number"),
+                           (["--out", tmp_path / "nowhere" / "m.csv"], "does not exist"),
+                           (["--out", tmp_path], "is a folder")]:
+        argv = ["import", tmp_path / "t.csv", *argv]
+        if "--out" not in argv:
+            argv += ["--out", tmp_path / "m.csv"]
+        code, out, err = run(argv, capsys)
+        assert code == 2
+        assert_one_line(err, fragment)
+    assert [p.name for p in tmp_path.iterdir()] == ["t.csv"]
