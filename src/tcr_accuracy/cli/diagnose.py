@@ -11,8 +11,8 @@ import math
 import sys
 from pathlib import Path
 
-from .common import (as_built_file, add_robot_arguments, effects_side_file, check_csv_memory, effect_names, integer, noise_mm_value,
-                     output_file, seed_value, status)
+from .common import (add_robot_arguments, as_built_file, check_csv_memory, effect_names, effects_side_file, integer,
+                     noise_mm_value, output_file, seed_value, status)
 from .output import RunOutput, add_output_arguments
 
 

@@ -196,7 +196,9 @@ def _confined_visualizer_class(checked: dict, painted: bool):
             path = Path(geometry_object.meshPath)
             suffix = path.suffix.lower()
             if suffix == ".dae":
-                return mg.DaeMeshGeometry.from_file(path) if painted else CheckedDae(path, checked[geometry_object.meshPath])
+                if painted:
+                    return mg.DaeMeshGeometry.from_file(path)
+                return CheckedDae(path, checked[geometry_object.meshPath])
             if suffix == ".obj":
                 return mg.ObjMeshGeometry.from_file(path)
             if suffix == ".stl":
