@@ -437,3 +437,72 @@ def test_22_18_19_import_options_are_checked_before_the_work(tmp_path, capsys):
         assert code == 2
         assert_one_line(err, fragment)
     assert [p.name for p in tmp_path.iterdir()] == ["t.csv"]
+
+
+# ---------------------------------------------------------------------------------------
+# 6: an output that is an input or another output
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("argv, fragment", [
+    (["diagnose", "IN", "--json", "IN"], "--json IN: is also MEASUREMENTS.csv IN, an input"),
+    (["simulate", "--n", "5", "--out", "T/s.csv", "--truth", "T/s.csv"], "--truth T/s.csv: the same file as --out"),
+    (["diagnose", "IN", "--json", "T/x", "--as-built-urdf", "T/x"], "--json T/x: the same file as --as-built-urdf"),
+    (["diagnose", "IN", "--json", "T/x.effects.yaml", "--as-built-urdf", "T/x.urdf"],
+     "the same file as --as-built-urdf's side file"),
+    (["compensate", "--train", "IN", "--targets", "IN2", "--csv", "IN2"], "--csv IN2: is also --targets IN2"),
+    (["plan-poses", "IN", "-k", "3", "--out", "IN"], "--out IN: is also MEASUREMENTS.csv IN"),
+    (["import", "IN2", "--joints", "IN", "--out", "IN"], "--out IN: is also --joints IN"),
+])
+def test_22_06_an_output_over_an_input_or_another_output_is_refused(argv, fragment, m60, tmp_path, capsys):
+    import shutil
+
+    shutil.copy(m60, tmp_path / "in.csv")
+    shutil.copy(m60, tmp_path / "in2.csv")
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+
+    def spelt(a):
+        return a.replace("IN2", str(tmp_path / "in2.csv")).replace("IN", str(tmp_path / "in.csv")).replace(
+            "T/", f"{tmp_path}/")
+
+    code, out, err = run([spelt(a) for a in argv], capsys)
+    assert code == 2 and out == ""
+    assert_one_line(err, spelt(fragment))
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.sampled_from(["./", "sub/../", "", "ABS", "LINK/"]), st.sampled_from(["./", "sub/../", "", "ABS", "LINK/"]),
+       st.booleans(), st.booleans())
+def test_fuzz_22_06_two_spellings_of_one_file_collide_two_names_do_not(first, second, same_name, exists):
+    import os
+    import tempfile
+    from pathlib import Path
+
+    from tcr_accuracy.cli import build_parser
+    from tcr_accuracy.cli.collisions import check_distinct_paths
+    from tcr_accuracy.exceptions import InputError
+
+    with tempfile.TemporaryDirectory() as folder:
+        base = Path(folder)
+        (base / "sub").mkdir()
+        (base / "link").symlink_to(base)
+        if exists:
+            (base / "a.csv").write_text("x")
+
+        def spell(prefix, name):
+            prefix = prefix.replace("ABS", f"{base}/").replace("LINK/", f"{base}/link/")
+            return prefix + name
+
+        cwd = os.getcwd()
+        os.chdir(base)
+        try:
+            args = build_parser().parse_args(["simulate", "--out", spell(first, "a.csv"),
+                                              "--truth", spell(second, "a.csv" if same_name else "b.csv")])
+            try:
+                check_distinct_paths(build_parser(), args)
+            except InputError as exc:
+                assert same_name, exc
+                assert str(exc).startswith("--truth ") and "\n" not in str(exc)
+                return
+            assert not same_name
+        finally:
+            os.chdir(cwd)

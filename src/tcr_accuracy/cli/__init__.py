@@ -114,6 +114,9 @@ def _main(argv: list[str], debug: bool, command: str | None) -> int:
             args = parser.parse_args(argv)
         except SystemExit as exc:  # --help, --version, or a usage error already said in one line
             return exc.code if isinstance(exc.code, int) else EXIT_INPUT
+        from .collisions import check_distinct_paths
+
+        check_distinct_paths(parser, args)  # no output over an input or another output
         args.argv = argv  # the command as typed, for reports
         name = f"tcr-accuracy {args.command}"
         debug = debug or getattr(args, "debug", False)  # also an abbreviated --deb
