@@ -506,3 +506,44 @@ def test_fuzz_22_06_two_spellings_of_one_file_collide_two_names_do_not(first, se
             assert not same_name
         finally:
             os.chdir(cwd)
+
+
+# ---------------------------------------------------------------------------------------
+# 28: view --serve against DNS rebinding
+# ---------------------------------------------------------------------------------------
+def _status(port: int, path: str, headers: dict) -> int:
+    import http.client
+
+    connection = http.client.HTTPConnection("127.0.0.1", port, timeout=10)
+    try:
+        connection.putrequest("GET", path, skip_host=True)
+        for key, value in headers.items():
+            connection.putheader(key, value)
+        connection.endheaders()
+        return connection.getresponse().status
+    finally:
+        connection.close()
+
+
+def test_22_28_the_live_view_answers_only_requests_naming_localhost():
+    from tcr_accuracy.model.robot import load_robot
+    from tcr_accuracy.view.viewer import Scene
+
+    robot = load_robot()
+    scene = Scene("live")
+    scene.add_robot(robot, robot.working_pose, "nominal")
+    upgrade = {"Upgrade": "websocket", "Connection": "Upgrade", "Sec-WebSocket-Version": "13",
+               "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ=="}
+    with scene.serve() as live:
+        port = int(live.url.split(":")[2].split("/")[0])
+        local = f"127.0.0.1:{port}"
+        assert _status(port, "/view", {"Host": local}) == 200
+        assert _status(port, "/view", {"Host": f"localhost:{port}"}) == 200
+        assert _status(port, "/view", {"Host": f"evil.example:{port}"}) == 403
+        assert _status(port, "/view", {}) in (400, 403)  # HTTP/1.1 without Host: tornado refuses it first
+        assert _status(port, "/static/", {"Host": "evil.example"}) == 403
+        # the WebSocket carrying the scene: opened from the page itself, and not from another site's
+        assert _status(port, "/", {"Host": local, "Origin": f"http://{local}", **upgrade}) == 101
+        assert _status(port, "/", {"Host": local, "Origin": "http://evil.example:7000", **upgrade}) == 403
+        assert _status(port, "/", {"Host": f"evil.example:{port}", "Origin": f"http://evil.example:{port}",
+                                   **upgrade}) == 403
