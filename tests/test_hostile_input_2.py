@@ -547,3 +547,35 @@ def test_22_28_the_live_view_answers_only_requests_naming_localhost():
         assert _status(port, "/", {"Host": local, "Origin": "http://evil.example:7000", **upgrade}) == 403
         assert _status(port, "/", {"Host": f"evil.example:{port}", "Origin": f"http://evil.example:{port}",
                                    **upgrade}) == 403
+
+
+# ---------------------------------------------------------------------------------------
+# 4: an exact fit through every training pose
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("command", [
+    ["predict", "--method", "calibration+local-gp", "--train", "T7", "--query", "POSES"],
+    ["compensate", "--method", "calibration", "--train", "T7", "--targets", "POSES"],
+])
+def test_22_04_a_calibration_on_as_many_equations_as_parameters_is_refused(command, tmp_path, capsys):
+    from conftest import REPO
+
+    t7 = tmp_path / "t7.csv"  # 3 comment lines, the header and 7 rows
+    t7.write_text("".join((REPO / "examples" / "measured.csv").read_text().splitlines(keepends=True)[:11]))
+    argv = [str(t7) if a == "T7" else str(REPO / "examples" / "poses.csv") if a == "POSES" else a for a in command]
+    code, out, err = run(argv, capsys)
+    assert code == 2 and out == ""
+    assert_one_line(err, f"{t7}: GeometricCalibration: 7 poses give 21 equations for 21 identifiable parameters",
+                    "too few to check the fit")
+
+
+def test_22_04_with_enough_poses_the_calibration_still_fits():
+    import numpy as np
+
+    from tcr_accuracy.model.robot import load_robot
+    from tcr_accuracy.prediction.calibration import GeometricCalibration
+
+    robot = load_robot()
+    rng = np.random.default_rng(0)
+    X = robot.working_pose + rng.uniform(-0.5, 0.5, size=(16, robot.n_joints))
+    model = GeometricCalibration(robot=robot).fit(X, rng.normal(0.0, 1e-3, size=(16, 3)))
+    assert 3 * 16 >= 2 * model.identifiable_.size > 0
