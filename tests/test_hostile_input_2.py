@@ -579,3 +579,23 @@ def test_22_04_with_enough_poses_the_calibration_still_fits():
     X = robot.working_pose + rng.uniform(-0.5, 0.5, size=(16, robot.n_joints))
     model = GeometricCalibration(robot=robot).fit(X, rng.normal(0.0, 1e-3, size=(16, 3)))
     assert 3 * 16 >= 2 * model.identifiable_.size > 0
+
+
+# ---------------------------------------------------------------------------------------
+# 5: candidate poses the robot cannot take
+# ---------------------------------------------------------------------------------------
+def test_22_05_a_candidate_outside_the_joint_limits_is_refused_with_its_row(m60, tmp_path, capsys):
+    header = "j1_deg,j2_deg,j3_deg,j4_mm,j5_deg,j6_deg\n"
+    bad = tmp_path / "cand.csv"
+    bad.write_text("# candidates\n" + header + "10,20,30,100,10,0\n10,20,-40,5000,10,0\n0,0,0,0,0,0\n")
+    code, out, err = run(["plan-poses", m60, "-k", "3", "--candidates", bad, "--out", tmp_path / "p.csv",
+                          "--effects", "joint_offsets"], capsys)
+    assert code == 2 and out == ""
+    assert_one_line(err, f"{bad}: row 4: joint j4 = 5000 mm is outside its limits [0, 600] mm")
+    assert not (tmp_path / "p.csv").exists()
+    good = tmp_path / "good.csv"
+    good.write_text(header + "10,20,30,100,10,0\n11,21,31,100,10,0\n0,0,0,0,0,0\n5,5,5,5,5,5\n")
+    code, out, err = run(["plan-poses", m60, "-k", "3", "--candidates", good, "--out", tmp_path / "p.csv",
+                          "--effects", "joint_offsets"], capsys)
+    assert code == 0, err
+    assert len((tmp_path / "p.csv").read_text().splitlines()) >= 4

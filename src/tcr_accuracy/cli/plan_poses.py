@@ -57,6 +57,34 @@ def _check(args) -> None:
         raise InputError(f"--n-candidates {args.n_candidates}: need at least -k ({args.poses})")
 
 
+def _reachable_candidates(read_measurements, path, robot):
+    """(N, n_joints) candidate joint values [SI] from ``path``; a row outside the joint limits is
+    refused, naming it: a pose the robot cannot take would be planned first (it moves the TCP most)."""
+    import warnings
+
+    import numpy as np
+
+    from ..exceptions import InputError
+    from ..model.robot import JointLimitWarning
+    from ..io.measurement_checks import MeasurementWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", JointLimitWarning)
+        warnings.simplefilter("ignore", MeasurementWarning)
+        mset = read_measurements(path, robot, require_position=False)
+    with np.errstate(invalid="ignore"):  # NaN limits: an unbounded joint
+        outside = (mset.q < robot.lower_limits - 1e-12) | (mset.q > robot.upper_limits + 1e-12)
+    if outside.any():
+        r, j = np.argwhere(outside)[0]
+        scale, unit = robot.display_scale[j], robot.display_units[j]
+        row = mset.rows[r] if mset.rows is not None else r + 1
+        raise InputError(f"{path}: row {row}: joint {robot.joint_names[j]} = {mset.q[r, j] * scale:.6g} {unit} is "
+                         f"outside its limits [{robot.lower_limits[j] * scale:.6g}, "
+                         f"{robot.upper_limits[j] * scale:.6g}] {unit}; a candidate must be a pose the robot can "
+                         f"take ({int(outside.any(axis=1).sum())} such row(s))")
+    return mset.q
+
+
 def _run_plan_poses(args) -> int:
     import numpy as np
 
@@ -72,7 +100,7 @@ def _run_plan_poses(args) -> int:
     measured = read_measurements(args.measurements, robot)
     candidates = None
     if args.candidates:
-        candidates = read_measurements(args.candidates, robot, require_position=False).q
+        candidates = _reachable_candidates(read_measurements, args.candidates, robot)
     payload = args.payload_kg
     if payload is None:
         payload = float(np.mean(measured.payload_kg)) if measured.payload_kg is not None else 0.0
