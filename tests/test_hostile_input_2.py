@@ -599,3 +599,37 @@ def test_22_05_a_candidate_outside_the_joint_limits_is_refused_with_its_row(m60,
                           "--effects", "joint_offsets"], capsys)
     assert code == 0, err
     assert len((tmp_path / "p.csv").read_text().splitlines()) >= 4
+
+
+# ---------------------------------------------------------------------------------------
+# 7: every command estimates its memory before the work
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("argv, fragment", [
+    (["import", "TRACKER", "--out", "T/m.csv", "--max-memory-gb", "0.000001"],
+     "importing TRACKER (2 rows) needs about"),
+    (["plan-poses", "M", "-k", "3", "--out", "T/p.csv", "--n-candidates", "1000000"],
+     "--n-candidates 1000000 needs about"),
+    (["plan-poses", "M", "-k", "3", "--out", "T/p.csv", "--max-memory-gb", "0.001"], "planning poses from M (61 rows)"),
+    (["demo", "--out", "T/demo", "--max-memory-gb", "0.001"], "needs about"),
+])
+def test_22_07_work_is_estimated_and_refused_before_it_starts(argv, fragment, m60, tmp_path, capsys, monkeypatch):
+    from tcr_accuracy.io import tracker_import
+    from tcr_accuracy.diagnosis import diagnose
+
+    monkeypatch.setattr(tracker_import, "import_tracker", _must_not_run)
+    monkeypatch.setattr(diagnose, "diagnose", _must_not_run)
+    tracker = tmp_path / "tracker.csv"
+    tracker.write_text("X,Y,Z\n1,2,3\n")
+
+    def spelt(a):
+        return a.replace("TRACKER", str(tracker)).replace("M", str(m60)) if a in ("TRACKER", "M") or " " in a \
+            else a.replace("T/", f"{tmp_path}/")
+
+    code, out, err = run([spelt(a) for a in argv], capsys)
+    assert code == 2 and out == ""
+    assert_one_line(err, spelt(fragment), "--max-memory-gb")
+    assert [p.name for p in tmp_path.iterdir()] == ["tracker.csv"]
+
+
+def _must_not_run(*args, **kwargs):
+    raise AssertionError("the work started before its memory was estimated")

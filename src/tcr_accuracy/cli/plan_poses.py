@@ -57,6 +57,26 @@ def _check(args) -> None:
         raise InputError(f"--n-candidates {args.n_candidates}: need at least -k ({args.poses})")
 
 
+#: Memory [bytes] planning takes per candidate configuration: its 3 x P Jacobian block over the
+#: whole vocabulary (P up to about 130 columns) and a few working copies, generously.
+PLAN_CANDIDATE_BYTES = 3 * 130 * 8 * 8
+
+
+def _check_plan_memory(args) -> None:
+    """Refuse before the work a plan whose measurements (diagnosed first), candidate file or
+    --n-candidates would need more memory than ``--max-memory-gb``."""
+    from .common import check_csv_memory, check_memory
+    from .diagnose import DIAGNOSE_ROW_BYTES
+
+    check_csv_memory(args, args.measurements, "planning poses from", DIAGNOSE_ROW_BYTES)
+    if args.candidates:
+        check_csv_memory(args, args.candidates, "planning poses among", PLAN_CANDIDATE_BYTES,
+                         hint="use fewer candidates")
+    else:
+        check_memory(args, f"--n-candidates {args.n_candidates}", args.n_candidates * PLAN_CANDIDATE_BYTES,
+                     "use fewer candidates")
+
+
 def _reachable_candidates(read_measurements, path, robot):
     """(N, n_joints) candidate joint values [SI] from ``path``; a row outside the joint limits is
     refused, naming it: a pose the robot cannot take would be planned first (it moves the TCP most)."""
@@ -96,6 +116,7 @@ def _run_plan_poses(args) -> int:
     from ..model.robot import load_robot
 
     _check(args)
+    _check_plan_memory(args)
     robot = load_robot(args.robot, args.tool)
     measured = read_measurements(args.measurements, robot)
     candidates = None
