@@ -803,3 +803,55 @@ def test_fuzz_22_18_20_an_import_cell_is_a_plain_number_or_one_refusal(cell, dec
             continue
         assert math.isfinite(value)
         assert re.fullmatch(r"[0-9.,+\-eE ]*[a-z]*\s*", cell.strip(), re.ASCII), cell  # no other digits got in
+
+
+# ---------------------------------------------------------------------------------------
+# 12, 31: values of a measurement CSV held to ranges, as settings files' are
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("column, value, fragment", [
+    ("payload_kg", "1e300", "1e+300 kg is beyond the 1e+06 kg"),
+    ("temperature_c", "1e300", "1e+300 degC is beyond the 1000 degC"),
+    ("j1_deg", "1e300", "1e+300 deg is beyond"),
+    ("j4_mm", "1e12", "1e+12 mm is beyond the 1e+07 mm"),
+    ("x_mm", "-1e300", "-1e+300 mm is beyond the 1e+06 mm"),
+])
+def test_22_12_a_huge_csv_value_is_refused_with_its_row_and_column(column, value, fragment, m60, tmp_path, capsys):
+    lines = m60.read_text().splitlines()
+    header = lines[0].split(",")
+    cells = lines[5].split(",")
+    cells[header.index(column)] = value
+    lines[5] = ",".join(cells)
+    path = tmp_path / "huge.csv"
+    path.write_text("\n".join(lines) + "\n")
+    code, out, err = run(["diagnose", path, "--json", tmp_path / "d.json"], capsys)
+    assert code == 2 and out == ""
+    assert_one_line(err, f"{path}: row 6, column {column}: {fragment}")
+    assert [p.name for p in tmp_path.iterdir()] == ["huge.csv"]
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.sampled_from(["payload_kg", "temperature_c", "j2_deg", "j4_mm", "y_mm"]),
+       st.floats(allow_nan=False, allow_infinity=False, width=64))
+def test_fuzz_22_12_a_csv_value_is_in_range_or_one_refusal(column, value):
+    import math
+    import warnings
+
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.io.measurements import parse_measurements
+    from tcr_accuracy.model.robot import load_robot
+
+    header = ["j1_deg", "j2_deg", "j3_deg", "j4_mm", "j5_deg", "j6_deg", "x_mm", "y_mm", "z_mm", "payload_kg",
+              "temperature_c"]
+    rows = [[10, 20, -10, 100, 5, 0, 100, 1500, 1200, 10, 20], [12, 22, -8, 120, 7, 2, 110, 1510, 1190, 10, 20]]
+    rows[1][header.index(column)] = repr(value)
+    text = ",".join(header) + "\n" + "\n".join(",".join(map(str, r)) for r in rows) + "\n"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # joint limits: warned, not at issue here
+        try:
+            mset = parse_measurements(text, load_robot(), source="f.csv")
+        except InputError as exc:
+            assert str(exc).startswith("f.csv: row 3") and "\n" not in str(exc), exc
+            return
+    assert all(math.isfinite(v) for v in [*mset.q.ravel(), *mset.position.ravel(), *mset.payload_kg,
+                                          *mset.temperature_c])
+    assert abs(value) <= 1e6

@@ -43,6 +43,22 @@ QUATERNION_TOLERANCE = 1e-3
 
 QUATERNION_COLUMNS = ("qw", "qx", "qy", "qz")
 CONTEXT_COLUMNS = ("payload_kg", "temperature_c")
+#: The largest magnitudes a measurement CSV's values may have, as the settings files' are bounded:
+#: beyond them a value is a typo (1e300 overflowed the analyses into a silent 'frames only').
+MAX_JOINT_SI = 1e4          # [rad] or [m]: the URDF's own bound on angles and lengths
+MAX_POSITION_M = 1e3        # [m]: a tracker sees a kilometre at most
+MAX_PAYLOAD_KG = 1e6
+MAX_TEMPERATURE_C = 1e3     # an arm at 1000 degC has melted
+
+
+def _check_range(source, rows, column: str, values_si, bound: float, si_unit: str, to_shown: float,
+                 shown_unit: str) -> None:
+    """Refuse the first value of ``column`` whose magnitude exceeds ``bound`` (SI), in the file's unit."""
+    bad = np.flatnonzero(np.abs(values_si) > bound)
+    if len(bad):
+        r = bad[0]
+        raise InputError(f"{source}: row {rows[r]}, column {column}: {values_si[r] * to_shown:g} {shown_unit} is "
+                         f"beyond the {bound * to_shown:g} {shown_unit} a measurement may have")
 
 
 # ---------------------------------------------------------------------------------------
@@ -282,6 +298,8 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
                     f"if the column holds degrees, name it {name}_deg"
                 )
         si[name] = raw * _JOINT_UNITS[kinds[name]][unit]
+        _check_range(source, rows, col, si[name], MAX_JOINT_SI, "m" if kinds[name] != REVOLUTE else "rad",
+                     1.0 / _JOINT_UNITS[kinds[name]][unit], unit)
     for name in [n for n, _ in _all_joints(robot) if n not in si and n in robot.mimic]:
         rule = robot.mimic[name]
         if rule.joint in si:
@@ -296,6 +314,8 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
     if columns["position"] is not None:
         cols, unit = columns["position"]
         position = np.stack([column(c) for c in cols], axis=1) * _POSITION_UNITS[unit]
+        for k, c in enumerate(cols):
+            _check_range(source, rows, c, position[:, k], MAX_POSITION_M, "m", 1.0 / _POSITION_UNITS[unit], unit)
     quaternion = None
     if columns["quaternion"]:
         quaternion = np.stack([column(c) for c in QUATERNION_COLUMNS], axis=1)
@@ -309,6 +329,11 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
             )
         quaternion = quaternion / norms[:, None]
     payload = column("payload_kg") if "payload_kg" in header else None
+    if payload is not None:
+        _check_range(source, rows, "payload_kg", np.maximum(payload, 0.0), MAX_PAYLOAD_KG, "kg", 1.0, "kg")
+    if "temperature_c" in header:
+        _check_range(source, rows, "temperature_c", np.maximum(column("temperature_c"), 0.0), MAX_TEMPERATURE_C,
+                     "degC", 1.0, "degC")
     if payload is not None and (payload < 0).any():
         r = int(np.argmax(payload < 0))
         raise InputError(f"{source}: row {rows[r]}, column payload_kg: negative payload {payload[r]:g} kg")
