@@ -855,3 +855,28 @@ def test_fuzz_22_12_a_csv_value_is_in_range_or_one_refusal(column, value):
     assert all(math.isfinite(v) for v in [*mset.q.ravel(), *mset.position.ravel(), *mset.payload_kg,
                                           *mset.temperature_c])
     assert abs(value) <= 1e6
+
+
+# ---------------------------------------------------------------------------------------
+# 21: a <mimic> joint follows its rule in simulated and planned poses
+# ---------------------------------------------------------------------------------------
+def test_22_21_simulate_and_plan_poses_apply_the_mimic_rule(tmp_path, capsys):
+    import csv
+    import math
+
+    urdf = tmp_path / "mim2.urdf"
+    urdf.write_text(mimic_urdf())
+    measured = tmp_path / "mm.csv"
+    assert run(["simulate", "--robot", urdf, "--tool", "tool", "--random", "--n", "40", "--seed", "4",
+                "--out", measured, "--quiet"], capsys)[0] == 0
+    planned = tmp_path / "plan.csv"
+    code, out, err = run(["plan-poses", measured, "--robot", urdf, "--tool", "tool", "-k", "4",
+                          "--effects", "joint_offsets", "--n-candidates", "300", "--out", planned], capsys)
+    assert code == 0, err
+    offset_deg = math.degrees(0.1)
+    for path, n in ((measured, 40), (planned, 4)):
+        rows = list(csv.DictReader(line for line in path.read_text().splitlines() if not line.startswith("#")))
+        assert len(rows) == n
+        for row in rows:  # j3 = -1 x j2 + 0.1 rad, and within its limits
+            assert float(row["j3_deg"]) == pytest.approx(-float(row["j2_deg"]) + offset_deg, abs=1e-6)
+            assert abs(float(row["j3_deg"])) <= math.degrees(2.2) + 1e-9

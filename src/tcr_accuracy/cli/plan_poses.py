@@ -122,6 +122,12 @@ def _run_plan_poses(args) -> int:
     candidates = None
     if args.candidates:
         candidates = _reachable_candidates(read_measurements, args.candidates, robot)
+    if candidates is None and robot.has_chain_mimic:  # a <mimic> joint follows its rule, as the robot will
+        from ..diagnosis.design import candidate_configurations
+
+        drawn = robot.follow_mimic(candidate_configurations(robot, 4 * args.n_candidates,
+                                                            np.random.default_rng(args.seed)))
+        candidates = drawn[robot.within_limits(drawn)][:args.n_candidates]
     payload = args.payload_kg
     if payload is None:
         payload = float(np.mean(measured.payload_kg)) if measured.payload_kg is not None else 0.0

@@ -270,6 +270,29 @@ class RobotModel:
                 out[:, joint.idx_q + 1] = np.sin(column)
         return out
 
+    def follow_mimic(self, q: np.ndarray) -> np.ndarray:
+        """A copy of joint values q (N, n_joints) [SI] in which every chain joint with a URDF
+        ``<mimic>`` rule on another chain joint takes the value its rule gives
+        (``multiplier * q_source + offset``), as the real robot would."""
+        q = np.array(q, dtype=float, copy=True)
+        for j, name in enumerate(self.joint_names):
+            rule = self.mimic.get(name)
+            if rule is not None and rule.joint in self.joint_names:
+                q[..., j] = rule.multiplier * q[..., self.joint_names.index(rule.joint)] + rule.offset
+        return q
+
+    def within_limits(self, q: np.ndarray) -> np.ndarray:
+        """(N,) whether each row of joint values q (N, n_joints) [SI] is within the joint limits
+        (an unbounded side, NaN, holds every value)."""
+        with np.errstate(invalid="ignore"):
+            outside = (q < self.lower_limits - 1e-12) | (q > self.upper_limits + 1e-12)
+        return ~outside.any(axis=-1)
+
+    @property
+    def has_chain_mimic(self) -> bool:
+        """Whether a chain joint follows another chain joint by a ``<mimic>`` rule."""
+        return any(rule.joint in self.joint_names for name, rule in self.mimic.items() if name in self.joint_names)
+
     def check_joint_values(self, q: np.ndarray, *, source: str = "--q") -> np.ndarray:
         """Validate joint values (n_joints,) [SI]: count and finiteness raise, limits warn."""
         q = np.asarray(q, dtype=float)
