@@ -880,3 +880,37 @@ def test_22_21_simulate_and_plan_poses_apply_the_mimic_rule(tmp_path, capsys):
         for row in rows:  # j3 = -1 x j2 + 0.1 rad, and within its limits
             assert float(row["j3_deg"]) == pytest.approx(-float(row["j2_deg"]) + offset_deg, abs=1e-6)
             assert abs(float(row["j3_deg"])) <= math.degrees(2.2) + 1e-9
+
+
+# ---------------------------------------------------------------------------------------
+# 22, 23: measured-frame columns
+# ---------------------------------------------------------------------------------------
+def _renamed_positions(m60, tmp_path, frame):
+    lines = m60.read_text().splitlines()
+    lines[0] = lines[0].replace("x_mm,y_mm,z_mm", f"{frame}.x_mm,{frame}.y_mm,{frame}.z_mm")
+    path = tmp_path / f"{frame}.csv"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("command", [
+    ["predict", "--train", "F", "--query", "M", "--method", "kriging"],
+    ["plan-poses", "F", "-k", "3", "--effects", "joint_offsets", "--out", "T/p.csv"],
+])
+def test_22_22_one_measured_frame_that_is_the_tcp_is_read(command, m60, tmp_path, capsys):
+    path = _renamed_positions(m60, tmp_path, "tool")
+    argv = [str(path) if a == "F" else str(m60) if a == "M" else a.replace("T/", f"{tmp_path}/") for a in command]
+    code, out, err = run(argv, capsys)
+    assert code == 0, err
+    code, out, err = run(argv + ["--tool", "j5"], capsys)  # another TCP: the file's frame is named
+    assert code == 2
+    assert_one_line(err, f"{path}: columns tool.x_mm ...: measures frame tool, not the robot's TCP frame j5; "
+                         "give --tool tool")
+
+
+def test_22_23_a_frame_the_robot_lacks_is_named_by_its_column(m60, tmp_path, capsys):
+    path = _renamed_positions(m60, tmp_path, "nosuch")
+    code, out, err = run(["diagnose", path], capsys)
+    assert code == 2
+    assert_one_line(err, f"{path}: column nosuch.x_mm: no such frame in built-in tool_changer")
+    assert "--tool" not in err

@@ -47,6 +47,20 @@ def add_parsers(sub) -> None:
     p.set_defaults(run=_run_diagnose)
 
 
+def _frame_robot(args, frame: str):
+    """The robot with its TCP at a frame the measurement file's columns name (``<frame>.x_mm``):
+    a frame the robot lacks is the file's fault, named by its column, unless --tool named it."""
+    from ..exceptions import InputError
+    from ..model.robot import load_robot
+
+    try:
+        return load_robot(args.robot, frame)
+    except InputError as exc:
+        if args.tool == frame or "no such frame" not in str(exc):
+            raise
+        raise InputError(f"{args.measurements}: column {frame}.x_mm: {str(exc).partition(': ')[2]}") from None
+
+
 #: Memory [bytes] the diagnosis plans per measurement (see check_csv_memory in _run_diagnose):
 #: measured 3.15 GB peak for 100,000 poses of the tool-changer and 0.66 GB for 10,000
 #: (scripts/bench_scale.py), about 30 kB a pose beyond the 0.2 GB the libraries take.
@@ -70,7 +84,7 @@ def _run_diagnose(args) -> int:
         if args.tool is not None and args.tool not in frames:
             raise InputError(f"--tool {args.tool}: {args.measurements} measures {', '.join(frames)}")
         order = [args.tool] + [f for f in frames if f != args.tool] if args.tool else frames
-        robots = [load_robot(args.robot, f) for f in order]
+        robots = [_frame_robot(args, f) for f in order]
         parts = [(r, read_measurements(args.measurements, r, min_rows=min_rows, frame=f))
                  for r, f in zip(robots, order)]
         robot, measurements, data = robots[0], parts[0][1], parts
