@@ -914,3 +914,30 @@ def test_22_23_a_frame_the_robot_lacks_is_named_by_its_column(m60, tmp_path, cap
     assert code == 2
     assert_one_line(err, f"{path}: column nosuch.x_mm: no such frame in built-in tool_changer")
     assert "--tool" not in err
+
+
+# ---------------------------------------------------------------------------------------
+# 24: the actual argument and cause
+# ---------------------------------------------------------------------------------------
+def test_22_24_messages_name_the_actual_argument_and_cause(m60, tmp_path, capsys, monkeypatch):
+    import os
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "f").write_text("a file")
+    os.mkfifo(tmp_path / "fifo")
+    mixed = tmp_path / "mix.csv"
+    lines = m60.read_text().splitlines()
+    mixed.write_text("\n".join([lines[0].replace("z_mm", "z_m"), *lines[1:]]) + "\n")
+    for argv, fragment in [
+        (["view", "--error-preset", "table2", "--robot", "ur5", "--view", "v.html"],
+         "--error-preset table2: the seed's Table 2 lists the tool-changer's joints"),
+        (["pose", "--json", "f/x.json"], "--json f/x.json: the folder f is a file"),
+        (["pose", "--robot", "."], "--robot .: a folder; give a URDF file"),
+        (["pose", "--robot", "/dev/zero"], "--robot /dev/zero: not a regular file"),
+        (["pose", "--robot", "fifo"], "--robot fifo: not a regular file"),
+        (["diagnose", mixed], f"{mixed}: row 1: position columns mix units (x_mm, y_mm, z_m)"),
+    ]:
+        code, out, err = run(argv, capsys)
+        assert code == 2, err
+        assert_one_line(err, fragment)
+        assert "--preset " not in err and "no such file" not in err and "does not exist" not in err

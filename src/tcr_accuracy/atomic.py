@@ -286,7 +286,10 @@ def output_file_problem(path) -> str | None:
         return None if os.access(path, os.W_OK) else "not writable"
     folder = Path(os.path.realpath(path)).parent
     if not folder.is_dir():
-        return f"the folder {path.parent if not path.parent.is_dir() else folder} does not exist"
+        shown = path.parent if not path.parent.is_dir() else folder
+        if folder.exists():
+            return f"the folder {shown} is a file"
+        return f"the folder {shown} does not exist"
     return _creation_problem(folder)
 
 

@@ -413,8 +413,8 @@ def _resolve_columns(header, robot, source, line_no, require_position, logical):
     position = None
     units = [u for u in _POSITION_UNITS if any(f"{a}_{u}" in seen for a in "xyz")]
     if len(units) > 1:
-        raise InputError(f"{source}: row {line_no}: position columns mix units "
-                         f"({', '.join(c for c in header if c[:2] in ('x_', 'y_', 'z_'))}); use one unit")
+        mixed = [f"{a}_{u}" for a in "xyz" for u in units if f"{a}_{u}" in seen]
+        raise InputError(f"{source}: row {line_no}: position columns mix units ({', '.join(mixed)}); use one unit")
     if units:
         missing = [f"{a}_{units[0]}" for a in "xyz" if f"{a}_{units[0]}" not in seen]
         if missing:

@@ -484,6 +484,10 @@ def load_robot(source: str | Path | None = None, tool: str | None = None) -> Rob
         tool = tool or default_tool
         package_dirs = [str(share)]
         label = f"{name} ({urdf_path})"
+    elif Path(source).exists():
+        what = "a folder" if Path(source).is_dir() else "not a regular file (a device or a pipe)"
+        raise InputError(f"--robot {source}: {what}; give a URDF file or a known robot name "
+                         f"({BUILTIN_NAME}, {', '.join(EXAMPLE_ROBOTS)})")
     else:
         raise InputError(
             f"--robot {source}: no such file, and not a known robot name "
