@@ -941,3 +941,29 @@ def test_22_24_messages_name_the_actual_argument_and_cause(m60, tmp_path, capsys
         assert code == 2, err
         assert_one_line(err, fragment)
         assert "--preset " not in err and "no such file" not in err and "does not exist" not in err
+
+
+# ---------------------------------------------------------------------------------------
+# 29: repeated poses are legitimate where they are asked about, not measured
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("command", [["predict", "--train", "M", "--query", "Q", "--method", "kriging"],
+                                     ["compensate", "--train", "M", "--targets", "Q", "--method", "kriging"]])
+def test_22_29_repeated_query_or_target_poses_are_answered(command, m60, tmp_path, capsys):
+    from conftest import REPO
+
+    poses = (REPO / "examples" / "poses.csv").read_text().splitlines()
+    query = tmp_path / "q.csv"
+    query.write_text("\n".join([*poses, poses[-1], poses[-1]]) + "\n")  # the last pose asked three times
+    argv = [str(m60) if a == "M" else str(query) if a == "Q" else a for a in command]
+    code, out, err = run([*argv, "--csv", tmp_path / "out.csv"], capsys)
+    assert code == 0, err
+    rows = (tmp_path / "out.csv").read_text().splitlines()
+    assert rows[-1] == rows[-2] == rows[-3]  # the same answer each time
+    # a training file keeps refusing a copied row
+    train = tmp_path / "t.csv"
+    lines = m60.read_text().splitlines()
+    train.write_text("\n".join([*lines, lines[-1]]) + "\n")
+    argv = [str(train) if a == "M" else str(query) if a == "Q" else a for a in command]
+    code, out, err = run(argv, capsys)
+    assert code == 2
+    assert_one_line(err, f"{train}: row 62 repeats row 61 exactly")

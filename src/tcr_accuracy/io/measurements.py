@@ -165,7 +165,7 @@ def allowed_columns(robot: RobotModel) -> list[str]:
 
 def read_measurements(path: str | Path, robot: RobotModel, *, min_rows: int = 1,
                       require_position: bool = True, check_units: bool = True,
-                      frame: str | None = None) -> MeasurementSet:
+                      frame: str | None = None, repeats_allowed: bool = False) -> MeasurementSet:
     """Read and validate a measurement CSV (see the module docstring for the columns).
 
     Parameters
@@ -184,6 +184,9 @@ def read_measurements(path: str | Path, robot: RobotModel, *, min_rows: int = 1,
     frame : str, optional
         For a file measuring several frames per row (``<frame>.x_mm`` ... columns, see
         :func:`measured_frames`): the one to read; the robot's TCP must be that frame.
+    repeats_allowed : bool
+        Rows may repeat one another (poses to predict or compensate); otherwise an exact copy
+        of a row is an error and a repeated pose a warning.
 
     Raises
     ------
@@ -193,7 +196,8 @@ def read_measurements(path: str | Path, robot: RobotModel, *, min_rows: int = 1,
     path = Path(path)
     text = read_user_text(path, "measurement file")
     return parse_measurements(text, robot, source=str(path), min_rows=min_rows,
-                              require_position=require_position, check_units=check_units, frame=frame)
+                              require_position=require_position, check_units=check_units, frame=frame,
+                              repeats_allowed=repeats_allowed)
 
 
 def read_user_text(path: Path, what: str) -> str:
@@ -237,7 +241,7 @@ def measured_frames(path: str | Path) -> list[str]:
 
 def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", min_rows: int = 1,
                        require_position: bool = True, check_units: bool = True,
-                       frame: str | None = None) -> MeasurementSet:
+                       frame: str | None = None, repeats_allowed: bool = False) -> MeasurementSet:
     """:func:`read_measurements` on CSV text already in memory."""
     lines, header, header_line = _header(text, source)
     # a file may measure several frames per row: <frame>.x_mm ...; read one of them
@@ -366,7 +370,8 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
         quaternion=quaternion, payload_kg=payload, temperature_c=temperature, direction=direction,
         source=source, rows=rows, outside_q=outside_q,
     )
-    check_duplicates(mset, values, header, source, CONTEXT_COLUMNS)
+    if not repeats_allowed:  # measurements, not poses to predict or compensate (asked twice legitimately)
+        check_duplicates(mset, values, header, source, CONTEXT_COLUMNS)
     if check_units and position is not None:
         check_position_units(mset, robot, columns, source)
     return mset
