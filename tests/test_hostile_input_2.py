@@ -967,3 +967,22 @@ def test_22_29_repeated_query_or_target_poses_are_answered(command, m60, tmp_pat
     code, out, err = run(argv, capsys)
     assert code == 2
     assert_one_line(err, f"{train}: row 62 repeats row 61 exactly")
+
+
+# ---------------------------------------------------------------------------------------
+# 30: answers that were no numbers, or numbers the data cannot give
+# ---------------------------------------------------------------------------------------
+def test_22_30_refused_rather_than_nan_or_an_unearned_certainty(m60, tmp_path, capsys):
+    zero = tmp_path / "zero.yaml"
+    zero.write_text("groups:\n  drive:\n    std_rad: 0.0\n    std_m: 0.0\n")
+    for argv, fragment in [
+        (["sensitivity", "--config", zero, "--sobol-samples", "64"], "no error source moves the TCP"),
+        (["diagnose", m60, "--effects", ","], "--effects ',': names no effect"),
+        (["diagnose", m60, "--effects", " , ,"], "names no effect"),
+        (["tolerance", "--target-prob", "0.9999999", "--samples", "2000"],
+         "--target-prob 0.9999999: 2000 samples cannot tell it from 1"),
+    ]:
+        code, out, err = run(argv, capsys)
+        assert code == 2 and out == "", err
+        assert_one_line(err, fragment)
+        assert "nan" not in err

@@ -45,6 +45,8 @@ def effect_names(text: str | None) -> list[str] | None:
     from ..exceptions import InputError
 
     effects = [e.strip() for e in text.split(",") if e.strip()]
+    if not effects:  # ',' read as no effect at all: frames only, and 'structure remains: no' of nothing
+        raise InputError(f"--effects {text!r}: names no effect (vocabulary: {', '.join(vocabulary())})")
     unknown = [e for e in effects if e not in vocabulary()]
     if unknown:
         raise InputError(f"--effects: unknown {', '.join(unknown)} (vocabulary: {', '.join(vocabulary())})")
