@@ -986,3 +986,31 @@ def test_22_30_refused_rather_than_nan_or_an_unearned_certainty(m60, tmp_path, c
         assert code == 2 and out == "", err
         assert_one_line(err, fragment)
         assert "nan" not in err
+
+
+# ---------------------------------------------------------------------------------------
+# 31: options that would be ignored, a data set of one pose
+# ---------------------------------------------------------------------------------------
+def test_22_31_ignored_options_and_one_pose_are_refused(m60, tmp_path, capsys):
+    from conftest import REPO
+
+    lines = m60.read_text().splitlines()
+    header, row = lines[0].split(","), lines[1].split(",")
+    one_pose = tmp_path / "one_pose.csv"  # 20 measurements of one pose, the tracker's noise apart
+    x = header.index("x_mm")
+    one_pose.write_text("\n".join([lines[0]] + [",".join(row[:x] + [f"{float(row[x]) + 0.01 * i:.4f}"] + row[x + 1:])
+                                                 for i in range(20)]) + "\n")
+    poses = REPO / "examples" / "poses.csv"
+    for argv, fragment in [
+        (["simulate", "--poses", poses, "--n", "5", "--out", tmp_path / "s.csv"], "--n with --poses"),
+        (["simulate", "--poses", poses, "--box", "0", "1", "0", "1", "0", "1", "--out", tmp_path / "s.csv"],
+         "--box with --poses"),
+        (["view", "--magnify", "5", "--view", tmp_path / "v.html"], "--magnify 5: only with --error-preset"),
+        (["diagnose", one_pose], f"{one_pose}: 20 rows at 1 distinct pose(s)"),
+    ]:
+        code, out, err = run(argv, capsys)
+        assert code == 2 and out == "", err
+        assert_one_line(err, fragment)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["one_pose.csv"]
+    code, out, err = run(["simulate", "--poses", poses, "--out", tmp_path / "s.csv", "--quiet"], capsys)
+    assert code == 0, err

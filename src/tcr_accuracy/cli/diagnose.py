@@ -47,6 +47,19 @@ def add_parsers(sub) -> None:
     p.set_defaults(run=_run_diagnose)
 
 
+def _check_distinct_poses(path, measurements) -> None:
+    """At least three different joint configurations: at one pose (repeated) the TCP error of
+    every effect is one constant offset, and a 'diagnosis' would only fit the tracker frame to it."""
+    import numpy as np
+
+    from ..exceptions import InputError
+
+    distinct = len(np.unique(measurements.q, axis=0))
+    if distinct < 3:
+        raise InputError(f"{path}: {len(measurements)} rows at {distinct} distinct pose(s); measure the TCP at "
+                         "different joint values (at least 3, better dozens) for anything to be diagnosed")
+
+
 def _frame_robot(args, frame: str):
     """The robot with its TCP at a frame the measurement file's columns name (``<frame>.x_mm``):
     a frame the robot lacks is the file's fault, named by its column, unless --tool named it."""
@@ -91,6 +104,7 @@ def _run_diagnose(args) -> int:
     else:
         robot = load_robot(args.robot, args.tool)
         measurements = data = read_measurements(args.measurements, robot, min_rows=min_rows)
+    _check_distinct_poses(args.measurements, measurements)
     out = RunOutput(args, f"Sim-to-real gap diagnosis: {robot.name}")
     from tqdm import tqdm
 
