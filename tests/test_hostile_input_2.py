@@ -1014,3 +1014,29 @@ def test_22_31_ignored_options_and_one_pose_are_refused(m60, tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["one_pose.csv"]
     code, out, err = run(["simulate", "--poses", poses, "--out", tmp_path / "s.csv", "--quiet"], capsys)
     assert code == 0, err
+
+
+# ---------------------------------------------------------------------------------------
+# 32: a failed run says one line, not its warnings and status lines first
+# ---------------------------------------------------------------------------------------
+def test_22_32_warnings_and_status_lines_are_held_until_the_run_succeeds(m60, tmp_path, capsys):
+    from conftest import REPO
+
+    query = tmp_path / "q.csv"  # j1 = 400 deg in the last row: outside its limits, a warning
+    lines = (REPO / "examples" / "poses.csv").read_text().splitlines()
+    query.write_text("\n".join([*lines[:-1], "400," + lines[-1].split(",", 1)[1]]) + "\n")
+    tracker = tmp_path / "t.csv"
+    tracker.write_text("X [mm];Y [mm];Z [mm];j1_deg;j2_deg;j3_deg;j4_mm;j5_deg;j6_deg\n"
+                       + "".join(f"{x};{y};{z};{j.replace(',', ';')}\n" for x, y, z, j in _m60_rows(m60, 10)))
+    for argv in (["montecarlo", "--q", "0", "0", "0", "900", "0", "0", "--samples", "200", "--tail-samples", "0"],
+                 ["predict", "--train", m60, "--query", query, "--method", "kriging"],
+                 ["compensate", "--train", m60, "--targets", query, "--method", "kriging"],
+                 ["import", tracker, "--out", "/dev/full"]):
+        target = [] if argv[0] == "import" else ["--json", "/dev/full"]
+        code, out, err = run([*argv, *target], capsys)
+        assert code == 2 and out == ""
+        assert_one_line(err, "/dev/full: cannot write")
+        code, out, err = run([*argv[:-2], "--out", tmp_path / "m.csv"] if argv[0] == "import" else argv, capsys)
+        assert code == 0, err
+        assert ("tcr-accuracy: warning:" in err) == (argv[0] != "import")  # shown when the run succeeds
+        assert ("written to" in err) == (argv[0] == "import")
