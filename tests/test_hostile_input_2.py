@@ -1040,3 +1040,16 @@ def test_22_32_warnings_and_status_lines_are_held_until_the_run_succeeds(m60, tm
         assert code == 0, err
         assert ("tcr-accuracy: warning:" in err) == (argv[0] != "import")  # shown when the run succeeds
         assert ("written to" in err) == (argv[0] == "import")
+
+
+def test_22_20_a_metadata_line_naming_the_columns_and_a_second_x_column(m60, tmp_path, capsys):
+    tracker = tmp_path / "meta.csv"
+    tracker.write_text("Leica export\nColumns: X;Y;Z\n\n" + _tracker_with_joints(m60, 5))
+    code, out, err = run(["import", tracker, "--out", tmp_path / "m.csv", "--quiet"], capsys)
+    assert code == 0, err  # the real header, below the metadata line, is found
+    assert len((tmp_path / "m.csv").read_text().splitlines()) == 2 + 5
+    dev = tmp_path / "dev.csv"
+    dev.write_text("X [mm];Dev X;Y [mm];Z [mm]\n1000;0,1;200;300\n")
+    code, out, err = run(["import", dev, "--out", tmp_path / "d.csv"], capsys)
+    assert code == 2
+    assert_one_line(err, f"{dev}: columns 'X [mm]', 'Dev X' could each be the x position")

@@ -160,16 +160,21 @@ def read_table(path, wanted: list[str] | None = None, *, header_test=None) -> Ta
         found = all(w in cells for w in wanted) if wanted else bool(header_test and header_test(cells))
         if not found:
             continue
-        rows, numbers = [], []
+        rows, numbers, misfit = [], [], False
         for k in range(i + 1, len(lines)):
             if not lines[k].strip() or lines[k].lstrip().startswith("#"):
                 continue
             row = _split(lines[k], delimiter)
             if len(row) != len(cells):
+                if not rows:  # a metadata line that names the columns ("Columns: X;Y;Z"): the header is below
+                    misfit = True
+                    break
                 raise InputError(f"{path}: row {k + 1}: {len(row)} cells for the header's {len(cells)} "
                                  f"(delimiter {delimiter!r}, header on row {i + 1})")
             rows.append(row)
             numbers.append(k + 1)
+        if misfit:
+            continue
         if not rows:
             raise InputError(f"{path}: no data rows below the header on row {i + 1}")
         decimal_comma = delimiter != "," and any(re.match(r"^[+-]?\d+,\d+", c) for r in rows for c in r)
@@ -277,11 +282,16 @@ def target_unit(target: str) -> str | None:
     return suffix if suffix in IMPORT_UNITS else None
 
 
+def _axis_columns(header: list[str], axis: str) -> list[str]:
+    """Header cells that name a position along ``axis``: 'X', 'Point X', 'X [mm]', 'Dev X'."""
+    return [h for h in header if _normal(h) == axis or _normal(h).endswith(" " + axis)]
+
+
 def _auto_tracker_map(header: list[str]) -> dict[str, str]:
     """Position and time columns found by name: 'X', 'Point X', 'X [mm]', 'Meas. X (m)', 'Time'."""
     found: dict[str, str] = {}
     for axis in AXES:
-        hits = [h for h in header if _normal(h) == axis or _normal(h).endswith(" " + axis)]
+        hits = _axis_columns(header, axis)
         if len(hits) == 1:
             unit = header_unit(hits[0])
             found[f"{axis}_{'m' if unit == 'm' else 'mm'}"] = hits[0]
@@ -378,13 +388,16 @@ def import_tracker(tracker_path, tracker_map: dict[str, str] | None = None, log_
     if not (math.isfinite(tolerance_s) and tolerance_s >= 0):
         raise InputError(f"--tolerance-ms {tolerance_s * 1e3:g}: must be a number >= 0")
     wanted = list(tracker_map.values()) if tracker_map else None
-    tracker = read_table(tracker_path, wanted, header_test=lambda cells: all(
-        f"{a}_mm" in _auto_tracker_map(cells) or f"{a}_m" in _auto_tracker_map(cells) for a in AXES))
+    tracker = read_table(tracker_path, wanted, header_test=lambda cells: all(_axis_columns(cells, a) for a in AXES))
     mapping = dict(tracker_map or {})
     auto = _auto_tracker_map(tracker.header)
     for axis in AXES:
         if not any(t in mapping for t in (f"{axis}_mm", f"{axis}_m")):
             key = next((k for k in (f"{axis}_mm", f"{axis}_m") if k in auto), None)
+            hits = _axis_columns(tracker.header, axis)
+            if key is None and len(hits) > 1:
+                raise InputError(f"{tracker.path}: columns {', '.join(repr(h) for h in hits)} could each be the "
+                                 f"{axis} position: name one with --map {axis}_mm=\"HEADER\"")
             if key is None:
                 raise InputError(f"{tracker.path}: no column for the {axis} position: name it with "
                                  f"--map {axis}_mm=\"HEADER\" (the header has: "
