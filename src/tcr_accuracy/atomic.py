@@ -75,49 +75,67 @@ class _Stage:
     def __init__(self) -> None:
         self.files: dict[Path, bytes] = {}
         self.folders: set[Path] = set()
+        self.messages: list[tuple[object, str, str]] = []  # (stream, text, kind): see hold_message
+        self.committed = False  # every file of the last commit is in place
 
     def commit(self) -> None:
         """Write every staged file: the folders written whole into new folders beside them and
-        every other file to a temporary file first, then the swaps and renames, so a full disk
-        fails before any target is touched. Nothing staged is left afterwards."""
+        every other file to a temporary file first, then the special files (a device, a pipe),
+        then the swaps and renames, so a full disk or a full device fails before any target is
+        touched. Nothing staged is left afterwards but the held messages (results, status
+        lines), for :meth:`flush_messages`."""
         files, self.files = self.files, {}
         folders, self.folders = self.folders, set()
+        messages, self.messages = self.messages, []
         swaps: list[_FolderSwap] = []
         prepared: list = []  # (tmp or None, target, data)
         created: list[Path] = []
+        self.committed = False
         try:
+            _remove_dead_leftovers({Path(os.path.realpath(p)) for p in [*files, *folders]})
             plain = _prepare_folders(files, folders, swaps, created)
             for path, data in plain.items():
                 _make_parent(path, created)
                 prepared.append(_prepare(path, data))
+            for tmp, target, data in prepared:  # special files first: /dev/full fails before any rename
+                if tmp is None:
+                    _finish(tmp, target, data)
             with _signals_held():  # Ctrl-C or a kill waits until every rename is done
                 for tmp, target, data in prepared:
                     if tmp is not None:
                         _finish(tmp, target, data)
                 for swap in swaps:
                     swap.swap_in()
-            for tmp, target, data in prepared:  # special files last: a pipe may wait for its reader
-                if tmp is None:
-                    _finish(tmp, target, data)
+                self.committed = True
         except BaseException:
             for tmp, _, _ in prepared:
                 if tmp is not None:
                     Path(tmp).unlink(missing_ok=True)
             for swap in swaps:
                 swap.remove_leftover()
-            for folder in reversed(created):  # folders made for this run, if still empty
-                try:
-                    folder.rmdir()
-                except OSError:
-                    pass
+            if not self.committed:
+                for folder in reversed(created):  # folders made for this run, if still empty
+                    try:
+                        folder.rmdir()
+                    except OSError:
+                        pass
+            self.messages = messages  # for the caller to show what it chooses of them
             raise
         for swap in swaps:
             swap.remove_leftover()
+        self.messages = messages + self.messages
+
+    def flush_messages(self) -> None:
+        """Write the held messages (after a commit), in the order they came."""
+        messages, self.messages = self.messages, []
+        for stream, text, _ in messages:
+            stream.write(text)
+            stream.flush()
 
 
 @contextmanager
 def _signals_held():
-    """Hold SIGINT and SIGTERM for the block (the renames of a commit take milliseconds), so
+    """Hold SIGINT, SIGTERM and SIGHUP for the block (the renames of a commit take milliseconds), so
     that a run stopped then has either all its files or none; a signal that came meanwhile is
     raised again after it. Python runs signal handlers in the main thread only, so the
     handlers are swapped for a recorder there (elsewhere the block runs as it is)."""
@@ -126,7 +144,7 @@ def _signals_held():
     came: list[int] = []
     previous = {}
     try:
-        for sig in (signal.SIGINT, signal.SIGTERM):
+        for sig in STOP_SIGNALS:
             previous[sig] = signal.signal(sig, lambda signum, frame: came.append(signum))
     except ValueError:  # not the main thread
         for sig, handler in previous.items():
@@ -142,6 +160,15 @@ def _signals_held():
             signal.raise_signal(sig)
 
 
+def _stop_signals() -> tuple:
+    import signal
+
+    return tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+#: The signals that stop a run as Ctrl-C does (SIGHUP: the terminal closed), held during renames.
+STOP_SIGNALS = _stop_signals()
+
 _stage: ContextVar[_Stage | None] = ContextVar("tcr_accuracy_stage", default=None)
 
 
@@ -150,7 +177,8 @@ def staged_outputs():
     """Collect every write inside the block and commit them together at its end.
 
     On an exception (Ctrl-C and termination included) nothing is written. Blocks nest:
-    an inner block commits its own files when it ends.
+    an inner block commits its own files when it ends. Messages held with
+    :func:`hold_message` are written after the files, and not on an exception.
     """
     stage = _Stage()
     token = _stage.set(stage)
@@ -159,6 +187,7 @@ def staged_outputs():
         stage.commit()
     finally:
         _stage.reset(token)
+    stage.flush_messages()  # an enclosing block, now the current one, holds them in turn
 
 
 def stage_folder(path) -> None:
@@ -187,6 +216,21 @@ def commit_staged() -> None:
     stage = _stage.get()
     if stage is not None:
         stage.commit()
+        stage.flush_messages()
+
+
+def hold_message(stream, text: str, kind: str = "out") -> None:
+    """Write ``text`` to ``stream`` after the files of the current :func:`staged_outputs`
+    block are committed, in the order held, and not at all if they are not (a result printed,
+    or "JSON written to x", must not appear when the run then fails). ``kind`` ('out',
+    'status', 'warning') lets a caller choose what to show of a failed run's messages
+    (``stage.messages``). Outside a staged block the text is written at once."""
+    stage = _stage.get()
+    if stage is None:
+        stream.write(text)
+        stream.flush()
+    else:
+        stage.messages.append((stream, text, kind))
 
 
 def read_output(path) -> bytes:
@@ -210,6 +254,7 @@ def write_bytes_atomically(path, data: bytes) -> Path:
         stage.files[_key(path)] = bytes(data)
         return path
     created: list[Path] = []
+    _remove_dead_leftovers([Path(os.path.realpath(path))])
     _make_parent(path, created)
     tmp, target, data = _prepare(path, data)
     try:
@@ -241,7 +286,10 @@ def output_file_problem(path) -> str | None:
         return None if os.access(path, os.W_OK) else "not writable"
     folder = Path(os.path.realpath(path)).parent
     if not folder.is_dir():
-        return f"the folder {path.parent if not path.parent.is_dir() else folder} does not exist"
+        shown = path.parent if not path.parent.is_dir() else folder
+        if folder.exists():
+            return f"the folder {shown} is a file"
+        return f"the folder {shown} does not exist"
     return _creation_problem(folder)
 
 
@@ -275,9 +323,57 @@ def _creation_problem(folder: Path) -> str | None:
 
 
 # ---------------------------------------------------------------------------------------
+def is_special_file(path) -> bool:
+    """Whether ``path`` is an existing device, pipe or socket (written directly, never renamed over)."""
+    return _is_special(Path(path))
+
+
 def _key(path: Path) -> Path:
     """One key per target, however it is spelt (relative, through a symlinked folder)."""
     return Path(os.path.abspath(path))
+
+
+def _tmp_prefix(target: Path) -> str:
+    """The start of the name of a temporary file or folder beside ``target``: ``.<name>.<pid>.``,
+    so that the leftovers of a killed run are known by their dead process
+    (:func:`_remove_dead_leftovers`)."""
+    return f".{target.name}.{os.getpid()}."
+
+
+def _remove_dead_leftovers(targets) -> None:
+    """Remove the temporary files and folders that a run killed with SIGKILL (or a power cut)
+    left beside any of ``targets`` (real paths): those whose process is gone. A concurrent
+    live run's are kept; what cannot be removed is left as it is."""
+    for target in targets:
+        pattern = re.compile(re.escape(f".{target.name}.") + r"(\d+)\.[^/]*\.tmp")
+        try:
+            entries = list(os.scandir(target.parent))
+        except OSError:
+            continue
+        for entry in entries:
+            match = pattern.fullmatch(entry.name)
+            if match is None or _alive(int(match[1])):
+                continue
+            try:
+                if entry.is_dir(follow_symlinks=False):
+                    shutil.rmtree(entry.path)
+                else:
+                    os.unlink(entry.path)
+            except OSError:
+                pass
+
+
+def _alive(pid: int) -> bool:
+    """Whether a process ``pid`` exists (ours, another user's or a zombie: all count as alive)."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError, OSError):
+        return True
+    return True
 
 
 def _is_special(path: Path) -> bool:
@@ -341,7 +437,7 @@ def _prepare(path: Path, data: bytes):
         raise InputError(f"{path}: is a folder, cannot write a file there")
     target = Path(os.path.realpath(path))  # a symlink is written through
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+        fd, tmp = tempfile.mkstemp(prefix=_tmp_prefix(target), suffix=".tmp", dir=target.parent)
     except OSError as exc:
         raise InputError(f"{path}: cannot write ({exc.strerror})") from None
     try:
@@ -420,7 +516,7 @@ def _prepare_folder(target: Path, members: list[tuple[Path, bytes]], created: li
         raise _NotSwappable
     _make_parent(target, created)
     try:
-        new = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
+        new = Path(tempfile.mkdtemp(prefix=_tmp_prefix(target), suffix=".tmp", dir=target.parent))
     except OSError:  # its parent takes no new folder
         raise _NotSwappable from None
     try:
@@ -559,7 +655,7 @@ def _swap_in(new: Path, target: Path) -> Path | None:
 def _rename_aside_and_in(new: Path, target: Path) -> Path:
     """The swap where no atomic exchange is to be had: the old folder renamed to a ``.tmp``
     name beside it (returned), then the new one to its name; undone if the second fails."""
-    aside = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
+    aside = Path(tempfile.mkdtemp(prefix=_tmp_prefix(target), suffix=".tmp", dir=target.parent))
     try:
         os.rename(target, aside)  # over an empty folder: replaces it
     except BaseException:

@@ -51,15 +51,18 @@ def dominant_candidates() -> tuple[str, ...]:
 # Sampling poses and context
 # ---------------------------------------------------------------------------------------
 def sample_poses(robot: RobotModel, n: int, rng: np.random.Generator, box=None) -> np.ndarray:
-    """(n, n_joints) joint values uniform within the limits.
+    """(n, n_joints) joint values uniform within the limits; a joint with a URDF ``<mimic>`` rule
+    on another chain joint follows it (rows where it would leave its limits are drawn again).
 
     box : array-like of shape (3, 2), optional
         [[xmin, xmax], [ymin, ymax], [zmin, zmax]] [m]: keep only poses whose nominal
         TCP lies inside (rejection sampling).
     """
     lo, hi = robot.joint_bounds()
-    if box is None:
+    if box is None and not robot.has_chain_mimic:
         return rng.uniform(lo, hi, size=(n, robot.n_joints))
+    if box is None:
+        box = np.array([[-np.inf, np.inf]] * 3)
     box = np.asarray(box, dtype=float)
     if box.shape != (3, 2) or np.any(box[:, 0] >= box[:, 1]):
         raise InputError("task box: give xmin xmax ymin ymax zmin zmax with min < max")
@@ -67,14 +70,17 @@ def sample_poses(robot: RobotModel, n: int, rng: np.random.Generator, box=None) 
     batch = max(4 * n, 2000)
     while sum(len(k) for k in kept) < n and tried < 200 * batch:
         q = rng.uniform(lo, hi, size=(batch, robot.n_joints))
+        if robot.has_chain_mimic:  # a <mimic> joint follows its rule, and must stay within its limits
+            q = robot.follow_mimic(q)
+            q = q[robot.within_limits(q)]
         p = tcp_poses(robot, q).position
         inside = np.all((p >= box[:, 0]) & (p <= box[:, 1]), axis=1)
         kept.append(q[inside])
         tried += batch
     found = sum(len(k) for k in kept)
     if found < n:
-        raise InputError(f"task box: only {found} of {tried} random poses put the TCP inside it; "
-                         f"need {n} (is the box within reach?)")
+        raise InputError(f"task box: only {found} of {tried} random poses put the TCP inside it (with the "
+                         f"<mimic> joints within their limits); need {n} (is the box within reach?)")
     return np.concatenate(kept)[:n]
 
 

@@ -70,7 +70,9 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
         if key in _shown_limit_warnings:
             return
         _shown_limit_warnings.add(key)
-    sys.stderr.write(f"tcr-accuracy: warning: {text}\n")
+    from ..atomic import hold_message
+
+    hold_message(sys.stderr, f"tcr-accuracy: warning: {text}\n", "warning")
 
 
 #: How many main() calls are running (``demo`` runs ``montecarlo`` and ``diagnose`` through
@@ -105,20 +107,26 @@ def _main(argv: list[str], debug: bool, command: str | None) -> int:
     from ..exceptions import AnalysisError, InputError
 
     name = f"tcr-accuracy {command}" if command else "tcr-accuracy"
+    stage = None
     try:
         parser = build_parser()
         try:
             args = parser.parse_args(argv)
         except SystemExit as exc:  # --help, --version, or a usage error already said in one line
             return exc.code if isinstance(exc.code, int) else EXIT_INPUT
+        from .collisions import check_distinct_paths
+
+        check_distinct_paths(parser, args)  # no output over an input or another output
         args.argv = argv  # the command as typed, for reports
         name = f"tcr-accuracy {args.command}"
         debug = debug or getattr(args, "debug", False)  # also an abbreviated --deb
         from ..atomic import staged_outputs
+        from .held import held_stdout
 
-        # every file of the run is written at its end, together, or not at all; SIGTERM is an
-        # interrupt until the commit is done, so that one during the commit still cleans up
-        with warnings.catch_warnings(), _terminate_as_interrupt(), staged_outputs():
+        # every file of the run is written at its end, together, or not at all, and what it
+        # prints after them; SIGTERM and SIGHUP are interrupts until the commit is done, so that
+        # one during the commit still cleans up
+        with warnings.catch_warnings(), _terminate_as_interrupt(), held_stdout(), staged_outputs() as stage:
             warnings.simplefilter("default", UserWarning)
             warnings.showwarning = _show_warning
             return args.run(args)
@@ -126,9 +134,12 @@ def _main(argv: list[str], debug: bool, command: str | None) -> int:
         _report(f"{name}: error: {exc}", debug)
         return EXIT_INPUT
     except AnalysisError as exc:
+        _show_held_warnings(stage)
         _report(f"{name}: analysis failed: {exc}", debug)
         return EXIT_ANALYSIS
     except KeyboardInterrupt:
+        if stage is not None and stage.committed:  # stopped once every file was in place: done
+            return EXIT_OK
         _report("tcr-accuracy: interrupted", debug)
         return 130
     except BrokenPipeError:  # output piped into `head` and closed: not an error of ours
@@ -140,20 +151,30 @@ def _main(argv: list[str], debug: bool, command: str | None) -> int:
             pass
         return EXIT_OK
     except MemoryError as exc:
+        _show_held_warnings(stage)
         _report(f"{name}: out of memory ({_describe(exc)}); try fewer samples, poses or measurements"
                 f"{'' if debug else ', or rerun with --debug for the traceback'}", debug)
         return EXIT_ANALYSIS
     except Exception as exc:
         if _depth > 1:  # an inner main (demo's steps): the outermost one reports it
             raise
+        _show_held_warnings(stage)
         _report(f"{name}: unexpected error: {_describe(exc)}"
                 f"{'' if debug else ' (rerun with --debug for the traceback)'}", debug)
         return EXIT_ANALYSIS
 
 
+def _show_held_warnings(stage) -> None:
+    if stage is not None:
+        from .held import show_warnings_of
+
+        show_warnings_of(stage)
+
+
 @contextmanager
 def _terminate_as_interrupt():
-    """SIGTERM (a kill, a job scheduler's stop) ends the run as Ctrl-C does: through the
+    """SIGTERM (a kill, a job scheduler's stop) and SIGHUP (the terminal closed) end the run as
+    Ctrl-C does: through the
     exception handlers, so staged and temporary files are removed (outermost main, main
     thread only)."""
     import signal
@@ -166,15 +187,21 @@ def _terminate_as_interrupt():
     def interrupt(signum, frame):
         raise KeyboardInterrupt
 
+    stops = [sig for sig in (getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None)) if sig is not None]
+    previous = {}
     try:
-        previous = signal.signal(signal.SIGTERM, interrupt)
+        for sig in stops:
+            previous[sig] = signal.signal(sig, interrupt)
     except (ValueError, OSError):  # no signals here (an embedded interpreter)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         yield
         return
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def _describe(exc: BaseException) -> str:

@@ -31,7 +31,7 @@ class Parser(argparse.ArgumentParser):
 
 #: What the argparse types of this module say after the value ("--x VALUE: <one of these>...").
 _REFUSALS = ("want", "not a number", "non-finite", "the folder", "is a folder", "exists and is not a folder",
-             "not writable")
+             "not writable", "not a regular file", "its side file")
 _TYPE_REFUSAL = re.compile(r"argument (?P<option>--[\w-]+)(?:/[\w-]+)*: "
                            rf"(?P<rest>.+?: (?:{'|'.join(map(re.escape, _REFUSALS))}).*)", re.DOTALL)
 
@@ -45,6 +45,8 @@ def effect_names(text: str | None) -> list[str] | None:
     from ..exceptions import InputError
 
     effects = [e.strip() for e in text.split(",") if e.strip()]
+    if not effects:  # ',' read as no effect at all: frames only, and 'structure remains: no' of nothing
+        raise InputError(f"--effects {text!r}: names no effect (vocabulary: {', '.join(vocabulary())})")
     unknown = [e for e in effects if e not in vocabulary()]
     if unknown:
         raise InputError(f"--effects: unknown {', '.join(unknown)} (vocabulary: {', '.join(vocabulary())})")
@@ -137,6 +139,31 @@ def output_folder(text: str) -> str:
     return text
 
 
+def effects_side_file(path) -> "Path":  # noqa: F821
+    """The file written beside an as-built URDF ``x.urdf``: ``x.effects.yaml`` (the effects a URDF cannot hold)."""
+    from pathlib import Path
+
+    path = Path(path)
+    return path.with_name(path.stem + ".effects.yaml")
+
+
+def as_built_file(text: str) -> str:
+    """argparse type of ``--as-built-urdf``: a regular file that can be written, with its side
+    file (:func:`effects_side_file`) too; a device or pipe is refused, as the pair would then
+    be one file written and another created beside the device (``/dev/null.effects.yaml``)."""
+    from ..atomic import is_special_file, output_file_problem
+
+    if text == "-" or is_special_file(text):
+        raise argparse.ArgumentTypeError(f"{_shown(text)}: not a regular file; the as-built model is two files "
+                                         f"(the URDF and {effects_side_file(text).name} beside it)")
+    output_file(text)
+    side = effects_side_file(text)
+    problem = output_file_problem(side) or ("is a device or pipe" if is_special_file(side) else None)
+    if problem:
+        raise argparse.ArgumentTypeError(f"{_shown(text)}: its side file {_shown(str(side))}: {problem}")
+    return text
+
+
 #: argparse type of ``--seed``: an integer that numpy's SeedSequence accepts.
 seed_value = integer(low=0, high=2**32 - 1, what="a seed, an integer")
 
@@ -146,6 +173,11 @@ MAX_COUNT = 10**12
 
 #: The largest length [mm] an option takes (1 km): beyond it a value is a typo, not a robot.
 MAX_MM = 1e6
+
+#: argparse type of an instrument's noise (``--noise-mm`` of diagnose and plan-poses), std per axis:
+#: 1 nm to 1 m. Below, no tracker resolves it and its square underflows the statistics' divisions;
+#: above, every parameter drowns in it and the fit's condition number is no number.
+noise_mm_value = number(low=1e-6, high=1e3, unit="mm")
 
 #: argparse type of joint values on the command line: finite numbers (deg or mm; the robot's
 #: limits are checked later, by :func:`joint_values_si`).
@@ -261,10 +293,13 @@ def status(args, message: str) -> None:
     """A status line (which file was written, ...) on stderr, unless ``--quiet``.
 
     Results go to stdout; what a run did besides goes here, so that ``--json -`` output
-    stays pure JSON and ``--quiet`` leaves only the results.
+    stays pure JSON and ``--quiet`` leaves only the results. Shown once the run's files are
+    written, not at all if they are not.
     """
     if not getattr(args, "quiet", False):
-        sys.stderr.write(message.rstrip("\n") + "\n")
+        from ..atomic import hold_message
+
+        hold_message(sys.stderr, message.rstrip("\n") + "\n", "status")  # after the files are written
 
 
 def joint_values_si(robot, values, source="--q"):

@@ -59,10 +59,11 @@ def bundled_file(name: str) -> Path:
     return Path(str(importlib.resources.files("tcr_accuracy") / DATA / name))
 
 
-def _run_step(argv: list[str]) -> int:
+def _run_step(argv: list[str], max_memory_gb: float | None = None) -> int:
     """One step of the demo, run as the command line would run it (its report names the
     command), under the demo's own error handling: a parser with the two step commands only,
-    so the demo does not import the command registry that lists it."""
+    so the demo does not import the command registry that lists it. The demo's memory budget
+    (``--max-memory-gb``) is the step's."""
     from .diagnose import add_parsers as add_diagnose
     from .montecarlo import add_parsers as add_montecarlo
 
@@ -72,6 +73,7 @@ def _run_step(argv: list[str]) -> int:
     add_diagnose(sub)
     args = parser.parse_args(argv)
     args.argv = list(argv)
+    args.max_memory_gb = max_memory_gb
     return args.run(args)
 
 
@@ -104,7 +106,7 @@ def _demo_steps(args, out_dir: Path) -> int:
     print("=" * 78)
     code = _run_step(["montecarlo", "--preset", "table2", "--samples", str(args.samples),
                  "--seed", str(args.seed), "--json", str(accuracy_json),
-                 "--out", str(out_dir / "accuracy"), *quiet])
+                 "--out", str(out_dir / "accuracy"), *quiet], args.max_memory_gb)
     if code != EXIT_OK:
         return code
 
@@ -117,7 +119,7 @@ def _demo_steps(args, out_dir: Path) -> int:
     code = _run_step(["diagnose", str(measurements), "--seed", str(args.seed), "--noise-mm", "0.02",
                  "--json", str(diagnosis_json),
                  "--out", str(out_dir / "diagnosis"),
-                 "--as-built-urdf", str(out_dir / "tool_changer_as_built.urdf"), *quiet])
+                 "--as-built-urdf", str(out_dir / "tool_changer_as_built.urdf"), *quiet], args.max_memory_gb)
     if code != EXIT_OK:
         return code
 

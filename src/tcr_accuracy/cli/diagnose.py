@@ -13,8 +13,8 @@ import sys
 import numpy as np
 from pathlib import Path
 
-from .common import (MAX_MM, add_robot_arguments, check_csv_memory, effect_names, integer, number, output_file,
-                     seed_value, status)
+from .common import (add_robot_arguments, as_built_file, check_csv_memory, effect_names, effects_side_file, integer,
+                     noise_mm_value, output_file, seed_value, status)
 from .output import RunOutput, add_output_arguments
 
 
@@ -41,14 +41,41 @@ def add_parsers(sub) -> None:
     p.add_argument("--folds", type=integer(low=2, high=1000), default=5,
                    help="k of the k-fold cross-validation (default 5)")
     p.add_argument("--seed", type=seed_value, default=0, help="seed of the fold split and permutation tests")
-    p.add_argument("--noise-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
+    p.add_argument("--noise-mm", type=noise_mm_value, default=None,
                    help="the instrument's noise, std per axis [mm]; noise floor = sqrt(3) x this (default: "
                         "estimated from repeated poses, else from the final residual, and said which)")
-    p.add_argument("--as-built-urdf", default=None, type=output_file, metavar="FILE",
+    p.add_argument("--as-built-urdf", default=None, type=as_built_file, metavar="FILE",
                    help="write the calibrated URDF to FILE and the other effects' parameters to "
                         "FILE with suffix .effects.yaml")
     add_output_arguments(p, view=True)
     p.set_defaults(run=_run_diagnose)
+
+
+def _check_distinct_poses(path, measurements) -> None:
+    """At least three different joint configurations: at one pose (repeated) the TCP error of
+    every effect is one constant offset, and a 'diagnosis' would only fit the tracker frame to it."""
+    import numpy as np
+
+    from ..exceptions import InputError
+
+    distinct = len(np.unique(measurements.q, axis=0))
+    if distinct < 3:
+        raise InputError(f"{path}: {len(measurements)} rows at {distinct} distinct pose(s); measure the TCP at "
+                         "different joint values (at least 3, better dozens) for anything to be diagnosed")
+
+
+def _frame_robot(args, frame: str):
+    """The robot with its TCP at a frame the measurement file's columns name (``<frame>.x_mm``):
+    a frame the robot lacks is the file's fault, named by its column, unless --tool named it."""
+    from ..exceptions import InputError
+    from ..model.robot import load_robot
+
+    try:
+        return load_robot(args.robot, frame)
+    except InputError as exc:
+        if args.tool == frame or "no such frame" not in str(exc):
+            raise
+        raise InputError(f"{args.measurements}: column {frame}.x_mm: {str(exc).partition(': ')[2]}") from None
 
 
 #: Memory [bytes] the diagnosis plans per measurement (see check_csv_memory in _run_diagnose):
@@ -84,7 +111,7 @@ def _run_diagnose(args) -> int:
         if args.tool is not None and args.tool not in frames:
             raise InputError(f"--tool {args.tool}: {files[0]} measures {', '.join(frames)}")
         order = [args.tool] + [f for f in frames if f != args.tool] if args.tool else frames
-        robots = [load_robot(args.robot, f) for f in order]
+        robots = [_frame_robot(args, f) for f in order]
         parts = [(r, join_sessions([read_measurements(path, r, min_rows=per_file, frame=f) for path in files],
                                    labels)) for r, f in zip(robots, order)]
         robot, measurements, data = robots[0], parts[0][1], parts
@@ -95,6 +122,7 @@ def _run_diagnose(args) -> int:
     if len(measurements) < min_rows:
         raise InputError(f"{', '.join(map(str, files))}: {len(measurements)} measurement rows, at least {min_rows} "
                          f"are needed for {args.folds}-fold cross-validation")
+    _check_distinct_poses(", ".join(map(str, files)), measurements)
     out = RunOutput(args, f"Sim-to-real gap diagnosis: {robot.name}")
     from tqdm import tqdm
 
@@ -394,7 +422,7 @@ def write_as_built(robot, d, path: Path) -> tuple[Path, Path]:
 
     text, tool_frame = as_built_urdf(robot, d.as_built_x, ErrorModel(robot), name=f"{robot.name}_as_built")
     write_text_atomically(path, text)
-    side = path.with_name(path.stem + ".effects.yaml")
+    side = effects_side_file(path)
     doc = {
         "robot": robot.name,
         "urdf": path.name,

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import MAX_MM, add_robot_arguments, effect_names, emit_json, integer, number, output_file, seed_value
+from .common import (add_robot_arguments, effect_names, emit_json, integer, noise_mm_value, number, output_file,
+                     seed_value)
 
 
 def add_parsers(sub) -> None:
@@ -39,7 +40,7 @@ def add_parsers(sub) -> None:
                    help="random candidates when --candidates is not given (default 3000)")
     p.add_argument("--payload-kg", type=number(low=0, high=1e6, unit="kg"), default=None,
                    help="payload the new poses will be measured with [kg] (default: the measurements' mean)")
-    p.add_argument("--noise-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
+    p.add_argument("--noise-mm", type=noise_mm_value, default=None,
                    help="the instrument's noise, std per axis [mm], for the diagnosis and for counting the "
                         "determined parameter combinations (default: the diagnosis' estimate; 0.02 with --effects)")
     p.add_argument("--seed", type=seed_value, default=0, help="seed of the candidates and of the diagnosis")
@@ -56,6 +57,54 @@ def _check(args) -> None:
         raise InputError(f"--n-candidates {args.n_candidates}: need at least -k ({args.poses})")
 
 
+#: Memory [bytes] planning takes per candidate configuration: its 3 x P Jacobian block over the
+#: whole vocabulary (P up to about 130 columns) and a few working copies, generously.
+PLAN_CANDIDATE_BYTES = 3 * 130 * 8 * 8
+
+
+def _check_plan_memory(args) -> None:
+    """Refuse before the work a plan whose measurements (diagnosed first), candidate file or
+    --n-candidates would need more memory than ``--max-memory-gb``."""
+    from .common import check_csv_memory, check_memory
+    from .diagnose import DIAGNOSE_ROW_BYTES
+
+    check_csv_memory(args, args.measurements, "planning poses from", DIAGNOSE_ROW_BYTES)
+    if args.candidates:
+        check_csv_memory(args, args.candidates, "planning poses among", PLAN_CANDIDATE_BYTES,
+                         hint="use fewer candidates")
+    else:
+        check_memory(args, f"--n-candidates {args.n_candidates}", args.n_candidates * PLAN_CANDIDATE_BYTES,
+                     "use fewer candidates")
+
+
+def _reachable_candidates(read_measurements, path, robot):
+    """(N, n_joints) candidate joint values [SI] from ``path``; a row outside the joint limits is
+    refused, naming it: a pose the robot cannot take would be planned first (it moves the TCP most)."""
+    import warnings
+
+    import numpy as np
+
+    from ..exceptions import InputError
+    from ..model.robot import JointLimitWarning
+    from ..io.measurement_checks import MeasurementWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", JointLimitWarning)
+        warnings.simplefilter("ignore", MeasurementWarning)
+        mset = read_measurements(path, robot, require_position=False)
+    with np.errstate(invalid="ignore"):  # NaN limits: an unbounded joint
+        outside = (mset.q < robot.lower_limits - 1e-12) | (mset.q > robot.upper_limits + 1e-12)
+    if outside.any():
+        r, j = np.argwhere(outside)[0]
+        scale, unit = robot.display_scale[j], robot.display_units[j]
+        row = mset.rows[r] if mset.rows is not None else r + 1
+        raise InputError(f"{path}: row {row}: joint {robot.joint_names[j]} = {mset.q[r, j] * scale:.6g} {unit} is "
+                         f"outside its limits [{robot.lower_limits[j] * scale:.6g}, "
+                         f"{robot.upper_limits[j] * scale:.6g}] {unit}; a candidate must be a pose the robot can "
+                         f"take ({int(outside.any(axis=1).sum())} such row(s))")
+    return mset.q
+
+
 def _run_plan_poses(args) -> int:
     import numpy as np
 
@@ -67,11 +116,18 @@ def _run_plan_poses(args) -> int:
     from ..model.robot import load_robot
 
     _check(args)
+    _check_plan_memory(args)
     robot = load_robot(args.robot, args.tool)
     measured = read_measurements(args.measurements, robot)
     candidates = None
     if args.candidates:
-        candidates = read_measurements(args.candidates, robot, require_position=False).q
+        candidates = _reachable_candidates(read_measurements, args.candidates, robot)
+    if candidates is None and robot.has_chain_mimic:  # a <mimic> joint follows its rule, as the robot will
+        from ..diagnosis.design import candidate_configurations
+
+        drawn = robot.follow_mimic(candidate_configurations(robot, 4 * args.n_candidates,
+                                                            np.random.default_rng(args.seed)))
+        candidates = drawn[robot.within_limits(drawn)][:args.n_candidates]
     payload = args.payload_kg
     if payload is None:
         payload = float(np.mean(measured.payload_kg)) if measured.payload_kg is not None else 0.0

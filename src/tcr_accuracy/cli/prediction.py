@@ -83,16 +83,17 @@ def _common(p: argparse.ArgumentParser, methods) -> None:
     p.add_argument("--seed", type=seed_value, default=0, help="random seed of the stochastic methods (default 0)")
 
 
-def read_joint_csv(path: str, robot, *, need_positions: bool, rows: bool = False):
+def read_joint_csv(path: str, robot, *, need_positions: bool, rows: bool = False, repeats: bool = False):
     """Joint values (N, n) [SI], measured positions (N, 3) [m] (None when the file has none)
     and the rows' context (payload, joints outside the TCP chain, ...), read and validated by
     :func:`tcr_accuracy.io.measurements.read_measurements`; with ``rows``, also each row's
-    line in the file (N,), for messages."""
+    line in the file (N,), for messages. ``repeats``: rows may repeat (poses to predict or
+    compensate, where asking twice is legitimate)."""
     import numpy as np
 
     from ..io.measurements import read_measurements
 
-    mset = read_measurements(path, robot, require_position=need_positions)
+    mset = read_measurements(path, robot, require_position=need_positions, repeats_allowed=repeats)
     has_positions = need_positions or not np.isnan(mset.position).all()
     out = mset.q, (mset.position if has_positions else None), mset.context()
     return (*out, mset.rows) if rows else out
@@ -285,7 +286,7 @@ def _run_predict(args) -> int:
     robot, out = _start(args, "Error prediction")
     q_train, model = _fit(args, robot)
     check_csv_memory(args, args.query, "--query", 3 * 64 * 8.0)
-    q, measured, context = read_joint_csv(args.query, robot, need_positions=False)
+    q, measured, context = read_joint_csv(args.query, robot, need_positions=False, repeats=True)
     scale = robot.display_scale
     pred, std = _predict(args, model, q, context)
     norm = np.linalg.norm(pred, axis=1)
@@ -422,7 +423,7 @@ def _run_compensate(args) -> int:
     robot, out = _start(args, "Joint compensation")
     q_train, model = _fit(args, robot)
     check_csv_memory(args, args.targets, "--targets", 3 * 64 * 8.0)
-    q, measured, context = read_joint_csv(args.targets, robot, need_positions=False)
+    q, measured, context = read_joint_csv(args.targets, robot, need_positions=False, repeats=True)
     units, scale = robot.display_units, robot.display_scale
     # the predictor of the base-frame error (TCP offset + method): targets and commands are base-frame
     result = compensate_joints(robot, model.error_model_, q, threshold=args.threshold_mm * 1e-3,

@@ -42,6 +42,8 @@ def _sweep_json(result) -> dict:
 
 
 def _run_sensitivity(args) -> int:
+    import numpy as np
+
     from ..exceptions import InputError
     from ..analysis.random_inputs import random_inputs
     from ..model.robot import load_robot
@@ -70,6 +72,9 @@ def _run_sensitivity(args) -> int:
         indices = sobol_indices(sampler, q, n_base=n, seed=args.seed, progress=update)
     finally:
         close()
+    if np.all(np.isnan(indices.total_order[indices.outputs.index("norm")])):  # no variance to split: 'nan +- nan'
+        raise InputError(f"{label}: no error source moves the TCP at this pose (every spread is zero): there is "
+                         "no variance for Sobol indices to split; give the sources a spread")
 
     payload = {
         "robot": robot.name, "preset": label, "joint_names": robot.joint_names,

@@ -22,7 +22,8 @@ def add_parsers(sub) -> None:
                         "or one or two drawn at random)")
     p.add_argument("--outside", metavar="EFFECT", default=None,
                    help="with --random: also hide an effect outside the vocabulary (unmodelled, link_bending)")
-    p.add_argument("--n", type=integer(low=1, high=MAX_COUNT), default=200, help="number of measurements (default 200)")
+    p.add_argument("--n", type=integer(low=1, high=MAX_COUNT), default=None,
+                   help="number of measurements (default 200; not with --poses, whose rows are the poses)")
     p.add_argument("--poses", metavar="CSV", default=None,
                    help="commanded poses (joint columns, optional context columns) instead of random ones")
     p.add_argument("--box", nargs=6, type=number(low=-MAX_MM, high=MAX_MM, unit="mm"),
@@ -50,6 +51,10 @@ def _run_simulate(args) -> int:
     from ..analysis.scenario import load_scenario, scenario_from_dict
     from ..analysis.simulate import random_scenario, simulate_measurements, write_truth
 
+    for given, option in ((args.n, "--n"), (args.box, "--box")):  # --poses fixes the poses: these would be ignored
+        if given is not None and args.poses is not None:
+            raise InputError(f"{option} with --poses {args.poses}: the file's rows are the poses; give one of them")
+    args.n = 200 if args.n is None else args.n
     robot = load_robot(args.robot, args.tool)
     # the poses, their context and the CSV text: a few hundred bytes a measurement
     check_memory(args, f"--n {args.n}", args.n * (sample_bytes(robot) + 400.0))

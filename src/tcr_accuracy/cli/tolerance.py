@@ -48,6 +48,10 @@ def _run_tolerance(args) -> int:
     from ..model.robot import load_robot
     from ..analysis.tolerance import allocate_tolerance
 
+    if args.samples * (1.0 - args.target_prob) < 1.0:  # fewer than one expected miss: 1.0 is all it can say
+        raise InputError(f"--target-prob {args.target_prob:.10g}: {args.samples} samples cannot tell it from 1 "
+                         f"(not one miss expected); use about {10 / (1.0 - args.target_prob):.2g} --samples "
+                         "(ten misses expected), or a lower --target-prob")
     out = RunOutput(args, "Tolerance allocation")
     robot = load_robot(args.robot, args.tool)
     q = joint_values_si(robot, args.q)

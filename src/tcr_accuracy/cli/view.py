@@ -121,13 +121,19 @@ def _run_view(args) -> int:
 
     if args.open and not args.serve:
         raise InputError("--open needs --serve")
+    if args.magnify is not None and args.error_preset is None:  # it magnifies the error cloud, and there is none
+        raise InputError(f"--magnify {args.magnify:g}: only with --error-preset (it magnifies the TCP error cloud)")
     robot = load_robot(args.robot, args.tool)
     q = joint_values_si(robot, args.q)
     scene = Scene(f"{robot.name} at {format_joint_values(robot, q)}")
     scene.add_robot(robot, q, "nominal")
     if args.error_preset is not None:
         check_memory(args, f"--samples {args.samples}", args.samples * sample_bytes(robot))
-        budget = seed_budget(robot, args.error_preset)
+        try:
+            budget = seed_budget(robot, args.error_preset)
+        except InputError as exc:  # the preset's message names montecarlo's option; here it is another
+            raise InputError(str(exc).replace("--preset", "--error-preset").replace(" or a --config file", "")) \
+                from None
         x = budget.sample(args.samples, np.random.default_rng(args.seed))
         magnify = scene.add_tcp_error_cloud(robot, q, x, budget.error_model, magnify=args.magnify)
         scene.add_note(f"{args.samples} samples of the seed's {args.error_preset} errors, seed {args.seed}; "

@@ -86,7 +86,7 @@ def check_position_units(mset, robot, columns, source):
         hint = (f"the values look like {other}: name the columns "
                 f"{', '.join(f'{a}_{other}' for a in 'xyz')}")
     else:
-        joint_units = ", ".join(col for _, col, _ in columns["joints"])
+        joint_units = ", ".join(col or f"{name} (its <mimic> rule)" for name, col, _ in columns["joints"])
         hint = f"check the position units and the joint columns' units ({joint_units})"
     raise InputError(
         f"{source}: columns {', '.join(cols)}: the measured points spread over "

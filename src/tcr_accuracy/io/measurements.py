@@ -49,6 +49,23 @@ QUATERNION_COLUMNS = ("qw", "qx", "qy", "qz")
 CONTEXT_COLUMNS = ("payload_kg", "temperature_c", "time_s")
 #: columns whose cells are labels, not numbers
 LABEL_COLUMNS = ("session",)
+#: The largest magnitudes a measurement CSV's values may have, as the settings files' are bounded:
+#: beyond them a value is a typo (1e300 overflowed the analyses into a silent 'frames only').
+MAX_JOINT_SI = 1e4          # [rad] or [m]: the URDF's own bound on angles and lengths
+MAX_POSITION_M = 1e3        # [m]: a tracker sees a kilometre at most
+MAX_PAYLOAD_KG = 1e6
+MAX_TEMPERATURE_C = 1e3     # an arm at 1000 degC has melted
+MAX_TIME_S = 1e11           # [s]: a Unix time stamp is 1.8e9
+
+
+def _check_range(source, rows, column: str, values_si, bound: float, si_unit: str, to_shown: float,
+                 shown_unit: str) -> None:
+    """Refuse the first value of ``column`` whose magnitude exceeds ``bound`` (SI), in the file's unit."""
+    bad = np.flatnonzero(np.abs(values_si) > bound)
+    if len(bad):
+        r = bad[0]
+        raise InputError(f"{source}: row {rows[r]}, column {column}: {values_si[r] * to_shown:g} {shown_unit} is "
+                         f"beyond the {bound * to_shown:g} {shown_unit} a measurement may have")
 
 
 # ---------------------------------------------------------------------------------------
@@ -175,7 +192,7 @@ def allowed_columns(robot: RobotModel) -> list[str]:
 
 def read_measurements(path: str | Path, robot: RobotModel, *, min_rows: int = 1,
                       require_position: bool = True, check_units: bool = True,
-                      frame: str | None = None) -> MeasurementSet:
+                      frame: str | None = None, repeats_allowed: bool = False) -> MeasurementSet:
     """Read and validate a measurement CSV (see the module docstring for the columns).
 
     Parameters
@@ -194,6 +211,9 @@ def read_measurements(path: str | Path, robot: RobotModel, *, min_rows: int = 1,
     frame : str, optional
         For a file measuring several frames per row (``<frame>.x_mm`` ... columns, see
         :func:`measured_frames`): the one to read; the robot's TCP must be that frame.
+    repeats_allowed : bool
+        Rows may repeat one another (poses to predict or compensate); otherwise an exact copy
+        of a row is an error and a repeated pose a warning.
 
     Raises
     ------
@@ -203,7 +223,8 @@ def read_measurements(path: str | Path, robot: RobotModel, *, min_rows: int = 1,
     path = Path(path)
     text = read_user_text(path, "measurement file")
     return parse_measurements(text, robot, source=str(path), min_rows=min_rows,
-                              require_position=require_position, check_units=check_units, frame=frame)
+                              require_position=require_position, check_units=check_units, frame=frame,
+                              repeats_allowed=repeats_allowed)
 
 
 def read_user_text(path: Path, what: str) -> str:
@@ -247,7 +268,7 @@ def measured_frames(path: str | Path) -> list[str]:
 
 def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", min_rows: int = 1,
                        require_position: bool = True, check_units: bool = True,
-                       frame: str | None = None) -> MeasurementSet:
+                       frame: str | None = None, repeats_allowed: bool = False) -> MeasurementSet:
     """:func:`read_measurements` on CSV text already in memory."""
     lines, header, header_line = _header(text, source)
     # a file may measure several frames per row: <frame>.x_mm ...; read one of them
@@ -257,8 +278,14 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
         if plain:
             raise InputError(f"{source}: row {header_line}: column {plain[0]} next to per-frame columns "
                              f"({frames[0]}.x_mm ...); name every measured frame's columns <frame>.x_mm")
+        if frame is None and frames == [robot.tool_frame]:  # one measured frame, the robot's TCP: read it
+            frame = robot.tool_frame
+        if frame is None and len(frames) > 1:
+            raise InputError(f"{source}: measures several frames ({', '.join(frames)}); only diagnose reads "
+                             "them together (here: read one with frame=...)")
         if frame is None:
-            raise InputError(f"{source}: measures several frames ({', '.join(frames)}); read one with frame=...")
+            raise InputError(f"{source}: columns {frames[0]}.x_mm ...: measures frame {frames[0]}, not the robot's "
+                             f"TCP frame {robot.tool_frame}; give --tool {frames[0]}")
         if frame not in frames:
             raise InputError(f"{source}: no columns {frame}.x_mm ... (frames measured: {', '.join(frames)})")
     logical = [h if _frame_of(h) is None else (h.rpartition(".")[2] if _frame_of(h) == frame else "")
@@ -317,6 +344,8 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
                     f"if the column holds degrees, name it {name}_deg"
                 )
         si[name] = raw * _JOINT_UNITS[kinds[name]][unit]
+        _check_range(source, rows, col, si[name], MAX_JOINT_SI, "m" if kinds[name] != REVOLUTE else "rad",
+                     1.0 / _JOINT_UNITS[kinds[name]][unit], unit)
     for name in [n for n, _ in _all_joints(robot) if n not in si and n in robot.mimic]:
         rule = robot.mimic[name]
         if rule.joint in si:
@@ -331,6 +360,8 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
     if columns["position"] is not None:
         cols, unit = columns["position"]
         position = np.stack([column(c) for c in cols], axis=1) * _POSITION_UNITS[unit]
+        for k, c in enumerate(cols):
+            _check_range(source, rows, c, position[:, k], MAX_POSITION_M, "m", 1.0 / _POSITION_UNITS[unit], unit)
     quaternion = None
     if columns["quaternion"]:
         quaternion = np.stack([column(c) for c in QUATERNION_COLUMNS], axis=1)
@@ -344,6 +375,11 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
             )
         quaternion = quaternion / norms[:, None]
     payload = column("payload_kg") if "payload_kg" in header else None
+    if payload is not None:
+        _check_range(source, rows, "payload_kg", np.maximum(payload, 0.0), MAX_PAYLOAD_KG, "kg", 1.0, "kg")
+    if "temperature_c" in header:
+        _check_range(source, rows, "temperature_c", np.maximum(column("temperature_c"), 0.0), MAX_TEMPERATURE_C,
+                     "degC", 1.0, "degC")
     if payload is not None and (payload < 0).any():
         r = int(np.argmax(payload < 0))
         raise InputError(f"{source}: row {rows[r]}, column payload_kg: negative payload {payload[r]:g} kg")
@@ -365,6 +401,8 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
             direction[:, j] = raw
 
     time_s = column("time_s") if "time_s" in header else None
+    if time_s is not None:
+        _check_range(source, rows, "time_s", time_s, MAX_TIME_S, "s", 1.0, "s")
     session = np.array(labels["session"], dtype=object) if "session" in labels else None
     mset = MeasurementSet(
         joint_names=list(robot.joint_names), q=q,
@@ -372,7 +410,8 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
         quaternion=quaternion, payload_kg=payload, temperature_c=temperature, direction=direction,
         source=source, rows=rows, outside_q=outside_q, session=session, time_s=time_s,
     )
-    check_duplicates(mset, values, header, source, CONTEXT_COLUMNS)
+    if not repeats_allowed:  # measurements, not poses to predict or compensate (asked twice legitimately)
+        check_duplicates(mset, values, header, source, CONTEXT_COLUMNS)
     if check_units and position is not None:
         check_position_units(mset, robot, columns, source)
     return mset
@@ -419,8 +458,8 @@ def _resolve_columns(header, robot, source, line_no, require_position, logical):
     position = None
     units = [u for u in _POSITION_UNITS if any(f"{a}_{u}" in seen for a in "xyz")]
     if len(units) > 1:
-        raise InputError(f"{source}: row {line_no}: position columns mix units "
-                         f"({', '.join(c for c in header if c[:2] in ('x_', 'y_', 'z_'))}); use one unit")
+        mixed = [f"{a}_{u}" for a in "xyz" for u in units if f"{a}_{u}" in seen]
+        raise InputError(f"{source}: row {line_no}: position columns mix units ({', '.join(mixed)}); use one unit")
     if units:
         missing = [f"{a}_{units[0]}" for a in "xyz" if f"{a}_{units[0]}" not in seen]
         if missing:

@@ -32,15 +32,19 @@ from datetime import datetime
 from pathlib import Path
 
 from ..exceptions import InputError
-from ..units import IMPORT_UNITS
+from ..units import IMPORT_UNITS, parse_number
 
 TIME = "time_s"
 #: Header names (lower case, unit removed) taken as the timestamp column when no map names it.
 TIME_NAMES = ("time_s", "time", "t", "timestamp", "stamp", "date/time", "datetime", "zeit", "t_s")
 AXES = ("x", "y", "z")
 _UNIT_IN_HEADER = re.compile(r"^(?P<base>.*?)\s*(?:\[(?P<b>[^\]]+)\]|\((?P<p>[^)]+)\)|/\s*(?P<s>\w+))\s*$")
-_NUMBER = re.compile(r"^(?P<number>[+-]?(?:\d+(?:[.,]\d*)?|[.,]\d+)(?:[eE][+-]?\d+)?)\s*(?P<unit>[A-Za-z]+)?$")
-_TIME_OF_DAY = re.compile(r"^(?P<h>\d{1,2}):(?P<m>\d{2}):(?P<s>\d{2}(?:[.,]\d+)?)$")
+_NUMBER = re.compile(r"^(?P<number>[+-]?(?:\d+(?:[.,]\d*)?|[.,]\d+)(?:[eE][+-]?\d+)?)\s*(?P<unit>[A-Za-z]+)?$",
+                     re.ASCII)
+_TIME_OF_DAY = re.compile(r"^(?P<h>\d{1,2}):(?P<m>\d{2}):(?P<s>\d{2}(?:[.,]\d+)?)$", re.ASCII)
+#: Units a timestamp column's header may name ('Time [ms]', 'time_us'), as factors to seconds.
+TIME_UNITS = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "\u00b5s": 1e-6, "ns": 1e-9, "min": 60.0, "h": 3600.0}
+DAY_S = 86400.0
 
 
 @dataclass
@@ -118,6 +122,20 @@ def header_unit(name: str) -> str | None:
     return suffix.lower() if base and suffix.lower() in IMPORT_UNITS else None
 
 
+def _decode(data: bytes) -> str:
+    """A file's text: UTF-16 with its byte-order mark (Windows tools export it), UTF-8 (with or
+    without a mark), else latin-1 (older exports)."""
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        try:
+            return data.decode("utf-16")
+        except UnicodeDecodeError:
+            pass
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
+
+
 def read_table(path, wanted: list[str] | None = None, *, header_test=None) -> Table:
     """Read a delimited file whose header is the first line that names every ``wanted``
     column (or passes ``header_test(cells)``); lines above it (an export's metadata),
@@ -128,12 +146,12 @@ def read_table(path, wanted: list[str] | None = None, *, header_test=None) -> Ta
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        text = path.read_text(encoding="latin-1")  # older exports on Windows
+        text = _decode(path.read_bytes())
     except OSError as exc:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    lines = text.splitlines()
+    # lines end at a newline only: str.splitlines() would also end one at U+2028, U+0085 (a
+    # latin-1 byte 0x85) or a form feed inside a cell, and every row number after it would be off
+    lines = [line.removesuffix("\r") for line in text.split("\n")]
     for i, line in enumerate(lines):
         if not line.strip() or line.lstrip().startswith("#"):
             continue
@@ -142,19 +160,24 @@ def read_table(path, wanted: list[str] | None = None, *, header_test=None) -> Ta
         found = all(w in cells for w in wanted) if wanted else bool(header_test and header_test(cells))
         if not found:
             continue
-        rows, numbers = [], []
+        rows, numbers, misfit = [], [], False
         for k in range(i + 1, len(lines)):
             if not lines[k].strip() or lines[k].lstrip().startswith("#"):
                 continue
             row = _split(lines[k], delimiter)
             if len(row) != len(cells):
+                if not rows:  # a metadata line that names the columns ("Columns: X;Y;Z"): the header is below
+                    misfit = True
+                    break
                 raise InputError(f"{path}: row {k + 1}: {len(row)} cells for the header's {len(cells)} "
                                  f"(delimiter {delimiter!r}, header on row {i + 1})")
             rows.append(row)
             numbers.append(k + 1)
+        if misfit:
+            continue
         if not rows:
             raise InputError(f"{path}: no data rows below the header on row {i + 1}")
-        decimal_comma = delimiter != "," and any(re.match(r"^[+-]?\d+,\d+", c) for r in rows[:50] for c in r)
+        decimal_comma = delimiter != "," and any(re.match(r"^[+-]?\d+,\d+", c) for r in rows for c in r)
         return Table(path, cells, rows, numbers, delimiter, decimal_comma)
     if wanted:
         raise InputError(f"{path}: no header line names the columns {', '.join(repr(w) for w in wanted)}")
@@ -187,20 +210,39 @@ def parse_value(table: Table, row: int, col: int, target_unit: str | None) -> fl
     return value * factor / target_factor
 
 
+def _time_factor(table: Table, col: int) -> float:
+    """Seconds per unit of a timestamp column, from its header ('Time [ms]' -> 0.001; none: 1)."""
+    name = table.header[col].strip()
+    match = _UNIT_IN_HEADER.match(name)
+    unit = (match["b"] or match["p"] or match["s"]).strip() if match else None
+    if unit is None:
+        base, _, suffix = name.rpartition("_")
+        unit = suffix if base and suffix.lower() in TIME_UNITS else None
+    if unit is None:
+        return 1.0
+    if unit.lower() not in TIME_UNITS and unit not in TIME_UNITS:
+        raise InputError(f"{table.path}: column {name!r}: unit {unit!r} is not a unit of time "
+                         f"(known: {', '.join(TIME_UNITS)})")
+    return TIME_UNITS.get(unit, TIME_UNITS.get(unit.lower(), 1.0))
+
+
 def parse_time(table: Table, row: int, col: int) -> tuple[float, str]:
     """A timestamp in seconds and its kind ('seconds' or 'clock': a date and/or time of day)."""
     cell = table.rows[row][col].strip()
     where = f"{table.path}: row {table.lines[row]}, column {table.header[col]!r}"
     text = cell.replace(",", ".") if table.decimal_comma or ":" in cell else cell
     try:
-        value = float(text.removesuffix("s").strip())
-        if math.isfinite(value):
-            return value, "seconds"
+        value = parse_number(text.removesuffix("s").strip())  # plain ASCII: no '1_000', no Arabic digits
     except ValueError:
-        pass
+        value = math.nan
+    if math.isfinite(value):
+        return value * _time_factor(table, col), "seconds"
     match = _TIME_OF_DAY.match(text)
     if match:
-        return int(match["h"]) * 3600 + int(match["m"]) * 60 + float(match["s"]), "clock"
+        h, m, sec = int(match["h"]), int(match["m"]), float(match["s"])
+        if h > 23 or m > 59 or sec >= 60:
+            raise InputError(f"{where}: {cell!r} is not a time of day (hours 0-23, minutes and seconds 0-59)")
+        return h * 3600 + m * 60 + sec, "clock"
     try:
         stamp = datetime.fromisoformat(text.replace("/", "-"))
     except ValueError:
@@ -224,6 +266,10 @@ def parse_map(items, option: str = "--map") -> dict[str, str]:
             raise InputError(f"{option} {item!r}: expected TARGET=SOURCE, e.g. x_mm=\"Point X\"")
         if target in out:
             raise InputError(f"{option} {item!r}: {target} is mapped twice")
+        twice = next((t for t, s in out.items() if s == source), None)
+        if twice is not None:
+            raise InputError(f"{option} {item!r}: column {source!r} is already mapped to {twice}; "
+                             "one column fills one target")
         out[target] = source
     return out
 
@@ -236,11 +282,16 @@ def target_unit(target: str) -> str | None:
     return suffix if suffix in IMPORT_UNITS else None
 
 
+def _axis_columns(header: list[str], axis: str) -> list[str]:
+    """Header cells that name a position along ``axis``: 'X', 'Point X', 'X [mm]', 'Dev X'."""
+    return [h for h in header if _normal(h) == axis or _normal(h).endswith(" " + axis)]
+
+
 def _auto_tracker_map(header: list[str]) -> dict[str, str]:
     """Position and time columns found by name: 'X', 'Point X', 'X [mm]', 'Meas. X (m)', 'Time'."""
     found: dict[str, str] = {}
     for axis in AXES:
-        hits = [h for h in header if _normal(h) == axis or _normal(h).endswith(" " + axis)]
+        hits = _axis_columns(header, axis)
         if len(hits) == 1:
             unit = header_unit(hits[0])
             found[f"{axis}_{'m' if unit == 'm' else 'mm'}"] = hits[0]
@@ -280,11 +331,35 @@ def _format(value: float) -> str:
 def _cell(table: Table, row: int, col: int, target: str) -> str:
     if target.endswith("_dir"):
         value = parse_value(table, row, col, None)
-        if value not in (-1.0, 1.0):
+        if value not in (-1.0, 1.0) or not re.fullmatch(r"\s*[+-]?1([.,]0*)?\s*", table.rows[row][col]):
             raise InputError(f"{table.path}: row {table.lines[row]}, column {table.header[col]!r}: "
                              f"a direction is +1 or -1, got {table.rows[row][col]!r}")
         return "+1" if value > 0 else "-1"
     return _format(parse_value(table, row, col, target_unit(target)))
+
+
+def _nearest(times: list[float], t: float, wraps: bool) -> tuple[int | None, float]:
+    """(index into the sorted ``times`` nearest to ``t``, |gap| [s]); with ``wraps``, times of day
+    are on a 24 h circle."""
+    best, gap = None, math.inf
+    for shift in ((-DAY_S, 0.0, DAY_S) if wraps else (0.0,)):
+        k = bisect.bisect_left(times, t + shift)
+        for i in (k - 1, k):
+            if 0 <= i < len(times) and abs(times[i] - t - shift) < gap:
+                best, gap = i, abs(times[i] - t - shift)
+    return best, gap
+
+
+def _refuse_simultaneous_samples(log: Table, order: list[int], times: list[float], cols: list[int],
+                                 time_col: int) -> None:
+    """Two joint-log samples at one time with different joint values: which one a tracker point
+    was taken at cannot be told (one would be picked silently)."""
+    for i in range(len(order) - 1):
+        a, b = order[i], order[i + 1]
+        if times[i] == times[i + 1] and [log.rows[a][c] for c in cols] != [log.rows[b][c] for c in cols]:
+            raise InputError(f"{log.path}: rows {log.lines[a]} and {log.lines[b]} have the same time "
+                             f"{log.rows[a][time_col]!r} but different joint values: which one a tracker point "
+                             "was taken at cannot be told; remove one")
 
 
 def import_tracker(tracker_path, tracker_map: dict[str, str] | None = None, log_path=None,
@@ -313,13 +388,16 @@ def import_tracker(tracker_path, tracker_map: dict[str, str] | None = None, log_
     if not (math.isfinite(tolerance_s) and tolerance_s >= 0):
         raise InputError(f"--tolerance-ms {tolerance_s * 1e3:g}: must be a number >= 0")
     wanted = list(tracker_map.values()) if tracker_map else None
-    tracker = read_table(tracker_path, wanted, header_test=lambda cells: all(
-        f"{a}_mm" in _auto_tracker_map(cells) or f"{a}_m" in _auto_tracker_map(cells) for a in AXES))
+    tracker = read_table(tracker_path, wanted, header_test=lambda cells: all(_axis_columns(cells, a) for a in AXES))
     mapping = dict(tracker_map or {})
     auto = _auto_tracker_map(tracker.header)
     for axis in AXES:
         if not any(t in mapping for t in (f"{axis}_mm", f"{axis}_m")):
             key = next((k for k in (f"{axis}_mm", f"{axis}_m") if k in auto), None)
+            hits = _axis_columns(tracker.header, axis)
+            if key is None and len(hits) > 1:
+                raise InputError(f"{tracker.path}: columns {', '.join(repr(h) for h in hits)} could each be the "
+                                 f"{axis} position: name one with --map {axis}_mm=\"HEADER\"")
             if key is None:
                 raise InputError(f"{tracker.path}: no column for the {axis} position: name it with "
                                  f"--map {axis}_mm=\"HEADER\" (the header has: "
@@ -334,7 +412,11 @@ def import_tracker(tracker_path, tracker_map: dict[str, str] | None = None, log_
     columns = [t for t, _ in tracker_cols]
     result = ImportResult(columns=[], n_tracker_rows=len(tracker.rows), tracker=tracker)
 
-    if log_path is None:
+    if log_path is None:  # joint and context columns of the tracker file itself pass through
+        used = set(mapping.values())
+        tracker_cols += [(t, tracker.header.index(h)) for t, h in _auto_log_map(tracker.header).items()
+                         if t != TIME and t not in mapping and h not in used and t.split("_")[0] not in AXES]
+        columns = [t for t, _ in tracker_cols]
         result.columns = columns
         result.rows = [[_cell(tracker, r, c, t) for t, c in tracker_cols] for r in range(len(tracker.rows))]
         return result
@@ -363,6 +445,9 @@ def import_tracker(tracker_path, tracker_map: dict[str, str] | None = None, log_
     kinds = {kind for _, kind in stamps}
     order = sorted(range(len(log.rows)), key=lambda r: stamps[r][0])
     times = [stamps[r][0] for r in order]
+    _refuse_simultaneous_samples(log, order, times, [c for _, c in log_cols], log_time_col)
+    # times of day without a date (hh:mm:ss) wrap at midnight: 23:59:59.99 is 20 ms before 00:00:00.01
+    wraps = kinds == {"clock"} and all(0.0 <= x < DAY_S for x in times)
     tracker_time_col = tracker.column(mapping[TIME])
     result.columns = [t for t, _ in log_cols] + columns
     for r in range(len(tracker.rows)):
@@ -371,10 +456,7 @@ def import_tracker(tracker_path, tracker_map: dict[str, str] | None = None, log_
             raise InputError(f"{tracker.path}: row {tracker.lines[r]}: the tracker's time {tracker.rows[r][tracker_time_col]!r} "
                              f"is a {'clock time' if kind == 'clock' else 'number of seconds'}, the joint log's "
                              f"are {'clock times' if 'clock' in kinds else 'seconds'}: use one kind in both files")
-        k = bisect.bisect_left(times, t)
-        near = [i for i in (k - 1, k) if 0 <= i < len(times)]
-        best = min(near, key=lambda i: abs(times[i] - t)) if near else None
-        gap = abs(times[best] - t) if best is not None else math.inf
+        best, gap = _nearest(times, t, wraps and 0.0 <= t < DAY_S)
         if gap > tolerance_s:
             result.unjoined.append(Unjoined(tracker.lines[r], tracker.rows[r][tracker_time_col], gap))
             continue

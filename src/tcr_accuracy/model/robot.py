@@ -36,6 +36,7 @@ import pinocchio as pin
 from ..exceptions import InputError
 from .tool_changer import DISC_CUTTER_MASS, WORKING_POSE, tool_changer_urdf
 from ..units import JOINT_DISPLAY, PRISMATIC, REVOLUTE  # noqa: F401 - PRISMATIC: part of this module's vocabulary
+from .mesh_resources import check_mesh_references
 from .urdf import (
     MAX_CHAIN_JOINTS,
     check_mesh_paths,
@@ -269,6 +270,29 @@ class RobotModel:
                 out[:, joint.idx_q + 1] = np.sin(column)
         return out
 
+    def follow_mimic(self, q: np.ndarray) -> np.ndarray:
+        """A copy of joint values q (N, n_joints) [SI] in which every chain joint with a URDF
+        ``<mimic>`` rule on another chain joint takes the value its rule gives
+        (``multiplier * q_source + offset``), as the real robot would."""
+        q = np.array(q, dtype=float, copy=True)
+        for j, name in enumerate(self.joint_names):
+            rule = self.mimic.get(name)
+            if rule is not None and rule.joint in self.joint_names:
+                q[..., j] = rule.multiplier * q[..., self.joint_names.index(rule.joint)] + rule.offset
+        return q
+
+    def within_limits(self, q: np.ndarray) -> np.ndarray:
+        """(N,) whether each row of joint values q (N, n_joints) [SI] is within the joint limits
+        (an unbounded side, NaN, holds every value)."""
+        with np.errstate(invalid="ignore"):
+            outside = (q < self.lower_limits - 1e-12) | (q > self.upper_limits + 1e-12)
+        return ~outside.any(axis=-1)
+
+    @property
+    def has_chain_mimic(self) -> bool:
+        """Whether a chain joint follows another chain joint by a ``<mimic>`` rule."""
+        return any(rule.joint in self.joint_names for name, rule in self.mimic.items() if name in self.joint_names)
+
     def check_joint_values(self, q: np.ndarray, *, source: str = "--q") -> np.ndarray:
         """Validate joint values (n_joints,) [SI]: count and finiteness raise, limits warn."""
         q = np.asarray(q, dtype=float)
@@ -305,6 +329,17 @@ class RobotModel:
         return np.array([JOINT_DISPLAY[k][1] for k in self.joint_kinds])
 
     # -- visuals -----------------------------------------------------------------------
+    @property
+    def urdf_source(self) -> str:
+        """The URDF file's path, or the robot's name when it has no file, for messages."""
+        return str(self.urdf_path) if self.urdf_path is not None else self.name
+
+    def mesh_roots(self) -> list[str]:
+        """The folders meshes and the files they reference may come from: the URDF's folder and
+        the package folders."""
+        roots = ([str(self.urdf_path.parent)] if self.urdf_path is not None else []) + list(self.package_dirs)
+        return list(dict.fromkeys(roots))
+
     def visual_model(self) -> pin.GeometryModel:
         """Pinocchio's visual ``GeometryModel`` attached to ``model``'s joints (bodies of the
         locked joints at their neutral pose); meshes resolved through ``package_dirs``.
@@ -312,12 +347,14 @@ class RobotModel:
         Raises
         ------
         InputError
-            The URDF's visuals cannot be read (missing mesh file, ...), or a mesh lies outside
+            The URDF's visuals cannot be read (missing mesh file, ...), or a mesh or a file it
+            references (a COLLADA image, an OBJ's material library and its textures) lies outside
             the URDF's folder and the package folders.
         """
-        roots = ([str(self.urdf_path.parent)] if self.urdf_path is not None else []) + list(self.package_dirs)
-        source = str(self.urdf_path) if self.urdf_path is not None else self.name
-        check_mesh_paths(parse_urdf_xml(self.urdf_text, source), source, list(dict.fromkeys(roots)))
+        roots, source = self.mesh_roots(), self.urdf_source
+        for name, place in check_mesh_paths(parse_urdf_xml(self.urdf_text, source), source, roots):
+            if place.is_file():  # every place Pinocchio may take it from, before anything reads it
+                check_mesh_references(place, roots, source, name)
         with quiet_native_stderr() as said:
             try:
                 geometry = pin.buildGeomFromUrdfString(self.full_model, self.urdf_text, pin.GeometryType.VISUAL,
@@ -447,6 +484,10 @@ def load_robot(source: str | Path | None = None, tool: str | None = None) -> Rob
         tool = tool or default_tool
         package_dirs = [str(share)]
         label = f"{name} ({urdf_path})"
+    elif Path(source).exists():
+        what = "a folder" if Path(source).is_dir() else "not a regular file (a device or a pipe)"
+        raise InputError(f"--robot {source}: {what}; give a URDF file or a known robot name "
+                         f"({BUILTIN_NAME}, {', '.join(EXAMPLE_ROBOTS)})")
     else:
         raise InputError(
             f"--robot {source}: no such file, and not a known robot name "

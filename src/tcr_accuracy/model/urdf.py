@@ -109,6 +109,8 @@ MAX_URDF_LENGTH = 1e4
 #: The largest angle [rad] (an origin's rpy, a revolute limit) and mass-property value a URDF may give.
 MAX_URDF_ANGLE = 1e4
 MAX_URDF_MASS = 1e9
+#: The largest ratio a ``<mimic>`` rule may give between two joints.
+MAX_MIMIC_MULTIPLIER = 1e3
 #: The most joints a URDF may have, and the most a chain from the base to the TCP may have:
 #: the error model grows with the chain and its Jacobians with its square.
 MAX_URDF_JOINTS = 1000
@@ -121,8 +123,8 @@ def check_urdf(root: ElementTree.Element, source: str) -> None:
 
     Links need unique names; joints a name, a known type, an existing parent and child and at
     most one parent per link (a tree); every number (origins, axes, limits, masses, inertias)
-    is a plain finite decimal in a sane range; an axis is not of zero length and a limit's
-    lower bound is not above its upper one.
+    is a plain finite decimal in a sane range (a ``<mimic>`` rule's too); an axis is not of zero
+    length and a limit's lower bound is not above its upper one.
     """
     links: set = set()
     for k, link in enumerate(root.findall("link")):
@@ -204,15 +206,18 @@ def check_urdf(root: ElementTree.Element, source: str) -> None:
     if len(roots) != 1:
         raise InputError(f"{source}: {len(roots)} root links ({one_line(', '.join(sorted(roots)))}); "
                          "a URDF is one tree with one root")
+    mimic_rules(root, source)  # their numbers too, before Pinocchio reads them
 
 
-def check_mesh_paths(root: ElementTree.Element, source: str, roots: list) -> None:
+def check_mesh_paths(root: ElementTree.Element, source: str, roots: list) -> list[tuple[str, Path]]:
     """Refuse a visual mesh whose file lies outside ``roots`` (the URDF's folder and the package
     folders), in one line naming the link, so that no view or report reads and embeds
     ``../../secret/x.obj``.
 
     A ``package://`` or relative name is looked for under every root, as Pinocchio does;
     each place it could come from must stay inside one of the roots (symlinks followed).
+    Returns (mesh name as written, place) for every place, for the files a mesh references
+    to be checked in turn (:mod:`tcr_accuracy.model.mesh_resources`).
     """
     import os
 
@@ -221,6 +226,7 @@ def check_mesh_paths(root: ElementTree.Element, source: str, roots: list) -> Non
     def inside(path: Path) -> bool:
         return any(path == r or r in path.parents for r in roots)
 
+    places = []
     for link in root.findall("link"):
         for mesh in (m for visual in link.findall("visual") for m in visual.iter("mesh")):
             name = mesh.get("filename") or ""
@@ -235,6 +241,8 @@ def check_mesh_paths(root: ElementTree.Element, source: str, roots: list) -> Non
                 raise InputError(f"{source}: link {one_line(link.get('name'))}: mesh {one_line(name, 120)!r} lies "
                                  f"outside the URDF's folder and package folders ({one_line(folders, 200)}); "
                                  "refused")
+            places += [(name, c) for c in candidates]
+    return places
 
 
 def _number(element, key: str, where: str, low: float, high: float, default: float | None = None) -> float:
@@ -288,20 +296,20 @@ class Mimic:
 
 
 def mimic_rules(root: ElementTree.Element, source: str) -> dict:
-    """URDF ``<mimic joint=... multiplier=... offset=...>`` rules by joint name."""
+    """URDF ``<mimic joint=... multiplier=... offset=...>`` rules by joint name; the multiplier
+    within +-:data:`MAX_MIMIC_MULTIPLIER`, the offset within the URDF's bound on lengths and
+    angles (a ``1e308`` multiplier made gravity torques infinite)."""
     rules = {}
     for joint in root.findall("joint"):
         mimic = joint.find("mimic")
         if mimic is None:
             continue
-        try:
-            rule = Mimic(mimic.get("joint", ""), float(mimic.get("multiplier", 1.0)), float(mimic.get("offset", 0.0)))
-        except ValueError:
-            raise InputError(f"{source}: joint {joint.get('name')}: <mimic> multiplier/offset is not a number") \
-                from None
-        if not (math.isfinite(rule.multiplier) and math.isfinite(rule.offset)) or not rule.joint:
-            raise InputError(f"{source}: joint {joint.get('name')}: <mimic> needs a joint and finite numbers")
-        rules[joint.get("name")] = rule
+        where = f"{source}: joint {one_line(joint.get('name'))}: <mimic>"
+        if not mimic.get("joint"):
+            raise InputError(f"{where} names no joint (joint=...)")
+        multiplier = _number(mimic, "multiplier", where, -MAX_MIMIC_MULTIPLIER, MAX_MIMIC_MULTIPLIER, 1.0)
+        offset = _number(mimic, "offset", where, -MAX_URDF_LENGTH, MAX_URDF_LENGTH, 0.0)
+        rules[joint.get("name")] = Mimic(mimic.get("joint"), multiplier, offset)
     return rules
 
 

@@ -72,9 +72,11 @@ class GeometricCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
         columns = SensitivityColumns([em.names[i] for i in moves], unit, np.ones(moves.size))
         keep, _ = identifiability({"geometry": columns}, ["geometry"], self.rank_tol)
         ident = moves[keep["geometry"]]
-        if 3 * X.shape[0] < ident.size:
+        if 3 * X.shape[0] < 2 * ident.size:  # an (almost) exact fit: nothing left to check it, std 0
             raise InputError(f"GeometricCalibration: {X.shape[0]} poses give {3 * X.shape[0]} equations for "
-                             f"{ident.size} identifiable parameters; measure more poses")
+                             f"{ident.size} identifiable parameters, too few to check the fit (it would pass "
+                             f"through every pose); measure at least {-(-2 * ident.size // 3)} poses (twice "
+                             "as many equations as parameters)")
         nominal = tcp_poses(self.robot, X).position
         target = y.ravel()
         j_id = jac[:, ident]

@@ -8,6 +8,11 @@ A painted robot (a colour or transparency of its own, e.g. an as-built "ghost") 
 meshes as plain meshcat geometry so that the colour shows. What else a view holds, and
 its legend, is :class:`tcr_accuracy.view.viewer.Scene`'s.
 
+Nothing is read into a view that was not checked: every mesh Pinocchio resolved, and every
+file it references, must lie in the URDF's folder or a package folder
+(:mod:`tcr_accuracy.model.mesh_resources`), and a COLLADA file's images are embedded from
+that checked list alone, never by the loader's own reading.
+
 Units: positions in metres, joint values in SI.
 """
 
@@ -18,6 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from .meshcat_page import meshcat_color
+from ..exceptions import InputError
+from ..model.mesh_resources import check_mesh_references, inside
 from ..model.robot import RobotModel
 
 
@@ -63,8 +70,6 @@ def draw_robot(vis, robot: RobotModel, q: np.ndarray, node: str, color=None, opa
     skeleton : bool
         Whether the URDF had no visuals and the skeleton was drawn instead.
     """
-    from pinocchio.visualize import MeshcatVisualizer
-
     geometry = visual_geometry(robot)
     if geometry.ngeoms == 0:  # a URDF without <visual> elements: draw the kinematic skeleton
         return _draw_skeleton(vis, robot, q, node, color, opacity), True
@@ -79,8 +84,8 @@ def draw_robot(vis, robot: RobotModel, q: np.ndarray, node: str, color=None, opa
             rgba[3] = opacity
             obj.meshColor = rgba
             obj.overrideMaterial = True  # meshes keep their own material otherwise
-    viz_class = _painted_visualizer_class() if color is not None or opacity < 1.0 else MeshcatVisualizer
-    viz = viz_class(robot.model, None, geometry)
+    checked = checked_mesh_files(robot, geometry)
+    viz = _confined_visualizer_class(checked, painted=color is not None or opacity < 1.0)(robot.model, None, geometry)
     viz.initViewer(viewer=vis)
     viz.loadViewerModel(rootNodeName=node)
     viz.display(robot.to_pinocchio_q(q))
@@ -125,23 +130,79 @@ def _draw_skeleton(vis, robot: RobotModel, q: np.ndarray, node: str, color, opac
     return np.vstack([origins, tool[None]])
 
 
-def _painted_visualizer_class():
-    """Pinocchio's MeshcatVisualizer, loading meshes as plain geometry with our material.
+def checked_mesh_files(robot: RobotModel, geometry) -> dict[str, list[tuple[str, Path]]]:
+    """The files each mesh of ``geometry`` references, by mesh path, all checked to lie in the
+    robot's mesh folders; only these meshes and files are read into a view.
 
-    Pinocchio sends meshes as meshcat "mesh file objects", and meshcat's browser side
-    draws those with the file's own materials, ignoring the one sent along. A ghost needs
-    its colour and transparency, so the meshes of a painted robot go as meshcat mesh
-    geometries, which take Pinocchio's material (colour from ``meshColor``).
+    Raises
+    ------
+    InputError
+        A mesh as Pinocchio resolved it, or a file it references, lies outside the URDF's
+        folder and the package folders (one line naming the URDF, the mesh and the file).
     """
+    roots = [Path(r).resolve() for r in robot.mesh_roots()]
+    checked = {}
+    for obj in geometry.geometryObjects:
+        if not obj.meshPath or obj.meshPath in checked or _is_primitive(obj):
+            continue
+        mesh = Path(obj.meshPath)
+        if not inside(mesh, roots):
+            raise InputError(f"{robot.urdf_source}: mesh {obj.meshPath!r} lies outside the URDF's folder "
+                             "and package folders; refused")
+        checked[obj.meshPath] = check_mesh_references(mesh, roots, robot.urdf_source, obj.meshPath)
+    return checked
+
+
+def _is_primitive(obj) -> bool:
+    """Whether a geometry object is a box, cylinder, sphere, ... (its ``meshPath`` a word like 'BOX')."""
+    try:
+        import coal
+    except ImportError:  # Pinocchio without coal has no primitives
+        return False
+    return isinstance(obj.geometry, coal.ShapeBase)
+
+
+def _confined_visualizer_class(checked: dict, painted: bool):
+    """Pinocchio's MeshcatVisualizer, loading only the meshes in ``checked`` and embedding only
+    the checked files they reference.
+
+    A painted robot (``painted``, e.g. an as-built ghost) gets its meshes as plain meshcat
+    geometry: Pinocchio sends meshes as meshcat "mesh file objects", and meshcat's browser
+    side draws those with the file's own materials, ignoring the one sent along; a ghost needs
+    its colour and transparency, which plain mesh geometries take from Pinocchio's material.
+    A COLLADA file otherwise goes with its images as data URLs, read from the checked list.
+    """
+    import base64
+
     import meshcat.geometry as mg
     from pinocchio.visualize import MeshcatVisualizer
+    from pinocchio.visualize.meshcat_visualizer import DaeMeshGeometry
 
-    class PaintedMeshcatVisualizer(MeshcatVisualizer):
+    class CheckedDae(DaeMeshGeometry):
+        """Pinocchio's COLLADA scene element, its images taken from a checked list."""
+
+        def __init__(self, path: Path, references: list[tuple[str, Path]]):  # noqa: D107
+            mg.ReferenceSceneElement.__init__(self)  # Pinocchio's own __init__ reads the images itself
+            self.path, self.material, self.intrinsic_transform = None, None, mg.tf.identity_matrix()
+            self.dae_raw = path.read_text(encoding="utf-8", errors="replace")
+            self.img_resources = {
+                str(Path(name)): "data:image/png;base64," + base64.b64encode(file.read_bytes()).decode("ascii")
+                for name, file in references if file.is_file()}
+
+    class ConfinedMeshcatVisualizer(MeshcatVisualizer):
         def loadMeshFromFile(self, geometry_object):  # noqa: N802 - Pinocchio's name
-            suffix = Path(geometry_object.meshPath).suffix.lower()
-            loaders = {".dae": mg.DaeMeshGeometry, ".stl": mg.StlMeshGeometry, ".obj": mg.ObjMeshGeometry}
-            if suffix in loaders:
-                return loaders[suffix].from_file(geometry_object.meshPath)
-            return super().loadMeshFromFile(geometry_object)
+            if geometry_object.meshPath not in checked:
+                return None  # never read: Pinocchio warns that it cannot draw it
+            path = Path(geometry_object.meshPath)
+            suffix = path.suffix.lower()
+            if suffix == ".dae":
+                if painted:
+                    return mg.DaeMeshGeometry.from_file(path)
+                return CheckedDae(path, checked[geometry_object.meshPath])
+            if suffix == ".obj":
+                return mg.ObjMeshGeometry.from_file(path)
+            if suffix == ".stl":
+                return mg.StlMeshGeometry.from_file(path)
+            return None
 
-    return PaintedMeshcatVisualizer
+    return ConfinedMeshcatVisualizer
