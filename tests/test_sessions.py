@@ -7,6 +7,8 @@ joint placement's translation scaled by 1 + alpha (T - 20 degC), the reflector's
 the session's tracker frame applied, 0.02 mm of noise. The diagnosis sees only the CSVs.
 """
 
+import json
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -149,3 +151,116 @@ def test_a_length_scale_beyond_any_material_is_a_session_difference(tmp_path):
     assert thermal <= 2.5e-5
     said = [f for f in d.outside_physics if f["effect"] == "thermal"]
     assert said and "between the sessions" in said[0]["description"]
+
+
+def test_tool_names_the_measured_frame_everywhere(tmp_path, capsys):
+    """A file with three reflectors on one tool: predict and compensate read the one --tool names
+    and answer as on a file holding only that reflector's columns."""
+    from test_fit_physics import THREE_REFLECTORS, _positions
+
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(THREE_REFLECTORS)
+    robots = {f: load_robot(str(urdf), f) for f in ("smr_1", "smr_2", "smr_3")}
+    rng = np.random.default_rng(7)
+    q = random_joint_values(robots["smr_1"], 80, rng)
+    real = q + np.radians([0.05, -0.03, 0.04])
+    joints = ",".join(f"{j}_deg" for j in robots["smr_1"].joint_names)
+    blocks = {f: _positions(r, real, f) * 1e3 + 0.005 * rng.standard_normal((80, 3)) for f, r in robots.items()}
+    multi = [joints + "," + ",".join(f"{f}.{a}_mm" for f in blocks for a in "xyz")]
+    single = [joints + ",x_mm,y_mm,z_mm"]
+    for i in range(80):
+        angles = ",".join(f"{v:.10g}" for v in np.degrees(q[i]))
+        multi.append(angles + "," + ",".join(f"{v:.10g}" for f in blocks for v in blocks[f][i]))
+        single.append(angles + "," + ",".join(f"{v:.10g}" for v in blocks["smr_1"][i]))
+    for name, lines in (("multi", multi), ("single", single)):
+        (tmp_path / f"{name}_train.csv").write_text("\n".join(lines[:61]) + "\n")
+        (tmp_path / f"{name}_query.csv").write_text("\n".join([lines[0]] + lines[61:]) + "\n")
+    scores = {}
+    for name in ("multi", "single"):
+        out = tmp_path / f"{name}.json"
+        assert main(["predict", "--train", str(tmp_path / f"{name}_train.csv"), "--query",
+                     str(tmp_path / f"{name}_query.csv"), "--robot", str(urdf), "--tool", "smr_1",
+                     "--method", "calibration", "--quiet", "--json", str(out)]) == 0
+        scores[name] = json.loads(out.read_text())
+        assert main(["compensate", "--train", str(tmp_path / f"{name}_train.csv"), "--targets",
+                     str(tmp_path / f"{name}_query.csv"), "--robot", str(urdf), "--tool", "smr_1",
+                     "--method", "calibration", "--quiet", "--json", str(tmp_path / f"{name}_c.json")]) == 0
+    assert scores["multi"]["predicted_errors_mm"] == scores["single"]["predicted_errors_mm"]
+    assert scores["multi"]["heldout"] == scores["single"]["heldout"]
+    # without --tool the three reflectors are one too many
+    assert main(["predict", "--train", str(tmp_path / "multi_train.csv"), "--query",
+                 str(tmp_path / "multi_query.csv"), "--robot", str(urdf), "--quiet"]) == 2
+    assert "--tool" in capsys.readouterr().err
+
+
+DRIFT_ARM = """<?xml version="1.0"?>
+<robot name="drift_arm">
+  <link name="base"/>
+  <link name="l1"><inertial><origin xyz="0 0 0.1"/><mass value="8"/>
+    <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="l2"><inertial><origin xyz="0.3 0 0"/><mass value="6"/>
+    <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="l3"/><link name="tool"/><link name="base_ref"/>
+  <joint name="a" type="revolute"><parent link="base"/><child link="l1"/><origin xyz="0 0 0.3"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="b" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0 0 0.2"/>
+    <axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="c" type="revolute"><parent link="l2"/><child link="l3"/><origin xyz="0.6 0 0"/>
+    <axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="t" type="fixed"><parent link="l3"/><child link="tool"/><origin xyz="0.45 0.03 0.02"/></joint>
+  <joint name="r" type="fixed"><parent link="base"/><child link="base_ref"/><origin xyz="0.4 -0.3 0.02"/></joint>
+</robot>
+"""
+
+
+def _drift_files(tmp_path):
+    """A session of 300 poses over 4 hours whose tracker drifts 0.05 mm/h, the tool and a base
+    reference measured on every row; the same file without the reference."""
+    urdf = tmp_path / "drift_arm.urdf"
+    urdf.write_text(DRIFT_ARM)
+    robot = load_robot(str(urdf), "tool")
+    rng = np.random.default_rng(3)
+    n = 300
+    q = random_joint_values(robot, n, rng)
+    time_s = np.sort(rng.uniform(0.0, 4 * 3600.0, n))
+    drift = np.outer(time_s / 3600.0, np.array([0.6, -0.64, 0.48]) * 0.05e-3 / 0.989)  # 0.05 mm/h
+    real = q + np.radians([0.04, -0.03, 0.05])
+    station = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, 0.8), np.array([1.5, -0.7, 0.2]))
+    model = robot.full_model
+    data = model.createData()
+    tool, ref = model.getFrameId("tool"), model.getFrameId("base_ref")
+    tool_pos, ref_pos = np.empty((n, 3)), np.empty((n, 3))
+    for i in range(n):
+        pin.framesForwardKinematics(model, data, robot.full_configurations(real[i][None])[0])
+        tool_pos[i] = station.act(data.oMf[tool].translation) + drift[i]
+        ref_pos[i] = station.act(data.oMf[ref].translation) + drift[i]
+    tool_pos += NOISE * rng.standard_normal((n, 3))
+    ref_pos += NOISE * rng.standard_normal((n, 3))
+    joints = ",".join(f"{j}_deg" for j in robot.joint_names)
+    with_ref = [joints + ",tool.x_mm,tool.y_mm,tool.z_mm,base_ref.x_mm,base_ref.y_mm,base_ref.z_mm,time_s"]
+    without = [joints + ",x_mm,y_mm,z_mm,time_s"]
+    for i in range(n):
+        angles = ",".join(f"{v:.10g}" for v in np.degrees(q[i]))
+        a, b = (",".join(f"{v:.10g}" for v in p[i] * 1e3) for p in (tool_pos, ref_pos))
+        with_ref.append(f"{angles},{a},{b},{time_s[i]:.3f}")
+        without.append(f"{angles},{a},{time_s[i]:.3f}")
+    (tmp_path / "with_ref.csv").write_text("\n".join(with_ref) + "\n")
+    (tmp_path / "without.csv").write_text("\n".join(without) + "\n")
+    return urdf
+
+
+@pytest.mark.slow
+def test_a_base_reference_shows_the_tracker_drift(tmp_path):
+    urdf = _drift_files(tmp_path)
+    results = {}
+    for name in ("with_ref", "without"):
+        out = tmp_path / f"{name}.json"
+        assert main(["diagnose", str(tmp_path / f"{name}.csv"), "--robot", str(urdf), "--tool", "tool",
+                     "--noise-mm", "0.02", "--quiet", "--json", str(out)]) == 0
+        results[name] = json.loads(out.read_text())
+    drift = results["with_ref"]["drift"][0]
+    assert drift["corrected"] and drift["time_axis"] == "time_s"
+    assert float(np.linalg.norm(drift["drift_mm_per_h"])) == pytest.approx(0.05, rel=0.2)
+    assert results["with_ref"]["final_over_noise"] < 1.15
+    assert results["without"]["final_over_noise"] > 1.3
+    assert not results["without"]["drift"]

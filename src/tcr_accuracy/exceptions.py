@@ -16,5 +16,18 @@ class InputError(TcrError, ValueError):
     """
 
 
+class FixedFrameError(InputError):
+    """A frame no joint moves was asked for as a TCP (a reflector on the robot's base).
+
+    ``frame``: its name; ``position``: (3,) its place in the robot's base frame [m]. Where a
+    measured frame may be a base reference, the caller catches this and uses the position.
+    """
+
+    def __init__(self, message: str, frame: str, position):
+        super().__init__(message)
+        self.frame = frame
+        self.position = position
+
+
 class AnalysisError(TcrError, RuntimeError):
     """The input was valid but the analysis could not reach a result."""

@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import math
 import sys
-
-import numpy as np
 from pathlib import Path
 
 from .common import (add_robot_arguments, as_built_file, check_csv_memory, effect_names, effects_side_file, integer,
@@ -75,7 +73,7 @@ def _frame_robot(args, frame: str):
     except InputError as exc:
         if args.tool == frame or "no such frame" not in str(exc):
             raise
-        raise InputError(f"{args.measurements}: column {frame}.x_mm: {str(exc).partition(': ')[2]}") from None
+        raise InputError(f"{args.measurements[0]}: column {frame}.x_mm: {str(exc).partition(': ')[2]}") from None
 
 
 #: Memory [bytes] the diagnosis plans per measurement (see check_csv_memory in _run_diagnose):
@@ -86,7 +84,7 @@ DIAGNOSE_ROW_BYTES = 32_000
 
 def _run_diagnose(args) -> int:
     from ..diagnosis.diagnose import diagnose
-    from ..exceptions import InputError
+    from ..exceptions import FixedFrameError, InputError
     from ..io.measurements import join_sessions, measured_frames, read_measurements
     from ..view.plots_diagnose import write_plots
     from ..model.robot import load_robot
@@ -111,14 +109,30 @@ def _run_diagnose(args) -> int:
         if args.tool is not None and args.tool not in frames:
             raise InputError(f"--tool {args.tool}: {files[0]} measures {', '.join(frames)}")
         order = [args.tool] + [f for f in frames if f != args.tool] if args.tool else frames
-        robots = [_frame_robot(args, f) for f in order]
+        robots, fixed = [], {}
+        for f in order:  # a frame no joint moves is a base reference: it watches the tracker, not the robot
+            try:
+                robots.append(_frame_robot(args, f))
+            except FixedFrameError as exc:
+                if f == args.tool:
+                    raise
+                fixed[f] = exc.position
+        if not robots:
+            raise InputError(f"{files[0]}: every measured frame ({', '.join(order)}) is fixed to the base; "
+                             "measure at least one frame a joint moves")
+        moving = [f for f in order if f not in fixed]
         parts = [(r, join_sessions([read_measurements(path, r, min_rows=per_file, frame=f) for path in files],
-                                   labels)) for r, f in zip(robots, order)]
+                                   labels)) for r, f in zip(robots, moving)]
+        references = [(f, position, join_sessions([read_measurements(path, robots[0], min_rows=per_file, frame=f,
+                                                                     check_units=False) for path in files],
+                                                  labels))
+                      for f, position in fixed.items()]
         robot, measurements, data = robots[0], parts[0][1], parts
     else:
         robot = load_robot(args.robot, args.tool)
         measurements = data = join_sessions([read_measurements(path, robot, min_rows=per_file) for path in files],
                                             labels)
+        references = []
     if len(measurements) < min_rows:
         raise InputError(f"{', '.join(map(str, files))}: {len(measurements)} measurement rows, at least {min_rows} "
                          f"are needed for {args.folds}-fold cross-validation")
@@ -131,6 +145,7 @@ def _run_diagnose(args) -> int:
     try:
         result = diagnose(robot, data, effects=effects, folds=args.folds, seed=args.seed,
                           tracker_noise=None if args.noise_mm is None else args.noise_mm * 1e-3,
+                          references=[(f, p, m.position, m.time_s) for f, p, m in references],
                           progress=bar.set_postfix_str)
     finally:
         bar.close()
@@ -183,6 +198,8 @@ def jsonable(value):
 # Printed summary
 # ---------------------------------------------------------------------------------------
 def format_summary(robot, d, source: str) -> str:
+    import numpy as np
+
     mm = 1e3
     out = [f"Diagnosis of {source}: {d.n_measurements} measurements of {robot.name}, "
            f"{d.folds}-fold cross-validation"]
@@ -194,6 +211,14 @@ def format_summary(robot, d, source: str) -> str:
             t = s["temperature_c"]
             out.append(f"     {s['session']:20s} {s['n_measurements']:6d} rows, gap RMS {s['gap']['rms_mm']:.4f} mm, "
                        f"final held-out RMS {s['heldout']['rms_mm']:.4f} mm, temperature {t[0]:.1f} to {t[1]:.1f} degC")
+    for drift in d.drift:
+        key = "drift_mm_per_h" if "drift_mm_per_h" in drift else "drift_mm_per_100_rows"
+        unit = "mm/h" if key == "drift_mm_per_h" else "mm per 100 rows"
+        speed = float(np.linalg.norm(drift[key]))
+        out.append(f"   tracker drift seen by {', '.join(drift['references'])} (session {drift['session']}, in "
+                   f"{drift['time_axis']}): {speed:.4f} +- {drift['drift_std_mm_per_unit']:.4f} {unit}, "
+                   f"{drift['moved_over_session_mm']:.4f} mm over the session, z = {drift['z']:.1f}: "
+                   + ("corrected" if drift["corrected"] else "not corrected (within the noise)"))
     out.append("\n2. Where it lies (residual after frames)")
     axes = d.where["per_axis"]
     out.append("   per axis RMS [mm]: " + ", ".join(f"{a} {axes[a]['rms_mm']:.4f}" for a in "xyz"))
@@ -317,6 +342,8 @@ def format_summary(robot, d, source: str) -> str:
 
 
 def _parameter_lines(d, per_effect: int = 4) -> list[str]:
+    import numpy as np
+
     """The fitted parameters, the largest of each effect (relative to its standard error),
     with unit, standard error, 95 % interval and physical range."""
     if not d.parameter_table:
@@ -413,6 +440,7 @@ def _strongest(where: dict) -> list:
 # As-built model
 # ---------------------------------------------------------------------------------------
 def write_as_built(robot, d, path: Path) -> tuple[Path, Path]:
+    import numpy as np
     import yaml
 
     from ..model.asbuilt import as_built_urdf

@@ -47,6 +47,7 @@ suffixed keys. Nothing here prints or plots.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -63,7 +64,7 @@ from ..model.gravity import gravity_torque
 from ..model.kinematics import tcp_poses
 from .ambiguity import ambiguity_report, settle_swaps, stand_in_shapes, swap_alternatives
 from .residuals import NoiseEstimate, noise_from_repeats, noise_from_residual, noise_from_rigid_frames, \
-    where_analysis
+    tracker_drift, where_analysis
 from .uncertainty import difference_interval, joint_function_bands, outside_physics, parameter_table, \
     selection_frequency
 from .attribution import contributions, fixed_point_check, tied_own_shares
@@ -81,7 +82,8 @@ RESOLUTION_NOISE = 2e-5
 # ---------------------------------------------------------------------------------------
 def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, seed: int = 0,
              tracker_noise: float | None = None, selection_z: float = 3.0, min_relative_gain: float = 0.002,
-             rank_tol: float = 1e-6, orientation_weight: float | None = None, progress=None) -> Diagnosis:
+             rank_tol: float = 1e-6, orientation_weight: float | None = None, progress=None,
+             references=()) -> Diagnosis:
     """Diagnose the gap between the nominal robot and its measurements.
 
     Parameters
@@ -113,10 +115,15 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, s
         about their centre.
     progress : callable(str), optional
         Called with a short message as the work advances (the CLI's progress bar).
+    references : list of (frame, position (3,) [m], measured (N, 3) [m], time_s (N,) or None)
+        Base references: frames fixed to the robot's base (their place in the base frame), measured on
+        the same rows in the tracker frame: they pin the tracker frame and show its drift
+        (estimated per session, corrected where significant and larger than the noise).
     """
     return GapDiagnosis(effects=effects, folds=folds, seed=seed, tracker_noise=tracker_noise,
                         selection_z=selection_z, min_relative_gain=min_relative_gain, rank_tol=rank_tol,
-                        orientation_weight=orientation_weight).fit(robot, measurements, progress).result_
+                        orientation_weight=orientation_weight).fit(robot, measurements, progress,
+                                                                   references=references).result_
 
 
 def _one_blas_thread():
@@ -175,12 +182,12 @@ class GapDiagnosis:
         return frames
 
     # -- the pipeline ------------------------------------------------------------------
-    def fit(self, robot: RobotModel, measurements, progress=None) -> "GapDiagnosis":
+    def fit(self, robot: RobotModel, measurements, progress=None, references=()) -> "GapDiagnosis":
         """Run the diagnosis on ``measurements`` of ``robot`` (see :func:`diagnose`)."""
         with _one_blas_thread():
-            return self._fit(robot, measurements, progress)
+            return self._fit(robot, measurements, progress, list(references))
 
-    def _fit(self, robot, measurements, progress) -> "GapDiagnosis":
+    def _fit(self, robot, measurements, progress, references) -> "GapDiagnosis":
         from sklearn.model_selection import KFold
 
         frames = self._check(robot, measurements)
@@ -197,14 +204,23 @@ class GapDiagnosis:
         nominal = [tcp_poses(r, o.q) for r, o, _ in frames]
         sessions = list(obs.session_labels) if len(obs.session_labels) > 1 else []
         session_of = obs.context.session if sessions else np.zeros(n, dtype=int)
+        # base references: the tracker's drift per session, taken out of every measured position
+        drift, drift_report, reference_noise = tracker_drift(references, session_of, max(len(sessions), 1), sessions)
+        if references:
+            frames = [(r, dataclasses.replace(o, position=o.position - drift), label) for r, o, label in frames]
+            references = [(f, nominal_ref, measured - drift, t) for f, nominal_ref, measured, t in references]
+            obs = frames[0][1]
         stations = []
         for s in range(max(len(sessions), 1)):
             rows_s = np.flatnonzero(session_of == s)
             if sessions and rows_s.size < 3:
                 raise InputError(f"session {sessions[s]}: {rows_s.size} measurements, a session's tracker frame "
                                  "needs at least 3")
-            stations.append(register(np.concatenate([p.position[rows_s] for p in nominal]),
-                                     np.concatenate([o.position[rows_s] for _, o, _ in frames])))
+            # the references' fixed places pin the frame with the moving points
+            fixed = [np.asarray(nominal_ref, dtype=float)[None] for _, nominal_ref, _, _ in references]
+            seen = [measured[rows_s].mean(axis=0)[None] for _, _, measured, _ in references]
+            stations.append(register(np.concatenate([p.position[rows_s] for p in nominal] + fixed),
+                                     np.concatenate([o.position[rows_s] for _, o, _ in frames] + seen)))
         rot, trans = stations[0]
         weight = self.orientation_weight
         if weight is None:
@@ -256,7 +272,7 @@ class GapDiagnosis:
         repeats = None
         if self.tracker_noise is None:
             repeats = noise_from_rigid_frames([p.position for p in nominal], [o.position for _, o, _ in frames],
-                                              [label for _, _, label in frames]) or \
+                                              [label for _, _, label in frames]) or reference_noise or \
                 noise_from_repeats(obs.q, obs.position, _context_table(obs))
         resolution = self.tracker_noise or (repeats.per_axis if repeats else RESOLUTION_NOISE)
         engine = FitEngine(parts, bases, split, self.rank_tol, min_motion=0.1 * resolution)
@@ -427,7 +443,7 @@ class GapDiagnosis:
             parameter_table=table, selection=selection, outside_physics=beyond,
             physics={e: effect_class(e).physics for e in table},
             effect_options={e: dict(bases[e].per_part[0].effect.options) for e in ordered(selected)},
-            sessions=by_session,
+            sessions=by_session, drift=drift_report,
             joint_function_bands=joint_function_bands(final, bases, ordered(selected), obs.q),
         )
         self.robot_ = robot

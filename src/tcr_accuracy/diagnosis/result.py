@@ -155,6 +155,7 @@ class Diagnosis:
     physics: dict = field(default_factory=dict)  # effect -> why its parameters lie in their range
     effect_options: dict = field(default_factory=dict)  # effect -> the options it was fitted with
     sessions: list = field(default_factory=list)  # per session: label, rows, gap and held-out stats, temperature
+    drift: list = field(default_factory=list)  # per session: the tracker's drift seen by base references
     #: effect -> joint -> {"angle_rad", "value_rad", "std_rad"} (M,) arrays: the fitted function of
     #: each joint's own angle over its measured range with its standard error (effects with joint_basis)
     joint_function_bands: dict = field(default_factory=dict)
@@ -211,6 +212,7 @@ class Diagnosis:
                          for e, t in self.parameter_table.items()},
             "outside_physics": list(self.outside_physics),
             "sessions": list(self.sessions),
+            "drift": list(self.drift),
             "effect_options": {e: {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in o.items()}
                                for e, o in self.effect_options.items()},
             "joint_functions": {e: {j: {k: np.asarray(v).tolist() for k, v in band.items()}

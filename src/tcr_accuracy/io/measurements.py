@@ -278,11 +278,11 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
         if plain:
             raise InputError(f"{source}: row {header_line}: column {plain[0]} next to per-frame columns "
                              f"({frames[0]}.x_mm ...); name every measured frame's columns <frame>.x_mm")
-        if frame is None and frames == [robot.tool_frame]:  # one measured frame, the robot's TCP: read it
+        if frame is None and robot.tool_frame in frames:  # the robot's TCP is a measured frame (--tool): read it
             frame = robot.tool_frame
         if frame is None and len(frames) > 1:
-            raise InputError(f"{source}: measures several frames ({', '.join(frames)}); only diagnose reads "
-                             "them together (here: read one with frame=...)")
+            raise InputError(f"{source}: measures several frames ({', '.join(frames)}); choose the one to read "
+                             f"with --tool FRAME (only diagnose reads them together)")
         if frame is None:
             raise InputError(f"{source}: columns {frames[0]}.x_mm ...: measures frame {frames[0]}, not the robot's "
                              f"TCP frame {robot.tool_frame}; give --tool {frames[0]}")

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ..exceptions import InputError
+from ..exceptions import FixedFrameError, InputError
 from .tool_changer import DISC_CUTTER_MASS, WORKING_POSE, tool_changer_urdf
 from ..units import JOINT_DISPLAY, PRISMATIC, REVOLUTE  # noqa: F401 - PRISMATIC: part of this module's vocabulary
 from .mesh_resources import check_mesh_references
@@ -528,7 +528,10 @@ def robot_from_urdf_text(
     locked = [j for j in range(1, full.njoints) if j not in chain]
     model = reduce_model(full, locked) if locked else full
     if model.njoints <= 1:
-        raise InputError(f"--tool {tool}: no joint moves this frame in {source}")
+        data = full.createData()
+        pin.framesForwardKinematics(full, data, pin.neutral(full))
+        raise FixedFrameError(f"--tool {tool}: no joint moves this frame in {source}", tool,
+                              data.oMf[frame_id].translation.copy())
     if model.njoints - 1 > MAX_CHAIN_JOINTS:
         raise InputError(f"--tool {tool}: {model.njoints - 1} joints move this frame in {source}, more than the "
                          f"{MAX_CHAIN_JOINTS} of a serial chain tcr-accuracy models")
