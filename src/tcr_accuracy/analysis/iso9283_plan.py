@@ -83,7 +83,8 @@ class IsoPlan:
     size : float
         Edge length [m].
     positions : ndarray of shape (5, 3)
-        Commanded TCP positions of P1..P5 in the base frame [m].
+        Commanded TCP positions of P1..P5 in the base frame [m] (``q`` reaches them within
+        1e-7 m).
     q : ndarray of shape (5, n_joints)
         Joint values of P1..P5 [rad, m].
     rotation : ndarray of shape (5, 3, 3)
@@ -259,7 +260,7 @@ def _plan(robot, centre, size, solved, checker, mode, *, searched, n_centres) ->
     else:
         collision = (f"checked with coal on the URDF's collision geometry: {checker.n_pairs} body pairs "
                      f"(ignored: {', '.join(f'{n} {k}' for k, n in checker.ignored.items() if n) or 'none'})")
-    return IsoPlan(centre=np.asarray(centre, dtype=float), size=float(size), positions=poses.position,
+    return IsoPlan(centre=np.asarray(centre, dtype=float), size=float(size), positions=iso_points(centre, size),
                    q=solved[:5], rotation=poses.rotation, corner_q=solved[5:], orientation=mode,
                    collision=collision, searched=searched, n_centres=n_centres)
 

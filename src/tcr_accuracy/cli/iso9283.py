@@ -136,7 +136,9 @@ def _plan_text(robot, plan, args) -> str:
 
 # ---------------------------------------------------------------------------------------
 def _run_evaluate(args) -> int:
-    from ..io.measurements import read_measurements
+    import warnings
+
+    from ..io.measurements import MeasurementWarning, read_measurements
     from ..model.robot import load_robot
     from ..prediction.iso9283_evaluation import compensated_readings, evaluate_measurements, register_from
     from .output import RunOutput
@@ -144,7 +146,9 @@ def _run_evaluate(args) -> int:
     robot = load_robot(args.robot, args.tool)
     check_csv_memory(args, args.measurements, "MEAS.csv", sample_bytes(robot))
     model = _read_model(robot, args.model) if args.model else None
-    mset = read_measurements(args.measurements, robot)
+    with warnings.catch_warnings():  # a pose test repeats its poses on purpose, labelled or not
+        warnings.filterwarnings("ignore", message=".*repeated pose", category=MeasurementWarning)
+        mset = read_measurements(args.measurements, robot)
     given = {}
     if args.frame_from:
         given = {"registration": register_from(robot, read_measurements(args.frame_from, robot, min_rows=3)),
