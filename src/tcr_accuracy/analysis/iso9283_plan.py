@@ -115,7 +115,7 @@ class IsoPlan:
 
 
 def plan_iso_cube(robot: RobotModel, rng: np.random.Generator, *, centre=None, size: float | None = None,
-                  n_samples: int = 400, n_centres: int = 24, bisections: int = 10) -> IsoPlan:
+                  n_samples: int = 1000, n_centres: int = 60, bisections: int = 10) -> IsoPlan:
     """The largest ISO test cube in the reachable, collision-free workspace, or the one given.
 
     Parameters
@@ -127,9 +127,9 @@ def plan_iso_cube(robot: RobotModel, rng: np.random.Generator, *, centre=None, s
         A cube centre [m] (with ``size``): plan that cube instead of searching.
     size : float, optional
         Its edge [m].
-    n_samples : int, default=400
+    n_samples : int, default=1000
         Random joint configurations the candidate centres are chosen from.
-    n_centres : int, default=24
+    n_centres : int, default=60
         Candidate centres grown into cubes.
     bisections : int, default=10
         Bisection steps on each candidate's edge length.

@@ -227,7 +227,7 @@ def evaluation_dict(result) -> dict:
 def format_evaluation(robot, args, result, after=None) -> str:
     """The printed figures: the per-pose table, the summary, and what could not be computed."""
     lines = [f"{robot.name}: ISO 9283 pose test {args.measurements} ({result.n_readings} readings, "
-             f"{len(result.pose_q)} poses)", f"  frame: {result.how}"]
+             f"{len(result.pose_q)} poses)", f"  measurement frame {result.how}"]
     lines += _figures_lines(result)
     if after is not None:
         lines += [f"after compensation with {args.model} (predicted: the model's displacement removed from "

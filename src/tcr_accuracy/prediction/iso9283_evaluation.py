@@ -158,7 +158,7 @@ def evaluate_measurements(robot: RobotModel, mset: MeasurementSet, *, frame: str
     if frame == "given":
         commanded = registration.tcp_positions(robot, q_poses)
         positions = registration.to_base(mset.position)
-        how = (f"measurement frame from {registration_source or 'other poses'}: fitted on its "
+        how = (f"from {registration_source or 'other poses'}: fitted on its "
                f"{registration.n_points} poses (Kabsch, then least squares with the TCP offset; fit residual RMS "
                f"{registration.residual_rms * 1e3:.4f} mm)")
     elif frame == "fit":
@@ -170,14 +170,19 @@ def evaluate_measurements(robot: RobotModel, mset: MeasurementSet, *, frame: str
         commanded = registration.tcp_positions(robot, q_poses)
         positions = registration.to_base(mset.position)
         tool = [n.rpartition(".")[2] for n in registration.fitted if n.startswith("frames.tool.")]
-        how = ("measurement frame fitted: Kabsch on the barycentres of the "
-               f"{len(ids)} poses against the nominal TCP, refined by least squares with the measured point's "
-               f"offset from the TCP frame ({', '.join(tool) + ' fitted' if tool else 'not fitted'}"
-               f"{'' if len(tool) == 3 else '; the rest is not identifiable from these poses and held at 0'}); "
-               f"fit residual RMS {registration.residual_rms * 1e3:.4f} mm")
+        if len(tool) == 3:
+            offset = "with the measured point's offset from the TCP frame fitted"
+        elif tool:
+            offset = (f"with the measured point's offset from the TCP frame fitted along {', '.join(tool)} "
+                      "(the rest is not identifiable from these poses, held at 0)")
+        else:
+            offset = ("the measured point's offset from the TCP frame is not identifiable from these poses (one "
+                      "orientation: it moves the frame) and held at 0")
+        how = (f"fitted: Kabsch on the barycentres of the {len(ids)} poses against the nominal TCP, refined by "
+               f"least squares; {offset}; fit residual RMS {registration.residual_rms * 1e3:.4f} mm")
     else:
         commanded, positions = nominal.position, mset.position
-        how = "readings taken as base-frame TCP positions (frame base): nothing fitted"
+        how = "not fitted: the readings are taken as base-frame TCP positions (frame base)"
     deviations = offset = None
     if mset.quaternion is not None:
         deviations, offset = _orientation_deviations(mset.quaternion, nominal.rotation[row_pose], registration)
