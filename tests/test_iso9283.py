@@ -13,7 +13,7 @@ from tcr_accuracy.cli import main
 from tcr_accuracy.io.measurements import read_measurements
 from tcr_accuracy.model.robot import load_robot
 
-from conftest import REPO, tool_changer_tcp_by_hand
+from conftest import tool_changer_tcp_by_hand
 
 #: Five distinct tool-changer poses [deg, deg, deg, mm, deg, deg] standing in for P1..P5.
 POSES_DISPLAY = np.array([

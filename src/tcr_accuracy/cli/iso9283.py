@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import argparse
 
-from .common import (EXIT_OK, MAX_MM, Parser, add_memory_argument, add_quiet_argument, add_robot_arguments,
+from .common import (DEFAULT_MEMORY_GB, EXIT_OK, MAX_MM, Parser, add_quiet_argument, add_robot_arguments,
                      check_csv_memory, emit_json, integer, number, output_file, sample_bytes, seed_value, status)
 from .output import add_output_arguments
 
@@ -61,10 +61,13 @@ def add_parsers(sub) -> None:
                           help="a 'diagnose --json' result: also the figures predicted after compensating with it")
     add_output_arguments(evaluate, plots=False)
     evaluate.set_defaults(run=_run_evaluate)
-    for parser in (plan, evaluate):
+    for parser in (plan, evaluate):  # as main() adds them to every command, also after the step
         parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                             help="on an error, print the full Python traceback as well as the one-line message")
-        add_memory_argument(parser)
+        parser.add_argument("--max-memory-gb", type=number(low=0, low_open=True, high=1e6, unit="GB"),
+                            default=argparse.SUPPRESS, metavar="GB",  # keeps a value given before the step
+                            help=f"refuse work estimated to need more memory than this (default "
+                                 f"{DEFAULT_MEMORY_GB:g} GB)")
 
 
 # ---------------------------------------------------------------------------------------
