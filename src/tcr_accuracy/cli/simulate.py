@@ -83,6 +83,8 @@ def _run_simulate(args) -> int:
     noise = None if args.noise_mm is None else args.noise_mm * 1e-3
     mset, truth = simulate_measurements(robot, scenario, args.n, rng, noise, q=q, context=context, box=box,
                                         orientation=args.orientation)
+    if args.poses is not None:  # a pose test's labels (pose_id, cycle, target_*_mm) go through
+        mset.annotations = poses.annotations
     truth.update(extra)
     truth["seed"] = args.seed
     write_measurements(args.out, robot, mset, unit=args.unit)

@@ -16,6 +16,11 @@ column                      meaning
                             day) a row belongs to: each session has its own tracker frame
 ``time_s``                  optional time of the measurement [s] (any origin): the time
                             axis of the tracker's drift seen by base references
+``pose_id``, ``cycle``,     optional labels of a pose test (``tcr-accuracy iso9283 plan``
+``approach``,               writes them): which commanded pose, which cycle, which
+``target_x_mm`` ...         approach direction, the commanded TCP in the base frame [mm];
+                            carried through (:attr:`MeasurementSet.annotations`), ignored
+                            by every analysis but ``iso9283 evaluate``
 ==========================  ===============================================================
 
 Lines starting with ``#`` are comments. Row numbers in messages are the file's line
@@ -66,6 +71,8 @@ def _check_range(source, rows, column: str, values_si, bound: float, si_unit: st
         r = bad[0]
         raise InputError(f"{source}: row {rows[r]}, column {column}: {values_si[r] * to_shown:g} {shown_unit} is "
                          f"beyond the {bound * to_shown:g} {shown_unit} a measurement may have")
+#: Labels a pose test adds to a row (ISO 9283, ``iso9283 plan``): accepted, carried, not used by a fit.
+ANNOTATION_COLUMNS = ("pose_id", "cycle", "approach", "target_x_mm", "target_y_mm", "target_z_mm")
 
 
 # ---------------------------------------------------------------------------------------
@@ -96,6 +103,9 @@ class MeasurementSet:
         Values [rad, m] of the robot's joints that do not move the TCP
         (``robot.outside_joint_names``: another arm, a head), for the gravity torques;
         None when the file has none of their columns and no mimic rule sets them.
+    annotations : dict of str to ndarray of shape (N,), or None
+        The file's :data:`ANNOTATION_COLUMNS` by column name, values as written (the
+        name carries the unit: ``target_x_mm``); None when it has none.
     source : str
         Where the rows came from (file path or a label).
     rows : ndarray of shape (N,)
@@ -118,6 +128,7 @@ class MeasurementSet:
     outside_q: np.ndarray | None = None
     session: np.ndarray | None = None
     time_s: np.ndarray | None = None
+    annotations: dict | None = None
 
     def __post_init__(self) -> None:
         self.q = np.atleast_2d(np.asarray(self.q, dtype=float))
@@ -163,7 +174,9 @@ class MeasurementSet:
                        quaternion=pick(self.quaternion), payload_kg=pick(self.payload_kg),
                        temperature_c=pick(self.temperature_c), direction=pick(self.direction),
                        rows=self.rows[rows], outside_q=pick(self.outside_q), session=pick(self.session),
-                       time_s=pick(self.time_s))
+                       time_s=pick(self.time_s),
+                       annotations=None if self.annotations is None else
+                       {k: v[rows] for k, v in self.annotations.items()})
 
 
 # ---------------------------------------------------------------------------------------
@@ -187,7 +200,7 @@ def allowed_columns(robot: RobotModel) -> list[str]:
     cols += [f"{a}_{u}" for u in _POSITION_UNITS for a in "xyz"]
     cols += list(QUATERNION_COLUMNS) + list(CONTEXT_COLUMNS) + list(LABEL_COLUMNS)
     cols += [f"{name}_dir" for name, _ in _all_joints(robot)]
-    return cols
+    return cols + list(ANNOTATION_COLUMNS)
 
 
 def read_measurements(path: str | Path, robot: RobotModel, *, min_rows: int = 1,
@@ -404,11 +417,12 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
     if time_s is not None:
         _check_range(source, rows, "time_s", time_s, MAX_TIME_S, "s", 1.0, "s")
     session = np.array(labels["session"], dtype=object) if "session" in labels else None
+    annotations = {name: column(name) for name in ANNOTATION_COLUMNS if name in header} or None
     mset = MeasurementSet(
         joint_names=list(robot.joint_names), q=q,
         position=position if position is not None else np.full((len(rows), 3), np.nan),
         quaternion=quaternion, payload_kg=payload, temperature_c=temperature, direction=direction,
-        source=source, rows=rows, outside_q=outside_q, session=session, time_s=time_s,
+        source=source, rows=rows, outside_q=outside_q, session=session, time_s=time_s, annotations=annotations,
     )
     if not repeats_allowed:  # measurements, not poses to predict or compensate (asked twice legitimately)
         check_duplicates(mset, values, header, source, CONTEXT_COLUMNS)
@@ -498,7 +512,11 @@ def measurement_columns(robot: RobotModel, mset: MeasurementSet, unit: str = "mm
         cols.append("temperature_c")
     if mset.direction is not None:
         cols += [f"{n}_dir" for j, n in enumerate(robot.joint_names) if np.any(mset.direction[:, j] != 0)]
-    return cols
+    return cols + _annotation_columns(mset)
+
+
+def _annotation_columns(mset: MeasurementSet) -> list[str]:
+    return [c for c in ANNOTATION_COLUMNS if mset.annotations and c in mset.annotations]
 
 
 def format_measurements(robot: RobotModel, mset: MeasurementSet, unit: str = "mm",
@@ -524,7 +542,9 @@ def format_measurements(robot: RobotModel, mset: MeasurementSet, unit: str = "mm
     if mset.direction is not None:
         used = [j for j in range(robot.n_joints) if np.any(mset.direction[:, j] != 0)]
         blocks.append(mset.direction[:, used])
-    table = np.concatenate(blocks, axis=1)
+    labels = _annotation_columns(mset)
+    table = np.concatenate(blocks + [np.stack([mset.annotations[c] for c in labels], axis=1)] if labels else blocks,
+                           axis=1)
     if not np.all(np.isfinite(table)):
         raise InputError("measurement set has non-finite values; nothing written")
     out = io.StringIO()
@@ -532,10 +552,12 @@ def format_measurements(robot: RobotModel, mset: MeasurementSet, unit: str = "mm
         for line in comment.splitlines():
             out.write(f"# {line}\n")
     out.write(",".join(cols) + "\n")
-    n_values = len(cols) - sum(c.endswith("_dir") for c in cols)
+    n_values = len(cols) - len(labels) - sum(c.endswith("_dir") for c in cols)
+    n_dirs = len(cols) - len(labels)
     for row in table:
         cells = [format(v, ".12g") for v in row[:n_values]]
-        cells += [f"{int(v):+d}" for v in row[n_values:]]
+        cells += [f"{int(v):+d}" for v in row[n_values:n_dirs]]
+        cells += [format(v, ".12g") for v in row[n_dirs:]]
         out.write(",".join(cells) + "\n")
     return out.getvalue()
 
@@ -549,7 +571,7 @@ def write_measurements(path: str | Path, robot: RobotModel, mset: MeasurementSet
 
 
 __all__ = [
-    "MeasurementContext", "MeasurementSet", "MeasurementWarning", "REFERENCE_TEMPERATURE_C",
+    "ANNOTATION_COLUMNS", "MeasurementContext", "MeasurementSet", "MeasurementWarning", "REFERENCE_TEMPERATURE_C",
     "allowed_columns", "format_measurements", "measured_frames", "measurement_columns", "parse_measurements",
     "read_measurements", "read_user_text", "write_measurements",
 ]

@@ -1,0 +1,118 @@
+"""Self-collision of a robot from its URDF's collision geometry (Pinocchio + coal).
+
+The collision bodies are read with Pinocchio's ``buildGeomFromUrdfString`` on the whole
+tree (joints outside the TCP chain stay at their neutral value) and checked with
+``computeCollisions``. Pairs that are never tested:
+
+- bodies on the same joint or on joints next to each other in the tree (their meshes
+  touch at the axis by design);
+- pairs the robot's SRDF disables, when the URDF sits in ``.../urdf/`` with an SRDF of the
+  same name in ``.../srdf/`` (example-robot-data's layout);
+- pairs already in contact at the robot's working pose (a design contact, as a MoveIt setup
+  ignores them).
+
+A robot whose URDF has no ``<collision>`` element has no checker (:func:`collision_checker`
+returns None), and the callers say so. Nothing here prints.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from ..exceptions import InputError
+from ..model.robot import RobotModel
+
+
+@dataclass
+class CollisionChecker:
+    """Self-collision tests of one robot.
+
+    Attributes
+    ----------
+    geometry : pin.GeometryModel
+        The collision bodies on the robot's whole tree, with the pairs that are tested.
+    ignored : dict of str to int
+        How many pairs were left out, by reason (``adjacent``, ``srdf``, ``working pose``).
+    """
+
+    robot: RobotModel
+    geometry: pin.GeometryModel
+    ignored: dict
+
+    @property
+    def n_pairs(self) -> int:
+        return len(self.geometry.collisionPairs)
+
+    def colliding_pairs(self, q) -> list[tuple[str, str]]:
+        """Names of the body pairs in contact at chain joint values q (n_joints,) [rad, m]."""
+        full_q = self.robot.full_configurations(np.atleast_2d(np.asarray(q, dtype=float)))[0]
+        model = self.robot.full_model
+        data, geometry_data = model.createData(), self.geometry.createData()
+        pin.computeCollisions(model, data, self.geometry, geometry_data, full_q, False)
+        out = []
+        for pair, result in zip(self.geometry.collisionPairs, geometry_data.collisionResults):
+            if result.isCollision():
+                out.append((self.geometry.geometryObjects[pair.first].name,
+                            self.geometry.geometryObjects[pair.second].name))
+        return out
+
+    def is_free(self, q) -> np.ndarray:
+        """(N,) True where the configuration q (N, n_joints) has no self-collision."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        return np.array([not self.colliding_pairs(row) for row in q], dtype=bool)
+
+
+def collision_checker(robot: RobotModel) -> CollisionChecker | None:
+    """The robot's self-collision checker, or None when its URDF has no collision geometry.
+
+    Raises
+    ------
+    InputError
+        The collision meshes cannot be read.
+    """
+    if "<collision" not in robot.urdf_text:
+        return None
+    model = robot.full_model
+    try:
+        geometry = pin.buildGeomFromUrdfString(model, robot.urdf_text, pin.GeometryType.COLLISION,
+                                               package_dirs=list(robot.package_dirs))
+    except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
+        raise InputError(f"{robot.name}: cannot read the URDF's collision geometry ({exc})") from None
+    if geometry.ngeoms < 2:
+        return None
+    geometry.addAllCollisionPairs()
+    ignored = {"adjacent": 0, "srdf": 0, "working pose": 0}
+    for pair in list(geometry.collisionPairs):
+        a = geometry.geometryObjects[pair.first].parentJoint
+        b = geometry.geometryObjects[pair.second].parentJoint
+        if a == b or model.parents[a] == b or model.parents[b] == a:
+            geometry.removeCollisionPair(pair)
+            ignored["adjacent"] += 1
+    srdf = _srdf_path(robot)
+    if srdf is not None:
+        before = len(geometry.collisionPairs)
+        pin.removeCollisionPairs(model, geometry, str(srdf))
+        ignored["srdf"] = before - len(geometry.collisionPairs)
+    checker = CollisionChecker(robot, geometry, ignored)
+    touching = set(checker.colliding_pairs(robot.working_pose))
+    for pair in list(geometry.collisionPairs):
+        names = (geometry.geometryObjects[pair.first].name, geometry.geometryObjects[pair.second].name)
+        if names in touching:
+            geometry.removeCollisionPair(pair)
+            ignored["working pose"] += 1
+    return checker
+
+
+def _srdf_path(robot: RobotModel) -> Path | None:
+    """``.../srdf/<name>.srdf`` beside the URDF's ``.../urdf/`` folder, if it exists."""
+    if robot.urdf_path is None:
+        return None
+    candidate = robot.urdf_path.parent.parent / "srdf" / f"{robot.urdf_path.stem}.srdf"
+    return candidate if candidate.is_file() else None
+
+
+__all__ = ["CollisionChecker", "collision_checker"]

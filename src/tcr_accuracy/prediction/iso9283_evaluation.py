@@ -1,0 +1,269 @@
+"""ISO 9283 evaluation of a measured pose test: the measurement frame registered, then the figures.
+
+A pose test's CSV (``tcr-accuracy iso9283 plan`` writes its joints) holds, per reading, the
+commanded joints, a ``pose_id`` (and optionally ``cycle``, ``approach`` and the commanded TCP
+``target_x_mm`` ...) and the position the instrument measured in its own frame. Before the
+standard's formulas (:mod:`tcr_accuracy.analysis.iso9283`) apply, the readings must be in the
+robot's base frame:
+
+- ``frame="fit"`` (default): the barycentre of each pose is matched to the robot's nominal TCP
+  at the commanded joints by :func:`tcr_accuracy.prediction.registration.register_tracker`
+  (Kabsch, then a least-squares refinement with the measured point's offset from the TCP frame
+  fitted where the poses' orientations tell it apart from the frame's translation, held at 0
+  and said where they do not). The commanded position of a pose is then the nominal TCP with
+  that fitted offset. With orientations, the measured frame's rotation relative to the TCP
+  frame is fitted too (the mean of ``R_commanded^T R_measured`` over the readings). What the
+  fit takes up (6 to 9 of the 3 x poses coordinates) is not seen in AP: the standard assumes a
+  known base frame; give ``frame="base"`` when the readings are already in it.
+- ``frame="base"``: the readings are base-frame TCP positions (and orientations); nothing is
+  fitted.
+- ``registration=`` a frame fitted beforehand on other poses measured in the same instrument
+  frame (``iso9283 evaluate --frame-from CAL.csv``: a calibration set of the same session), so
+  that the test's own poses are not used to place the frame and AP keeps all it measures.
+
+:func:`diagnosis_model` reads a ``diagnose --json`` result and :func:`compensated_readings`
+removes what that model predicts at each reading's joints and context, which is what a
+compensation with it would leave to first order (positions only; the session's tracker frame
+of the diagnosis is not used). Lengths are metres, angles radians; nothing here prints.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..analysis.iso9283 import IsoFigures, check_repeats, iso_figures
+from ..effects import make_effect, predict_positions
+from ..exceptions import InputError
+from ..io.measurements import MeasurementSet
+from ..model.kinematics import tcp_poses
+from ..model.robot import RobotModel
+from .registration import Registration, register_tracker
+
+#: Joint values of the readings of one pose may differ by this much [rad, m] (CSV rounding).
+SAME_POSE_TOL = 1e-6
+#: A target column farther than this from the nominal TCP at the pose's joints warns [m].
+TARGET_TOL = 1e-5
+
+
+@dataclass(frozen=True)
+class IsoEvaluation:
+    """An evaluated pose test.
+
+    Attributes
+    ----------
+    figures : IsoFigures
+    frame : str
+        ``fit``, ``base`` or ``given`` (a registration from other poses).
+    registration : Registration or None
+        The fitted measurement frame and TCP offset (``frame="fit"``).
+    how : str
+        How the readings were brought into the base frame, in words.
+    orientation_offset : ndarray of shape (3, 3) or None
+        Fitted rotation of the measured frame relative to the TCP frame.
+    n_readings : int
+    pose_q : dict of int to ndarray of shape (n_joints,)
+        Commanded joints [rad, m] of each pose.
+    """
+
+    figures: IsoFigures
+    frame: str
+    registration: Registration | None
+    how: str
+    orientation_offset: np.ndarray | None
+    n_readings: int
+    pose_q: dict
+
+
+@dataclass(frozen=True)
+class PoseLabels:
+    """``pose_id``, ``cycle`` (or None) and ``approach`` (or None), (N,) integer arrays."""
+
+    pose_id: np.ndarray
+    cycle: np.ndarray | None
+    approach: np.ndarray | None
+
+
+def pose_labels(mset: MeasurementSet) -> PoseLabels:
+    """The pose test's labels of each reading, checked (InputError naming file, row, column)."""
+    labels = mset.annotations or {}
+    if "pose_id" not in labels:
+        raise InputError(f"{mset.source}: no pose_id column; a pose test labels each reading with the pose it "
+                         "visits (tcr-accuracy iso9283 plan writes it)")
+
+    def integers(name):
+        if name not in labels:
+            return None
+        values = labels[name]
+        bad = np.flatnonzero(values != np.round(values))
+        if len(bad):
+            raise InputError(f"{mset.source}: row {mset.rows[bad[0]]}, column {name}: {values[bad[0]]:g} is not "
+                             "an integer")
+        return values.astype(int)
+
+    out = PoseLabels(integers("pose_id"), integers("cycle"), integers("approach"))
+    check_repeats(out.pose_id, mset.rows, mset.source)
+    return out
+
+
+def pose_joints(mset: MeasurementSet, pose_id: np.ndarray) -> dict:
+    """pose id -> its commanded joints (n_joints,); InputError when a pose's readings differ."""
+    out = {}
+    for pid in np.unique(pose_id):
+        rows = np.flatnonzero(pose_id == pid)
+        q = mset.q[rows]
+        far = np.abs(q - q[0]).max(axis=1) > SAME_POSE_TOL
+        if far.any():
+            r = rows[np.argmax(far)]
+            j = int(np.argmax(np.abs(mset.q[r] - q[0])))
+            raise InputError(f"{mset.source}: row {mset.rows[r]}, column {mset.joint_names[j]}: pose {pid} is "
+                             f"commanded with other joint values than in row {mset.rows[rows[0]]}; one pose_id "
+                             "is one commanded pose")
+        out[int(pid)] = q[0]
+    return out
+
+
+def evaluate_measurements(robot: RobotModel, mset: MeasurementSet, *, frame: str = "fit",
+                          registration: Registration | None = None, registration_source: str = "") -> IsoEvaluation:
+    """Register the readings (see the module docstring) and compute every ISO 9283 figure.
+
+    Parameters
+    ----------
+    robot : RobotModel
+    mset : MeasurementSet
+        With ``annotations["pose_id"]`` (and optionally ``cycle``, ``approach``,
+        ``target_x_mm`` ...).
+    frame : {"fit", "base"}, default="fit"
+        Ignored when ``registration`` is given.
+    registration : Registration, optional
+        The instrument frame (and TCP offset) fitted on other poses (:func:`register_from`).
+    registration_source : str
+        Where that registration came from, for the record.
+    """
+    if frame not in ("fit", "base"):
+        raise InputError(f"frame {frame!r}: use 'fit' or 'base'")
+    if registration is not None:
+        frame = "given"
+    labels = pose_labels(mset)
+    joints = pose_joints(mset, labels.pose_id)
+    ids = sorted(joints)
+    q_poses = np.array([joints[i] for i in ids])
+    index = {pid: k for k, pid in enumerate(ids)}
+    row_pose = np.array([index[int(p)] for p in labels.pose_id])
+    nominal = tcp_poses(robot, q_poses)
+    _check_targets(mset, labels.pose_id, nominal.position, index)
+    if frame == "given":
+        commanded = registration.tcp_positions(robot, q_poses)
+        positions = registration.to_base(mset.position)
+        how = (f"from {registration_source or 'other poses'}: fitted on its "
+               f"{registration.n_points} poses (Kabsch, then least squares with the TCP offset; fit residual RMS "
+               f"{registration.residual_rms * 1e3:.4f} mm)")
+    elif frame == "fit":
+        barycentres = np.array([mset.position[row_pose == k].mean(axis=0) for k in range(len(ids))])
+        if len(ids) < 3:
+            raise InputError(f"{mset.source}: {len(ids)} poses; fitting the measurement frame needs at least 3 "
+                             "(give --frame base when the readings are already in the robot's base frame)")
+        registration = register_tracker(robot, q_poses, barycentres)
+        commanded = registration.tcp_positions(robot, q_poses)
+        positions = registration.to_base(mset.position)
+        tool = [n.rpartition(".")[2] for n in registration.fitted if n.startswith("frames.tool.")]
+        if len(tool) == 3:
+            offset = "with the measured point's offset from the TCP frame fitted"
+        elif tool:
+            offset = (f"with the measured point's offset from the TCP frame fitted along {', '.join(tool)} "
+                      "(the rest is not identifiable from these poses, held at 0)")
+        else:
+            offset = ("the measured point's offset from the TCP frame is not identifiable from these poses (one "
+                      "orientation: it moves the frame) and held at 0")
+        how = (f"fitted: Kabsch on the barycentres of the {len(ids)} poses against the nominal TCP, refined by "
+               f"least squares; {offset}; fit residual RMS {registration.residual_rms * 1e3:.4f} mm")
+    else:
+        commanded, positions = nominal.position, mset.position
+        how = "not fitted: the readings are taken as base-frame TCP positions (frame base)"
+    deviations = offset = None
+    if mset.quaternion is not None:
+        deviations, offset = _orientation_deviations(mset.quaternion, nominal.rotation[row_pose], registration)
+    figures = iso_figures(labels.pose_id, positions, commanded[row_pose], deviations=deviations,
+                          cycle=labels.cycle, approach=labels.approach)
+    return IsoEvaluation(figures=figures, frame=frame, registration=registration, how=how,
+                         orientation_offset=offset, n_readings=len(mset), pose_q=joints)
+
+
+def register_from(robot: RobotModel, other: MeasurementSet) -> Registration:
+    """The instrument frame and TCP offset fitted on other measured poses of the same session."""
+    return register_tracker(robot, other.q, other.position, context=other.context())
+
+
+def _check_targets(mset, pose_id, nominal_positions, index) -> None:
+    labels = mset.annotations or {}
+    names = ("target_x_mm", "target_y_mm", "target_z_mm")
+    if not all(n in labels for n in names):
+        return
+    target = np.stack([labels[n] for n in names], axis=1) * 1e-3
+    expected = nominal_positions[[index[int(p)] for p in pose_id]]
+    gap = np.linalg.norm(target - expected, axis=1)
+    if gap.max() > TARGET_TOL:
+        r = int(np.argmax(gap))
+        warnings.warn(f"{mset.source}: row {mset.rows[r]}, columns target_x_mm..target_z_mm: {gap[r] * 1e3:.4g} mm "
+                      f"from the robot's nominal TCP at the commanded joints (another "
+                      "robot or tool?); the figures use the nominal TCP", UserWarning, stacklevel=3)
+
+
+def _orientation_deviations(quaternion, commanded_rotation, registration):
+    """(N, 3) deviations a, b, c [rad] and the fitted measured-frame offset (3, 3) (identity in base frame)."""
+    measured = Rotation.from_quat(quaternion[:, [1, 2, 3, 0]]).as_matrix()  # scipy: x, y, z, w
+    if registration is None:
+        offset = np.eye(3)
+    else:
+        measured = registration.rotation.T @ measured
+        offset = Rotation.from_matrix(np.transpose(commanded_rotation, (0, 2, 1)) @ measured).mean().as_matrix()
+    target = commanded_rotation @ offset
+    deviation = Rotation.from_matrix(measured @ np.transpose(target, (0, 2, 1))).as_rotvec()
+    return deviation, (None if registration is None else offset)
+
+
+# ---------------------------------------------------------------------------------------
+# After compensation with a diagnosis' model
+# ---------------------------------------------------------------------------------------
+def diagnosis_model(robot: RobotModel, payload: dict, source: str) -> tuple[list, list]:
+    """The effects and parameter vectors of a ``diagnose --json`` result (its ``frames`` left out:
+    they belong to that session's instrument). InputError naming what does not fit the robot."""
+    parameters = payload.get("parameters") if isinstance(payload, dict) else None
+    if not isinstance(parameters, dict):
+        raise InputError(f"{source}: no 'parameters' object; give the JSON that 'tcr-accuracy diagnose --json' "
+                         "writes")
+    if payload.get("robot") not in (None, robot.name):
+        raise InputError(f"{source}: a diagnosis of {payload.get('robot')}, not of {robot.name}; give --robot")
+    effects, params = [], []
+    for name, values in parameters.items():
+        if name == "frames":
+            continue
+        effect = make_effect(name, robot)
+        names = list(effect.parameter_names())
+        vector = effect.zeros()
+        for key, value in (values or {}).items():
+            if key not in names or not isinstance(value, (int, float)) or not np.isfinite(value):
+                raise InputError(f"{source}: parameters.{name}.{key}: not a finite parameter of {name} for "
+                                 f"{robot.name}")
+            vector[names.index(key)] = float(value)
+        effects.append(effect)
+        params.append(vector)
+    return effects, params
+
+
+def compensated_readings(robot: RobotModel, mset: MeasurementSet, registration: Registration | None,
+                         effects: list, params: list) -> MeasurementSet:
+    """The readings with the model's predicted TCP displacement removed (what compensating with it
+    leaves, to first order); positions only, orientations dropped."""
+    context = mset.context()
+    shift = predict_positions(robot, effects, params, mset.q, context) - tcp_poses(robot, mset.q).position
+    if registration is not None:
+        shift = shift @ registration.rotation.T  # base-frame displacement into the tracker frame
+    return replace(mset, position=mset.position - shift, quaternion=None)
+
+
+__all__ = ["IsoEvaluation", "PoseLabels", "compensated_readings", "diagnosis_model", "evaluate_measurements",
+           "pose_joints", "pose_labels", "register_from"]
