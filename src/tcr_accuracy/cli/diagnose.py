@@ -88,7 +88,8 @@ def _run_diagnose(args) -> int:
                           progress=bar.set_postfix_str)
     finally:
         bar.close()
-    payload = jsonable({"measurements": str(args.measurements), **result.to_dict()})
+    payload = jsonable({"measurements": str(args.measurements), "robot_source": robot_source(args.robot),
+                        "tool_frame": robot.tool_frame, **result.to_dict(robot)})
     source = str(args.measurements)
     _report_tables(out, robot, result, source)
     out.add_plots(lambda folder: list(write_plots(result, robot, folder).values()), PLOT_CAPTIONS)
@@ -100,6 +101,16 @@ def _run_diagnose(args) -> int:
         urdf, side = write_as_built(robot, result, Path(args.as_built_urdf))
         status(args, f"as-built URDF written to {urdf} (its other effects and the tracker frame: {side})")
     return out.finish(payload, lambda: print(format_summary(robot, result, source)))
+
+
+def robot_source(source) -> str:
+    """How to load the robot again: its example-robot-data name, ``tool_changer``, or the URDF's
+    absolute path."""
+    from ..model.robot import EXAMPLE_ROBOTS
+
+    if source is None or source == "tool_changer" or str(source) in EXAMPLE_ROBOTS:
+        return "tool_changer" if source is None else str(source)
+    return str(Path(source).resolve())
 
 
 def jsonable(value):
