@@ -136,3 +136,78 @@ def test_export_refuses_a_json_without_the_model_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "key 'effect_parameters' is missing" in err[0]
     assert not (tmp_path / "never").exists()
+
+
+def _mdh_product(folder, q):
+    """base_M_tcp (4, 4) from the exported mdh.csv (as-built columns, mm and deg), written out here:
+    Rx(alpha) Tx(a) Ry(beta) Rz(theta + q) Tz(d) per row, between the base and tool frames."""
+    from scipy.spatial.transform import Rotation
+
+    def homogeneous(rotation=None, translation=(0.0, 0.0, 0.0)):
+        out = np.eye(4)
+        if rotation is not None:
+            out[:3, :3] = rotation.as_matrix()
+        out[:3, 3] = translation
+        return out
+
+    rows = np.genfromtxt(folder / "mdh.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
+    frames = np.genfromtxt(folder / "mdh_base_tool.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
+
+    def fixed(name):
+        f = frames[(frames["frame"] == name) & (frames["model"] == "as_built")][0]
+        rotation = Rotation.from_euler("ZYX", [f["yaw_deg"], f["pitch_deg"], f["roll_deg"]], degrees=True)
+        return homogeneous(rotation, np.array([f["x_mm"], f["y_mm"], f["z_mm"]]) * 1e-3)
+
+    out = fixed("base_to_frame0")
+    for row, value in zip(rows, q):
+        theta = np.radians(row["theta_deg_as_built"]) + (value if row["variable"] == "theta" else 0.0)
+        d = row["d_mm_as_built"] * 1e-3 + (value if row["variable"] == "d" else 0.0)
+        out = (out @ homogeneous(Rotation.from_euler("x", row["alpha_deg_as_built"], degrees=True))
+               @ homogeneous(translation=(row["a_mm_as_built"] * 1e-3, 0, 0))
+               @ homogeneous(Rotation.from_euler("y", row["beta_deg_as_built"], degrees=True))
+               @ homogeneous(Rotation.from_euler("z", theta)) @ homogeneous(translation=(0, 0, d)))
+    return out @ fixed("last_frame_to_tcp")
+
+
+@pytest.mark.parametrize("case", ["tool_changer", "two_arms"])
+def test_exported_mdh_table_is_the_calibrated_geometry_and_dh_is_refused_in_one_line(case, tmp_path, capsys):
+    if case == "tool_changer":
+        robot, csv, args = load_robot(), DEMO, []
+    else:
+        from test_measured_frames import TWO_ARMS, _simulate
+
+        urdf = tmp_path / "two_arms.urdf"
+        urdf.write_text(TWO_ARMS)
+        csv = tmp_path / "hands.csv"
+        csv.write_text(_simulate(150, 1e-5, 5))
+        robot, args = load_robot(str(urdf), "right_marker"), ["--robot", str(urdf), "--noise-mm", "0.01"]
+    out_json, folder = tmp_path / "d.json", tmp_path / "export"
+    assert main(["diagnose", str(csv), *args, "--quiet", "--json", str(out_json)]) == 0
+    capsys.readouterr()
+    assert main(["export", str(out_json), "--to", str(folder)]) == 0
+    out, err = capsys.readouterr()
+    model = tcr.load_as_built(folder / "as_built.yaml")
+    rng = np.random.default_rng(2)
+    for q in rng.uniform(*robot.joint_bounds(np.pi), (5, robot.n_joints)):
+        expected = tcp_poses(model.geometric_robot(), q)
+        product = _mdh_product(folder, q)
+        np.testing.assert_allclose(product[:3, 3], expected.position[0], atol=1e-8)
+        np.testing.assert_allclose(product[:3, :3], expected.rotation[0], atol=1e-8)
+    if case == "tool_changer":  # j2, j3, j5 parallel by design, tilted as built: no DH table, said once
+        warning = [line for line in err.splitlines() if "no DH table" in line]
+        assert len(warning) == 1 and "j2 and j3 are parallel by design" in warning[0]
+        assert not (folder / "dh.csv").exists() and "DH: not written" in out
+
+
+def test_dh_table_of_the_nominal_ur5_is_the_published_one():
+    """Universal Robots' published UR5 DH parameters (d1 89.159, a2 -425, a3 -392.25, d4 109.15,
+    d5 94.65, d6 82.3 mm; alpha 90, 0, 0, 90, -90, 0 deg): the same lengths up to the sign
+    conventions, d6 in the tool transform."""
+    from tcr_accuracy.model.dh import dh_table
+
+    table = dh_table(load_robot("ur5"))
+    a, alpha, d = table.params[:, 0], table.params[:, 1], table.params[:, 2]
+    np.testing.assert_allclose(np.abs(a) * 1e3, [0, 425, 392.25, 0, 0, 0], atol=1e-6)
+    np.testing.assert_allclose(np.abs(d[:5]) * 1e3, [89.159, 0, 0, 109.15, 94.65], atol=1e-6)
+    np.testing.assert_allclose(np.abs(np.degrees(alpha)), [90, 0, 0, 90, 90, 0], atol=1e-6)
+    assert np.linalg.norm(table.tool[:3, 3]) * 1e3 == pytest.approx(82.3, abs=1e-6)

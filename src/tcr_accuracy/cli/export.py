@@ -8,6 +8,10 @@ Writes into ``--to DIR`` (files written together at the end of the run):
   (:mod:`tcr_accuracy.prediction.as_built_model`);
 * ``joint_offsets_tcp.csv``: joint zero offsets [deg, mm] and the TCP (offset in the TCP
   frame and its pose on the flange) [mm, deg];
+* ``dh.csv``, ``mdh.csv`` and their ``*_base_tool.csv``: the standard and the modified
+  (Craig, Hayati's beta for parallel axes) Denavit-Hartenberg tables, nominal, as built and
+  the correction (:mod:`tcr_accuracy.model.dh`); where the axes admit no DH table (axes parallel
+  by design, tilted as built) a one-line warning says so and the rest is written;
 * ``compensation.csv`` (with ``--targets CSV``): for controllers that cannot take a model,
   each target's corrected joint command: the calibrated robot's measured point at the
   corrected command lands where the nominal robot with the fitted TCP offset puts it at
@@ -65,6 +69,7 @@ def _run_export(args) -> int:
 
     from ..atomic import stage_folder, write_text_atomically
     from ..exceptions import InputError
+    from ..model.dh import NoDhForm
     from ..model.robot import load_robot
     from ..prediction.as_built_model import AsBuiltModel, write_as_built_model
 
@@ -80,6 +85,16 @@ def _run_export(args) -> int:
     files = write_as_built_model(model, folder, "as_built")
     files["joint_offsets_tcp.csv"] = offsets_and_tcp_csv(model)
     summary = [f"{robot.name}: calibrated model of {args.diagnosis} ({', '.join(model.parameters)}) -> {folder}"]
+    for convention in ("DH", "MDH"):
+        try:
+            table, frames = dh_csv(model, convention)
+        except NoDhForm as exc:
+            import sys
+
+            sys.stderr.write(f"tcr-accuracy: warning: {exc}\n")
+            summary.append(f"  {convention}: not written ({exc})")
+            continue
+        files[f"{convention.lower()}.csv"], files[f"{convention.lower()}_base_tool.csv"] = table, frames
     if args.targets is not None:
         text, solved, total = compensation_csv(model, args.targets, args.threshold_mm * 1e-3)
         files["compensation.csv"] = text
@@ -114,6 +129,39 @@ def offsets_and_tcp_csv(model) -> str:
     for axis, value in zip(("roll", "pitch", "yaw"), pin.rpy.matrixToRpy(placement.rotation)):
         rows.append((f"tcp_on_last_joint.{axis}", f"{np.degrees(value):.9g}", "deg"))
     return "\n".join(",".join(r) for r in rows) + "\n"
+
+
+def dh_csv(model, convention: str) -> tuple[str, str]:
+    """(rows, base and tool) of the DH or MDH table as CSV: nominal, as built and the correction
+    (as built - nominal), lengths in mm, angles in deg. Raises NoDhForm (one line) where the
+    robot's axes admit no such table."""
+    import numpy as np
+    import pinocchio as pin
+
+    from ..model.dh import dh_table, mdh_table
+
+    build = dh_table if convention == "DH" else mdh_table
+    nominal = build(model.robot, model.robot)
+    as_built = build(model.geometric_robot(), model.robot)
+    names = ["a_mm", "alpha_deg", "d_mm", "theta_deg"] + (["beta_deg"] if convention == "MDH" else [])
+    scale = np.array([1e3, 180.0 / np.pi, 1e3, 180.0 / np.pi, 180.0 / np.pi])[:len(names)]
+    header = ["joint", "variable"] + names + [f"{n}_as_built" for n in names] + [f"{n}_correction" for n in names]
+    lines = [",".join(header)]
+    for i, joint in enumerate(nominal.joints):
+        before, after = nominal.params[i, :len(names)], as_built.params[i, :len(names)]
+        change = after - before
+        change[1::2] = np.angle(np.exp(1j * change[1::2]))  # angles wrapped to (-180, 180] deg
+        if convention == "MDH":
+            change[4] = after[4] - before[4]
+        cells = [joint, nominal.variable[i]] + [f"{v:.9g}" for v in np.concatenate([before, after, change]) *
+                                                np.tile(scale, 3)]
+        lines.append(",".join(cells))
+    frames = ["frame,model,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg"]
+    for label, table in (("nominal", nominal), ("as_built", as_built)):
+        for frame, matrix in (("base_to_frame0", table.base), ("last_frame_to_tcp", table.tool)):
+            rpy = np.degrees(pin.rpy.matrixToRpy(matrix[:3, :3]))
+            frames.append(",".join([frame, label] + [f"{v:.9g}" for v in (*matrix[:3, 3] * 1e3, *rpy)]))
+    return "\n".join(lines) + "\n", "\n".join(frames) + "\n"
 
 
 def compensation_csv(model, targets: str, threshold: float) -> tuple[str, int, int]:
