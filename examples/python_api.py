@@ -47,7 +47,8 @@ model.fit(train.q, train.position, context=train.context())
 miss = np.linalg.norm(model.heldout_residual(test.q, test.position, context=test.context()), axis=1)
 print(f"predicted error vs measured at {len(test.q)} held-out poses: mean miss {miss.mean() * 1e3:.4f} mm")
 
-# %% Compensation: joint commands whose predicted real TCP lands on the nominal targets
-result = tcr.compensate_joints(robot, model.error_model_, test.q, context=test.context())
+# %% Compensation: joint commands whose predicted real measured point lands where the model (the
+# nominal robot with the fitted TCP offset, frame_robot_) puts it at the target joints
+result = tcr.compensate_joints(model.frame_robot_, model.estimator_, test.q, context=test.context())
 print(f"compensated {int(result.converged.sum())}/{len(result.converged)} targets, "
       f"largest predicted miss {result.predicted_miss.max() * 1e3:.6f} mm")

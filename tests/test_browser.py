@@ -13,6 +13,7 @@ the CPU through SwiftShader (``--use-angle=swiftshader --enable-unsafe-swiftshad
 
 import os
 import shutil
+from pathlib import Path
 import subprocess
 from html.parser import HTMLParser
 
@@ -222,3 +223,175 @@ def test_printed_summary_renders_as_aligned_lines_in_chromium(chromium, tmp_path
     paragraph_index = as_paragraph.write(tmp_path / "paragraph")
     taller = last_text_row(index, "pre") - last_text_row(paragraph_index, "paragraph")
     assert taller > 30, f"the printed summary is only {taller} px taller than as a paragraph"
+
+
+# ---------------------------------------------------------------------------------------
+# Where the views put things: the scene read back from the page Chromium built
+# ---------------------------------------------------------------------------------------
+#: Appended to a view's page: writes, once the scene is loaded, every point cloud's points
+#: (three.js objects of type Points, by meshcat node path) in the frame of the "/meshcat"
+#: node's parent, i.e. the robot's base frame before the view's shift, into a <pre>.
+_SCENE_DUMP = """<script>
+(function () {
+  var root = viewer.scene_tree.find(["meshcat"]).object;
+  viewer.scene.updateMatrixWorld(true);
+  var toBase = root.matrixWorld.clone();
+  if (toBase.invert) { toBase.invert(); } else { toBase.getInverse(root.matrixWorld); }
+  var Vector3 = root.position.constructor;
+  var out = {};
+  root.traverse(function (obj) {
+    if (!obj.isPoints && !obj.isLineSegments) { return; }
+    var path = [], node = obj;
+    while (node && node !== root) { if (node.name !== "<object>" && node.name) { path.unshift(node.name); } node = node.parent; }
+    path = path.join("/");
+    if (!obj.isPoints && path !== "ground_grid") { return; }
+    var m = toBase.clone().multiply(obj.matrixWorld), a = obj.geometry.attributes.position, pts = [];
+    for (var i = 0; i < a.count; i++) {
+      var v = new Vector3(a.getX(i), a.getY(i), a.getZ(i)).applyMatrix4(m);
+      pts.push([v.x, v.y, v.z]);
+    }
+    out[path] = pts;
+  });
+  for (var k = 0; k < root.children.length; k++) {
+    var child = root.children[k];
+    if (child.name.indexOf("frame") >= 0) {
+      out["matrix:" + child.name] = toBase.clone().multiply(child.matrixWorld).elements;
+    }
+  }
+  var pre = document.createElement("pre");
+  pre.id = "tcr-scene-dump";
+  pre.textContent = JSON.stringify(out);
+  document.body.appendChild(pre);
+})();
+</script>
+"""
+
+
+def scene_points(chromium, tmp_path, page):
+    """{node path: (N, 3) points [m] in the base frame} of a view page, as Chromium built its scene."""
+    import json
+    import re
+
+    probe = page.with_name(page.stem + "-probe.html")
+    probe.write_text(page.read_text(encoding="utf-8").replace("</body>", _SCENE_DUMP + "</body>"), encoding="utf-8")
+    dom = _dom(chromium, tmp_path, probe)
+    found = re.search(r'<pre id="tcr-scene-dump">(.*?)</pre>', dom, flags=re.S)
+    assert found, "the page did not dump its scene (the loader failed?)"
+    text = found.group(1).replace("&quot;", '"').replace("&amp;", "&")
+    out = {}
+    for key, value in json.loads(text).items():
+        if key.startswith("matrix:"):  # three.js stores a 4 x 4 matrix column by column
+            out[key] = np.asarray(value, dtype=float).reshape(4, 4).T
+        else:
+            out[key.strip("/")] = np.asarray(value, dtype=float).reshape(-1, 3)
+    return out
+
+
+def _diagnosed_view(tmp_path, csv, robot_args):
+    """``diagnose`` with --view, --json and --as-built-urdf: (view page, JSON, as-built robot)."""
+    import json
+
+    import yaml
+
+    from tcr_accuracy.cli import main
+    from tcr_accuracy.model.robot import load_robot
+
+    view, out_json, urdf = tmp_path / "view.html", tmp_path / "d.json", tmp_path / "as_built.urdf"
+    assert main(["diagnose", str(csv), *robot_args, "--quiet", "--view", str(view), "--json", str(out_json),
+                 "--as-built-urdf", str(urdf)]) == 0
+    side = yaml.safe_load(urdf.with_name("as_built.effects.yaml").read_text())
+    return view, json.loads(out_json.read_text()), load_robot(str(urdf), side["tool_frame"])
+
+
+def _check_view_frame(chromium, tmp_path, view, data, as_built, q, raw_tracker, tolerance_m):
+    """The measured points the page draws sit at the as-built model's TCP at the measured joints
+    (the model read back from its exported URDF, not from the diagnosis), the tracker triad where
+    the JSON's tracker transform puts it, the gap segments magnified as the legend says, and
+    the ground grid about the robot and the data."""
+    import re
+
+    from tcr_accuracy.model.kinematics import tcp_poses
+
+    scene = scene_points(chromium, tmp_path, view)
+    model_tcp = tcp_poses(as_built, q).position
+    measured = scene["measured"]
+    assert measured.shape == model_tcp.shape
+    near = np.linalg.norm(measured - model_tcp, axis=1)
+    raw = np.linalg.norm(raw_tracker - model_tcp, axis=1)
+    print(f"measured vs model TCP: max {near.max() * 1e3:.3f} mm; raw tracker coordinates: min {raw.min():.3f} m")
+    assert near.max() < tolerance_m
+    assert raw.min() > 0.05  # the tracker's own coordinates would be far off: the check can fail
+    np.testing.assert_allclose(scene["matrix:tracker frame"], np.linalg.inv(np.array(data["tracker_transform"])),
+                               atol=1e-5)
+    dom = _dom(chromium, tmp_path, view)
+    factor = float(re.search(r"nominal model only \(segments magnified x ([0-9.e+]+)\)|"
+                             r"TCP offset only \(segments magnified x ([0-9.e+]+)\)", dom).group(2))
+    drawn = np.linalg.norm(scene["gap/end"] - scene["gap/start"], axis=1) / factor
+    np.testing.assert_allclose(scene["gap/start"], measured, atol=1e-6)
+    assert drawn.max() * 1e3 == pytest.approx(data["gap"]["max_mm"], rel=2e-3)
+    grid = scene["ground_grid"]
+    shown = np.concatenate([measured, model_tcp, scene["matrix:tracker frame"][None, :3, 3]])
+    low, high = shown.min(axis=0) - 1.0, shown.max(axis=0) + 1.0
+    assert np.all(grid[:, :2] >= low[:2]) and np.all(grid[:, :2] <= high[:2]), \
+        "the ground grid reaches far beyond the robot, the data and the tracker"
+
+
+def test_diagnosis_view_puts_the_demo_measurements_on_the_model(chromium, tmp_path):
+    from tcr_accuracy.io.measurements import read_measurements
+    from tcr_accuracy.model.robot import load_robot
+
+    csv = Path(__file__).resolve().parents[1] / "src/tcr_accuracy/data/tool_changer_cutter.csv"
+    view, data, as_built = _diagnosed_view(tmp_path, csv, [])
+    m = read_measurements(csv, load_robot())
+    # the as-built URDF carries the geometry; compliance under the cutter (not in a URDF) is the
+    # millimetre left
+    _check_view_frame(chromium, tmp_path, view, data, as_built, m.q, m.position, 6e-3)
+
+
+def test_diagnosis_view_of_a_ur10_whose_tracker_is_turned_half_round(chromium, tmp_path):
+    from tcr_accuracy.cli import main
+    from tcr_accuracy.io.measurements import read_measurements
+    from tcr_accuracy.model.robot import load_robot
+
+    scenario = tmp_path / "ur10.yaml"
+    scenario.write_text("robot: ur10\neffects:\n  frames:\n    base_mm: {dx: 1800.0, dy: 600.0, dz: -200.0}\n"
+                        "    base_deg: {rz: 180.0}\n    tool_mm: {dz: 150.0}\n"
+                        "  geometry: {spread_mm: 0.1, spread_mrad: 0.1}\nnoise_mm: 0.02\n")
+    csv = tmp_path / "ur10.csv"
+    assert main(["simulate", "--robot", "ur10", "--scenario", str(scenario), "--n", "120", "--seed", "2",
+                 "--out", str(csv), "--quiet"]) == 0
+    view, data, as_built = _diagnosed_view(tmp_path, csv, ["--robot", "ur10", "--effects", "geometry"])
+    m = read_measurements(csv, load_robot("ur10"))
+    assert abs(abs(np.array(data["tracker_transform"])[0, 0]) - 1.0) < 1e-3  # the turn half round is found
+    _check_view_frame(chromium, tmp_path, view, data, as_built, m.q, m.position, 0.5e-3)
+
+
+def test_diagnosis_view_of_a_two_armed_robot_measured_at_both_hands(chromium, tmp_path):
+    import pinocchio as pin
+
+    from test_measured_frames import JOINTS, TWO_ARMS
+    from tcr_accuracy.effects import make_effect, predict_positions
+    from tcr_accuracy.model.robot import robot_from_urdf_text
+
+    urdf = tmp_path / "two_arms.urdf"
+    urdf.write_text(TWO_ARMS)
+    rng = np.random.default_rng(3)
+    q_all = rng.uniform(-1.0, 1.0, (90, len(JOINTS)))
+    tracker = pin.SE3(pin.rpy.rpyToMatrix(0.1, -0.05, 2.5), np.array([2.0, -1.2, 0.4]))  # base -> tracker
+    columns, blocks, first = [f"{j}_deg" for j in JOINTS], [np.degrees(q_all)], None
+    for frame, offset in (("right_marker", [0.004, -0.002, 0.003]), ("left_marker", [-0.002, 0.003, 0.001])):
+        robot = robot_from_urdf_text(TWO_ARMS, frame, name="two_arms")
+        q = q_all[:, [JOINTS.index(j) for j in robot.joint_names]]
+        frames = make_effect("frames", robot)
+        params = np.array([dict(zip(("frames.tool.dx", "frames.tool.dy", "frames.tool.dz"), offset)).get(p, 0.0)
+                           for p in frames.parameter_names()])
+        base = predict_positions(robot, [frames], [params], q, None) + 1e-5 * rng.standard_normal((len(q), 3))
+        blocks.append((base @ tracker.rotation.T + tracker.translation) * 1e3)
+        columns += [f"{frame}.{a}_mm" for a in "xyz"]
+        first = first or (q, blocks[-1] * 1e-3)
+    csv = tmp_path / "hands.csv"
+    table = np.concatenate(blocks, axis=1)
+    csv.write_text(",".join(columns) + "\n" + "\n".join(",".join(f"{v:.12g}" for v in row) for row in table) + "\n")
+    view, data, as_built = _diagnosed_view(tmp_path, csv, ["--robot", str(urdf), "--effects", "joint_offsets",
+                                                            "--noise-mm", "0.01"])
+    _check_view_frame(chromium, tmp_path, view, data, as_built, first[0], first[1], 0.2e-3)

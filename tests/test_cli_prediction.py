@@ -143,17 +143,22 @@ def test_compensate_lands_on_the_targets_as_the_tracker_sees_them(ur5, tracked, 
     q_comp = np.loadtxt(d / "comp.csv", delimiter=",", skiprows=1)[:, :6] / ur5.display_scale
     frame = payload["tracker_frame"]
     rotation, translation = np.array(frame["rotation_matrix"]), np.array(frame["translation_mm"]) * 1e-3
-    targets = tcp_poses(ur5, tracked["q_query"]).position @ rotation.T + translation
+    # the targets are where the model puts the measured point (a reflector 25 mm off the flange here):
+    # the nominal TCP plus the fitted TCP offset turned by the TCP's rotation, in the tracker frame
+    pose = tcp_poses(ur5, tracked["q_query"])
+    point = pose.position + pose.rotation @ (np.array(frame["tool_offset_mm"]) * 1e-3)
+    targets = point @ rotation.T + translation
     before = np.linalg.norm(tracked["true_tracker_positions"](tracked["q_query"]) - targets, axis=1) * 1e3
     after = np.linalg.norm(tracked["true_tracker_positions"](q_comp) - targets, axis=1) * 1e3
-    assert before.mean() > 0.3
-    assert after.mean() < 0.05 and after.mean() < before.mean() / 10
+    # the 25 mm reflector offset is the measured point's, not an error: what is left to correct is
+    # the robot's own error beyond the fitted frame (0.035 mm here)
+    assert before.mean() > 0.025
+    assert after.mean() < 0.02 and after.mean() < before.mean() / 2
     # the predicted error before compensation is the measured one (held out), to the prediction's accuracy
-    measured = np.linalg.norm((tracked["p_query"] - translation) @ rotation - tcp_poses(ur5, tracked["q_query"]).position,
-                              axis=1) * 1e3
+    measured = np.linalg.norm((tracked["p_query"] - translation) @ rotation - point, axis=1) * 1e3
     held = payload["heldout"]
     assert held["measured_error_before_mean_mm"] == pytest.approx(measured.mean(), rel=1e-6)
-    assert payload["predicted_error_before_mean_mm"] == pytest.approx(measured.mean(), abs=0.05)
+    assert payload["predicted_error_before_mean_mm"] == pytest.approx(measured.mean(), abs=0.02)
     assert held["mean_mm"] < 0.1 and "about what compensation leaves" in out
 
 

@@ -33,6 +33,7 @@ _EXPORTS = {
     "diagnose": "diagnosis.diagnose", "GapDiagnosis": "diagnosis.diagnose",
     "make_predictor": "prediction.methods", "MeasuredErrorModel": "prediction.composed",
     "compensate_joints": "prediction.compensation", "register_tracker": "prediction.registration",
+    "load_as_built": "prediction.as_built_model", "AsBuiltModel": "prediction.as_built_model",
     "Scene": "view.viewer",
 }
 

@@ -149,7 +149,8 @@ def _run_diagnose(args) -> int:
                           progress=bar.set_postfix_str)
     finally:
         bar.close()
-    payload = jsonable({"measurements": ", ".join(map(str, files)), **result.to_dict()})
+    payload = jsonable({"measurements": ", ".join(map(str, files)), "robot_source": robot_source(args.robot),
+                        "tool_frame": robot.tool_frame, **result.to_dict(robot)})
     source = ", ".join(map(str, files))
     _report_tables(out, robot, result, source)
     out.add_plots(lambda folder: list(write_plots(result, robot, folder).values()), PLOT_CAPTIONS)
@@ -173,6 +174,16 @@ def _session_labels(files) -> list[str]:
             label, k = f"{stem}_{k}", k + 1
         labels.append(label)
     return labels
+
+
+def robot_source(source) -> str:
+    """How to load the robot again: its example-robot-data name, ``tool_changer``, or the URDF's
+    absolute path."""
+    from ..model.robot import EXAMPLE_ROBOTS
+
+    if source is None or source == "tool_changer" or str(source) in EXAMPLE_ROBOTS:
+        return "tool_changer" if source is None else str(source)
+    return str(Path(source).resolve())
 
 
 def jsonable(value):
@@ -596,16 +607,21 @@ def _report_tables(out, robot, d, source: str) -> None:
 
 
 def _scene(robot, d, measurements):
-    """Nominal robot, the calibrated as-built robot as a ghost, measured points and the gap."""
+    """Everything in the robot's base frame: the nominal robot, the calibrated as-built robot as a
+    ghost, the measured points (the fitted tracker frame applied), the nominal TCPs at the
+    measured joints, the gap to the model, and the tracker's own frame as a triad."""
     import numpy as np
 
     from ..model.errors import ErrorModel
-    from ..view.viewer import Scene, data_extent, point_size, segment_magnification
+    from ..model.kinematics import tcp_poses
+    from ..view.viewer import (COLORS, Scene, data_extent, frame_axis_length, ghost_magnification, point_size,
+                               rotate_vectors, segment_magnification, transform_points)
 
+    base_M_tracker = np.linalg.inv(d.tracker_transform)
     context = measurements.context()
-    model_final = d.predict(robot, d.q, context)
-    measured = model_final - d.final_residual  # in the robot's base frame
-    nominal_model = measured + d.gap_residual  # the model with the tracker frame only
+    model_final = transform_points(base_M_tracker, d.predict(robot, d.q, context))  # the fitted model's TCP
+    measured = model_final - rotate_vectors(base_M_tracker, d.final_residual)
+    nominal_model = measured + rotate_vectors(base_M_tracker, d.gap_residual)  # tracker frame and TCP offset only
     gap = np.linalg.norm(d.gap_residual, axis=1)
     extent = data_extent(measured)
     magnify = segment_magnification(float(gap.max()), extent)
@@ -613,12 +629,25 @@ def _scene(robot, d, measurements):
     q_show = robot.working_pose
     scene.add_robot(robot, q_show, name="nominal robot")
     em = ErrorModel(robot)
-    as_built = em.perturbed_robot(magnify * np.asarray(d.as_built_x))
-    scene.add_robot(as_built, q_show, name=f"as-built robot, geometric errors x {magnify:g}",
-                    color=(0.85, 0.2, 0.2), opacity=0.35, include_base=False)
+    x = np.asarray(d.as_built_x, dtype=float)
+    tool = np.zeros_like(x)
+    tool[em.tool_slice] = x[em.tool_slice]  # the measured frame's offset: drawn at its true size
+    ghost = ghost_magnification(robot, q_show, em, x - tool, magnify)
+    as_built = em.perturbed_robot(ghost * (x - tool) + tool)
+    scene.add_robot(as_built, q_show, name=f"as-built robot, geometric errors x {ghost:g}, TCP offset x 1",
+                    color=(0.85, 0.2, 0.2), opacity=0.35, include_base=False, framed=False)
     scene.add_point_cloud(measured, gap * 1e3, name="measured", size_m=1.4 * point_size(extent),
                           label="gap after the tracker frame |dP| [mm]")
+    scene.add_points(tcp_poses(robot, d.q).position, "nominal TCP", COLORS["nominal_tcp"],
+                     size_m=0.7 * point_size(extent), label="nominal TCP (URDF) at the measured joints")
     scene.add_error_segments(measured, nominal_model, magnify=magnify, name="gap",
-                             start_label="measured", end_label="nominal model")
-    scene.add_note(f"{d.n_measurements} measurements; segments and the as-built ghost magnified x {magnify:g}")
+                             start_label="measured (tracker frame fitted, base frame)",
+                             end_label="model with the tracker frame and TCP offset only")
+    scene.add_frame(base_M_tracker, "tracker frame", length_m=frame_axis_length(measured),
+                    label="tracker frame (fitted)")
+    scene.add_note(f"{d.n_measurements} measurements" + (f" of {d.frames_measured[0]}" if len(d.frames_measured) > 1
+                                                        else "")
+                   + f"; base frame of the robot; segments magnified x {magnify:g}, the as-built ghost's "
+                     f"geometric errors x {ghost:g}")
     return scene
+

@@ -192,13 +192,15 @@ def _progress(args, message: str) -> None:
         sys.stderr.write(message + "\n")
 
 
-def _predict(args, model, q, context=None):
-    """Predicted base-frame errors (N, 3) [m] and their std (N, 3) or None, checked finite."""
+def _predict(args, model, q, context=None, *, robot_only: bool = False):
+    """Predicted base-frame errors (N, 3) [m] and their std (N, 3) or None, checked finite; with
+    ``robot_only``, only what the robot adds beyond the measured point (its TCP offset left out)."""
     import numpy as np
 
     from ..exceptions import AnalysisError
 
-    pred, std = model.predict_error(q, return_std=True, context=context)
+    predict = model.predict_robot_error if robot_only else model.predict_error
+    pred, std = predict(q, return_std=True, context=context)
     pred = np.asarray(pred, dtype=float).reshape(-1, 3)
     if not np.all(np.isfinite(pred)) or (std is not None and not np.all(np.isfinite(std))):
         raise AnalysisError(f"method {args.method} predicted non-finite errors")
@@ -359,7 +361,7 @@ def _run_predict(args) -> int:
                                            + ("; the held-out miss, measured - predicted error, per pose"
                                               if measured is not None else "")})
     if out.scene_wanted:
-        out.set_scene(*_predict_scene(robot, q, pred, norm, args))
+        out.set_scene(*_predict_scene(robot, q, pred, norm, args, model, measured))
     header = _joint_columns(robot) + ["ex_mm", "ey_mm", "ez_mm", "e_norm_mm"]
     blocks = [q * scale, pred * 1e3, norm[:, None] * 1e3]
     if std is not None:
@@ -388,25 +390,50 @@ def _print(robot, args, q_train, *lines: str) -> None:
         print(f"  {line}")
 
 
-def _predict_scene(robot, q, pred, norm, args):
+def _predict_scene(robot, q, pred, norm, args, model, measured=None):
+    """In the robot's base frame: the query TCPs of the model (nominal + fitted TCP offset) coloured by
+    the predicted |e|, segments to the predicted real TCP, the nominal (URDF) TCPs, the measured query
+    points when there are some (the training data's tracker frame applied) and the tracker's frame."""
+    import numpy as np
+
     from ..model.kinematics import tcp_poses
-    from ..view.viewer import Scene, data_extent, point_size, segment_magnification
+    from ..view.viewer import COLORS, Scene, data_extent, point_size, segment_magnification
 
     nominal = tcp_poses(robot, q).position
+    model_tcp = model.registration_.tcp_positions(robot, q)  # the measured frame: nominal + TCP offset
+    beyond = nominal + pred - model_tcp  # what the robot adds to the measured frame's offset
     extent = data_extent(nominal)
-    magnify = segment_magnification(float(norm.max()), extent)
+    magnify = segment_magnification(float(np.linalg.norm(beyond, axis=1).max()), extent)
     scene = Scene(f"{robot.name}: error predicted by {args.method}", frame="data")
     shown = _median_index(norm)
     scene.add_robot(robot, q[shown], name="nominal robot", opacity=0.5)  # the TCP points sit in the tool
-    scene.add_point_cloud(nominal, norm * 1e3, name="query TCP", label="predicted TCP error |e| [mm]",
+    scene.add_point_cloud(model_tcp, norm * 1e3, name="query TCP", label="predicted TCP error |e| [mm]",
                           size_m=1.6 * point_size(extent))
-    scene.add_error_segments(nominal, nominal + pred, magnify=magnify, name="predicted error",
-                             start_label="nominal TCP at the query joints",
+    scene.add_error_segments(model_tcp, nominal + pred, magnify=magnify, name="predicted error",
+                             start_label="model TCP at the query joints (nominal + fitted TCP offset)",
                              end_label="predicted real TCP")
-    scene.add_note(f"{len(q)} query poses, {args.method} fitted to {args.train}; robot at query row {shown + 2} "
-                   f"(median |e|); segments magnified x {magnify:g}")
-    return scene, (f"Query TCP points coloured by the predicted |e|; segments to the predicted real TCP, "
-                   f"magnified x {magnify:g}")
+    _draw_measurement_frame(scene, robot, q, model, measured, extent)
+    scene.add_note(f"{len(q)} query poses, {args.method} fitted to {args.train}; robot base frame; robot at query "
+                   f"row {shown + 2} (median |e|); segments magnified x {magnify:g} (the TCP offset at true size)")
+    return scene, (f"Query TCP points (base frame) coloured by the predicted |e|; segments to the predicted real "
+                   f"TCP, magnified x {magnify:g}")
+
+
+def _draw_measurement_frame(scene, robot, q, model, measured, extent) -> None:
+    """The nominal (URDF) TCPs at q, the measured points mapped into the base frame, the tracker triad."""
+    import numpy as np
+
+    from ..model.kinematics import tcp_poses
+    from ..view.viewer import COLORS, frame_axis_length, point_size
+
+    nominal = tcp_poses(robot, q).position
+    scene.add_points(nominal, "nominal TCP", COLORS["nominal_tcp"], size_m=0.7 * point_size(extent),
+                     label="nominal TCP (URDF)")
+    if measured is not None:
+        scene.add_points(model.registration_.to_base(measured), "measured", COLORS["measured"],
+                         size_m=point_size(extent), label="measured (tracker frame fitted, base frame)")
+    scene.add_frame(np.linalg.inv(model.registration_.matrix), "tracker frame", length_m=frame_axis_length(nominal),
+                    label="tracker frame (fitted)")
 
 
 # ---------------------------------------------------------------------------------------
@@ -423,44 +450,59 @@ def _run_compensate(args) -> int:
     robot, out = _start(args, "Joint compensation")
     q_train, model = _fit(args, robot)
     check_csv_memory(args, args.targets, "--targets", 3 * 64 * 8.0)
-    q, measured, context = read_joint_csv(args.targets, robot, need_positions=False, repeats=True)
+    q_all, measured_all, context_all, lines = read_joint_csv(args.targets, robot, need_positions=False, rows=True,
+                                                      repeats=True)
     units, scale = robot.display_units, robot.display_scale
-    # the predictor of the base-frame error (TCP offset + method): targets and commands are base-frame
-    result = compensate_joints(robot, model.error_model_, q, threshold=args.threshold_mm * 1e-3,
-                               max_iter=args.max_iter, context=context)
-    failed = np.flatnonzero(~result.converged)
-    if failed.size:
-        rows = ", ".join(str(i + 2) for i in failed[:10]) + (" ..." if failed.size > 10 else "")
-        raise InputError(f"{args.targets}: {failed.size} target(s) not reachable within the joint limits or "
-                         f"{args.max_iter} cycles (rows {rows}; predicted miss up to "
-                         f"{result.predicted_miss[failed].max() * 1e3:.4g} mm)")
-    dq = (result.q - q) * scale
-    # the real TCP the uncompensated command is predicted to reach, and the compensated one
-    # (base frame: result.target is the nominal TCP at the target joints)
-    before_tcp = result.target + _predict(args, model, q, context)[0]
-    after_tcp = tcp_poses(robot, result.q).position + _predict(args, model, result.q, context)[0]
-    before = np.linalg.norm(before_tcp - result.target, axis=1)
-    after = result.predicted_miss
-    cycles, counts = np.unique(result.iterations, return_counts=True)
+    # the measured point (TCP offset from the fit) is what goes to the target; the method's
+    # estimator predicts what the robot adds beyond it (base frame)
+    frame_robot, predictor = model.frame_robot_, model.estimator_
+    result = compensate_joints(frame_robot, predictor, q_all, threshold=args.threshold_mm * 1e-3,
+                               max_iter=args.max_iter, context=context_all)
+    lines = np.asarray(lines)
+    solved = np.flatnonzero(result.converged)
+    unsolved = [{"row": int(lines[i]), "reason": str(result.reason[i]), "detail": str(result.detail[i]),
+                 "predicted_miss_mm": float(result.predicted_miss[i] * 1e3)}
+                for i in np.flatnonzero(~result.converged)]
+    if solved.size == 0:
+        raise InputError(f"{args.targets}: none of the {len(q_all)} targets can be compensated ("
+                         + "; ".join(f"row {u['row']}: {u['reason']}, {u['detail']}" for u in unsolved[:3])
+                         + (" ..." if len(unsolved) > 3 else "") + ")")
+    q, measured = q_all[solved], None if measured_all is None else measured_all[solved]
+    context = None if context_all is None else context_all.subset(solved)
+    q_comp, target = result.q[solved], result.target[solved]
+    dq = (q_comp - q) * scale
+    # the real measured point the uncompensated command is predicted to reach, and the compensated one
+    # (base frame: target is the measured point of the model at the target joints)
+    before_tcp = target + _predict(args, model, q, context, robot_only=True)[0]
+    after_tcp = tcp_poses(frame_robot, q_comp).position + _predict(args, model, q_comp, context, robot_only=True)[0]
+    before = np.linalg.norm(before_tcp - target, axis=1)
+    after = result.predicted_miss[solved]
+    iterations = result.iterations[solved]
+    cycles, counts = np.unique(iterations, return_counts=True)
     heldout = None
     if measured is not None:
         # the targets were measured at their uncompensated commands: how well the predicted
         # error there matches the measured one is what compensation can hope to remove
-        _, measured_error, heldout = _heldout(model, q, measured, context)
-        measured_before = np.linalg.norm(measured_error, axis=1)
+        _, _, heldout = _heldout(model, q, measured, context)
+        # measured against the target: the measured point of the model (its TCP offset included)
+        measured_before = np.linalg.norm(model.registration_.to_base(measured) - target, axis=1)
         heldout["measured_error_before_mean_mm"] = float(measured_before.mean() * 1e3)
         heldout["measured_error_before_max_mm"] = float(measured_before.max() * 1e3)
     payload = {
         "robot": robot.name, "method": args.method, "frame": args.frame, "n_train": int(q_train.shape[0]),
         "n_targets": int(q.shape[0]), "tracker_frame": model.registration_.to_dict(), "heldout": heldout,
-        "threshold_mm": args.threshold_mm, "iterations_max": int(result.iterations.max()),
-        "n_converged": int(result.converged.sum()),
+        "threshold_mm": args.threshold_mm, "iterations_max": int(iterations.max()),
+        "n_converged": int(solved.size), "n_unsolved": len(unsolved), "unsolved": unsolved,
+        "solved_rows": [int(v) for v in lines[solved]],
         "cycles_targets": {str(int(c)): int(n) for c, n in zip(cycles, counts)},
         "predicted_error_before_mean_mm": float(before.mean() * 1e3),
         "predicted_error_before_max_mm": float(before.max() * 1e3),
         "predicted_miss_mean_mm": float(after.mean() * 1e3),
         "predicted_miss_max_mm": float(after.max() * 1e3),
-        "joint_units": units, "compensated_joints": (result.q * scale).tolist(),
+        "joint_units": units, "compensated_joints": (q_comp * scale).tolist(),
+        "largest_correction": {n: float(np.abs(dq[:, j]).max()) for j, n in enumerate(robot.joint_names)},
+        "largest_first_order_correction": {n: float(np.abs(result.first_order[solved, j]).max() * scale[j])
+                                           for j, n in enumerate(robot.joint_names)},
     }
     _fit_table(out, robot, args, q_train, "targets", int(q.shape[0]))
     out.add_table("Tracker frame", ["setting", "value"], _frame_rows(model, args),
@@ -468,8 +510,8 @@ def _run_compensate(args) -> int:
     out.add_table("Predicted error at the targets, before and after compensation", ["command", "mean", "max"],
                   [("uncompensated (target joints)", before.mean() * 1e3, before.max() * 1e3),
                    ("compensated", after.mean() * 1e3, after.max() * 1e3)], units=["", "mm", "mm"],
-                  note="|predicted real TCP - target|, robot base frame; predicted real TCP = nominal FK + "
-                       "predicted error")
+                  note="|predicted real TCP - target|, robot base frame; the TCP is the measured point (nominal "
+                       "FK with the fitted TCP offset); predicted real TCP = its FK + the predicted error beyond it")
     if heldout is not None:
         out.add_table("Measured targets (held out)", ["statistic", "mean", "max"],
                       [("measured error, uncompensated", heldout["measured_error_before_mean_mm"],
@@ -479,19 +521,32 @@ def _run_compensate(args) -> int:
                       note="the targets' measured positions mapped with the training data's tracker frame; the "
                            "second row is about what compensation leaves")
     out.add_table("Convergence", ["cycles", "targets"], [(int(c), int(n)) for c, n in zip(cycles, counts)],
-                  note=f"{int(result.converged.sum())} of {len(q)} targets converged (predicted miss below "
+                  note=f"{solved.size} of {len(q_all)} targets converged (predicted miss below "
                        f"{args.threshold_mm:g} mm, joints inside their limits, at most {args.max_iter} cycles)")
+    if unsolved:
+        out.add_table("Targets not solved", ["row", "reason", "why", "predicted miss"],
+                      [(u["row"], u["reason"], u["detail"], u["predicted_miss_mm"]) for u in unsolved],
+                      units=["", "", "", "mm"], note="not in --csv; the other targets' commands are")
     out.add_table("Joint corrections", ["joint", "largest |correction|", "unit"],
                   [(n, np.abs(dq[:, j]).max(), u) for j, (n, u) in enumerate(zip(robot.joint_names, units))])
     out.add_plots(lambda folder: [plot_compensation(before, after, Path(folder) / "compensation.png")],
                   {"compensation.png": "Predicted error at the targets before and after compensation"})
     if out.scene_wanted:
-        out.set_scene(*_compensate_scene(robot, q, result, before_tcp, after_tcp, before, args))
-    header = _joint_columns(robot) + _joint_columns(robot, "d") + ["predicted_miss_mm"]
+        out.set_scene(*_compensate_scene(robot, q, q_comp, target, before_tcp, after_tcp, before, args, model,
+                                         measured))
+    header = _joint_columns(robot) + _joint_columns(robot, "d") + ["predicted_miss_mm", "target_row"]
     _write_csv_atomically(args, "compensated joint values", header,
-                          np.hstack([result.q * scale, dq, result.predicted_miss[:, None] * 1e3]))
+                          np.hstack([q_comp * scale, dq, after[:, None] * 1e3, lines[solved][:, None]]))
+    if unsolved:
+        counts_by = {r: sum(u["reason"] == r for u in unsolved) for r in dict.fromkeys(u["reason"] for u in unsolved)}
+        import sys
+
+        sys.stderr.write(f"tcr-accuracy: warning: {len(unsolved)} of {len(q_all)} targets not solved (rows "
+                     + ", ".join(str(u["row"]) for u in unsolved[:10]) + (" ..." if len(unsolved) > 10 else "")
+                     + "; " + ", ".join(f"{r} {k}" for r, k in counts_by.items())
+                     + "): listed in the JSON's 'unsolved' and the report, left out of --csv\n")
     lines = [_frame_line(model, args),
-             (f"{q.shape[0]} targets compensated in at most {result.iterations.max()} cycles; largest joint "
+             (f"{q.shape[0]} of {len(q_all)} targets compensated in at most {iterations.max()} cycles; largest joint "
               f"correction {np.abs(dq).max():.4g} ({', '.join(sorted(set(units)))})"),
              (f"predicted error at the targets: mean {before.mean() * 1e3:.4f} mm, max {before.max() * 1e3:.4f} mm "
               f"before; mean {after.mean() * 1e3:.2g} mm, max {after.max() * 1e3:.2g} mm after")]
@@ -502,20 +557,23 @@ def _run_compensate(args) -> int:
     return out.finish(payload, lambda: _print(robot, args, q_train, *lines))
 
 
-def _compensate_scene(robot, q, result, before_tcp, after_tcp, before, args):
+def _compensate_scene(robot, q, q_comp, target, before_tcp, after_tcp, before, args, model, measured):
+    """In the robot's base frame: the targets (the measured point of the model), the predicted real
+    TCP before and after compensation, the nominal TCPs, measured targets and the tracker's frame."""
     from ..view.viewer import COLORS, Scene, data_extent, segment_magnification
 
-    extent = data_extent(result.target)
+    extent = data_extent(target)
     magnify = segment_magnification(float(before.max()), extent)
     scene = Scene(f"{robot.name}: compensation with {args.method}", frame="data")
     shown = _median_index(before)
-    scene.add_robot(robot, result.q[shown], name="compensated command", opacity=0.5)
-    scene.add_error_segments(result.target, before_tcp, magnify=magnify, name="before",
+    scene.add_robot(robot, q_comp[shown], name="compensated command", opacity=0.5)
+    scene.add_error_segments(target, before_tcp, magnify=magnify, name="before",
                              start_label="target TCP", end_label="predicted real TCP, uncompensated command")
-    scene.add_error_segments(result.target, after_tcp, magnify=magnify, name="after",
+    scene.add_error_segments(target, after_tcp, magnify=magnify, name="after",
                              start_label="target TCP", end_label="predicted real TCP, compensated command",
                              end_color=COLORS["trajectory"])
     del scene.legend[-2]  # the targets' entry, already in the legend once
-    scene.add_note(f"{len(q)} targets of {args.targets}; robot at target row {shown + 2} (median error before); "
-                   f"segments magnified x {magnify:g}")
+    _draw_measurement_frame(scene, robot, q, model, measured, extent)
+    scene.add_note(f"{len(q)} targets of {args.targets}; robot base frame; robot at target row {shown + 2} (median "
+                   f"error before); segments magnified x {magnify:g}")
     return scene, f"Targets and the predicted real TCP before and after compensation, magnified x {magnify:g}"

@@ -172,7 +172,10 @@ class Diagnosis:
     def structure_remains(self) -> bool:
         return bool(self.structure.get("remains", False))
 
-    def to_dict(self) -> dict:
+    def to_dict(self, robot: RobotModel | None = None) -> dict:
+        """JSON form (mm, unit-suffixed keys). With the robot, also ``effect_parameters``: every
+        effect's full parameter vector by name [SI] (the first measured frame's chain), what
+        ``tcr-accuracy export`` rebuilds the fitted model from."""
         last = self.steps[-1]
         out = {
             "robot": self.robot_name,
@@ -225,6 +228,11 @@ class Diagnosis:
             "n_fits": self.n_fits,
             "contribution_mm": {e: v * 1e3 for e, v in self.contribution.items()},
         }
+        if robot is not None:
+            out["effect_parameters"] = {
+                e: dict(zip(make_effect(e, robot).parameter_names(), (float(v) for v in vector)))
+                for e, vector in self.effect_parameters.items()}
+            out["effect_parameters_units"] = "SI (m, rad, rad/Nm, m/N, 1/K)"
         if len(self.frames_measured) > 1:
             out["frames_measured"] = list(self.frames_measured)
             out["heldout_by_frame"] = {f: s.to_dict() for f, s in self.heldout_by_frame.items()}

@@ -130,6 +130,10 @@ class DiagnosisCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
     selected_effects_ : list of str
     """
 
+    #: :class:`~tcr_accuracy.prediction.composed.MeasuredErrorModel` gives it the robot whose TCP is the
+    #: measured point: the effects act with their lever arms to it, as in ``diagnose``
+    models_measured_point = True
+
     def __init__(self, *, robot=None, effects=None, folds=5, tracker_noise=2e-5, random_state=None):
         self.robot = robot
         self.effects = effects

@@ -79,6 +79,14 @@ class ResidualCorrected(MultiOutputMixin, RegressorMixin, BaseEstimator):
         return base + mean, std
 
 
+    @classmethod
+    def from_fitted(cls, base, residual, n_features: int) -> "ResidualCorrected":
+        """The sum of two estimators fitted elsewhere (e.g. the residual on another robot model)."""
+        out = cls(base=base, residual=residual)
+        out.base_, out.residual_, out.n_features_in_ = base, residual, int(n_features)
+        return out
+
+
 def _takes_context(method) -> bool:
     import inspect
 
@@ -131,11 +139,35 @@ class TcpOffset(MultiOutputMixin, RegressorMixin, BaseEstimator):
         self.offset_ = np.einsum("nji,nj->i", rotation, y) / X.shape[0]
         return self
 
+    @classmethod
+    def from_offset(cls, robot, offset) -> "TcpOffset":
+        """The error of a known offset (3,) [m] in the TCP frame (e.g. a registration's)."""
+        out = cls(robot=robot)
+        out.offset_, out.n_features_in_ = np.asarray(offset, dtype=float).reshape(3), robot.n_joints
+        return out
+
     def predict(self, X):
         """(m, 3) error of the fitted offset at joint values X (m, n_joints) [m]."""
         check_is_fitted(self, "offset_")
         X = validate_data(self, X, reset=False)
         return tcp_poses(self.robot, X).rotation @ self.offset_
+
+
+def _measured_point_robots(estimator) -> list[str]:
+    """The ``robot`` parameters (set_params keys) of the estimators in ``estimator`` that model the
+    robot's effects at the measured point (class attribute ``models_measured_point``): their lever
+    arms depend on where that point is, so they are given the robot whose TCP it is. The others
+    (a geometric calibration's linearised parameters, joint-space regressors) fit the error beyond
+    the measured point on the nominal chain, as their identifiability test was tuned on."""
+    params = estimator.get_params(deep=True)
+    keys = []
+    for key in params:
+        if key != "robot" and not key.endswith("__robot"):
+            continue
+        owner = estimator if key == "robot" else params[key[:-len("__robot")]]
+        if getattr(owner, "models_measured_point", False):
+            keys.append(key)
+    return keys
 
 
 def uncertainty_kind(estimator) -> str | None:
@@ -160,11 +192,14 @@ class MeasuredErrorModel(BaseEstimator):
     """An error predictor fitted to measured TCP positions in a tracker's own frame.
 
     ``fit(X, P)`` first registers the tracker frame and the TCP offset on the training
-    data (:func:`tcr_accuracy.prediction.registration.register_tracker`), maps the measured
-    positions into the robot's base frame, and fits ``estimator`` to what the TCP
-    offset leaves of the error there; the base-frame error is then
-    ``TCP offset term + estimator``. ``predict`` maps the predicted real TCP back to
-    the tracker frame, so it predicts what the tracker will read.
+    data (:func:`tcr_accuracy.prediction.registration.register_tracker`) and maps the
+    measured positions into the robot's base frame. The TCP offset belongs to the
+    measured point (a reflector 150 mm off the flange, a tool tip): the estimator is
+    fitted to what the robot adds beyond that point, and the effect models in it (the
+    diagnosis) on the robot whose TCP *is* that point (``frame_robot_``), so that rotation
+    errors of the wrist act with the right lever arm.
+    The base-frame error is then ``TCP offset term + estimator``. ``predict`` maps the
+    predicted real TCP back to the tracker frame, so it predicts what the tracker will read.
 
     Parameters
     ----------
@@ -172,7 +207,8 @@ class MeasuredErrorModel(BaseEstimator):
     estimator : estimator
         ``fit(Q (n, n_joints), E (n, 3))`` / ``predict(Q) -> (m, 3)`` on base-frame
         errors [m] (any of :data:`~tcr_accuracy.prediction.methods.METHODS` by
-        :func:`~tcr_accuracy.prediction.methods.make_predictor`).
+        :func:`~tcr_accuracy.prediction.methods.make_predictor`); the ``robot`` of every
+        estimator in it with ``models_measured_point = True`` is set to ``frame_robot_``.
     fit_frame : bool, default=True
         Fit the tracker frame. False: the measured positions are in the base frame
         already (only the TCP offset is fitted).
@@ -180,11 +216,15 @@ class MeasuredErrorModel(BaseEstimator):
     Attributes
     ----------
     registration_ : tcr_accuracy.prediction.registration.Registration
+    frame_robot_ : RobotModel
+        The robot with the fitted TCP offset: its TCP is the measured point.
     errors_ : ndarray of shape (n, 3)
         Training errors, real minus nominal TCP position in the base frame [m].
+    estimator_ : estimator
+        The estimator fitted to the error beyond the measured point (base frame) [m].
     error_model_ : ResidualCorrected
-        TCP offset plus the fitted estimator; ``error_model_.predict(Q)`` gives the
-        base-frame error (m, 3) [m].
+        TCP offset term plus ``estimator_``; ``error_model_.predict(Q)`` gives the
+        base-frame error (m, 3) [m] of the nominal robot.
     """
 
     def __init__(self, *, robot=None, estimator=None, fit_frame=True):
@@ -201,9 +241,15 @@ class MeasuredErrorModel(BaseEstimator):
         if self.robot is None or self.estimator is None:
             raise InputError("MeasuredErrorModel needs a robot and an estimator")
         self.registration_ = register_tracker(self.robot, X, y, fit_base=self.fit_frame)
-        self.errors_ = self.registration_.to_base(y) - tcp_poses(self.robot, X).position
-        self.error_model_ = ResidualCorrected(base=TcpOffset(robot=self.robot), residual=self.estimator)
-        self.error_model_.fit(X, self.errors_, context=context)
+        measured = self.registration_.to_base(y)
+        self.frame_robot_ = self.registration_.measured_frame_robot(self.robot)
+        self.errors_ = measured - tcp_poses(self.robot, X).position
+        estimator = clone(self.estimator)
+        estimator.set_params(**{k: self.frame_robot_ for k in _measured_point_robots(estimator)})
+        self.estimator_ = _fit_with_context(estimator, X, measured - tcp_poses(self.frame_robot_, X).position,
+                                            context)
+        self.error_model_ = ResidualCorrected.from_fitted(
+            TcpOffset.from_offset(self.robot, self.registration_.tool_offset), self.estimator_, X.shape[1])
         return self
 
     def predict_error(self, X, return_std=False, context=None):
@@ -214,6 +260,16 @@ class MeasuredErrorModel(BaseEstimator):
         """
         check_is_fitted(self, "error_model_")
         return self.error_model_.predict(X, return_std=return_std, context=context)
+
+    def predict_robot_error(self, X, return_std=False, context=None):
+        """What the robot adds beyond the measured point (the TCP offset term left out): base-frame
+        error of ``frame_robot_`` at X (m, n_joints) [m], with its std (m, 3) or None on request."""
+        check_is_fitted(self, "estimator_")
+        if not return_std:
+            return predict_with_context(self.estimator_, X, context)
+        if uncertainty_kind(self.estimator_) is None:
+            return predict_with_context(self.estimator_, X, context), None
+        return predict_with_context(self.estimator_, X, context, return_std=True)
 
     def predict(self, X, context=None):
         """(m, 3) predicted tracker readings at joint values X (m, n_joints) [m]."""

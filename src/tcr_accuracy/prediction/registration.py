@@ -137,6 +137,17 @@ class Registration:
         frames = make_effect("frames", robot)
         return predict_positions(robot, [frames], [self.tool_parameters()], q, context)
 
+    def measured_frame_robot(self, robot: RobotModel) -> RobotModel:
+        """The robot whose TCP is the measured point: its TCP frame moved by the fitted TCP
+        offset (``frames.tool.*``, in the TCP frame), the chain otherwise nominal. Its TCP
+        positions are :meth:`tcp_positions`; what it misses is what the robot itself adds."""
+        from ..model.errors import ErrorModel
+
+        em = ErrorModel(robot)
+        x = em.zeros()
+        x[em.tool_slice.start:em.tool_slice.start + 3] = self.tool_offset
+        return em.perturbed_robot(x, name=robot.name)
+
     def to_dict(self) -> dict:
         """JSON-ready summary (mm, deg; unit-suffixed keys)."""
         rotvec = Rotation.from_matrix(self.rotation).as_rotvec()

@@ -106,7 +106,7 @@ class Scene:
     title : str
         Shown above the view and as the page title.
     grid : bool
-        Show meshcat's ground grid (z = 0 plane, 0.5 m squares).
+        Show a ground grid (z = 0 plane, squares of 5 cm to 1 m fitted to what is drawn: :func:`grid_extent`).
     frame : {"all", "data"}
         What the camera frames: everything drawn, or the data (point clouds, points, error
         segments, trajectories) so that they fill the view when they are what the view is
@@ -135,7 +135,7 @@ class Scene:
 
     # -- content ---------------------------------------------------------------------
     def add_robot(self, robot: RobotModel, q, name: str = "robot", color=None,
-                  opacity: float = 1.0, *, include_base: bool = True) -> None:
+                  opacity: float = 1.0, *, include_base: bool = True, framed: bool = True) -> None:
         """Draw the robot's URDF visuals at joint values q.
 
         Parameters
@@ -154,12 +154,16 @@ class Scene:
         include_base : bool
             Draw the bodies fixed to the base (a ghost without base error would only
             repaint the nominal robot's pedestal).
+        framed : bool
+            Count the bodies in what the camera and the ground grid fit (False for a
+            ghost whose magnified errors may reach far from the robot and the data).
         """
         q = robot.check_joint_values(np.asarray(q, dtype=float), source=f"{name}: q")
         if not 0.0 < opacity <= 1.0:
             raise InputError(f"{name}: opacity {opacity} is outside (0, 1]")
         points, skeleton = draw_robot(self.vis, robot, q, _node(name), color, opacity, include_base=include_base)
-        self._bounds.add(points)
+        if framed:
+            self._bounds.add(points)
         what = " (skeleton: the URDF has no visuals)" if skeleton else ""
         suffix = f", {round(opacity * 100)} % opaque" if opacity < 1.0 else ""
         self.legend.append(LegendEntry(f"robot: {name}{what}{suffix}", tuple(color) if color is not None else None))
@@ -284,7 +288,7 @@ class Scene:
             as_built = error_model.perturbed_robot(magnify * x[worst], name="as_built")
             base_error = bool(np.any(x[worst][error_model.base_slice]))
             self.add_robot(as_built, q, f"{name}_worst_as_built", color=COLORS["as_built"], opacity=0.35,
-                           include_base=base_error)
+                           include_base=base_error, framed=False)
             self.legend[-1] = LegendEntry(
                 f"as-built robot of the worst sample (|dP| = {error.position_norm[worst] * 1000:.3g} mm), "
                 f"errors x {magnify:g}", COLORS["as_built"])
@@ -358,13 +362,20 @@ class Scene:
         self._data_bounds.add(points)
         self.legend.append(LegendEntry(name, tuple(color)))
 
-    def add_frame(self, placement, name: str, length_m: float = 0.15) -> None:
-        """Axes of a frame (pin.SE3 or (4, 4) matrix) in red/green/blue for x/y/z."""
+    def add_frame(self, placement, name: str, length_m: float = 0.15, label: str | None = None) -> None:
+        """Axes of a frame (pin.SE3 or (4, 4) matrix, in the base frame [m]) in red/green/blue
+        for x/y/z; ``label`` (default ``name``) goes to the legend with the frame's origin in mm
+        (meshcat draws no text, so the legend names the triad)."""
         matrix = np.asarray(getattr(placement, "homogeneous", placement), dtype=float)
+        if matrix.shape != (4, 4) or not np.isfinite(matrix).all():
+            raise InputError(f"{name}: a frame needs a finite (4, 4) placement, got shape {matrix.shape}")
         node = self.vis[_node(name)]
         node.set_object(self._mg.triad(length_m))
         node.set_transform(matrix)
         self._bounds.add(matrix[None, :3, 3])
+        origin = ", ".join(f"{v:.0f}" for v in matrix[:3, 3] * 1e3)
+        self.legend.append(LegendEntry(f"{label or name}: triad x/y/z = red/green/blue, {length_m * 1e3:.0f} mm "
+                                       f"long, origin ({origin}) mm in the base frame"))
 
     def add_note(self, text: str) -> None:
         """A line of text under the legend (settings, units, what the view shows)."""
@@ -420,19 +431,23 @@ class Scene:
         self.vis["/Grid"].set_property("visible", False)
         self.vis["/Axes"].set_property("visible", False)
         if self._grid:
-            lo = np.floor(np.minimum(self._bounds.lo, target) / 0.5 - 2) * 0.5
-            hi = np.ceil(np.maximum(self._bounds.hi, target) / 0.5 + 2) * 0.5
-            xs, ys = np.arange(lo[0], hi[0] + 1e-9, 0.5), np.arange(lo[1], hi[1] + 1e-9, 0.5)
+            lo, hi, step = grid_extent(self._bounds.lo, self._bounds.hi, target)
+            xs, ys = np.arange(lo[0], hi[0] + 1e-9, step), np.arange(lo[1], hi[1] + 1e-9, step)
             lines = [((x, ys[0], 0.0), (x, ys[-1], 0.0)) for x in xs]
             lines += [((xs[0], y, 0.0), (xs[-1], y, 0.0)) for y in ys]
             self.vis["ground_grid"].set_object(mg.LineSegments(
                 mg.PointsGeometry(np.array(lines, dtype=np.float32).reshape(-1, 3).T),
                 mg.LineBasicMaterial(color=0x9a9a9a)))
-        self.vis["base_axes"].set_object(mg.triad(0.5))
+        self.vis["base_axes"].set_object(mg.triad(self._axes_length()))
         self.vis.set_transform(translation_matrix(-target))
         offset = position - target
         self.vis["/Cameras/default/rotated/<object>"].set_property(
             "position", [float(offset[0]), float(offset[2]), float(-offset[1])])
+
+    def _axes_length(self) -> float:
+        """Length [m] of the base frame's triad: a fifth of what the view frames, 5 cm to 0.5 m."""
+        size = float(np.max(self._bounds.hi - self._bounds.lo)) if not self._bounds.empty else 1.0
+        return float(np.clip(0.2 * size, 0.05, 0.5))
 
     def static_html(self) -> str:
         """One self-contained HTML page (meshcat's viewer, the scene, the legend); no server needed."""
@@ -459,6 +474,48 @@ class Scene:
 
     def _legend(self) -> str:
         return legend_html(self.title, self.color_bars, self.legend, self.notes)
+
+
+def grid_extent(lo_m, hi_m, target_m) -> tuple[np.ndarray, np.ndarray, float]:
+    """The ground grid around what a view frames: (lower corner (3,), upper corner (3,) [m],
+    square side [m]). The side is 0.05, 0.1, 0.25, 0.5 or 1 m, the one giving at most 24
+    squares along the longer side, and the grid reaches two squares beyond the bounds."""
+    lo = np.minimum(np.asarray(lo_m, dtype=float), target_m)
+    hi = np.maximum(np.asarray(hi_m, dtype=float), target_m)
+    size = float(np.max((hi - lo)[:2]))
+    step = next((s for s in (0.05, 0.1, 0.25, 0.5) if size / s <= 24), 1.0)
+    return np.floor(lo / step - 2) * step, np.ceil(hi / step + 2) * step, step
+
+
+def transform_points(matrix, points_m) -> np.ndarray:
+    """Points (N, 3) [m] mapped by a (4, 4) homogeneous transform ``aMb`` (b -> a)."""
+    matrix = np.asarray(matrix, dtype=float)
+    return np.asarray(points_m, dtype=float) @ matrix[:3, :3].T + matrix[:3, 3]
+
+
+def rotate_vectors(matrix, vectors_m) -> np.ndarray:
+    """Displacements (N, 3) [m] turned by the rotation of a (4, 4) transform (no translation)."""
+    return np.asarray(vectors_m, dtype=float) @ np.asarray(matrix, dtype=float)[:3, :3].T
+
+
+def frame_axis_length(points_m) -> float:
+    """A triad length [m] that reads next to points of this extent: a sixth of it, 5 cm to 0.5 m."""
+    return float(np.clip(data_extent(points_m) / 6.0, 0.05, 0.5))
+
+
+def ghost_magnification(robot: RobotModel, q, error_model, x, largest: float, drawn_m: float = 0.15) -> float:
+    """The factor for an as-built ghost with error vector x (n_params,) at joint values q:
+    at most ``largest`` (the view's factor) and small enough that the ghost's TCP moves at
+    most about ``drawn_m`` [m] (its rotation counted at 1 m), so a ghost never leaves the view."""
+    from ..model.kinematics import pose_error, tcp_poses
+
+    x = np.asarray(x, dtype=float)
+    if not np.any(x):
+        return 1.0
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    error = pose_error(tcp_poses(robot, q), tcp_poses(robot, q, x[None], error_model))
+    moved = float(error.position_norm[0] + np.linalg.norm(np.asarray(error.rotation_vector)[0]))
+    return max(1.0, min(float(largest), auto_magnification(moved, drawn_m=drawn_m)))
 
 
 def data_extent(points_m) -> float:
