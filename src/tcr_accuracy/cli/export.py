@@ -78,7 +78,8 @@ def _run_export(args) -> int:
     robot = load_robot(None if source == "tool_changer" else source, data["tool_frame"])
     try:
         model = AsBuiltModel(robot, {e: dict(p) for e, p in data["effect_parameters"].items()}, source,
-                             np.asarray(data["tracker_transform"], dtype=float))
+                             np.asarray(data["tracker_transform"], dtype=float),
+                             {e: dict(o) for e, o in (data.get("effect_options") or {}).items()})
     except (TypeError, ValueError, AttributeError) as exc:
         raise InputError(f"{args.diagnosis}: effect_parameters: {exc}") from None
     folder = Path(args.to)

@@ -541,10 +541,13 @@ def _run_compensate(args) -> int:
         counts_by = {r: sum(u["reason"] == r for u in unsolved) for r in dict.fromkeys(u["reason"] for u in unsolved)}
         import sys
 
-        sys.stderr.write(f"tcr-accuracy: warning: {len(unsolved)} of {len(q_all)} targets not solved (rows "
+        from ..atomic import hold_message
+
+        # a warning of a run that succeeds: shown once its files are written, not at all if they are not
+        hold_message(sys.stderr, f"tcr-accuracy: warning: {len(unsolved)} of {len(q_all)} targets not solved (rows "
                      + ", ".join(str(u["row"]) for u in unsolved[:10]) + (" ..." if len(unsolved) > 10 else "")
                      + "; " + ", ".join(f"{r} {k}" for r, k in counts_by.items())
-                     + "): listed in the JSON's 'unsolved' and the report, left out of --csv\n")
+                     + "): listed in the JSON's 'unsolved' and the report, left out of --csv\n", "warning")
     lines = [_frame_line(model, args),
              (f"{q.shape[0]} of {len(q_all)} targets compensated in at most {iterations.max()} cycles; largest joint "
               f"correction {np.abs(dq).max():.4g} ({', '.join(sorted(set(units)))})"),

@@ -216,7 +216,8 @@ class Diagnosis:
             "outside_physics": list(self.outside_physics),
             "sessions": list(self.sessions),
             "drift": list(self.drift),
-            "effect_options": {e: {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in o.items()}
+            "effect_options": {e: {k: (v.tolist() if isinstance(v, np.ndarray) else
+                                       list(v) if isinstance(v, tuple) else v) for k, v in o.items()}
                                for e, o in self.effect_options.items()},
             "joint_functions": {e: {j: {k: np.asarray(v).tolist() for k, v in band.items()}
                                     for j, band in joints.items()}
@@ -230,7 +231,8 @@ class Diagnosis:
         }
         if robot is not None:
             out["effect_parameters"] = {
-                e: dict(zip(make_effect(e, robot).parameter_names(), (float(v) for v in vector)))
+                e: dict(zip(make_effect(e, robot, **self.effect_options.get(e, {})).parameter_names(),
+                            (float(v) for v in vector)))
                 for e, vector in self.effect_parameters.items()}
             out["effect_parameters_units"] = "SI (m, rad, rad/Nm, m/N, 1/K)"
         if len(self.frames_measured) > 1:

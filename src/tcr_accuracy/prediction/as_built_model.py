@@ -47,19 +47,26 @@ class AsBuiltModel:
     robot_source : str, how to load the nominal robot (example-robot-data name, ``tool_changer``
         or a URDF path)
     tracker_from_base : (4, 4) ndarray or None, the fitted tracker frame (``p_tracker = M p_base``)
+    options : dict, effect name -> the options it was fitted with (a cyclic error's highest order,
+        thermal's reference temperature); the sessions' tracker frames are not the robot's and are left out
     """
 
     robot: RobotModel
     parameters: dict
     robot_source: str = "tool_changer"
     tracker_from_base: np.ndarray | None = None
+    options: dict = field(default_factory=dict)
     effects: list = field(init=False)
 
     def __post_init__(self) -> None:
-        self.effects = [make_effect(e, self.robot) for e in self.parameters]
+        self.options = {e: {k: v for k, v in (o or {}).items() if not (e == "frames" and k == "sessions")}
+                        for e, o in self.options.items()}
+        self.effects = [make_effect(e, self.robot, **self.options.get(e, {})) for e in self.parameters]
         vectors = []
         for effect in self.effects:
             values = self.parameters[effect.name]
+            if effect.name == "frames":  # the tracker frames (one per session) are the setup's, not the robot's
+                values = {n: v for n, v in values.items() if not n.startswith("frames.base.")}
             names = effect.parameter_names()
             unknown = set(values) - set(names)
             if unknown:
@@ -74,9 +81,10 @@ class AsBuiltModel:
     @classmethod
     def from_diagnosis(cls, robot: RobotModel, diagnosis, robot_source: str = "tool_changer") -> "AsBuiltModel":
         """The model a :class:`~tcr_accuracy.diagnosis.result.Diagnosis` fitted (first measured frame)."""
-        parameters = {e: dict(zip(make_effect(e, robot).parameter_names(), map(float, vector)))
+        options = {e: dict(o) for e, o in diagnosis.effect_options.items()}
+        parameters = {e: dict(zip(make_effect(e, robot, **options.get(e, {})).parameter_names(), map(float, vector)))
                       for e, vector in diagnosis.effect_parameters.items()}
-        return cls(robot, parameters, robot_source, np.asarray(diagnosis.tracker_transform, dtype=float))
+        return cls(robot, parameters, robot_source, np.asarray(diagnosis.tracker_transform, dtype=float), options)
 
     # -- the model ---------------------------------------------------------------------
     def tcp_poses(self, q, context=None) -> TcpPoses:
@@ -121,6 +129,7 @@ class AsBuiltModel:
             "note": "tcp_poses = the nominal robot with these effects, frames' base twist left out (it is the "
                     "tracker's); tracker_from_base: p_tracker = M p_base",
             "effects": {e: {k: float(v) for k, v in p.items()} for e, p in self.parameters.items()},
+            "options": {e: dict(o) for e, o in self.options.items() if o},
             "tracker_from_base": None if self.tracker_from_base is None else
             [[float(v) for v in row] for row in self.tracker_from_base],
         }
@@ -164,5 +173,8 @@ def load_as_built(path) -> AsBuiltModel:
     if not isinstance(effects, dict) or not all(isinstance(v, dict) for v in effects.values()):
         raise InputError(f"{path}: 'effects' must map effect names to {{parameter: value}}")
     tracker = doc.get("tracker_from_base")
+    options = doc.get("options") or {}
+    if not isinstance(options, dict) or not all(isinstance(v, dict) for v in options.values()):
+        raise InputError(f"{path}: 'options' must map effect names to {{option: value}}")
     return AsBuiltModel(robot, {str(e): dict(p) for e, p in effects.items()}, source,
-                        None if tracker is None else np.asarray(tracker, dtype=float))
+                        None if tracker is None else np.asarray(tracker, dtype=float), options)
