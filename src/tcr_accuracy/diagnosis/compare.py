@@ -18,11 +18,11 @@ alone (the old robot with only those parameters moved). SI throughout.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..effects import make_effect, predict_positions
+from ..effects import make_effect, predict_positions, prediction_jacobian
 from ..exceptions import InputError
 from ..model.context import MeasurementContext
 from ..model.robot import RobotModel
@@ -95,6 +95,9 @@ class ParameterChange:
     z: float  # |change| / std_error (0 when the standard error is unknown)
     significant: bool
     setup: bool  # the TCP offset: the setup's, not the robot's
+    #: (old, new) as the fits gave them, where ``old``/``new`` are on a common basis (see
+    #: :func:`on_common_basis`); None when they are the fits' own values
+    as_fitted: tuple | None = None
 
     @property
     def change(self) -> float:
@@ -104,7 +107,8 @@ class ParameterChange:
         finite = lambda v: float(v) if math.isfinite(v) else None  # noqa: E731
         return {"parameter": self.name, "effect": self.effect, "unit": self.unit, "old": self.old, "new": self.new,
                 "change": self.change, "std_error": finite(self.std_error), "z": finite(self.z),
-                "significant": self.significant}
+                "significant": self.significant,
+                **({"as_fitted": {"old": self.as_fitted[0], "new": self.as_fitted[1]}} if self.as_fitted else {})}
 
 
 @dataclass(frozen=True)
@@ -225,14 +229,10 @@ def parameter_changes(old: FittedModel, new: FittedModel, z: float = 3.0) -> tup
     return changes, setup, one_sided
 
 
-def robot_positions(robot: RobotModel, parameters: dict, options: dict, q: np.ndarray,
-                    context: MeasurementContext | None = None) -> np.ndarray:
-    """(N, 3) [m] TCP positions in the robot's base frame of the robot a fit describes.
-
-    parameters : effect -> {name: value SI}; names the fit did not keep (not identifiable)
-    are zero, the tracker frame (``frames.base.*``) is left out.
-    """
-    effects, vectors = [], []
+def _effects(robot: RobotModel, parameters: dict, options: dict) -> tuple[list, list, list]:
+    """The fit's effects, their full parameter vectors [SI] (names the fit did not keep at
+    zero, the tracker frame ``frames.base.*`` left out) and their parameter names."""
+    effects, vectors, all_names = [], [], []
     for name, values in parameters.items():
         try:
             effect = make_effect(name, robot, **options.get(name, {}))
@@ -245,7 +245,50 @@ def robot_positions(robot: RobotModel, parameters: dict, options: dict, q: np.nd
                              f"{robot.tool_frame!r}): give the --robot and --tool the diagnosis used")
         vectors.append(np.array([0.0 if n.startswith(TRACKER_PREFIX) else values.get(n, 0.0) for n in names]))
         effects.append(effect)
+        all_names += names
+    return effects, vectors, all_names
+
+
+def robot_positions(robot: RobotModel, parameters: dict, options: dict, q: np.ndarray,
+                    context: MeasurementContext | None = None) -> np.ndarray:
+    """(N, 3) [m] TCP positions in the robot's base frame of the robot a fit describes.
+
+    parameters : effect -> {name: value SI}; names the fit did not keep (not identifiable)
+    are zero, the tracker frame (``frames.base.*``) is left out.
+    """
+    effects, vectors, _ = _effects(robot, parameters, options)
     return predict_positions(robot, effects, vectors, q, context)
+
+
+def on_common_basis(robot: RobotModel, fit: FittedModel, common: set, q: np.ndarray,
+                    context: MeasurementContext | None = None) -> dict:
+    """The fit's values of the ``common`` parameters once what its other parameters of the same
+    effects do to the TCP is carried into them, as far as they can express it.
+
+    Two fits of different poses may keep different members of a group of parameters that
+    move the TCP alike (identifiability keeps one, e.g. ``geometry.j2.dx`` in one campaign and
+    ``geometry.j4.dx`` in the other), and what the other fit's member carries then shifts the
+    shared parameters. Here the fit's TCP positions over ``q`` are fitted (Gauss-Newton, one
+    step from the fit's own values) with the common parameters and a rigid frame change only.
+    Returns {name: value SI} for the common names the fit has.
+    """
+    restricted = {e: {n: v for n, v in p.items() if n in common} for e, p in fit.parameters.items()}
+    target = robot_positions(robot, fit.parameters, fit.options, q, context)
+    effects, vectors, names = _effects(robot, restricted, fit.options)
+    start = predict_positions(robot, effects, vectors, q, context)
+    columns = [i for i, n in enumerate(names) if n in common and not n.startswith(TRACKER_PREFIX)]
+    jac = prediction_jacobian(robot, effects, vectors, q, context)[:, :, columns]  # (N, 3, k)
+    # a rigid frame change: translation, and a small rotation w moving p by w x p = -[p]x w
+    skew = np.zeros((q.shape[0], 3, 3))
+    skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -start[:, 2], start[:, 1], -start[:, 0]
+    skew = skew - skew.transpose(0, 2, 1)
+    rigid = np.concatenate([np.broadcast_to(np.eye(3), skew.shape), -skew], axis=2)
+    a = np.concatenate([jac, rigid], axis=2).reshape(-1, len(columns) + 6)
+    scale = np.linalg.norm(a, axis=0)
+    scale[scale == 0] = 1.0
+    step = np.linalg.lstsq(a / scale, (target - start).ravel(), rcond=1e-10)[0] / scale
+    flat = np.concatenate(vectors)
+    return {names[i]: float(flat[i] + step[k]) for k, i in enumerate(columns)}
 
 
 def rigidly_aligned_difference(reference: np.ndarray, moved: np.ndarray) -> np.ndarray:
@@ -255,10 +298,17 @@ def rigidly_aligned_difference(reference: np.ndarray, moved: np.ndarray) -> np.n
 
 
 def _with_changes(old: FittedModel, changes) -> dict:
+    """The old fit's parameters with the given changes added."""
     parameters = {e: dict(p) for e, p in old.parameters.items()}
     for c in changes:
-        parameters[c.effect][c.name] = c.new
+        parameters[c.effect][c.name] += c.change
     return parameters
+
+
+def _moved_to(fit: FittedModel, values: dict) -> FittedModel:
+    """The fit with some of its parameters set to ``values`` ({name: value SI})."""
+    parameters = {e: {n: values.get(n, v) for n, v in p.items()} for e, p in fit.parameters.items()}
+    return replace(fit, parameters=parameters)
 
 
 def compare_models(robot: RobotModel, old: FittedModel, new: FittedModel, q: np.ndarray, *, z: float = 3.0,
@@ -272,19 +322,32 @@ def compare_models(robot: RobotModel, old: FittedModel, new: FittedModel, q: np.
     if q.shape[0] < 3 or q.shape[1] != robot.n_joints:
         raise InputError(f"poses: need at least 3 rows of {robot.n_joints} joint values, got shape {q.shape}")
     changes, setup, one_sided = parameter_changes(old, new, z)
+    notes = []
+    partial = [o for o in one_sided if not o.whole_effect]
+    if partial:  # the fits kept different members of the same effects: compare on the common ones
+        shared = {c.name for c in changes + setup}
+        common = [_moved_to(f, on_common_basis(robot, f, shared, q, context)) for f in (old, new)]
+        raw = {c.name: (c.old, c.new) for c in changes + setup}
+        changes, setup, _ = parameter_changes(*common, z)
+        changes, setup = ([replace(c, as_fitted=raw[c.name]) for c in group] for group in (changes, setup))
+        notes.append("the fits kept different parameters of " + ", ".join(sorted({o.effect for o in partial}))
+                     + " (identifiability differs with the poses): what those kept in one fit only do to the TCP "
+                     "is carried into the common ones (least squares over the poses) before comparing")
     # the TCP offset is held at the old fit's: the TCP effect is the robot's change with the same tool
-    tool_held = _with_changes(new, [])
+    tool_held = {e: dict(p) for e, p in new.parameters.items()}
     for c in setup:
-        tool_held[c.effect][c.name] = c.old
+        tool_held[c.effect][c.name] = old.parameters[c.effect][c.name]
     p_old = robot_positions(robot, old.parameters, old.options, q, context)
     p_new = robot_positions(robot, tool_held, new.options, q, context)
     p_sig = robot_positions(robot, _with_changes(old, [c for c in changes if c.significant]), old.options, q,
                             context)
-    notes = []
     if any(c.significant for c in setup):
-        notes.append("the TCP offset changed beyond its uncertainty (" + ", ".join(
-            c.name for c in setup if c.significant) + "): another tool or reflector seat; held at the old fit's "
-            "value for the TCP effect")
+        notes.append("the TCP offset moved beyond z standard errors (" + ", ".join(
+            c.name for c in setup if c.significant) + "): another tool or reflector seat, or chance; held at the "
+            "old fit's value for the TCP effect")
+    tested = len(changes) + len(setup)
+    notes.append(f"by chance alone, {tested} unchanged parameters would give {tested * math.erfc(z / math.sqrt(2)):.2g} "
+                 f"flags at z = {z:g} on average (two-sided normal tail)")
     return Comparison(robot.name, z, changes, setup, one_sided,
                       TcpEffect.of(rigidly_aligned_difference(p_old, p_new)),
                       TcpEffect.of(rigidly_aligned_difference(p_old, p_sig)), q.shape[0],
