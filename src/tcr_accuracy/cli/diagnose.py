@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 import sys
 
-import numpy as np
 from pathlib import Path
 
 from .common import (MAX_MM, add_robot_arguments, check_csv_memory, effect_names, integer, number, output_file,
@@ -257,6 +256,8 @@ def format_summary(robot, d, source: str) -> str:
 def _parameter_lines(d, per_effect: int = 4) -> list[str]:
     """The fitted parameters, the largest of each effect (relative to its standard error),
     with unit, standard error, 95 % interval and physical range."""
+    import numpy as np
+
     if not d.parameter_table:
         return []
     out = ["   fitted parameters (value +- standard error, 95 % interval, physical range; SI units; all in the JSON "
@@ -351,6 +352,7 @@ def _strongest(where: dict) -> list:
 # As-built model
 # ---------------------------------------------------------------------------------------
 def write_as_built(robot, d, path: Path) -> tuple[Path, Path]:
+    import numpy as np
     import yaml
 
     from ..model.asbuilt import as_built_urdf
