@@ -357,6 +357,8 @@ def _parameter_lines(d, per_effect: int = 4) -> list[str]:
 
     """The fitted parameters, the largest of each effect (relative to its standard error),
     with unit, standard error, 95 % interval and physical range."""
+    import numpy as np
+
     if not d.parameter_table:
         return []
     out = ["   fitted parameters (value +- standard error, 95 % interval, physical range; SI units; all in the JSON "
