@@ -1,6 +1,7 @@
 """Cyclic joint errors of high order (strain-wave gears and encoders): a UR10 whose joints each
 carry a periodic error of 15-28 cycles per revolution and a few hundred microradians, plus
-small geometry errors, 0.02 mm of tracker noise and a reflector 0.28 m off the flange.
+small geometry errors, 0.02 mm of tracker noise and a reflector 0.38 m off the flange (0.25 m from
+the last joint's axis: its cyclic error moves the reflector by about 2.5 x the noise).
 
 The truth is written out here on Pinocchio directly (joint placements perturbed by
 ``pin.exp6``, the joints' cyclic errors added to the commanded angles, the reflector placed
@@ -19,7 +20,7 @@ from tcr_accuracy.model.robot import load_robot
 
 from conftest import random_joint_values
 
-REFLECTOR = np.array([0.1, -0.08, 0.25])  # [m] in the flange frame
+REFLECTOR = np.array([0.2, -0.15, 0.25])  # [m] in the flange frame
 NOISE = 2e-5  # [m] per axis
 
 
@@ -64,9 +65,7 @@ def test_cyclic_errors_are_found_and_their_shapes_recovered():
         true = truth(j, angles)
         errors[joint] = np.sqrt(np.mean((effect.joint_function(fitted, joint, angles) - true) ** 2)) / \
             np.sqrt(np.mean(true**2))
-    # the wrist's last joint moves the reflector least (0.28 m lever, 0.02 mm noise): a looser bound
-    assert all(errors[joint] < 0.2 for joint in robot.joint_names[:5]), errors
-    assert errors[robot.joint_names[5]] < 0.35, errors
+    assert all(error < 0.2 for error in errors.values()), errors
     # every fitted coefficient inside its physical range, with a band for every joint's function
     table = d.parameter_table["cyclic"]
     assert all(table["range"][n][0] <= v <= table["range"][n][1] for n, v in table["values"].items())
