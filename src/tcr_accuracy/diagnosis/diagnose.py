@@ -247,7 +247,10 @@ class GapDiagnosis:
 
         # effects as linear maps, and which can be tried at all
         say("building effect models")
-        bases, candidates, stochastic = self._bases(parts, names, measured, notes, sessions)
+        # an effect of last resort is built only if it is tried (its maps are the largest: tens of MB per 10^4 poses)
+        late_names = [e for e in names if effect_class(e).last_resort]
+        bases, candidates, stochastic = self._bases(parts, [e for e in names if e not in late_names], measured,
+                                                    notes, sessions)
         if "frames" not in bases:
             raise AnalysisError("the frames effect could not be built")
         order = ordered(bases)
@@ -256,16 +259,14 @@ class GapDiagnosis:
         pre = FitEngine(parts, {"frames": bases["frames"]}, [], rank_tol=0.0)
         frames_cols = pre.columns(["frames"])
         phi, _ = pre.fit(frames_cols, np.arange(n))
+        linearised = []  # per part, the error Jacobians at the frames-only fit
         for p, part in enumerate(parts):
             basis, _, idx = frames_cols.per_part[p]
             # the sessions' base twists differ a little after their own registrations: their mean
             x_frames = basis.errors(phi[idx] * frames_cols.scale[idx]).mean(axis=0)
-            jac_x = position_jacobians(part.robot, part.q, x_frames,
-                                       weight if part.target_rotation is not None else None)
-            for b in bases.values():
-                b.per_part[p].relinearise(jac_x)
-        for b in bases.values():
-            b.restack()
+            linearised.append(position_jacobians(part.robot, part.q, x_frames,
+                                                 weight if part.target_rotation is not None else None))
+        _relinearise(bases, linearised)
         kfold = KFold(n_splits=self.folds, shuffle=True, random_state=int(rng.integers(2**31 - 1)))
         split = [(np.asarray(a), np.asarray(b)) for a, b in kfold.split(np.arange(n))]
         # the instrument's noise from the data's own redundancy: reflectors on one rigid body, else repeated poses
@@ -290,16 +291,26 @@ class GapDiagnosis:
         gap_residual = result["train_residual"]
         steps = [Step("frames", ("frames",), result["n_parameters"], ErrorStats.of(result["train_residual"]).rms,
                       ErrorStats.of(result["heldout_residual"]), None)]
-        late = [e for e in testable if effect_class(e).last_resort]
-        current = self._forward(engine, [e for e in testable if e not in late], steps, candidates, say)
+        current = self._forward(engine, testable, steps, candidates, say)
         # a flexible effect of last resort is tried only where the others leave structure in joint space
         say("testing what the first selection leaves")
         detector = StructureDetector(obs.q, rng, kinds=robot.joint_kinds)
-        if late and detector.test(_first_frame(engine.evaluate(ordered(current))["train_residual"]), rng)["remains"]:
+        late = []
+        if late_names and detector.test(_first_frame(engine.evaluate(ordered(current))["train_residual"]),
+                                        rng)["remains"]:
+            late_bases, late_candidates, _ = self._bases(parts, late_names, measured, notes, sessions)
+            _relinearise(late_bases, linearised)
+            engine.add_bases(late_bases)
+            candidates.update(late_candidates)
+            for name in ordered(late_bases):
+                if engine.identify(("frames", name))[0][name].size == 0:
+                    candidates[name] = {"tried": False, "why": "no identifiable parameter on these data (beyond frames)"}
+                else:
+                    late.append(name)
+            testable += late
             current = self._forward(engine, testable, steps, candidates, say, current)
         else:
-            for e in late:
-                testable.remove(e)
+            for e in late_names:
                 candidates[e] = {"tried": False, "why": "tried only when the other effects leave structure in joint "
                                                         "space, and they left none"}
         self._judge_at_fitted_sizes(engine, current, notes)
@@ -662,6 +673,15 @@ class GapDiagnosis:
             return True
         return False
 
+
+
+def _relinearise(bases: dict, jacobians: list) -> None:
+    """Every effect's TCP sensitivity at the per-part error Jacobians (the frames-only fit's)."""
+    for p, jac_x in enumerate(jacobians):
+        for b in bases.values():
+            b.per_part[p].relinearise(jac_x)
+    for b in bases.values():
+        b.restack()
 
 
 def _part_names(effect, part: Part, n_parts: int) -> list[str]:

@@ -239,6 +239,14 @@ class FitEngine:
         self.size_factors: dict = {}  # effect -> fitted size / typical size (>= 1), see resize
         self.n_fits = 0
 
+    def add_bases(self, bases: dict) -> None:
+        """Effects joining after the engine was built (an effect of last resort, tried late):
+        identifiability is judged again with them (what was fitted stays cached: effects come
+        in vocabulary order, and a later one takes nothing from the sets fitted without it)."""
+        self.bases.update(bases)
+        self._compressed = None
+        self._keep_cache.clear()
+
     def resize(self, factors: dict) -> bool:
         """Judge identifiability at fitted sizes: an effect fitted at f times its typical size
         resolves columns f times smaller (min_motion / f). Returns whether anything changed
