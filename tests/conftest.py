@@ -5,6 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tcr_accuracy.cli import main
 from tcr_accuracy.model.robot import load_robot
 
 REPO = Path(__file__).resolve().parents[1]
@@ -18,6 +19,16 @@ def tool_changer():
 @pytest.fixture(scope="session")
 def ur5():
     return load_robot("ur5")
+
+
+def run_command(argv, capsys):
+    """The command line in this process: (exit code, stdout, stderr)."""
+    try:
+        code = main(argv)
+    except SystemExit as exc:
+        code = exc.code
+    out, err = capsys.readouterr()
+    return code, out, err
 
 
 def random_joint_values(robot, n, rng, span=np.pi):

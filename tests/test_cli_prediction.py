@@ -11,6 +11,7 @@ from tcr_accuracy.cli import main
 from tcr_accuracy.model.kinematics import tcp_poses
 from tcr_accuracy.analysis.scenario import truth_as_scenario
 from tcr_accuracy.analysis.simulate import simulate_measurements
+from conftest import run_command as run
 
 UR5_REF = np.array([0.3, -1.2, 1.5, -1.9, -1.57, 0.4])
 NOISE_M = 2e-5
@@ -60,15 +61,6 @@ def tracked(ur5, tmp_path_factory):
         "query": _write(d / "query.csv", ur5, q_query, query.position),
         "poses": _write(d / "poses.csv", ur5, q_query),
     }
-
-
-def run(argv, capsys):
-    try:
-        code = main(argv)
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def _tracker_prediction(ur5, payload, predicted_mm, q):

@@ -19,6 +19,7 @@ from tcr_accuracy.cli.diagnose import jsonable
 from tcr_accuracy.diagnosis.compare import FittedModel, parameter_changes
 from tcr_accuracy.diagnosis.diagnose import diagnose
 from tcr_accuracy.io.measurements import write_measurements
+from conftest import run_command as _run
 
 NOISE_MM = 0.02
 J3_CHANGE_DEG = 0.05
@@ -36,15 +37,6 @@ def _campaign(robot, station, offsets_deg, seed, n=300):
                 "noise_mm": NOISE_MM}
     mset, _ = simulate_measurements(robot, scenario, n, np.random.default_rng(seed))
     return mset
-
-
-def _run(argv, capsys):
-    try:
-        code = main(argv)
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.fixture(scope="module")

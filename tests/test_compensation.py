@@ -11,6 +11,7 @@ from tcr_accuracy.model.kinematics import tcp_poses
 from tcr_accuracy.prediction.kriging import JointKriging
 from tcr_accuracy.analysis.stand_in import make_stand_in_robot
 from tcr_accuracy.analysis.sampling import TaskWorkspace, sample_task_workspace
+from conftest import run_command as run
 
 UR5_REF = np.array([0.3, -1.2, 1.5, -1.9, -1.57, 0.4])
 TC_REF = np.array([np.radians(15), np.radians(30), np.radians(-10), 0.2, np.radians(20), 0.0])
@@ -121,15 +122,6 @@ def measured(tool_changer, tmp_path_factory):
         "train": _write(d / "train.csv", tool_changer, q_train, real.measure(q_train)),
         "query": _write(d / "query.csv", tool_changer, q_query),
     }
-
-
-def run(argv, capsys):
-    try:
-        code = main(argv)
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def test_cli_predict_writes_predictions_close_to_the_hidden_error(measured, tool_changer, capsys):

@@ -14,6 +14,7 @@ from tcr_accuracy.io.measurements import read_measurements
 from tcr_accuracy.model.robot import load_robot
 
 from conftest import tool_changer_tcp_by_hand
+from conftest import run_command as run
 
 #: Five distinct tool-changer poses [deg, deg, deg, mm, deg, deg] standing in for P1..P5.
 POSES_DISPLAY = np.array([
@@ -23,15 +24,6 @@ POSES_DISPLAY = np.array([
     [80, 25, 15, 400, 5, 40],
     [-60, 5, -5, 250, -10, -30],
 ], dtype=float)
-
-
-def run(argv, capsys):
-    try:
-        code = main(argv)
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def _q_si(display):
