@@ -517,7 +517,7 @@ def _uncertainty(d, effect: str) -> dict:
 # Report tables and 3D view (the report itself is written by cli_output.RunOutput)
 # ---------------------------------------------------------------------------------------
 PLOT_CAPTIONS = {
-    "steps.png": "How far the gap shrinks: held-out RMS after each step of the forward selection",
+    "steps.png": "How far the gap shrinks: held-out RMS after each step, in the order the effects explain the data",
     "axes.png": "Residual after fitting the tracker frame, per axis",
     "joints.png": "Residual after the tracker frame against each joint value",
     "gravity.png": "Residual after the tracker frame against the gravity torque of each joint",
