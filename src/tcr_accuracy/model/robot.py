@@ -382,11 +382,10 @@ class RobotModel:
         places = mesh_places(root, (kind,), self.urdf_path.parent if self.urdf_path is not None else None,
                              self.package_dirs, self.packages)
         if kind == "visual":
-            check_mesh_paths(places, source, roots)  # every place a mesh may come from, before anything reads it
+            check_mesh_paths(places, source, roots)  # the file each mesh is read from, before anything reads it
             for place in places:
-                for candidate in place.candidates:
-                    if candidate.is_file():
-                        check_mesh_references(candidate, roots, source, place.name)
+                if place.path is not None:
+                    check_mesh_references(place.path, roots, source, place.name)
         text = urdf_with_located_meshes(root, kind, places) if places else self.urdf_text
         geometry_type = pin.GeometryType.VISUAL if kind == "visual" else pin.GeometryType.COLLISION
         with quiet_native_stderr() as said:

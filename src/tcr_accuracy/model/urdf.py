@@ -214,8 +214,9 @@ def check_mesh_paths(places, source: str, roots: list) -> None:
     folders), in one line naming the link, so that no view or report reads and embeds
     ``../../secret/x.obj``.
 
-    ``places`` are :class:`tcr_accuracy.model.ros_packages.MeshPlace` records: each place a mesh
-    could come from must stay inside one of the roots (symlinks followed), found or not.
+    ``places`` are :class:`tcr_accuracy.model.ros_packages.MeshPlace` records: the file each mesh
+    was found at, the one file Pinocchio is then given, must lie inside one of the roots
+    (symlinks followed); a mesh found nowhere is read from nowhere.
     """
     roots = [Path(r).resolve() for r in roots]
 
@@ -223,7 +224,7 @@ def check_mesh_paths(places, source: str, roots: list) -> None:
         return any(path == r or r in path.parents for r in roots)
 
     for place in places:
-        if not place.candidates or not all(inside(c.resolve()) for c in place.candidates):
+        if place.path is not None and not inside(place.path.resolve()):
             folders = ", ".join(str(r) for r in roots) or "none: this URDF has no folder"
             raise InputError(f"{source}: link {one_line(place.link)}: mesh {one_line(place.name, 120)!r} lies "
                              f"outside the URDF's folder and package folders ({one_line(folders, 200)}); "
