@@ -20,6 +20,7 @@ from test_hostile_input import assert_one_line, run
 from test_hostile_input_2 import collada_triangle, embedded_blobs
 from tcr_accuracy.analysis.collision import collision_checker
 from tcr_accuracy.model.robot import MissingMeshWarning, load_robot
+from tcr_accuracy.model.ros_packages import MAX_SEARCH_DEPTH
 from tcr_accuracy.view.viewer import Scene
 
 #: The tetrahedron's corners [m]; its four faces, outward.
@@ -147,6 +148,19 @@ def test_a_package_is_found_by_the_name_in_its_package_xml_not_its_folder(ros, m
     assert robot.packages == {"mypkg": str(renamed)}
     meshes = [Path(obj.meshPath) for obj in robot.visual_model().geometryObjects]
     assert meshes == [renamed / "meshes" / "link.stl"] * 2
+
+
+@pytest.mark.parametrize("levels, found", [(MAX_SEARCH_DEPTH, True), (MAX_SEARCH_DEPTH + 1, False)])
+def test_a_workspace_is_searched_down_to_the_depth_said(levels, found, ros, tmp_path):
+    deep = tmp_path / "deep"
+    target = deep.joinpath(*[f"d{k}" for k in range(levels - 1)], "mypkg")  # mypkg `levels` folders down
+    target.parent.mkdir(parents=True)
+    ros.pkg.rename(target)
+    if found:
+        assert load_robot(ros.urdf, package_dirs=[deep]).packages == {"mypkg": str(target)}
+    else:
+        with pytest.warns(MissingMeshWarning, match="'mypkg' not found"):
+            assert load_robot(ros.urdf, package_dirs=[deep]).packages == {}
 
 
 def test_a_urdf_inside_its_own_package_finds_its_meshes_without_options(ros, monkeypatch):

@@ -128,13 +128,15 @@ def find_packages(names, search_dirs, urdf_folder: Path | None) -> dict[str, Pat
             break
         if not folder.is_dir():
             continue
+        own = package_name(folder) or folder.name  # the folder is the package, by manifest or name
         for name in sorted(missing):
-            if package_name(folder) == name or (package_name(folder) is None and folder.name == name):
+            if own == name:
                 found[name] = folder
             elif (folder / name).is_dir():
                 found[name] = folder / name
-        for name, place in packages_below(folder, wanted - found.keys()).items():
-            found.setdefault(name, place)
+        if wanted - found.keys():
+            for name, place in packages_below(folder, wanted - found.keys()).items():
+                found.setdefault(name, place)
     if urdf_folder is not None:
         for folder in [urdf_folder, *list(urdf_folder.parents)[:3]]:
             name = package_name(folder) or folder.name
@@ -195,7 +197,7 @@ def mesh_places(root: ElementTree.Element, kinds, urdf_folder: Path | None, sear
                     name = mesh.get("filename") or ""
                     package = package_of(name)
                     if package is not None:
-                        rest = name[len("package://"):].split("/", 1)[1] if "/" in name[len("package://"):] else ""
+                        rest = name[len("package://") + len(package) + 1:]
                         folders = [Path(packages[package])] if package in packages else \
                             [Path(d) / package for d in search_dirs]
                         candidates = [f / rest for f in folders]
@@ -239,13 +241,20 @@ def missing_mesh_message(source: str, missing: list[MeshPlace], packages: dict) 
     links = list(dict.fromkeys(p.link for p in missing))
     shown = ", ".join(repr(n) for n in names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
     unfound = sorted({p.package for p in missing if p.package is not None and p.package not in packages})
+    found = sorted({p.package for p in missing if p.package in packages})
     if unfound:
-        why = (f"ROS package{'s' if len(unfound) > 1 else ''} {', '.join(repr(n) for n in unfound)} not found; "
-               "give its folder with --package-dir DIR or in ROS_PACKAGE_PATH")
+        why = f"ROS package{_s(unfound)} {', '.join(repr(n) for n in unfound)} not found"
+    elif found:
+        why = f"not in package {', '.join(f'{n!r} ({packages[n]})' for n in found)}"
     else:
-        found = sorted({p.package for p in missing if p.package in packages})
-        why = (f"not in package {', '.join(f'{n!r} ({packages[n]})' for n in found)}" if found
-               else "not beside the URDF") + "; give the package's folder with --package-dir DIR or in ROS_PACKAGE_PATH"
-    return one_line(f"{source}: {len(names)} mesh file{'s' if len(names) > 1 else ''} missing ({shown}): {why}; "
-            f"3D views draw link{'s' if len(links) > 1 else ''} {', '.join(links[:5])}"
-            f"{' ...' if len(links) > 5 else ''} as a skeleton and collision checks leave {'them' if len(links) > 1 else 'it'} out", 800)
+        why = "not beside the URDF"
+    links_shown = ", ".join(links[:5]) + (" ..." if len(links) > 5 else "")
+    return one_line(f"{source}: {len(names)} mesh file{_s(names)} missing ({shown}): {why}; give the package's "
+                    "folder with --package-dir DIR or in ROS_PACKAGE_PATH; 3D views draw "
+                    f"link{_s(links)} {links_shown} as a skeleton and collision checks leave "
+                    f"{'them' if len(links) > 1 else 'it'} out", 800)
+
+
+def _s(items) -> str:
+    """The plural ending for a count of ``items``."""
+    return "s" if len(items) > 1 else ""
