@@ -23,7 +23,6 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ..exceptions import InputError
 from ..model.robot import RobotModel
 
 
@@ -72,16 +71,13 @@ def collision_checker(robot: RobotModel) -> CollisionChecker | None:
     Raises
     ------
     InputError
-        The collision meshes cannot be read.
+        The collision meshes cannot be read (a missing one is left out: the robot is checked
+        without that body, as :func:`tcr_accuracy.model.robot.load_robot` warned).
     """
     if "<collision" not in robot.urdf_text:
         return None
     model = robot.full_model
-    try:
-        geometry = pin.buildGeomFromUrdfString(model, robot.urdf_text, pin.GeometryType.COLLISION,
-                                               package_dirs=list(robot.package_dirs))
-    except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
-        raise InputError(f"{robot.name}: cannot read the URDF's collision geometry ({exc})") from None
+    geometry = robot.geometry_model("collision")  # bodies whose mesh is missing left out (load_robot warned)
     if geometry.ngeoms < 2:
         return None
     geometry.addAllCollisionPairs()

@@ -60,6 +60,21 @@ def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tool", default=None, metavar="FRAME",
                         help="TCP frame name (default: 'tool' for the tool-changer, the usual "
                              "flange frame for named robots, the single leaf link of a URDF)")
+    parser.add_argument("--package-dir", action="append", default=None, type=package_folder, metavar="DIR",
+                        help="where the URDF's package://NAME/... meshes are: a ROS package folder (with "
+                             "package.xml), or a folder holding DIR/NAME or packages further below; "
+                             "repeatable; searched before the folders of ROS_PACKAGE_PATH")
+
+
+def package_folder(text: str) -> str:
+    """argparse type of ``--package-dir``: an existing folder (refused now, before any work)."""
+    import os
+
+    if not os.path.exists(text):
+        raise argparse.ArgumentTypeError(f"{_shown(text)}: the folder does not exist")
+    if not os.path.isdir(text):
+        raise argparse.ArgumentTypeError(f"{_shown(text)}: exists and is not a folder")
+    return text
 
 
 def number(*, low: float | None = None, high: float | None = None, low_open: bool = False,
