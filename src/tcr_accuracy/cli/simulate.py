@@ -55,7 +55,8 @@ def _run_simulate(args) -> int:
     from ..model.robot import load_robot
     from ..analysis.scenario import load_scenario, scenario_from_dict
     from ..analysis.reachable import PoseFilter
-    from ..analysis.simulate import random_scenario, screened_poses, simulate_measurements, write_truth
+    from ..analysis.simulate import (random_scenario, screened_poses, simulate_measurements,
+                                     write_truth)
 
     for given, option in ((args.n, "--n"), (args.box, "--box"), (args.tracker_mm, "--tracker-mm")):  # --poses fixes the poses: these would be ignored
         if given is not None and args.poses is not None:
