@@ -12,8 +12,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import (MAX_MM, add_robot_arguments, effect_names, emit_json, integer, noise_mm_value, number,
-                     output_file, seed_value)
+from .common import (add_reach_arguments, add_robot_arguments, effect_names, emit_json, integer, noise_mm_value,
+                     number, output_file, reach_values, seed_value)
 
 
 def add_parsers(sub) -> None:
@@ -42,13 +42,7 @@ def add_parsers(sub) -> None:
                         "e.g. the reachable poses of a task); default: uniform within the joint limits")
     p.add_argument("--n-candidates", type=integer(low=1, high=1_000_000), default=3000,
                    help="random candidates when --candidates is not given (default 3000)")
-    p.add_argument("--box", nargs=6, type=number(low=-MAX_MM, high=MAX_MM, unit="mm"), default=None,
-                   metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
-                   help="task box [mm], in the robot's base frame: keep only candidates whose TCP lies inside")
-    p.add_argument("--tracker-mm", nargs=3, type=number(low=-MAX_MM, high=MAX_MM, unit="mm"), default=None,
-                   metavar=("X", "Y", "Z"),
-                   help="the tracker's position [mm] in the base frame: keep only candidates whose TCP it sees "
-                        "(no collision body on the line; needs the URDF's collision geometry)")
+    add_reach_arguments(p, "candidates")
     p.add_argument("--payload-kg", type=number(low=0, high=1e6, unit="kg"), default=None,
                    help="payload the new poses will be measured with [kg] (default: the measurements' mean)")
     p.add_argument("--noise-mm", type=noise_mm_value, default=None,
@@ -66,9 +60,7 @@ def _check(args) -> None:
 
     if args.n_candidates < args.poses:
         raise InputError(f"--n-candidates {args.n_candidates}: need at least -k ({args.poses})")
-    if args.box is not None and not all(lo < hi for lo, hi in zip(args.box[0::2], args.box[1::2])):
-        raise InputError(f"--box {' '.join(f'{v:g}' for v in args.box)}: give XMIN XMAX YMIN YMAX ZMIN ZMAX "
-                         "[mm] with each min below its max")
+    reach_values(args)  # the box, checked before the diagnosis
 
 
 #: Memory [bytes] planning takes per candidate configuration: its 3 x P Jacobian block over the
@@ -111,8 +103,7 @@ def _reachable_candidates(args, robot, read_measurements):
     from ..io.measurement_checks import MeasurementWarning
     from ..model.robot import JointLimitWarning
 
-    box = None if args.box is None else np.asarray(args.box, dtype=float).reshape(3, 2) * 1e-3
-    tracker = None if args.tracker_mm is None else np.asarray(args.tracker_mm, dtype=float) * 1e-3
+    box, tracker = reach_values(args)
     pose_filter = PoseFilter.for_robot(robot, box=box, tracker=tracker)
     if args.candidates:
         with warnings.catch_warnings():  # limits are refused below, by row

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from .common import (EXIT_OK, MAX_COUNT, MAX_MM, add_quiet_argument, add_robot_arguments, check_csv_memory,
-                     check_memory, integer, number, output_file, sample_bytes, seed_value, status)
+from .common import (EXIT_OK, MAX_COUNT, MAX_MM, add_quiet_argument, add_reach_arguments, add_robot_arguments,
+                     check_csv_memory, check_memory, integer, number, output_file, reach_values, sample_bytes,
+                     seed_value, status)
 
 
 def add_parsers(sub) -> None:
@@ -27,13 +28,7 @@ def add_parsers(sub) -> None:
                    help="number of measurements (default 200; not with --poses, whose rows are the poses)")
     p.add_argument("--poses", metavar="CSV", default=None,
                    help="commanded poses (joint columns, optional context columns) instead of random ones")
-    p.add_argument("--box", nargs=6, type=number(low=-MAX_MM, high=MAX_MM, unit="mm"),
-                   metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
-                   help="task box for random poses [mm], in the robot's base frame")
-    p.add_argument("--tracker-mm", nargs=3, type=number(low=-MAX_MM, high=MAX_MM, unit="mm"), default=None,
-                   metavar=("X", "Y", "Z"),
-                   help="the tracker's position [mm] in the base frame: random poses keep the TCP in its line of "
-                        "sight (no collision body on the way; needs the URDF's collision geometry)")
+    add_reach_arguments(p, "random poses")
     p.add_argument("--noise-mm", type=number(low=0, high=MAX_MM, unit="mm"), default=None,
                    help="tracker noise, std per axis [mm] (default: the scenario's, else 0.02)")
     p.add_argument("--orientation", action="store_true", help="also write measured orientations (qw..qz)")
@@ -58,7 +53,8 @@ def _run_simulate(args) -> int:
     from ..analysis.simulate import (random_scenario, screened_poses, simulate_measurements,
                                      write_truth)
 
-    for given, option in ((args.n, "--n"), (args.box, "--box"), (args.tracker_mm, "--tracker-mm")):  # --poses fixes the poses: these would be ignored
+    # --poses fixes the poses: these would be ignored
+    for given, option in ((args.n, "--n"), (args.box, "--box"), (args.tracker_mm, "--tracker-mm")):
         if given is not None and args.poses is not None:
             raise InputError(f"{option} with --poses {args.poses}: the file's rows are the poses; give one of them")
     args.n = 200 if args.n is None else args.n
@@ -83,13 +79,9 @@ def _run_simulate(args) -> int:
     if args.poses is not None:
         poses = read_measurements(args.poses, robot, require_position=False)
         q, context = poses.q, poses.context(rng=rng)
-    box = None if args.box is None else np.asarray(args.box, dtype=float).reshape(3, 2) * 1e-3
-    if box is not None and not (box[:, 0] < box[:, 1]).all():
-        raise InputError(f"--box {' '.join(f'{v:g}' for v in args.box)}: give XMIN XMAX YMIN YMAX ZMIN ZMAX "
-                         "[mm] with each min below its max")
+    box, tracker = reach_values(args)
     if q is None:  # drawn here, as simulate_measurements would, to say what was rejected
-        pose_filter = PoseFilter.for_robot(robot, box=box, tracker=None if args.tracker_mm is None
-                                           else np.asarray(args.tracker_mm, dtype=float) * 1e-3)
+        pose_filter = PoseFilter.for_robot(robot, box=box, tracker=tracker)
         screened = screened_poses(robot, args.n, rng, pose_filter=pose_filter)
         q = screened.q
     noise = None if args.noise_mm is None else args.noise_mm * 1e-3
