@@ -173,7 +173,9 @@ def _run_plan_poses(args) -> int:
     write_text_atomically(Path(args.out), _plan_csv(robot, plan.q, args, plan.effects, pose_filter.checks))
     summary = {"measurements": str(args.measurements), "n_measured": len(measured), "k": k,
                "candidates": {"source": source, "tried": screened.tried, "kept": len(screened.q),
-                              "rejected": screened.rejected, "checks": pose_filter.checks},
+                              "rejected": {reason.replace(" ", "_").replace("-", "_"): n
+                                           for reason, n in screened.rejected.items()},
+                              "checks": pose_filter.checks},
                "design": "T-optimal between rival fitted models" if pairs else "D-optimal",
                "effects": plan.effects, "separate": plan.separate, "ambiguous": groups,
                "n_parameters": plan.n_parameters, "log_det_gain": plan.log_det_gain,
