@@ -53,11 +53,11 @@ def _run_report(args) -> int:
     robot = _robot_facts(RobotFacts.from_documents(documents))
     title = args.title or f"Calibration report: {robot.name}"
     report = Report(title, command=getattr(args, "argv", None))
-    links = [(f"{path} ({kind_of(doc, path)} result)", path) for path, doc in documents]
+    links = [(f"{kind_of(doc, path)} JSON", path) for path, doc in documents]
     for path, doc in documents:
         for key, label in (("as_built_urdf", "as-built URDF"), ("as_built_effects", "effects YAML")):
             if isinstance(doc.get(key), str) and _find(doc[key], path) is not None:
-                links.append((f"{label} of {path}: {doc[key]}", str(_find(doc[key], path))))
+                links.append((label, str(_find(doc[key], path))))
     campaign = Campaign(robot, documents)
     add_calibration_page(report, args.out, campaign, links)
     add_technical_tables(report, campaign)
@@ -119,8 +119,8 @@ def add_calibration_page(report, out_dir, campaign, files) -> None:
     from ..view.calibration_report import first_page
 
     base = Path(out_dir).resolve()
-    campaign.files = [(label, Path(os.path.relpath(Path(path).resolve(), base)).as_posix())
-                      for label, path in files]
+    campaign.files = [(label if Path(path).name in label else f"{label} ({Path(path).name})",
+                       Path(os.path.relpath(Path(path).resolve(), base)).as_posix()) for label, path in files]
     report.set_first_page(*first_page(campaign, report.created))
     report.print_pdf = True
 

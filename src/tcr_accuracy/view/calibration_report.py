@@ -34,9 +34,9 @@ KINDS = {
     "comparison": ("changes", "tcp_effect", "z_threshold", "old", "new"),
 }
 
-#: At most this many parameters on the first page (the largest relative to their standard error
+#: At most this many parameters on the first page of a diagnosis alone (the largest relative to their standard error
 #: of each effect); all of them are in the technical detail.
-FIRST_PAGE_PARAMETERS = 20
+FIRST_PAGE_PARAMETERS = 18
 
 #: Who signs the report (one column each, with name, signature and date).
 SIGNATURES = ("Prepared by", "Checked by")
@@ -53,6 +53,14 @@ def kind_of(doc, source: str) -> str:
                 return kind
     raise InputError(f"{source}: not a result of tcr-accuracy diagnose, iso9283 evaluate or compare (--json); "
                      "a calibration report is made of those")
+
+
+def kind_or_none(doc) -> str | None:
+    """Which result ``doc`` is, or None when it is none of :data:`KINDS`."""
+    try:
+        return kind_of(doc, "")
+    except InputError:
+        return None
 
 
 @dataclass(frozen=True)
@@ -131,11 +139,15 @@ def _blocks(c: Campaign, created: str) -> list:
     out.append(_accuracy_table(d, isos))
     if d is not None:
         out.append(("h2", "Effects found"))
-        out += _effects(d)
+        # the page holds about this many table rows besides the rest: fewer parameters with a pose
+        # test's or a comparison's rows (the others are in the technical detail)
+        room = FIRST_PAGE_PARAMETERS - 3 * len(isos) - sum(6 + 2 * len(cmp.get("significant") or []) for _, cmp in
+                                                            comparisons)
+        out += _effects(d, max(room, 6))
         out.append(("h2", "What remains"))
         out.append(("list", _remains(d)))
     for source, cmp in comparisons:
-        out.append(("h2", f"Changes since the earlier campaign ({source})"))
+        out.append(("h2", f"Changes since the earlier campaign ({cmp['old']})"))
         out += _changes(cmp)
     out.append(("h2", "What to do next"))
     out.append(("list", _next_steps(c, d, isos, comparisons)))
@@ -172,7 +184,7 @@ def _facts(c, created, d, diagnoses, isos, comparisons) -> list:
         data.append(f"ISO 9283 pose test {doc.get('measurements', source)}: {doc['n_readings']} readings at "
                     f"{len(doc['poses'])} poses")
     for source, doc in comparisons:
-        data.append(f"comparison {source}: {doc['old']} (old) against {doc['new']} (new), TCP effect over "
+        data.append(f"comparison: {doc['old']} (old) against {doc['new']} (new), TCP effect over "
                     f"{doc['tcp_effect']['n_poses']} poses")
     rows.append(("Data", data))
     return rows
@@ -219,15 +231,14 @@ def _predicted(after) -> str:
     return " (predicted)" if after else ""
 
 
-def _effects(d) -> list:
+def _effects(d, limit: int) -> list:
     selected = [e for e in d["selected_effects"] if e != "frames"]
     if not selected:
         return [("p", "No effect beyond the tracker frame and the TCP offset explains the data significantly.")]
     gains = {s["effect"]: s for s in d["steps"][1:]}
     frequency = d.get("selection_frequency") or {}
     replays = (d.get("selection") or {}).get("n_replays", 0)
-    total = sum(len(d["parameters"].get(e, {})) for e in selected)
-    quota = total if total <= FIRST_PAGE_PARAMETERS else max(2, FIRST_PAGE_PARAMETERS // len(selected))
+    quotas = _quotas({e: len(d["parameters"].get(e, {})) for e in selected}, limit)
     rows, left_out = [], 0
     for e in selected:
         physical = (d.get("physical") or {}).get(e, {})
@@ -241,15 +252,27 @@ def _effects(d) -> list:
         head.append("plausible" if physical.get("plausible", True) else "OUTSIDE its physical range")
         rows.append(("group", ", ".join(head)))
         names = list(d["parameters"].get(e, {}))
-        shown = set(sorted(names, key=lambda n: -_significance(d, e, n))[:quota])  # the best determined
+        shown = set(sorted(names, key=lambda n: -_significance(d, e, n))[:quotas[e]])  # the best determined
         rows += [_parameter_row(d, e, n, physical) for n in names if n in shown]
-        left_out += max(0, len(names) - quota)
+        left_out += len(names) - len(shown)
     note = ("+- std: standard error from the measurement noise (not model error); 95 % interval: value +- 1.96 std "
             "within the physical range, where the fit is held. The tracker frame and the reflector's offset on the "
             "tool (frames) belong to the setup: see the technical detail")
     note += (f", with the {left_out} parameters left out here." if left_out else ".")
     return [("table", ("parameter", "value", "+- std", "95 % interval", "physical range", "unit"), rows, note,
              "effects")]
+
+
+def _quotas(sizes: dict, limit: int) -> dict:
+    """How many parameters of each effect the first page shows, ``limit`` in all: the smaller effects
+    whole, the rest shared out (at least 2 each)."""
+    quotas, left = {}, limit
+    pending = sorted(sizes, key=sizes.get)
+    while pending:
+        e = pending.pop(0)
+        quotas[e] = min(sizes[e], max(left // (len(pending) + 1), 2))
+        left -= quotas[e]
+    return quotas
 
 
 def _significance(d, effect: str, name: str) -> float:

@@ -126,6 +126,24 @@ def _cell(value, float_format: str) -> str:
     return str(value)
 
 
+#: A word longer than this [characters] (a path, a long name) may break anywhere in a table cell,
+#: so that the table fits the page; shorter ones and numbers stay whole.
+LONG_WORD = 24
+
+
+def _td(value: str) -> str:
+    """A table cell, with a class that says how it may wrap (see the CSS)."""
+    text = html.escape(value)
+    try:
+        float(value.replace(" ", ""))
+        return f'<td class="num">{text}</td>'
+    except ValueError:
+        pass
+    if any(len(word) > LONG_WORD for word in value.split()):
+        return f'<td class="long">{text}</td>'
+    return f"<td>{text}</td>"
+
+
 class Report:
     """An HTML (and Markdown) report under construction.
 
@@ -271,7 +289,7 @@ class Report:
             elif isinstance(item, _Table):
                 body.append(f"<h2>{esc(item.title)}</h2>")
                 head = "".join(f"<th>{esc(c)}</th>" for c in item.columns)
-                rows = "".join("<tr>" + "".join(f"<td>{esc(v)}</td>" for v in row) + "</tr>" for row in item.rows)
+                rows = "".join("<tr>" + "".join(_td(v) for v in row) + "</tr>" for row in item.rows)
                 note = f'<p class="note">{esc(item.note)}</p>' if item.note else ""
                 body.append(f'<div class="table"><table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody>'
                             f"</table>{note}</div>")
@@ -391,7 +409,9 @@ h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ddd; padding
 /* nothing wider than the page: tables shrink to it and break long words (paths, parameter
    names) anywhere, printed text wraps its long lines */
 table { border-collapse: collapse; margin: 0.6em 0; font-variant-numeric: tabular-nums; max-width: 100%; }
-th, td { border: 1px solid #ccc; padding: 4px 10px; text-align: right; overflow-wrap: anywhere; }
+th, td { border: 1px solid #ccc; padding: 4px 10px; text-align: right; overflow-wrap: break-word; }
+td.num { white-space: nowrap; }
+td.long, .first-page table.facts td { overflow-wrap: anywhere; }
 th { background: #f0f2f5; }
 td:first-child, th:first-child { text-align: left; }
 tbody tr:nth-child(even) { background: #fafafa; }
