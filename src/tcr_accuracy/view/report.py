@@ -416,8 +416,8 @@ th { background: #f0f2f5; }
 td:first-child, th:first-child { text-align: left; }
 tbody tr:nth-child(even) { background: #fafafa; }
 figure { margin: 1em 0; }
-img { max-width: 100%; border: 1px solid #e3e3e3; }
-iframe { width: 100%; border: 1px solid #ccc; }
+img { max-width: 100%; box-sizing: border-box; border: 1px solid #e3e3e3; }
+iframe { width: 100%; box-sizing: border-box; border: 1px solid #ccc; }
 pre { max-width: 100%; box-sizing: border-box; white-space: pre-wrap; overflow-wrap: anywhere; }
 pre.command { background: #f5f5f5; padding: 8px 10px; }
 pre.printed { background: #f7f7f7; border: 1px solid #e3e3e3; padding: 8px 10px;
