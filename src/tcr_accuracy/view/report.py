@@ -132,15 +132,10 @@ LONG_WORD = 24
 
 
 def _td(value: str) -> str:
-    """A table cell, with a class that says how it may wrap (see the CSS)."""
+    """A table cell; a long word in it may break anywhere (see the CSS), numbers and short words never."""
     text = html.escape(value)
-    try:
-        float(value.replace(" ", ""))
-        return f'<td class="num">{text}</td>'
-    except ValueError:
-        pass
     if any(len(word) > LONG_WORD for word in value.split()):
-        return f'<td class="long">{text}</td>'
+        return f'<td><span class="long">{text}</span></td>'
     return f"<td>{text}</td>"
 
 
@@ -410,8 +405,7 @@ h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ddd; padding
    names) anywhere, printed text wraps its long lines */
 table { border-collapse: collapse; margin: 0.6em 0; font-variant-numeric: tabular-nums; max-width: 100%; }
 th, td { border: 1px solid #ccc; padding: 4px 10px; text-align: right; overflow-wrap: break-word; }
-td.num { white-space: nowrap; }
-td.long, .first-page table.facts td { overflow-wrap: anywhere; }
+span.long, .first-page table.facts td { overflow-wrap: anywhere; }
 th { background: #f0f2f5; }
 td:first-child, th:first-child { text-align: left; }
 tbody tr:nth-child(even) { background: #fafafa; }
