@@ -35,10 +35,9 @@ def add_parsers(sub) -> None:
 
 
 def _run_report(args) -> int:
+    from ..exceptions import InputError
     from ..view.calibration_report import Campaign, RobotFacts, add_technical_tables, kind_of
     from ..view.report import Report
-
-    from ..exceptions import InputError
 
     files = list(args.results)
     if len(set(files)) < len(files):
