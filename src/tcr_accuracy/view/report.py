@@ -262,7 +262,9 @@ class Report:
         """The index page (figures and scenes referenced by their file names; ``pdf``: the file
         name of the printed report, linked when given)."""
         esc = html.escape
-        printed = f' Printed: <a href="{esc(pdf)}">{esc(pdf)}</a>.' if pdf else ""
+        printed = (' Also as <a href="report.md">Markdown</a>'
+                   + (f' and printed (A4): <a href="{esc(pdf)}">{esc(pdf)}</a>.' if pdf else ".")
+                   if self.first_page is not None else "")
         body: list[str] = []
         if self.first_page is not None:
             body.append(f'<section class="first-page">\n{self.first_page[0]}\n</section>')
