@@ -19,8 +19,8 @@ import warnings
 from contextlib import contextmanager
 
 from .. import __version__
-from . import (compare, demo, diagnose, export, iso9283, montecarlo, plan_poses, pose, prediction, sensitivity,
-               simulate, tolerance, tracker_import, trajectory, view)
+from . import (compare, demo, diagnose, export, iso9283, montecarlo, plan_poses, pose, prediction, report,
+               sensitivity, simulate, tolerance, tracker_import, trajectory, view)
 from .common import EXIT_ANALYSIS, EXIT_INPUT, EXIT_OK, Parser, add_memory_argument
 
 
@@ -52,7 +52,7 @@ DEBUG_HELP = "on an error, print the full Python traceback as well as the one-li
 #: ``add_parsers(sub)`` adds its subcommands. Every module imports only argparse and the
 #: shared helpers at the top (heavy imports wait inside each command), so --help is instant.
 COMMANDS = [pose, demo, montecarlo, sensitivity, tolerance, trajectory, simulate, tracker_import, view, diagnose,
-            compare, plan_poses, prediction, iso9283, export]
+            compare, plan_poses, prediction, iso9283, report, export]
 
 
 #: Joint-limit warnings already shown in this run, by what they say of the joint: the same

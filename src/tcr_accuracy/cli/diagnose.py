@@ -158,10 +158,27 @@ def _run_diagnose(args) -> int:
         out.set_scene(_scene(robot, result, measurements),
                       "Measured TCP points (base frame) and the gap to the nominal model, magnified; "
                       "nominal robot and the calibrated as-built robot (geometric errors magnified)")
+    written = []
     if args.as_built_urdf:
         urdf, side = write_as_built(robot, result, Path(args.as_built_urdf))
         status(args, f"as-built URDF written to {urdf} (its other effects and the tracker frame: {side})")
+        payload.update(as_built_urdf=str(urdf), as_built_effects=str(side))
+        written += [("as-built URDF (the geometric effects)", urdf),
+                    ("effects YAML (the other effects, the tracker frame, uncertainties)", side)]
+    if out.report is not None:
+        _calibration_page(out.report, args, robot, payload, written)
     return out.finish(payload, lambda: print(format_summary(robot, result, source)))
+
+
+def _calibration_page(report, args, robot, payload: dict, written: list) -> None:
+    """The report's first page (the calibration report) and links to the files of the run."""
+    from ..view.calibration_report import Campaign, RobotFacts
+    from .report import add_calibration_page
+
+    if args.json not in (None, "-"):
+        written = [("diagnosis JSON (every figure of the report)", args.json), *written]
+    campaign = Campaign(RobotFacts.of_robot(robot, payload["robot_source"]), [("diagnosis", payload)])
+    add_calibration_page(report, args.out, campaign, written)
 
 
 def _session_labels(files) -> list[str]:
