@@ -43,7 +43,7 @@ def plain_fit(robot, result, mset, effect_names) -> tuple[float, float]:
     scales = np.concatenate([e.parameter_scales()[k] for e, k in zip(effects, kept)])
     rot, trans = result.registration
     target = (mset.position - trans) @ rot
-    context = mset.context()
+    context = mset.context
 
     def residual(phi):
         params, offset = [], 0

@@ -56,7 +56,7 @@ def test_compliance_dominant_is_named_and_the_gap_shrinks_to_the_noise(complianc
     final = result.steps[-1].heldout.rms
     assert final < 1.5 * result.noise_floor
     # the fitted model predicts measurements it never saw to the noise floor
-    predicted = result.predict(tool_changer, test.q, test.context())
+    predicted = result.predict(tool_changer, test.q, test.context)
     rms = np.sqrt(np.mean(np.sum((predicted - test.position) ** 2, axis=1)))
     assert rms < 1.5 * result.noise_floor
     # and recovers the hidden compliances of the two heavily loaded joints within 10 %

@@ -378,7 +378,7 @@ def _scene(robot, d, measurements):
                                rotate_vectors, segment_magnification, transform_points)
 
     base_M_tracker = np.linalg.inv(d.tracker_transform)
-    context = measurements.context()
+    context = measurements.context
     model_final = transform_points(base_M_tracker, d.predict(robot, d.q, context))  # the fitted model's TCP
     measured = model_final - rotate_vectors(base_M_tracker, d.final_residual)
     nominal_model = measured + rotate_vectors(base_M_tracker, d.gap_residual)  # tracker frame and TCP offset only

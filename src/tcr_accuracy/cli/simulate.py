@@ -75,7 +75,7 @@ def _run_simulate(args) -> int:
     q = context = None
     if args.poses is not None:
         poses = read_measurements(args.poses, robot, require_position=False)
-        q, context = poses.q, poses.context(rng=rng)
+        q, context = poses.q, poses.make_context(rng=rng)
     box = None if args.box is None else np.asarray(args.box, dtype=float).reshape(3, 2) * 1e-3
     if box is not None and not (box[:, 0] < box[:, 1]).all():
         raise InputError(f"--box {' '.join(f'{v:g}' for v in args.box)}: give XMIN XMAX YMIN YMAX ZMIN ZMAX "

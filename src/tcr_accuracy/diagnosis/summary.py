@@ -232,7 +232,8 @@ def primary_effect_text(d) -> str:
     return "none beyond frames"
 
 
-def structurestructure_verdict_text(d) -> str:
+def structure_verdict_text(d) -> str:
+    """YES, no, or "cannot tell with N poses": whether structure remains in the final residual."""
     st = d.structure
     verdict = st.get("verdict", "yes" if st["remains"] else "no")
     tested = tested_poses_text(st.get("power") or {"n_poses": d.n_measurements})

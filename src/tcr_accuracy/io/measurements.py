@@ -139,9 +139,24 @@ class MeasurementSet:
     def __len__(self) -> int:
         return self.q.shape[0]
 
-    def context(self, reference_temperature_c: float = REFERENCE_TEMPERATURE_C,
-                rng: np.random.Generator | None = None) -> MeasurementContext:
-        """The per-row context, with defaults where a column is absent."""
+    def __repr__(self) -> str:
+        measured = [k for k in ("quaternion", "payload_kg", "temperature_c", "direction", "outside_q", "time_s")
+                    if getattr(self, k) is not None]
+        sessions = f", {len(self.session_labels)} sessions" if self.session is not None else ""
+        source = self.source if len(self.source) <= 60 else self.source[:57] + "..."
+        return (f"MeasurementSet({len(self)} rows x {self.q.shape[1]} joints, source={source!r}"
+                f"{sessions}, context columns: {', '.join(measured) or 'none'})")
+
+    @property
+    def context(self) -> MeasurementContext:
+        """The per-row context (payload, temperature, approach directions, other joints, session),
+        with defaults where a column is absent: no payload, the reference temperature, no direction."""
+        return self.make_context()
+
+    def make_context(self, reference_temperature_c: float = REFERENCE_TEMPERATURE_C,
+                     rng: np.random.Generator | None = None) -> MeasurementContext:
+        """The per-row context with another reference temperature [degC] where the file has none,
+        or a generator for the effects that draw random numbers (``rng``)."""
         n, nj = self.q.shape
         return MeasurementContext(
             payload_kg=self.payload_kg.copy() if self.payload_kg is not None else np.zeros(n),

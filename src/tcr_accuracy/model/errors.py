@@ -59,6 +59,9 @@ class ErrorModel:
         The nominal robot. It is never modified.
     """
 
+    def __repr__(self) -> str:
+        return f"ErrorModel({self.robot.name!r}, {self.size} parameters over {self.n_joints} joints)"
+
     def __init__(self, robot: RobotModel):
         self.robot = robot
         n = robot.n_joints
@@ -268,6 +271,11 @@ class ErrorBudget:
     error_model: ErrorModel
     sources: list[ErrorSource] = field(default_factory=list)
     name: str = "custom"
+
+    def __repr__(self) -> str:
+        touched = int(np.count_nonzero(np.any(self.matrix != 0.0, axis=1))) if self.sources else 0
+        return (f"ErrorBudget({self.name!r}, robot {self.error_model.robot.name!r}, {len(self.sources)} sources "
+                f"moving {touched} of {self.error_model.size} parameters)")
 
     @property
     def matrix(self) -> np.ndarray:

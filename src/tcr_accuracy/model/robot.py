@@ -124,6 +124,10 @@ class RobotModel:
         if self.tool_frame_id < 0:
             self.tool_frame_id = find_frame(self.model, self.tool_frame)
 
+    def __repr__(self) -> str:
+        source = f", urdf_path='{self.urdf_path}'" if self.urdf_path is not None else ""
+        return f"RobotModel({self.name!r}, {self.n_joints} joints, tool_frame={self.tool_frame!r}{source})"
+
     # -- structure (the model never changes in place, so these are computed once) -----
     @property
     def n_joints(self) -> int:
