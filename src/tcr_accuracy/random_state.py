@@ -59,12 +59,14 @@ def renamed_keyword(old: str, new: str):
         The decorator.
     """
     def decorate(function):
+        name = function.__qualname__.removesuffix(".__init__")  # a class is called by its name
+
         @functools.wraps(function)
         def wrapper(*args, **kwargs):
             if old in kwargs:
                 if new in kwargs:
-                    raise TypeError(f"{function.__name__}() got both {old!r} (deprecated) and {new!r}")
-                warnings.warn(f"{function.__name__}({old}=...) is deprecated and will be removed in {REMOVED_IN}; "
+                    raise TypeError(f"{name}() got both {old!r} (deprecated) and {new!r}")
+                warnings.warn(f"{name}({old}=...) is deprecated and will be removed in {REMOVED_IN}; "
                               f"use {new}=...", DeprecationWarning, stacklevel=2)
                 kwargs[new] = kwargs.pop(old)
             return function(*args, **kwargs)

@@ -234,6 +234,15 @@ class GapDiagnosis(BaseEstimator):
         self.orientation_weight = orientation_weight
         self.stability_replays = stability_replays
 
+    def __repr__(self, N_CHAR_MAX=700) -> str:
+        """scikit-learn's repr of the parameters on one line, and once fitted what was found."""
+        text = " ".join(super().__repr__(N_CHAR_MAX).split())
+        if hasattr(self, "result_"):
+            d = self.result_
+            text += (f" fitted: selected [{', '.join(d.selected_effects)}], "
+                     f"held-out RMS {d.steps[-1].heldout.rms * 1e3:.4g} mm")
+        return text
+
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()
         tags.non_deterministic = self.random_state is None

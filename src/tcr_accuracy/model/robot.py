@@ -125,7 +125,7 @@ class RobotModel:
             self.tool_frame_id = find_frame(self.model, self.tool_frame)
 
     def __repr__(self) -> str:
-        source = f", urdf_path='{self.urdf_path}'" if self.urdf_path is not None else ""
+        source = f", urdf={Path(self.urdf_path).name!r}" if self.urdf_path is not None else ""
         return f"RobotModel({self.name!r}, {self.n_joints} joints, tool_frame={self.tool_frame!r}{source})"
 
     # -- structure (the model never changes in place, so these are computed once) -----

@@ -232,6 +232,10 @@ class MeasuredErrorModel(BaseEstimator):
         self.estimator = estimator
         self.fit_frame = fit_frame
 
+    def __repr__(self, N_CHAR_MAX=700) -> str:
+        """scikit-learn's repr of the parameters, on one line."""
+        return " ".join(super().__repr__(N_CHAR_MAX).split())
+
     def fit(self, X, y, context=None):
         """Joint values X (n, n_joints) [rad, m], measured positions y (n, 3) in the tracker frame [m];
         ``context``: the rows' MeasurementContext, for the estimators that take one."""
