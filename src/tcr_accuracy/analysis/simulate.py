@@ -143,11 +143,22 @@ def simulate_measurements(robot: RobotModel, scenario: Scenario | dict, n: int, 
         Task box for the random poses [m].
     orientation : bool
         Also "measure" the TCP orientation (quaternions with orientation_noise_rad).
+    orientation_noise_rad : float
+        Standard deviation of the measured orientation's random rotation [rad].
 
     Returns
     -------
     (MeasurementSet, truth): truth is a JSON-ready dict of the hidden effects and their
     parameters [SI], the noise, and the context settings.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> scenario = {"effects": {"joint_offsets": {"offsets_deg": {"j2": 0.03}}}, "noise_mm": 0.02}
+    >>> measured, truth = tcr.simulate_measurements(robot, scenario, 50, random_state=1)
+    >>> measured.position.shape
+    (50, 3)
     """
     rng = np.random.default_rng(random_state)
     if isinstance(scenario, dict):
@@ -259,6 +270,10 @@ def random_scenario(robot: RobotModel, random_state=None, dominant: list[str] | 
         about as large as the dominant effect.
     clearance : bool
         Add joint clearance (a few hundredths of a mm of scatter).
+    dominance : float
+        How many times as much as the background the first dominant effect moves the TCP.
+    noise_m : float
+        Tracker noise of the scenario, std per axis [m].
 
     Returns
     -------

@@ -243,10 +243,23 @@ def read_measurements(path: str | Path, robot: RobotModel, *, min_rows: int = 1,
         Rows may repeat one another (poses to predict or compensate); otherwise an exact copy
         of a row is an error and a repeated pose a warning.
 
+    Returns
+    -------
+    MeasurementSet
+        The rows in SI units, with the context columns the file has.
+
     Raises
     ------
     InputError
         Naming the file, row and column at fault.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)  # doctest: +SKIP
+    >>> measured.context.payload_kg.shape  # doctest: +SKIP
+    (200,)
     """
     path = Path(path)
     text = read_user_text(path, "measurement file")
@@ -579,7 +592,25 @@ def format_measurements(robot: RobotModel, mset: MeasurementSet, unit: str = "mm
 
 def write_measurements(path: str | Path, robot: RobotModel, mset: MeasurementSet, unit: str = "mm",
                        comment: str | None = None) -> None:
-    """Write a measurement CSV atomically (temporary file + rename)."""
+    """Write a measurement CSV atomically (temporary file + rename).
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file to write.
+    robot : RobotModel
+        Names the joint columns and their units.
+    mset : MeasurementSet
+        The rows to write [SI].
+    unit : str, default="mm"
+        ``mm``: positions in mm and joints in deg (mm for prismatic joints); ``m``: SI.
+    comment : str, optional
+        Written as ``#`` lines above the header.
+
+    Returns
+    -------
+    None
+    """
     from ..atomic import write_text_atomically
 
     write_text_atomically(Path(path), format_measurements(robot, mset, unit, comment))

@@ -266,7 +266,17 @@ class ErrorSource:
 
 @dataclass
 class ErrorBudget:
-    """A set of independent error sources for one robot."""
+    """A set of independent error sources for one robot.
+
+    Parameters
+    ----------
+    error_model : ErrorModel
+        The layout of the error parameters the sources move.
+    sources : list of ErrorSource
+        The independent sources (distribution, spread [SI], the parameters they move).
+    name : str
+        Label for reports (``table1``, a budget file's name).
+    """
 
     error_model: ErrorModel
     sources: list[ErrorSource] = field(default_factory=list)
@@ -394,6 +404,25 @@ def default_preset(robot: RobotModel) -> str:
 
 def seed_budget(robot: RobotModel, preset: str) -> ErrorBudget:
     """The seed paper's error distributions as an :class:`ErrorBudget`.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The robot the budget applies to.
+    preset : str
+        ``table1`` or ``table2`` (below).
+
+    Returns
+    -------
+    ErrorBudget
+        One independent source per spread.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> budget = tcr.seed_budget(tcr.load_robot(), "table2")
+    >>> budget.name
+    'table2'
 
     ``table1``: every link length 0.2 mm, prismatic drives 0.3 mm, revolute drives
     0.0087 rad, and every revolute joint's axis tilted about its two perpendicular

@@ -453,11 +453,22 @@ def load_robot(source: str | Path | None = None, tool: str | None = None) -> Rob
         TCP frame name. Defaults: ``tool`` for the tool-changer, the table entry
         for named robots, and for a URDF file the single leaf link of the tree.
 
+    Returns
+    -------
+    RobotModel
+        The chain from the base to the TCP frame.
+
     Raises
     ------
     InputError
         The URDF does not exist or parse, the frame is unknown, or a joint kind is
         not supported.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> tcr.load_robot("ur5")
+    RobotModel('ur5', 6 joints, tool_frame='tool0', urdf='ur5_robot.urdf')
     """
     package_dirs: list[str] = []
     urdf_path: Path | None = None

@@ -156,7 +156,18 @@ def write_as_built_model(model: AsBuiltModel, folder: Path, name: str) -> dict[s
 
 def load_as_built(path) -> AsBuiltModel:
     """The calibrated robot written by ``tcr-accuracy export`` (its ``.yaml``, or the ``.urdf``
-    next to it), whose :meth:`AsBuiltModel.tcp_poses` include the non-geometric effects."""
+    next to it), whose :meth:`AsBuiltModel.tcp_poses` include the non-geometric effects.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.yaml`` file, or the ``.urdf`` written next to it.
+
+    Returns
+    -------
+    AsBuiltModel
+        The nominal robot and every effect with its fitted parameters [SI].
+    """
     import yaml
 
     path = Path(path)
