@@ -9,7 +9,8 @@ over their whole range, and measures ``--n`` random
 poses of a task region (the middle ``--range-fraction`` of every joint's range, as a
 robot measured where it works) with a 0.02 mm tracker and diagnoses them. Where the diagnosis reports the encoder
 scale in an ambiguity group, K more poses are measured two ways -- the K that
-:func:`tcr_accuracy.diagnosis.design.plan_discriminating_poses` picks within the joint limits and K more
+:func:`tcr_accuracy.diagnosis.design.plan_discriminating_poses` picks among poses the robot can take
+(within the joint limits, free of self-collision where the URDF has collision geometry) and K more
 random ones of the task region -- and each enlarged
 set is diagnosed again. Separated: the encoder scale is chosen and no longer in a group.
 
