@@ -30,6 +30,7 @@ from ..exceptions import InputError
 from ..model.kinematics import tcp_poses
 from ..io.measurements import MeasurementSet
 from ..model.robot import RobotModel
+from ..random_state import renamed_keyword
 from .reachable import PoseFilter, Screened, draw_poses
 from .scenario import ContextSpec, Scenario, resolve_effect, scenario_from_dict
 
@@ -112,7 +113,8 @@ def _signature(robot, effect, params, q, context) -> np.ndarray:
     return predict_poses(robot, [effect], [params], q, context).position - nominal
 
 
-def simulate_measurements(robot: RobotModel, scenario: Scenario | dict, n: int, rng: np.random.Generator,
+@renamed_keyword("rng", "random_state")
+def simulate_measurements(robot: RobotModel, scenario: Scenario | dict, n: int, random_state=None,
                           noise_m: float | None = None, *, q: np.ndarray | None = None,
                           context: MeasurementContext | None = None, box=None, orientation: bool = False,
                           orientation_noise_rad: float = DEFAULT_ORIENTATION_NOISE_RAD,
@@ -127,7 +129,8 @@ def simulate_measurements(robot: RobotModel, scenario: Scenario | dict, n: int, 
         Hidden effects (see the module docstring); a dict is read as the YAML would be.
     n : int
         Number of measurements (ignored when q is given).
-    rng : numpy.random.Generator
+    random_state : int, numpy.random.Generator or None, default=None
+        Draws the poses, context and noise (formerly ``rng``).
     noise_m : float, optional
         Tracker noise, isotropic normal std per axis [m]; default the scenario's, else 2e-5.
     q : (N, n_joints), optional
@@ -138,6 +141,8 @@ def simulate_measurements(robot: RobotModel, scenario: Scenario | dict, n: int, 
         Task box for the random poses [m].
     orientation : bool
         Also "measure" the TCP orientation (quaternions with orientation_noise_rad).
+    orientation_noise_rad : float
+        Standard deviation of the measured orientation's random rotation [rad].
     pose_filter : PoseFilter, optional
         What else a random pose must pass (self-collision, the tracker's line of sight: see
         :func:`sample_poses`); default the joint limits, ``<mimic>`` rules and ``box`` only.
@@ -146,7 +151,17 @@ def simulate_measurements(robot: RobotModel, scenario: Scenario | dict, n: int, 
     -------
     (MeasurementSet, truth): truth is a JSON-ready dict of the hidden effects and their
     parameters [SI], the noise, and the context settings.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> scenario = {"effects": {"joint_offsets": {"offsets_deg": {"j2": 0.03}}}, "noise_mm": 0.02}
+    >>> measured, truth = tcr.simulate_measurements(robot, scenario, 50, random_state=1)
+    >>> measured.position.shape
+    (50, 3)
     """
+    rng = np.random.default_rng(random_state)
     if isinstance(scenario, dict):
         scenario = scenario_from_dict(scenario)
     if q is None:
@@ -223,7 +238,8 @@ def _effect_truth(hidden: HiddenEffect, robot, q, context) -> dict:
 # ---------------------------------------------------------------------------------------
 # Random scenarios for blind benchmarks
 # ---------------------------------------------------------------------------------------
-def random_scenario(robot: RobotModel, rng: np.random.Generator, dominant: list[str] | None = None, *,
+@renamed_keyword("rng", "random_state")
+def random_scenario(robot: RobotModel, random_state=None, dominant: list[str] | None = None, *,
                     n_dominant: int | None = None, outside: str | None = None, clearance: bool = False,
                     dominance: float = 3.0, noise_m: float = DEFAULT_NOISE_M) -> dict:
     """A scenario with realistic magnitudes: geometry always, plus one or two dominant effects.
@@ -242,6 +258,10 @@ def random_scenario(robot: RobotModel, rng: np.random.Generator, dominant: list[
 
     Parameters
     ----------
+    robot : RobotModel
+        The nominal robot.
+    random_state : int, numpy.random.Generator or None, default=None
+        Draws the effects and their sizes (formerly ``rng``).
     dominant : list of str, optional
         Effects to make dominant; default one or two drawn from :func:`dominant_candidates`.
     n_dominant : int, optional
@@ -251,12 +271,17 @@ def random_scenario(robot: RobotModel, rng: np.random.Generator, dominant: list[
         about as large as the dominant effect.
     clearance : bool
         Add joint clearance (a few hundredths of a mm of scatter).
+    dominance : float
+        How many times as much as the background the first dominant effect moves the TCP.
+    noise_m : float
+        Tracker noise of the scenario, std per axis [m].
 
     Returns
     -------
     dict: a scenario with explicit SI parameters, plus ``dominant`` (ordered, largest
     first) and ``notes``.
     """
+    rng = np.random.default_rng(random_state)
     candidates = dominant_candidates()
     if dominant is None:
         k = n_dominant if n_dominant is not None else int(rng.integers(1, 3))

@@ -135,7 +135,7 @@ def _diagnose_csv(args, path: str, robot) -> dict:
                          "compare the two JSON files")
     data = read_measurements(path, robot, min_rows=max(3 * args.folds, 12))
     status(args, f"diagnosing {path} ...")
-    result = diagnose(robot, data, effects=effect_names(args.effects), folds=args.folds, seed=args.seed,
+    result = diagnose(robot, data, effects=effect_names(args.effects), folds=args.folds, random_state=args.seed,
                       tracker_noise=None if args.noise_mm is None else args.noise_mm * 1e-3)
     return jsonable({"measurements": str(path), **result.to_dict()})
 

@@ -153,8 +153,8 @@ def _run_plan_poses(args) -> int:
     noise_m = 2e-5 if args.noise_mm is None else args.noise_mm * 1e-3
     effects = effect_names(args.effects)
     if effects is None:
-        estimator = GapDiagnosis(seed=args.seed, tracker_noise=None if args.noise_mm is None
-                                 else args.noise_mm * 1e-3).fit(robot, measured)
+        estimator = GapDiagnosis(robot=robot, random_state=args.seed, tracker_noise=None if args.noise_mm is None
+                                 else args.noise_mm * 1e-3).fit(measured)
         result = estimator.result_
         groups = [g["effects"] for g in result.ambiguous]
         noise_m = result.tracker_noise

@@ -133,6 +133,10 @@ class RobotModel:
         if self.tool_frame_id < 0:
             self.tool_frame_id = find_frame(self.model, self.tool_frame)
 
+    def __repr__(self) -> str:
+        source = f", urdf={Path(self.urdf_path).name!r}" if self.urdf_path is not None else ""
+        return f"RobotModel({self.name!r}, {self.n_joints} joints, tool_frame={self.tool_frame!r}{source})"
+
     # -- structure (the model never changes in place, so these are computed once) -----
     @property
     def n_joints(self) -> int:
@@ -510,11 +514,22 @@ def load_robot(source: str | Path | None = None, tool: str | None = None, *,
     :class:`MissingMeshWarning` says which and how to provide it, once, and views draw the
     link as a skeleton.
 
+    Returns
+    -------
+    RobotModel
+        The chain from the base to the TCP frame.
+
     Raises
     ------
     InputError
         The URDF does not exist or parse, the frame is unknown, or a joint kind is
         not supported.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> tcr.load_robot("ur5")
+    RobotModel('ur5', 6 joints, tool_frame='tool0', urdf='ur5_robot.urdf')
     """
     given = [str(d) for d in (given_package_dirs() if package_dirs is None else package_dirs)]
     package_dirs = []
