@@ -311,10 +311,10 @@ def _report_tables(out, robot, d, source: str) -> None:
     out.add_table("1. Gap after fitting only the tracker frame and TCP offset", ["statistic", "value"],
                   [("mean", d.gap.mean * mm), ("RMS", d.gap.rms * mm), ("max", d.gap.max * mm)],
                   units=["", "mm"])
-    axes = d.where["per_axis"]
+    axes = d.where_mm["per_axis"]
     out.add_table("2. Where it lies: residual per axis", ["axis", "RMS"],
                   [(a, axes[a]["rms_mm"]) for a in "xyz"], units=["", "mm"],
-                  note="strongest links: " + "; ".join(_strongest(d.where)))
+                  note="strongest links: " + "; ".join(_strongest(d.where_mm)))
     rows = []
     for name, c in d.candidates.items():
         if c.get("tried"):

@@ -171,7 +171,7 @@ def plot_semivariograms(diagnosis, robot, path: Path) -> Path:
 def plot_regions(diagnosis, path: Path) -> Path:
     """Workspace octants, radius and height bins, and the context columns that were measured."""
     plt = pyplot()
-    where = diagnosis.where
+    where = diagnosis.where_mm
     panels = [("octants", None), ("radius", "radius [m]"), ("height", "height z [m]")]
     panels += [(k, label) for k, label in (("payload_kg", "payload [kg]"), ("temperature_c", "temperature [degC]"))
                if k in where]
