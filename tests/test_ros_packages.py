@@ -286,3 +286,26 @@ def test_a_package_mesh_name_that_climbs_out_of_the_package_is_refused(ros, tmp_
     assert code == 2
     assert_one_line(err, "link l1: mesh 'package://mypkg/../../../private/x.stl' lies outside")
     assert not (tmp_path / "v.html").exists()
+
+
+def test_an_as_built_urdf_of_a_named_robot_finds_its_meshes_anywhere(tmp_path):
+    # export writes a UR10's as-built URDF with the package:// names of example-robot-data,
+    # which is installed with the tool: loaded from any folder, every mesh is found (warnings
+    # are errors in this suite) and the scene embeds the same mesh files as the named robot's
+    import warnings
+
+    from tcr_accuracy.model.asbuilt import as_built_urdf
+    from tcr_accuracy.model.errors import ErrorModel
+
+    named = load_robot("ur10")
+    x = 1e-4 * np.random.default_rng(0).standard_normal(len(ErrorModel(named).parameters))
+    text, tool_frame = as_built_urdf(named, x)
+    path = tmp_path / "elsewhere" / "as_built.urdf"
+    path.parent.mkdir()
+    path.write_text(text)
+    assert "package://example-robot-data/" in text
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", MissingMeshWarning)
+        loaded = load_robot(str(path), tool_frame)
+    assert loaded.missing_mesh_message() in (None, "")
+    assert sorted(p.name for p in loaded.mesh_places()) == sorted(p.name for p in named.mesh_places())

@@ -548,6 +548,10 @@ def load_robot(source: str | Path | None = None, tool: str | None = None, *,
         text = read_urdf_text(urdf_path)
         name = urdf_robot_name(text) or urdf_path.stem  # what the URDF calls itself, as for named robots
         package_dirs = given + [str(urdf_path.parent), str(urdf_path.parent.parent)]
+        if "package://example-robot-data/" in text:
+            # an as-built URDF exported from a named robot keeps its meshes' package:// names;
+            # that package is installed with this tool (example-robot-data), so it resolves here
+            package_dirs.append(str(example_robot_data_dir()))
         label = str(source)
         if urdf_path.stem == BUILTIN_NAME or name.startswith(BUILTIN_NAME):  # a variant, its as-built model
             working_pose = WORKING_POSE.copy()
