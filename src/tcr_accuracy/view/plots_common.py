@@ -51,6 +51,13 @@ def shared_legend(fig, axes, handles, labels, *, fontsize: float = 8):
     return fig.legend(handles, labels, loc="outside lower center", ncol=min(len(labels), 4), fontsize=fontsize)
 
 
+def whole_numbers():
+    """A tick locator for counts (histograms): whole numbers only."""
+    from matplotlib.ticker import MaxNLocator
+
+    return MaxNLocator(integer=True)
+
+
 def _tick_labels(axis, renderer):
     """The drawn major tick labels of an axis (those inside its view interval, with text)."""
     lo, hi = sorted(axis.get_view_interval())
