@@ -603,8 +603,7 @@ def _compensate_scene(robot, q, q_comp, target, before_tcp, after_tcp, before, a
                              start_label="target TCP", end_label="predicted real TCP, uncompensated command")
     scene.add_error_segments(target, after_tcp, magnify=magnify, name="after",
                              start_label="target TCP", end_label="predicted real TCP, compensated command",
-                             end_color=COLORS["trajectory"])
-    del scene.legend[-2]  # the targets' entry, already in the legend once
+                             start_color=None, end_color=COLORS["trajectory"])  # the targets are drawn once
     _draw_measurement_frame(scene, robot, q, model, measured, extent)
     scene.add_note(f"{len(q)} targets of {args.targets}; robot base frame; robot at target row {shown + 2} (median "
                    f"error before); segments magnified x {magnify:g}")
