@@ -129,17 +129,14 @@ def _cropped_png(fig, dpi: int, pad_px: int = 8) -> bytes:
     return out.getvalue()
 
 
-def save_figure(fig, path, *, dpi: int = 110, tight: bool = False) -> Path:
+def save_figure(fig, path, *, dpi: int = 110) -> Path:
     """Write a figure as a PNG file, whole or not at all, and close it; returns the path.
 
     The folder is created when missing. Crowded tick labels are thinned first, and the image
-    is cropped to what is drawn (``bbox_inches="tight"``). ``tight`` applies
-    ``fig.tight_layout()`` to a figure made without a layout engine.
+    is cropped to what is drawn.
     """
     path = Path(path)
     try:
-        if tight and fig.get_layout_engine() is None:
-            fig.tight_layout()
         _thin_ticks(fig)
         return write_bytes_atomically(path, _cropped_png(fig, dpi))  # creates the folder
     finally:
