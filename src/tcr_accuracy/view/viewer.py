@@ -357,7 +357,7 @@ class Scene:
             if rgb is not None:
                 self.legend.append(LegendEntry(label, tuple(rgb)))
         self.legend.append(LegendEntry(
-            f"line: {start_label} to {end_label}" + (f" (segments magnified x {magnify:g})" if magnify != 1.0 else ""),
+            f"line to the {end_label}" + (f" (segments magnified x {magnify:g})" if magnify != 1.0 else ""),
             COLORS["segment"]))
 
     def add_trajectory(self, points_m, name: str = "trajectory", color=COLORS["trajectory"]) -> None:
