@@ -43,7 +43,7 @@ def plain_fit(robot, result, mset, effect_names) -> tuple[float, float]:
     scales = np.concatenate([e.parameter_scales()[k] for e, k in zip(effects, kept)])
     rot, trans = result.registration
     target = (mset.position - trans) @ rot
-    context = mset.context()
+    context = mset.context
 
     def residual(phi):
         params, offset = [], 0
@@ -75,7 +75,7 @@ def main(argv=None) -> int:
     scenario = random_scenario(robot, rng, dominant=["compliance", "backlash"])
     mset, _ = simulate_measurements(robot, scenario, args.n, rng)
     start, cpu = time.perf_counter(), time.process_time()
-    result = diagnose(robot, mset, folds=args.folds, seed=args.seed)
+    result = diagnose(robot, mset, folds=args.folds, random_state=args.seed)
     seconds, cpu_seconds = time.perf_counter() - start, time.process_time() - cpu
     tried = [e for e, c in result.candidates.items() if c.get("tried")]
     plain_seconds, plain_rms = plain_fit(robot, result, mset, result.selected_effects)

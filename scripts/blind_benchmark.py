@@ -52,10 +52,10 @@ def run_scenario(robot, index: int, rng: np.random.Generator, *, n_train: int, n
     write_measurements(path, robot, train)
     measured = read_measurements(path, robot)  # the diagnosis sees this file only
     start = time.perf_counter()
-    result = diagnose(robot, measured, folds=folds, seed=index, tracker_noise=scenario["noise_m"])
+    result = diagnose(robot, measured, folds=folds, random_state=index, tracker_noise=scenario["noise_m"])
     seconds = time.perf_counter() - start
     # --- only now look at the truth -------------------------------------------------
-    predicted = result.predict(robot, test.q, test.context())
+    predicted = result.predict(robot, test.q, test.context)
     test_rms = float(np.sqrt(np.mean(np.sum((predicted - test.position) ** 2, axis=1))))
     floor = result.noise_floor
     dominant = scenario["dominant"][0]

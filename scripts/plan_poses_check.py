@@ -9,7 +9,8 @@ over their whole range, and measures ``--n`` random
 poses of a task region (the middle ``--range-fraction`` of every joint's range, as a
 robot measured where it works) with a 0.02 mm tracker and diagnoses them. Where the diagnosis reports the encoder
 scale in an ambiguity group, K more poses are measured two ways -- the K that
-:func:`tcr_accuracy.diagnosis.design.plan_discriminating_poses` picks within the joint limits and K more
+:func:`tcr_accuracy.diagnosis.design.plan_discriminating_poses` picks among poses the robot can take
+(within the joint limits, free of self-collision where the URDF has collision geometry) and K more
 random ones of the task region -- and each enlarged
 set is diagnosed again. Separated: the encoder scale is chosen and no longer in a group.
 
@@ -83,7 +84,7 @@ def run_seed(robot, seed: int, n: int, k: int, fraction: float, joints=("j2", "j
     first, truth = simulate_measurements(robot, hidden_truth(rng, joints), n, rng,
                                          q=task_poses(robot, n, fraction, rng))
     scenario = fixed(truth)
-    estimator = GapDiagnosis(seed=seed, tracker_noise=NOISE_M).fit(robot, first)
+    estimator = GapDiagnosis(robot=robot, random_state=seed, tracker_noise=NOISE_M).fit(first)
     before = estimator.result_
     row = {"seed": seed, "before": verdict(before)}
     ambiguous = [g for g in before.ambiguous if any("encoder_scale" in m["effects"] for m in g["members"])]
@@ -97,7 +98,7 @@ def run_seed(robot, seed: int, n: int, k: int, fraction: float, joints=("j2", "j
     row["plan_seconds"] = time.perf_counter() - start
     for label, q in (("planned", planned), ("random", task_poses(robot, k, fraction, np.random.default_rng(seed + 2000)))):
         extra, _ = simulate_measurements(robot, scenario, k, np.random.default_rng(seed + 3000), q=q)
-        row[label] = verdict(diagnose(robot, joined(first, extra), seed=seed, tracker_noise=NOISE_M))
+        row[label] = verdict(diagnose(robot, joined(first, extra), random_state=seed, tracker_noise=NOISE_M))
     return row
 
 

@@ -143,7 +143,8 @@ def diagnose_set(name: str, settings: dict, work: Path) -> dict:
     ladder = []
     if not measured_frames(path):
         mset = read_measurements(path, robot)
-        fit = GapDiagnosis(tracker_noise=settings.get("noise_mm") and settings["noise_mm"] * 1e-3).fit(robot, mset)
+        noise_m = settings.get("noise_mm") and settings["noise_mm"] * 1e-3
+        fit = GapDiagnosis(robot=robot, tracker_noise=noise_m).fit(mset)
         order = [e for e in settings.get("reference", {}).get("ladder_mm", {}) if e != "frames"] or REFERENCE_ORDER
         usable = [e for e in order if e in fit.engine_.bases]
         ladder = [{"effect": s.effect, "heldout_mean_mm": s.heldout.mean * 1e3, "heldout_rms_mm": s.heldout.rms * 1e3,

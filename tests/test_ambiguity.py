@@ -47,7 +47,7 @@ def _encoder_scale_case(robot, n, seed):
 
 def test_encoder_scale_on_60_poses_is_named_or_grouped_with_the_chosen_effect(tool_changer):
     mset, _ = _encoder_scale_case(tool_changer, 60, seed=0)
-    result = diagnose(tool_changer, mset, seed=0, tracker_noise=NOISE)
+    result = diagnose(tool_changer, mset, random_state=0, tracker_noise=NOISE)
     grouped = {name for g in result.ambiguous for m in g["members"] for name in m["effects"]}
     assert "encoder_scale" in result.selected_effects or "encoder_scale" in grouped
     # the transmission that used to stand in for it, with 16 parameters, did not win on its own
@@ -111,7 +111,7 @@ def test_no_verdict_without_the_power_to_see_the_leftover():
 def test_leftover_in_a_small_sample_is_not_called_clearance_without_power(tool_changer):
     """The vocabulary is cut to geometry: the encoder scale stays in the residual of 30 poses."""
     mset, _ = _encoder_scale_case(tool_changer, 30, seed=4)
-    result = diagnose(tool_changer, mset, seed=1, folds=3, tracker_noise=NOISE, effects=["geometry"])
+    result = diagnose(tool_changer, mset, random_state=1, folds=3, tracker_noise=NOISE, effects=["geometry"])
     assert result.steps[-1].heldout.rms > 3 * result.noise_floor  # a leftover, far above the noise
     assert result.structure["verdict"] in ("yes", "cannot tell")
     assert "named" not in result.scatter

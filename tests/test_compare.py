@@ -54,7 +54,7 @@ def campaigns(tool_changer, tmp_path_factory):
         write_measurements(csv, tool_changer, mset)
         files[name] = csv
         if name != "same":  # the unchanged pair is compared from its CSVs
-            doc = jsonable(diagnose(tool_changer, mset, seed=0).to_dict())
+            doc = jsonable(diagnose(tool_changer, mset, random_state=0).to_dict())
             files[f"{name}.json"] = folder / f"{name}.json"
             files[f"{name}.json"].write_text(json.dumps(doc))
     return files

@@ -54,7 +54,7 @@ def _cyclic_ur10(seed: int = 1, n: int = 800):
 @pytest.mark.slow
 def test_cyclic_errors_are_found_and_their_shapes_recovered():
     robot, q, observations, truth = _cyclic_ur10()
-    d = GapDiagnosis(tracker_noise=NOISE, stability_replays=10).fit(robot, observations).result_
+    d = GapDiagnosis(robot=robot, tracker_noise=NOISE, stability_replays=10).fit(observations).result_
     assert "cyclic" in d.selected_effects
     assert d.steps[-1].heldout.rms <= 1.2 * d.noise_floor
     effect = make_effect("cyclic", robot, **d.effect_options["cyclic"])
@@ -78,6 +78,6 @@ def test_cyclic_errors_are_found_and_their_shapes_recovered():
 def test_without_cyclic_in_the_vocabulary_structure_remains():
     robot, _, observations, _ = _cyclic_ur10()
     effects = [e for e in vocabulary() if e != "cyclic"]
-    d = GapDiagnosis(tracker_noise=NOISE, effects=effects, stability_replays=5).fit(robot, observations).result_
+    d = GapDiagnosis(robot=robot, tracker_noise=NOISE, effects=effects, stability_replays=5).fit(observations).result_
     assert "cyclic" not in d.selected_effects
     assert d.structure_remains

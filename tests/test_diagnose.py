@@ -44,7 +44,7 @@ def compliance_case(tool_changer):
     mset, truth = _simulate(tool_changer, effects, 260, seed=11)
     train = mset.subset(np.arange(200))
     test = mset.subset(np.arange(200, 260))
-    result = diagnose(tool_changer, train, folds=3, seed=1, tracker_noise=NOISE)
+    result = diagnose(tool_changer, train, folds=3, random_state=1, tracker_noise=NOISE)
     return result, truth, test
 
 
@@ -56,7 +56,7 @@ def test_compliance_dominant_is_named_and_the_gap_shrinks_to_the_noise(complianc
     final = result.steps[-1].heldout.rms
     assert final < 1.5 * result.noise_floor
     # the fitted model predicts measurements it never saw to the noise floor
-    predicted = result.predict(tool_changer, test.q, test.context())
+    predicted = result.predict(tool_changer, test.q, test.context)
     rms = np.sqrt(np.mean(np.sum((predicted - test.position) ** 2, axis=1)))
     assert rms < 1.5 * result.noise_floor
     # and recovers the hidden compliances of the two heavily loaded joints within 10 %
@@ -97,7 +97,7 @@ def test_out_of_vocabulary_effect_leaves_structure(tool_changer):
     effects = {"frames": FRAMES, "geometry": {"spread_mm": 0.1, "spread_mrad": 0.1},
                "unmodelled": {"amplitude_mm": 0.6}}
     mset, _ = _simulate(tool_changer, effects, 200, seed=5)
-    result = diagnose(tool_changer, mset, folds=3, seed=2, tracker_noise=NOISE,
+    result = diagnose(tool_changer, mset, folds=3, random_state=2, tracker_noise=NOISE,
                       effects=["joint_offsets", "geometry", "compliance", "transmission"])
     assert result.steps[-1].heldout.rms > 2 * result.noise_floor
     assert result.structure_remains
@@ -107,7 +107,7 @@ def test_clearance_shows_as_scatter_without_structure(tool_changer):
     effects = {"frames": FRAMES, "geometry": {"spread_mm": 0.1, "spread_mrad": 0.1},
                "clearance": {"axial_mm": 0.03, "radial_mm": 0.03, "tilt_mrad": 0.03}}
     mset, _ = _simulate(tool_changer, effects, 200, seed=6)
-    result = diagnose(tool_changer, mset, folds=3, seed=3, tracker_noise=NOISE,
+    result = diagnose(tool_changer, mset, folds=3, random_state=3, tracker_noise=NOISE,
                       effects=["joint_offsets", "geometry", "clearance"])
     assert result.scatter["detected"]
     assert result.scatter["ratio"] > 1.5

@@ -33,7 +33,7 @@ def _fitted_in_base(robot, csv, data, frame=None):
     d = diagnose(robot, parts if frame is None else _all_frames(csv, robot, frame),
                  effects=data["selected_effects"])
     base = np.linalg.inv(np.array(data["tracker_transform"]))
-    tracker = d.predict(robot, parts.q, parts.context())
+    tracker = d.predict(robot, parts.q, parts.context)
     return parts, tracker @ base[:3, :3].T + base[:3, 3]
 
 
@@ -48,7 +48,7 @@ def _all_frames(csv, robot, first):
 def _check_round_trip(folder, robot, parts, fitted):
     """The loaded model's TCP is the fitted one to 1e-9 m; the URDF's is its geometric part."""
     model = tcr.load_as_built(folder / "as_built.yaml")
-    loaded = model.tcp_poses(parts.q, parts.context()).position
+    loaded = model.tcp_poses(parts.q, parts.context).position
     print(f"loaded vs fitted: {np.abs(loaded - fitted).max():.3g} m")
     np.testing.assert_allclose(loaded, fitted, atol=1e-9, rtol=0)
     # the URDF carries the geometry: re-parsed from its text, its TCP is the geometric part
@@ -67,9 +67,9 @@ def test_export_round_trips_the_demo_tool_changer_with_its_compliance(tmp_path, 
     parts, fitted = _fitted_in_base(robot, DEMO, data)
     model = _check_round_trip(folder, robot, parts, fitted)
     assert "compliance" in model.parameters  # a non-geometric effect, applied at each row's payload
-    no_payload = parts.context()
+    no_payload = parts.context
     no_payload.payload_kg[:] = 0.0
-    sag = np.linalg.norm(model.tcp_poses(parts.q, parts.context()).position
+    sag = np.linalg.norm(model.tcp_poses(parts.q, parts.context).position
                          - model.tcp_poses(parts.q, no_payload).position, axis=1)
     assert sag.max() > 2e-4  # the cutter's weight moves the TCP by tenths of a mm
     # joint offsets and TCP in deg and mm, as fitted
@@ -89,7 +89,7 @@ def test_export_round_trips_the_demo_tool_changer_with_its_compliance(tmp_path, 
     pose = tcp_poses(robot, q_target)
     target = pose.position + pose.rotation @ model.tcp_offset()
     targets = read_measurements("examples/poses.csv", robot, require_position=False)
-    context = targets.context().subset(np.flatnonzero(ok))
+    context = targets.context.subset(np.flatnonzero(ok))
     reached = model.tcp_poses(q_command, context).position
     assert np.linalg.norm(reached - target, axis=1).max() < 2e-7
     assert np.linalg.norm(model.tcp_poses(q_target, context).position - target, axis=1).mean() > 1e-4

@@ -105,7 +105,7 @@ def test_nested_models_never_fit_worse_on_ill_conditioned_data():
     amplitude = np.radians(0.02) * rng.standard_normal((robot.n_joints, 2))
     real = q + compliance * _gravity(robot, q) + amplitude[:, 0] * np.sin(q) + amplitude[:, 1] * np.cos(2 * q)
     position = _positions(robot, real) + 3e-5 * rng.standard_normal((q.shape[0], 3))
-    fit = GapDiagnosis(folds=4, stability_replays=5).fit(robot, _observations(q, position))
+    fit = GapDiagnosis(robot=robot, folds=4, stability_replays=5).fit(_observations(q, position))
     results = [r for r in fit.engine_._full_cache.values() if not r["free"]]
     pairs = 0
     for outer in results:
@@ -148,7 +148,7 @@ def test_joints_that_lead_their_motion_are_described_not_called_backlash():
     direction = rng.choice([-1.0, 1.0], size=(n, 3))
     lead = np.radians([0.08, 0.06, 0.1])
     position = _positions(robot, q + lead * direction) + 1e-5 * rng.standard_normal((n, 3))
-    d = GapDiagnosis(stability_replays=10).fit(robot, _observations(q, position, direction)).result_
+    d = GapDiagnosis(robot=robot, stability_replays=10).fit(_observations(q, position, direction)).result_
     assert "backlash" not in d.selected_effects
     for table in d.parameter_table.values():
         for name, value in table["values"].items():
@@ -173,7 +173,7 @@ def test_compliance_and_gear_errors_hidden_together_stay_inside_physics():
     amplitude = np.radians(0.01) * rng.standard_normal((6, 2))
     real = q + compliance * tau + amplitude[:, 0] * np.sin(q) + amplitude[:, 1] * np.cos(q)
     position = _positions(robot, real) + 2e-5 * rng.standard_normal((n, 3))
-    d = GapDiagnosis(stability_replays=10).fit(robot, _observations(q, position)).result_
+    d = GapDiagnosis(robot=robot, stability_replays=10).fit(_observations(q, position)).result_
     for e, table in d.parameter_table.items():
         for name, value in table["values"].items():
             low, high = table["range"][name]
@@ -200,7 +200,8 @@ def test_standard_errors_match_a_monte_carlo_over_noise_draws():
     offsets = np.radians([0.05, -0.03, 0.04, 0.0, 0.06, 0.02])
     offsets[3] = 3e-4  # prismatic joint [m]
     exact = _positions(robot, q + offsets)
-    fit = GapDiagnosis(effects=["joint_offsets"], folds=2, stability_replays=2).fit(robot, _observations(q, exact))
+    fit = GapDiagnosis(robot=robot, effects=["joint_offsets"], folds=2, stability_replays=2).fit(
+        _observations(q, exact))
     engine = fit.engine_
     model = ["frames", "joint_offsets"]
     noise = 5e-5
@@ -257,7 +258,8 @@ def test_noise_from_three_reflectors_on_one_tool():
     for robot, frame in zip(robots, frames):
         position = _positions(robot, real, frame) @ rotation.T + [1.2, -0.4, 0.3]
         measurements.append((robot, _observations(q, position + noise * rng.standard_normal((n, 3)))))
-    d = GapDiagnosis(effects=["joint_offsets", "geometry"], stability_replays=5).fit(robots[0], measurements).result_
+    d = GapDiagnosis(robot=robots[0], effects=["joint_offsets", "geometry"], stability_replays=5).fit(
+        measurements).result_
     assert d.noise.source == "rigid frames"
     assert d.noise.independent
     assert d.tracker_noise == pytest.approx(noise, rel=0.3)

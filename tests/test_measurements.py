@@ -69,7 +69,7 @@ def test_round_trip_keeps_every_column(tool_changer, tmp_path, unit):
 def test_context_defaults_when_columns_are_absent(tool_changer, tmp_path):
     path = tmp_path / "m.csv"
     write_measurements(path, tool_changer, _mset(tool_changer, 5))
-    ctx = read_measurements(path, tool_changer).context()
+    ctx = read_measurements(path, tool_changer).context
     np.testing.assert_array_equal(ctx.payload_kg, np.zeros(5))
     np.testing.assert_array_equal(ctx.temperature_c, np.full(5, 20.0))
     np.testing.assert_array_equal(ctx.direction, np.zeros((5, 6)))

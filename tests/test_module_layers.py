@@ -23,7 +23,8 @@ SRC = str(PACKAGE.parent)
 #: Layers, bottom first (the README's Architecture section); a module may import from its own
 #: layer and those before it.
 LAYERS = ["base", "model", "io", "effects", "analysis", "diagnosis", "prediction", "view", "cli"]
-BASE = {"tcr_accuracy", "tcr_accuracy.units", "tcr_accuracy.exceptions", "tcr_accuracy.atomic"}
+BASE = {"tcr_accuracy", "tcr_accuracy.units", "tcr_accuracy.exceptions", "tcr_accuracy.atomic",
+        "tcr_accuracy.random_state"}
 
 
 def _layer(module: str) -> str:

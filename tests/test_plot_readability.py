@@ -102,7 +102,7 @@ def _diagnosis(rng, n=240):
     lags = np.linspace(0.1, 3.3, 12)
     semis = [SimpleNamespace(lags=lags, semivariance=1 + 0.2 * rng.normal(size=(12, 3))) for _ in JOINTS]
     bins = [{"low": lo, "high": lo + 0.3, "mean_mm": list(rng.normal(size=3) * 0.01)} for lo in np.arange(0, 1.5, 0.3)]
-    where = {"octants": {"regions": [{"region": f"{a}x{b}y{c}z", "rms_mm": float(rng.uniform(0.1, 0.2))}
+    where_mm = {"octants": {"regions": [{"region": f"{a}x{b}y{c}z", "rms_mm": float(rng.uniform(0.1, 0.2))}
                                      for a in "-+" for b in "-+" for c in "-+"]},
              "radius": {"bins": bins}, "height": {"bins": bins}, "payload_kg": {"bins": bins},
              "temperature_c": {"bins": bins},
@@ -113,7 +113,7 @@ def _diagnosis(rng, n=240):
     return SimpleNamespace(steps=steps, noise_floor=3.5e-5, gap_residual=residual, heldout_residual=0.03 * residual,
                            q=q, gravity_torque=np.c_[np.zeros(n), rng.uniform(-8000, 2000, (n, 2)),
                                                      rng.uniform(-3000, 3000, n), rng.uniform(-400, 400, (n, 2))],
-                           semivariograms=semis, where=where, joint_function_bands=bands)
+                           semivariograms=semis, where_mm=where_mm, joint_function_bands=bands)
 
 
 ROBOT = SimpleNamespace(joint_names=JOINTS, display_scale=np.full(6, 180 / np.pi), display_units=["deg"] * 6,

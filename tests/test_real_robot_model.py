@@ -122,7 +122,7 @@ def test_the_csv_may_carry_every_joint_and_compliance_uses_them(branched):
     mset = parse_measurements(text, branched, check_units=False)
     np.testing.assert_allclose(mset.outside_q[:, 0], np.radians([0, 90, 45]))
     effect = make_effect("compliance", branched)
-    dq = effect.perturb([1e-4, 2e-4], mset.q, mset.context()).dq
+    dq = effect.perturb([1e-4, 2e-4], mset.q, mset.context).dq
     # rows 1 and 2 differ only in the side joint: the side mass moves, so j1 sags differently
     assert abs(dq[0, 0] - dq[1, 0]) > 1e-5 and dq[0, 1] == pytest.approx(dq[1, 1])
     _, _, _, _, m3_a, _ = _world_points(mset.q[0], 0.0)

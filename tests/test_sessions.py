@@ -74,14 +74,14 @@ def _thermal(d) -> float | None:
 def test_two_sessions_at_two_temperatures_find_thermal(campaign):
     robot, files = campaign
     sets = [read_measurements(files[label], robot) for label in STATIONS]
-    together = GapDiagnosis(tracker_noise=NOISE, stability_replays=5).fit(
-        robot, join_sessions(sets, list(STATIONS))).result_
+    together = GapDiagnosis(robot=robot, tracker_noise=NOISE, stability_replays=5).fit(
+        join_sessions(sets, list(STATIONS))).result_
     assert "thermal" in together.selected_effects
     assert _thermal(together) == pytest.approx(ALPHA, rel=0.1)
     assert [s["session"] for s in together.sessions] == list(STATIONS)
     assert all(s["heldout"]["rms_mm"] < 1.3 * together.noise_floor * 1e3 for s in together.sessions)
     for mset in sets:  # a degree of spread inside one session does not show the expansion
-        alone = GapDiagnosis(tracker_noise=NOISE, stability_replays=5).fit(robot, mset).result_
+        alone = GapDiagnosis(robot=robot, tracker_noise=NOISE, stability_replays=5).fit(mset).result_
         assert "thermal" not in alone.selected_effects
 
 
@@ -144,8 +144,8 @@ def test_a_length_scale_beyond_any_material_is_a_session_difference(tmp_path):
             sets.append(read_measurements(path, robot))
     finally:
         STATIONS, ALPHA = saved
-    d = GapDiagnosis(tracker_noise=NOISE, stability_replays=5).fit(robot, join_sessions(sets, ["monday", "friday"])
-                                                                   ).result_
+    d = GapDiagnosis(robot=robot, tracker_noise=NOISE, stability_replays=5).fit(
+        join_sessions(sets, ["monday", "friday"])).result_
     assert d.primary_effect != "thermal"
     thermal = d.parameters.get("thermal", {}).get("thermal.alpha", 0.0)
     assert thermal <= 2.5e-5

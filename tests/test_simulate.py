@@ -88,7 +88,7 @@ def test_truth_recreates_the_same_measurements(tool_changer):
     factors = truth["effects"]["compliance"]["options"]["link_mass_factors"]
     assert len(factors) == 6 and np.std(factors) > 0
     again, _ = simulate_measurements(tool_changer, truth_as_scenario(truth), 30, np.random.default_rng(5),
-                                     noise_m=0.0, q=mset.q, context=mset.context())
+                                     noise_m=0.0, q=mset.q, context=mset.context)
     np.testing.assert_allclose(again.position, mset.position, atol=1e-15)
 
 
@@ -102,7 +102,7 @@ def test_a_truth_file_read_back_as_a_scenario_is_the_same_robot(tool_changer, tm
     write_truth(tmp_path / "truth.yaml", truth)
     scenario = load_scenario(tmp_path / "truth.yaml")
     again, _ = simulate_measurements(tool_changer, scenario, 30, np.random.default_rng(9), noise_m=0.0,
-                                     q=mset.q, context=mset.context())
+                                     q=mset.q, context=mset.context)
     np.testing.assert_allclose(again.position, mset.position, atol=1e-12)
     # a unit changed by hand is refused, naming it: the values stay SI whatever the file says
     text = (tmp_path / "truth.yaml").read_text().replace("geometry.j1.dx: m\n", "geometry.j1.dx: mm\n", 1)
@@ -115,7 +115,7 @@ def test_unmodelled_effect_leaves_structure_the_vocabulary_cannot_fit(tool_chang
     """Least squares over every deterministic effect of the vocabulary (linearised)."""
     spec = {"effects": {"unmodelled": {"amplitude_mm": 0.5}}}
     mset, _ = simulate_measurements(tool_changer, spec, 400, np.random.default_rng(6), noise_m=0.0)
-    ctx = mset.context()
+    ctx = mset.context
     effects = [cls(tool_changer) for cls in list(effect_classes().values())[:-1]]
     jac = prediction_jacobian(tool_changer, effects, [e.zeros() for e in effects], mset.q, ctx)
     gap = (mset.position - tcp_poses(tool_changer, mset.q).position).reshape(-1)
@@ -134,7 +134,7 @@ def test_random_scenario_makes_the_dominant_effect_dominate(tool_changer):
     assert scenario["outside_vocabulary"] == ["unmodelled"]
     mset, truth = simulate_measurements(tool_changer, scenario, 300, rng)
     # judged independently here: TCP displacement left after the best rigid frame fit
-    ctx = mset.context()
+    ctx = mset.context
     frames = effect_classes()["frames"](tool_changer)
     fj = prediction_jacobian(tool_changer, [frames], [frames.zeros()], mset.q, ctx).reshape(-1, 9)
 

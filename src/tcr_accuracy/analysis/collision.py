@@ -13,6 +13,10 @@ tree (joints outside the TCP chain stay at their neutral value) and checked with
 
 A robot whose URDF has no ``<collision>`` element has no checker (:func:`collision_checker`
 returns None), and the callers say so. Nothing here prints.
+
+The same bodies tell whether a straight line is free: :meth:`CollisionChecker.blocking_bodies`
+tests a thin coal ``Capsule`` laid along a segment (a tracker's beam) against every body of
+the posed robot, with no pair left out.
 """
 
 from __future__ import annotations
@@ -20,10 +24,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import coal
 import numpy as np
 import pinocchio as pin
 
-from ..exceptions import InputError
 from ..model.robot import RobotModel
 
 
@@ -60,6 +64,31 @@ class CollisionChecker:
                             self.geometry.geometryObjects[pair.second].name))
         return out
 
+    def blocking_bodies(self, q, start, end, radius: float = 1e-3) -> list[str]:
+        """Names of the bodies that a segment from ``start`` to ``end`` (3,) [m], in the base
+        frame, passes through or within ``radius`` [m] of, at chain joint values q (n_joints,)."""
+        start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+        length = float(np.linalg.norm(end - start))
+        if length == 0.0:
+            return []
+        full_q = self.robot.full_configurations(np.atleast_2d(np.asarray(q, dtype=float)))[0]
+        model = self.robot.full_model
+        data, geometry_data = model.createData(), self.geometry.createData()
+        pin.updateGeometryPlacements(model, data, self.geometry, geometry_data, full_q)
+        # coal's capsule lies along its own z axis, centred: turn z onto the segment
+        axis = (end - start) / length
+        rotation = pin.Quaternion.FromTwoVectors(np.array([0.0, 0.0, 1.0]), axis).matrix()
+        beam = coal.Capsule(radius, length)
+        beam_placement = coal.Transform3s(rotation, 0.5 * (start + end))
+        out = []
+        for body, placement in zip(self.geometry.geometryObjects, geometry_data.oMg):
+            result = coal.CollisionResult()
+            if coal.collide(beam, beam_placement, body.geometry,
+                            coal.Transform3s(placement.rotation, placement.translation),
+                            coal.CollisionRequest(), result):
+                out.append(body.name)
+        return out
+
     def is_free(self, q) -> np.ndarray:
         """(N,) True where the configuration q (N, n_joints) has no self-collision."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
@@ -72,16 +101,13 @@ def collision_checker(robot: RobotModel) -> CollisionChecker | None:
     Raises
     ------
     InputError
-        The collision meshes cannot be read.
+        The collision meshes cannot be read (a missing one is left out: the robot is checked
+        without that body, as :func:`tcr_accuracy.model.robot.load_robot` warned).
     """
     if "<collision" not in robot.urdf_text:
         return None
     model = robot.full_model
-    try:
-        geometry = pin.buildGeomFromUrdfString(model, robot.urdf_text, pin.GeometryType.COLLISION,
-                                               package_dirs=list(robot.package_dirs))
-    except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
-        raise InputError(f"{robot.name}: cannot read the URDF's collision geometry ({exc})") from None
+    geometry = robot.geometry_model("collision")  # bodies whose mesh is missing left out (load_robot warned)
     if geometry.ngeoms < 2:
         return None
     geometry.addAllCollisionPairs()

@@ -34,6 +34,7 @@ import numpy as np
 
 from ..model.errors import ErrorBudget, ErrorModel
 from ..model.kinematics import euler_zyx, euler_zyx_entries, tcp_chain_soa, tcp_poses
+from ..random_state import renamed_keyword
 
 #: Default chunk of samples processed at once (cache-friendly; part of the seeding contract).
 CHUNK = 20_000
@@ -155,6 +156,13 @@ class MonteCarloResult:
 
     def column(self, name: str) -> int:
         return STAT_COLUMNS.index(name)
+
+    def __repr__(self) -> str:
+        norm = self.column("norm")
+        inside = ", ".join(f"P(|dP| < {t * 1e3:g} mm) = {p:.4f}"
+                           for t, p in zip(self.position_tolerances, self.position_reliability))
+        return (f"MonteCarloResult({self.n_samples} samples, |dP| mean {self.stats.mean[norm] * 1e3:.4g} mm, "
+                f"std {self.stats.std[norm] * 1e3:.4g} mm, max {self.stats.maximum[norm] * 1e3:.4g} mm, {inside})")
 
 
 # ---------------------------------------------------------------------------------------
@@ -298,7 +306,9 @@ def run_chunk(task: ChunkTask, index: int, size: int, seed: np.random.SeedSequen
     )
 
 
-def run_monte_carlo(sampler: Sampler, q: np.ndarray, n_samples: int, rng=None, *,
+@renamed_keyword("sampler", "budget")
+@renamed_keyword("rng", "random_state")
+def run_monte_carlo(budget: ErrorBudget | Sampler, q: np.ndarray, n_samples: int, random_state=None, *,
                     position_tolerances=(0.15e-3, 0.25e-3), angle_tolerance: float = 0.002,
                     chunk: int = CHUNK, keep_cloud: int = 20_000,
                     progress: Callable[[int], None] | None = None, client=None,
@@ -307,32 +317,51 @@ def run_monte_carlo(sampler: Sampler, q: np.ndarray, n_samples: int, rng=None, *
 
     Parameters
     ----------
-    sampler : Sampler
-        Source of error vectors (ErrorBudget, ClearanceModel, ...).
+    budget : ErrorBudget or Sampler
+        Where the random error vectors come from: an
+        :class:`~tcr_accuracy.model.errors.ErrorBudget` (``tcr.seed_budget``, a budget
+        file), or any other :class:`Sampler` (e.g. a
+        :class:`~tcr_accuracy.model.clearance.ClearanceModel`): an object with
+        ``error_model``, ``name`` and ``sample(n, rng) -> (n, n_params)``. Formerly
+        ``sampler``.
     q : array-like of shape (n_joints,)
+        Joint values [rad, m].
     n_samples : int
-    rng : int, SeedSequence, Generator or None
-        Root of the per-chunk seeds (a Generator is drawn from once).
-    position_tolerances : sequence of float
+        Number of samples (>= 1).
+    random_state : int, numpy.random.SeedSequence, numpy.random.Generator or None, default=None
+        Root of the per-chunk seeds (a Generator is drawn from once; None: 0). Formerly
+        ``rng``.
+    position_tolerances : sequence of float, default=(0.15e-3, 0.25e-3)
         Tolerances T on |dP| [m].
-    angle_tolerance : float
+    angle_tolerance : float, default=0.002
         Tolerance R on each ZYX angle error [rad].
-    chunk : int
-        Samples per chunk. Part of the random stream: the same (seed, chunk) gives
+    chunk : int, default=20000
+        Samples per chunk. Part of the random stream: the same (random_state, chunk) gives
         the same samples.
-    keep_cloud : int
+    keep_cloud : int, default=20000
         Number of position errors kept for plots.
-    progress : callable, optional
+    progress : callable, default=None
         Called with the number of samples finished after each chunk.
-    client : dask.distributed.Client, optional
+    client : dask.distributed.Client, default=None
         Run the chunks as tasks on this cluster; results are merged in chunk order.
-    max_pending : int, optional
+    max_pending : int, default=None
         Most chunks in flight on the cluster (bounds memory), default 4 per worker.
 
     Returns
     -------
     MonteCarloResult
+        Statistics of the pose error (SI) and the counts inside the tolerances.
+
+    Examples
+    --------
+    >>> import numpy as np, tcr_accuracy as tcr
+    >>> robot = tcr.load_robot("ur5")
+    >>> budget = tcr.seed_budget(robot, "table1")
+    >>> mc = tcr.run_monte_carlo(budget, np.radians([0, -90, 90, 0, 90, 0]), 2_000, random_state=0)
+    >>> mc.n_samples
+    2000
     """
+    sampler = budget
     if n_samples < 1:
         raise ValueError("n_samples must be >= 1")
     q = np.asarray(q, dtype=float)
@@ -342,7 +371,7 @@ def run_monte_carlo(sampler: Sampler, q: np.ndarray, n_samples: int, rng=None, *
     task = ChunkTask(sampler=sampler, q=q, nominal_position=nominal.position[0],
                      nominal_euler=euler_zyx(nominal.rotation)[0], tolerances=tolerances,
                      angle_tolerance=float(angle_tolerance), keep_cloud=int(keep_cloud), chunk=int(chunk))
-    root = root_seed_sequence(rng)
+    root = root_seed_sequence(random_state)
     sizes = chunk_plan(n_samples, chunk)
     seeds = root.spawn(len(sizes))
     merged = _Merger(len(tolerances))

@@ -87,7 +87,18 @@ _CONTEXT_KEYS = {"payload_kg", "payload_fraction", "temperature_c", "temperature
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """Read a scenario YAML file (see the module docstring)."""
+    """Read a scenario YAML file (see the module docstring).
+
+    Parameters
+    ----------
+    path : str or Path
+        The YAML file (``effects``, ``context``, ``noise_mm``).
+
+    Returns
+    -------
+    Scenario
+        The hidden effects, their parameters [SI] and the context to draw.
+    """
     path = Path(path)
     text = read_user_text(path, "scenario file")
     data = parse_table(text, str(path), "toml" if path.suffix.lower() == ".toml" else "yaml")

@@ -18,7 +18,7 @@ drawn as the dominant one and how) it reads from the effect's class.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +30,8 @@ from ..exceptions import InputError
 from ..model.kinematics import tcp_poses
 from ..io.measurements import MeasurementSet
 from ..model.robot import RobotModel
+from ..random_state import renamed_keyword
+from .reachable import PoseFilter, Screened, draw_poses
 from .scenario import ContextSpec, Scenario, resolve_effect, scenario_from_dict
 
 DEFAULT_NOISE_M = 2e-5  # laser tracker, 0.02 mm per axis
@@ -50,38 +52,35 @@ def dominant_candidates() -> tuple[str, ...]:
 # ---------------------------------------------------------------------------------------
 # Sampling poses and context
 # ---------------------------------------------------------------------------------------
-def sample_poses(robot: RobotModel, n: int, rng: np.random.Generator, box=None) -> np.ndarray:
+def sample_poses(robot: RobotModel, n: int, rng: np.random.Generator, box=None, *,
+                 pose_filter: PoseFilter | None = None) -> np.ndarray:
     """(n, n_joints) joint values uniform within the limits; a joint with a URDF ``<mimic>`` rule
     on another chain joint follows it (rows where it would leave its limits are drawn again).
 
     box : array-like of shape (3, 2), optional
         [[xmin, xmax], [ymin, ymax], [zmin, zmax]] [m]: keep only poses whose nominal
         TCP lies inside (rejection sampling).
+    pose_filter : PoseFilter, optional
+        Also reject what it rejects (self-collision, the tracker's line of sight; see
+        :mod:`tcr_accuracy.analysis.reachable`); its box, if it has one, replaces ``box``.
+        Default: limits, ``<mimic>`` rules and ``box`` only.
     """
-    lo, hi = robot.joint_bounds()
-    if box is None and not robot.has_chain_mimic:
-        return rng.uniform(lo, hi, size=(n, robot.n_joints))
-    if box is None:
-        box = np.array([[-np.inf, np.inf]] * 3)
-    box = np.asarray(box, dtype=float)
-    if box.shape != (3, 2) or np.any(box[:, 0] >= box[:, 1]):
-        raise InputError("task box: give xmin xmax ymin ymax zmin zmax with min < max")
-    kept, tried = [], 0
-    batch = max(4 * n, 2000)
-    while sum(len(k) for k in kept) < n and tried < 200 * batch:
-        q = rng.uniform(lo, hi, size=(batch, robot.n_joints))
-        if robot.has_chain_mimic:  # a <mimic> joint follows its rule, and must stay within its limits
-            q = robot.follow_mimic(q)
-            q = q[robot.within_limits(q)]
-        p = tcp_poses(robot, q).position
-        inside = np.all((p >= box[:, 0]) & (p <= box[:, 1]), axis=1)
-        kept.append(q[inside])
-        tried += batch
-    found = sum(len(k) for k in kept)
-    if found < n:
-        raise InputError(f"task box: only {found} of {tried} random poses put the TCP inside it (with the "
-                         f"<mimic> joints within their limits); need {n} (is the box within reach?)")
-    return np.concatenate(kept)[:n]
+    return screened_poses(robot, n, rng, box, pose_filter=pose_filter).q
+
+
+def screened_poses(robot: RobotModel, n: int, rng: np.random.Generator, box=None, *,
+                   pose_filter: PoseFilter | None = None) -> Screened:
+    """:func:`sample_poses` with what the filter rejected on the way (:class:`Screened`)."""
+    if pose_filter is None:
+        pose_filter = PoseFilter.for_robot(robot, box=box, collision=False)
+    elif box is not None and pose_filter.box is None:
+        pose_filter = replace(pose_filter, box=np.asarray(box, dtype=float))
+    screened = draw_poses(pose_filter, n, rng)
+    if len(screened.q) < n:
+        raise InputError(f"random poses: only {len(screened.q)} of {screened.tried} drawn are "
+                         f"{pose_filter.tests} ({screened.rejections()}); need {n}"
+                         + (" (is the box within reach?)" if pose_filter.box is not None else ""))
+    return screened
 
 
 def draw_context(robot: RobotModel, spec: ContextSpec, n: int, rng: np.random.Generator) -> MeasurementContext:
@@ -114,11 +113,12 @@ def _signature(robot, effect, params, q, context) -> np.ndarray:
     return predict_poses(robot, [effect], [params], q, context).position - nominal
 
 
-def simulate_measurements(robot: RobotModel, scenario: Scenario | dict, n: int, rng: np.random.Generator,
+@renamed_keyword("rng", "random_state")
+def simulate_measurements(robot: RobotModel, scenario: Scenario | dict, n: int, random_state=None,
                           noise_m: float | None = None, *, q: np.ndarray | None = None,
                           context: MeasurementContext | None = None, box=None, orientation: bool = False,
                           orientation_noise_rad: float = DEFAULT_ORIENTATION_NOISE_RAD,
-                          ) -> tuple[MeasurementSet, dict]:
+                          pose_filter: PoseFilter | None = None) -> tuple[MeasurementSet, dict]:
     """Measurements of the robot with the scenario's hidden effects.
 
     Parameters
@@ -129,7 +129,8 @@ def simulate_measurements(robot: RobotModel, scenario: Scenario | dict, n: int, 
         Hidden effects (see the module docstring); a dict is read as the YAML would be.
     n : int
         Number of measurements (ignored when q is given).
-    rng : numpy.random.Generator
+    random_state : int, numpy.random.Generator or None, default=None
+        Draws the poses, context and noise (formerly ``rng``).
     noise_m : float, optional
         Tracker noise, isotropic normal std per axis [m]; default the scenario's, else 2e-5.
     q : (N, n_joints), optional
@@ -140,18 +141,33 @@ def simulate_measurements(robot: RobotModel, scenario: Scenario | dict, n: int, 
         Task box for the random poses [m].
     orientation : bool
         Also "measure" the TCP orientation (quaternions with orientation_noise_rad).
+    orientation_noise_rad : float
+        Standard deviation of the measured orientation's random rotation [rad].
+    pose_filter : PoseFilter, optional
+        What else a random pose must pass (self-collision, the tracker's line of sight: see
+        :func:`sample_poses`); default the joint limits, ``<mimic>`` rules and ``box`` only.
 
     Returns
     -------
     (MeasurementSet, truth): truth is a JSON-ready dict of the hidden effects and their
     parameters [SI], the noise, and the context settings.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> scenario = {"effects": {"joint_offsets": {"offsets_deg": {"j2": 0.03}}}, "noise_mm": 0.02}
+    >>> measured, truth = tcr.simulate_measurements(robot, scenario, 50, random_state=1)
+    >>> measured.position.shape
+    (50, 3)
     """
+    rng = np.random.default_rng(random_state)
     if isinstance(scenario, dict):
         scenario = scenario_from_dict(scenario)
     if q is None:
         if n < 1:
             raise InputError(f"--n {n}: need at least one measurement")
-        q = sample_poses(robot, n, rng, box)
+        q = sample_poses(robot, n, rng, box, pose_filter=pose_filter)
     q = np.atleast_2d(np.asarray(q, dtype=float))
     n = q.shape[0]
     if context is None:
@@ -222,7 +238,8 @@ def _effect_truth(hidden: HiddenEffect, robot, q, context) -> dict:
 # ---------------------------------------------------------------------------------------
 # Random scenarios for blind benchmarks
 # ---------------------------------------------------------------------------------------
-def random_scenario(robot: RobotModel, rng: np.random.Generator, dominant: list[str] | None = None, *,
+@renamed_keyword("rng", "random_state")
+def random_scenario(robot: RobotModel, random_state=None, dominant: list[str] | None = None, *,
                     n_dominant: int | None = None, outside: str | None = None, clearance: bool = False,
                     dominance: float = 3.0, noise_m: float = DEFAULT_NOISE_M) -> dict:
     """A scenario with realistic magnitudes: geometry always, plus one or two dominant effects.
@@ -241,6 +258,10 @@ def random_scenario(robot: RobotModel, rng: np.random.Generator, dominant: list[
 
     Parameters
     ----------
+    robot : RobotModel
+        The nominal robot.
+    random_state : int, numpy.random.Generator or None, default=None
+        Draws the effects and their sizes (formerly ``rng``).
     dominant : list of str, optional
         Effects to make dominant; default one or two drawn from :func:`dominant_candidates`.
     n_dominant : int, optional
@@ -250,12 +271,17 @@ def random_scenario(robot: RobotModel, rng: np.random.Generator, dominant: list[
         about as large as the dominant effect.
     clearance : bool
         Add joint clearance (a few hundredths of a mm of scatter).
+    dominance : float
+        How many times as much as the background the first dominant effect moves the TCP.
+    noise_m : float
+        Tracker noise of the scenario, std per axis [m].
 
     Returns
     -------
     dict: a scenario with explicit SI parameters, plus ``dominant`` (ordered, largest
     first) and ``notes``.
     """
+    rng = np.random.default_rng(random_state)
     candidates = dominant_candidates()
     if dominant is None:
         k = n_dominant if n_dominant is not None else int(rng.integers(1, 3))

@@ -19,8 +19,8 @@ import warnings
 from contextlib import contextmanager
 
 from .. import __version__
-from . import (compare, demo, diagnose, export, iso9283, montecarlo, plan_poses, pose, prediction, sensitivity,
-               simulate, tolerance, tracker_import, trajectory, view)
+from . import (compare, demo, diagnose, export, iso9283, montecarlo, plan_poses, pose, prediction, report,
+               sensitivity, simulate, tolerance, tracker_import, trajectory, view)
 from .common import EXIT_ANALYSIS, EXIT_INPUT, EXIT_OK, Parser, add_memory_argument
 
 
@@ -52,7 +52,7 @@ DEBUG_HELP = "on an error, print the full Python traceback as well as the one-li
 #: ``add_parsers(sub)`` adds its subcommands. Every module imports only argparse and the
 #: shared helpers at the top (heavy imports wait inside each command), so --help is instant.
 COMMANDS = [pose, demo, montecarlo, sensitivity, tolerance, trajectory, simulate, tracker_import, view, diagnose,
-            compare, plan_poses, prediction, iso9283, export]
+            compare, plan_poses, prediction, iso9283, report, export]
 
 
 #: Joint-limit warnings already shown in this run, by what they say of the joint: the same
@@ -62,11 +62,12 @@ _shown_limit_warnings: set[str] = set()
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    from ..model.robot import JointLimitWarning
+    from ..model.robot import JointLimitWarning, MissingMeshWarning
 
     text = str(message)
-    if issubclass(category, JointLimitWarning):
-        key = text[text.find("joint "):]  # without the source ("--q: ", "q: ", "nominal: q: ")
+    if issubclass(category, (JointLimitWarning, MissingMeshWarning)):
+        # without the source ("--q: ", "q: ", "nominal: q: "); a robot loaded twice warns of its meshes once
+        key = text[text.find("joint "):] if issubclass(category, JointLimitWarning) else text
         if key in _shown_limit_warnings:
             return
         _shown_limit_warnings.add(key)
@@ -121,12 +122,14 @@ def _main(argv: list[str], debug: bool, command: str | None) -> int:
         name = f"tcr-accuracy {args.command}"
         debug = debug or getattr(args, "debug", False)  # also an abbreviated --deb
         from ..atomic import staged_outputs
+        from ..model.ros_packages import package_dirs_given
         from .held import held_stdout
 
         # every file of the run is written at its end, together, or not at all, and what it
         # prints after them; SIGTERM and SIGHUP are interrupts until the commit is done, so that
         # one during the commit still cleans up
-        with warnings.catch_warnings(), _terminate_as_interrupt(), held_stdout(), staged_outputs() as stage:
+        with warnings.catch_warnings(), _terminate_as_interrupt(), held_stdout(), staged_outputs() as stage, \
+                package_dirs_given(getattr(args, "package_dir", None)):  # --package-dir, for every load_robot
             warnings.simplefilter("default", UserWarning)
             warnings.showwarning = _show_warning
             return args.run(args)

@@ -60,6 +60,21 @@ def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tool", default=None, metavar="FRAME",
                         help="TCP frame name (default: 'tool' for the tool-changer, the usual "
                              "flange frame for named robots, the single leaf link of a URDF)")
+    parser.add_argument("--package-dir", action="append", default=None, type=package_folder, metavar="DIR",
+                        help="where the URDF's package://NAME/... meshes are: a ROS package folder (with "
+                             "package.xml), or a folder holding DIR/NAME or packages further below; "
+                             "repeatable; searched before the folders of ROS_PACKAGE_PATH")
+
+
+def package_folder(text: str) -> str:
+    """argparse type of ``--package-dir``: an existing folder (refused now, before any work)."""
+    import os
+
+    if not os.path.exists(text):
+        raise argparse.ArgumentTypeError(f"{_shown(text)}: the folder does not exist")
+    if not os.path.isdir(text):
+        raise argparse.ArgumentTypeError(f"{_shown(text)}: exists and is not a folder")
+    return text
 
 
 def number(*, low: float | None = None, high: float | None = None, low_open: bool = False,
@@ -281,6 +296,38 @@ def error_sampler(robot, args) -> tuple[object, str]:
     from ..model.errors import default_preset
 
     return sampler, args.preset or (default_preset(robot) if args.config is None else f"config {args.config}")
+
+
+def add_reach_arguments(parser: argparse.ArgumentParser, poses: str) -> None:
+    """``--box`` and ``--tracker-mm``: the task box the TCP of ``poses`` must lie in and the tracker
+    that must see it [mm, base frame] (:mod:`tcr_accuracy.analysis.reachable`); read by :func:`reach_values`."""
+    parser.add_argument("--box", nargs=6, type=number(low=-MAX_MM, high=MAX_MM, unit="mm"), default=None,
+                        metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
+                        help=f"task box [mm], in the robot's base frame: keep only {poses} whose TCP lies inside")
+    parser.add_argument("--tracker-mm", nargs=3, type=number(low=-MAX_MM, high=MAX_MM, unit="mm"), default=None,
+                        metavar=("X", "Y", "Z"),
+                        help=f"the tracker's position [mm] in the base frame: keep only {poses} whose TCP it sees "
+                             "(no collision body on the line; needs the URDF's collision geometry)")
+
+
+def reach_values(args) -> tuple:
+    """(box (3, 2) [m] or None, tracker (3,) [m] or None) from ``--box`` and ``--tracker-mm``.
+
+    Raises
+    ------
+    InputError
+        A box whose minimum is not below its maximum on some axis.
+    """
+    import numpy as np
+
+    from ..exceptions import InputError
+
+    box = None if args.box is None else np.asarray(args.box, dtype=float).reshape(3, 2) * 1e-3
+    if box is not None and not (box[:, 0] < box[:, 1]).all():
+        raise InputError(f"--box {' '.join(f'{v:g}' for v in args.box)}: give XMIN XMAX YMIN YMAX ZMIN ZMAX "
+                         "[mm] with each min below its max")
+    tracker = None if args.tracker_mm is None else np.asarray(args.tracker_mm, dtype=float) * 1e-3
+    return box, tracker
 
 
 def add_quiet_argument(parser: argparse.ArgumentParser) -> None:

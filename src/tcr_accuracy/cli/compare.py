@@ -69,12 +69,29 @@ def _run_compare(args) -> int:
         q, context = sample_poses(robot, args.n_poses, np.random.default_rng(args.seed)), None
         poses = f"{args.n_poses} random poses within the joint limits (seed {args.seed})"
     result = compare_models(robot, old, new, q, z=args.z, context=context)
-    out = RunOutput(args, f"Comparison of two campaigns: {robot.name}")
-    _report(out, result, poses)
-    payload = {**result.to_dict(), "poses": poses}
-    from .diagnose import jsonable
+    from .diagnose import jsonable, robot_source
 
-    return out.finish(jsonable(payload), lambda: print(format_summary(result, poses)))
+    out = RunOutput(args, f"Comparison of two campaigns: {robot.name}")
+    payload = jsonable({**result.to_dict(), "poses": poses, "robot_source": robot_source(source),
+                        "tool_frame": robot.tool_frame})
+    if out.report is not None:
+        _calibration_page(out.report, args, robot, payload, docs[1])
+    _report(out, result, poses)
+    return out.finish(payload, lambda: print(format_summary(result, poses)))
+
+
+def _calibration_page(report, args, robot, payload: dict, new: dict) -> None:
+    """The report opens with the calibration report's first page: the later campaign's diagnosis and
+    what changed since the earlier one."""
+    from ..view.calibration_report import Campaign, RobotFacts
+    from .report import add_calibration_page
+
+    files = [(f"{label} campaign: {path}", path) for label, path in (("earlier", args.old), ("later", args.new))]
+    if args.json not in (None, "-"):
+        files.append(("comparison JSON", args.json))
+    campaign = Campaign(RobotFacts.of_robot(robot, payload["robot_source"]),
+                        [(str(args.new), new), ("comparison", payload)])
+    add_calibration_page(report, args.out, campaign, files)
 
 
 def _read_json(path: str):
@@ -118,7 +135,7 @@ def _diagnose_csv(args, path: str, robot) -> dict:
                          "compare the two JSON files")
     data = read_measurements(path, robot, min_rows=max(3 * args.folds, 12))
     status(args, f"diagnosing {path} ...")
-    result = diagnose(robot, data, effects=effect_names(args.effects), folds=args.folds, seed=args.seed,
+    result = diagnose(robot, data, effects=effect_names(args.effects), folds=args.folds, random_state=args.seed,
                       tracker_noise=None if args.noise_mm is None else args.noise_mm * 1e-3)
     return jsonable({"measurements": str(path), **result.to_dict()})
 

@@ -14,6 +14,8 @@ from pathlib import Path
 from .common import (add_robot_arguments, as_built_file, check_csv_memory, effect_names, effects_side_file, integer,
                      noise_mm_value, output_file, seed_value, status)
 from .output import RunOutput, add_output_arguments
+from ..diagnosis.summary import format_summary, primary_effect_text as _primary_text, \
+    strongest_links as _strongest, structure_verdict_text as _verdict_text
 
 
 #: The diagnosis' progress line; tqdm puts ", " before the postfix, so this reads
@@ -143,7 +145,7 @@ def _run_diagnose(args) -> int:
     bar = tqdm(desc="diagnose", file=sys.stderr, bar_format=PROGRESS_FORMAT,
                disable=args.quiet or not sys.stderr.isatty())
     try:
-        result = diagnose(robot, data, effects=effects, folds=args.folds, seed=args.seed,
+        result = diagnose(robot, data, effects=effects, folds=args.folds, random_state=args.seed,
                           tracker_noise=None if args.noise_mm is None else args.noise_mm * 1e-3,
                           references=[(f, p, m.position, m.time_s) for f, p, m in references],
                           progress=bar.set_postfix_str)
@@ -158,10 +160,27 @@ def _run_diagnose(args) -> int:
         out.set_scene(_scene(robot, result, measurements),
                       "Measured TCP points (base frame) and the gap to the nominal model, magnified; "
                       "nominal robot and the calibrated as-built robot (geometric errors magnified)")
+    written = []
     if args.as_built_urdf:
         urdf, side = write_as_built(robot, result, Path(args.as_built_urdf))
         status(args, f"as-built URDF written to {urdf} (its other effects and the tracker frame: {side})")
+        payload.update(as_built_urdf=str(urdf), as_built_effects=str(side))
+        written += [("as-built URDF (the geometric effects)", urdf),
+                    ("effects YAML (the other effects, the tracker frame, uncertainties)", side)]
+    if out.report is not None:
+        _calibration_page(out.report, args, robot, payload, written)
     return out.finish(payload, lambda: print(format_summary(robot, result, source)))
+
+
+def _calibration_page(report, args, robot, payload: dict, written: list) -> None:
+    """The report's first page (the calibration report) and links to the files of the run."""
+    from ..view.calibration_report import Campaign, RobotFacts
+    from .report import add_calibration_page
+
+    if args.json not in (None, "-"):
+        written = [("diagnosis JSON (every figure of the report)", args.json), *written]
+    campaign = Campaign(RobotFacts.of_robot(robot, payload["robot_source"]), [("diagnosis", payload)])
+    add_calibration_page(report, args.out, campaign, written)
 
 
 def _session_labels(files) -> list[str]:
@@ -203,250 +222,6 @@ def jsonable(value):
     if isinstance(value, (float, np.floating)):
         return float(value) if math.isfinite(value) else None
     return value
-
-
-# ---------------------------------------------------------------------------------------
-# Printed summary
-# ---------------------------------------------------------------------------------------
-def format_summary(robot, d, source: str) -> str:
-    import numpy as np
-
-    mm = 1e3
-    out = [f"Diagnosis of {source}: {d.n_measurements} measurements of {robot.name}, "
-           f"{d.folds}-fold cross-validation"]
-    out.append(f"\n1. Gap after fitting the tracker frame and TCP offset (frames): "
-               f"mean {d.gap.mean * mm:.4f} mm, RMS {d.gap.rms * mm:.4f} mm, max {d.gap.max * mm:.4f} mm")
-    if d.sessions:
-        out.append(f"   {len(d.sessions)} sessions, each with its own tracker frame (the robot's parameters shared):")
-        for s in d.sessions:
-            t = s["temperature_c"]
-            out.append(f"     {s['session']:20s} {s['n_measurements']:6d} rows, gap RMS {s['gap']['rms_mm']:.4f} mm, "
-                       f"final held-out RMS {s['heldout']['rms_mm']:.4f} mm, temperature {t[0]:.1f} to {t[1]:.1f} degC")
-    for drift in d.drift:
-        key = "drift_mm_per_h" if "drift_mm_per_h" in drift else "drift_mm_per_100_rows"
-        unit = "mm/h" if key == "drift_mm_per_h" else "mm per 100 rows"
-        speed = float(np.linalg.norm(drift[key]))
-        out.append(f"   tracker drift seen by {', '.join(drift['references'])} (session {drift['session']}, in "
-                   f"{drift['time_axis']}): {speed:.4f} +- {drift['drift_std_mm_per_unit']:.4f} {unit}, "
-                   f"{drift['moved_over_session_mm']:.4f} mm over the session, z = {drift['z']:.1f}: "
-                   + ("corrected" if drift["corrected"] else "not corrected (within the noise)"))
-    out.append("\n2. Where it lies (residual after frames)")
-    axes = d.where["per_axis"]
-    out.append("   per axis RMS [mm]: " + ", ".join(f"{a} {axes[a]['rms_mm']:.4f}" for a in "xyz"))
-    strongest = _strongest(d.where)
-    if strongest:
-        out.append("   strongest links: " + "; ".join(strongest))
-    along = d.where["along_joints"]
-    out.append("   along single joints (share of the residual variance its k-NN along that joint predicts; "
-               "short-lag semivariance, 1 = none): " + ", ".join(
-                   f"{j} {a['knn_explained_share']:+.2f} ({min(a['short_lag_semivariance_xyz']):.2f})"
-                   for j, a in along.items()))
-    out.append("   varies most along: " + (", ".join(d.where["varies_along"]) or
-                                           "no single joint (the error depends on several together)"))
-    pairs = [p for p in d.where.get("along_joint_pairs", []) if p["knn_explained_share"] > 0.05][:3]
-    if pairs:
-        out.append("   joint pairs it varies along (k-NN share): " + ", ".join(
-            f"{'+'.join(p['joints'])} {p['knn_explained_share']:+.2f}" for p in pairs))
-    out.append("\n3. Which effect: each effect added to frames alone (held-out RMS [mm], gain, paired z)")
-    for name, c in d.candidates.items():
-        if c.get("tried"):
-            out.append(f"   {name:18s} {c['heldout_rms_mm_with_frames']:9.4f} {c['gain_mm']:+9.4f} "
-                       f"z = {c['z']:6.1f}  ({c['n_parameters']} identifiable parameters)")
-        else:
-            out.append(f"   {name:18s} not tried: {c['why']}")
-    ident = d.identifiability
-    removed = [(e, r) for e, info in ident["effects"].items() for r in info["removed"]]
-    everything = ident.get("all_effects", {})
-    out.append(f"   identifiability of the final model: {ident.get('rank', 0)} parameters kept, condition number "
-               f"{ident.get('condition_number', float('nan')):.3g}; {len(removed)} removed, e.g.:")
-    for e, r in removed[:6]:
-        out.append(f"     {r['parameter']}: {r['reason']}")
-    if everything:
-        n_removed = sum(len(i["removed"]) for i in everything["effects"].values())
-        out.append(f"   (whole vocabulary in one model: {everything.get('rank', 0)} identifiable, {n_removed} removed, "
-                   f"condition number {everything.get('condition_number', float('nan')):.3g})")
-    out.append("\n4. How far it shrinks (k-fold held-out, in the order the effects explain the data) [mm]")
-    out.append(f"   {'step':18s} {'params':>6s} {'train RMS':>10s} {'mean':>9s} {'RMS':>9s} {'max':>9s}"
-               f"   gain in RMS [95 % interval]")
-    for i, s in enumerate(d.steps):
-        label = s.effect if i == 0 else "+" + s.effect
-        gain = "" if s.gain is None else f"   {s.gain[0] * mm:+.4f} [{s.gain[1] * mm:+.4f}, {s.gain[2] * mm:+.4f}]"
-        out.append(f"   {label:18s} {s.n_parameters:6d} {s.train_rms * mm:10.4f} {s.heldout.mean * mm:9.4f} "
-                   f"{s.heldout.rms * mm:9.4f} {s.heldout.max * mm:9.4f}{gain}")
-    if d.leave_one_out:
-        out.append("   leave one out of the chosen set (held-out RMS without it; the others refitted and free to "
-                   "take its place / held to their own parameters, own share [95 % interval]):")
-        for r in d.leave_one_out:
-            low, high = r["own_share_interval_mm"]
-            out.append(f"     without {r['dropped']:18s} {r['heldout_rms_mm']:9.4f} ({r['increase_mm']:+.4f})  /  "
-                       f"{r['own_share_heldout_rms_mm']:9.4f} ({r['own_share_increase_mm']:+.4f} "
-                       f"[{low:+.4f}, {high:+.4f}])")
-    for e in d.eliminated:
-        out.append(f"   dropped again in backward elimination: {e['effect']} (z = {e['z']:.1f})")
-    for swap in d.swaps:
-        out.append(f"   swapped after forward selection: {swap['in']} for {swap['out']} (as good held out, fewer "
-                   f"parameters: {swap['n_parameters'][swap['in']]} against {swap['n_parameters'][swap['out']]})")
-    if d.ambiguous:
-        out.append("   the data cannot tell apart (each swapped for the chosen one and refitted; held-out RMS, "
-                   "parameters):")
-        for group in d.ambiguous:
-            members = ", ".join(f"{m['effect']} {m['heldout_rms_mm']:.4f} mm / {m['n_parameters']}"
-                                for m in group["members"])
-            out.append(f"     {{{', '.join(group['effects'])}}}: {members}")
-    out.append(f"   primary effect: {_primary_text(d)}")
-    selection = d.selection
-    if selection.get("frequency"):
-        chosen = [e for e in d.selected_effects if e != "frames"]
-        others = [e for e, f in selection["frequency"].items() if e not in chosen and f > 0]
-        out.append(f"   stability: chosen in {selection['n_replays']} bootstrap replays of the selection: "
-                   + (", ".join(f"{e} {selection['frequency'].get(e, 0.0):.0%}" for e in chosen) or "nothing")
-                   + (" (also chosen: " + ", ".join(f"{e} {selection['frequency'][e]:.0%}" for e in others) + ")"
-                      if others else ""))
-    out.extend(_parameter_lines(d))
-    final = d.steps[-1].heldout.rms
-    noise = d.noise
-    source = "tracker" if noise is None or noise.source == "given" else f"estimated from the {noise.source}"
-    if noise is not None and not noise.independent:
-        out.append(f"   final held-out RMS {final * mm:.4f} mm; noise floor at most {d.noise_floor * mm:.4f} mm "
-                   f"({source} {d.tracker_noise * mm:.4f} mm per axis: an upper bound, so no verdict against it)")
-    else:
-        out.append(f"   final held-out RMS {final * mm:.4f} mm = {final / d.noise_floor:.2f} x the noise floor "
-                   f"{d.noise_floor * mm:.4f} mm ({source} {d.tracker_noise * mm:.4f} mm per axis)")
-    if noise is not None and noise.source != "given":
-        out.append(f"   noise: {noise.detail}")
-    st = d.structure
-    along = ", ".join(robot.joint_names[j] for j in st.get("along_joints", []))
-    out.append(f"   structure remains: {_verdict_text(d)} (k-NN along {along}: share "
-               f"{st['gain_over_null']:+.3f} "
-               f"beyond chance, z = {st['z']:.1f}; ridge on joint features share {st['ridge_explained_share']:+.3f}, "
-               f"z = {st['ridge_z']:.1f}; limits: share > {st['min_explained']}, p < {st['alpha']})")
-    power = st.get("power", {})
-    if power:
-        seen, n = power.get("smallest_detectable_mm"), _tested_poses(power)
-        shapes = ", ".join(power.get("per_shape_mm", {}))
-        if seen is not None:
-            text = f"with {n} poses the test sees a leftover from {seen:.4g} mm RMS (the largest over {shapes})"
-        else:
-            unseen = ", ".join(k for k, v in power.get("per_shape_mm", {}).items() if v is None)
-            text = f"with {n} poses the leftover of {unseen} goes unseen up to {power['largest_probed_mm']:.4g} mm"
-        out.append(f"   power: {text}" + (f"; {st['reason']}" if st.get("verdict") == "cannot tell" else ""))
-    sc = d.scatter
-    if sc.get("tested", True):
-        out.append(f"   random scatter beyond the tracker: {'YES' if sc['detected'] else 'no'} "
-                   f"(estimated {sc['estimated_noise_per_axis_mm']:.4f} mm per axis, ratio {sc['ratio']:.2f})")
-    else:
-        out.append(f"   random scatter beyond the instrument: not tested ({sc['why']})")
-    if d.orientation:
-        o = d.orientation
-        out.append(f"   orientation (held-out): mean {o['heldout_mean_deg']:.4f} deg, "
-                   f"RMS {o['heldout_rms_deg']:.4f} deg, max {o['heldout_max_deg']:.4f} deg "
-                   f"(weight {o['weight_m_per_rad'] * 1e3:.4g} mm/rad)")
-    for frame, stats in d.heldout_by_frame.items():
-        out.append(f"   measured frame {frame}: held-out mean {stats.mean * mm:.4f} mm, RMS {stats.rms * mm:.4f} mm, "
-                   f"max {stats.max * mm:.4f} mm")
-    if st["remains"]:
-        out.append("   -> something the vocabulary does not express is still in the data: the fit is not the "
-                   "whole story")
-    for note in d.notes:
-        out.append(f"   note: {note}")
-    return "\n".join(out)
-
-
-def _parameter_lines(d, per_effect: int = 4) -> list[str]:
-    import numpy as np
-
-    """The fitted parameters, the largest of each effect (relative to its standard error),
-    with unit, standard error, 95 % interval and physical range."""
-    import numpy as np
-
-    if not d.parameter_table:
-        return []
-    out = ["   fitted parameters (value +- standard error, 95 % interval, physical range; SI units; all in the JSON "
-           "and the report):"]
-    for e, table in d.parameter_table.items():
-        if e == "frames":
-            continue
-        units = d.parameter_units.get(e, {})
-        names = sorted(table["values"], key=lambda n: -abs(table["values"][n]))[:per_effect]
-        out.append(f"     {e} ({len(table['values'])} parameters; {d.physics.get(e, '')})")
-        for n in names:
-            v, s = table["values"][n], table["std"][n]
-            low, high = table["interval"][n]
-            lo, hi = table["range"][n]
-            out.append(f"       {n} = {v:+.4g} +- {s:.2g} {units.get(n, '')} [{low:+.3g}, {high:+.3g}], "
-                       f"range {lo:.3g} to {hi:.3g}")
-        for joint, band in d.joint_function_bands.get(e, {}).items():
-            values = table["values"]
-            amplitude = {}
-            for name, v in values.items():
-                parts = name.split(".")
-                if parts[1] == joint:
-                    order = int(parts[-1][1:])
-                    amplitude[order] = amplitude.get(order, 0.0) + v * v
-            top = max(amplitude, key=amplitude.get) if amplitude else None
-            out.append(f"       {joint}: {np.sqrt(np.mean(band['value_rad'] ** 2)) * 1e6:.1f} urad RMS over "
-                       f"{np.degrees(band['angle_rad'][0]):.0f} to {np.degrees(band['angle_rad'][-1]):.0f} deg "
-                       f"(band +-{1.96 * np.mean(band['std_rad']) * 1e6:.1f} urad)"
-                       + (f", strongest {top} cycles per revolution" if top else ""))
-        if table["pinned"]:
-            out.append(f"       held on a physical bound: " + ", ".join(
-                f"{p['parameter']} ({p['bound']})" for p in table["pinned"][:6])
-                + (f" and {len(table['pinned']) - 6} more" if len(table["pinned"]) > 6 else ""))
-    return out
-
-
-def _primary_text(d) -> str:
-    if d.primary_effect:
-        return f"{d.primary_effect} (the largest own share)"
-    if len(d.primary_group) > 1:
-        largest = d.primary_tied[0] if d.primary_tied else d.primary_group[0]
-        tied = [e for e in d.primary_tied[1:] if e in d.primary_group]
-        stand_ins = [e for e in d.primary_group if e not in tied and e != largest]
-        share = {r["dropped"]: r["own_share_increase_mm"] for r in d.leave_one_out}
-        why = []
-        if stand_ins:
-            why.append(f"{', '.join(stand_ins)} explain the data as well: measure poses that separate them, "
-                       "see plan-poses")
-        if tied:
-            why.append("own shares not ranked apart by the held-out rows: " + ", ".join(
-                f"{e} +{share[e]:.4g} mm" for e in [largest, *tied]))
-        return (f"one of {{{', '.join(d.primary_group)}}} (the largest own share is {largest}'s, but "
-                + "; ".join(why) + ")")
-    return "none beyond frames"
-
-
-def _verdict_text(d) -> str:
-    st = d.structure
-    verdict = st.get("verdict", "yes" if st["remains"] else "no")
-    tested = _tested_poses(st.get("power") or {"n_poses": d.n_measurements})
-    return {"yes": "YES", "no": "no", "cannot tell": f"cannot tell with {tested} poses"}[verdict]
-
-
-def _tested_poses(power: dict) -> str:
-    """"2000" or, when the structure test ran on a random subset, "20000 of the 100000"."""
-    n, of = power["n_poses"], power.get("of_poses", power["n_poses"])
-    return f"{n}" if of == n else f"{n} (a random subset) of the {of}"
-
-
-def _strongest(where: dict) -> list:
-    links = []
-    for group, label in (("joints", "joint"), ("gravity_torque", "gravity torque")):
-        for name, info in where.get(group, {}).items():
-            if "correlation_xyz" not in info:
-                continue
-            corr = info["correlation_xyz"]
-            c = int(max(range(3), key=lambda k: abs(corr[k])))
-            links.append((abs(corr[c]), f"{label} {name} vs {'xyz'[c]}: r = {corr[c]:+.2f}, "
-                                        f"binned spread {info['spread_mm']:.3f} mm"))
-    for key in ("payload_kg", "temperature_c"):
-        if key in where:
-            corr = where[key]["correlation_xyz"]
-            c = int(max(range(3), key=lambda k: abs(corr[k])))
-            links.append((abs(corr[c]), f"{key} vs {'xyz'[c]}: r = {corr[c]:+.2f}"))
-    for name, info in where.get("approach_direction", {}).items():
-        links.append((0.0, f"approach direction {name}: +/- differ by {info['difference_norm_mm']:.4f} mm"))
-    links.sort(key=lambda t: -t[0])
-    return [text for _, text in links[:4]]
 
 
 # ---------------------------------------------------------------------------------------
@@ -536,10 +311,10 @@ def _report_tables(out, robot, d, source: str) -> None:
     out.add_table("1. Gap after fitting only the tracker frame and TCP offset", ["statistic", "value"],
                   [("mean", d.gap.mean * mm), ("RMS", d.gap.rms * mm), ("max", d.gap.max * mm)],
                   units=["", "mm"])
-    axes = d.where["per_axis"]
+    axes = d.where_mm["per_axis"]
     out.add_table("2. Where it lies: residual per axis", ["axis", "RMS"],
                   [(a, axes[a]["rms_mm"]) for a in "xyz"], units=["", "mm"],
-                  note="strongest links: " + "; ".join(_strongest(d.where)))
+                  note="strongest links: " + "; ".join(_strongest(d.where_mm)))
     rows = []
     for name, c in d.candidates.items():
         if c.get("tried"):
@@ -620,7 +395,7 @@ def _scene(robot, d, measurements):
                                rotate_vectors, segment_magnification, transform_points)
 
     base_M_tracker = np.linalg.inv(d.tracker_transform)
-    context = measurements.context()
+    context = measurements.context
     model_final = transform_points(base_M_tracker, d.predict(robot, d.q, context))  # the fitted model's TCP
     measured = model_final - rotate_vectors(base_M_tracker, d.final_residual)
     nominal_model = measured + rotate_vectors(base_M_tracker, d.gap_residual)  # tracker frame and TCP offset only

@@ -175,7 +175,7 @@ def compensation_csv(model, targets: str, threshold: float) -> tuple[str, int, i
 
     robot = model.robot
     mset = read_measurements(targets, robot, require_position=False)
-    context = mset.context()
+    context = mset.context
     point = _measured_point_robot(robot, model.tcp_offset())
 
     class _Model:  # the calibrated robot's error beyond the measured point, at the targets' context

@@ -161,14 +161,40 @@ def _run_evaluate(args) -> int:
     if model is not None:
         after = evaluate_measurements(robot, compensated_readings(robot, mset, result.registration, *model),
                                       frame=args.frame, **given)
+    from .diagnose import robot_source
+
     out = RunOutput(args, f"ISO 9283 pose test: {robot.name}")
     text = format_evaluation(robot, args, result, after)
-    out.add_preformatted(text, "ISO 9283 figures")
-    payload = {"measurements": str(args.measurements), "robot": robot.name, **evaluation_dict(result)}
+    payload = {"measurements": str(args.measurements), "robot": robot.name, "robot_source": robot_source(args.robot),
+               "tool_frame": robot.tool_frame, **evaluation_dict(result)}
     if after is not None:
         payload["compensated"] = {"model": str(args.model), "kind": "predicted: the model's displacement removed "
                                   "from each reading (first order, positions only)", **evaluation_dict(after)}
+    if out.report is not None:
+        _calibration_page(out.report, args, robot, payload)
+    out.add_preformatted(text, "ISO 9283 figures")
     return out.finish(payload, lambda: print(text))
+
+
+def _calibration_page(report, args, robot, payload: dict) -> None:
+    """The report opens with the calibration report's first page (with the diagnosis of --model, if given),
+    then the per-pose tables."""
+    import json
+    from pathlib import Path
+
+    from ..view.calibration_report import Campaign, RobotFacts, add_iso_tables, kind_or_none as kind_or_none
+    from .report import add_calibration_page
+
+    documents = [(str(args.measurements), payload)]
+    files = [("ISO 9283 JSON", args.json)] if args.json not in (None, "-") else []
+    if args.model:  # read and checked already (_read_model); one of ours written before the report: shown
+        model = json.loads(Path(args.model).read_text(encoding="utf-8"))
+        if kind_or_none(model) == "diagnosis":
+            documents.insert(0, (str(args.model), model))
+        files.append(("diagnosis JSON (--model)", args.model))
+    add_calibration_page(report, args.out, Campaign(RobotFacts.of_robot(robot, payload["robot_source"]), documents),
+                         files)
+    add_iso_tables(report, str(args.measurements), payload)
 
 
 def _read_model(robot, path: str):

@@ -185,6 +185,9 @@ class RunOutput:
         if self.report is not None:
             index = self.report.write(args.out)
             status(args, f"report written to {index}")
+            from .report import pdf_status
+
+            pdf_status(args, self.report)  # a calibration report's PDF, or why there is none
         if self.plot_files:
             status(args, "plots: " + ", ".join(self.plot_files))
         if target == "-":

@@ -3,22 +3,26 @@ apart what the measured ones cannot.
 
 Edge layer: reads the measurement CSV, runs the diagnosis (unless ``--effects`` names what
 to design for), runs :func:`tcr_accuracy.diagnosis.design.plan_poses`, prints what the
-plan adds and writes the poses as a CSV of joint values (deg, mm) ready to measure.
+plan adds and writes the poses as a CSV of joint values (deg, mm) ready to measure. The
+candidates are poses the robot can take and the tracker can see, screened by
+:class:`tcr_accuracy.analysis.reachable.PoseFilter` (the filter ``simulate`` uses too).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from .common import (add_robot_arguments, effect_names, emit_json, integer, noise_mm_value, number, output_file,
-                     seed_value)
+from .common import (add_reach_arguments, add_robot_arguments, effect_names, emit_json, integer, noise_mm_value,
+                     number, output_file, reach_values, seed_value)
 
 
 def add_parsers(sub) -> None:
     p = sub.add_parser(
         "plan-poses", help="choose the next poses to measure (separates what the diagnosis cannot tell apart)",
         description="Diagnose the measured poses; where the diagnosis reports effects it cannot tell apart, "
-                    "choose K joint configurations within the joint limits (or from a candidate CSV) where "
+                    "choose K joint configurations (random within the joint limits, <mimic> rules kept, free of "
+                    "self-collision where the URDF has collision geometry, optionally with the TCP in a task box "
+                    "and in the tracker's line of sight; or from a candidate CSV) where "
                     "the rival fitted models disagree by more than either can fit away (greedy T-optimal "
                     "design); otherwise (or with --effects) those that add the most information about all "
                     "the parameters together (greedy D-optimal design on the identification Jacobian). "
@@ -38,6 +42,7 @@ def add_parsers(sub) -> None:
                         "e.g. the reachable poses of a task); default: uniform within the joint limits")
     p.add_argument("--n-candidates", type=integer(low=1, high=1_000_000), default=3000,
                    help="random candidates when --candidates is not given (default 3000)")
+    add_reach_arguments(p, "candidates")
     p.add_argument("--payload-kg", type=number(low=0, high=1e6, unit="kg"), default=None,
                    help="payload the new poses will be measured with [kg] (default: the measurements' mean)")
     p.add_argument("--noise-mm", type=noise_mm_value, default=None,
@@ -55,6 +60,7 @@ def _check(args) -> None:
 
     if args.n_candidates < args.poses:
         raise InputError(f"--n-candidates {args.n_candidates}: need at least -k ({args.poses})")
+    reach_values(args)  # the box, checked before the diagnosis
 
 
 #: Memory [bytes] planning takes per candidate configuration: its 3 x P Jacobian block over the
@@ -77,32 +83,43 @@ def _check_plan_memory(args) -> None:
                      "use fewer candidates")
 
 
-def _reachable_candidates(read_measurements, path, robot):
-    """(N, n_joints) candidate joint values [SI] from ``path``; a row outside the joint limits is
-    refused, naming it: a pose the robot cannot take would be planned first (it moves the TCP most)."""
+def _reachable_candidates(args, robot, read_measurements):
+    """The candidates (M, n_joints) [SI] and what screened them: the ``--candidates`` file, a row
+    the robot cannot take (outside its limits, off a <mimic> rule) refused by name, or
+    ``--n-candidates`` random poses; either kept where the robot can take them (self-collision)
+    and, when asked, the TCP is in the box and in the tracker's sight.
+
+    Raises
+    ------
+    InputError
+        A row of the file the robot cannot take, or no candidate left.
+    """
     import warnings
 
     import numpy as np
 
+    from ..analysis.reachable import PoseFilter, Screened, check_given_poses, draw_poses
     from ..exceptions import InputError
-    from ..model.robot import JointLimitWarning
     from ..io.measurement_checks import MeasurementWarning
+    from ..model.robot import JointLimitWarning
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", JointLimitWarning)
-        warnings.simplefilter("ignore", MeasurementWarning)
-        mset = read_measurements(path, robot, require_position=False)
-    with np.errstate(invalid="ignore"):  # NaN limits: an unbounded joint
-        outside = (mset.q < robot.lower_limits - 1e-12) | (mset.q > robot.upper_limits + 1e-12)
-    if outside.any():
-        r, j = np.argwhere(outside)[0]
-        scale, unit = robot.display_scale[j], robot.display_units[j]
-        row = mset.rows[r] if mset.rows is not None else r + 1
-        raise InputError(f"{path}: row {row}: joint {robot.joint_names[j]} = {mset.q[r, j] * scale:.6g} {unit} is "
-                         f"outside its limits [{robot.lower_limits[j] * scale:.6g}, "
-                         f"{robot.upper_limits[j] * scale:.6g}] {unit}; a candidate must be a pose the robot can "
-                         f"take ({int(outside.any(axis=1).sum())} such row(s))")
-    return mset.q
+    box, tracker = reach_values(args)
+    pose_filter = PoseFilter.for_robot(robot, box=box, tracker=tracker)
+    if args.candidates:
+        with warnings.catch_warnings():  # limits are refused below, by row
+            warnings.simplefilter("ignore", JointLimitWarning)
+            warnings.simplefilter("ignore", MeasurementWarning)
+            mset = read_measurements(args.candidates, robot, require_position=False)
+        check_given_poses(robot, mset.q, args.candidates, mset.rows)
+        keep, rejected = pose_filter.screen(mset.q)
+        screened, source = Screened(mset.q[keep], len(mset.q), rejected), f"from {args.candidates}"
+    else:
+        screened, source = draw_poses(pose_filter, args.n_candidates, np.random.default_rng(args.seed)), "random"
+    if len(screened.q) == 0:
+        raise InputError(f"no candidate left: of {screened.tried} {source}, {screened.rejections()}; "
+                         + ("widen --box or move --tracker-mm" if box is not None or tracker is not None
+                            else "give other candidates"))
+    return screened, source, pose_filter
 
 
 def _run_plan_poses(args) -> int:
@@ -119,15 +136,16 @@ def _run_plan_poses(args) -> int:
     _check_plan_memory(args)
     robot = load_robot(args.robot, args.tool)
     measured = read_measurements(args.measurements, robot)
-    candidates = None
-    if args.candidates:
-        candidates = _reachable_candidates(read_measurements, args.candidates, robot)
-    if candidates is None and robot.has_chain_mimic:  # a <mimic> joint follows its rule, as the robot will
-        from ..diagnosis.design import candidate_configurations
-
-        drawn = robot.follow_mimic(candidate_configurations(robot, 4 * args.n_candidates,
-                                                            np.random.default_rng(args.seed)))
-        candidates = drawn[robot.within_limits(drawn)][:args.n_candidates]
+    screened, source, pose_filter = _reachable_candidates(args, robot, read_measurements)
+    candidates, k = screened.q, min(args.poses, len(screened.q))
+    tried = (f" ({screened.tried} {'given' if args.candidates else 'drawn'}: {screened.rejections()})"
+             if screened.tried > len(candidates) else "")
+    if k < args.poses or (not args.candidates and len(candidates) < args.n_candidates):
+        candidates_line = (f"only {len(candidates)} candidates ({source}) survive{tried}: "
+                           + (f"planning {k} poses instead of {args.poses}; " if k < args.poses else "")
+                           + pose_filter.checks)
+    else:
+        candidates_line = f"candidates: {len(candidates)} {source}, {pose_filter.checks}{tried}"
     payload = args.payload_kg
     if payload is None:
         payload = float(np.mean(measured.payload_kg)) if measured.payload_kg is not None else 0.0
@@ -135,8 +153,8 @@ def _run_plan_poses(args) -> int:
     noise_m = 2e-5 if args.noise_mm is None else args.noise_mm * 1e-3
     effects = effect_names(args.effects)
     if effects is None:
-        estimator = GapDiagnosis(seed=args.seed, tracker_noise=None if args.noise_mm is None
-                                 else args.noise_mm * 1e-3).fit(robot, measured)
+        estimator = GapDiagnosis(robot=robot, random_state=args.seed, tracker_noise=None if args.noise_mm is None
+                                 else args.noise_mm * 1e-3).fit(measured)
         result = estimator.result_
         groups = [g["effects"] for g in result.ambiguous]
         noise_m = result.tracker_noise
@@ -145,15 +163,19 @@ def _run_plan_poses(args) -> int:
         separate = sorted(rivals) or None
         pairs = rival_models(estimator) if separate else []
     if pairs:  # rival fitted models: the poses where they differ beyond refitting (T-optimal)
-        candidates = plan_discriminating_poses(robot, measured.q, pairs, args.poses, candidates=candidates,
+        candidates = plan_discriminating_poses(robot, measured.q, pairs, k, candidates=candidates,
                                                n_candidates=args.n_candidates, payload_kg=payload,
                                                rng=np.random.default_rng(args.seed))
     # D-optimal otherwise; with rivals, over exactly the poses picked above (for its figures)
-    plan = plan_poses(robot, measured.q, effects, args.poses, separate=separate, candidates=candidates,
+    plan = plan_poses(robot, measured.q, effects, k, separate=separate, candidates=candidates,
                       n_candidates=args.n_candidates, payload_kg=payload, noise_m=noise_m,
                       rng=np.random.default_rng(args.seed))
-    write_text_atomically(Path(args.out), _plan_csv(robot, plan.q, args, plan.effects))
-    summary = {"measurements": str(args.measurements), "n_measured": len(measured), "k": args.poses,
+    write_text_atomically(Path(args.out), _plan_csv(robot, plan.q, args, plan.effects, pose_filter.checks))
+    summary = {"measurements": str(args.measurements), "n_measured": len(measured), "k": k,
+               "candidates": {"source": source, "tried": screened.tried, "kept": len(screened.q),
+                              "rejected": {reason.replace(" ", "_").replace("-", "_"): n
+                                           for reason, n in screened.rejected.items()},
+                              "checks": pose_filter.checks},
                "design": "T-optimal between rival fitted models" if pairs else "D-optimal",
                "effects": plan.effects, "separate": plan.separate, "ambiguous": groups,
                "n_parameters": plan.n_parameters, "log_det_gain": plan.log_det_gain,
@@ -162,19 +184,20 @@ def _run_plan_poses(args) -> int:
     if args.json:
         emit_json(summary, args.json)
     if args.json != "-":
+        print(candidates_line)
         print(f"designed for: {', '.join(plan.effects)} ({plan.n_parameters} parameters); "
               + (f"to tell apart {', '.join(plan.separate)}: where the rival fitted models differ beyond refitting "
                  "(T-optimal)" if pairs else "D-optimal"))
         for group in groups:
             print(f"  the measurements cannot tell apart: {{{', '.join(group)}}}")
-        print(f"{args.poses} poses chosen: information log det +{plan.log_det_gain:.1f}; parameter combinations "
+        print(f"{k} poses chosen: information log det +{plan.log_det_gain:.1f}; parameter combinations "
               f"determined to better than their typical size: {plan.resolved_before} -> {plan.resolved_after} "
               f"of {plan.n_parameters}")
         print(f"written: {args.out}")
     return 0
 
 
-def _plan_csv(robot, q, args, effects) -> str:
+def _plan_csv(robot, q, args, effects, checks) -> str:
     """Joint values in deg / mm, one pose per row, with a comment on how they were chosen."""
     import io
 
@@ -184,6 +207,7 @@ def _plan_csv(robot, q, args, effects) -> str:
     out.write(f"# {len(q)} poses to measure next, chosen by tcr-accuracy plan-poses from {args.measurements}\n")
     out.write(f"# (D-optimal for {', '.join(effects)}); add the measured x_mm,y_mm,z_mm columns and diagnose "
               "both files together\n")
+    out.write(f"# candidates: {checks}\n")
     out.write(",".join(header) + "\n")
     for row in q * robot.display_scale:
         out.write(",".join(format(v, ".10g") for v in row) + "\n")

@@ -99,7 +99,7 @@ def read_joint_csv(path: str, robot, *, need_positions: bool, rows: bool = False
 
     mset = read_measurements(path, robot, require_position=need_positions, repeats_allowed=repeats)
     has_positions = need_positions or not np.isnan(mset.position).all()
-    out = mset.q, (mset.position if has_positions else None), mset.context()
+    out = mset.q, (mset.position if has_positions else None), mset.context
     return (*out, mset.rows) if rows else out
 
 

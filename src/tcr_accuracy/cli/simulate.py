@@ -2,17 +2,19 @@
 
 from __future__ import annotations
 
-from .common import (EXIT_OK, MAX_COUNT, MAX_MM, add_quiet_argument, add_robot_arguments, check_csv_memory,
-                     check_memory, integer, number, output_file, sample_bytes, seed_value, status)
+from .common import (EXIT_OK, MAX_COUNT, MAX_MM, add_quiet_argument, add_reach_arguments, add_robot_arguments,
+                     check_csv_memory, check_memory, integer, number, output_file, reach_values, sample_bytes,
+                     seed_value, status)
 
 
 def add_parsers(sub) -> None:
     p = sub.add_parser(
         "simulate", help="write a measurement CSV of a robot with hidden effects",
         description="Stand-in for the real robot: perturb the nominal model with the hidden effects "
-                    "of a scenario (YAML), take N poses (random within the joint limits, in a task box, "
-                    "or from --poses), add laser-tracker noise and write a measurement CSV. The hidden "
-                    "truth goes to --truth only, never into the CSV.",
+                    "of a scenario (YAML), take N poses (random within the joint limits, <mimic> rules kept, "
+                    "free of self-collision where the URDF has collision geometry, optionally in a task box "
+                    "and in the tracker's line of sight; or from --poses), add laser-tracker noise and write "
+                    "a measurement CSV. The hidden truth goes to --truth only, never into the CSV.",
     )
     add_robot_arguments(p)
     p.add_argument("--scenario", metavar="YAML", default=None,
@@ -26,9 +28,7 @@ def add_parsers(sub) -> None:
                    help="number of measurements (default 200; not with --poses, whose rows are the poses)")
     p.add_argument("--poses", metavar="CSV", default=None,
                    help="commanded poses (joint columns, optional context columns) instead of random ones")
-    p.add_argument("--box", nargs=6, type=number(low=-MAX_MM, high=MAX_MM, unit="mm"),
-                   metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
-                   help="task box for random poses [mm], in the robot's base frame")
+    add_reach_arguments(p, "random poses")
     p.add_argument("--noise-mm", type=number(low=0, high=MAX_MM, unit="mm"), default=None,
                    help="tracker noise, std per axis [mm] (default: the scenario's, else 0.02)")
     p.add_argument("--orientation", action="store_true", help="also write measured orientations (qw..qz)")
@@ -49,9 +49,12 @@ def _run_simulate(args) -> int:
     from ..io.measurements import read_measurements, write_measurements
     from ..model.robot import load_robot
     from ..analysis.scenario import load_scenario, scenario_from_dict
-    from ..analysis.simulate import random_scenario, simulate_measurements, write_truth
+    from ..analysis.reachable import PoseFilter
+    from ..analysis.simulate import (random_scenario, screened_poses, simulate_measurements,
+                                     write_truth)
 
-    for given, option in ((args.n, "--n"), (args.box, "--box")):  # --poses fixes the poses: these would be ignored
+    # --poses fixes the poses: these would be ignored
+    for given, option in ((args.n, "--n"), (args.box, "--box"), (args.tracker_mm, "--tracker-mm")):
         if given is not None and args.poses is not None:
             raise InputError(f"{option} with --poses {args.poses}: the file's rows are the poses; give one of them")
     args.n = 200 if args.n is None else args.n
@@ -72,16 +75,17 @@ def _run_simulate(args) -> int:
         spec = random_scenario(robot, rng, dominant=args.random or None, outside=args.outside)
         extra = {"dominant": spec["dominant"], "notes": spec["notes"]}
         scenario = scenario_from_dict(spec, source="--random")
-    q = context = None
+    q = context = screened = None
     if args.poses is not None:
         poses = read_measurements(args.poses, robot, require_position=False)
-        q, context = poses.q, poses.context(rng=rng)
-    box = None if args.box is None else np.asarray(args.box, dtype=float).reshape(3, 2) * 1e-3
-    if box is not None and not (box[:, 0] < box[:, 1]).all():
-        raise InputError(f"--box {' '.join(f'{v:g}' for v in args.box)}: give XMIN XMAX YMIN YMAX ZMIN ZMAX "
-                         "[mm] with each min below its max")
+        q, context = poses.q, poses.make_context(rng=rng)
+    box, tracker = reach_values(args)
+    if q is None:  # drawn here, as simulate_measurements would, to say what was rejected
+        pose_filter = PoseFilter.for_robot(robot, box=box, tracker=tracker)
+        screened = screened_poses(robot, args.n, rng, pose_filter=pose_filter)
+        q = screened.q
     noise = None if args.noise_mm is None else args.noise_mm * 1e-3
-    mset, truth = simulate_measurements(robot, scenario, args.n, rng, noise, q=q, context=context, box=box,
+    mset, truth = simulate_measurements(robot, scenario, args.n, rng, noise, q=q, context=context,
                                         orientation=args.orientation)
     if args.poses is not None:  # a pose test's labels (pose_id, cycle, target_*_mm) go through
         mset.annotations = poses.annotations
@@ -93,6 +97,9 @@ def _run_simulate(args) -> int:
     names = ", ".join(truth["effects"]) or "none"
     print(f"{robot.name}: {len(mset)} simulated measurements -> {args.out} "
           f"(hidden effects: {names}; noise {truth['noise_m'] * 1e3:.4g} mm)")
+    if screened is not None:
+        print(f"poses: random, {pose_filter.checks}"
+              + (f" ({screened.tried} drawn: {screened.rejections()})" if screened.tried > len(q) else ""))
     if args.truth:
         status(args, f"hidden truth written to {args.truth}")
     return EXIT_OK

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..analysis.reachable import PoseFilter, draw_poses
 from ..effects import effect_class, make_effect
 from ..effects.compose import predict_positions
 from ..exceptions import InputError
@@ -103,17 +104,16 @@ class _Information:
 
 
 def candidate_configurations(robot: RobotModel, n: int, rng: np.random.Generator) -> np.ndarray:
-    """(n, n_joints) joint values drawn uniformly within the joint limits (+-pi where a revolute
-    joint has none; a prismatic joint without limits cannot be sampled and is an input error)."""
-    lo, hi = robot.joint_bounds()
-    for j, kind in enumerate(robot.joint_kinds):
-        if kind != "revolute" and (np.isnan(robot.lower_limits[j]) or np.isnan(robot.upper_limits[j])):
-            raise InputError(f"joint {robot.joint_names[j]} is prismatic without limits: give --candidates")
-    return lo + (hi - lo) * rng.random((n, robot.n_joints))
+    """Up to n configurations (n, n_joints) the robot can take: drawn uniformly within the joint
+    limits (+-pi where a revolute joint has none), ``<mimic>`` joints on their rule, free of
+    self-collision where the URDF has collision geometry -- the filter
+    (:class:`~tcr_accuracy.analysis.reachable.PoseFilter`) ``plan-poses`` and ``simulate`` use.
+    A prismatic joint without limits cannot be drawn and is an input error."""
+    return draw_poses(PoseFilter.for_robot(robot), n, rng).q
 
 
 def _candidates_and_context(robot, k, candidates, n_candidates, payload_kg, rng):
-    """The candidate configurations (given, or uniform within the limits) checked against k,
+    """The candidate configurations (given, or :func:`candidate_configurations`) checked against k,
     and the context the poses will be measured in (the payload, no other conditions)."""
     if k < 1:
         raise InputError(f"-k {k}: need at least one pose")
@@ -131,9 +131,9 @@ def _candidates_and_context(robot, k, candidates, n_candidates, payload_kg, rng)
 def plan_poses(robot: RobotModel, measured_q: np.ndarray, effects, k: int, *, separate=None,
                candidates: np.ndarray | None = None, n_candidates: int = 3000, payload_kg: float = 0.0,
                noise_m: float = 2e-5, rng: np.random.Generator | None = None) -> PosePlan:
-    """Choose k configurations among ``candidates`` (default: ``n_candidates`` uniform within
-    the limits) that, added to the poses ``measured_q`` (N, n) [rad, m], best determine the
-    parameters of ``effects`` (``frames`` is always included).
+    """Choose k configurations among ``candidates`` (default: ``n_candidates`` the robot can
+    take, :func:`candidate_configurations`) that, added to the poses ``measured_q`` (N, n)
+    [rad, m], best determine the parameters of ``effects`` (``frames`` is always included).
 
     separate : effects to tell apart from one another (the members of ambiguity groups, the
         chosen one included): the design then maximises, summed over these effects, the
@@ -223,7 +223,7 @@ def plan_discriminating_poses(robot: RobotModel, measured_q: np.ndarray, rivals,
                               candidates: np.ndarray | None = None, n_candidates: int = 3000,
                               payload_kg: float = 0.0, noise_m: float = 2e-5,
                               rng: np.random.Generator | None = None) -> np.ndarray:
-    """Choose k configurations (among ``candidates``, default uniform within the limits) where
+    """Choose k configurations (among ``candidates``, default :func:`candidate_configurations`) where
     rival fitted models disagree in a way neither can fit away: greedy T-optimal design.
 
     rivals : list of pairs of fitted models, each model (effect instances, parameter

@@ -49,10 +49,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 
 import numpy as np
 import pinocchio as pin
 from scipy.spatial.transform import Rotation
+from sklearn.base import BaseEstimator
 
 from ..model.context import CONTEXT_FIELDS, MeasurementContext
 from .result import Diagnosis, ErrorStats, Observations, Step, observations_from
@@ -71,6 +73,7 @@ from .attribution import contributions, fixed_point_check, tied_own_shares
 from .structure import StructureDetector, name_scatter, scatter_beyond_noise, smallest_detectable_structure, \
     smooth_shape, structure_verdict
 from ..model.robot import RobotModel
+from ..random_state import int_seed, renamed_keyword
 
 #: Noise figure [m per axis] the identifiability test resolves down to a tenth of when the
 #: instrument's is not known (a good laser tracker): pruning stays rank-based.
@@ -80,11 +83,14 @@ RESOLUTION_NOISE = 2e-5
 # ---------------------------------------------------------------------------------------
 # The diagnosis
 # ---------------------------------------------------------------------------------------
-def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, seed: int = 0,
+@renamed_keyword("seed", "random_state")
+def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, random_state=0,
              tracker_noise: float | None = None, selection_z: float = 3.0, min_relative_gain: float = 0.002,
              rank_tol: float = 1e-6, orientation_weight: float | None = None, progress=None,
              references=()) -> Diagnosis:
     """Diagnose the gap between the nominal robot and its measurements.
+
+    The function form of :class:`GapDiagnosis`: ``GapDiagnosis(robot=robot, ...).fit(measurements).result_``.
 
     Parameters
     ----------
@@ -94,36 +100,52 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, s
         q (N, n_joints) [rad, m], position (N, 3) [m] in the tracker frame, context. A
         list measures several frames on the same rows (each with the robot whose TCP it
         is; ``robot`` is then the first one's): their shared parameters are fitted once.
-    effects : list of str, optional
-        Effects to consider (vocabulary order is used; ``frames`` is always in).
-    folds : int
+    effects : list of str, default=None
+        Effects to consider (vocabulary order is used; ``frames`` is always in). None: the
+        whole vocabulary.
+    folds : int, default=5
         k of the k-fold cross-validation (>= 2).
-    seed : int
-        Seeds the fold split and the permutation tests.
-    tracker_noise : float, optional
+    random_state : int, numpy.random.Generator or None, default=0
+        Seeds the fold split, the permutation tests and the bootstrap replays (formerly
+        ``seed``, still accepted with a DeprecationWarning).
+    tracker_noise : float, default=None
         Per-axis standard deviation of the instrument [m]; noise floor = sqrt(3) times it.
         None: estimated from the data (repeated poses, else the final residual).
-    selection_z : float
+    selection_z : float, default=3.0
         One-sided z the paired held-out test must exceed for an effect to enter.
-    min_relative_gain : float
+    min_relative_gain : float, default=0.002
         And the held-out RMS must drop by at least this fraction.
-    rank_tol : float
+    rank_tol : float, default=1e-6
         Identifiability tolerance on normalised pivots.
-    orientation_weight : float, optional
+    orientation_weight : float, default=None
         [m/rad] weight of measured orientation in the fit (an angle counts as the position
-        error it makes at this distance); default the RMS spread of the measured points
+        error it makes at this distance); None: the RMS spread of the measured points
         about their centre.
-    progress : callable(str), optional
+    progress : callable(str), default=None
         Called with a short message as the work advances (the CLI's progress bar).
-    references : list of (frame, position (3,) [m], measured (N, 3) [m], time_s (N,) or None)
+    references : list of (frame, position (3,) [m], measured (N, 3) [m], time_s (N,) or None), default=()
         Base references: frames fixed to the robot's base (their place in the base frame), measured on
         the same rows in the tracker frame: they pin the tracker frame and show its drift
         (estimated per session, corrected where significant and larger than the noise).
+
+    Returns
+    -------
+    Diagnosis
+        Everything found, SI units; ``print(result.summary())`` prints what the command line does.
+
+    Examples
+    --------
+    >>> import numpy as np, tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> scenario = tcr.load_scenario("examples/scenario_compliance.yaml")  # doctest: +SKIP
+    >>> measured, truth = tcr.simulate_measurements(robot, scenario, 200, random_state=1)  # doctest: +SKIP
+    >>> tcr.diagnose(robot, measured).primary_effect  # doctest: +SKIP
+    'compliance'
     """
-    return GapDiagnosis(effects=effects, folds=folds, seed=seed, tracker_noise=tracker_noise,
-                        selection_z=selection_z, min_relative_gain=min_relative_gain, rank_tol=rank_tol,
-                        orientation_weight=orientation_weight).fit(robot, measurements, progress,
-                                                                   references=references).result_
+    return GapDiagnosis(robot=robot, effects=effects, folds=folds, random_state=random_state,
+                        tracker_noise=tracker_noise, selection_z=selection_z, min_relative_gain=min_relative_gain,
+                        rank_tol=rank_tol, orientation_weight=orientation_weight).fit(
+        measurements, progress=progress, references=references).result_
 
 
 def _one_blas_thread():
@@ -135,26 +157,96 @@ def _one_blas_thread():
     return threadpool_limits(limits=1, user_api="blas")
 
 
-class GapDiagnosis:
-    """The diagnosis as an estimator: hyper-parameters here, ``fit`` does the work.
+class GapDiagnosis(BaseEstimator):
+    """The diagnosis as a scikit-learn estimator: hyper-parameters here, ``fit`` does the work.
 
-    Parameters are those of :func:`diagnose`. After :meth:`fit`: ``result_`` (a
-    :class:`Diagnosis`), ``selected_effects_``, ``primary_effect_``, ``parameters_``,
-    ``noise_``; :meth:`predict` gives the fitted model's TCP positions in the tracker frame.
+    ``fit`` takes a :class:`~tcr_accuracy.io.measurements.MeasurementSet`, not ``(X, y)``
+    arrays: besides joint values (X) and measured positions (y) the diagnosis needs each
+    row's context (payload, temperature, approach direction, session, other joints),
+    measured orientation when there is one, and, for several measured frames, one robot
+    per frame; a MeasurementSet carries them together, row-aligned. The nominal robot is a
+    constructor parameter so that ``sklearn.base.clone`` gives an unfitted copy that fits
+    the same data to the same numbers.
+
+    Parameters
+    ----------
+    robot : RobotModel, default=None
+        The nominal model of the measured frame (required by :meth:`fit`; with a list of
+        (robot, measurements) pairs the first pair's robot is used).
+    effects : list of str, default=None
+        Effects to consider; None: the whole vocabulary (``frames`` is always in).
+    folds : int, default=5
+        k of the k-fold cross-validation (>= 2).
+    random_state : int, numpy.random.Generator or None, default=0
+        Seeds the fold split, the permutation tests and the bootstrap replays; an int gives
+        the same result every time (formerly ``seed``).
+    tracker_noise : float, default=None
+        Per-axis standard deviation of the instrument [m]; None: estimated from the data.
+    selection_z : float, default=3.0
+        One-sided z the paired held-out test must exceed for an effect to enter.
+    min_relative_gain : float, default=0.002
+        And the held-out RMS must drop by at least this fraction.
+    rank_tol : float, default=1e-6
+        Identifiability tolerance on normalised pivots.
+    orientation_weight : float, default=None
+        [m/rad] weight of measured orientation; None: the measured points' RMS spread.
+    stability_replays : int, default=50
+        Bootstrap replays of the selection that give each effect's selection frequency.
+
+    Attributes
+    ----------
+    result_ : Diagnosis
+        Everything found (SI units); ``result_.summary()`` is the printed summary.
+    robot_ : RobotModel
+        The robot the diagnosis ran on.
+    selected_effects_ : list of str
+        The effects chosen (``frames`` first).
+    primary_effect_ : str or None
+        The effect with the largest own share, None when others stand in for it.
+    parameters_ : dict
+        Effect -> {parameter name: fitted value [SI]}.
+    noise_ : NoiseEstimate
+        The instrument's noise per axis [m] and where that figure came from.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> estimator = tcr.GapDiagnosis(robot=robot, folds=5, random_state=0)
+    >>> estimator.get_params()["folds"]
+    5
+    >>> estimator.fit(measured).selected_effects_  # doctest: +SKIP
+    ['frames', 'compliance', 'geometry', 'joint_offsets']
     """
 
-    def __init__(self, *, effects=None, folds: int = 5, seed: int = 0, tracker_noise: float | None = None,
-                 selection_z: float = 3.0, min_relative_gain: float = 0.002, rank_tol: float = 1e-6,
-                 orientation_weight: float | None = None, stability_replays: int = 50):
+    @renamed_keyword("seed", "random_state")
+    def __init__(self, *, robot=None, effects=None, folds: int = 5, random_state=0,
+                 tracker_noise: float | None = None, selection_z: float = 3.0, min_relative_gain: float = 0.002,
+                 rank_tol: float = 1e-6, orientation_weight: float | None = None, stability_replays: int = 50):
+        self.robot = robot
         self.effects = effects
-        self.stability_replays = stability_replays
         self.folds = folds
-        self.seed = seed
+        self.random_state = random_state
         self.tracker_noise = tracker_noise
         self.selection_z = selection_z
         self.min_relative_gain = min_relative_gain
         self.rank_tol = rank_tol
         self.orientation_weight = orientation_weight
+        self.stability_replays = stability_replays
+
+    def __repr__(self, N_CHAR_MAX=700) -> str:
+        """scikit-learn's repr of the parameters on one line, and once fitted what was found."""
+        text = " ".join(super().__repr__(N_CHAR_MAX).split())
+        if hasattr(self, "result_"):
+            d = self.result_
+            text += (f" fitted: selected [{', '.join(d.selected_effects)}], "
+                     f"held-out RMS {d.steps[-1].heldout.rms * 1e3:.4g} mm")
+        return text
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.non_deterministic = self.random_state is None
+        return tags
 
     # -- inputs ------------------------------------------------------------------------
     def _check(self, robot, measurements) -> list[tuple[RobotModel, Observations, str]]:
@@ -182,8 +274,34 @@ class GapDiagnosis:
         return frames
 
     # -- the pipeline ------------------------------------------------------------------
-    def fit(self, robot: RobotModel, measurements, progress=None, references=()) -> "GapDiagnosis":
-        """Run the diagnosis on ``measurements`` of ``robot`` (see :func:`diagnose`)."""
+    def fit(self, measurements, y=None, *, progress=None, references=()) -> "GapDiagnosis":
+        """Run the diagnosis on measurements of ``self.robot``.
+
+        Parameters
+        ----------
+        measurements : MeasurementSet, Observations, or list of (RobotModel, MeasurementSet)
+            The measured rows (see :func:`diagnose`).
+        y : None
+            Not used: the measured positions are in ``measurements`` (scikit-learn's
+            ``fit(X, y)`` slot, kept so that the estimator fits in its tools).
+        progress : callable(str), default=None
+            Called with a short message as the work advances.
+        references : list of (frame, position, measured, time_s), default=()
+            Base references (see :func:`diagnose`).
+
+        Returns
+        -------
+        GapDiagnosis
+            self, fitted.
+        """
+        if isinstance(measurements, RobotModel):  # the 0.1 form fit(robot, measurements)
+            warnings.warn("GapDiagnosis.fit(robot, measurements) is deprecated and will be removed in 0.2; "
+                          "use GapDiagnosis(robot=robot, ...).fit(measurements)", DeprecationWarning, stacklevel=2)
+            robot, measurements = measurements, y
+        else:
+            robot = self.robot
+        if robot is None and not isinstance(measurements, (list, tuple)):
+            raise InputError("GapDiagnosis.fit: no robot; give it as GapDiagnosis(robot=...)")
         with _one_blas_thread():
             return self._fit(robot, measurements, progress, list(references))
 
@@ -194,7 +312,8 @@ class GapDiagnosis:
         robot, obs = frames[0][0], frames[0][1]
         n = len(obs)
         say = progress or (lambda message: None)
-        rng = np.random.default_rng(self.seed)
+        seed = int_seed(self.random_state)
+        rng = np.random.default_rng(seed)
         names = [e for e in vocabulary() if self.effects is None or e in self.effects or e == "frames"]
         notes: list = []
         measured = set().union(*(set(o.measured) for _, o, _ in frames))
@@ -337,7 +456,7 @@ class GapDiagnosis:
         steps = self._explanation_ladder(engine, selected, steps[0])
         say("selection stability")
         selection = selection_frequency(engine, testable, self.selection_z, self.min_relative_gain,
-                                        self.stability_replays, np.random.default_rng([self.seed, 2]), say,
+                                        self.stability_replays, np.random.default_rng([seed, 2]), say,
                                         late=[e for e in late if e in testable])
         say("what the data fit only outside physics")
         beyond = outside_physics(engine, current, [e for e in testable], self.selection_z, self.min_relative_gain)
@@ -372,7 +491,7 @@ class GapDiagnosis:
         noise = self._noise(repeats, obs.q, final_train, final["n_parameters"], structure["remains"])
         scatter = scatter_beyond_noise(noise, final, stochastic)
         say("probing the structure test's power")
-        probe_rng = np.random.default_rng([self.seed, 1])
+        probe_rng = np.random.default_rng([seed, 1])
         shapes = stand_in_shapes(engine, current, testable, probe_rng) or \
             {"smooth joint function": smooth_shape(detector, probe_rng)}
         structure["power"] = smallest_detectable_structure(detector, shapes, noise.per_axis, probe_rng)
@@ -440,7 +559,7 @@ class GapDiagnosis:
             orientation = {"weight_m_per_rad": weight, "heldout_mean_deg": float(angle.mean()),
                            "heldout_rms_deg": float(np.sqrt(np.mean(angle**2))), "heldout_max_deg": float(angle.max())}
         self.result_ = Diagnosis(
-            robot_name=robot.name, n_measurements=n, folds=self.folds, gap=ErrorStats.of(gap_residual), where=where,
+            robot_name=robot.name, n_measurements=n, folds=self.folds, gap=ErrorStats.of(gap_residual), where_mm=where,
             identifiability=ident, candidates=candidates, steps=steps, selected_effects=selected,
             primary_effect=primary, leave_one_out=loo, noise_floor=math.sqrt(3.0) * noise.per_axis,
             tracker_noise=noise.per_axis, scatter=scatter, structure=structure, parameters=parameters,
@@ -456,6 +575,7 @@ class GapDiagnosis:
             effect_options={e: dict(bases[e].per_part[0].effect.options) for e in ordered(selected)},
             sessions=by_session, drift=drift_report,
             joint_function_bands=joint_function_bands(final, bases, ordered(selected), obs.q),
+            joint_names=list(robot.joint_names), source=_source_of(measurements),
         )
         self.robot_ = robot
         self.engine_ = engine
@@ -690,6 +810,13 @@ def _part_names(effect, part: Part, n_parts: int) -> list[str]:
     if effect.name != "frames" or n_parts == 1:
         return names
     return [n.replace("frames.tool.", f"frames.{part.label}.") for n in names]
+
+
+def _source_of(measurements) -> str:
+    """Where the measurements came from (a MeasurementSet's ``source``; the first frame's of a list)."""
+    if isinstance(measurements, (list, tuple)):
+        measurements = measurements[0][1]
+    return str(getattr(measurements, "source", "the measurements"))
 
 
 def _first_frame(residual: np.ndarray) -> np.ndarray:

@@ -50,7 +50,7 @@ def observations_from(measurements) -> Observations:
     measured = tuple(k for k in ("payload_kg", "temperature_c", "direction")
                      if getattr(measurements, k, None) is not None)
     return Observations(np.asarray(measurements.q, dtype=float), np.asarray(measurements.position, dtype=float),
-                        measurements.context(), measured, getattr(measurements, "quaternion", None),
+                        measurements.context, measured, getattr(measurements, "quaternion", None),
                         tuple(getattr(measurements, "session_labels", ()) or ()))
 
 
@@ -99,9 +99,15 @@ class Step:
         return out
 
 
-@dataclass
+@dataclass(repr=False)
 class Diagnosis:
     """Everything :func:`diagnose` found. Lengths in m inside; :meth:`to_dict` gives mm.
+
+    Units: every number and array attribute is SI (``gap``, ``steps``, ``noise_floor``,
+    ``tracker_noise``, the residuals are in m). The dict attributes that are already the
+    JSON form (``where_mm``, ``candidates``, ``leave_one_out``, ``scatter``, ``structure``,
+    ``sessions``, ``drift``) carry the unit in every key (``rms_mm``, ``gain_mm``).
+    :meth:`summary` is the text ``tcr-accuracy diagnose`` prints.
 
     Arrays of the residual (``gap_residual``, ``final_residual``, ``heldout_residual``),
     ``q`` and ``nominal_position`` are those of the first measured frame; with several,
@@ -111,8 +117,8 @@ class Diagnosis:
     robot_name: str
     n_measurements: int
     folds: int
-    gap: ErrorStats
-    where: dict
+    gap: ErrorStats  # after fitting the frames [m]
+    where_mm: dict  # where the gap lies, JSON form (keys suffixed with their unit, mostly _mm)
     identifiability: dict
     candidates: dict  # effect -> first-step held-out result or why it was not tried
     steps: list
@@ -159,6 +165,37 @@ class Diagnosis:
     #: effect -> joint -> {"angle_rad", "value_rad", "std_rad"} (M,) arrays: the fitted function of
     #: each joint's own angle over its measured range with its standard error (effects with joint_basis)
     joint_function_bands: dict = field(default_factory=dict)
+    joint_names: list = field(default_factory=list)  # the robot's joints, in q's column order
+    source: str = ""  # where the measurements came from (file names)
+
+    @property
+    def where(self) -> dict:
+        """Deprecated alias of :attr:`where_mm` (until 0.2): the name now says its unit."""
+        return self.where_mm
+
+    def __repr__(self) -> str:
+        last = self.steps[-1].heldout.rms if self.steps else float("nan")
+        return (f"Diagnosis({self.robot_name!r}, {self.n_measurements} measurements, "
+                f"gap RMS {self.gap.rms * 1e3:.4g} mm, selected [{', '.join(self.selected_effects)}], "
+                f"primary {self.primary_effect!r}, held-out RMS {last * 1e3:.4g} mm, "
+                f"noise floor {self.noise_floor * 1e3:.4g} mm)")
+
+    def summary(self, source: str | None = None) -> str:
+        """The summary ``tcr-accuracy diagnose`` prints (mm and deg, labelled).
+
+        Parameters
+        ----------
+        source : str, default=None
+            What the first line names as the measurements; None: :attr:`source`.
+
+        Returns
+        -------
+        str
+            Several lines, in the order gap, where, which effect, how far it shrinks.
+        """
+        from .summary import format_summary
+
+        return format_summary(None, self, self.source if source is None else source)
 
     def predict(self, robot: RobotModel, q: np.ndarray, context: MeasurementContext | None = None) -> np.ndarray:
         """TCP positions (N, 3) in the tracker frame [m] that the fitted model predicts
@@ -182,7 +219,7 @@ class Diagnosis:
             "n_measurements": self.n_measurements,
             "folds": self.folds,
             "gap": self.gap.to_dict(),
-            "where": self.where,
+            "where": self.where_mm,
             "identifiability": self.identifiability,
             "candidates": self.candidates,
             "steps": [s.to_dict() for s in self.steps],

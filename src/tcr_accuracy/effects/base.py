@@ -336,7 +336,13 @@ def effect_classes(*, vocabulary_only: bool = True) -> dict[str, type[Effect]]:
 
 
 def vocabulary() -> tuple[str, ...]:
-    """The effect vocabulary: names of the registered in-vocabulary effects, in order."""
+    """The effect vocabulary: names of the registered in-vocabulary effects, in order.
+
+    Returns
+    -------
+    tuple of str
+        ``frames`` first, then the order the diagnosis tries them in.
+    """
     return tuple(effect_classes())
 
 
@@ -352,7 +358,22 @@ def effect_class(name: str, *, vocabulary_only: bool = False, source: str = "eff
 
 
 def make_effect(name: str, robot: RobotModel, **options) -> Effect:
-    """An effect by name, with its options checked against its keyword arguments."""
+    """An effect by name, with its options checked against its keyword arguments.
+
+    Parameters
+    ----------
+    name : str
+        One of :func:`vocabulary` (or an effect outside it that only ``simulate`` uses).
+    robot : RobotModel
+        The nominal robot the effect acts on.
+    **options
+        The effect class's keyword-only arguments (a misspelt one is an InputError).
+
+    Returns
+    -------
+    Effect
+        The effect, with ``parameter_names()`` and its error model.
+    """
     cls = effect_class(name, source="effect")
     accepted = [p for p, spec in inspect.signature(cls.__init__).parameters.items()
                 if spec.kind is inspect.Parameter.KEYWORD_ONLY]

@@ -139,9 +139,24 @@ class MeasurementSet:
     def __len__(self) -> int:
         return self.q.shape[0]
 
-    def context(self, reference_temperature_c: float = REFERENCE_TEMPERATURE_C,
-                rng: np.random.Generator | None = None) -> MeasurementContext:
-        """The per-row context, with defaults where a column is absent."""
+    def __repr__(self) -> str:
+        measured = [k for k in ("quaternion", "payload_kg", "temperature_c", "direction", "outside_q", "time_s")
+                    if getattr(self, k) is not None]
+        sessions = f", {len(self.session_labels)} sessions" if self.session is not None else ""
+        source = self.source if len(self.source) <= 60 else self.source[:57] + "..."
+        return (f"MeasurementSet({len(self)} rows x {self.q.shape[1]} joints, source={source!r}"
+                f"{sessions}, context columns: {', '.join(measured) or 'none'})")
+
+    @property
+    def context(self) -> MeasurementContext:
+        """The per-row context (payload, temperature, approach directions, other joints, session),
+        with defaults where a column is absent: no payload, the reference temperature, no direction."""
+        return self.make_context()
+
+    def make_context(self, reference_temperature_c: float = REFERENCE_TEMPERATURE_C,
+                     rng: np.random.Generator | None = None) -> MeasurementContext:
+        """The per-row context with another reference temperature [degC] where the file has none,
+        or a generator for the effects that draw random numbers (``rng``)."""
         n, nj = self.q.shape
         return MeasurementContext(
             payload_kg=self.payload_kg.copy() if self.payload_kg is not None else np.zeros(n),
@@ -228,10 +243,23 @@ def read_measurements(path: str | Path, robot: RobotModel, *, min_rows: int = 1,
         Rows may repeat one another (poses to predict or compensate); otherwise an exact copy
         of a row is an error and a repeated pose a warning.
 
+    Returns
+    -------
+    MeasurementSet
+        The rows in SI units, with the context columns the file has.
+
     Raises
     ------
     InputError
         Naming the file, row and column at fault.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)  # doctest: +SKIP
+    >>> measured.context.payload_kg.shape  # doctest: +SKIP
+    (200,)
     """
     path = Path(path)
     text = read_user_text(path, "measurement file")
@@ -564,7 +592,25 @@ def format_measurements(robot: RobotModel, mset: MeasurementSet, unit: str = "mm
 
 def write_measurements(path: str | Path, robot: RobotModel, mset: MeasurementSet, unit: str = "mm",
                        comment: str | None = None) -> None:
-    """Write a measurement CSV atomically (temporary file + rename)."""
+    """Write a measurement CSV atomically (temporary file + rename).
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file to write.
+    robot : RobotModel
+        Names the joint columns and their units.
+    mset : MeasurementSet
+        The rows to write [SI].
+    unit : str, default="mm"
+        ``mm``: positions in mm and joints in deg (mm for prismatic joints); ``m``: SI.
+    comment : str, optional
+        Written as ``#`` lines above the header.
+
+    Returns
+    -------
+    None
+    """
     from ..atomic import write_text_atomically
 
     write_text_atomically(Path(path), format_measurements(robot, mset, unit, comment))

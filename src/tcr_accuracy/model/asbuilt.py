@@ -39,6 +39,17 @@ def as_built_urdf(robot: RobotModel, x: np.ndarray, error_model: ErrorModel | No
                   name: str | None = None) -> tuple[str, str]:
     """URDF text of the robot with error vector x (n_params,) built in.
 
+    Parameters
+    ----------
+    robot : RobotModel
+        The nominal robot.
+    x : ndarray of shape (n_params,)
+        Error parameters [SI] in the layout of ``error_model``.
+    error_model : ErrorModel, optional
+        Layout of x; built from the robot when omitted.
+    name : str, optional
+        The robot name written in the URDF; default the nominal URDF's.
+
     Returns
     -------
     (urdf_text, tool_frame): the URDF, and the name of the TCP frame in it (the same

@@ -59,6 +59,9 @@ class ErrorModel:
         The nominal robot. It is never modified.
     """
 
+    def __repr__(self) -> str:
+        return f"ErrorModel({self.robot.name!r}, {self.size} parameters over {self.n_joints} joints)"
+
     def __init__(self, robot: RobotModel):
         self.robot = robot
         n = robot.n_joints
@@ -263,11 +266,26 @@ class ErrorSource:
 
 @dataclass
 class ErrorBudget:
-    """A set of independent error sources for one robot."""
+    """A set of independent error sources for one robot.
+
+    Parameters
+    ----------
+    error_model : ErrorModel
+        The layout of the error parameters the sources move.
+    sources : list of ErrorSource
+        The independent sources (distribution, spread [SI], the parameters they move).
+    name : str
+        Label for reports (``table1``, a budget file's name).
+    """
 
     error_model: ErrorModel
     sources: list[ErrorSource] = field(default_factory=list)
     name: str = "custom"
+
+    def __repr__(self) -> str:
+        touched = int(np.count_nonzero(np.any(self.matrix != 0.0, axis=1))) if self.sources else 0
+        return (f"ErrorBudget({self.name!r}, robot {self.error_model.robot.name!r}, {len(self.sources)} sources "
+                f"moving {touched} of {self.error_model.size} parameters)")
 
     @property
     def matrix(self) -> np.ndarray:
@@ -386,6 +404,25 @@ def default_preset(robot: RobotModel) -> str:
 
 def seed_budget(robot: RobotModel, preset: str) -> ErrorBudget:
     """The seed paper's error distributions as an :class:`ErrorBudget`.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The robot the budget applies to.
+    preset : str
+        ``table1`` or ``table2`` (below).
+
+    Returns
+    -------
+    ErrorBudget
+        One independent source per spread.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> budget = tcr.seed_budget(tcr.load_robot(), "table2")
+    >>> budget.name
+    'table2'
 
     ``table1``: every link length 0.2 mm, prismatic drives 0.3 mm, revolute drives
     0.0087 rad, and every revolute joint's axis tilted about its two perpendicular

@@ -61,6 +61,8 @@ def gravity_torque(robot: RobotModel, q: np.ndarray, payload_kg=0.0, link_mass_f
 
     Parameters
     ----------
+    robot : RobotModel
+        The robot (its full model's link masses and inertias).
     q : array-like of shape (N, n_joints)
         Chain joint values [rad, m].
     payload_kg : float or array-like of shape (N,)
@@ -70,6 +72,13 @@ def gravity_torque(robot: RobotModel, q: np.ndarray, payload_kg=0.0, link_mass_f
     outside_q : array-like of shape (N, n_outside), optional
         Values of the joints that do not move the TCP (``robot.outside_joint_names``).
 
+    Returns
+    -------
+    ndarray of shape (N, n_joints)
+        Torque [Nm] on revolute joints, force [N] on prismatic ones.
+
+    Notes
+    -----
     Gravity torque is linear in the payload mass, so two Pinocchio models (arm, arm +
     1 kg) serve every row.
     """

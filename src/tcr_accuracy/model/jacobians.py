@@ -23,6 +23,20 @@ def error_jacobian(robot: RobotModel, q: np.ndarray, error_model: ErrorModel | N
     Rows are the TCP's linear displacement (base-frame axes, at the TCP point) then its
     rotation vector (base frame), as in Pinocchio's LOCAL_WORLD_ALIGNED: one row of
     :func:`error_jacobians`.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The nominal robot.
+    q : array-like of shape (n_joints,)
+        Joint values [rad, m].
+    error_model : ErrorModel, optional
+        Layout of the error parameters; built from the robot when omitted.
+
+    Returns
+    -------
+    ndarray of shape (6, n_params)
+        d(TCP displacement [m], rotation vector [rad]) / dx.
     """
     q = robot.check_joint_values(np.asarray(q, dtype=float), source="q")
     return error_jacobians(robot, q[None], None, error_model)[1][0]
@@ -40,10 +54,14 @@ def error_jacobians(robot: RobotModel, q, x=None, error_model: ErrorModel | None
 
     Parameters
     ----------
+    robot : RobotModel
+        The nominal robot.
     q : (N, n_joints) actual joint values [SI] (commanded plus joint-side offsets)
     x : (n_error_params,) or (N, n_error_params), optional
         Error vector(s) the Jacobians are taken at: one for every row, or one per row
         (effects that depend on the pose, such as lateral compliance, give each row its own).
+    error_model : ErrorModel, optional
+        Layout of x; built from the robot when omitted.
 
     Returns
     -------

@@ -402,6 +402,14 @@ def tcp_poses(robot: RobotModel, q: np.ndarray, x: np.ndarray | None = None,
     Returns
     -------
     TcpPoses with position (N, 3) and rotation (N, 3, 3).
+
+    Examples
+    --------
+    >>> import numpy as np, tcr_accuracy as tcr
+    >>> robot = tcr.load_robot("ur5")
+    >>> pose = tcr.tcp_poses(robot, np.radians([0, -90, 90, 0, 90, 0]))
+    >>> pose.position.shape
+    (1, 3)
     """
     if x is not None and error_model is None:
         error_model = ErrorModel(robot)
@@ -472,7 +480,20 @@ def _wrap(angle: np.ndarray) -> np.ndarray:
 
 
 def pose_error(nominal: TcpPoses, actual: TcpPoses) -> PoseError:
-    """Actual minus nominal; the two broadcast along axis 0."""
+    """Actual minus nominal; the two broadcast along axis 0.
+
+    Parameters
+    ----------
+    nominal : TcpPoses
+        Positions (N, 3) [m] and rotations (N, 3, 3), or one of each.
+    actual : TcpPoses
+        The same shapes.
+
+    Returns
+    -------
+    PoseError
+        Position error (N, 3) [m] and rotation error (N, 3) [rad] in the base frame.
+    """
     dp = actual.position - nominal.position
     relative = np.einsum("nij,nkj->nik", actual.rotation, np.broadcast_to(nominal.rotation, actual.rotation.shape))
     rotvec = Rotation.from_matrix(relative).as_rotvec()

@@ -37,6 +37,8 @@ from ..exceptions import FixedFrameError, InputError
 from .tool_changer import DISC_CUTTER_MASS, WORKING_POSE, tool_changer_urdf
 from ..units import JOINT_DISPLAY, PRISMATIC, REVOLUTE  # noqa: F401 - PRISMATIC: part of this module's vocabulary
 from .mesh_resources import check_mesh_references
+from .ros_packages import (find_packages, given_package_dirs, mesh_places, missing_mesh_message, package_of,
+                           ros_package_path, urdf_with_located_meshes)
 from .urdf import (
     MAX_CHAIN_JOINTS,
     check_mesh_paths,
@@ -84,7 +86,13 @@ class RobotModel:
     urdf_path : Path or None
         Where the URDF came from, if a file.
     package_dirs : list of str
-        Folders in which ``package://`` mesh paths are resolved.
+        Folders in which ``package://NAME/...`` mesh paths are looked for as ``DIR/NAME/...``
+        when NAME is not in ``packages`` (``--package-dir`` folders, then the URDF's folder and
+        the one above it, or example-robot-data's ``share`` folder).
+    packages : dict of str to str
+        The folder of each ROS package the URDF's meshes name that was found (in
+        ``--package-dir`` folders, ``ROS_PACKAGE_PATH`` or around the URDF; see
+        :mod:`tcr_accuracy.model.ros_packages`).
     working_pose : ndarray of shape (n_joints,)
         A representative pose [rad, m] (the seed's pose for the tool-changer; otherwise zero for
         every joint whose limits hold zero and the middle of its range for the others, see
@@ -108,6 +116,7 @@ class RobotModel:
     urdf_text: str
     urdf_path: Path | None = None
     package_dirs: list[str] = field(default_factory=list)
+    packages: dict = field(default_factory=dict)
     working_pose: np.ndarray | None = None
     full_model: pin.Model | None = None
     chain_joint_ids: tuple = ()
@@ -123,6 +132,10 @@ class RobotModel:
             self.chain_joint_ids = tuple(range(1, self.model.njoints))
         if self.tool_frame_id < 0:
             self.tool_frame_id = find_frame(self.model, self.tool_frame)
+
+    def __repr__(self) -> str:
+        source = f", urdf={Path(self.urdf_path).name!r}" if self.urdf_path is not None else ""
+        return f"RobotModel({self.name!r}, {self.n_joints} joints, tool_frame={self.tool_frame!r}{source})"
 
     # -- structure (the model never changes in place, so these are computed once) -----
     @property
@@ -335,32 +348,69 @@ class RobotModel:
         return str(self.urdf_path) if self.urdf_path is not None else self.name
 
     def mesh_roots(self) -> list[str]:
-        """The folders meshes and the files they reference may come from: the URDF's folder and
-        the package folders."""
+        """The folders meshes and the files they reference may come from: the URDF's folder,
+        the package folders (``package_dirs``) and the ROS packages found (``packages``)."""
         roots = ([str(self.urdf_path.parent)] if self.urdf_path is not None else []) + list(self.package_dirs)
-        return list(dict.fromkeys(roots))
+        return list(dict.fromkeys(roots + [str(p) for p in self.packages.values()]))
 
-    def visual_model(self) -> pin.GeometryModel:
-        """Pinocchio's visual ``GeometryModel`` attached to ``model``'s joints (bodies of the
-        locked joints at their neutral pose); meshes resolved through ``package_dirs``.
+    def mesh_places(self, kinds=("visual", "collision")) -> list:
+        """Where each mesh of the URDF's ``<visual>`` and/or ``<collision>`` elements points
+        (:class:`~tcr_accuracy.model.ros_packages.MeshPlace`, ``path`` None when it is missing)."""
+        return mesh_places(parse_urdf_xml(self.urdf_text, self.urdf_source), kinds,
+                           self.urdf_path.parent if self.urdf_path is not None else None,
+                           self.package_dirs, self.packages)
+
+    def missing_meshes(self, kinds=("visual", "collision")) -> list:
+        """The meshes of :meth:`mesh_places` that are found nowhere."""
+        return [place for place in self.mesh_places(kinds) if place.path is None]
+
+    def missing_mesh_message(self) -> str | None:
+        """One line on the missing meshes and how to provide them, or None when none is missing."""
+        missing = self.missing_meshes()
+        return missing_mesh_message(self.urdf_source, missing, self.packages) if missing else None
+
+    def geometry_model(self, kind: str = "visual") -> pin.GeometryModel:
+        """Pinocchio's ``GeometryModel`` of the URDF's ``<visual>`` or ``<collision>`` elements
+        (``kind``) on ``full_model``, each mesh read from the file :meth:`mesh_places` found; an
+        element whose mesh is missing is left out (kinematics never needs it).
 
         Raises
         ------
         InputError
-            The URDF's visuals cannot be read (missing mesh file, ...), or a mesh or a file it
+            The geometry cannot be read, or (visuals, which views embed) a mesh or a file it
             references (a COLLADA image, an OBJ's material library and its textures) lies outside
             the URDF's folder and the package folders.
         """
         roots, source = self.mesh_roots(), self.urdf_source
-        for name, place in check_mesh_paths(parse_urdf_xml(self.urdf_text, source), source, roots):
-            if place.is_file():  # every place Pinocchio may take it from, before anything reads it
-                check_mesh_references(place, roots, source, name)
+        root = parse_urdf_xml(self.urdf_text, source)
+        places = mesh_places(root, (kind,), self.urdf_path.parent if self.urdf_path is not None else None,
+                             self.package_dirs, self.packages)
+        if kind == "visual":
+            check_mesh_paths(places, source, roots)  # the file each mesh is read from, before anything reads it
+            for place in places:
+                if place.path is not None:
+                    check_mesh_references(place.path, roots, source, place.name)
+        text = urdf_with_located_meshes(root, kind, places) if places else self.urdf_text
+        geometry_type = pin.GeometryType.VISUAL if kind == "visual" else pin.GeometryType.COLLISION
         with quiet_native_stderr() as said:
             try:
-                geometry = pin.buildGeomFromUrdfString(self.full_model, self.urdf_text, pin.GeometryType.VISUAL,
-                                                       package_dirs=list(self.package_dirs))
+                return pin.buildGeomFromUrdfString(self.full_model, text, geometry_type,
+                                                   package_dirs=list(self.package_dirs))
             except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
-                raise InputError(f"{self.name}: cannot read the URDF visuals ({one_line(said() or exc)})") from None
+                raise InputError(f"{self.name}: cannot read the URDF's {kind} geometry "
+                                 f"({one_line(said() or exc)})") from None
+
+    def visual_model(self) -> pin.GeometryModel:
+        """Pinocchio's visual ``GeometryModel`` attached to ``model``'s joints (bodies of the
+        locked joints at their neutral pose; those whose mesh is missing left out, see
+        :meth:`geometry_model`).
+
+        Raises
+        ------
+        InputError
+            See :meth:`geometry_model`.
+        """
+        geometry = self.geometry_model("visual")
         chain = set(self.chain_joint_ids)
         locked = [j for j in range(1, self.full_model.njoints) if j not in chain]
         if not locked:
@@ -377,6 +427,7 @@ class RobotModel:
             urdf_text=self.urdf_text,
             urdf_path=self.urdf_path,
             package_dirs=list(self.package_dirs),
+            packages=dict(self.packages),
             working_pose=np.array(self.working_pose),
             full_model=self.full_model,
             chain_joint_ids=self.chain_joint_ids,
@@ -388,6 +439,10 @@ class RobotModel:
 
 class JointLimitWarning(UserWarning):
     """A joint value lies outside the URDF limits (the analysis still runs)."""
+
+
+class MissingMeshWarning(UserWarning):
+    """A mesh the URDF names is found nowhere (kinematics runs; views draw a skeleton)."""
 
 
 def urdf_robot_name(text: str) -> str | None:
@@ -436,7 +491,8 @@ def example_robot_data_dir() -> Path:
     )
 
 
-def load_robot(source: str | Path | None = None, tool: str | None = None) -> RobotModel:
+def load_robot(source: str | Path | None = None, tool: str | None = None, *,
+               package_dirs: list | None = None) -> RobotModel:
     """Load a robot and its TCP frame.
 
     Parameters
@@ -448,14 +504,35 @@ def load_robot(source: str | Path | None = None, tool: str | None = None) -> Rob
     tool : str, optional
         TCP frame name. Defaults: ``tool`` for the tool-changer, the table entry
         for named robots, and for a URDF file the single leaf link of the tree.
+    package_dirs : list of str or Path, optional
+        Folders holding the ROS packages that ``package://NAME/...`` meshes name (each a
+        package, a folder with ``DIR/NAME``, or one with packages below it); searched before
+        ``ROS_PACKAGE_PATH``. Default: the command line's ``--package-dir`` folders
+        (:func:`tcr_accuracy.model.ros_packages.package_dirs_given`).
+
+    A mesh found nowhere is no error (kinematics does not need it): a
+    :class:`MissingMeshWarning` says which and how to provide it, once, and views draw the
+    link as a skeleton.
+
+    Returns
+    -------
+    RobotModel
+        The chain from the base to the TCP frame.
 
     Raises
     ------
     InputError
         The URDF does not exist or parse, the frame is unknown, or a joint kind is
         not supported.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> tcr.load_robot("ur5")
+    RobotModel('ur5', 6 joints, tool_frame='tool0', urdf='ur5_robot.urdf')
     """
-    package_dirs: list[str] = []
+    given = [str(d) for d in (given_package_dirs() if package_dirs is None else package_dirs)]
+    package_dirs = []
     urdf_path: Path | None = None
     working_pose = None
     payload_kg = None
@@ -470,7 +547,7 @@ def load_robot(source: str | Path | None = None, tool: str | None = None) -> Rob
         urdf_path = Path(source).resolve()
         text = read_urdf_text(urdf_path)
         name = urdf_robot_name(text) or urdf_path.stem  # what the URDF calls itself, as for named robots
-        package_dirs = [str(urdf_path.parent), str(urdf_path.parent.parent)]
+        package_dirs = given + [str(urdf_path.parent), str(urdf_path.parent.parent)]
         label = str(source)
         if urdf_path.stem == BUILTIN_NAME or name.startswith(BUILTIN_NAME):  # a variant, its as-built model
             working_pose = WORKING_POSE.copy()
@@ -482,7 +559,7 @@ def load_robot(source: str | Path | None = None, tool: str | None = None) -> Rob
         text = read_urdf_text(urdf_path)
         name = str(source).lower()
         tool = tool or default_tool
-        package_dirs = [str(share)]
+        package_dirs = given + [str(share)]
         label = f"{name} ({urdf_path})"
     elif Path(source).exists():
         what = "a folder" if Path(source).is_dir() else "not a regular file (a device or a pipe)"
@@ -493,10 +570,19 @@ def load_robot(source: str | Path | None = None, tool: str | None = None) -> Rob
             f"--robot {source}: no such file, and not a known robot name "
             f"(known: {BUILTIN_NAME}, {', '.join(EXAMPLE_ROBOTS)})"
         )
-    return robot_from_urdf_text(
+    robot = robot_from_urdf_text(
         text, tool, name=name, source=label, urdf_path=urdf_path,
         package_dirs=package_dirs, working_pose=working_pose, payload_kg=payload_kg,
     )
+    if urdf_path is not None and "package://" in text:
+        names = {package_of(place.name) for place in robot.mesh_places()} - {None}
+        robot.packages = {name: str(folder) for name, folder in
+                          find_packages(names, given + ros_package_path(), urdf_path.parent).items()}
+    if urdf_path is not None:
+        message = robot.missing_mesh_message()
+        if message:
+            warnings.warn(message, MissingMeshWarning)  # one place: shown once a run
+    return robot
 
 
 def robot_from_urdf_text(

@@ -209,40 +209,26 @@ def check_urdf(root: ElementTree.Element, source: str) -> None:
     mimic_rules(root, source)  # their numbers too, before Pinocchio reads them
 
 
-def check_mesh_paths(root: ElementTree.Element, source: str, roots: list) -> list[tuple[str, Path]]:
-    """Refuse a visual mesh whose file lies outside ``roots`` (the URDF's folder and the package
+def check_mesh_paths(places, source: str, roots: list) -> None:
+    """Refuse a mesh that could be read from outside ``roots`` (the URDF's folder and the package
     folders), in one line naming the link, so that no view or report reads and embeds
     ``../../secret/x.obj``.
 
-    A ``package://`` or relative name is looked for under every root, as Pinocchio does;
-    each place it could come from must stay inside one of the roots (symlinks followed).
-    Returns (mesh name as written, place) for every place, for the files a mesh references
-    to be checked in turn (:mod:`tcr_accuracy.model.mesh_resources`).
+    ``places`` are :class:`tcr_accuracy.model.ros_packages.MeshPlace` records: the file each mesh
+    was found at, the one file Pinocchio is then given, must lie inside one of the roots
+    (symlinks followed); a mesh found nowhere is read from nowhere.
     """
-    import os
-
     roots = [Path(r).resolve() for r in roots]
 
     def inside(path: Path) -> bool:
         return any(path == r or r in path.parents for r in roots)
 
-    places = []
-    for link in root.findall("link"):
-        for mesh in (m for visual in link.findall("visual") for m in visual.iter("mesh")):
-            name = mesh.get("filename") or ""
-            if name.startswith("package://"):
-                candidates = [Path(os.path.normpath(r / name[len("package://"):])) for r in roots]
-            elif name.startswith("file://") or Path(name).is_absolute():
-                candidates = [Path(name.removeprefix("file://"))]
-            else:
-                candidates = [Path(os.path.normpath(r / name)) for r in roots]
-            if not candidates or not all(inside(c.resolve()) for c in candidates):
-                folders = ", ".join(str(r) for r in roots) or "none: this URDF has no folder"
-                raise InputError(f"{source}: link {one_line(link.get('name'))}: mesh {one_line(name, 120)!r} lies "
-                                 f"outside the URDF's folder and package folders ({one_line(folders, 200)}); "
-                                 "refused")
-            places += [(name, c) for c in candidates]
-    return places
+    for place in places:
+        if place.path is not None and not inside(place.path.resolve()):
+            folders = ", ".join(str(r) for r in roots) or "none: this URDF has no folder"
+            raise InputError(f"{source}: link {one_line(place.link)}: mesh {one_line(place.name, 120)!r} lies "
+                             f"outside the URDF's folder and package folders ({one_line(folders, 200)}); "
+                             "refused")
 
 
 def _number(element, key: str, where: str, low: float, high: float, default: float | None = None) -> float:

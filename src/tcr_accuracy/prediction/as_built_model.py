@@ -58,6 +58,12 @@ class AsBuiltModel:
     options: dict = field(default_factory=dict)
     effects: list = field(init=False)
 
+    def __repr__(self) -> str:
+        n = sum(len(v) for v in self.parameters.values())
+        tracker = ", with tracker frame" if self.tracker_from_base is not None else ""
+        return (f"AsBuiltModel({self.robot.name!r}, effects [{', '.join(self.parameters)}], {n} parameters"
+                f"{tracker})")
+
     def __post_init__(self) -> None:
         self.options = {e: {k: v for k, v in (o or {}).items() if not (e == "frames" and k == "sessions")}
                         for e, o in self.options.items()}
@@ -150,7 +156,18 @@ def write_as_built_model(model: AsBuiltModel, folder: Path, name: str) -> dict[s
 
 def load_as_built(path) -> AsBuiltModel:
     """The calibrated robot written by ``tcr-accuracy export`` (its ``.yaml``, or the ``.urdf``
-    next to it), whose :meth:`AsBuiltModel.tcp_poses` include the non-geometric effects."""
+    next to it), whose :meth:`AsBuiltModel.tcp_poses` include the non-geometric effects.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.yaml`` file, or the ``.urdf`` written next to it.
+
+    Returns
+    -------
+    AsBuiltModel
+        The nominal robot and every effect with its fitted parameters [SI].
+    """
     import yaml
 
     path = Path(path)

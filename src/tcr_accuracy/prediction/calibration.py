@@ -159,7 +159,7 @@ class DiagnosisCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
         effects = self.effects
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", JointLimitWarning)
-            self.diagnosis_ = diagnose(self.robot, mset, effects=effects, folds=self.folds, seed=seed,
+            self.diagnosis_ = diagnose(self.robot, mset, effects=effects, folds=self.folds, random_state=seed,
                                        tracker_noise=self.tracker_noise)
         self.selected_effects_ = list(self.diagnosis_.selected_effects)
         return self

@@ -225,12 +225,25 @@ class MeasuredErrorModel(BaseEstimator):
     error_model_ : ResidualCorrected
         TCP offset term plus ``estimator_``; ``error_model_.predict(Q)`` gives the
         base-frame error (m, 3) [m] of the nominal robot.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> model = tcr.MeasuredErrorModel(robot=robot, estimator=tcr.make_predictor("gp", robot, random_state=0))
+    >>> model.fit(train.q, train.position, context=train.context)  # doctest: +SKIP
+    >>> model.predict(test.q, context=test.context).shape  # doctest: +SKIP
+    (40, 3)
     """
 
     def __init__(self, *, robot=None, estimator=None, fit_frame=True):
         self.robot = robot
         self.estimator = estimator
         self.fit_frame = fit_frame
+
+    def __repr__(self, N_CHAR_MAX=700) -> str:
+        """scikit-learn's repr of the parameters, on one line."""
+        return " ".join(super().__repr__(N_CHAR_MAX).split())
 
     def fit(self, X, y, context=None):
         """Joint values X (n, n_joints) [rad, m], measured positions y (n, 3) in the tracker frame [m];

@@ -194,7 +194,7 @@ def evaluate_measurements(robot: RobotModel, mset: MeasurementSet, *, frame: str
 
 def register_from(robot: RobotModel, other: MeasurementSet) -> Registration:
     """The instrument frame and TCP offset fitted on other measured poses of the same session."""
-    return register_tracker(robot, other.q, other.position, context=other.context())
+    return register_tracker(robot, other.q, other.position, context=other.context)
 
 
 def _check_targets(mset, pose_id, nominal_positions, index) -> None:
@@ -258,7 +258,7 @@ def compensated_readings(robot: RobotModel, mset: MeasurementSet, registration: 
                          effects: list, params: list) -> MeasurementSet:
     """The readings with the model's predicted TCP displacement removed (what compensating with it
     leaves, to first order); positions only, orientations dropped."""
-    context = mset.context()
+    context = mset.context
     shift = predict_positions(robot, effects, params, mset.q, context) - tcp_poses(robot, mset.q).position
     if registration is not None:
         shift = shift @ registration.rotation.T  # base-frame displacement into the tracker frame

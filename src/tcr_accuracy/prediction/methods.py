@@ -21,7 +21,30 @@ DEFAULT_METHOD = "diagnosis+gp"
 
 
 def make_predictor(method: str, robot, *, random_state=None):
-    """A fresh estimator by name (see METHODS)."""
+    """A fresh, unfitted estimator by name.
+
+    Parameters
+    ----------
+    method : str
+        One of :data:`METHODS` (``kriging``, ``gp``, ``diagnosis+gp``, ...).
+    robot : RobotModel
+        The nominal robot (the methods that model its kinematics take it as a parameter).
+    random_state : int, numpy.random.Generator or None, default=None
+        Passed to every estimator in it that draws random numbers.
+
+    Returns
+    -------
+    estimator
+        A scikit-learn estimator: ``fit(Q (n, n_joints) [rad, m], E (n, 3) [m])``,
+        ``predict(Q) -> (m, 3)`` TCP position errors [m]; ``sklearn.base.clone`` copies it.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot("ur5")
+    >>> tcr.make_predictor("gp", robot, random_state=0).get_params()["random_state"]
+    0
+    """
     from .baselines import InverseDistanceWeighting, make_cartesian_idw, make_cartesian_mlp
     from .calibration import DiagnosisCalibration, GeometricCalibration
     from .composed import ResidualCorrected
@@ -30,7 +53,7 @@ def make_predictor(method: str, robot, *, random_state=None):
     from .local_gp import LocalGaussianProcess
 
     if method == "kriging":
-        return JointKriging()
+        return JointKriging(random_state=random_state)
     if method == "kriging-pf":
         return JointKriging(weight_search="particle_filter", random_state=random_state)
     if method == "gp":

@@ -169,7 +169,7 @@ def plot_regions(diagnosis, path: Path) -> Path:
 
     Named categories (octants, joints) are horizontal bars, their names written level at a
     readable size however long they are; the binned curves share one legend beside the panels."""
-    where = diagnosis.where
+    where = diagnosis.where_mm
     panels = [("octants", None), ("radius", "radius [m]"), ("height", "height z [m]")]
     panels += [(k, label) for k, label in (("payload_kg", "payload [kg]"), ("temperature_c", "temperature [degC]"))
                if k in where]

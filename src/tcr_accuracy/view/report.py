@@ -9,6 +9,12 @@ Build it, then write it::
     report.add_scene(scene.static_html(), "TCP cloud")   # a viewer.Scene's static page
     report.write("out")                                  # out/index.html, out/report.md, PNGs
 
+A report can open with a first page (:meth:`Report.set_first_page`, e.g. the calibration
+report of :mod:`tcr_accuracy.view.calibration_report`): it prints alone on page 1, the
+items follow under "Technical detail". With ``print_pdf`` set, ``write`` also prints the page
+to ``report.pdf`` through headless Chromium (:mod:`tcr_accuracy.view.pdf`) when there is one;
+``pdf_problem`` then says why there is none.
+
 ``write`` puts every file in place through a temporary file and a rename, and writes
 ``index.html`` last, so a crash or Ctrl-C never leaves a half-written file, and the
 index never names a file that is not there. The page has no external resources: it
@@ -32,7 +38,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from .. import __version__
-from ..atomic import read_output, stage_folder, write_bytes_atomically
+from ..atomic import read_output, stage_folder, unstaged, write_bytes_atomically
 from ..exceptions import InputError
 
 #: Distributions whose versions every report lists (when installed).
@@ -120,6 +126,19 @@ def _cell(value, float_format: str) -> str:
     return str(value)
 
 
+#: A word longer than this [characters] (a path, a long name) may break anywhere in a table cell,
+#: so that the table fits the page; shorter ones and numbers stay whole.
+LONG_WORD = 24
+
+
+def _td(value: str) -> str:
+    """A table cell; a long word in it may break anywhere (see the CSS), numbers and short words never."""
+    text = html.escape(value)
+    if any(len(word) > LONG_WORD for word in value.split()):
+        return f'<td><span class="long">{text}</span></td>'
+    return f"<td>{text}</td>"
+
+
 class Report:
     """An HTML (and Markdown) report under construction.
 
@@ -143,6 +162,24 @@ class Report:
         self.items: list = []
         self._n_figures = 0
         self._n_scenes = 0
+        self.first_page: tuple[str, str] | None = None  # (HTML fragment, Markdown)
+        self.print_pdf = False  # write() also prints report.pdf (when Chromium is there)
+        self.pdf_problem = ""  # after write(): why no PDF was printed, if one was asked for
+
+    #: File name of the printed report in the report folder.
+    PDF_NAME = "report.pdf"
+
+    def set_first_page(self, html_fragment: str, markdown: str) -> None:
+        """The page the report opens with, alone on page 1 when printed.
+
+        Parameters
+        ----------
+        html_fragment : str
+            Its HTML, escaped by the caller (the inside of a ``<section>``).
+        markdown : str
+            The same content as Markdown.
+        """
+        self.first_page = (str(html_fragment), str(markdown))
 
     # -- content ---------------------------------------------------------------------
     def add_text(self, text: str, heading: str | None = None) -> None:
@@ -221,11 +258,20 @@ class Report:
         return filename
 
     # -- rendering -------------------------------------------------------------------
-    def html(self) -> str:
-        """The index page (figures and scenes referenced by their file names)."""
+    def html(self, *, pdf: str | None = None) -> str:
+        """The index page (figures and scenes referenced by their file names; ``pdf``: the file
+        name of the printed report, linked when given)."""
         esc = html.escape
-        body: list[str] = [f"<h1>{esc(self.title)}</h1>",
-                           f'<p class="meta">Written {esc(self.created)} by tcr-accuracy {esc(__version__)}.</p>']
+        printed = (' Also as <a href="report.md">Markdown</a>'
+                   + (f' and printed (A4): <a href="{esc(pdf)}">{esc(pdf)}</a>.' if pdf else ".")
+                   if self.first_page is not None else "")
+        body: list[str] = []
+        if self.first_page is not None:
+            body.append(f'<section class="first-page">\n{self.first_page[0]}\n</section>')
+            body.append(f'<h1 class="part">Technical detail: {esc(self.title)}</h1>')
+        else:
+            body.append(f"<h1>{esc(self.title)}</h1>")
+        body.append(f'<p class="meta">Written {esc(self.created)} by tcr-accuracy {esc(__version__)}.{printed}</p>')
         for item in self.items:
             if isinstance(item, _Text):
                 if item.heading:
@@ -240,10 +286,10 @@ class Report:
             elif isinstance(item, _Table):
                 body.append(f"<h2>{esc(item.title)}</h2>")
                 head = "".join(f"<th>{esc(c)}</th>" for c in item.columns)
-                rows = "".join("<tr>" + "".join(f"<td>{esc(v)}</td>" for v in row) + "</tr>" for row in item.rows)
-                body.append(f'<table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>')
-                if item.note:
-                    body.append(f'<p class="note">{esc(item.note)}</p>')
+                rows = "".join("<tr>" + "".join(_td(v) for v in row) + "</tr>" for row in item.rows)
+                note = f'<p class="note">{esc(item.note)}</p>' if item.note else ""
+                body.append(f'<div class="table"><table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody>'
+                            f"</table>{note}</div>")
             elif isinstance(item, _Links):
                 body.append(f"<h2>{esc(item.heading)}</h2>")
                 body.append("<ul>" + "".join(f'<li><a href="{esc(href)}">{esc(label)}</a></li>'
@@ -256,7 +302,8 @@ class Report:
                     f'<figure class="scene"><iframe src="{esc(item.filename)}" title="{esc(item.caption)}" '
                     f'style="height:{item.height_px}px"></iframe>'
                     f'<figcaption>{esc(item.caption)} (<a href="{esc(item.filename)}">open alone</a>; '
-                    "drag to turn, scroll to zoom)</figcaption></figure>")
+                    "drag to turn, scroll to zoom)</figcaption>"
+                    f'<p class="print-only">3D view: open {esc(item.filename)} in a browser.</p></figure>')
         body.append("<h2>How this report was made</h2>")
         body.append(f"<pre class=\"command\">{esc(self.command)}</pre>")
         rows = "".join(f"<tr><td>{esc(k)}</td><td>{esc(v)}</td></tr>" for k, v in versions().items())
@@ -264,13 +311,19 @@ class Report:
                     f"<tbody>{rows}</tbody></table>")
         return _PAGE.format(title=esc(self.title), css=_CSS, body="\n".join(body))
 
-    def markdown(self) -> str:
+    def markdown(self, *, pdf: str | None = None) -> str:
         """The same content as Markdown (tables as pipe tables)."""
 
         def md(text: str) -> str:
             return text.replace("|", "\\|")
 
-        out = [f"# {self.title}", "", f"Written {self.created} by tcr-accuracy {__version__}.", ""]
+        out = []
+        if self.first_page is not None:
+            out += [self.first_page[1].rstrip("\n"), "", "---", "", f"# Technical detail: {self.title}", ""]
+        else:
+            out += [f"# {self.title}", ""]
+        out += [f"Written {self.created} by tcr-accuracy {__version__}."
+                + (f" Printed: [{pdf}]({pdf})." if pdf else ""), ""]
         for item in self.items:
             if isinstance(item, _Text):
                 if item.heading:
@@ -312,15 +365,36 @@ class Report:
         if out_dir.exists() and not out_dir.is_dir():
             raise InputError(f"{out_dir}: not a folder")
         stage_folder(out_dir)
+        pdf = self._printed() if self.print_pdf else None
+        pdf_name = self.PDF_NAME if pdf is not None else None
         for item in self.items:
             if isinstance(item, _Figure):
                 write_bytes_atomically(out_dir / item.filename, item.png)
             elif isinstance(item, _Scene):
                 write_bytes_atomically(out_dir / item.filename, item.page.encode("utf-8"))
-        write_bytes_atomically(out_dir / "report.md", self.markdown().encode("utf-8"))
+        if pdf is not None:
+            write_bytes_atomically(out_dir / self.PDF_NAME, pdf)
+        write_bytes_atomically(out_dir / "report.md", self.markdown(pdf=pdf_name).encode("utf-8"))
         index = out_dir / "index.html"
-        write_bytes_atomically(index, self.html().encode("utf-8"))
+        write_bytes_atomically(index, self.html(pdf=pdf_name).encode("utf-8"))
         return index
+
+    def _printed(self) -> bytes | None:
+        """The page printed to PDF by Chromium from a temporary copy of the folder (the real one
+        is written at the end of the run), or None with ``pdf_problem`` saying why."""
+        import tempfile
+
+        from .pdf import print_to_pdf
+
+        with tempfile.TemporaryDirectory(prefix="tcr-print-") as tmp, unstaged():
+            folder = Path(tmp)
+            for item in self.items:  # the 3D views are not printed (see the print CSS)
+                if isinstance(item, _Figure):
+                    (folder / item.filename).write_bytes(item.png)
+            page = folder / "index.html"
+            page.write_text(self.html(pdf=self.PDF_NAME), encoding="utf-8")
+            pdf, self.pdf_problem = print_to_pdf(page)
+        return pdf
 
 
 _CSS = """
@@ -329,17 +403,62 @@ body { font-family: system-ui, -apple-system, "Segoe UI", Roboto, sans-serif; co
 h1 { font-size: 1.6em; margin-bottom: 0.2em; }
 h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ddd; padding-bottom: 0.2em; }
 .meta, .note, figcaption { color: #555; font-size: 0.9em; }
-table { border-collapse: collapse; margin: 0.6em 0; font-variant-numeric: tabular-nums; }
-th, td { border: 1px solid #ccc; padding: 4px 10px; text-align: right; }
+/* nothing wider than the page: tables shrink to it and break long words (paths, parameter
+   names) anywhere, printed text wraps its long lines */
+table { border-collapse: collapse; margin: 0.6em 0; font-variant-numeric: tabular-nums; max-width: 100%; }
+th, td { border: 1px solid #ccc; padding: 4px 10px; text-align: right; overflow-wrap: break-word; }
+span.long, .first-page table.facts td { overflow-wrap: anywhere; }
 th { background: #f0f2f5; }
 td:first-child, th:first-child { text-align: left; }
 tbody tr:nth-child(even) { background: #fafafa; }
 figure { margin: 1em 0; }
-img { max-width: 100%; border: 1px solid #e3e3e3; }
-iframe { width: 100%; border: 1px solid #ccc; }
-pre.command { background: #f5f5f5; padding: 8px 10px; overflow-x: auto; }
-pre.printed { background: #f7f7f7; border: 1px solid #e3e3e3; padding: 8px 10px; overflow-x: auto;
-  font-size: 0.82em; line-height: 1.3; white-space: pre; }
+img { max-width: 100%; box-sizing: border-box; border: 1px solid #e3e3e3; }
+iframe { width: 100%; box-sizing: border-box; border: 1px solid #ccc; }
+pre { max-width: 100%; box-sizing: border-box; white-space: pre-wrap; overflow-wrap: anywhere; }
+pre.command { background: #f5f5f5; padding: 8px 10px; }
+pre.printed { background: #f7f7f7; border: 1px solid #e3e3e3; padding: 8px 10px;
+  font-size: 0.82em; line-height: 1.3; }
+code { overflow-wrap: anywhere; }
+.print-only { display: none; }
+a { overflow-wrap: anywhere; }
+
+/* the calibration report's first page */
+.first-page { border: 1px solid #d0d4da; padding: 4px 22px 16px; margin-bottom: 2em; }
+.first-page h1 { margin-top: 0.5em; }
+.first-page h2 { font-size: 1.05em; margin-top: 1.1em; }
+.first-page table { width: 100%; }
+.first-page table.facts th { width: 16%; text-align: left; vertical-align: top; }
+.first-page table.facts td { text-align: left; }
+.first-page td.text, .first-page th.text { text-align: left; }
+.first-page ul { margin: 0.3em 0; padding-left: 1.3em; }
+.first-page .command { font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: 0.9em;
+  background: #f5f5f5; padding: 1px 4px; overflow-wrap: anywhere; }
+table.signatures { margin-top: 1em; }
+table.signatures th { width: 50%; text-align: left; }
+table.signatures td { height: 3.2em; text-align: left; vertical-align: bottom; color: #888; font-size: 0.85em; }
+
+@page { size: A4; margin: 11mm 12mm 12mm; }
+@media print {
+  body { max-width: none; margin: 0; padding: 0; font-size: 9pt; line-height: 1.3; }
+  .first-page { border: none; padding: 0; margin: 0; break-after: page; page-break-after: always;
+    font-size: 8.5pt; line-height: 1.25; }
+  .first-page h1 { font-size: 14pt; margin: 0 0 0.1em; }
+  .first-page h2 { font-size: 10pt; margin: 0.7em 0 0.2em; }
+  .first-page p, .first-page ul { margin: 0.25em 0; }
+  .first-page table { margin: 0.3em 0; }
+  .first-page th, .first-page td { padding: 1px 5px; }
+  .first-page p.note { font-size: 7.5pt; }
+  table.signatures td { height: 3em; }
+  th, td { padding: 2px 6px; }
+  table, figure, pre.command, .table, ul { break-inside: avoid; page-break-inside: avoid; }
+  h1, h2, h3 { break-after: avoid; page-break-after: avoid; }
+  pre.printed { font-size: 7pt; }
+  img { max-height: 200mm; }
+  figure.scene iframe, figure.scene figcaption { display: none; }
+  .print-only { display: block; }
+  a { color: inherit; text-decoration: none; }
+  tbody tr:nth-child(even) { background: none; }
+}
 """
 
 _PAGE = """<!DOCTYPE html>

@@ -3,7 +3,9 @@
 Robots are loaded by Pinocchio's ``MeshcatVisualizer`` from Pinocchio's visual
 ``GeometryModel`` of the URDF (:func:`visual_geometry`), attached to the joints of the
 robot's kinematic model, so an as-built robot (same joints, other placements) carries
-the same bodies. A URDF without ``<visual>`` elements is drawn as its kinematic skeleton.
+the same bodies. A URDF without ``<visual>`` elements is drawn as its kinematic skeleton, and
+so is, over the bodies that were found, a robot some of whose meshes are missing (a ROS
+package not given: :mod:`tcr_accuracy.model.ros_packages`).
 A painted robot (a colour or transparency of its own, e.g. an as-built "ghost") gets its
 meshes as plain meshcat geometry so that the colour shows. What else a view holds, and
 its legend, is :class:`tcr_accuracy.view.viewer.Scene`'s.
@@ -44,7 +46,7 @@ def visual_geometry(robot: RobotModel):
 
 
 def draw_robot(vis, robot: RobotModel, q: np.ndarray, node: str, color=None, opacity: float = 1.0, *,
-               include_base: bool = True) -> tuple[np.ndarray, bool]:
+               include_base: bool = True) -> tuple[np.ndarray, str | None]:
     """Draw the robot at joint values q under ``vis[node]``.
 
     Parameters
@@ -67,12 +69,15 @@ def draw_robot(vis, robot: RobotModel, q: np.ndarray, node: str, color=None, opa
     -------
     points : ndarray of shape (n_pinocchio_joints + 1, 3)
         The joint origins (Pinocchio's, the universe first) and the TCP [m], to frame the view.
-    skeleton : bool
-        Whether the URDF had no visuals and the skeleton was drawn instead.
+    skeleton : str or None
+        Why the kinematic skeleton was drawn (the URDF has no visuals, or meshes are
+        missing), for the legend; None when it was not.
     """
     geometry = visual_geometry(robot)
-    if geometry.ngeoms == 0:  # a URDF without <visual> elements: draw the kinematic skeleton
-        return _draw_skeleton(vis, robot, q, node, color, opacity), True
+    missing = robot.missing_meshes(("visual",))
+    if geometry.ngeoms == 0:  # no <visual> elements, or none whose mesh was found: the kinematic skeleton
+        why = "the URDF has no visuals" if not missing else _missing_links(missing)
+        return _draw_skeleton(vis, robot, q, node, color, opacity), why
     if not include_base:
         for obj in [o for o in geometry.geometryObjects if o.parentJoint == 0]:
             geometry.removeGeometryObject(obj.name)
@@ -89,8 +94,17 @@ def draw_robot(vis, robot: RobotModel, q: np.ndarray, node: str, color=None, opa
     viz.initViewer(viewer=vis)
     viz.loadViewerModel(rootNodeName=node)
     viz.display(robot.to_pinocchio_q(q))
+    if missing:  # the bodies found, and the skeleton where the others would be
+        return _draw_skeleton(vis, robot, q, node, color, opacity), _missing_links(missing)
     origins, tool = _joint_origins(robot, q)
-    return np.vstack([origins, tool[None]]), False
+    return np.vstack([origins, tool[None]]), None
+
+
+def _missing_links(missing) -> str:
+    """For the legend: the links whose meshes are missing (``MeshPlace`` records)."""
+    links = list(dict.fromkeys(place.link for place in missing))
+    shown = ", ".join(links[:5]) + (f" and {len(links) - 5} more" if len(links) > 5 else "")
+    return f"meshes missing for link{'s' if len(links) > 1 else ''} {shown}"
 
 
 def _joint_origins(robot: RobotModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -107,7 +121,8 @@ def _joint_origins(robot: RobotModel, q: np.ndarray) -> tuple[np.ndarray, np.nda
 
 def _draw_skeleton(vis, robot: RobotModel, q: np.ndarray, node: str, color, opacity: float) -> np.ndarray:
     """Joint origins as spheres joined by links (parent to child) and the TCP, for a URDF
-    that has no visuals (point-mass models such as calibration data sets ship).
+    that has no visuals (point-mass models such as calibration data sets ship) or whose meshes
+    are missing.
     Returns the (n_pinocchio_joints + 1, 3) points drawn [m]."""
     import meshcat.geometry as mg
     from meshcat.transformations import translation_matrix

@@ -167,7 +167,7 @@ class Scene:
         points, skeleton = draw_robot(self.vis, robot, q, _node(name), color, opacity, include_base=include_base)
         if framed:
             self._bounds.add(points)
-        what = " (skeleton: the URDF has no visuals)" if skeleton else ""
+        what = f" (skeleton: {skeleton})" if skeleton else ""
         suffix = f", {round(opacity * 100)} % opaque" if opacity < 1.0 else ""
         self.legend.append(LegendEntry(f"robot: {name}{what}{suffix}", tuple(color) if color is not None else None))
 

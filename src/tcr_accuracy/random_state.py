@@ -1,0 +1,76 @@
+"""One way to pass randomness: a ``random_state`` argument (scikit-learn's name, SPEC 7's values).
+
+Every public function and estimator that draws random numbers takes ``random_state``: an int
+(reproducible), a :class:`numpy.random.Generator` (drawn from, so a caller can thread one
+stream through several calls) or None (fresh entropy from the operating system).
+:func:`numpy.random.default_rng` turns any of them into a Generator; :func:`int_seed` gives
+the integer the code seeds child streams and scikit-learn's ``random_state`` with.
+
+Until release 0.2 the keywords these arguments had before (``seed``, ``rng``) still work and
+raise a :class:`DeprecationWarning` (:func:`renamed_keyword`).
+"""
+
+from __future__ import annotations
+
+import functools
+import warnings
+
+import numpy as np
+
+#: the release after which the old keywords are gone
+REMOVED_IN = "0.2"
+
+
+def int_seed(random_state) -> int:
+    """An int seed from an int (itself), a Generator (one draw from it) or None (fresh entropy).
+
+    Parameters
+    ----------
+    random_state : int, numpy.random.Generator or None
+        The caller's ``random_state``.
+
+    Returns
+    -------
+    int
+        A non-negative integer below 2**63.
+    """
+    if isinstance(random_state, (int, np.integer)) and not isinstance(random_state, bool):
+        return int(random_state)
+    if random_state is None:
+        return int(np.random.SeedSequence().generate_state(2, np.uint64)[0] >> np.uint64(1))
+    if isinstance(random_state, np.random.Generator):
+        return int(random_state.integers(2**63 - 1))
+    raise TypeError(f"random_state must be an int, a numpy.random.Generator or None, got {type(random_state).__name__}")
+
+
+def renamed_keyword(old: str, new: str):
+    """Decorator: the keyword ``old`` is still accepted for ``new``, with a DeprecationWarning.
+
+    Parameters
+    ----------
+    old : str
+        The keyword the function had before.
+    new : str
+        Its name now.
+
+    Returns
+    -------
+    callable
+        The decorator.
+    """
+    def decorate(function):
+        name = function.__qualname__.removesuffix(".__init__")  # a class is called by its name
+
+        @functools.wraps(function)
+        def wrapper(*args, **kwargs):
+            if old in kwargs:
+                if new in kwargs:
+                    raise TypeError(f"{name}() got both {old!r} (deprecated) and {new!r}")
+                warnings.warn(f"{name}({old}=...) is deprecated and will be removed in {REMOVED_IN}; "
+                              f"use {new}=...", DeprecationWarning, stacklevel=2)
+                kwargs[new] = kwargs.pop(old)
+            return function(*args, **kwargs)
+
+        return wrapper
+
+    return decorate

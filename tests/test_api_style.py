@@ -1,0 +1,260 @@
+"""One Python API style: scikit-learn's estimator conventions, ``random_state`` for every source
+of randomness, SI attributes, short reprs, and the printed summary reachable from Python.
+
+The diagnosis is run once on a small simulated data set (two effects, 60 rows) and shared.
+"""
+
+import re
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+from sklearn.base import clone
+
+import tcr_accuracy as tcr
+from tcr_accuracy.io.measurements import write_measurements
+from tcr_accuracy.prediction.methods import METHODS
+
+from conftest import REPO
+
+FRAMES = {"base_mm": {"dx": 1250.0, "dy": -830.0, "dz": -410.0}, "base_deg": {"rz": 35.0},
+          "tool_mm": {"dx": 0.8, "dy": -0.5, "dz": 1.2}}
+SCENARIO = {"effects": {"frames": FRAMES, "joint_offsets": {"offsets_deg": {"j2": 0.03, "j3": -0.02, "j5": 0.04}},
+                        "geometry": {"spread_mm": 0.05, "spread_mrad": 0.05}},
+            "noise_mm": 0.02}
+EFFECTS = ["joint_offsets", "geometry"]
+SETTINGS = {"effects": EFFECTS, "folds": 3, "stability_replays": 3, "tracker_noise": 2e-5}
+
+
+@pytest.fixture(scope="module")
+def measured(tool_changer):
+    mset, _ = tcr.simulate_measurements(tool_changer, SCENARIO, 60, random_state=3)
+    return mset
+
+
+@pytest.fixture(scope="module")
+def fitted(tool_changer, measured):
+    return tcr.GapDiagnosis(robot=tool_changer, random_state=0, **SETTINGS).fit(measured)
+
+
+def _constructor_examples(robot):
+    """Non-default constructor parameters of every estimator the package exports."""
+    return {
+        "GapDiagnosis": {"robot": robot, "effects": ["geometry"], "folds": 4, "random_state": 7,
+                         "tracker_noise": 3e-5, "stability_replays": 5},
+        "MeasuredErrorModel": {"robot": robot, "estimator": tcr.make_predictor("gp", robot, random_state=1),
+                               "fit_frame": False},
+    }
+
+
+def _exported_estimators():
+    return [name for name in tcr._EXPORTS
+            if isinstance(getattr(tcr, name), type) and hasattr(getattr(tcr, name), "get_params")]
+
+
+def _same(x, y) -> bool:
+    """Parameter values equal: estimators by class and their own parameters, robots by URDF,
+    lists and tuples (a Pipeline's steps) item by item."""
+    if hasattr(x, "get_params"):
+        return type(x) is type(y) and _same_params(x.get_params(deep=False), y.get_params(deep=False))
+    if isinstance(x, tcr.RobotModel):
+        return isinstance(y, tcr.RobotModel) and x.name == y.name and x.urdf_text == y.urdf_text
+    if isinstance(x, (list, tuple)):
+        return type(x) is type(y) and len(x) == len(y) and all(_same(a, b) for a, b in zip(x, y))
+    return bool(x == y)
+
+
+def _same_params(a: dict, b: dict) -> bool:
+    return a.keys() == b.keys() and all(_same(a[key], b[key]) for key in a)
+
+
+# ---------------------------------------------------------------------------------------
+# scikit-learn conventions
+# ---------------------------------------------------------------------------------------
+def test_the_exported_estimators_are_the_two_expected():
+    assert sorted(_exported_estimators()) == ["GapDiagnosis", "MeasuredErrorModel"]
+
+
+@pytest.mark.parametrize("name", ["GapDiagnosis", "MeasuredErrorModel"])
+def test_exported_estimators_store_parameters_unchanged_and_clone(name, tool_changer):
+    kwargs = _constructor_examples(tool_changer)[name]
+    estimator = getattr(tcr, name)(**kwargs)
+    for key, value in kwargs.items():
+        assert getattr(estimator, key) is value  # stored as given: no copy, no validation
+    copy = clone(estimator)
+    assert type(copy) is type(estimator) and copy is not estimator
+    assert _same_params(copy.get_params(deep=False), estimator.get_params(deep=False))
+    # round trip: a default-built estimator takes the parameters of the other through set_params
+    fresh = getattr(tcr, name)()
+    assert not _same_params(fresh.get_params(deep=False), estimator.get_params(deep=False))
+    fresh.set_params(**estimator.get_params(deep=False))
+    assert _same_params(fresh.get_params(deep=False), estimator.get_params(deep=False))
+    with pytest.raises(ValueError, match="Invalid parameter"):
+        fresh.set_params(not_a_parameter=1)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_every_predictor_of_make_predictor_clones_with_its_parameters(method, tool_changer):
+    estimator = tcr.make_predictor(method, tool_changer, random_state=5)
+    copy = clone(estimator)
+    assert type(copy) is type(estimator)
+    assert _same_params(copy.get_params(deep=False), estimator.get_params(deep=False))
+    params = estimator.get_params(deep=True)
+    seeds = [v for k, v in params.items() if k == "random_state" or k.endswith("__random_state")]
+    assert all(v == 5 for v in seeds), params  # every random part gets the caller's random_state
+    copy.set_params(**{k: v for k, v in params.items() if "__" not in k})
+    assert _same_params(copy.get_params(deep=False), estimator.get_params(deep=False))
+
+
+def test_fitting_a_clone_gives_the_same_numbers_and_random_state_matters(fitted, measured):
+    again = clone(fitted)
+    assert not hasattr(again, "result_")  # clone is unfitted
+    again.fit(measured)
+    a, b = fitted.result_, again.result_
+    np.testing.assert_array_equal(a.heldout_residual, b.heldout_residual)
+    assert a.parameters == b.parameters and a.selected_effects == b.selected_effects
+    # another random_state splits the folds differently: the held-out residual changes
+    other = clone(fitted).set_params(random_state=1).fit(measured).result_
+    assert not np.array_equal(other.heldout_residual, a.heldout_residual)
+    # a Generator is a random_state as good as an int
+    with_generator = clone(fitted).set_params(random_state=np.random.default_rng(2)).fit(measured)
+    assert with_generator.result_.n_measurements == len(measured)
+
+
+def test_measured_error_model_clone_predicts_the_same(tool_changer, measured):
+    model = tcr.MeasuredErrorModel(robot=tool_changer, estimator=tcr.make_predictor("kriging", tool_changer))
+    copy = clone(model)
+    model.fit(measured.q[:50], measured.position[:50])
+    copy.fit(measured.q[:50], measured.position[:50])
+    np.testing.assert_array_equal(model.predict(measured.q[50:]), copy.predict(measured.q[50:]))
+
+
+@pytest.mark.slow
+def test_local_gp_passes_the_scikit_learn_estimator_checks():
+    """The predictors that are array estimators (joint values in, errors out) pass
+    check_estimator: kriging, IDW, GP and the residual composition in test_prediction.py,
+    the local GP here. GapDiagnosis and MeasuredErrorModel are not array estimators (they
+    need one robot's joint values and the measurement context), so clone and
+    get_params/set_params are tested for them above instead."""
+    from sklearn.utils.estimator_checks import check_estimator
+
+    from tcr_accuracy.prediction.local_gp import LocalGaussianProcess
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # SkipTestWarning for the array-API check
+        results = check_estimator(LocalGaussianProcess(expert_size=30, max_optimize_samples=30, random_state=0),
+                                  on_fail=None)
+    bad = [(r["check_name"], str(r["exception"])[:200]) for r in results
+           if r["status"] != "passed" and r["check_name"] != "check_array_api_input"]
+    assert not bad
+    assert len(results) > 40
+
+
+# ---------------------------------------------------------------------------------------
+# random_state everywhere; the old keywords still work for one release
+# ---------------------------------------------------------------------------------------
+def test_old_random_keywords_warn_and_give_the_same_numbers(tool_changer):
+    budget = tcr.seed_budget(tool_changer, "table2")
+    new = tcr.run_monte_carlo(budget, tool_changer.working_pose, 300, random_state=4)
+    with pytest.warns(DeprecationWarning, match=r"run_monte_carlo\(rng=...\) is deprecated.*random_state"):
+        old = tcr.run_monte_carlo(budget, tool_changer.working_pose, 300, rng=4)
+    np.testing.assert_array_equal(new.cloud, old.cloud)
+    with pytest.warns(DeprecationWarning, match="sampler"):
+        tcr.run_monte_carlo(sampler=budget, q=tool_changer.working_pose, n_samples=10)
+    a, _ = tcr.simulate_measurements(tool_changer, SCENARIO, 5, random_state=np.random.default_rng(9))
+    with pytest.warns(DeprecationWarning, match="simulate_measurements"):
+        b, _ = tcr.simulate_measurements(tool_changer, SCENARIO, 5, rng=9)
+    np.testing.assert_array_equal(a.position, b.position)  # default_rng(9) is the stream of the int 9
+    with pytest.warns(DeprecationWarning, match="GapDiagnosis"):
+        assert tcr.GapDiagnosis(seed=3).random_state == 3
+    with pytest.raises(TypeError, match="both"):
+        tcr.run_monte_carlo(budget, tool_changer.working_pose, 10, random_state=1, rng=1)
+
+
+def test_old_fit_form_warns_and_fits_the_same(fitted, tool_changer, measured):
+    estimator = clone(fitted).set_params(robot=None)
+    with pytest.warns(DeprecationWarning, match=r"fit\(robot, measurements\)"):
+        estimator.fit(tool_changer, measured)
+    np.testing.assert_array_equal(estimator.result_.heldout_residual, fitted.result_.heldout_residual)
+
+
+# ---------------------------------------------------------------------------------------
+# SI attributes, context as a property
+# ---------------------------------------------------------------------------------------
+def test_diagnosis_attributes_are_si_and_the_mm_ones_say_so(fitted):
+    d = fitted.result_
+    norm = np.linalg.norm(d.gap_residual, axis=1)  # (N, 3) [m]
+    assert d.gap.rms == pytest.approx(np.sqrt(np.mean(norm**2)), rel=1e-12)
+    assert d.gap.rms < 1e-3  # metres: the gap of 0.05 mm geometry is far below 1 mm
+    for c, axis in enumerate("xyz"):  # where_mm holds the same residual in mm
+        assert d.where_mm["per_axis"][axis]["rms_mm"] == pytest.approx(
+            np.sqrt(np.mean(d.gap_residual[:, c] ** 2)) * 1e3, rel=1e-12)
+    held = np.linalg.norm(d.heldout_residual, axis=1)
+    assert d.steps[-1].heldout.rms == pytest.approx(np.sqrt(np.mean(held**2)), rel=1e-12)
+    assert d.noise_floor == pytest.approx(np.sqrt(3) * 2e-5)  # tracker_noise given in m
+    assert d.where is d.where_mm  # the old name, kept one release
+
+
+def test_measurement_context_is_a_property_like_payload(measured):
+    ctx = measured.context
+    np.testing.assert_array_equal(ctx.payload_kg, measured.payload_kg)
+    np.testing.assert_array_equal(ctx.temperature_c, measured.temperature_c)
+    assert measured.make_context(reference_temperature_c=30.0).payload_kg.shape == (len(measured),)
+
+
+# ---------------------------------------------------------------------------------------
+# Short reprs
+# ---------------------------------------------------------------------------------------
+def test_reprs_are_one_short_line_with_the_key_facts(tool_changer, ur5, measured, fitted):
+    budget = tcr.seed_budget(tool_changer, "table2")
+    mc = tcr.run_monte_carlo(budget, tool_changer.working_pose, 200, random_state=0,
+                             position_tolerances=[0.25e-3])
+    from tcr_accuracy.prediction.as_built_model import AsBuiltModel
+
+    as_built = AsBuiltModel.from_diagnosis(tool_changer, fitted.result_)
+    final_mm = f"{fitted.result_.steps[-1].heldout.rms * 1e3:.4g} mm"
+    cases = [
+        (tool_changer, ["'tool_changer'", "6 joints", "'tool'"]),
+        (ur5, ["'ur5'", "6 joints"]),
+        (measured, ["60 rows", "6 joints"]),
+        (tcr.ErrorModel(tool_changer), ["'tool_changer'", f"{tcr.ErrorModel(tool_changer).size} parameters"]),
+        (budget, ["'table2'", f"{len(budget.sources)} sources"]),
+        (mc, ["200 samples", f"{mc.position_reliability[0]:.4f}"]),
+        (fitted.result_, ["'tool_changer'", "60 measurements", "frames", final_mm]),
+        (as_built, ["'tool_changer'", "geometry"]),
+        (fitted, ["GapDiagnosis", "RobotModel('tool_changer'"]),
+        (tcr.MeasuredErrorModel(robot=tool_changer, estimator=tcr.make_predictor("diagnosis+gp", tool_changer)),
+         ["MeasuredErrorModel", "DiagnosisCalibration"]),
+    ]
+    for obj, facts in cases:
+        text = repr(obj)
+        assert "\n" not in text and len(text) < 300, text
+        for fact in facts:
+            assert fact in text, (fact, text)
+
+
+# ---------------------------------------------------------------------------------------
+# The printed summary from Python
+# ---------------------------------------------------------------------------------------
+def test_summary_is_what_the_command_line_prints(tmp_path, tool_changer, measured, fitted):
+    path = tmp_path / "measured.csv"
+    write_measurements(path, tool_changer, measured)
+    done = subprocess.run([sys.executable, "-m", "tcr_accuracy", "diagnose", str(path), "--folds", "3",
+                           "--seed", "0", "--effects", ",".join(EFFECTS), "--noise-mm", "0.02"],
+                          capture_output=True, text=True, cwd=REPO, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    reread = tcr.read_measurements(path, tool_changer)
+    d = tcr.diagnose(tool_changer, reread, folds=3, random_state=0, effects=EFFECTS, tracker_noise=0.02 * 1e-3)
+    text = d.summary()
+    assert text.startswith(f"Diagnosis of {path}: 60 measurements of tool_changer")
+    printed = done.stdout
+    # section by section (1. gap, 2. where, 3. which effect, 4. how far it shrinks)
+    sections = re.split(r"\n(?=\d\. )", text)
+    assert len(sections) == 5
+    for section in sections:
+        assert section in printed
+    gap_line = next(line for line in printed.splitlines() if line.startswith("1. Gap"))
+    printed_rms_mm = float(re.search(r"RMS ([0-9.]+) mm", gap_line).group(1))
+    assert d.gap.rms == pytest.approx(printed_rms_mm / 1000, abs=0.5e-7)  # printed to 4 decimals in mm
