@@ -205,3 +205,53 @@ def test_bad_query_and_training_files_are_one_line_exit_2_and_write_nothing(ur5,
         assert "Traceback" not in err and out == "" and not any(p.exists() for p in outputs)
     code, out, err = run(["compensate", "--robot", "ur5", "--train", train, "--targets", nan_query], capsys)
     assert code == 2 and out == "" and err.count("\n") == 1 and "non-finite value 'nan'" in err
+
+
+@pytest.fixture(scope="module")
+def reflector(ur5, tmp_path_factory):
+    """The robot of SCENARIO with the reflector 150 mm off the flange: the offset is where the
+    measured point sits, not an error of the robot."""
+    d = tmp_path_factory.mktemp("reflector")
+    scenario = json.loads(json.dumps(SCENARIO))
+    scenario["effects"]["frames"]["tool_mm"] = {"dx": 0.8, "dy": -0.5, "dz": 150.0}
+    rng = np.random.default_rng(7)
+    q_train = UR5_REF + rng.uniform(-0.3, 0.3, (120, 6))
+    q_query = UR5_REF + rng.uniform(-0.25, 0.25, (30, 6))
+    train, truth = simulate_measurements(ur5, scenario, 0, rng, noise_m=NOISE_M, q=q_train)
+    query, _ = simulate_measurements(ur5, truth_as_scenario(truth), 0, rng, noise_m=NOISE_M, q=q_query)
+    return {"dir": d, "q_query": q_query, "p_query": query.position,
+            "train": _write(d / "train.csv", ur5, q_train, train.position),
+            "query": _write(d / "query.csv", ur5, q_query, query.position)}
+
+
+def test_the_predict_headline_is_the_error_beyond_the_reflector_offset_not_the_offset(ur5, reflector, capsys):
+    d = reflector["dir"]
+    code, out, err = run(["predict", "--robot", "ur5", "--train", reflector["train"], "--query", reflector["query"],
+                          "--method", "gp", "--json", str(d / "p.json")], capsys)
+    assert code == 0, err
+    payload = json.loads((d / "p.json").read_text())
+    frame = payload["tracker_frame"]
+    assert frame["tool_offset_mm"][2] == pytest.approx(150.0, abs=1.0)
+    # independent: the measured point mapped into the base frame with the fitted frame, minus where
+    # the nominal robot carrying the fitted offset puts it, summed out here
+    rotation, translation = np.array(frame["rotation_matrix"]), np.array(frame["translation_mm"]) * 1e-3
+    pose = tcp_poses(ur5, reflector["q_query"])
+    point = pose.position + pose.rotation @ (np.array(frame["tool_offset_mm"]) * 1e-3)
+    measured = np.linalg.norm((reflector["p_query"] - translation) @ rotation - point, axis=1) * 1e3
+    assert measured.mean() < 3.0  # tenths of a millimetre, against a 150 mm offset
+    mean, peak = payload["predicted_error_mean_mm"], payload["predicted_error_max_mm"]
+    assert mean == pytest.approx(measured.mean(), abs=0.03) and peak < 3.0
+    assert (f"predicted |error| at 30 query poses: mean {mean:.4f} mm, max {peak:.4f} mm "
+            "(beyond the nominal robot with the fitted TCP offset") in out
+    # the per-pose CSV/JSON errors keep their documented sense: real minus nominal TCP, offset included
+    assert np.linalg.norm(payload["predicted_errors_mm"], axis=1).min() > 140.0
+
+
+def test_compensate_prints_what_it_leaves_before_the_models_own_miss(ur5, tracked, capsys):
+    code, out, err = run(["compensate", "--robot", "ur5", "--train", tracked["train"], "--targets", tracked["query"],
+                          "--method", "gp"], capsys)
+    assert code == 0, err
+    lines = out.splitlines()
+    realistic = next(i for i, line in enumerate(lines) if "about what compensation leaves" in line)
+    own = next(i for i, line in enumerate(lines) if "the model's own miss after compensation" in line)
+    assert realistic < own and "not a measurement" in lines[own]

@@ -231,8 +231,8 @@ def test_cli_predict_report_view_and_csv_agree_with_the_json(measured, tool_chan
     assert code == 0, err
     data = json.loads((d / "p.json").read_text())
     csv = np.loadtxt(d / "p.csv", delimiter=",", skiprows=1)
-    pred = np.array(data["predicted_errors_mm"])
-    np.testing.assert_allclose(csv[:, 6:9], pred, rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(csv[:, 6:9], data["predicted_errors_mm"], rtol=1e-8, atol=1e-12)
+    pred = np.array(data["predicted_robot_errors_mm"])  # the report's error: beyond the fitted TCP offset
     tables = _report_tables(d / "report" / "index.html")
     stats = {r[0]: [float(v) for v in r[1:]] for r in tables["Predicted error at the query poses"][1:]}
     norm = np.linalg.norm(pred, axis=1)
@@ -269,7 +269,7 @@ def test_cli_compensate_report_shows_before_and_after_of_the_json(measured, tool
             for r in tables["Predicted error at the targets, before and after compensation"][1:]}
     assert rows["uncompensated (target joints)"] == pytest.approx(
         [data["predicted_error_before_mean_mm"], data["predicted_error_before_max_mm"]], rel=1e-3)
-    assert rows["compensated"] == pytest.approx([data["predicted_miss_mean_mm"], data["predicted_miss_max_mm"]],
+    assert rows["compensated: the model's own miss"] == pytest.approx([data["predicted_miss_mean_mm"], data["predicted_miss_max_mm"]],
                                                 rel=1e-3)
     # independent check of "before": the uncompensated command's predicted error is the hidden
     # error of the real robot beyond the measured point (nominal TCP + the fitted TCP offset), to

@@ -403,8 +403,12 @@ def _scene(robot, d, measurements):
     extent = data_extent(measured)
     magnify = segment_magnification(float(gap.max()), extent)
     scene = Scene(f"{robot.name}: sim-to-real gap", frame="data")
-    q_show = robot.working_pose
-    scene.add_robot(robot, q_show, name="nominal robot")
+    # the robot reaching into the middle of its measurements stands among them, not beside them
+    shown = int(np.argmin(np.linalg.norm(measured - np.median(measured, axis=0), axis=1)))
+    q_show = d.q[shown]
+    row = int(measurements.rows[shown]) if len(getattr(measurements, "rows", ())) == len(d.q) else shown + 2
+    scene.add_robot(robot, q_show, name=f"nominal robot at measurement row {row}, the one nearest "
+                                        "the middle of the data")
     em = ErrorModel(robot)
     x = np.asarray(d.as_built_x, dtype=float)
     tool = np.zeros_like(x)
@@ -413,15 +417,17 @@ def _scene(robot, d, measurements):
     as_built = em.perturbed_robot(ghost * (x - tool) + tool)
     scene.add_robot(as_built, q_show, name=f"as-built robot, geometric errors x {ghost:g}, TCP offset x 1",
                     color=(0.85, 0.2, 0.2), opacity=0.35, include_base=False, framed=False)
-    scene.add_point_cloud(measured, gap * 1e3, name="measured", size_m=1.4 * point_size(extent),
-                          label="gap after the tracker frame |dP| [mm]")
+    scene.add_point_cloud(measured, gap * 1e3, name="measured", size_m=point_size(extent),
+                          label="measured points (tracker frame fitted, base frame), coloured by the gap after the "
+                                "tracker frame |dP| [mm]")
     scene.add_points(tcp_poses(robot, d.q).position, "nominal TCP", COLORS["nominal_tcp"],
-                     size_m=0.7 * point_size(extent), label="nominal TCP (URDF) at the measured joints")
-    scene.add_error_segments(measured, nominal_model, magnify=magnify, name="gap",
-                             start_label="measured (tracker frame fitted, base frame)",
+                     size_m=0.5 * point_size(extent), label="nominal TCP (URDF) at the measured joints")
+    scene.add_error_segments(measured, nominal_model, magnify=magnify, name="gap", start_color=None,
+                             size_m=0.6 * point_size(extent), start_label="measured point",
                              end_label="model with the tracker frame and TCP offset only")
     scene.add_frame(base_M_tracker, "tracker frame", length_m=frame_axis_length(measured),
                     label="tracker frame (fitted)")
+    scene.frame_central(np.vstack([measured, tcp_poses(robot, q_show).position]))
     scene.add_note(f"{d.n_measurements} measurements" + (f" of {d.frames_measured[0]}" if len(d.frames_measured) > 1
                                                         else "")
                    + f"; base frame of the robot; segments magnified x {magnify:g}, the as-built ghost's "

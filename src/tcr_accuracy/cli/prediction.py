@@ -29,6 +29,10 @@ from .output import RunOutput, add_output_arguments
 
 JSON_HELP = "write a JSON summary (mm, unit-suffixed keys) to FILE, or to stdout without FILE"
 
+#: What ``predict``'s headline, summary table and plot call the error (the JSON says it too).
+ERROR_DEFINITION = ("measured point minus where the nominal robot with the fitted TCP offset puts it, robot base "
+                    "frame (the offset itself, e.g. a reflector off the flange, is not counted)")
+
 #: most rows of the per-pose tables in the report (the CSV has them all)
 REPORT_ROWS = 50
 
@@ -282,8 +286,9 @@ def _median_index(values) -> int:
 def _run_predict(args) -> int:
     import numpy as np
 
-    from ..view.plots_prediction import plot_predicted_errors
+    from ..model.kinematics import tcp_poses
     from ..prediction.composed import uncertainty_kind
+    from ..view.plots_prediction import plot_predicted_errors
 
     robot, out = _start(args, "Error prediction")
     q_train, model = _fit(args, robot)
@@ -292,11 +297,16 @@ def _run_predict(args) -> int:
     scale = robot.display_scale
     pred, std = _predict(args, model, q, context)
     norm = np.linalg.norm(pred, axis=1)
+    # the error is where the measured point goes beyond where the nominal robot with the fitted
+    # TCP offset puts it; the offset itself (a reflector 150 mm off the flange) is no error
+    offset = model.registration_.tcp_positions(robot, q) - tcp_poses(robot, q).position
+    robot_error = pred - offset
+    robot_norm = np.linalg.norm(robot_error, axis=1)
     kind = uncertainty_kind(model) if std is not None else None
     stats = {
-        "mean": (norm.mean(), *np.abs(pred).mean(axis=0)),
-        "RMS": (np.sqrt(np.mean(norm ** 2)), *np.sqrt(np.mean(pred ** 2, axis=0))),
-        "max": (norm.max(), *np.abs(pred).max(axis=0)),
+        "mean": (robot_norm.mean(), *np.abs(robot_error).mean(axis=0)),
+        "RMS": (np.sqrt(np.mean(robot_norm ** 2)), *np.sqrt(np.mean(robot_error ** 2, axis=0))),
+        "max": (robot_norm.max(), *np.abs(robot_error).max(axis=0)),
     }
     heldout = residual = measured_error = None
     if measured is not None:
@@ -307,7 +317,10 @@ def _run_predict(args) -> int:
         "robot": robot.name, "method": args.method, "frame": args.frame,
         "n_train": int(q_train.shape[0]), "n_query": int(q.shape[0]),
         "tracker_frame": model.registration_.to_dict(),
-        "predicted_error_mean_mm": float(norm.mean() * 1e3), "predicted_error_max_mm": float(norm.max() * 1e3),
+        "error_definition": ERROR_DEFINITION,
+        "predicted_error_mean_mm": float(robot_norm.mean() * 1e3),
+        "predicted_error_max_mm": float(robot_norm.max() * 1e3),
+        "predicted_robot_errors_mm": (robot_error * 1e3).tolist(),
         "predicted_error_stats_mm": {k: dict(zip(("norm", "abs_ex", "abs_ey", "abs_ez"), (float(v * 1e3) for v in s)))
                                      for k, s in stats.items()},
         "predicted_errors_mm": (pred * 1e3).tolist(),
@@ -323,7 +336,7 @@ def _run_predict(args) -> int:
                        "(closed form, then the frames effect by least squares)")
     out.add_table("Predicted error at the query poses", ["statistic", "|e|", "|ex|", "|ey|", "|ez|"],
                   [(k, *(v * 1e3 for v in s)) for k, s in stats.items()], units=["", "mm", "mm", "mm", "mm"],
-                  note="error = real minus nominal TCP position, robot base frame")
+                  note=f"error = {ERROR_DEFINITION}")
     if heldout is not None:
         rows = [("mean", heldout["mean_mm"]), ("RMS", heldout["rms_mm"]), ("max", heldout["max_mm"]),
                 ("count", heldout["count"])]
@@ -344,24 +357,27 @@ def _run_predict(args) -> int:
         units += ["mm"]
     per_pose = []
     for i in range(shown):
-        row = [i + 2, *(q[i] * scale), *(pred[i] * 1e3), norm[i] * 1e3]
+        row = [i + 2, *(q[i] * scale), *(robot_error[i] * 1e3), robot_norm[i] * 1e3]
         if std is not None:
             row += list(std[i] * 1e3)
         if measured is not None:
             row.append(float(np.linalg.norm(residual[i]) * 1e3))
         per_pose.append(row)
     out.add_table("Predicted error per query pose", columns, per_pose, units=units,
-                  note=None if shown == len(q) else f"first {shown} of {len(q)} (all in --csv)")
-    out.add_plots(lambda folder: [plot_predicted_errors(pred, Path(folder) / "predicted_errors.png", std=std,
-                                                        measured=measured_error)],
-                  {"predicted_errors.png": "Predicted TCP error at each query pose (components and magnitude"
+                  note="error beyond the fitted TCP offset (the CSV's ex_mm ... are real minus nominal TCP, "
+                       "the offset included)" + ("" if shown == len(q) else f"; first {shown} of {len(q)} (all in --csv)"))
+    out.add_plots(lambda folder: [plot_predicted_errors(
+                      robot_error, Path(folder) / "predicted_errors.png", std=std,
+                      measured=None if measured is None else measured_error - offset)],
+                  {"predicted_errors.png": "Predicted error at each query pose beyond the fitted TCP offset "
+                                           "(components and magnitude"
                                            + (", +-2 standard deviations" if std is not None else "")
                                            + (", the measured error" if measured is not None else "")
                                            + ") and its distribution"
                                            + ("; the held-out miss, measured - predicted error, per pose"
                                               if measured is not None else "")})
     if out.scene_wanted:
-        out.set_scene(*_predict_scene(robot, q, pred, norm, args, model, measured))
+        out.set_scene(*_predict_scene(robot, q, pred, robot_norm, args, model, measured))
     header = _joint_columns(robot) + ["ex_mm", "ey_mm", "ez_mm", "e_norm_mm"]
     blocks = [q * scale, pred * 1e3, norm[:, None] * 1e3]
     if std is not None:
@@ -372,8 +388,9 @@ def _run_predict(args) -> int:
         blocks += [measured_error * 1e3, np.linalg.norm(residual, axis=1)[:, None] * 1e3]
     _write_csv_atomically(args, "predictions", header, np.hstack(blocks))
     lines = [_frame_line(model, args),
-             (f"predicted |error| at {q.shape[0]} query poses: mean {norm.mean() * 1e3:.4f} mm, "
-              f"max {norm.max() * 1e3:.4f} mm (robot base frame, TCP offset included)"),
+             (f"predicted |error| at {q.shape[0]} query poses: mean {robot_norm.mean() * 1e3:.4f} mm, "
+              f"max {robot_norm.max() * 1e3:.4f} mm (beyond the nominal robot with the fitted TCP offset, "
+              "robot base frame)"),
              (f"uncertainty ({kind}): mean std per axis {np.mean(std) * 1e3:.4f} mm" if std is not None
               else f"uncertainty: none ({args.method} gives no standard deviation)")]
     if heldout is not None:
@@ -479,11 +496,12 @@ def _run_compensate(args) -> int:
     after = result.predicted_miss[solved]
     iterations = result.iterations[solved]
     cycles, counts = np.unique(iterations, return_counts=True)
-    heldout = None
+    heldout = heldout_miss = None
     if measured is not None:
         # the targets were measured at their uncompensated commands: how well the predicted
         # error there matches the measured one is what compensation can hope to remove
-        _, _, heldout = _heldout(model, q, measured, context)
+        residual, _, heldout = _heldout(model, q, measured, context)
+        heldout_miss = np.linalg.norm(residual, axis=1)
         # measured against the target: the measured point of the model (its TCP offset included)
         measured_before = np.linalg.norm(model.registration_.to_base(measured) - target, axis=1)
         heldout["measured_error_before_mean_mm"] = float(measured_before.mean() * 1e3)
@@ -509,9 +527,12 @@ def _run_compensate(args) -> int:
                   note="p_tracker = R p_base + t, fitted with the TCP offset on the training data")
     out.add_table("Predicted error at the targets, before and after compensation", ["command", "mean", "max"],
                   [("uncompensated (target joints)", before.mean() * 1e3, before.max() * 1e3),
-                   ("compensated", after.mean() * 1e3, after.max() * 1e3)], units=["", "mm", "mm"],
+                   ("compensated: the model's own miss", after.mean() * 1e3, after.max() * 1e3)],
+                  units=["", "mm", "mm"],
                   note="|predicted real TCP - target|, robot base frame; the TCP is the measured point (nominal "
-                       "FK with the fitted TCP offset); predicted real TCP = its FK + the predicted error beyond it")
+                       "FK with the fitted TCP offset); predicted real TCP = its FK + the predicted error beyond it. The "
+                       "compensated row is the model's own miss (its prediction, not a measurement): what "
+                       "compensation really leaves is about the prediction's held-out error (measured targets)")
     if heldout is not None:
         out.add_table("Measured targets (held out)", ["statistic", "mean", "max"],
                       [("measured error, uncompensated", heldout["measured_error_before_mean_mm"],
@@ -529,8 +550,14 @@ def _run_compensate(args) -> int:
                       units=["", "", "", "mm"], note="not in --csv; the other targets' commands are")
     out.add_table("Joint corrections", ["joint", "largest |correction|", "unit"],
                   [(n, np.abs(dq[:, j]).max(), u) for j, (n, u) in enumerate(zip(robot.joint_names, units))])
-    out.add_plots(lambda folder: [plot_compensation(before, after, Path(folder) / "compensation.png")],
-                  {"compensation.png": "Predicted error at the targets before and after compensation"})
+    out.add_plots(lambda folder: [plot_compensation(before, after, Path(folder) / "compensation.png",
+                                                    heldout_miss=heldout_miss)],
+                  {"compensation.png": "Error at the targets before and after compensation"
+                                       + ("; what compensation is expected to leave (the prediction's held-out "
+                                          "miss at the measured targets) first, the model's own miss second"
+                                          if heldout_miss is not None else
+                                          "; after: the model's own miss (measure some targets for a realistic "
+                                          "figure)")})
     if out.scene_wanted:
         out.set_scene(*_compensate_scene(robot, q, q_comp, target, before_tcp, after_tcp, before, args, model,
                                          measured))
@@ -551,12 +578,14 @@ def _run_compensate(args) -> int:
     lines = [_frame_line(model, args),
              (f"{q.shape[0]} of {len(q_all)} targets compensated in at most {iterations.max()} cycles; largest joint "
               f"correction {np.abs(dq).max():.4g} ({', '.join(sorted(set(units)))})"),
-             (f"predicted error at the targets: mean {before.mean() * 1e3:.4f} mm, max {before.max() * 1e3:.4f} mm "
-              f"before; mean {after.mean() * 1e3:.2g} mm, max {after.max() * 1e3:.2g} mm after")]
-    if heldout is not None:
+             f"predicted error at the targets before compensation: mean {before.mean() * 1e3:.4f} mm, "
+             f"max {before.max() * 1e3:.4f} mm"]
+    if heldout is not None:  # the realistic figure first: what compensation is expected to leave
         lines.append(f"measured at the targets (held out): error {heldout['measured_error_before_mean_mm']:.4f} mm "
                      f"mean uncompensated; |measured - predicted error| mean {heldout['mean_mm']:.4f} mm, "
                      f"max {heldout['max_mm']:.4f} mm (about what compensation leaves)")
+    lines.append(f"the model's own miss after compensation (its prediction, not a measurement): mean "
+                 f"{after.mean() * 1e3:.2g} mm, max {after.max() * 1e3:.2g} mm")
     return out.finish(payload, lambda: _print(robot, args, q_train, *lines))
 
 
@@ -574,8 +603,7 @@ def _compensate_scene(robot, q, q_comp, target, before_tcp, after_tcp, before, a
                              start_label="target TCP", end_label="predicted real TCP, uncompensated command")
     scene.add_error_segments(target, after_tcp, magnify=magnify, name="after",
                              start_label="target TCP", end_label="predicted real TCP, compensated command",
-                             end_color=COLORS["trajectory"])
-    del scene.legend[-2]  # the targets' entry, already in the legend once
+                             start_color=None, end_color=COLORS["trajectory"])  # the targets are drawn once
     _draw_measurement_frame(scene, robot, q, model, measured, extent)
     scene.add_note(f"{len(q)} targets of {args.targets}; robot base frame; robot at target row {shown + 2} (median "
                    f"error before); segments magnified x {magnify:g}")

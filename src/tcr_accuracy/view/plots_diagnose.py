@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .plots_common import pyplot, save_figure
+from .plots_common import figure, legend_beside, pyplot, save_figure, shared_legend
 
 
 def _binned_means(values, residual, n_bins=8):
@@ -28,8 +28,8 @@ def _binned_means(values, residual, n_bins=8):
 
 
 def plot_steps(diagnosis, path: Path) -> Path:
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7, 3.6))
+    fig, axes = figure(1, 1, size=(8, 3.6))
+    ax = axes[0, 0]
     labels = [s.effect if i == 0 else f"+{s.effect}" for i, s in enumerate(diagnosis.steps)]
     rms = [s.heldout.rms * 1e3 for s in diagnosis.steps]
     mean = [s.heldout.mean * 1e3 for s in diagnosis.steps]
@@ -37,12 +37,11 @@ def plot_steps(diagnosis, path: Path) -> Path:
     ax.bar(x - 0.2, rms, 0.4, label="held-out RMS")
     ax.bar(x + 0.2, mean, 0.4, label="held-out mean")
     ax.axhline(diagnosis.noise_floor * 1e3, color="k", ls="--", lw=1, label="noise floor")
-    ax.set_xticks(x, labels, rotation=20)
+    ax.set_xticks(x, labels, rotation=20 if len(labels) > 6 else 0, ha="right" if len(labels) > 6 else "center")
     ax.set_ylabel("TCP position error [mm]")
     ax.set_yscale("log")
     ax.set_title("How far the gap shrinks (k-fold held-out)")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
+    legend_beside(ax)
     return save_figure(fig, path)
 
 
@@ -51,7 +50,7 @@ def plot_axes(diagnosis, path: Path) -> Path:
     (bottom row), each on its own scale: the final residual is often a hundred times
     narrower, and on a shared axis it would be a sliver."""
     plt = pyplot()
-    fig, axes = plt.subplots(2, 3, figsize=(9, 5.2))
+    fig, axes = figure(2, 3, size=(9.5, 5.6))
     rows = (("after fitting the tracker frame (frames)", diagnosis.gap_residual, "C0"),
             ("final model, held-out", diagnosis.heldout_residual, "C1"))
     per_axis_noise = diagnosis.noise_floor / np.sqrt(3.0) * 1e3
@@ -61,26 +60,24 @@ def plot_axes(diagnosis, path: Path) -> Path:
             values = residual[:, c] * 1e3
             ax.hist(values, bins=30, color=color, alpha=0.8)
             ax.set_xlabel(f"{'xyz'[c]} error [mm]")
-            ax.tick_params(labelsize=7)
+            ax.tick_params(labelsize=8)
             if r == 1:  # the noise per axis, for scale: +-1 std
                 for sign in (-1, 1):
                     ax.axvline(sign * per_axis_noise, color="k", ls="--", lw=0.8)
         axes[r][0].set_ylabel("measurements")
         axes[r][1].set_title(f"{label}: RMS {np.sqrt(np.mean(np.sum(residual ** 2, axis=1))) * 1e3:.4g} mm",
                              fontsize=9)
-    axes[1][2].legend(handles=[plt.Line2D([], [], color="k", ls="--", lw=0.8)],
-                      labels=[f"+-noise {per_axis_noise:.3g} mm"], fontsize=7)
+    shared_legend(fig, axes, [plt.Line2D([], [], color="k", ls="--", lw=0.8)],
+                  [f"+-noise per axis, {per_axis_noise:.3g} mm"])
     fig.suptitle("Residual per axis (each row on its own scale)")
-    fig.tight_layout()
     return save_figure(fig, path)
 
 
 def _versus(diagnosis, values, names, units, path: Path, title: str) -> Path:
-    plt = pyplot()
     n = values.shape[1]
     cols = min(3, n)
     rows = int(np.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
+    fig, axes = figure(rows, cols, size=(3.4 * cols, 2.7 * rows + 0.6))
     residual = diagnosis.gap_residual * 1e3
     for j in range(rows * cols):
         ax = axes[j // cols][j % cols]
@@ -88,17 +85,17 @@ def _versus(diagnosis, values, names, units, path: Path, title: str) -> Path:
             ax.axis("off")
             continue
         v = values[:, j]
-        ax.scatter(v, np.linalg.norm(residual, axis=1), s=3, c="0.7")
+        ax.scatter(v, np.linalg.norm(residual, axis=1), s=3, c="0.7", label="|e| of each measurement")
         centres, means = _binned_means(v, residual)
         for c in range(3):
             if centres.size:
-                ax.plot(centres, means[:, c], marker="o", ms=3, label="xyz"[c])
+                ax.plot(centres, means[:, c], marker="o", ms=3, label=f"binned mean of e{'xyz'[c]}")
         ax.set_xlabel(f"{names[j]} [{units[j]}]")
-        ax.tick_params(labelsize=7)
-    axes[0][0].set_ylabel("error [mm]")
-    axes[0][0].legend(fontsize=7, title="binned mean", title_fontsize=7)
+        ax.tick_params(labelsize=8)
+    for r in range(rows):
+        axes[r][0].set_ylabel("error [mm]")
+    shared_legend(fig, axes, *axes[0][0].get_legend_handles_labels())
     fig.suptitle(title)
-    fig.tight_layout()
     return save_figure(fig, path)
 
 
@@ -134,8 +131,8 @@ def plot_gravity(diagnosis, robot, path: Path) -> Path:
     if left_out:
         title += f" (no gravity torque on {', '.join(left_out)}: not shown)"
     if keep.size == 0:  # no joint carries any: one note instead of panels of noise
-        plt = pyplot()
-        fig, ax = plt.subplots(figsize=(6, 1.2))
+        fig, axes = figure(1, 1, size=(6, 1.2))
+        ax = axes[0, 0]
         ax.axis("off")
         ax.text(0.5, 0.5, "No joint carries a gravity torque at these poses.", ha="center", va="center")
         return save_figure(fig, path)
@@ -144,12 +141,11 @@ def plot_gravity(diagnosis, robot, path: Path) -> Path:
 
 
 def plot_semivariograms(diagnosis, robot, path: Path) -> Path:
-    plt = pyplot()
     semis = diagnosis.semivariograms
     n = len(semis)
     cols = min(3, n)
     rows = int(np.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
+    fig, axes = figure(rows, cols, size=(3.4 * cols, 2.7 * rows + 0.6))
     for j in range(rows * cols):
         ax = axes[j // cols][j % cols]
         if j >= n:
@@ -157,20 +153,22 @@ def plot_semivariograms(diagnosis, robot, path: Path) -> Path:
             continue
         s = semis[j]
         for c in range(3):
-            ax.plot(s.lags, s.semivariance[:, c], marker="o", ms=3, label="xyz"[c])
-        ax.axhline(1.0, color="k", lw=0.8, ls=":")
+            ax.plot(s.lags, s.semivariance[:, c], marker="o", ms=3, label=f"e{'xyz'[c]}")
+        ax.axhline(1.0, color="k", lw=0.8, ls=":", label="1: no structure")
         ax.set_xlabel(f"|d {robot.joint_names[j]}| (standardised)")
-        ax.tick_params(labelsize=7)
-    axes[0][0].set_ylabel("semivariance (standardised)")
-    axes[0][0].legend(fontsize=7)
+        ax.tick_params(labelsize=8)
+    for r in range(rows):
+        axes[r][0].set_ylabel("semivariance (standardised)")
+    shared_legend(fig, axes, *axes[0][0].get_legend_handles_labels())
     fig.suptitle("Per-joint semivariograms of the residual after frames (low at small lag = varies along it)")
-    fig.tight_layout()
     return save_figure(fig, path)
 
 
 def plot_regions(diagnosis, path: Path) -> Path:
-    """Workspace octants, radius and height bins, and the context columns that were measured."""
-    plt = pyplot()
+    """Workspace octants, radius and height bins, and the context columns that were measured.
+
+    Named categories (octants, joints) are horizontal bars, their names written level at a
+    readable size however long they are; the binned curves share one legend beside the panels."""
     where = diagnosis.where_mm
     panels = [("octants", None), ("radius", "radius [m]"), ("height", "height z [m]")]
     panels += [(k, label) for k, label in (("payload_kg", "payload [kg]"), ("temperature_c", "temperature [degC]"))
@@ -179,47 +177,54 @@ def plot_regions(diagnosis, path: Path) -> Path:
         panels.append(("approach_direction", None))
     cols = min(3, len(panels))
     rows = int(np.ceil(len(panels) / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(3.4 * cols, 2.9 * rows), squeeze=False)
+    fig, axes = figure(rows, cols, size=(3.6 * cols, 3.0 * rows + 0.6))
     flat = axes.ravel()
     for ax in flat[len(panels):]:
         ax.axis("off")
+    handles = None
     for ax, (key, label) in zip(flat, panels):
+        ax.tick_params(labelsize=8)
         if key == "octants":
             regions = where["octants"]["regions"]
-            ax.bar([r["region"] for r in regions], [r["rms_mm"] for r in regions])
-            ax.set_ylabel("RMS |e| [mm]")
-            ax.tick_params(axis="x", rotation=60, labelsize=6)
-            ax.set_title("octants around the median TCP", fontsize=8)
+            names = [r["region"] for r in regions]
+            ax.barh(np.arange(len(names)), [r["rms_mm"] for r in regions], color="tab:blue")
+            ax.set_yticks(np.arange(len(names)), names, fontsize=9, family="monospace")
+            ax.invert_yaxis()
+            ax.set_xlabel("RMS |e| [mm]")
+            ax.set_title("octants around the median TCP", fontsize=9)
         elif key == "approach_direction":
             info = where["approach_direction"]
-            ax.bar(list(info), [v["difference_norm_mm"] for v in info.values()])
-            ax.set_ylabel("|mean(+) - mean(-)| [mm]")
-            ax.set_title("approach direction", fontsize=8)
+            names = list(info)
+            ax.barh(np.arange(len(names)), [v["difference_norm_mm"] for v in info.values()], color="tab:blue")
+            ax.set_yticks(np.arange(len(names)), names, fontsize=8)
+            ax.invert_yaxis()
+            ax.set_xlabel("|mean(+) - mean(-)| [mm]")
+            ax.set_title("approach direction, per joint", fontsize=9)
         else:
             bins = where[key]["bins"]
-            centres = [0.5 * (b["low"] + b["high"]) for b in bins]
             if not bins:
                 continue
+            centres = [0.5 * (b["low"] + b["high"]) for b in bins]
             means = np.array([b["mean_mm"] for b in bins])
             for c in range(3):
-                ax.plot(centres, means[:, c], marker="o", ms=3, label="xyz"[c])
+                ax.plot(centres, means[:, c], marker="o", ms=3, label=f"binned mean of e{'xyz'[c]}")
             ax.set_xlabel(label)
             ax.set_ylabel("binned mean error [mm]")
-            ax.legend(fontsize=7)
+            handles = handles or ax.get_legend_handles_labels()
+    if handles:
+        shared_legend(fig, axes, *handles)
     fig.suptitle("Residual after frames over the workspace and the context")
-    fig.tight_layout()
     return save_figure(fig, path)
 
 
 def plot_joint_functions(diagnosis, effect: str, path: Path) -> Path:
     """Each joint's fitted function of its own angle (a cyclic error) over the measured range,
     with its 95 % band, one panel per joint, in microradians against degrees."""
-    plt = pyplot()
     joints = diagnosis.joint_function_bands[effect]
     n = len(joints)
     cols = 2 if n > 1 else 1
     rows = (n + cols - 1) // cols
-    fig, axes = plt.subplots(rows, cols, figsize=(9, 2.2 * rows + 0.6), squeeze=False)
+    fig, axes = figure(rows, cols, size=(9, 2.3 * rows + 0.9))
     for ax, (joint, band) in zip(axes.ravel(), joints.items()):
         angle = np.degrees(band["angle_rad"])
         value, spread = band["value_rad"] * 1e6, 1.96 * band["std_rad"] * 1e6
@@ -230,13 +235,12 @@ def plot_joint_functions(diagnosis, effect: str, path: Path) -> Path:
         ax.set_title(joint, fontsize=9)
         ax.set_xlabel("joint angle [deg]", fontsize=8)
         ax.set_ylabel("error [urad]", fontsize=8)
-        ax.tick_params(labelsize=7)
+        ax.tick_params(labelsize=8)
     for ax in axes.ravel()[n:]:
         ax.set_visible(False)
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="upper right", fontsize=8, ncol=2)
-    fig.suptitle(f"{effect}: each joint's fitted error against its own angle", fontsize=10, x=0.02, ha="left")
-    fig.tight_layout(rect=(0, 0, 1, 0.94))
+    shared_legend(fig, axes, handles, labels)
+    fig.suptitle(f"{effect}: each joint's fitted error against its own angle", fontsize=10)
     return save_figure(fig, path)
 
 

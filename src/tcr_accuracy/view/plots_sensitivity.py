@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .plots_common import pyplot, save_figure
+from .plots_common import figure, legend_beside, save_figure
 from ..analysis.sensitivity import OUTPUTS, SweepResult
 from ..analysis.sobol import SobolIndices
 from ..analysis.trajectory import TrajectoryErrorBands
@@ -33,8 +33,7 @@ def _scale(unit_or_output: str) -> float:
 
 def plot_sweep(result: SweepResult, outputs, title: str, xlabel: str, path: str | Path) -> Path:
     """One panel per output, one curve per source: TCP error against the swept value."""
-    plt = pyplot()
-    fig, axes = plt.subplots(2, 2, figsize=(10, 7.5))
+    fig, axes = figure(2, 2, size=(12, 7.5))
     xs = result.values * _scale(result.unit)
     for ax, name in zip(axes.ravel(), outputs):
         ys = result.output(name) * _scale(name)
@@ -45,17 +44,16 @@ def plot_sweep(result: SweepResult, outputs, title: str, xlabel: str, path: str 
         ax.set_xlabel(xlabel)
         ax.set_ylabel(_LABELS[name])
         ax.grid(True, alpha=0.3)
-    axes[0, 0].legend(fontsize=8)
+    for ax in axes[:, 1]:
+        legend_beside(ax)
     fig.suptitle(title)
-    fig.tight_layout()
     return save_figure(fig, path)
 
 
 def plot_sobol(indices: SobolIndices, path: str | Path, outputs=POSITION_OUTPUTS, top: int = 12) -> Path:
     """Bars of S1 and ST (with confidence intervals) for the most influential inputs."""
-    plt = pyplot()
     shown = [o for o in outputs if o in indices.outputs]
-    fig, axes = plt.subplots(len(shown), 1, figsize=(10, 2.6 * len(shown) + 0.8), squeeze=False)
+    fig, axes = figure(len(shown), 1, size=(11, 2.9 * len(shown) + 0.8))
     for ax, name in zip(axes[:, 0], shown):
         k = indices.outputs.index(name)
         order = indices.ranking(name)[:top]
@@ -69,18 +67,17 @@ def plot_sobol(indices: SobolIndices, path: str | Path, outputs=POSITION_OUTPUTS
         ax.set_ylabel(f"Sobol index of {name}")
         ax.set_ylim(-0.05, 1.05)
         ax.grid(True, axis="y", alpha=0.3)
-    axes[0, 0].legend(fontsize=8)
+    legend_beside(axes[0, 0])
     fig.suptitle(f"Sobol indices ({int(indices.conf_level * 100)} % intervals, N = {indices.n_base})")
-    fig.tight_layout()
     return save_figure(fig, path)
 
 
 def plot_trajectory_bands(bands: TrajectoryErrorBands, path: str | Path, title: str = "") -> Path:
     """dx, dy, dz against time: Monte Carlo mean, quantile band, +-2 first-order std."""
-    plt = pyplot()
     t = bands.trajectory.time
     lo, hi = bands.quantiles
-    fig, axes = plt.subplots(3, 1, figsize=(10, 8.5), sharex=True)
+    fig, axes = figure(3, 1, size=(11, 8.5), sharex=True)
+    axes = axes[:, 0]
     for c, (ax, name) in enumerate(zip(axes, ("dx", "dy", "dz"))):
         ax.fill_between(t, bands.lower[:, c] * 1e3, bands.upper[:, c] * 1e3, alpha=0.3,
                         label=f"Monte Carlo {lo * 100:g}-{hi * 100:g} % band")
@@ -90,31 +87,29 @@ def plot_trajectory_bands(bands: TrajectoryErrorBands, path: str | Path, title: 
                     label="mean +- 2 first-order std" if sign == 1 else None)
         ax.set_ylabel(f"{name} [mm]")
         ax.grid(True, alpha=0.3)
-    axes[0].legend(fontsize=8, loc="upper left")
+    legend_beside(axes[0])
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(title or f"TCP position error along the trajectory ({bands.n_samples} samples)")
-    fig.tight_layout()
     return save_figure(fig, path)
 
 
 def plot_trajectory_contributions(bands: TrajectoryErrorBands, path: str | Path, title: str = "",
                                   top: int = 6) -> Path:
     """First-order std of dx, dy, dz caused by each of the ``top`` largest sources, against time."""
-    plt = pyplot()
     t = bands.trajectory.time
     peak = bands.contributions.max(axis=(0, 2))
     shown = [k for k in np.argsort(-peak)[:top] if peak[k] > 0]
-    fig, axes = plt.subplots(3, 1, figsize=(10, 8.5), sharex=True)
+    fig, axes = figure(3, 1, size=(11, 8.5), sharex=True)
+    axes = axes[:, 0]
     for c, (ax, name) in enumerate(zip(axes, ("dx", "dy", "dz"))):
         for i, k in enumerate(shown):
             ax.plot(t, bands.contributions[:, k, c] * 1e3, linestyle=("-", "--", ":")[i % 3],
                     label=bands.source_names[k])
         ax.set_ylabel(f"std of {name} [mm]")
         ax.grid(True, alpha=0.3)
-    axes[0].legend(fontsize=8, loc="upper left")
+    legend_beside(axes[0])
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(title or "First-order contribution of each error source")
-    fig.tight_layout()
     return save_figure(fig, path)
 
 

@@ -47,6 +47,9 @@ COLORS = {
     "nominal_tcp": (1.0, 1.0, 1.0),
 }
 
+#: The ground grid's colour (RGB in 0..1).
+GRID_COLOR = (0.60, 0.60, 0.60)
+
 
 def _as_points(points, what: str) -> np.ndarray:
     points = np.asarray(points, dtype=float)
@@ -318,6 +321,9 @@ class Scene:
         magnify : float
             Each end is drawn at ``start + magnify * (end - start)``; the factor is
             written in the legend.
+        start_color, end_color : RGB triple in 0..1, or None
+            Colour of the points at the starts and at the ends; None draws none there
+            (another layer, e.g. a point cloud coloured by a value, marks them already).
         size_m : float, optional
             Size of the points at both ends [m] (default: :func:`point_size` of the start
             points' extent).
@@ -339,15 +345,20 @@ class Scene:
             mg.PointsGeometry(segments.T.astype(np.float32)),
             mg.LineBasicMaterial(color=meshcat_color(COLORS["segment"]))))
         for key, pts, rgb in (("start", start, start_color), ("end", drawn_end, end_color)):
+            if rgb is None:
+                continue
             colors = np.tile(np.asarray(rgb, dtype=np.float32)[:3, None], (1, len(pts)))
             node[key].set_object(mg.PointCloud(pts.T.astype(np.float32), colors, size=size_m))
         for pts in (start, drawn_end):
             self._bounds.add(pts)
             self._data_bounds.add(pts)
-        self.legend.append(LegendEntry(start_label, tuple(start_color)))
+        # every colour drawn gets a legend line, the segments' own included
+        for label, rgb in ((start_label, start_color), (end_label, end_color)):
+            if rgb is not None:
+                self.legend.append(LegendEntry(label, tuple(rgb)))
         self.legend.append(LegendEntry(
-            f"{end_label} (segments magnified x {magnify:g})" if magnify != 1.0 else end_label,
-            tuple(end_color)))
+            f"line to the {end_label}" + (f" (segments magnified x {magnify:g})" if magnify != 1.0 else ""),
+            COLORS["segment"]))
 
     def add_trajectory(self, points_m, name: str = "trajectory", color=COLORS["trajectory"]) -> None:
         """A polyline through (N, 3) points [m], in order."""
@@ -386,6 +397,16 @@ class Scene:
         target = np.asarray(target_m, dtype=float).reshape(3)
         position = np.asarray(position_m, dtype=float).reshape(3)
         self._camera = (target, position)
+
+    def frame_central(self, points_m, share: float = 0.8) -> None:
+        """Point the camera at the central ``share`` of the points (N, 3) [m] (per-axis quantiles):
+        a few far-out measurements then do not shrink the robot to a speck among them."""
+        points = _as_points(points_m, "frame_central")
+        lo, hi = np.quantile(points, [(1 - share) / 2, (1 + share) / 2], axis=0)
+        target = 0.5 * (lo + hi)
+        radius = max(0.5 * float(np.linalg.norm(hi - lo)), 0.05)
+        direction = np.array([1.0, -0.55, 0.45])
+        self.set_camera(target, target + 1.55 * radius * direction / np.linalg.norm(direction))
 
     def recorded_commands(self) -> list[dict]:
         """The meshcat commands of the scene as dicts (``type``, ``path``, ...), in replay order."""
@@ -432,13 +453,17 @@ class Scene:
         self.vis["/Axes"].set_property("visible", False)
         if self._grid:
             lo, hi, step = grid_extent(self._bounds.lo, self._bounds.hi, target)
+            self.legend.append(LegendEntry(f"ground grid: the base's z = 0 plane, {step * 1e3:.0f} mm squares",
+                                           GRID_COLOR))
             xs, ys = np.arange(lo[0], hi[0] + 1e-9, step), np.arange(lo[1], hi[1] + 1e-9, step)
             lines = [((x, ys[0], 0.0), (x, ys[-1], 0.0)) for x in xs]
             lines += [((xs[0], y, 0.0), (xs[-1], y, 0.0)) for y in ys]
             self.vis["ground_grid"].set_object(mg.LineSegments(
                 mg.PointsGeometry(np.array(lines, dtype=np.float32).reshape(-1, 3).T),
-                mg.LineBasicMaterial(color=0x9a9a9a)))
+                mg.LineBasicMaterial(color=meshcat_color(GRID_COLOR))))
         self.vis["base_axes"].set_object(mg.triad(self._axes_length()))
+        self.legend.append(LegendEntry(f"robot base frame: triad x/y/z = red/green/blue, "
+                                       f"{self._axes_length() * 1e3:.0f} mm long"))
         self.vis.set_transform(translation_matrix(-target))
         offset = position - target
         self.vis["/Cameras/default/rotated/<object>"].set_property(
