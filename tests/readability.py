@@ -23,7 +23,9 @@ def capture_figures(monkeypatch):
 
     def keep(fig, path, **kwargs):
         kept.append(fig)
-        fig.saved_path = original(fig, path, **kwargs)  # the PNG, for the white-space check
+        fig.saved_path = original(fig, path, **kwargs)
+        # measured now: a command's report folder is swapped in whole later, from another place
+        fig.saved_margins = white_margins(fig.saved_path)
         return fig.saved_path
 
     for module in _plot_modules():
@@ -193,7 +195,7 @@ def readability_problems(fig, *, min_pt: float = 7.0, max_margin_px: int = 20) -
     problems = overlapping_tick_labels(fig) + legends_over_data(fig) + small_texts(fig, min_pt)
     path = getattr(fig, "saved_path", None)
     if path is not None:
-        margins = white_margins(path)
+        margins = getattr(fig, "saved_margins", None) or white_margins(path)
         if max(margins) > max_margin_px:
             problems.append(f"{path}: white margins (left, right, top, bottom) {margins} px, more than "
                             f"{max_margin_px} px")

@@ -240,12 +240,12 @@ def test_cli_predict_report_view_and_csv_agree_with_the_json(measured, tool_chan
     assert stats["max"][0] == pytest.approx(norm.max(), rel=1e-3)
     assert stats["max"][3] == pytest.approx(np.abs(pred[:, 2]).max(), rel=1e-3)
     per_pose = tables["Predicted error per query pose"]
-    assert len(per_pose) == 1 + 8 and per_pose[0][-4:] == ["|e| [mm]", "std x [mm]", "std y [mm]", "std z [mm]"]
+    assert len(per_pose) == 1 + 8 and per_pose[0][-2:] == ["|e| [mm]", "std x / y / z [mm]"]
     std = np.array(data["predicted_std_mm"])
     np.testing.assert_allclose(csv[:, 10:13], std, rtol=1e-8, atol=1e-12)
     for row, p, s in zip(per_pose[1:], pred, std):
         assert [float(v) for v in row[7:10]] == pytest.approx(p, rel=1e-3, abs=1e-6)
-        assert [float(v) for v in row[-3:]] == pytest.approx(s, rel=1e-3, abs=1e-6)
+        assert [float(v) for v in row[-1].split(" / ")] == pytest.approx(s, rel=1e-3, abs=1e-6)
     assert data["uncertainty"] == "kriging standard deviation" and data["heldout"] is None
     predictor = dict(tables["Predictor"][1:])
     assert predictor["method"] == "kriging" and predictor["training poses"] == "60"

@@ -350,8 +350,8 @@ def _run_predict(args) -> int:
     columns = ["row", *_joint_columns(robot), "ex", "ey", "ez", "|e|"]
     units = ["", *[""] * robot.n_joints, "mm", "mm", "mm", "mm"]
     if std is not None:
-        columns += ["std x", "std y", "std z"]
-        units += ["mm", "mm", "mm"]
+        columns += ["std x / y / z"]  # one column: the per-pose table stays within the page
+        units += ["mm"]
     if measured is not None:
         columns += ["held-out miss"]
         units += ["mm"]
@@ -359,7 +359,7 @@ def _run_predict(args) -> int:
     for i in range(shown):
         row = [i + 2, *(q[i] * scale), *(robot_error[i] * 1e3), robot_norm[i] * 1e3]
         if std is not None:
-            row += list(std[i] * 1e3)
+            row.append(" / ".join(f"{v:.4g}" for v in std[i] * 1e3))
         if measured is not None:
             row.append(float(np.linalg.norm(residual[i]) * 1e3))
         per_pose.append(row)

@@ -28,18 +28,21 @@ def _binned_means(values, residual, n_bins=8):
 
 
 def plot_steps(diagnosis, path: Path) -> Path:
-    fig, axes = figure(1, 1, size=(8, 3.6))
-    ax = axes[0, 0]
+    """The ladder as horizontal bars, one step per row from the top: the effect names read
+    level however many steps there are (a real robot's ladder has seven or more)."""
     labels = [s.effect if i == 0 else f"+{s.effect}" for i, s in enumerate(diagnosis.steps)]
+    fig, axes = figure(1, 1, size=(8, 1.4 + 0.42 * len(labels)))
+    ax = axes[0, 0]
     rms = [s.heldout.rms * 1e3 for s in diagnosis.steps]
     mean = [s.heldout.mean * 1e3 for s in diagnosis.steps]
-    x = np.arange(len(labels))
-    ax.bar(x - 0.2, rms, 0.4, label="held-out RMS")
-    ax.bar(x + 0.2, mean, 0.4, label="held-out mean")
-    ax.axhline(diagnosis.noise_floor * 1e3, color="k", ls="--", lw=1, label="noise floor")
-    ax.set_xticks(x, labels, rotation=20 if len(labels) > 6 else 0, ha="right" if len(labels) > 6 else "center")
-    ax.set_ylabel("TCP position error [mm]")
-    ax.set_yscale("log")
+    y = np.arange(len(labels))
+    ax.barh(y - 0.2, rms, 0.4, label="held-out RMS")
+    ax.barh(y + 0.2, mean, 0.4, label="held-out mean")
+    ax.axvline(diagnosis.noise_floor * 1e3, color="k", ls="--", lw=1, label="noise floor")
+    ax.set_yticks(y, labels)
+    ax.invert_yaxis()  # the ladder reads from the top
+    ax.set_xlabel("TCP position error [mm]")
+    ax.set_xscale("log")
     ax.set_title("How far the gap shrinks (k-fold held-out)")
     legend_beside(ax)
     return save_figure(fig, path)

@@ -126,6 +126,10 @@ def _cell(value, float_format: str) -> str:
     return str(value)
 
 
+#: A table with more columns than this (a per-pose table: joints, errors, spreads) is set in a
+#: smaller type with narrower cell padding, so that it fits the page's width on screen and on A4.
+WIDE_TABLE_COLUMNS = 9
+
 #: A word longer than this [characters] (a path, a long name) may break anywhere in a table cell,
 #: so that the table fits the page; shorter ones and numbers stay whole.
 LONG_WORD = 24
@@ -288,7 +292,8 @@ class Report:
                 head = "".join(f"<th>{esc(c)}</th>" for c in item.columns)
                 rows = "".join("<tr>" + "".join(_td(v) for v in row) + "</tr>" for row in item.rows)
                 note = f'<p class="note">{esc(item.note)}</p>' if item.note else ""
-                body.append(f'<div class="table"><table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody>'
+                kind = "table wide" if len(item.columns) > WIDE_TABLE_COLUMNS else "table"
+                body.append(f'<div class="{kind}"><table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody>'
                             f"</table>{note}</div>")
             elif isinstance(item, _Links):
                 body.append(f"<h2>{esc(item.heading)}</h2>")
@@ -433,6 +438,8 @@ a { overflow-wrap: anywhere; }
 .first-page ul { margin: 0.3em 0; padding-left: 1.3em; }
 .first-page .command { font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: 0.9em;
   background: #f5f5f5; padding: 1px 4px; overflow-wrap: anywhere; }
+.table.wide table { font-size: 0.8em; }
+.table.wide th, .table.wide td { padding: 3px 5px; }
 table.signatures { margin-top: 1em; }
 table.signatures th { width: 50%; text-align: left; }
 table.signatures td { height: 3.2em; text-align: left; vertical-align: bottom; color: #888; font-size: 0.85em; }
@@ -450,6 +457,8 @@ table.signatures td { height: 3.2em; text-align: left; vertical-align: bottom; c
   .first-page p.note { font-size: 7.5pt; }
   table.signatures td { height: 3em; }
   th, td { padding: 2px 6px; }
+  .table.wide table { font-size: 7pt; }
+  .table.wide th, .table.wide td { padding: 1px 3px; }
   table, figure, pre.command, .table, ul { break-inside: avoid; page-break-inside: avoid; }
   h1, h2, h3 { break-after: avoid; page-break-after: avoid; }
   pre.printed { font-size: 7pt; }
