@@ -5,7 +5,8 @@
 
 Writes docs/img/viewer.png (the built-in tool-changer at the seed's working pose with a
 TCP error cloud of the seed's Table 2 errors), and docs/img/demo.png and docs/img/report.png:
-the index and the diagnosis report that ``tcr-accuracy demo`` writes. Needs Chromium
+the index and the diagnosis report that ``tcr-accuracy demo`` writes, and the demo's plots
+under docs/img/figures/. Needs Chromium
 (``apt-get install -y chromium``).
 """
 
@@ -76,6 +77,13 @@ def main() -> None:
             sys.exit(f"tcr-accuracy demo failed with exit code {code}")
         screenshot(work / "demo" / "index.html", args.out / "demo.png", 1000, 1100)
         screenshot(work / "demo" / "diagnosis" / "index.html", args.out / "report.png", 1000, 2600)
+        # the demo's plots as they are written, to look at without running it
+        figures = args.out / "figures"
+        figures.mkdir(exist_ok=True)
+        for part in ("accuracy", "diagnosis"):
+            for png in sorted((work / "demo" / part).glob("figure-*.png")):
+                shutil.copyfile(png, figures / f"demo-{part}-{png.name}")
+                print(f"wrote {figures / f'demo-{part}-{png.name}'}")
 
 
 if __name__ == "__main__":
