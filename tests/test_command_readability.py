@@ -12,6 +12,7 @@ For the real data sets (../shared/real, not part of this repository),
 from __future__ import annotations
 
 import pytest
+from matplotlib.pyplot import close as close_figure  # the real one: the capture makes pyplot's a no-op
 
 import readability as check
 from tcr_accuracy.cli import main
@@ -21,10 +22,12 @@ from conftest import REPO
 
 
 def _problems(figures) -> list[str]:
+    """Every figure's problems; each figure is closed once judged."""
     out = []
     for fig in figures:
         name = getattr(fig, "saved_path", "?")
         out += [f"{name}: {p}" for p in check.readability_problems(fig)]
+        close_figure(fig)
     return out
 
 
@@ -36,7 +39,8 @@ def test_every_figure_of_the_demo_report_reads(monkeypatch, tmp_path):
     with check.capture_figures(monkeypatch) as figures:
         _run(["demo", "--out", str(tmp_path / "demo"), "--samples", "4000"])
     assert len(figures) >= 6  # Monte Carlo and diagnosis plots, not an empty run
-    assert not _problems(figures), "\n".join(_problems(figures))
+    problems = _problems(figures)
+    assert not problems, "\n".join(problems)
 
 
 def test_every_figure_of_a_ur10_diagnosis_reads(monkeypatch, tmp_path):
@@ -52,7 +56,8 @@ def test_every_figure_of_a_ur10_diagnosis_reads(monkeypatch, tmp_path):
     with check.capture_figures(monkeypatch) as figures:
         _run(["diagnose", str(csv), "--robot", "ur10", "--out", str(tmp_path / "diag")])
     assert len(figures) >= 4
-    assert not _problems(figures), "\n".join(_problems(figures))
+    problems = _problems(figures)
+    assert not problems, "\n".join(problems)
 
 
 @pytest.fixture(scope="module")
@@ -71,7 +76,8 @@ def predict_report(tmp_path_factory):
 def test_every_figure_of_a_predict_and_a_compensate_report_reads(predict_report):
     _, figures = predict_report
     assert len(figures) >= 2  # predict's errors per pose, compensate's histogram
-    assert not _problems(figures), "\n".join(_problems(figures))
+    problems = _problems(figures)
+    assert not problems, "\n".join(problems)
 
 
 @pytest.mark.parametrize("report", ["predict", "compensate"])
