@@ -27,7 +27,7 @@ def add_parsers(sub) -> None:
         description="Find the largest cube (edges along the base axes) whose 8 corners and 5 ISO poses the robot "
                     "reaches at one TCP orientation, within its joint limits and free of self-collision (coal on "
                     "the URDF's collision geometry, where it has any), or take the cube given; P1 at its centre, "
-                    "P2..P5 on the diagonal plane at 10 %% of the diagonal from its corners. Writes the cycles "
+                    "P2..P5 on the diagonal plane at 10 % of the diagonal from its corners. Writes the cycles "
                     "(P5, P4, P3, P2, P1 each) as a measurement CSV without positions: joint columns, pose_id, "
                     "cycle, target_x_mm, target_y_mm, target_z_mm (commanded TCP, base frame).")
     add_robot_arguments(plan)

@@ -21,7 +21,7 @@ def add_parsers(sub) -> None:
         "report", help="a calibration report to sign from a campaign's JSON results (HTML, Markdown, PDF)",
         description="Gather the --json results of diagnose, iso9283 evaluate and compare of one robot into one "
                     "calibration report: a first page for the customer (robot, instrument, date, data, accuracy "
-                    "before and after, the effects found with their values, units, 95 %% intervals and physical "
+                    "before and after, the effects found with their values, units, 95 % intervals and physical "
                     "ranges, what remains, what to do next, lines to sign), the technical tables after it, and "
                     "links to the files. Writes DIR/index.html, DIR/report.md and, when headless Chromium is "
                     "installed, DIR/report.pdf (A4).")
