@@ -320,7 +320,11 @@ def test_other_commands_read_a_pose_test_file_and_ignore_its_labels(tmp_path):
 
 
 @pytest.mark.parametrize("edit, words", [
-    (lambda lines: [",".join(line.split(",")[:-2]) for line in lines], "no pose_id column"),
+    (lambda lines: [",".join(line.split(",")[:-2]) for line in lines[:1]]
+     + [",".join(line.split(",")[:-2]).replace("0.0,", f"{i}.5,", 1) for i, line in enumerate(lines[1:])],
+     "no pose_id column, and no two readings at the same joint values"),
+    (lambda lines: lines[:2] + [lines[2].replace(lines[2].split(",")[1], "%r" % (float(lines[2].split(",")[1]) + 0.1), 1)]
+     + lines[3:], "commanded with other joint values"),
     (lambda lines: lines[:-1] + [lines[-1].replace(",1,", ",7,", 1)], "row 21, column pose_id: pose 7 has 1 reading"),
     (lambda lines: lines[:3] + [lines[3].replace(lines[3].split(",")[6], "nan", 1)] + lines[4:],
      "row 4, column x_mm: non-finite"),
@@ -359,3 +363,56 @@ def test_model_compensation_shrinks_the_accuracy_figures(tmp_path, capsys):
         assert after["ap_mm"] == pytest.approx(without, abs=1e-6)
         assert after["rp_mm"] == pytest.approx(before["rp_mm"], abs=1e-9)
     assert "after compensation" in out
+
+
+def _evaluate_json(path, capsys, *extra):
+    code, out, err = run(["iso9283", "evaluate", str(path), "--frame", "base", "--json", "-", *extra], capsys)
+    assert code == 0, err
+    return json.loads(out)
+
+
+def test_without_pose_id_the_readings_are_grouped_by_their_joint_values(tmp_path, capsys):
+    """Real pose tests often come as a tracker export joined to a joint log, without labels: the
+    readings at the same joints are one pose, and every figure is the labelled file's."""
+    rows = _repeat_data(np.random.default_rng(11), counts=(6, 5, 4, 6, 5), orientation=False)
+    order = np.random.default_rng(1).permutation(len(rows))  # visits interleaved, not pose by pose
+    rows = [rows[i] for i in order]
+    _write(tmp_path / "labelled.csv", rows, orientation=False)
+    lines = (tmp_path / "labelled.csv").read_text().splitlines()
+    (tmp_path / "bare.csv").write_text("\n".join(",".join(line.split(",")[:-2]) for line in lines) + "\n")
+    labelled, bare = _evaluate_json(tmp_path / "labelled.csv", capsys), _evaluate_json(tmp_path / "bare.csv", capsys)
+    # the grouped ids are in order of first visit: map them through the first reading of each pose
+    first_visit = list(dict.fromkeys(pid for pid, *_ in rows))
+    by_label = {p["pose_id"]: p for p in labelled["poses"]}
+    assert len(bare["poses"]) == 5
+    for p in bare["poses"]:
+        twin = by_label[first_visit[p["pose_id"] - 1]]
+        assert p["n"] == twin["n"]
+        for key in ("ap_mm", "ap_x_mm", "ap_y_mm", "ap_z_mm", "rp_mm"):
+            assert p[key] == pytest.approx(twin[key], abs=1e-9)
+    code, out, err = run(["iso9283", "evaluate", str(tmp_path / "bare.csv"), "--frame", "base"], capsys)
+    assert "no pose_id column: the readings grouped by their joint values" in out and "into 5 poses" in out
+
+
+def test_encoder_scatter_of_the_joint_values_is_one_pose_and_said(tmp_path, capsys):
+    """Joint values logged from the encoders scatter by a few counts about the commanded ones:
+    still one pose (commanded joints = their mean), the figures move by what that mean moves
+    the TCP (micrometres), and a note says so; a pose whose joints differ by 0.1 deg is refused."""
+    rows = _repeat_data(np.random.default_rng(12), counts=(5,) * 5, orientation=False)
+    _write(tmp_path / "clean.csv", rows, orientation=False)
+    rng = np.random.default_rng(3)
+    lines = (tmp_path / "clean.csv").read_text().splitlines()
+    noisy = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        for j in (0, 1, 2, 4, 5):  # the revolute joints, in deg: +-0.001 deg (17 urad)
+            cells[j] = repr(float(cells[j]) + rng.uniform(-1e-3, 1e-3))
+        noisy.append(",".join(cells))
+    (tmp_path / "noisy.csv").write_text("\n".join(noisy) + "\n")
+    clean, scattered = _evaluate_json(tmp_path / "clean.csv", capsys), _evaluate_json(tmp_path / "noisy.csv", capsys)
+    for a, b in zip(clean["poses"], scattered["poses"]):
+        assert a["pose_id"] == b["pose_id"] and a["n"] == b["n"]
+        assert abs(a["ap_mm"] - b["ap_mm"]) < 0.05  # 17 urad at under 2.5 m of reach
+        assert a["rp_mm"] == pytest.approx(b["rp_mm"], abs=1e-12)  # RP does not depend on the commanded pose
+    code, out, err = run(["iso9283", "evaluate", str(tmp_path / "noisy.csv"), "--frame", "base"], capsys)
+    assert "scatter by up to" in out and "taken as their mean" in out

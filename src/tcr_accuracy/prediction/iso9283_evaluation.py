@@ -45,6 +45,10 @@ from .registration import Registration, register_tracker
 
 #: Joint values of the readings of one pose may differ by this much [rad, m] (CSV rounding).
 SAME_POSE_TOL = 1e-6
+#: Readings whose joint values all agree within this [rad or m] visit one pose: joint values
+#: logged from the encoders scatter by a few counts (~1e-5 rad) about the commanded ones, and
+#: the five ISO poses lie tenths of a radian apart.
+POSE_GROUP_TOL = 1e-3
 #: A target column farther than this from the nominal TCP at the pose's joints warns [m].
 TARGET_TOL = 1e-5
 
@@ -80,19 +84,44 @@ class IsoEvaluation:
 
 @dataclass(frozen=True)
 class PoseLabels:
-    """``pose_id``, ``cycle`` (or None) and ``approach`` (or None), (N,) integer arrays."""
+    """``pose_id``, ``cycle`` (or None) and ``approach`` (or None), (N,) integer arrays;
+    ``grouped``: the pose ids were read off the joint values (no ``pose_id`` column)."""
 
     pose_id: np.ndarray
     cycle: np.ndarray | None
     approach: np.ndarray | None
+    grouped: bool = False
+
+
+def group_by_joints(q: np.ndarray, tol: float = POSE_GROUP_TOL) -> np.ndarray:
+    """Pose ids 1, 2, ... (in order of first visit) of readings q (N, n_joints) [rad, m]: a
+    reading belongs to the first pose whose first reading it matches within ``tol`` on every
+    joint. Hand-written: a clustering by distance threshold (scipy's fcluster) would chain
+    nearby readings of different poses together; the first-visit rule cannot."""
+    firsts: list[np.ndarray] = []
+    out = np.empty(len(q), dtype=int)
+    for i, row in enumerate(q):
+        for k, first in enumerate(firsts):
+            if np.abs(row - first).max() <= tol:
+                out[i] = k + 1
+                break
+        else:
+            firsts.append(row)
+            out[i] = len(firsts)
+    return out
 
 
 def pose_labels(mset: MeasurementSet) -> PoseLabels:
     """The pose test's labels of each reading, checked (InputError naming file, row, column)."""
     labels = mset.annotations or {}
-    if "pose_id" not in labels:
-        raise InputError(f"{mset.source}: no pose_id column; a pose test labels each reading with the pose it "
-                         "visits (tcr-accuracy iso9283 plan writes it)")
+    grouped = "pose_id" not in labels
+    if grouped:
+        pose_id = group_by_joints(mset.q)
+        if pose_id.max() == len(mset):
+            raise InputError(f"{mset.source}: no pose_id column, and no two readings at the same joint values "
+                             f"(within {POSE_GROUP_TOL:g} rad or m): a pose test measures each pose several times "
+                             "(tcr-accuracy iso9283 plan writes the poses with their pose_id)")
+        labels = {**labels, "pose_id": pose_id.astype(float)}
 
     def integers(name):
         if name not in labels:
@@ -104,25 +133,26 @@ def pose_labels(mset: MeasurementSet) -> PoseLabels:
                              "an integer")
         return values.astype(int)
 
-    out = PoseLabels(integers("pose_id"), integers("cycle"), integers("approach"))
+    out = PoseLabels(integers("pose_id"), integers("cycle"), integers("approach"), grouped)
     check_repeats(out.pose_id, mset.rows, mset.source)
     return out
 
 
 def pose_joints(mset: MeasurementSet, pose_id: np.ndarray) -> dict:
-    """pose id -> its commanded joints (n_joints,); InputError when a pose's readings differ."""
+    """pose id -> its commanded joints (n_joints,): the mean of its readings' joint values, which
+    may scatter by up to POSE_GROUP_TOL (encoder readings); InputError when they differ more."""
     out = {}
     for pid in np.unique(pose_id):
         rows = np.flatnonzero(pose_id == pid)
         q = mset.q[rows]
-        far = np.abs(q - q[0]).max(axis=1) > SAME_POSE_TOL
+        far = np.abs(q - q[0]).max(axis=1) > POSE_GROUP_TOL
         if far.any():
             r = rows[np.argmax(far)]
             j = int(np.argmax(np.abs(mset.q[r] - q[0])))
             raise InputError(f"{mset.source}: row {mset.rows[r]}, column {mset.joint_names[j]}: pose {pid} is "
                              f"commanded with other joint values than in row {mset.rows[rows[0]]}; one pose_id "
                              "is one commanded pose")
-        out[int(pid)] = q[0]
+        out[int(pid)] = q.mean(axis=0)
     return out
 
 
@@ -188,6 +218,14 @@ def evaluate_measurements(robot: RobotModel, mset: MeasurementSet, *, frame: str
         deviations, offset = _orientation_deviations(mset.quaternion, nominal.rotation[row_pose], registration)
     figures = iso_figures(labels.pose_id, positions, commanded[row_pose], deviations=deviations,
                           cycle=labels.cycle, approach=labels.approach)
+    if labels.grouped:
+        figures.notes.insert(0, f"no pose_id column: the readings grouped by their joint values (within "
+                                f"{POSE_GROUP_TOL:g} rad or m) into {len(ids)} poses, numbered in order of first "
+                                "visit")
+    spread = max(float(np.abs(mset.q[row_pose == k] - q_poses[k]).max()) for k in range(len(ids)))
+    if spread > SAME_POSE_TOL:
+        figures.notes.append(f"the joint values of one pose scatter by up to {spread:.2g} rad or m (encoder "
+                             "readings?): each pose's commanded joints taken as their mean")
     return IsoEvaluation(figures=figures, frame=frame, registration=registration, how=how,
                          orientation_offset=offset, n_readings=len(mset), pose_q=joints)
 
