@@ -91,3 +91,15 @@ def tool_changer_tcp_by_hand(q, link_errors=None, drive_errors=None):
             motion[:3, 3] = np.asarray(axis) * value
         out = out @ placement @ motion
     return out
+
+
+def write_measurement_csv(path, robot, q, positions=None):
+    """A measurement CSV (joint columns in display units, x_mm, y_mm, z_mm when positions
+    (N, 3) [m] are given) of joint values q (N, n_joints) [rad, m]; returns the path as str."""
+    cols = [f"{n}_{u}" for n, u in zip(robot.joint_names, robot.display_units)]
+    lines = [",".join(cols + (["x_mm", "y_mm", "z_mm"] if positions is not None else []))]
+    for i in range(len(q)):
+        vals = list(q[i] * robot.display_scale) + ([] if positions is None else list(positions[i] * 1e3))
+        lines.append(",".join(f"{v:.10g}" for v in vals))
+    path.write_text("\n".join(lines) + "\n")
+    return str(path)

@@ -12,6 +12,7 @@ from tcr_accuracy.model.kinematics import tcp_poses
 from tcr_accuracy.analysis.scenario import truth_as_scenario
 from tcr_accuracy.analysis.simulate import simulate_measurements
 from conftest import run_command as run
+from conftest import write_measurement_csv as _write
 
 UR5_REF = np.array([0.3, -1.2, 1.5, -1.9, -1.57, 0.4])
 NOISE_M = 2e-5
@@ -28,14 +29,6 @@ SCENARIO = {
 }
 
 
-def _write(path, robot, q, positions=None):
-    cols = [f"{n}_{u}" for n, u in zip(robot.joint_names, robot.display_units)]
-    lines = [",".join(cols + (["x_mm", "y_mm", "z_mm"] if positions is not None else []))]
-    for i in range(len(q)):
-        vals = list(q[i] * robot.display_scale) + ([] if positions is None else list(positions[i] * 1e3))
-        lines.append(",".join(f"{v:.10g}" for v in vals))
-    path.write_text("\n".join(lines) + "\n")
-    return str(path)
 
 
 @pytest.fixture(scope="module")

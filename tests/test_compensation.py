@@ -12,6 +12,7 @@ from tcr_accuracy.prediction.kriging import JointKriging
 from tcr_accuracy.analysis.stand_in import make_stand_in_robot
 from tcr_accuracy.analysis.sampling import TaskWorkspace, sample_task_workspace
 from conftest import run_command as run
+from conftest import write_measurement_csv as _write
 
 UR5_REF = np.array([0.3, -1.2, 1.5, -1.9, -1.57, 0.4])
 TC_REF = np.array([np.radians(15), np.radians(30), np.radians(-10), 0.2, np.radians(20), 0.0])
@@ -100,14 +101,6 @@ def test_targets_out_of_reach_are_flagged_not_hidden(ur5):
 # ---------------------------------------------------------------------------------------
 # command line
 # ---------------------------------------------------------------------------------------
-def _write(path, robot, q, positions=None):
-    cols = [f"{n}_{u}" for n, u in zip(robot.joint_names, robot.display_units)]
-    lines = [",".join(cols + (["x_mm", "y_mm", "z_mm"] if positions is not None else []))]
-    for i in range(len(q)):
-        vals = list(q[i] * robot.display_scale) + ([] if positions is None else list(positions[i] * 1e3))
-        lines.append(",".join(f"{v:.10g}" for v in vals))
-    path.write_text("\n".join(lines) + "\n")
-    return str(path)
 
 
 @pytest.fixture(scope="module")

@@ -7,6 +7,8 @@ import json
 import numpy as np
 import pytest
 
+from conftest import write_measurement_csv as _write
+
 from tcr_accuracy.analysis.scenario import truth_as_scenario
 from tcr_accuracy.analysis.simulate import simulate_measurements
 from tcr_accuracy.cli import main
@@ -24,14 +26,6 @@ SCENARIO = {"effects": {
                                       "wrist_1_joint": 0.03}}}}
 
 
-def _write(path, robot, q, positions=None):
-    cols = [f"{n}_{u}" for n, u in zip(robot.joint_names, robot.display_units)]
-    lines = [",".join(cols + (["x_mm", "y_mm", "z_mm"] if positions is not None else []))]
-    for i in range(len(q)):
-        vals = list(q[i] * robot.display_scale) + ([] if positions is None else list(positions[i] * 1e3))
-        lines.append(",".join(f"{v:.10g}" for v in vals))
-    path.write_text("\n".join(lines) + "\n")
-    return str(path)
 
 
 @pytest.fixture(scope="module")
