@@ -34,7 +34,7 @@ print(f"{len(measured.q)} measurements, hidden effects: {', '.join(truth['effect
 
 # %% Diagnosis: which effects explain the gap, judged on held-out measurements. A scikit-learn
 # estimator (get_params, clone); tcr.diagnose(robot, measured) is the same in one call, and
-# print(diagnosis.summary()) prints what `tcr-accuracy diagnose` does
+# print(tcr.diagnosis_summary(diagnosis)) prints what `tcr-accuracy diagnose` does
 diagnosis = tcr.GapDiagnosis(robot=robot, folds=5, random_state=0).fit(measured).result_
 final = diagnosis.steps[-1]
 print(f"primary effect: {diagnosis.primary_effect}; selected: {', '.join(diagnosis.selected_effects)}")

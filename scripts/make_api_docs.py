@@ -29,8 +29,9 @@ SECTIONS = ("Parameters", "Attributes", "Returns", "Yields", "Raises", "Warns", 
 
 #: the layer each exported module belongs to, in the order the page lists them
 LAYER_TITLES = {"model": "Robot, error model, kinematics", "io": "Measurements", "effects": "Effects",
-                "analysis": "Monte Carlo and simulation", "diagnosis": "Diagnosis",
-                "prediction": "Prediction and compensation", "view": "Viewer"}
+                "frames": "Measurement frames", "analysis": "Monte Carlo and simulation", "diagnosis": "Diagnosis",
+                "prediction": "Prediction and compensation", "asbuilt": "As-built model and export",
+                "iso9283": "ISO 9283", "view": "Reports and viewer"}
 
 
 def split_sections(doc: str) -> tuple[str, dict[str, str]]:

@@ -13,9 +13,8 @@ import pinocchio as pin
 import pytest
 
 from tcr_accuracy.diagnosis.diagnose import GapDiagnosis
-from tcr_accuracy.diagnosis.result import Observations
+from tcr_accuracy.io.measurements import MeasurementSet
 from tcr_accuracy.effects import make_effect, vocabulary
-from tcr_accuracy.model.context import MeasurementContext
 from tcr_accuracy.model.robot import load_robot
 
 from conftest import random_joint_values
@@ -47,8 +46,7 @@ def _cyclic_ur10(seed: int = 1, n: int = 800):
         pin.framesForwardKinematics(model, data, robot.to_pinocchio_q(row))
         position[i] = data.oMf[frame].act(REFLECTOR)
     position += NOISE * rng.standard_normal((n, 3))
-    context = MeasurementContext(np.zeros(n), np.full(n, 20.0), np.zeros((n, 6)))
-    return robot, q, Observations(q, position, context, ()), truth
+    return robot, q, MeasurementSet(joint_names=list(robot.joint_names), q=q, position=position), truth
 
 
 @pytest.mark.slow

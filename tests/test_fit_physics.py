@@ -15,9 +15,8 @@ from scipy.optimize import lsq_linear
 
 from tcr_accuracy.diagnosis.diagnose import GapDiagnosis
 from tcr_accuracy.diagnosis.fitting import FitEngine, box_quadratic
-from tcr_accuracy.diagnosis.result import Observations
+from tcr_accuracy.io.measurements import MeasurementSet
 from tcr_accuracy.effects import effect_classes, make_effect
-from tcr_accuracy.model.context import MeasurementContext
 from tcr_accuracy.model.robot import load_robot, robot_from_urdf_text
 
 from conftest import random_joint_values
@@ -45,10 +44,9 @@ def _gravity(robot, q: np.ndarray) -> np.ndarray:
                      for config in robot.full_configurations(q)])
 
 
-def _observations(q, position, direction=None) -> Observations:
-    n, k = q.shape
-    ctx = MeasurementContext(np.zeros(n), np.full(n, 20.0), np.zeros((n, k)) if direction is None else direction)
-    return Observations(q, position, ctx, ("direction",) if direction is not None else ())
+def _observations(q, position, direction=None) -> MeasurementSet:
+    return MeasurementSet(joint_names=[f"j{k}" for k in range(q.shape[1])], q=q, position=position,
+                          direction=direction)
 
 
 # ---------------------------------------------------------------------------------------
@@ -270,7 +268,7 @@ def test_scatter_is_named_only_when_the_joints_cannot_predict_it():
     """A leftover 3 x the instrument's noise: a smooth function of two joints (structure a
     joint-space predictor takes out of sample) is not called scatter; independent draws of
     the same size are."""
-    from tcr_accuracy.diagnosis.residuals import NoiseEstimate
+    from tcr_accuracy.frames.noise import NoiseEstimate
     from tcr_accuracy.diagnosis.structure import StructureDetector, name_scatter, scatter_test
 
     rng = np.random.default_rng(4)

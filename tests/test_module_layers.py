@@ -22,7 +22,8 @@ SRC = str(PACKAGE.parent)
 
 #: Layers, bottom first (the README's Architecture section); a module may import from its own
 #: layer and those before it.
-LAYERS = ["base", "model", "io", "effects", "analysis", "diagnosis", "prediction", "view", "cli"]
+LAYERS = ["base", "model", "io", "effects", "frames", "analysis", "diagnosis", "prediction", "asbuilt", "iso9283", "view",
+          "cli"]
 BASE = {"tcr_accuracy", "tcr_accuracy.units", "tcr_accuracy.exceptions", "tcr_accuracy.atomic",
         "tcr_accuracy.random_state"}
 

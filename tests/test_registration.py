@@ -6,7 +6,7 @@ import pytest
 
 from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.model.kinematics import tcp_poses
-from tcr_accuracy.prediction.registration import register_tracker, rigid_fit
+from tcr_accuracy.frames.registration import register_tracker, rigid_fit
 from tcr_accuracy.analysis.simulate import simulate_measurements
 
 #: a tracker 1.2 m away, turned 40 deg about z and tilted a few degrees, with a 30 mm

@@ -32,9 +32,9 @@ _EXPORTS = {
     "random_scenario": "analysis.simulate", "load_scenario": "analysis.scenario",
     "diagnose": "diagnosis.diagnose", "GapDiagnosis": "diagnosis.diagnose",
     "make_predictor": "prediction.methods", "MeasuredErrorModel": "prediction.composed",
-    "compensate_joints": "prediction.compensation", "register_tracker": "prediction.registration",
+    "compensate_joints": "prediction.compensation", "register_tracker": "frames.registration",
     "load_as_built": "prediction.as_built_model", "AsBuiltModel": "prediction.as_built_model",
-    "Scene": "view.viewer",
+    "Scene": "view.viewer", "diagnosis_summary": "view.diagnosis_summary",
 }
 
 __all__ = ["__version__", *_EXPORTS]

@@ -14,7 +14,7 @@ from pathlib import Path
 from .common import (add_robot_arguments, as_built_file, check_csv_memory, effect_names, effects_side_file, integer,
                      noise_mm_value, output_file, seed_value, status)
 from .output import RunOutput, add_output_arguments
-from ..diagnosis.summary import format_summary, primary_effect_text as _primary_text, \
+from ..view.diagnosis_summary import format_summary, primary_effect_text as _primary_text, \
     strongest_links as _strongest, structure_verdict_text as _verdict_text
 
 

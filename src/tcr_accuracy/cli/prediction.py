@@ -4,7 +4,7 @@ joint commands that correct it (the second seed).
 Input: measurement CSVs in the shared format (:mod:`tcr_accuracy.io.measurements`): joint
 columns ``<joint>_deg|_rad|_mm|_m`` and, for training data, the measured TCP position
 ``x_mm, y_mm, z_mm`` (or ``_m``) in the tracker's own frame. The tracker frame and the
-TCP offset are fitted on the training data first (:mod:`tcr_accuracy.prediction.registration`;
+TCP offset are fitted on the training data first (:mod:`tcr_accuracy.frames.registration`;
 ``--frame base`` when the positions are in the robot's base frame already); the error,
 real minus nominal TCP position, is then taken in the base frame. A query (or target)
 file that also carries measured positions is mapped with the training data's frame and

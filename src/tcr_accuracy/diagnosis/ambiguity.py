@@ -26,7 +26,7 @@ import numpy as np
 
 from ..effects import effect_class
 from .fitting import FitEngine, ordered, paired_z, row_squares
-from .result import ErrorStats
+from .records import ErrorStats
 
 
 def swap_alternatives(engine: FitEngine, current: list, pool, selection_z: float) -> dict:

@@ -36,22 +36,21 @@ def contributions(part, bases, chosen, full_parameters, nominal) -> dict:
     return contribution
 
 
-def fixed_point_check(part, bases, full_parameters, noise_floor, notes) -> dict:
+def fixed_point_check(part, bases, full_parameters, noise_floor) -> tuple[float, float, str | None]:
     """The fitted model is first order in its joint deflections (gravity at the commanded
-    pose): how much one fixed-point step (gravity at the deflected pose) would move the TCP,
-    against the noise floor; a note when it is more than a quarter of it."""
+    pose): how much one fixed-point step (gravity at the deflected pose) would move the TCP
+    [m], RMS and max, and a note when the RMS is more than a quarter of the noise floor [m]."""
     effects = [bases[e].per_part[0].effect for e in full_parameters]  # with the options they were fitted with
     motion = fixed_point_motion(part.robot, effects, list(full_parameters.values()), part.q, part.context)
     rms = float(np.sqrt(np.mean(np.sum(motion**2, axis=1))))
-    out = {"fixed_point_step_rms_mm": rms * 1e3, "fixed_point_step_max_mm": float(
-        np.max(np.linalg.norm(motion, axis=1))) * 1e3, "over_noise_floor": rms / noise_floor if noise_floor else None,
-        "within_range": bool(rms <= 0.25 * noise_floor)}
-    if not out["within_range"]:
-        notes.append(f"the fitted joint deflections are large enough that first order is not enough: evaluated at "
-                     f"the deflected joints (gravity where the arm sags to, gear errors where the joint really is) "
-                     f"they move the TCP by {rms * 1e3:.4g} mm RMS more, {rms / noise_floor:.2g} x the noise floor; "
-                     "what is left, and any effect chosen late for it, may partly be that")
-    return out
+    largest = float(np.max(np.linalg.norm(motion, axis=1)))
+    note = None
+    if not rms <= 0.25 * noise_floor:
+        note = (f"the fitted joint deflections are large enough that first order is not enough: evaluated at "
+                f"the deflected joints (gravity where the arm sags to, gear errors where the joint really is) "
+                f"they move the TCP by {rms * 1e3:.4g} mm RMS more, {rms / noise_floor:.2g} x the noise floor; "
+                "what is left, and any effect chosen late for it, may partly be that")
+    return rms, largest, note
 
 
 def tied_own_shares(engine, current: list, leave_one_out: list, selection_z: float) -> list:

@@ -26,7 +26,7 @@ from ..effects import make_effect, predict_positions, prediction_jacobian
 from ..exceptions import InputError
 from ..model.context import MeasurementContext
 from ..model.robot import RobotModel
-from .fitting import register
+from ..frames.rigid import rigid_fit
 
 #: Keys a diagnosis' JSON carries that a comparison reads.
 REQUIRED_KEYS = ("robot", "parameters", "parameter_std", "parameter_units", "selected_effects")
@@ -293,7 +293,7 @@ def on_common_basis(robot: RobotModel, fit: FittedModel, common: set, q: np.ndar
 
 def rigidly_aligned_difference(reference: np.ndarray, moved: np.ndarray) -> np.ndarray:
     """(N,) [m] |moved - reference| after the best rigid motion of ``moved`` onto ``reference``."""
-    rot, trans = register(moved, reference)
+    rot, trans = rigid_fit(moved, reference)
     return np.linalg.norm(moved @ rot.T + trans - reference, axis=1)
 
 

@@ -47,37 +47,26 @@ suffixed keys. Nothing here prints or plots.
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import warnings
 
 import numpy as np
-import pinocchio as pin
-from scipy.spatial.transform import Rotation
 from sklearn.base import BaseEstimator
 
-from ..model.context import CONTEXT_FIELDS, MeasurementContext
-from .result import Diagnosis, ErrorStats, Observations, Step, observations_from
-from ..effects import effect_class, make_effect, vocabulary
-from ..model.errors import ErrorModel
+from ..effects import vocabulary
 from ..exceptions import AnalysisError, InputError
-from .fitting import EffectBasis, FitEngine, Part, UnionBasis, ordered, paired_z, position_jacobians, register, stacked
-from ..model.gravity import gravity_torque
-from ..model.kinematics import tcp_poses
-from .ambiguity import ambiguity_report, settle_swaps, stand_in_shapes, swap_alternatives
-from .residuals import NoiseEstimate, noise_from_repeats, noise_from_residual, noise_from_rigid_frames, \
-    tracker_drift, where_analysis
-from .uncertainty import difference_interval, joint_function_bands, outside_physics, parameter_table, \
-    selection_frequency
-from .attribution import contributions, fixed_point_check, tied_own_shares
-from .structure import StructureDetector, name_scatter, scatter_beyond_noise, smallest_detectable_structure, \
-    smooth_shape, structure_verdict
+from ..io.measurements import MeasurementSet
+from ..model.context import MeasurementContext
 from ..model.robot import RobotModel
 from ..random_state import int_seed, renamed_keyword
-
-#: Noise figure [m per axis] the identifiability test resolves down to a tenth of when the
-#: instrument's is not known (a good laser tracker): pruning stays rank-based.
-RESOLUTION_NOISE = 2e-5
+from .fitting import ordered, paired_z
+from .records import ErrorStats, Step
+from .result import Diagnosis, DiagnosisStages
+from .stages.attribute import attribute_effects, first_order_reach
+from .stages.candidates import build_candidates
+from .stages.parameters import collect_parameters
+from .stages.register import MeasuredFrame, register_measurements
+from .stages.residual import analyse_residual
+from .stages.select import select_effects
 
 
 # ---------------------------------------------------------------------------------------
@@ -96,7 +85,7 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, r
     ----------
     robot : RobotModel
         The nominal model (of the measured frame).
-    measurements : MeasurementSet, Observations, or list of (RobotModel, MeasurementSet)
+    measurements : MeasurementSet, or list of (RobotModel, MeasurementSet)
         q (N, n_joints) [rad, m], position (N, 3) [m] in the tracker frame, context. A
         list measures several frames on the same rows (each with the robot whose TCP it
         is; ``robot`` is then the first one's): their shared parameters are fitted once.
@@ -131,7 +120,7 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, r
     Returns
     -------
     Diagnosis
-        Everything found, SI units; ``print(result.summary())`` prints what the command line does.
+        Everything found, SI units; ``print(tcr_accuracy.diagnosis_summary(result))`` prints what the command line does.
 
     Examples
     --------
@@ -196,7 +185,7 @@ class GapDiagnosis(BaseEstimator):
     Attributes
     ----------
     result_ : Diagnosis
-        Everything found (SI units); ``result_.summary()`` is the printed summary.
+        Everything found (SI units); ``tcr_accuracy.diagnosis_summary(result_)`` is the printed summary.
     robot_ : RobotModel
         The robot the diagnosis ran on.
     selected_effects_ : list of str
@@ -249,19 +238,21 @@ class GapDiagnosis(BaseEstimator):
         return tags
 
     # -- inputs ------------------------------------------------------------------------
-    def _check(self, robot, measurements) -> list[tuple[RobotModel, Observations, str]]:
+    def _check(self, robot, measurements) -> list[MeasuredFrame]:
         if isinstance(measurements, (list, tuple)):
-            frames = [(r, observations_from(m), r.tool_frame) for r, m in measurements]
+            frames = [MeasuredFrame(r, _measurement_set(m), r.tool_frame) for r, m in measurements]
         else:
-            frames = [(robot, observations_from(measurements), robot.tool_frame)]
+            frames = [MeasuredFrame(robot, _measurement_set(measurements), robot.tool_frame)]
         if self.folds < 2:
             raise InputError(f"--folds {self.folds}: need at least 2")
-        n = len(frames[0][1])
-        for r, obs, label in frames:
-            if obs.q.ndim != 2 or obs.q.shape[1] != r.n_joints:
-                raise InputError(f"measurements have {obs.q.shape[-1]} joint columns, {r.name} has {r.n_joints}")
-            if len(obs) != n:
-                raise InputError(f"measured frame {label}: {len(obs)} rows, the first frame has {n}")
+        n = len(frames[0].measurements)
+        for f in frames:
+            q = f.measurements.q
+            if q.ndim != 2 or q.shape[1] != f.robot.n_joints:
+                raise InputError(f"measurements have {q.shape[-1]} joint columns, {f.robot.name} has "
+                                 f"{f.robot.n_joints}")
+            if len(f.measurements) != n:
+                raise InputError(f"measured frame {f.label}: {len(f.measurements)} rows, the first frame has {n}")
         if n < max(3 * self.folds, 12):
             raise InputError(f"{n} measurements are too few to diagnose with {self.folds}-fold cross-validation "
                              f"(need at least {max(3 * self.folds, 12)})")
@@ -279,7 +270,7 @@ class GapDiagnosis(BaseEstimator):
 
         Parameters
         ----------
-        measurements : MeasurementSet, Observations, or list of (RobotModel, MeasurementSet)
+        measurements : MeasurementSet, or list of (RobotModel, MeasurementSet)
             The measured rows (see :func:`diagnose`).
         y : None
             Not used: the measured positions are in ``measurements`` (scikit-learn's
@@ -306,283 +297,41 @@ class GapDiagnosis(BaseEstimator):
             return self._fit(robot, measurements, progress, list(references))
 
     def _fit(self, robot, measurements, progress, references) -> "GapDiagnosis":
-        from sklearn.model_selection import KFold
-
+        """The stages of :mod:`tcr_accuracy.diagnosis.stages`, in order."""
         frames = self._check(robot, measurements)
-        robot, obs = frames[0][0], frames[0][1]
-        n = len(obs)
         say = progress or (lambda message: None)
         seed = int_seed(self.random_state)
-        rng = np.random.default_rng(seed)
+        rng = np.random.default_rng(seed)  # one stream, drawn in stage order: folds, structure test, residual
         names = [e for e in vocabulary() if self.effects is None or e in self.effects or e == "frames"]
-        notes: list = []
-        measured = set().union(*(set(o.measured) for _, o, _ in frames))
-
-        # 1. register the tracker frame (each session's own), then work in the robot's base frame
         say("registering the tracker frame")
-        nominal = [tcp_poses(r, o.q) for r, o, _ in frames]
-        sessions = list(obs.session_labels) if len(obs.session_labels) > 1 else []
-        session_of = obs.context.session if sessions else np.zeros(n, dtype=int)
-        # base references: the tracker's drift per session, taken out of every measured position
-        drift, drift_report, reference_noise = tracker_drift(references, session_of, max(len(sessions), 1), sessions)
-        if references:
-            frames = [(r, dataclasses.replace(o, position=o.position - drift), label) for r, o, label in frames]
-            references = [(f, nominal_ref, measured - drift, t) for f, nominal_ref, measured, t in references]
-            obs = frames[0][1]
-        stations = []
-        for s in range(max(len(sessions), 1)):
-            rows_s = np.flatnonzero(session_of == s)
-            if sessions and rows_s.size < 3:
-                raise InputError(f"session {sessions[s]}: {rows_s.size} measurements, a session's tracker frame "
-                                 "needs at least 3")
-            # the references' fixed places pin the frame with the moving points
-            fixed = [np.asarray(nominal_ref, dtype=float)[None] for _, nominal_ref, _, _ in references]
-            seen = [measured[rows_s].mean(axis=0)[None] for _, _, measured, _ in references]
-            stations.append(register(np.concatenate([p.position[rows_s] for p in nominal] + fixed),
-                                     np.concatenate([o.position[rows_s] for _, o, _ in frames] + seen)))
-        rot, trans = stations[0]
-        weight = self.orientation_weight
-        if weight is None:
-            points = np.concatenate([o.position for _, o, _ in frames])
-            weight = float(np.sqrt(np.mean(np.sum((points - points.mean(axis=0)) ** 2, axis=1))))
-        parts = []
-        for (r, o, label) in frames:
-            target_rotation = None
-            if o.quaternion is not None:
-                w, x, y, z = o.quaternion.T
-                tracker_rotation = Rotation.from_quat(np.stack([x, y, z, w], axis=1)).as_matrix()
-                station_rotation = np.stack([stations[s][0] for s in session_of])
-                target_rotation = np.einsum("nji,njk->nik", station_rotation, tracker_rotation)  # R^T R_tracker
-            in_base = np.empty_like(o.position)
-            for s, (rot_s, trans_s) in enumerate(stations):
-                rows_s = session_of == s
-                in_base[rows_s] = (o.position[rows_s] - trans_s) @ rot_s
-            parts.append(Part(r, o.q, in_base, o.context, label, target_rotation, weight))
-        if any(p.target_rotation is not None for p in parts):
-            notes.append(f"measured orientation enters the fit: rotation errors [rad] weighted by {weight:.4g} m/rad "
-                         "(an angle counts as the position error it makes at the measured points' RMS spread "
-                         "about their centre)")
-        tau = gravity_torque(robot, obs.q, obs.context.payload_kg, outside_q=obs.context.outside_q)
-
-        # effects as linear maps, and which can be tried at all
+        registered = register_measurements(frames, references, self.orientation_weight)
         say("building effect models")
-        # an effect of last resort is built only if it is tried (its maps are the largest: tens of MB per 10^4 poses)
-        late_names = [e for e in names if effect_class(e).last_resort]
-        bases, candidates, stochastic = self._bases(parts, [e for e in names if e not in late_names], measured,
-                                                    notes, sessions)
-        if "frames" not in bases:
-            raise AnalysisError("the frames effect could not be built")
-        order = ordered(bases)
-        # a TCP offset of centimetres changes which directions duplicate one another:
-        # linearise about the frames-only fit, not the nominal model
-        pre = FitEngine(parts, {"frames": bases["frames"]}, [], rank_tol=0.0)
-        frames_cols = pre.columns(["frames"])
-        phi, _ = pre.fit(frames_cols, np.arange(n))
-        linearised = []  # per part, the error Jacobians at the frames-only fit
-        for p, part in enumerate(parts):
-            basis, _, idx = frames_cols.per_part[p]
-            # the sessions' base twists differ a little after their own registrations: their mean
-            x_frames = basis.errors(phi[idx] * frames_cols.scale[idx]).mean(axis=0)
-            linearised.append(position_jacobians(part.robot, part.q, x_frames,
-                                                 weight if part.target_rotation is not None else None))
-        _relinearise(bases, linearised)
-        kfold = KFold(n_splits=self.folds, shuffle=True, random_state=int(rng.integers(2**31 - 1)))
-        split = [(np.asarray(a), np.asarray(b)) for a, b in kfold.split(np.arange(n))]
-        # the instrument's noise from the data's own redundancy: reflectors on one rigid body, else repeated poses
-        repeats = None
-        if self.tracker_noise is None:
-            repeats = noise_from_rigid_frames([p.position for p in nominal], [o.position for _, o, _ in frames],
-                                              [label for _, _, label in frames]) or reference_noise or \
-                noise_from_repeats(obs.q, obs.position, _context_table(obs))
-        resolution = self.tracker_noise or (repeats.per_axis if repeats else RESOLUTION_NOISE)
-        engine = FitEngine(parts, bases, split, self.rank_tol, min_motion=0.1 * resolution)
-        _, ident_all = engine.identify(order)
-        testable = []
-        for name in order:
-            if name != "frames" and engine.identify(("frames", name))[0][name].size == 0:
-                candidates[name] = {"tried": False, "why": "no identifiable parameter on these data (beyond frames)"}
-            elif name != "frames":
-                testable.append(name)
-
-        # 2. gap after frames; 3. forward selection, backward elimination
+        candidates = build_candidates(registered, names, folds=self.folds, rank_tol=self.rank_tol,
+                                      tracker_noise=self.tracker_noise, rng=rng)
         say("fitting frames")
-        result = engine.evaluate(["frames"])
-        gap_residual = result["train_residual"]
-        steps = [Step("frames", ("frames",), result["n_parameters"], ErrorStats.of(result["train_residual"]).rms,
-                      ErrorStats.of(result["heldout_residual"]), None)]
-        current = self._forward(engine, testable, steps, candidates, say)
-        # a flexible effect of last resort is tried only where the others leave structure in joint space
-        say("testing what the first selection leaves")
-        detector = StructureDetector(obs.q, rng, kinds=robot.joint_kinds)
-        late = []
-        if late_names and detector.test(_first_frame(engine.evaluate(ordered(current))["train_residual"]),
-                                        rng)["remains"]:
-            late_bases, late_candidates, _ = self._bases(parts, late_names, measured, notes, sessions)
-            _relinearise(late_bases, linearised)
-            engine.add_bases(late_bases)
-            candidates.update(late_candidates)
-            for name in ordered(late_bases):
-                if engine.identify(("frames", name))[0][name].size == 0:
-                    candidates[name] = {"tried": False, "why": "no identifiable parameter on these data (beyond frames)"}
-                else:
-                    late.append(name)
-            testable += late
-            current = self._forward(engine, testable, steps, candidates, say, current)
-        else:
-            for e in late_names:
-                candidates[e] = {"tried": False, "why": "tried only when the other effects leave structure in joint "
-                                                        "space, and they left none"}
-        self._judge_at_fitted_sizes(engine, current, notes)
-        # a stand-in must explain the gap on its own, as an effect entering first would have to
-        # (its paired z against frames alone at the first step): the rest cannot replace anything
-        rivals = [e for e in testable if candidates.get(e, {}).get("z", 0.0) > self.selection_z]
-        current, swaps = settle_swaps(engine, current, rivals, self.selection_z, say)
-        current, loo, eliminated = self._backward(engine, current, say)
-        selected = list(current)  # forward order, swaps in place, without what backward elimination dropped
-        chosen = [e for e in selected if e != "frames"]
-        final = engine.evaluate(ordered(current))
-        groups = swap_alternatives(engine, current, rivals, self.selection_z)
-        ambiguous = ambiguity_report(groups)
-        # the largest own share and those it does not clear, compared on the same held-out rows (paired: the
-        # two shares' own intervals overlap more than their difference's does)
-        tied = tied_own_shares(engine, current, loo, self.selection_z)
-        primary = tied[0] if tied else None
-        primary_group = [r["effect"] for r in groups.get(primary, [])] or ([primary] if primary else [])
-        primary_group += [e for e in tied[1:] if e not in primary_group]
-        if len(primary_group) > 1:
-            primary = None  # the data cannot say which of the group it is
-            primary_group = ordered(primary_group)
-        # the shrink table in the order the chosen effects explain the data
-        steps = self._explanation_ladder(engine, selected, steps[0])
-        say("selection stability")
-        selection = selection_frequency(engine, testable, self.selection_z, self.min_relative_gain,
-                                        self.stability_replays, np.random.default_rng([seed, 2]), say,
-                                        late=[e for e in late if e in testable])
-        say("what the data fit only outside physics")
-        beyond = outside_physics(engine, current, [e for e in testable], self.selection_z, self.min_relative_gain)
-        # an effect in the model that the data fit significantly better beyond its physics is not named as the cause
-        flagged = [f["effect"] for f in beyond if f["effect"] in current]
-        if flagged and (set(flagged) & set(primary_group)):
-            primary_group = [e for e in primary_group if e not in flagged]
-            if not primary_group:
-                shares = {r["dropped"]: r["own_share_increase_mm"] for r in loo if r["dropped"] not in flagged}
-                primary_group = [max(shares, key=shares.get)] if shares else []
-            primary = primary_group[0] if len(primary_group) == 1 else None
-            tied = [e for e in tied if e not in flagged]
-            notes.append(f"{', '.join(flagged)} stays in the model only at its physical bound and is not named as the "
-                         "cause: see what the data fit outside physics")
-        if eliminated:
-            notes.append("dropped again after forward selection (no significant held-out loss without them): "
-                         + ", ".join(f"{e['effect']} (z = {e['z']:.1f})" for e in eliminated))
-        for swap in swaps:
-            notes.append(f"{swap['in']} replaces {swap['out']} (one-standard-error rule: held-out RMS "
-                         f"{swap['heldout_rms_mm'][swap['in']]:.4g} mm with {swap['n_parameters'][swap['in']]} "
-                         f"parameters against {swap['heldout_rms_mm'][swap['out']]:.4g} mm with "
-                         f"{swap['n_parameters'][swap['out']]})")
-
-        # where (on the frames-only residual), structure, noise and scatter (on the final residual)
-        say("where the gap lies")
-        first = _first_frame
-        context = {k: np.asarray(getattr(obs.context, k), dtype=float) for k in obs.measured}
-        where, semis = where_analysis(robot, obs.q, nominal[0].position, first(gap_residual), tau, context, rng=rng)
-        say("testing the final residual")
-        final_train = first(final["train_residual"])
-        structure = detector.test(final_train, rng)
-        noise = self._noise(repeats, obs.q, final_train, final["n_parameters"], structure["remains"])
-        scatter = scatter_beyond_noise(noise, final, stochastic)
-        say("probing the structure test's power")
-        probe_rng = np.random.default_rng([seed, 1])
-        shapes = stand_in_shapes(engine, current, testable, probe_rng) or \
-            {"smooth joint function": smooth_shape(detector, probe_rng)}
-        structure["power"] = smallest_detectable_structure(detector, shapes, noise.per_axis, probe_rng)
-        leftover = math.sqrt(3.0) * (scatter["estimated_noise_per_axis_mm"] * 1e-3 if scatter["tested"]
-                                     else float(np.sqrt(np.mean(final_train**2))))
-        structure.update(structure_verdict(structure, structure["power"], scatter, math.sqrt(3.0) * noise.per_axis,
-                                           leftover))
-        name_scatter(scatter, structure, stochastic, noise, notes, detector, final_train)
-
-        # fitted parameters, as-built geometry, tracker frame
-        keep, ident = engine.identify(tuple(ordered(selected)))
-        ident = {**ident, "all_effects": ident_all}
-        table = parameter_table(final, bases, ordered(selected))
-        for e, rows in table.items():
-            for pinned in rows["pinned"]:
-                if not (pinned["bound"] == "lower" and rows["range"][pinned["parameter"]][0] == 0.0):
-                    notes.append(f"{pinned['parameter']} is held at its physical {pinned['bound']} bound "
-                                 f"({effect_class(e).physics}): the data push beyond it")
-        for finding in beyond:
-            notes.append(f"outside physics: {finding['description']} (with {finding['effect']} unbounded the "
-                         f"held-out RMS would be {finding['heldout_rms_mm']:.4g} mm instead of "
-                         f"{finding['heldout_rms_bounded_mm']:.4g} mm, z = {finding['z']:.1f}; not named as a cause)")
-        theta = final["phi"] * final["scale"]
-        parameters, units, full_parameters = {}, {}, {}
-        em = ErrorModel(robot)
-        as_built = np.zeros(em.size)
-        offset = 0
-        for e in ordered(selected):
-            b = bases[e]
-            union = np.zeros(len(b.names))
-            union[keep[e]] = theta[offset:offset + keep[e].size]
-            offset += keep[e].size
-            parameters[e] = {b.names[k]: union[k] for k in keep[e]}
-            units[e] = {b.names[k]: b.units[k] for k in keep[e]}
-            full = union[b.index[0]]  # the first frame's own parameter vector
-            full_parameters[e] = full
-            if effect_class(e).geometric:
-                as_built += b.per_part[0].basis.errors(full, rows=[0])[0]
-        contribution = contributions(parts[0], bases, chosen, full_parameters, nominal[0].position)
-        second_order = fixed_point_check(parts[0], bases, full_parameters, math.sqrt(3.0) * noise.per_axis, notes)
-        base_twist = as_built[em.base_slice].copy()
-        as_built[em.base_slice] = 0.0  # the base twist belongs to the tracker frame, not the robot
-        tracker = np.eye(4)
-        tracker[:3, :3], tracker[:3, 3] = rot, trans
-        tracker = tracker @ pin.exp6(base_twist).homogeneous
-
-        held = final["heldout_residual"]
-        by_session = []
-        for s, label in enumerate(sessions):
-            rows_s = np.flatnonzero(session_of == s)
-            station = np.eye(4)
-            station[:3, :3], station[:3, 3] = stations[s]
-            temperature = np.asarray(obs.context.temperature_c, dtype=float)[rows_s]
-            by_session.append({"session": label, "n_measurements": int(rows_s.size),
-                               "gap": ErrorStats.of(first(gap_residual)[rows_s]).to_dict(),
-                               "heldout": ErrorStats.of(first(held)[rows_s]).to_dict(),
-                               "temperature_c": [float(temperature.min()), float(temperature.max())],
-                               "registration_base_to_tracker": station.tolist()})
-        by_frame = {}
-        if len(parts) > 1:
-            by_frame = {part.label: ErrorStats.of(held[p]) for p, part in enumerate(parts)}
-        orientation = {}
-        if final["heldout_orientation"] is not None:
-            angle = np.degrees(np.linalg.norm(stacked(final["heldout_orientation"]), axis=1))
-            orientation = {"weight_m_per_rad": weight, "heldout_mean_deg": float(angle.mean()),
-                           "heldout_rms_deg": float(np.sqrt(np.mean(angle**2))), "heldout_max_deg": float(angle.max())}
-        self.result_ = Diagnosis(
-            robot_name=robot.name, n_measurements=n, folds=self.folds, gap=ErrorStats.of(gap_residual), where_mm=where,
-            identifiability=ident, candidates=candidates, steps=steps, selected_effects=selected,
-            primary_effect=primary, leave_one_out=loo, noise_floor=math.sqrt(3.0) * noise.per_axis,
-            tracker_noise=noise.per_axis, scatter=scatter, structure=structure, parameters=parameters,
-            parameter_units=units, as_built_x=as_built, tracker_transform=tracker, final_residual=final_train,
-            heldout_residual=first(held), gap_residual=first(gap_residual), q=obs.q,
-            nominal_position=nominal[0].position, gravity_torque=tau, notes=notes, semivariograms=semis,
-            effect_parameters=full_parameters, registration=(rot, trans), eliminated=eliminated,
-            n_fits=engine.n_fits, contribution=contribution, noise=noise, ambiguous=ambiguous, swaps=swaps,
-            primary_group=primary_group, primary_tied=tied, second_order=second_order,
-            frames_measured=[p.label for p in parts], heldout_by_frame=by_frame, orientation=orientation,
-            parameter_table=table, selection=selection, outside_physics=beyond,
-            physics={e: effect_class(e).physics for e in table},
-            effect_options={e: dict(bases[e].per_part[0].effect.options) for e in ordered(selected)},
-            sessions=by_session, drift=drift_report,
-            joint_function_bands=joint_function_bands(final, bases, ordered(selected), obs.q),
-            joint_names=list(robot.joint_names), source=_source_of(measurements),
-        )
-        self.robot_ = robot
-        self.engine_ = engine
-        self.selected_effects_ = selected
-        self.primary_effect_ = primary
-        self.parameters_ = parameters
-        self.noise_ = noise
+        selection = select_effects(registered, candidates, selection_z=self.selection_z,
+                                   min_relative_gain=self.min_relative_gain, rng=rng, say=say)
+        attribution = attribute_effects(candidates, selection, selection_z=self.selection_z,
+                                        min_relative_gain=self.min_relative_gain,
+                                        stability_replays=self.stability_replays, seed=seed, say=say)
+        residual = analyse_residual(registered, candidates, selection, tracker_noise=self.tracker_noise, rng=rng,
+                                    seed=seed, say=say)
+        parameters = collect_parameters(registered, candidates, selection, attribution.outside_physics)
+        first_order = first_order_reach(registered.parts[0], candidates.bases,
+                                        [e for e in selection.selected if e != "frames"], parameters.full_vectors,
+                                        registered.nominal[0].position, residual.noise_floor)
+        stages = DiagnosisStages(register=registered, candidates=candidates, select=selection,
+                                 attribute=attribution, residual=residual, parameters=parameters,
+                                 first_order=first_order)
+        self.result_ = Diagnosis(robot_name=registered.robot.name, n_measurements=registered.n_rows,
+                                 folds=self.folds, stages=stages, n_fits=candidates.engine.n_fits,
+                                 joint_names=list(registered.robot.joint_names), source=_source_of(measurements))
+        self.robot_ = registered.robot
+        self.engine_ = candidates.engine
+        self.selected_effects_ = list(selection.selected)
+        self.primary_effect_ = attribution.primary_effect
+        self.parameters_ = parameters.values
+        self.noise_ = residual.noise
         return self
 
     def ladder(self, effects) -> list[Step]:
@@ -636,180 +385,11 @@ class GapDiagnosis(BaseEstimator):
             raise AnalysisError("GapDiagnosis.predict: call fit first")
         return self.result_.predict(self.robot_, q, context)
 
-    # -- pieces ------------------------------------------------------------------------
-    def _bases(self, parts, names, measured, notes, part_sessions=()):
-        bases, candidates, stochastic = {}, {}, []
-        jacobians = {}  # per part, the error Jacobians at the nominal model: the same for every effect
-        for name in names:
-            cls = effect_class(name)
-            if cls.stochastic:
-                stochastic.append(name)
-                candidates[name] = {"tried": False, "why": "stochastic: tested as extra scatter, not fitted"}
-                continue
-            missing = [c for c in cls.context_columns if c in CONTEXT_FIELDS and CONTEXT_FIELDS[c] not in measured]
-            if missing and cls.requires_context:
-                candidates[name] = {"tried": False, "why": f"needs the {', '.join(missing)} column"}
-                continue
-            try:
-                per_part = []
-                for p, part in enumerate(parts):
-                    options = {"tool_rotation": True} if name == "frames" and part.target_rotation is not None else {}
-                    if name == "frames" and len(part_sessions) > 1:
-                        options["sessions"] = tuple(part_sessions)
-                    options.update(cls.options_for_data(part.robot, part.q, part.context))
-                    effect = make_effect(name, part.robot, **options)
-                    labels = _part_names(effect, part, len(parts))
-                    em = ErrorModel(part.robot)
-                    if p not in jacobians:
-                        jacobians[p] = position_jacobians(
-                            part.robot, part.q, None,
-                            part.orientation_weight if part.target_rotation is not None else None)
-                    per_part.append(EffectBasis(effect, part, em, jacobians[p], labels))
-                basis = UnionBasis(per_part)
-            except InputError as exc:
-                candidates[name] = {"tried": False, "why": f"not testable on these data: {exc}"}
-                continue
-            if basis.nonlinearity > 1e-6:
-                notes.append(f"{name} is nonlinear in its parameters (relative {basis.nonlinearity:.1e}); "
-                             "it is fitted in its linearisation about zero")
-            bases[name] = basis
-        return bases, candidates, stochastic
 
-    def _forward(self, engine, testable, steps, candidates, say, start=None) -> list:
-        """Forward selection from ``start`` (default frames alone) over the testable effects;
-        each effect's first trial is recorded in ``candidates`` (against frames alone, or
-        against the model it was first tried on)."""
-        current = ["frames"] if start is None else list(start)
-        pool = [e for e in testable if e not in current]
-        fresh = [e for e in pool if "z" not in candidates.get(e, {})]
-        while pool:
-            trials = {}
-            for e in pool:
-                say(f"step {len(steps)}: trying {e}")
-                trials[e] = engine.evaluate(ordered(current + [e]))
-            prev = engine.evaluate(ordered(current))
-            prev_rms = ErrorStats.of(prev["heldout_residual"]).rms
-            for e in fresh:
-                r = trials[e]
-                rms = ErrorStats.of(r["heldout_residual"]).rms
-                candidates[e] = {"tried": True, "heldout_rms_mm_with_frames": rms * 1e3,
-                                 "gain_mm": (prev_rms - rms) * 1e3,
-                                 "z": paired_z(prev["heldout_residual"], r["heldout_residual"]),
-                                 "n_parameters": r["n_parameters"] - prev["n_parameters"]}
-                if len(current) > 1:
-                    candidates[e]["added_to"] = list(current)
-            fresh = []
-            best = min(trials, key=lambda e: ErrorStats.of(trials[e]["heldout_residual"]).rms)
-            r = trials[best]
-            rms = ErrorStats.of(r["heldout_residual"]).rms
-            z = paired_z(prev["heldout_residual"], r["heldout_residual"])
-            if not (z > self.selection_z and rms < prev_rms * (1.0 - self.min_relative_gain)):
-                break
-            current.append(best)
-            pool.remove(best)
-            steps.append(Step(best, tuple(ordered(current)), r["n_parameters"],
-                              ErrorStats.of(r["train_residual"]).rms, ErrorStats.of(r["heldout_residual"]), z))
-        return current
-
-    def _backward(self, engine, current, say):
-        """Backward elimination: an effect that no longer earns its place once the others are
-        in (a flexible one picked early that later effects explain better) goes out."""
-        eliminated = []
-        while True:
-            chosen = [e for e in current if e != "frames"]
-            final = engine.evaluate(ordered(current))
-            final_rms = ErrorStats.of(final["heldout_residual"]).rms
-            keep = engine.identify(tuple(ordered(current)))[0]
-            loo = []
-            for e in chosen:
-                say(f"leave-one-out: {e}")
-                rest = ordered([s for s in current if s != e])
-                r = engine.evaluate(rest)
-                own = engine.evaluate(rest, keep={s: keep[s] for s in rest})
-                held, held_own = ErrorStats.of(r["heldout_residual"]), ErrorStats.of(own["heldout_residual"])
-                share = difference_interval(own["heldout_residual"], final["heldout_residual"])
-                loo.append({"dropped": e, "heldout_rms_mm": held.rms * 1e3, "heldout_mean_mm": held.mean * 1e3,
-                            "own_share_interval_mm": [share[1] * 1e3, share[2] * 1e3],
-                            "heldout_max_mm": held.max * 1e3, "increase_mm": (held.rms - final_rms) * 1e3,
-                            "z": paired_z(r["heldout_residual"], final["heldout_residual"]),
-                            "own_share_heldout_rms_mm": held_own.rms * 1e3,
-                            "own_share_heldout_mean_mm": held_own.mean * 1e3,
-                            "own_share_increase_mm": (held_own.rms - final_rms) * 1e3})
-            weakest = min(loo, key=lambda row: row["z"]) if loo else None
-            if weakest is None or weakest["z"] > self.selection_z:
-                return current, loo, eliminated
-            eliminated.append({"effect": weakest["dropped"], "z": weakest["z"],
-                               "increase_mm": weakest["increase_mm"]})
-            current.remove(weakest["dropped"])
-
-    def _explanation_ladder(self, engine, selected, first: Step) -> list[Step]:
-        """The shrink table in the order of explanation: from frames, each step adds the chosen
-        effect that lowers the held-out error most given those before it, with its gain and
-        the gain's 95 % interval."""
-        steps, current = [first], ["frames"]
-        previous = engine.evaluate(["frames"])
-        remaining = [e for e in selected if e != "frames"]
-        while remaining:
-            trials = {e: engine.evaluate(ordered(current + [e])) for e in remaining}
-            best = min(trials, key=lambda e: ErrorStats.of(trials[e]["heldout_residual"]).rms)
-            r = trials[best]
-            current.append(best)
-            remaining.remove(best)
-            steps.append(Step(best, tuple(ordered(current)), r["n_parameters"], ErrorStats.of(r["train_residual"]).rms,
-                              ErrorStats.of(r["heldout_residual"]),
-                              paired_z(previous["heldout_residual"], r["heldout_residual"]),
-                              difference_interval(previous["heldout_residual"], r["heldout_residual"])))
-            previous = r
-        return steps
-
-    def _noise(self, repeats, q, residual, n_parameters, structured) -> NoiseEstimate:
-        if self.tracker_noise is not None:
-            return NoiseEstimate(float(self.tracker_noise), "given", True, "the instrument's figure (--noise-mm)")
-        if repeats is not None:
-            return repeats
-        return noise_from_residual(q, residual, n_parameters, structured)
-
-    def _judge_at_fitted_sizes(self, engine, current, notes, factor: float = 2.0) -> bool:
-        """Identifiability was judged at typical sizes; an effect fitted at more than ``factor``
-        times its typical size is re-judged at its fitted size (RMS of its scaled parameters), so
-        that columns too small to resolve at the typical size but not at the fitted one come back."""
-        final = engine.evaluate(ordered(current))
-        factors, offset = {}, 0
-        for e in ordered(current):
-            size = final["keep"][e].size
-            phi = final["phi"][offset:offset + size]
-            offset += size
-            if e != "frames" and size and float(np.sqrt(np.mean(phi**2))) > factor:
-                factors[e] = float(np.sqrt(np.mean(phi**2)))
-        before = {e: tuple(v) for e, v in engine.identify(tuple(ordered(current)))[0].items()}
-        if not engine.resize(factors):
-            return False
-        after = {e: tuple(v) for e, v in engine.identify(tuple(ordered(current)))[0].items()}
-        if after != before:
-            notes.append("identifiability re-judged at the fitted sizes ("
-                         + ", ".join(f"{e} {f:.3g} x typical" for e, f in factors.items())
-                         + f"): {sum(len(v) for v in after.values()) - sum(len(v) for v in before.values()):+d} "
-                         "parameters")
-            return True
-        return False
-
-
-
-def _relinearise(bases: dict, jacobians: list) -> None:
-    """Every effect's TCP sensitivity at the per-part error Jacobians (the frames-only fit's)."""
-    for p, jac_x in enumerate(jacobians):
-        for b in bases.values():
-            b.per_part[p].relinearise(jac_x)
-    for b in bases.values():
-        b.restack()
-
-
-def _part_names(effect, part: Part, n_parts: int) -> list[str]:
-    """Parameter names of an effect on a part; each measured frame's TCP offset is its own."""
-    names = effect.parameter_names()
-    if effect.name != "frames" or n_parts == 1:
-        return names
-    return [n.replace("frames.tool.", f"frames.{part.label}.") for n in names]
+def _measurement_set(measurements) -> MeasurementSet:
+    if not isinstance(measurements, MeasurementSet):
+        raise InputError(f"the diagnosis reads a MeasurementSet, not {type(measurements).__name__}")
+    return measurements
 
 
 def _source_of(measurements) -> str:
@@ -817,17 +397,3 @@ def _source_of(measurements) -> str:
     if isinstance(measurements, (list, tuple)):
         measurements = measurements[0][1]
     return str(getattr(measurements, "source", "the measurements"))
-
-
-def _first_frame(residual: np.ndarray) -> np.ndarray:
-    """The first measured frame's (N, 3) rows of a (N, 3) or (n_parts, N, 3) residual."""
-    return residual if residual.ndim == 2 else residual[0]
-
-
-def _context_table(obs: Observations) -> np.ndarray:
-    """(N, c) the context columns that make two rows the same pose (for repeated poses)."""
-    cols = [np.asarray(obs.context.payload_kg)[:, None], np.asarray(obs.context.temperature_c)[:, None],
-            np.asarray(obs.context.direction)]
-    if obs.context.outside_q is not None:
-        cols.append(obs.context.outside_q)
-    return np.concatenate(cols, axis=1)

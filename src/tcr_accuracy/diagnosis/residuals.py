@@ -10,10 +10,9 @@ in the returned dicts' ``_mm`` keys.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-
 import numpy as np
 
+from ..frames.noise import NoiseEstimate
 from ..model.robot import RobotModel
 from ..analysis.semivariogram import (
     EmpiricalSemivariogram,
@@ -154,30 +153,6 @@ def where_analysis(robot: RobotModel, q: np.ndarray, nominal: np.ndarray, residu
 # ---------------------------------------------------------------------------------------
 # The measurement scatter, when nobody says what it is
 # ---------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class NoiseEstimate:
-    """Per-axis standard deviation of the measurement scatter [m], and where it came from.
-
-    source : ``given`` (the instrument's figure), ``repeated poses`` (pooled scatter of
-        readings of the same pose), ``residual`` (the final residual, which the structure
-        test found without structure: all of it is scatter) or ``residual nugget`` (the
-        part of a structured residual that does not vary with the joints: its
-        semivariogram extrapolated to zero joint distance)
-    independent : True when it does not come from the residual it judges (given or
-        repeated poses): only then can scatter beyond the instrument be tested
-    detail : one line for the report
-    """
-
-    per_axis: float
-    source: str
-    independent: bool
-    detail: str
-
-    def to_dict(self) -> dict:
-        return {"per_axis_mm": self.per_axis * 1e3, "source": self.source, "independent": self.independent,
-                "detail": self.detail}
-
-
 def noise_from_repeats(q: np.ndarray, position: np.ndarray, context_columns: np.ndarray | None = None,
                        min_dof: int = 6) -> NoiseEstimate | None:
     """Pooled within-pose scatter of readings of the same commanded pose, or None.
@@ -230,96 +205,3 @@ def noise_from_residual(q: np.ndarray, residual: np.ndarray, n_parameters: int, 
                          "part of the structured final residual that does not vary with the joints "
                          f"(semivariogram at zero joint distance; the whole residual is {sigma_rss * 1e3:.4g} mm "
                          "per axis); measure some poses twice to pin it down")
-
-
-def noise_from_rigid_frames(nominal: list[np.ndarray], measured: list[np.ndarray], labels: list[str],
-                            tolerance: float = 1e-9, min_rows: int = 6) -> NoiseEstimate | None:
-    """The instrument's scatter from several measured frames on one rigid body, or None.
-
-    nominal, measured : per frame (N, 3) positions [m], in the robot's and the tracker's
-    frame. Two frames whose nominal distance does not change with the pose (reflectors on
-    the same link) keep their measured distance too, whatever the robot's errors; with
-    independent isotropic noise sigma per axis on each point, the distance varies by
-    sigma * sqrt(2) (the noise of both points projected on the line between them). The
-    pairs' variances are pooled. Needs at least ``min_rows`` rows.
-    """
-    if len(nominal) < 2 or nominal[0].shape[0] < min_rows:
-        return None
-    variances, pairs = [], []
-    for a in range(len(nominal)):
-        for b in range(a + 1, len(nominal)):
-            model = np.linalg.norm(nominal[a] - nominal[b], axis=1)
-            if model.mean() <= 1e-6 or np.ptp(model) > tolerance + 1e-9 * model.mean():
-                continue  # not on one rigid body, or the same point
-            distance = np.linalg.norm(measured[a] - measured[b], axis=1)
-            variances.append(float(np.var(distance, ddof=1)) / 2.0)
-            pairs.append(f"{labels[a]}-{labels[b]}")
-    if not variances:
-        return None
-    sigma = math.sqrt(float(np.mean(variances)))
-    n = nominal[0].shape[0]
-    return NoiseEstimate(sigma, "rigid frames", True,
-                         f"scatter of the distances between measured frames on one rigid body ({', '.join(pairs)}; "
-                         f"{n} rows): the instrument's own noise, whatever the robot does")
-
-
-def tracker_drift(references: list, session_of: np.ndarray, n_sessions: int, labels: list[str],
-                  min_z: float = 3.5) -> tuple[np.ndarray, list, NoiseEstimate | None]:
-    """The tracker's drift seen by base references: frames fixed to the robot's base, whose
-    measured position changes only with the instrument.
-
-    references : list of (frame, nominal position (3,) [m], measured (N, 3) in the tracker
-        frame [m], time_s (N,) or None)
-    session_of : (N,) each row's session
-
-    Per session, a translation drift linear in time (``time_s`` where every reference row has
-    one, else the measurement order): y_r(t) = c_r + v t for every reference r (its own
-    offset, the drift shared). The drift is significant when |v| exceeds ``min_z`` standard
-    errors, and it is corrected when it also moves the points by more than the noise over the
-    session. Returns the correction to subtract from every measured position (N, 3), the
-    per-session report, and the noise the references' scatter about the drift gives (the
-    instrument's, independent of the robot), or None without references.
-    """
-    n = session_of.size
-    correction = np.zeros((n, 3))
-    report, squares, dof = [], 0.0, 0
-    if not references:
-        return correction, report, None
-    for s in range(n_sessions):
-        rows = np.flatnonzero(session_of == s)
-        times = [ref[3] for ref in references]
-        timed = all(t is not None and np.all(np.isfinite(t[rows])) for t in times)
-        axis = np.asarray(times[0], dtype=float)[rows] if timed else np.arange(rows.size, dtype=float)
-        centred_t = axis - axis.mean()
-        spread = float(centred_t @ centred_t)
-        if rows.size < 3 or spread == 0.0:
-            continue
-        cross = np.zeros(3)
-        for _, _, measured, _ in references:
-            y = measured[rows] - measured[rows].mean(axis=0)
-            cross += centred_t @ y
-        velocity = cross / (len(references) * spread)  # [m per unit of the time axis]
-        ssr = sum(float(np.sum((measured[rows] - measured[rows].mean(axis=0) - np.outer(centred_t, velocity)) ** 2))
-                  for _, _, measured, _ in references)
-        free = 3 * (len(references) * rows.size - len(references) - 1)
-        sigma = math.sqrt(ssr / max(free, 1))
-        std = sigma / math.sqrt(len(references) * spread)
-        z = float(np.linalg.norm(velocity) / std) if std > 0 else math.inf
-        moved = float(np.linalg.norm(velocity) * np.ptp(axis))
-        corrected = bool(z > min_z and moved > sigma)
-        if corrected:
-            correction[rows] = np.outer(centred_t, velocity)
-        squares, dof = squares + ssr, dof + free
-        per = 3600.0 if timed else 100.0
-        report.append({"session": labels[s] if labels else "all", "references": [r[0] for r in references],
-                       "time_axis": "time_s" if timed else "measurement order",
-                       ("drift_mm_per_h" if timed else "drift_mm_per_100_rows"): (velocity * per * 1e3).tolist(),
-                       "drift_std_mm_per_unit": std * per * 1e3, "z": z, "moved_over_session_mm": moved * 1e3,
-                       "scatter_per_axis_mm": sigma * 1e3, "corrected": corrected})
-    if not references or dof == 0:
-        return correction, report, None
-    sigma = math.sqrt(squares / dof)
-    noise = NoiseEstimate(sigma, "base references", True,
-                          f"scatter of {len(references)} base reference(s) ({', '.join(r[0] for r in references)}) "
-                          f"about their drift: the instrument's own noise ({dof} dof)")
-    return correction, report, noise

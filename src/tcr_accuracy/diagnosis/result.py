@@ -1,177 +1,305 @@
-"""What a diagnosis reads and what it finds: the observations, the shrink table and the result.
+"""What a diagnosis finds: :class:`Diagnosis`, every stage's result and the views of them that
+reports, plots and the JSON form read.
 
-:class:`Diagnosis` holds everything :func:`tcr_accuracy.diagnosis.diagnose.diagnose` found, SI inside;
-:meth:`Diagnosis.to_dict` is its JSON form (mm, unit-suffixed keys).
+:class:`Diagnosis` holds each stage's typed, frozen result (:class:`DiagnosisStages`, SI units
+inside) and the figures of the data it ran on; its other attributes are views of those results,
+computed when read. :meth:`Diagnosis.to_dict` is the JSON form (mm, unit-suffixed keys);
+``tcr_accuracy.diagnosis_summary(diagnosis)`` the printed summary.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.context import MeasurementContext
 from ..effects import make_effect, predict_positions
-from .fitting import stacked
-from .residuals import NoiseEstimate
+from ..model.context import MeasurementContext
 from ..model.robot import RobotModel
+from .records import ErrorStats, Step
+from .stages.attribute import Attribution, FirstOrder
+from .stages.parameters import FittedParameters
+from .stages.register import RegisteredMeasurements
+from .stages.residual import ResidualAnalysis
+from .stages.select import Selection
+from .stages.candidates import CandidateSet
 
-
-# ---------------------------------------------------------------------------------------
-# Inputs
-# ---------------------------------------------------------------------------------------
-@dataclass
-class Observations:
-    """Measurements in the form the diagnosis needs (one measured frame).
-
-    q : (N, n_joints) commanded joint values [rad, m]
-    position : (N, 3) measured position in the tracker frame [m]
-    context : MeasurementContext (payload, temperature, directions, other joints)
-    measured : names of the context fields actually measured (``payload_kg``,
-        ``temperature_c``, ``direction``)
-    quaternion : (N, 4) measured orientation (w, x, y, z) in the tracker frame, or None
-    """
-
-    q: np.ndarray
-    position: np.ndarray
-    context: MeasurementContext
-    measured: tuple = ()
-    quaternion: np.ndarray | None = None
-    session_labels: tuple = ()  # the sessions' labels (context.session numbers them); () for one session
-
-    def __len__(self) -> int:
-        return self.q.shape[0]
-
-
-def observations_from(measurements) -> Observations:
-    """Adapter from :class:`tcr_accuracy.io.measurements.MeasurementSet` (or Observations)."""
-    if isinstance(measurements, Observations):
-        return measurements
-    measured = tuple(k for k in ("payload_kg", "temperature_c", "direction")
-                     if getattr(measurements, k, None) is not None)
-    return Observations(np.asarray(measurements.q, dtype=float), np.asarray(measurements.position, dtype=float),
-                        measurements.context, measured, getattr(measurements, "quaternion", None),
-                        tuple(getattr(measurements, "session_labels", ()) or ()))
-
-
-# ---------------------------------------------------------------------------------------
-# Results
-# ---------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class ErrorStats:
-    """Mean, RMS and max of position error norms [m], over ``count`` measured points."""
-
-    mean: float
-    rms: float
-    max: float
-    count: int
-
-    @staticmethod
-    def of(errors: np.ndarray) -> "ErrorStats":
-        norm = np.linalg.norm(stacked(errors), axis=1)
-        return ErrorStats(float(norm.mean()), float(np.sqrt(np.mean(norm**2))), float(norm.max()), int(norm.size))
-
-    def to_dict(self) -> dict:
-        return {"mean_mm": self.mean * 1e3, "rms_mm": self.rms * 1e3, "max_mm": self.max * 1e3, "count": self.count}
+__all__ = ["Diagnosis", "DiagnosisStages", "ErrorStats", "Step"]
 
 
 @dataclass(frozen=True)
-class Step:
-    """One row of the shrink table: the model after adding ``effect``."""
+class DiagnosisStages:
+    """Every stage's result, in the order they ran (see :mod:`tcr_accuracy.diagnosis.stages`)."""
 
-    effect: str
-    effects: tuple
-    n_parameters: int
-    train_rms: float
-    heldout: ErrorStats
-    z_statistic: float | None  # paired test against the previous step (None for frames)
-    #: (gain, low, high) [m]: how much this step lowers the held-out RMS, with its 95 % interval
-    gain: tuple | None = None
-
-    def to_dict(self) -> dict:
-        out = {"effect": self.effect, "effects": list(self.effects), "n_parameters": self.n_parameters,
-               "train_rms_mm": self.train_rms * 1e3, "heldout_rms_mm": self.heldout.rms * 1e3,
-               "heldout_mean_mm": self.heldout.mean * 1e3, "heldout_max_mm": self.heldout.max * 1e3,
-               "z_vs_previous": self.z_statistic}
-        if self.gain is not None:
-            out["gain_heldout_rms_mm"] = self.gain[0] * 1e3
-            out["gain_interval_mm"] = [self.gain[1] * 1e3, self.gain[2] * 1e3]
-        return out
+    register: RegisteredMeasurements
+    candidates: CandidateSet
+    select: Selection
+    attribute: Attribution
+    residual: ResidualAnalysis
+    parameters: FittedParameters
+    first_order: FirstOrder
 
 
-@dataclass(repr=False)
+@dataclass(frozen=True, repr=False)
 class Diagnosis:
-    """Everything :func:`diagnose` found. Lengths in m inside; :meth:`to_dict` gives mm.
+    """Everything :func:`~tcr_accuracy.diagnosis.diagnose.diagnose` found. Lengths in m inside;
+    :meth:`to_dict` gives mm.
 
-    Units: every number and array attribute is SI (``gap``, ``steps``, ``noise_floor``,
-    ``tracker_noise``, the residuals are in m). The dict attributes that are already the
-    JSON form (``where_mm``, ``candidates``, ``leave_one_out``, ``scatter``, ``structure``,
-    ``sessions``, ``drift``) carry the unit in every key (``rms_mm``, ``gain_mm``).
-    :meth:`summary` is the text ``tcr-accuracy diagnose`` prints.
+    The stages' results are in :attr:`stages` (typed, SI). The other attributes are read-only
+    views of them: numbers and arrays in SI (``gap``, ``steps``, ``noise_floor``,
+    ``tracker_noise``, the residuals in m), and the JSON-form dicts the reports read, whose keys
+    carry their unit (``where_mm``, ``candidates``, ``leave_one_out``, ``scatter``,
+    ``structure``, ``sessions``, ``drift``: ``rms_mm``, ``gain_mm``).
 
-    Arrays of the residual (``gap_residual``, ``final_residual``, ``heldout_residual``),
-    ``q`` and ``nominal_position`` are those of the first measured frame; with several,
+    Arrays of the residual (``gap_residual``, ``final_residual``, ``heldout_residual``), ``q``
+    and ``nominal_position`` are those of the first measured frame; with several,
     ``frames_measured`` names them and ``heldout_by_frame`` gives each one's figures.
+
+    Attributes
+    ----------
+    robot_name : str
+    n_measurements : int
+    folds : int
+        k of the k-fold cross-validation.
+    stages : DiagnosisStages
+    n_fits : int
+        Least-squares fits the diagnosis ran.
+    joint_names : list of str
+        The robot's joints, in q's column order.
+    source : str
+        Where the measurements came from (file names).
     """
 
     robot_name: str
     n_measurements: int
     folds: int
-    gap: ErrorStats  # after fitting the frames [m]
-    where_mm: dict  # where the gap lies, JSON form (keys suffixed with their unit, mostly _mm)
-    identifiability: dict
-    candidates: dict  # effect -> first-step held-out result or why it was not tried
-    steps: list
-    selected_effects: list
-    primary_effect: str | None
-    leave_one_out: list
-    noise_floor: float  # RMS norm of the measurement noise [m]
-    tracker_noise: float  # per-axis std [m]
-    scatter: dict
-    structure: dict
-    parameters: dict  # effect -> {name: value SI}
-    parameter_units: dict
-    as_built_x: np.ndarray
-    tracker_transform: np.ndarray  # (4, 4) robot base -> tracker
-    final_residual: np.ndarray  # (N, 3) in-sample residual of the final model [m]
-    heldout_residual: np.ndarray  # (N, 3) out-of-fold residual of the final model [m]
-    gap_residual: np.ndarray  # (N, 3) residual after frames only [m]
-    q: np.ndarray
-    nominal_position: np.ndarray
-    gravity_torque: np.ndarray
-    notes: list
-    semivariograms: list = field(default_factory=list)
-    eliminated: list = field(default_factory=list)
-    n_fits: int = 0
-    contribution: dict = field(default_factory=dict)  # effect -> RMS TCP motion of its fit beyond frames [m]
-    effect_parameters: dict = field(default_factory=dict)  # effect -> full (k,) vector [SI], first frame
-    registration: tuple = (np.eye(3), np.zeros(3))  # (R, t): tracker = R robot + t
-    noise: NoiseEstimate | None = None
-    frames_measured: list = field(default_factory=list)
-    heldout_by_frame: dict = field(default_factory=dict)
-    orientation: dict = field(default_factory=dict)
-    ambiguous: list = field(default_factory=list)  # groups of effects the data cannot tell apart
-    swaps: list = field(default_factory=list)  # one-standard-error swaps made after forward selection
-    primary_group: list = field(default_factory=list)  # the primary effect and what stands in for it
-    primary_tied: list = field(default_factory=list)  # the largest own share and those not ranked below it
-    second_order: dict = field(default_factory=dict)  # what one fixed-point step of the deflections adds
-    parameter_table: dict = field(default_factory=dict)  # effect -> values, std, interval, range, pinned [SI]
-    selection: dict = field(default_factory=dict)  # how often each effect is chosen over bootstrap replays
-    outside_physics: list = field(default_factory=list)  # what the data fit only outside an effect's physics
-    physics: dict = field(default_factory=dict)  # effect -> why its parameters lie in their range
-    effect_options: dict = field(default_factory=dict)  # effect -> the options it was fitted with
-    sessions: list = field(default_factory=list)  # per session: label, rows, gap and held-out stats, temperature
-    drift: list = field(default_factory=list)  # per session: the tracker's drift seen by base references
-    #: effect -> joint -> {"angle_rad", "value_rad", "std_rad"} (M,) arrays: the fitted function of
-    #: each joint's own angle over its measured range with its standard error (effects with joint_basis)
-    joint_function_bands: dict = field(default_factory=dict)
-    joint_names: list = field(default_factory=list)  # the robot's joints, in q's column order
-    source: str = ""  # where the measurements came from (file names)
+    stages: DiagnosisStages
+    n_fits: int
+    joint_names: list
+    source: str = ""
+
+    # -- views of the stages -------------------------------------------------------------
+    @property
+    def gap(self) -> ErrorStats:
+        """Errors after fitting the frames [m]."""
+        return self.stages.residual.gap
+
+    @property
+    def where_mm(self) -> dict:
+        """Where the gap lies (JSON form, keys suffixed with their unit, mostly _mm)."""
+        return self.stages.residual.where_mm
 
     @property
     def where(self) -> dict:
         """Deprecated alias of :attr:`where_mm` (until 0.2): the name now says its unit."""
         return self.where_mm
+
+    @property
+    def identifiability(self) -> dict:
+        return self.stages.parameters.identifiability
+
+    @property
+    def candidates(self) -> dict:
+        """effect -> first-step held-out result or why it was not tried (JSON form)."""
+        return {c.effect: c.to_dict() for c in self.stages.select.candidates}
+
+    @property
+    def steps(self) -> list:
+        """The shrink table (:class:`Step`, SI) in the order the effects explain the data."""
+        return list(self.stages.attribute.steps)
+
+    @property
+    def selected_effects(self) -> list:
+        return list(self.stages.select.selected)
+
+    @property
+    def primary_effect(self) -> str | None:
+        return self.stages.attribute.primary_effect
+
+    @property
+    def primary_group(self) -> list:
+        """The primary effect and what stands in for it."""
+        return list(self.stages.attribute.primary_group)
+
+    @property
+    def primary_tied(self) -> list:
+        """The largest own share and those not ranked below it."""
+        return list(self.stages.attribute.primary_tied)
+
+    @property
+    def leave_one_out(self) -> list:
+        return [r.to_dict() for r in self.stages.select.leave_one_out]
+
+    @property
+    def eliminated(self) -> list:
+        return [e.to_dict() for e in self.stages.select.eliminated]
+
+    @property
+    def swaps(self) -> list:
+        """One-standard-error swaps made after forward selection."""
+        return list(self.stages.select.swaps)
+
+    @property
+    def ambiguous(self) -> list:
+        """Groups of effects the data cannot tell apart."""
+        return list(self.stages.select.ambiguous)
+
+    @property
+    def noise(self):
+        """The instrument's per-axis noise [m] and where that figure came from (NoiseEstimate)."""
+        return self.stages.residual.noise
+
+    @property
+    def noise_floor(self) -> float:
+        """RMS norm of the measurement noise [m]."""
+        return self.stages.residual.noise_floor
+
+    @property
+    def tracker_noise(self) -> float:
+        """Per-axis standard deviation of the measurement noise [m]."""
+        return self.stages.residual.noise.per_axis
+
+    @property
+    def scatter(self) -> dict:
+        return self.stages.residual.scatter
+
+    @property
+    def structure(self) -> dict:
+        return self.stages.residual.structure
+
+    @property
+    def parameters(self) -> dict:
+        """effect -> {name: value SI} (identifiable parameters)."""
+        return self.stages.parameters.values
+
+    @property
+    def parameter_units(self) -> dict:
+        return self.stages.parameters.units
+
+    @property
+    def parameter_table(self) -> dict:
+        """effect -> values, std, interval, range, pinned [SI]."""
+        return self.stages.parameters.table
+
+    @property
+    def effect_parameters(self) -> dict:
+        """effect -> full (k,) vector [SI], first measured frame."""
+        return self.stages.parameters.full_vectors
+
+    @property
+    def effect_options(self) -> dict:
+        return self.stages.parameters.effect_options
+
+    @property
+    def physics(self) -> dict:
+        """effect -> why its parameters lie in their range."""
+        return self.stages.parameters.physics
+
+    @property
+    def joint_function_bands(self) -> dict:
+        """effect -> joint -> {"angle_rad", "value_rad", "std_rad"} (M,) arrays: the fitted
+        function of each joint's own angle with its standard error (effects with joint_basis)."""
+        return self.stages.parameters.joint_function_bands
+
+    @property
+    def as_built_x(self) -> np.ndarray:
+        return self.stages.parameters.as_built_x
+
+    @property
+    def trackerMbase(self) -> np.ndarray:
+        """(4, 4) the robot's base in the tracker frame (fitted base twist included)."""
+        return self.stages.parameters.trackerMbase
+
+    @property
+    def tracker_transform(self) -> np.ndarray:
+        """(4, 4) robot base -> tracker: :attr:`trackerMbase` (its JSON key)."""
+        return self.trackerMbase
+
+    @property
+    def registration(self) -> tuple:
+        """(R, t) the first session's closed-form tracker frame: tracker = R robot + t."""
+        return self.stages.register.stations[0]
+
+    @property
+    def final_residual(self) -> np.ndarray:
+        """(N, 3) in-sample residual of the final model [m]."""
+        return self.stages.residual.final_residual
+
+    @property
+    def heldout_residual(self) -> np.ndarray:
+        """(N, 3) out-of-fold residual of the final model [m]."""
+        return self.stages.residual.heldout_residual
+
+    @property
+    def gap_residual(self) -> np.ndarray:
+        """(N, 3) residual after frames only [m]."""
+        return self.stages.residual.gap_residual
+
+    @property
+    def semivariograms(self) -> list:
+        return self.stages.residual.semivariograms
+
+    @property
+    def q(self) -> np.ndarray:
+        return self.stages.register.measurements.q
+
+    @property
+    def nominal_position(self) -> np.ndarray:
+        return self.stages.register.nominal[0].position
+
+    @property
+    def gravity_torque(self) -> np.ndarray:
+        return self.stages.register.gravity_torque
+
+    @property
+    def frames_measured(self) -> list:
+        return [p.label for p in self.stages.register.parts]
+
+    @property
+    def heldout_by_frame(self) -> dict:
+        return self.stages.residual.heldout_by_frame
+
+    @property
+    def orientation(self) -> dict:
+        o = self.stages.residual.orientation
+        return {} if o is None else o.to_dict()
+
+    @property
+    def sessions(self) -> list:
+        """Per session: label, rows, gap and held-out stats, temperature (JSON form)."""
+        return [s.to_dict() for s in self.stages.residual.sessions]
+
+    @property
+    def drift(self) -> list:
+        """Per session: the tracker's drift seen by base references (JSON form)."""
+        return list(self.stages.register.drift)
+
+    @property
+    def selection(self) -> dict:
+        """How often each effect is chosen over bootstrap replays."""
+        return self.stages.attribute.stability
+
+    @property
+    def outside_physics(self) -> list:
+        """What the data fit only outside an effect's physics."""
+        return list(self.stages.attribute.outside_physics)
+
+    @property
+    def contribution(self) -> dict:
+        """effect -> RMS TCP motion of its fit beyond frames [m]."""
+        return self.stages.first_order.contribution
+
+    @property
+    def second_order(self) -> dict:
+        """What one fixed-point step of the deflections adds (JSON form)."""
+        return self.stages.first_order.to_dict()
+
+    @property
+    def notes(self) -> list:
+        """Every stage's notes, in the order the stages found them."""
+        s = self.stages
+        return [*s.register.notes, *s.candidates.notes, *s.select.notes, *s.attribute.notes,
+                *s.select.decision_notes(), *s.residual.notes, *s.parameters.notes, *s.first_order.notes]
 
     def __repr__(self) -> str:
         last = self.steps[-1].heldout.rms if self.steps else float("nan")
@@ -179,23 +307,6 @@ class Diagnosis:
                 f"gap RMS {self.gap.rms * 1e3:.4g} mm, selected [{', '.join(self.selected_effects)}], "
                 f"primary {self.primary_effect!r}, held-out RMS {last * 1e3:.4g} mm, "
                 f"noise floor {self.noise_floor * 1e3:.4g} mm)")
-
-    def summary(self, source: str | None = None) -> str:
-        """The summary ``tcr-accuracy diagnose`` prints (mm and deg, labelled).
-
-        Parameters
-        ----------
-        source : str, default=None
-            What the first line names as the measurements; None: :attr:`source`.
-
-        Returns
-        -------
-        str
-            Several lines, in the order gap, where, which effect, how far it shrinks.
-        """
-        from .summary import format_summary
-
-        return format_summary(None, self, self.source if source is None else source)
 
     def predict(self, robot: RobotModel, q: np.ndarray, context: MeasurementContext | None = None) -> np.ndarray:
         """TCP positions (N, 3) in the tracker frame [m] that the fitted model predicts

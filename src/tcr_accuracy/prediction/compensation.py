@@ -2,7 +2,7 @@
 
 The commanded joints q_target put the model's TCP on the target ``p* = FK(q_target)``
 (for measured data: the robot whose TCP is the measured point, see
-:meth:`tcr_accuracy.prediction.registration.Registration.measured_frame_robot`). The real
+:meth:`tcr_accuracy.frames.registration.Registration.measured_frame_robot`). The real
 robot lands near ``FK(q) + e(q)`` instead, with e predicted by a fitted estimator (see
 :mod:`tcr_accuracy.prediction.methods`). The cyclic search repeats
 

@@ -4,7 +4,7 @@
   (calibration + GP, diagnosis + GP, TCP offset + any method).
 * :class:`TcpOffset` -- the error of a constant TCP offset (the ``frames`` effect's).
 * :class:`MeasuredErrorModel` -- registers the tracker frame and the TCP offset on
-  measured positions (:mod:`tcr_accuracy.prediction.registration`), then fits any
+  measured positions (:mod:`tcr_accuracy.frames.registration`), then fits any
   estimator to the base-frame error that the TCP offset leaves.
 * :func:`uncertainty_kind` -- which fitted estimators give a standard deviation.
 * :func:`predict_with_context` -- pass the rows' MeasurementContext to the estimators
@@ -192,7 +192,7 @@ class MeasuredErrorModel(BaseEstimator):
     """An error predictor fitted to measured TCP positions in a tracker's own frame.
 
     ``fit(X, P)`` first registers the tracker frame and the TCP offset on the training
-    data (:func:`tcr_accuracy.prediction.registration.register_tracker`) and maps the
+    data (:func:`tcr_accuracy.frames.registration.register_tracker`) and maps the
     measured positions into the robot's base frame. The TCP offset belongs to the
     measured point (a reflector 150 mm off the flange, a tool tip): the estimator is
     fitted to what the robot adds beyond that point, and the effect models in it (the
@@ -215,7 +215,7 @@ class MeasuredErrorModel(BaseEstimator):
 
     Attributes
     ----------
-    registration_ : tcr_accuracy.prediction.registration.Registration
+    registration_ : tcr_accuracy.frames.registration.Registration
     frame_robot_ : RobotModel
         The robot with the fitted TCP offset: its TCP is the measured point.
     errors_ : ndarray of shape (n, 3)
@@ -248,7 +248,7 @@ class MeasuredErrorModel(BaseEstimator):
     def fit(self, X, y, context=None):
         """Joint values X (n, n_joints) [rad, m], measured positions y (n, 3) in the tracker frame [m];
         ``context``: the rows' MeasurementContext, for the estimators that take one."""
-        from .registration import register_tracker
+        from ..frames.registration import register_tracker
 
         X, y = validate_data(self, X, y, multi_output=True, y_numeric=True)
         if self.robot is None or self.estimator is None:

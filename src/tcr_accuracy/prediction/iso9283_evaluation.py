@@ -7,7 +7,7 @@ standard's formulas (:mod:`tcr_accuracy.analysis.iso9283`) apply, the readings m
 robot's base frame:
 
 - ``frame="fit"`` (default): the barycentre of each pose is matched to the robot's nominal TCP
-  at the commanded joints by :func:`tcr_accuracy.prediction.registration.register_tracker`
+  at the commanded joints by :func:`tcr_accuracy.frames.registration.register_tracker`
   (Kabsch, then a least-squares refinement with the measured point's offset from the TCP frame
   fitted where the poses' orientations tell it apart from the frame's translation, held at 0
   and said where they do not). The commanded position of a pose is then the nominal TCP with
@@ -41,7 +41,7 @@ from ..exceptions import InputError
 from ..io.measurements import MeasurementSet
 from ..model.kinematics import tcp_poses
 from ..model.robot import RobotModel
-from .registration import Registration, register_tracker
+from ..frames.registration import Registration, register_tracker
 
 #: Joint values of the readings of one pose may differ by this much [rad, m] (CSV rounding).
 SAME_POSE_TOL = 1e-6

@@ -9,7 +9,7 @@ frame and the robot's base,
 and, because the measured point is rarely exactly the model's TCP, the TCP offset.
 This module is the one home for that fit:
 
-1. **Closed form** (:func:`rigid_fit`): the rotation and translation that best map the
+1. **Closed form** (:func:`~tcr_accuracy.frames.rigid.rigid_fit`): the rotation and translation that best map the
    nominal TCP positions onto the measured ones in the least-squares sense (Kabsch;
    scipy's ``Rotation.align_vectors`` on the centred point sets).
 2. **Refinement** (:func:`register_tracker`): the ``frames`` effect of
@@ -40,8 +40,9 @@ from scipy.spatial.transform import Rotation
 from ..effects import make_effect, predict_positions, prediction_jacobian
 from ..exceptions import InputError
 from ..model.kinematics import tcp_poses
-from ..io.measurements import MeasurementContext
+from ..model.context import MeasurementContext
 from ..model.robot import RobotModel
+from .rigid import rigid_fit
 
 #: A column whose part not explained by the columns before it is below this fraction of
 #: its own size (parameters at their typical scales) is not identifiable and stays 0.
@@ -161,44 +162,6 @@ class Registration:
             "residual_rms_mm": self.residual_rms * 1e3,
             "n_points": self.n_points,
         }
-
-
-def rigid_fit(nominal, measured) -> tuple[np.ndarray, np.ndarray]:
-    """Closed-form rigid transform with ``measured ~ R @ nominal + t`` (least squares).
-
-    Parameters
-    ----------
-    nominal : array-like of shape (N, 3)
-        Points in the base frame [m].
-    measured : array-like of shape (N, 3)
-        The same points in the tracker frame [m].
-
-    Returns
-    -------
-    rotation : ndarray of shape (3, 3)
-    translation : ndarray of shape (3,)
-
-    Raises
-    ------
-    InputError
-        Fewer than three points, or points (nearly) on one line: then the rotation about
-        that line is undetermined.
-    """
-    nominal = np.asarray(nominal, dtype=float)
-    measured = np.asarray(measured, dtype=float)
-    if nominal.shape != measured.shape or nominal.ndim != 2 or nominal.shape[1] != 3:
-        raise InputError(f"rigid fit: nominal and measured points must both be (N, 3), got {nominal.shape} "
-                         f"and {measured.shape}")
-    if nominal.shape[0] < 3:
-        raise InputError(f"rigid fit: {nominal.shape[0]} points; a tracker frame needs at least 3 poses")
-    mn, mm = nominal.mean(axis=0), measured.mean(axis=0)
-    spread = np.linalg.svd(nominal - mn, compute_uv=False)
-    if spread[1] <= 1e-6 * max(spread[0], 1e-300):
-        raise InputError("rigid fit: the nominal TCP positions lie on one line; measure poses that spread in at "
-                         "least two directions to fix the tracker frame")
-    rot, _ = Rotation.align_vectors(measured - mm, nominal - mn)
-    r = rot.as_matrix()
-    return r, mm - r @ mn
 
 
 #: poses the refinement of :func:`register_tracker` uses at most (a random subset above):

@@ -1,11 +1,35 @@
 """The printed summary of a diagnosis: what ``tcr-accuracy diagnose`` prints and
-:meth:`~tcr_accuracy.diagnosis.result.Diagnosis.summary` returns (mm and deg, labelled).
+:func:`diagnosis_summary` returns (mm and deg, labelled).
 
 Text only: it reads a :class:`~tcr_accuracy.diagnosis.result.Diagnosis` and imports nothing
 heavy at load time (the command line's parser imports this module).
 """
 
 from __future__ import annotations
+
+
+def diagnosis_summary(diagnosis, source: str | None = None) -> str:
+    """The summary ``tcr-accuracy diagnose`` prints (mm and deg, labelled).
+
+    Parameters
+    ----------
+    diagnosis : Diagnosis
+        A diagnosis' result (``GapDiagnosis(...).fit(...).result_`` or ``diagnose(...)``).
+    source : str, default=None
+        What the first line names as the measurements; None: the diagnosis' own ``source``.
+
+    Returns
+    -------
+    str
+        Several lines, in the order gap, where, which effect, how far it shrinks.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> result = tcr.diagnose(robot, measured)  # doctest: +SKIP
+    >>> print(tcr.diagnosis_summary(result))  # doctest: +SKIP
+    """
+    return format_summary(None, diagnosis, diagnosis.source if source is None else source)
 
 
 def format_summary(robot, d, source: str) -> str:

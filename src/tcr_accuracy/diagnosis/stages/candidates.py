@@ -1,0 +1,263 @@
+"""Stage 2: the candidate effects -- every effect of the vocabulary linearised on the measured
+poses, which of them can be tried on these data and why not the others, the folds, and the
+instrument's noise where the data's own redundancy gives it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...effects import effect_class, make_effect
+from ...exceptions import AnalysisError, InputError
+from ...frames.noise import NoiseEstimate, noise_from_rigid_frames
+from ...model.context import CONTEXT_FIELDS
+from ...model.errors import ErrorModel
+from ..fitting import EffectBasis, FitEngine, Part, UnionBasis, ordered, position_jacobians
+from ..residuals import noise_from_repeats
+from ..structure import StructureDetector
+from .register import RegisteredMeasurements
+
+#: Noise figure [m per axis] the identifiability test resolves down to a tenth of when the
+#: instrument's is not known (a good laser tracker): pruning stays rank-based.
+RESOLUTION_NOISE = 2e-5
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One effect of the vocabulary as a candidate: why it was not tried, or its first trial
+    (added to frames alone, or to the model it was first tried on). SI units.
+
+    Attributes
+    ----------
+    effect : str
+    tried : bool
+    why : str
+        Why it was not tried (empty when it was).
+    heldout_rms : float or None
+        Held-out RMS [m] of the model it was added to, with it.
+    gain : float or None
+        How much it lowered that model's held-out RMS [m].
+    z : float or None
+        Paired z of the cut in per-row squared held-out errors.
+    n_parameters : int or None
+        Its identifiable parameters in that model.
+    added_to : tuple of str
+        The model it was first tried on, when more than frames alone.
+    """
+
+    effect: str
+    tried: bool
+    why: str = ""
+    heldout_rms: float | None = None
+    gain: float | None = None
+    z: float | None = None
+    n_parameters: int | None = None
+    added_to: tuple = ()
+
+    def to_dict(self) -> dict:
+        if not self.tried:
+            return {"tried": False, "why": self.why}
+        out = {"tried": True, "heldout_rms_mm_with_frames": self.heldout_rms * 1e3, "gain_mm": self.gain * 1e3,
+               "z": self.z, "n_parameters": self.n_parameters}
+        if self.added_to:
+            out["added_to"] = list(self.added_to)
+        return out
+
+
+def untried(effect: str, why: str) -> Candidate:
+    return Candidate(effect, False, why)
+
+
+@dataclass(frozen=True)
+class CandidateSet:
+    """What stage 2 found.
+
+    Attributes
+    ----------
+    engine : FitEngine
+        The fit engine over every buildable effect (it caches the fits the later stages ask for).
+    untried : tuple of Candidate
+        The effects that cannot be tried, with the reason, in the order they were judged.
+    testable : tuple of str
+        The effects that can be tried (vocabulary order; not the effects of last resort).
+    late_names : tuple of str
+        Effects of last resort: built and tried only when the others leave structure.
+    stochastic : tuple of str
+        Effects of random scatter (tested as extra scatter, never fitted).
+    linearised : tuple of ndarray
+        Per part, the error Jacobians at the frames-only fit (what late effects are linearised at).
+    instrument_noise : NoiseEstimate or None
+        The instrument's noise from the data's redundancy (rigid frames, base references,
+        repeated poses), None when the data have none (or when it is given).
+    identifiability_all : dict
+        Identifiability of the whole vocabulary in one model (JSON form).
+    detector : StructureDetector
+        The structure test set up on the main frame's poses.
+    notes : tuple of str
+    """
+
+    engine: FitEngine
+    untried: tuple
+    testable: tuple
+    late_names: tuple
+    stochastic: tuple
+    linearised: tuple
+    instrument_noise: NoiseEstimate | None
+    identifiability_all: dict
+    detector: StructureDetector
+    notes: tuple
+
+    @property
+    def bases(self) -> dict:
+        """effect -> UnionBasis: every effect built so far (late ones join when tried)."""
+        return self.engine.bases
+
+
+def build_bases(parts: list[Part], names, measured, notes: list, session_labels=()) -> tuple[dict, list, list]:
+    """Each effect of ``names`` linearised on every part: (bases, the untried candidates, the
+    stochastic effects)."""
+    bases, rejected, stochastic = {}, [], []
+    jacobians = {}  # per part, the error Jacobians at the nominal model: the same for every effect
+    for name in names:
+        cls = effect_class(name)
+        if cls.stochastic:
+            stochastic.append(name)
+            rejected.append(untried(name, "stochastic: tested as extra scatter, not fitted"))
+            continue
+        missing = [c for c in cls.context_columns if c in CONTEXT_FIELDS and CONTEXT_FIELDS[c] not in measured]
+        if missing and cls.requires_context:
+            rejected.append(untried(name, f"needs the {', '.join(missing)} column"))
+            continue
+        try:
+            per_part = []
+            for p, part in enumerate(parts):
+                options = {"tool_rotation": True} if name == "frames" and part.target_rotation is not None else {}
+                if name == "frames" and len(session_labels) > 1:
+                    options["sessions"] = tuple(session_labels)
+                options.update(cls.options_for_data(part.robot, part.q, part.context))
+                effect = make_effect(name, part.robot, **options)
+                labels = _part_names(effect, part, len(parts))
+                em = ErrorModel(part.robot)
+                if p not in jacobians:
+                    jacobians[p] = position_jacobians(
+                        part.robot, part.q, None,
+                        part.orientation_weight if part.target_rotation is not None else None)
+                per_part.append(EffectBasis(effect, part, em, jacobians[p], labels))
+            basis = UnionBasis(per_part)
+        except InputError as exc:
+            rejected.append(untried(name, f"not testable on these data: {exc}"))
+            continue
+        if basis.nonlinearity > 1e-6:
+            notes.append(f"{name} is nonlinear in its parameters (relative {basis.nonlinearity:.1e}); "
+                         "it is fitted in its linearisation about zero")
+        bases[name] = basis
+    return bases, rejected, stochastic
+
+
+def relinearise(bases: dict, jacobians) -> None:
+    """Every effect's TCP sensitivity at the per-part error Jacobians (the frames-only fit's)."""
+    for p, jac_x in enumerate(jacobians):
+        for b in bases.values():
+            b.per_part[p].relinearise(jac_x)
+    for b in bases.values():
+        b.restack()
+
+
+def identifiable_alone(engine: FitEngine, name: str) -> bool:
+    """Whether an effect keeps any identifiable parameter next to frames alone."""
+    return engine.identify(("frames", name))[0][name].size > 0
+
+
+NOT_IDENTIFIABLE = "no identifiable parameter on these data (beyond frames)"
+
+
+def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, rank_tol: float,
+                     tracker_noise: float | None, rng: np.random.Generator) -> CandidateSet:
+    """Stage 2 of the diagnosis.
+
+    Parameters
+    ----------
+    registered : RegisteredMeasurements
+        Stage 1's result.
+    names : list of str
+        The effects to consider (vocabulary order, ``frames`` included).
+    folds : int
+        k of the k-fold cross-validation.
+    rank_tol : float
+        Identifiability tolerance on normalised pivots.
+    tracker_noise : float or None
+        The instrument's per-axis noise [m] when given (then not estimated).
+    rng : numpy.random.Generator
+        Draws the fold split, then the structure test's neighbours and permutations.
+    """
+    from sklearn.model_selection import KFold
+
+    parts = list(registered.parts)
+    n = registered.n_rows
+    notes: list = []
+    # an effect of last resort is built only if it is tried (its maps are the largest: tens of MB per 10^4 poses)
+    late_names = [e for e in names if effect_class(e).last_resort]
+    bases, rejected, stochastic = build_bases(parts, [e for e in names if e not in late_names],
+                                              registered.measured_context, notes, registered.session_labels)
+    if "frames" not in bases:
+        raise AnalysisError("the frames effect could not be built")
+    order = ordered(bases)
+    # a TCP offset of centimetres changes which directions duplicate one another:
+    # linearise about the frames-only fit, not the nominal model
+    pre = FitEngine(parts, {"frames": bases["frames"]}, [], rank_tol=0.0)
+    frames_cols = pre.columns(["frames"])
+    phi, _ = pre.fit(frames_cols, np.arange(n))
+    linearised = []  # per part, the error Jacobians at the frames-only fit
+    for p, part in enumerate(parts):
+        basis, _, idx = frames_cols.per_part[p]
+        # the sessions' base twists differ a little after their own registrations: their mean
+        x_frames = basis.errors(phi[idx] * frames_cols.scale[idx]).mean(axis=0)
+        linearised.append(position_jacobians(part.robot, part.q, x_frames,
+                                             part.orientation_weight if part.target_rotation is not None else None))
+    relinearise(bases, linearised)
+    kfold = KFold(n_splits=folds, shuffle=True, random_state=int(rng.integers(2**31 - 1)))
+    split = [(np.asarray(a), np.asarray(b)) for a, b in kfold.split(np.arange(n))]
+    # the instrument's noise from the data's own redundancy: reflectors on one rigid body, else repeated poses
+    redundancy = None
+    if tracker_noise is None:
+        main = registered.measurements
+        redundancy = noise_from_rigid_frames([p.position for p in registered.nominal],
+                                             [f.measurements.position for f in registered.frames],
+                                             [f.label for f in registered.frames]) or registered.reference_noise or \
+            noise_from_repeats(main.q, main.position, _context_table(parts[0]))
+    resolution = tracker_noise or (redundancy.per_axis if redundancy else RESOLUTION_NOISE)
+    engine = FitEngine(parts, bases, split, rank_tol, min_motion=0.1 * resolution)
+    _, identifiability_all = engine.identify(order)
+    testable = []
+    for name in order:
+        if name == "frames":
+            continue
+        if identifiable_alone(engine, name):
+            testable.append(name)
+        else:
+            rejected.append(untried(name, NOT_IDENTIFIABLE))
+    detector = StructureDetector(registered.measurements.q, rng, kinds=registered.robot.joint_kinds)
+    return CandidateSet(engine=engine, untried=tuple(rejected), testable=tuple(testable),
+                        late_names=tuple(late_names), stochastic=tuple(stochastic), linearised=tuple(linearised),
+                        instrument_noise=redundancy, identifiability_all=identifiability_all, detector=detector,
+                        notes=tuple(notes))
+
+
+def _part_names(effect, part: Part, n_parts: int) -> list[str]:
+    """Parameter names of an effect on a part; each measured frame's TCP offset is its own."""
+    names = effect.parameter_names()
+    if effect.name != "frames" or n_parts == 1:
+        return names
+    return [n.replace("frames.tool.", f"frames.{part.label}.") for n in names]
+
+
+def _context_table(part: Part) -> np.ndarray:
+    """(N, c) the context columns that make two rows the same pose (for repeated poses)."""
+    context = part.context
+    cols = [np.asarray(context.payload_kg)[:, None], np.asarray(context.temperature_c)[:, None],
+            np.asarray(context.direction)]
+    if context.outside_q is not None:
+        cols.append(context.outside_q)
+    return np.concatenate(cols, axis=1)

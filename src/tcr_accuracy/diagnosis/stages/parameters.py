@@ -1,0 +1,111 @@
+"""Stage 6: the fitted parameters -- every value with its standard error, 95 % interval and
+physical range, the parameters the physics holds on a bound, the as-built geometry and the
+tracker frame ``trackerMbase``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from ...effects import effect_class
+from ...frames.rigid import homogeneous
+from ...model.errors import ErrorModel
+from ..fitting import ordered
+from ..uncertainty import joint_function_bands, parameter_table
+from .candidates import CandidateSet
+from .register import RegisteredMeasurements
+from .select import Selection
+
+
+@dataclass(frozen=True)
+class FittedParameters:
+    """What stage 6 found (SI units).
+
+    Attributes
+    ----------
+    values : dict
+        effect -> {parameter name: fitted value} (the identifiable parameters).
+    units : dict
+        effect -> {parameter name: SI unit}.
+    full_vectors : dict
+        effect -> (k,) every parameter of the effect on the main frame's chain (zeros where not
+        identifiable): what rebuilds the fitted model.
+    table : dict
+        effect -> {"values", "std", "interval", "range", "pinned"} by parameter name.
+    as_built_x : ndarray
+        The geometric effects' error vector (ErrorModel layout), the base twist taken out.
+    trackerMbase : ndarray of shape (4, 4)
+        The robot's base in the tracker frame: the closed-form frame with the fitted base twist.
+    identifiability : dict
+        The final model's identifiability report (JSON form), and the whole vocabulary's.
+    joint_function_bands : dict
+        effect -> joint -> fitted function of the joint's own angle with its standard error.
+    effect_options : dict
+        effect -> the options it was fitted with.
+    physics : dict
+        effect -> why its parameters lie in their range.
+    notes : tuple of str
+    """
+
+    values: dict
+    units: dict
+    full_vectors: dict
+    table: dict
+    as_built_x: np.ndarray
+    trackerMbase: np.ndarray
+    identifiability: dict
+    joint_function_bands: dict
+    effect_options: dict
+    physics: dict
+    notes: tuple
+
+
+def collect_parameters(registered: RegisteredMeasurements, candidate_set: CandidateSet, selection: Selection,
+                       outside_physics) -> FittedParameters:
+    """Stage 6 of the diagnosis; ``outside_physics`` are stage 4's findings (their notes go with
+    the parameters)."""
+    engine, bases = candidate_set.engine, candidate_set.bases
+    selected = ordered(selection.selected)
+    final = engine.evaluate(selected)
+    notes: list = []
+    keep, identifiability = engine.identify(tuple(selected))
+    identifiability = {**identifiability, "all_effects": candidate_set.identifiability_all}
+    table = parameter_table(final, bases, selected)
+    for e, rows in table.items():
+        for pinned in rows["pinned"]:
+            if not (pinned["bound"] == "lower" and rows["range"][pinned["parameter"]][0] == 0.0):
+                notes.append(f"{pinned['parameter']} is held at its physical {pinned['bound']} bound "
+                             f"({effect_class(e).physics}): the data push beyond it")
+    for finding in outside_physics:
+        notes.append(f"outside physics: {finding['description']} (with {finding['effect']} unbounded the "
+                     f"held-out RMS would be {finding['heldout_rms_mm']:.4g} mm instead of "
+                     f"{finding['heldout_rms_bounded_mm']:.4g} mm, z = {finding['z']:.1f}; not named as a cause)")
+    theta = final["phi"] * final["scale"]
+    values, units, full_vectors = {}, {}, {}
+    robot = registered.robot
+    em = ErrorModel(robot)
+    as_built = np.zeros(em.size)
+    offset = 0
+    for e in selected:
+        b = bases[e]
+        union = np.zeros(len(b.names))
+        union[keep[e]] = theta[offset:offset + keep[e].size]
+        offset += keep[e].size
+        values[e] = {b.names[k]: union[k] for k in keep[e]}
+        units[e] = {b.names[k]: b.units[k] for k in keep[e]}
+        full = union[b.index[0]]  # the main frame's own parameter vector
+        full_vectors[e] = full
+        if effect_class(e).geometric:
+            as_built += b.per_part[0].basis.errors(full, rows=[0])[0]
+    base_twist = as_built[em.base_slice].copy()
+    as_built[em.base_slice] = 0.0  # the base twist belongs to the tracker frame, not the robot
+    tracker = homogeneous(*registered.stations[0]) @ pin.exp6(base_twist).homogeneous
+    return FittedParameters(
+        values=values, units=units, full_vectors=full_vectors, table=table, as_built_x=as_built,
+        trackerMbase=tracker, identifiability=identifiability,
+        joint_function_bands=joint_function_bands(final, bases, selected, registered.measurements.q),
+        effect_options={e: dict(bases[e].per_part[0].effect.options) for e in selected},
+        physics={e: effect_class(e).physics for e in table}, notes=tuple(notes))

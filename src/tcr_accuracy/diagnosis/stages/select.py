@@ -1,0 +1,285 @@
+"""Stage 3: select the effects -- forward selection on k-fold held-out error, the effects of last
+resort where the others leave structure, identifiability at the fitted sizes, the
+one-standard-error swaps, backward elimination, and what the data cannot tell apart.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..ambiguity import ambiguity_report, settle_swaps, swap_alternatives
+from ..fitting import FitEngine, ordered, paired_z
+from ..records import ErrorStats, Step
+from ..uncertainty import difference_interval
+from .candidates import NOT_IDENTIFIABLE, Candidate, CandidateSet, build_bases, identifiable_alone, relinearise, \
+    untried
+from .register import RegisteredMeasurements
+
+
+@dataclass(frozen=True)
+class LeaveOneOut:
+    """The final model without one chosen effect (SI units).
+
+    Attributes
+    ----------
+    effect : str
+        The effect left out.
+    heldout : ErrorStats
+        Held-out errors without it, the others refitted and free to take its place.
+    increase : float
+        How much the held-out RMS rises without it [m] (others refitted).
+    z : float
+        Paired z of the final model against the one without it.
+    own_share_heldout : ErrorStats
+        Held-out errors without it, the others held to their own parameters.
+    own_share_increase : float
+        Its own share: how much the held-out RMS rises then [m].
+    own_share_interval : (float, float)
+        95 % interval of the own share [m].
+    """
+
+    effect: str
+    heldout: ErrorStats
+    increase: float
+    z: float
+    own_share_heldout: ErrorStats
+    own_share_increase: float
+    own_share_interval: tuple
+
+    def to_dict(self) -> dict:
+        return {"dropped": self.effect, "heldout_rms_mm": self.heldout.rms * 1e3,
+                "heldout_mean_mm": self.heldout.mean * 1e3,
+                "own_share_interval_mm": [self.own_share_interval[0] * 1e3, self.own_share_interval[1] * 1e3],
+                "heldout_max_mm": self.heldout.max * 1e3, "increase_mm": self.increase * 1e3, "z": self.z,
+                "own_share_heldout_rms_mm": self.own_share_heldout.rms * 1e3,
+                "own_share_heldout_mean_mm": self.own_share_heldout.mean * 1e3,
+                "own_share_increase_mm": self.own_share_increase * 1e3}
+
+
+@dataclass(frozen=True)
+class Elimination:
+    """An effect backward elimination dropped: its z and what the held-out RMS gained [m]."""
+
+    effect: str
+    z: float
+    increase: float
+
+    def to_dict(self) -> dict:
+        return {"effect": self.effect, "z": self.z, "increase_mm": self.increase * 1e3}
+
+
+@dataclass(frozen=True)
+class Selection:
+    """What stage 3 found.
+
+    Attributes
+    ----------
+    selected : tuple of str
+        The chosen effects, ``frames`` first, in the order they were chosen (swaps in place).
+    forward_steps : tuple of Step
+        The shrink table in the order forward selection took the effects.
+    candidates : tuple of Candidate
+        Every effect as a candidate: why not tried, or its first trial (report order).
+    testable : tuple of str
+        The effects tried (the late ones included when they were).
+    late : tuple of str
+        The effects of last resort that were tried.
+    rivals : tuple of str
+        The effects that explain the gap on their own (they may stand in for a chosen one).
+    swaps : tuple of dict
+        One-standard-error swaps made after forward selection (JSON form, mm keys).
+    leave_one_out : tuple of LeaveOneOut
+        The final model without each chosen effect.
+    eliminated : tuple of Elimination
+        What backward elimination dropped.
+    groups : dict
+        Chosen effect -> its stand-ins (rows of :func:`~tcr_accuracy.diagnosis.ambiguity.swap_alternatives`).
+    ambiguous : tuple of dict
+        The groups of effects the data cannot tell apart (JSON form, mm keys).
+    gap_residual : ndarray of shape (N, 3) or (n_parts, N, 3)
+        The residual after frames alone [m] (the gap), as fitted before anything else.
+    notes : tuple of str
+    """
+
+    selected: tuple
+    forward_steps: tuple
+    candidates: tuple
+    testable: tuple
+    late: tuple
+    rivals: tuple
+    swaps: tuple
+    leave_one_out: tuple
+    eliminated: tuple
+    groups: dict
+    ambiguous: tuple
+    gap_residual: np.ndarray
+    notes: tuple
+
+    def decision_notes(self) -> list[str]:
+        """Notes on what the selection undid: backward eliminations and swaps."""
+        notes = []
+        if self.eliminated:
+            notes.append("dropped again after forward selection (no significant held-out loss without them): "
+                         + ", ".join(f"{e.effect} (z = {e.z:.1f})" for e in self.eliminated))
+        for swap in self.swaps:
+            notes.append(f"{swap['in']} replaces {swap['out']} (one-standard-error rule: held-out RMS "
+                         f"{swap['heldout_rms_mm'][swap['in']]:.4g} mm with {swap['n_parameters'][swap['in']]} "
+                         f"parameters against {swap['heldout_rms_mm'][swap['out']]:.4g} mm with "
+                         f"{swap['n_parameters'][swap['out']]})")
+        return notes
+
+
+def select_effects(registered: RegisteredMeasurements, candidate_set: CandidateSet, *, selection_z: float,
+                   min_relative_gain: float, rng: np.random.Generator, say=lambda message: None) -> Selection:
+    """Stage 3 of the diagnosis.
+
+    Parameters
+    ----------
+    registered, candidate_set : the results of stages 1 and 2
+    selection_z : float
+        One-sided z the paired held-out test must exceed for an effect to enter.
+    min_relative_gain : float
+        And the held-out RMS must drop by at least this fraction.
+    rng : numpy.random.Generator
+        The structure test's semivariogram draws (when the late effects are considered).
+    say : callable(str)
+        Progress messages.
+    """
+    engine = candidate_set.engine
+    candidates = {c.effect: c for c in candidate_set.untried}
+    testable = list(candidate_set.testable)
+    notes: list = []
+    result = engine.evaluate(["frames"])
+    steps = [Step("frames", ("frames",), result["n_parameters"], ErrorStats.of(result["train_residual"]).rms,
+                  ErrorStats.of(result["heldout_residual"]), None)]
+    current = _forward(engine, testable, steps, candidates, say, selection_z, min_relative_gain)
+    # a flexible effect of last resort is tried only where the others leave structure in joint space
+    say("testing what the first selection leaves")
+    late = []
+    late_names = candidate_set.late_names
+    if late_names and candidate_set.detector.test(_first_frame(engine.evaluate(ordered(current))["train_residual"]),
+                                                  rng)["remains"]:
+        late_bases, late_rejected, _ = build_bases(list(registered.parts), late_names, registered.measured_context,
+                                                   notes, registered.session_labels)
+        relinearise(late_bases, candidate_set.linearised)
+        engine.add_bases(late_bases)
+        candidates.update({c.effect: c for c in late_rejected})
+        for name in ordered(late_bases):
+            if identifiable_alone(engine, name):
+                late.append(name)
+            else:
+                candidates[name] = untried(name, NOT_IDENTIFIABLE)
+        testable += late
+        current = _forward(engine, testable, steps, candidates, say, selection_z, min_relative_gain, current)
+    else:
+        for e in late_names:
+            candidates[e] = untried(e, "tried only when the other effects leave structure in joint space, and they "
+                                       "left none")
+    _judge_at_fitted_sizes(engine, current, notes)
+    # a stand-in must explain the gap on its own, as an effect entering first would have to
+    # (its paired z against frames alone at the first step): the rest cannot replace anything
+    rivals = [e for e in testable if (candidates[e].z or 0.0) > selection_z]
+    current, swaps = settle_swaps(engine, current, rivals, selection_z, say)
+    current, loo, eliminated = _backward(engine, current, say, selection_z)
+    groups = swap_alternatives(engine, current, rivals, selection_z)
+    return Selection(selected=tuple(current), forward_steps=tuple(steps), candidates=tuple(candidates.values()),
+                     testable=tuple(testable), late=tuple(late), rivals=tuple(rivals), swaps=tuple(swaps),
+                     leave_one_out=tuple(loo), eliminated=tuple(eliminated), groups=groups,
+                     ambiguous=tuple(ambiguity_report(groups)), gap_residual=result["train_residual"],
+                     notes=tuple(notes))
+
+
+def _forward(engine: FitEngine, testable, steps: list, candidates: dict, say, selection_z: float,
+             min_relative_gain: float, start=None) -> list:
+    """Forward selection from ``start`` (default frames alone) over the testable effects;
+    each effect's first trial is recorded in ``candidates`` (against frames alone, or
+    against the model it was first tried on)."""
+    current = ["frames"] if start is None else list(start)
+    pool = [e for e in testable if e not in current]
+    fresh = [e for e in pool if not (e in candidates and candidates[e].tried)]
+    while pool:
+        trials = {}
+        for e in pool:
+            say(f"step {len(steps)}: trying {e}")
+            trials[e] = engine.evaluate(ordered(current + [e]))
+        prev = engine.evaluate(ordered(current))
+        prev_rms = ErrorStats.of(prev["heldout_residual"]).rms
+        for e in fresh:
+            r = trials[e]
+            rms = ErrorStats.of(r["heldout_residual"]).rms
+            candidates[e] = Candidate(e, True, heldout_rms=rms, gain=prev_rms - rms,
+                                      z=paired_z(prev["heldout_residual"], r["heldout_residual"]),
+                                      n_parameters=r["n_parameters"] - prev["n_parameters"],
+                                      added_to=tuple(current) if len(current) > 1 else ())
+        fresh = []
+        best = min(trials, key=lambda e: ErrorStats.of(trials[e]["heldout_residual"]).rms)
+        r = trials[best]
+        rms = ErrorStats.of(r["heldout_residual"]).rms
+        z = paired_z(prev["heldout_residual"], r["heldout_residual"])
+        if not (z > selection_z and rms < prev_rms * (1.0 - min_relative_gain)):
+            break
+        current.append(best)
+        pool.remove(best)
+        steps.append(Step(best, tuple(ordered(current)), r["n_parameters"],
+                          ErrorStats.of(r["train_residual"]).rms, ErrorStats.of(r["heldout_residual"]), z))
+    return current
+
+
+def _backward(engine: FitEngine, current: list, say, selection_z: float):
+    """Backward elimination: an effect that no longer earns its place once the others are
+    in (a flexible one picked early that later effects explain better) goes out."""
+    eliminated = []
+    while True:
+        chosen = [e for e in current if e != "frames"]
+        final = engine.evaluate(ordered(current))
+        final_rms = ErrorStats.of(final["heldout_residual"]).rms
+        keep = engine.identify(tuple(ordered(current)))[0]
+        loo = []
+        for e in chosen:
+            say(f"leave-one-out: {e}")
+            rest = ordered([s for s in current if s != e])
+            r = engine.evaluate(rest)
+            own = engine.evaluate(rest, keep={s: keep[s] for s in rest})
+            held, held_own = ErrorStats.of(r["heldout_residual"]), ErrorStats.of(own["heldout_residual"])
+            share = difference_interval(own["heldout_residual"], final["heldout_residual"])
+            loo.append(LeaveOneOut(effect=e, heldout=held, increase=held.rms - final_rms,
+                                   z=paired_z(r["heldout_residual"], final["heldout_residual"]),
+                                   own_share_heldout=held_own, own_share_increase=held_own.rms - final_rms,
+                                   own_share_interval=(share[1], share[2])))
+        weakest = min(loo, key=lambda row: row.z) if loo else None
+        if weakest is None or weakest.z > selection_z:
+            return current, loo, eliminated
+        eliminated.append(Elimination(weakest.effect, weakest.z, weakest.increase))
+        current.remove(weakest.effect)
+
+
+def _judge_at_fitted_sizes(engine: FitEngine, current, notes: list, factor: float = 2.0) -> bool:
+    """Identifiability was judged at typical sizes; an effect fitted at more than ``factor``
+    times its typical size is re-judged at its fitted size (RMS of its scaled parameters), so
+    that columns too small to resolve at the typical size but not at the fitted one come back."""
+    final = engine.evaluate(ordered(current))
+    factors, offset = {}, 0
+    for e in ordered(current):
+        size = final["keep"][e].size
+        phi = final["phi"][offset:offset + size]
+        offset += size
+        if e != "frames" and size and float(np.sqrt(np.mean(phi**2))) > factor:
+            factors[e] = float(np.sqrt(np.mean(phi**2)))
+    before = {e: tuple(v) for e, v in engine.identify(tuple(ordered(current)))[0].items()}
+    if not engine.resize(factors):
+        return False
+    after = {e: tuple(v) for e, v in engine.identify(tuple(ordered(current)))[0].items()}
+    if after != before:
+        notes.append("identifiability re-judged at the fitted sizes ("
+                      + ", ".join(f"{e} {f:.3g} x typical" for e, f in factors.items())
+                      + f"): {sum(len(v) for v in after.values()) - sum(len(v) for v in before.values()):+d} "
+                      "parameters")
+        return True
+    return False
+
+
+def _first_frame(residual: np.ndarray) -> np.ndarray:
+    """The first measured frame's (N, 3) rows of a (N, 3) or (n_parts, N, 3) residual."""
+    return residual if residual.ndim == 2 else residual[0]
