@@ -75,8 +75,12 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
         norms = np.linalg.norm(cols, axis=0)
         proj = cols if kept_q is None else cols - kept_q @ (kept_q.T @ cols)
         removed, kept_local = [], []
-        qmat, rmat, piv = linalg.qr(proj, mode="economic", pivoting=True)
-        diag = np.abs(np.diag(rmat))
+        # columns of equal independent motion (two placement translations along one axis) tie: the
+        # pivoting would then follow round-off, which differs between BLAS builds; weights within
+        # 1e-9 of one make the earlier column win every exact tie and change nothing else
+        tie_break = 1.0 + 1e-9 * np.arange(len(b.names), 0, -1) / max(len(b.names), 1)
+        qmat, rmat, piv = linalg.qr(proj * tie_break, mode="economic", pivoting=True)
+        diag = np.abs(np.diag(rmat)) / tie_break[piv[:min(proj.shape)]]
         independent = np.zeros(len(b.names))
         independent[piv[:diag.size]] = diag
         rank = 0
@@ -91,7 +95,7 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
         mat = np.stack(kept_cols + [unit_all[:, k] for k in kept_local], axis=1) if (kept_cols or kept_local) \
             else np.zeros((cols.shape[0], 0))
         span_names = kept_names + [b.names[k] for k in kept_local]
-        dropped = [int(k) for k in piv[rank:]]
+        dropped = sorted(int(k) for k in piv[rank:])  # in the effect's own order (the pivots' is round-off)
         # what each dropped column duplicates: one least-squares solve for all of them
         coefs = np.linalg.lstsq(mat, unit_all[:, dropped], rcond=None)[0] if (mat.shape[1] and dropped) else None
         for i, k in enumerate(dropped):
