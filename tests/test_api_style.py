@@ -191,7 +191,7 @@ def test_diagnosis_attributes_are_si_and_the_mm_ones_say_so(fitted):
     for c, axis in enumerate("xyz"):  # where_mm holds the same residual in mm
         assert d.where_mm["per_axis"][axis]["rms_mm"] == pytest.approx(
             np.sqrt(np.mean(d.gap_residual[:, c] ** 2)) * 1e3, rel=1e-12)
-    held = np.linalg.norm(d.heldout_residual, axis=1)
+    held = np.linalg.norm(np.concatenate(d.stages.residual.heldout_repeats), axis=1)  # every fold assignment
     assert d.steps[-1].heldout.rms == pytest.approx(np.sqrt(np.mean(held**2)), rel=1e-12)
     assert d.noise_floor == pytest.approx(np.sqrt(3) * 2e-5)  # tracker_noise given in m
     assert d.where is d.where_mm  # the old name, kept one release

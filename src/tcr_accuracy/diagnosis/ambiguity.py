@@ -44,11 +44,11 @@ def swap_alternatives(engine: FitEngine, current: list, pool, selection_z: float
 
         def judged(replacement):
             swapped = engine.evaluate(ordered(rest + list(replacement)))
-            return (swapped, paired_z(swapped["heldout_residual"], final["heldout_residual"]),
-                    paired_z(without["heldout_residual"], swapped["heldout_residual"]))
+            return (swapped, paired_z(swapped["heldout_squares"], final["heldout_squares"]),
+                    paired_z(without["heldout_squares"], swapped["heldout_squares"]))
 
-        rows = [_row([chosen], final, z_worse=0.0, z_explains=paired_z(without["heldout_residual"],
-                                                                          final["heldout_residual"]))]
+        rows = [_row([chosen], final, z_worse=0.0, z_explains=paired_z(without["heldout_squares"],
+                                                                          final["heldout_squares"]))]
         for alternative in unchosen:
             swapped, z_worse, z_explains = judged([alternative])
             if z_explains > selection_z and z_worse >= selection_z:  # explains, but not all: a companion?
@@ -64,11 +64,11 @@ def swap_alternatives(engine: FitEngine, current: list, pool, selection_z: float
 
 
 def _row(effects: list, result: dict, z_worse: float, z_explains: float) -> dict:
-    held = ErrorStats.of(result["heldout_residual"])
+    held = ErrorStats.heldout(result)
     return {"effect": "+".join(effects), "effects": list(effects), "heldout_rms_mm": held.rms * 1e3,
             "heldout_mean_mm": held.mean * 1e3, "heldout_max_mm": held.max * 1e3,
             "n_parameters": result["n_parameters"], "z_worse_than_chosen": z_worse, "z_over_neither": z_explains,
-            "_squares": row_squares(result["heldout_residual"])}
+            "_squares": row_squares(result["heldout_squares"])}
 
 
 def one_standard_error_choice(rows: list) -> dict:

@@ -65,7 +65,7 @@ def tied_own_shares(engine, current: list, leave_one_out: list, selection_z: flo
 
     def without(effect):  # the leave-one-out fit of its own share (cached by the engine)
         rest = ordered([s for s in current if s != effect])
-        return engine.evaluate(rest, keep={s: keep[s] for s in rest})["heldout_residual"]
+        return engine.evaluate(rest, keep={s: keep[s] for s in rest})["heldout_squares"]
 
     top = ranked[0]["dropped"]
     return [top] + [row["dropped"] for row in ranked[1:]

@@ -181,6 +181,9 @@ class GapDiagnosis(BaseEstimator):
         [m/rad] weight of measured orientation; None: the measured points' RMS spread.
     stability_replays : int, default=50
         Bootstrap replays of the selection that give each effect's selection frequency.
+    fold_repeats : int, default=5
+        Fold assignments of the repeated k-fold cross-validation: every held-out figure and
+        test is over all of them, so that the answer does not hang on one split of the rows.
 
     Attributes
     ----------
@@ -211,7 +214,8 @@ class GapDiagnosis(BaseEstimator):
     @renamed_keyword("seed", "random_state")
     def __init__(self, *, robot=None, effects=None, folds: int = 5, random_state=0,
                  tracker_noise: float | None = None, selection_z: float = 3.0, min_relative_gain: float = 0.002,
-                 rank_tol: float = 1e-6, orientation_weight: float | None = None, stability_replays: int = 50):
+                 rank_tol: float = 1e-6, orientation_weight: float | None = None, stability_replays: int = 50,
+                 fold_repeats: int = 5):
         self.robot = robot
         self.effects = effects
         self.folds = folds
@@ -222,6 +226,7 @@ class GapDiagnosis(BaseEstimator):
         self.rank_tol = rank_tol
         self.orientation_weight = orientation_weight
         self.stability_replays = stability_replays
+        self.fold_repeats = fold_repeats
 
     def __repr__(self, N_CHAR_MAX=700) -> str:
         """scikit-learn's repr of the parameters on one line, and once fitted what was found."""
@@ -307,7 +312,7 @@ class GapDiagnosis(BaseEstimator):
         registered = register_measurements(frames, references, self.orientation_weight)
         say("building effect models")
         candidates = build_candidates(registered, names, folds=self.folds, rank_tol=self.rank_tol,
-                                      tracker_noise=self.tracker_noise, rng=rng)
+                                      tracker_noise=self.tracker_noise, rng=rng, fold_repeats=self.fold_repeats)
         say("fitting frames")
         selection = select_effects(registered, candidates, selection_z=self.selection_z,
                                    min_relative_gain=self.min_relative_gain, rng=rng, say=say)

@@ -188,7 +188,8 @@ def register(nominal: np.ndarray, measured: np.ndarray) -> tuple[np.ndarray, np.
 def paired_z(before: np.ndarray, after: np.ndarray) -> float:
     """z of the mean cut in per-measurement squared held-out errors (one-sided, paired).
 
-    before, after : (N, 3) or (n_parts, N, 3) position errors; parts of a row add up.
+    before, after : (N, 3) or (n_parts, N, 3) position errors (parts of a row add up), or (N,)
+    squared errors per row (a fit's ``heldout_squares``).
     """
     d = row_squares(before) - row_squares(after)
     sd = d.std(ddof=1)
@@ -198,8 +199,11 @@ def paired_z(before: np.ndarray, after: np.ndarray) -> float:
 
 
 def row_squares(residual: np.ndarray) -> np.ndarray:
-    """(N,) squared position error of each row, the parts of a row added up."""
+    """(N,) squared position error of each row, the parts of a row added up; a (N,) array is
+    taken as such squares already (a fit's ``heldout_squares``)."""
     residual = np.asarray(residual)
+    if residual.ndim == 1:
+        return residual
     if residual.ndim == 2:
         return np.sum(residual**2, axis=1)
     return np.sum(residual**2, axis=(0, 2))
@@ -220,7 +224,9 @@ class FitEngine:
         The measured frames (one for a single TCP), all with the same N rows.
     bases : dict of str to UnionBasis
         Every effect that may enter, linearised on every part.
-    folds : list of (train, test) row index arrays
+    folds : list of (train, test) row index arrays, or a list of such lists
+        One fold assignment, or several (repeated k-fold): each model's held-out error is then
+        the mean over the assignments, so that no answer hangs on one way of splitting the rows.
     rank_tol, min_motion : identifiability thresholds (see
         :func:`~tcr_accuracy.diagnosis.identifiability.identifiability`)
     """
@@ -229,7 +235,10 @@ class FitEngine:
         self.parts = parts
         self.ems = [ErrorModel(p.robot) for p in parts]
         self.bases = bases
-        self.folds = folds
+        folds = list(folds)
+        #: the fold assignments (repeated k-fold); ``folds`` is the first one
+        self.repeats = folds if folds and isinstance(folds[0], list) else ([folds] if folds else [])
+        self.folds = self.repeats[0] if self.repeats else []
         self.rank_tol, self.min_motion = rank_tol, min_motion
         self.n_rows = parts[0].q.shape[0]
         self._full_cache: dict = {}
@@ -427,6 +436,15 @@ class FitEngine:
                 growth *= 2.0
         return phi, residual
 
+    def _fold_step(self, cols: "Columns", gram: np.ndarray, phi: np.ndarray, gradient: np.ndarray,
+                   penalty: float) -> np.ndarray:
+        """phi moved by one Gauss-Newton step on a fold's training rows (their Gram matrix and
+        their gradient J^T r at phi), inside the bounds, with the smoothness penalty lambda."""
+        weights = penalty * cols.penalty
+        solver = _DampedSolver(gram + np.diag(weights) if penalty else gram)
+        step, _ = solver.step(gradient + weights * phi, 0.0, cols.lower - phi, cols.upper - phi)
+        return cols.clip(phi + step)
+
     #: the fit stops when a step lowers the cost (or could lower it) by less than this share of it
     COST_TOLERANCE = 1e-7
     #: residual evaluations per fit at most (scipy's ``max_nfev`` before)
@@ -452,34 +470,44 @@ class FitEngine:
 
     def _penalties(self, cols: "Columns", jacs: list, fold_grams: list, residual: list, phi: np.ndarray) -> dict:
         """Smoothness-penalty lambdas chosen by held-out error inside the training rows: for the
-        full fit by k-fold over all rows, for each fold's fit by (k-1)-fold over its training
-        rows only (never its held-out rows). The model is linearised at phi (residual on all
-        rows): one small solve per lambda and fold."""
-        n_folds = len(self.folds)
-        gradients = [_gradient(jacs, [r[test] for r in residual], test, self.n_rows) for _, test in self.folds]
+        full fit by k-fold over all rows (the first assignment), for each fold's fit by (k-1)-fold
+        over its training rows only (never its held-out rows), in every fold assignment.
+        ``fold_grams``: per assignment, per fold, the Gram matrix of its held-out rows. The model
+        is linearised at phi (residual on all rows): one small solve per lambda and fold."""
+        first = fold_grams[0] if fold_grams else []
         penalised = cols.penalty > 0
-        base = float(np.median(np.diag(sum(fold_grams))[penalised])) if n_folds else 1.0
+        base = float(np.median(np.diag(sum(first))[penalised])) if first else 1.0
         grid = base * self.PENALTY_GRID
-        ridge = 1e-12 * max(float(np.max(np.diag(sum(fold_grams)))) if n_folds else 1.0, 1e-300)
+        ridge = 1e-12 * max(float(np.max(np.diag(sum(first)))) if first else 1.0, 1e-300)
 
-        def choose(allowed: list[int]) -> float:
+        gradients_of = {}
+
+        def choose(folds, grams, allowed: list[int]) -> float:
             if len(allowed) < 2:
                 return float(grid[len(grid) // 2])
-            total_gram = sum(fold_grams[f] for f in allowed)
+            key = id(folds)
+            if key not in gradients_of:
+                gradients_of[key] = [_gradient(jacs, [r[test] for r in residual], test, self.n_rows)
+                                     for _, test in folds]
+            gradients = gradients_of[key]
+            total_gram = sum(grams[f] for f in allowed)
             total_gradient = sum(gradients[f] for f in allowed)
             scores = np.zeros(len(grid))
             for h in allowed:
-                g_train = total_gram - fold_grams[h]
+                g_train = total_gram - grams[h]
                 b_train = total_gradient - gradients[h]
-                test = self.folds[h][1]
                 for i, lam in enumerate(grid):
                     step = _cholesky_solve(g_train + np.diag(lam * cols.penalty + ridge),
                                            -(b_train + lam * cols.penalty * phi))
-                    scores[i] += sum(float(np.sum((r[test] + j[test] @ step) ** 2)) for r, j in zip(residual, jacs))
+                    # |r + J s|^2 on the held-out rows, less the constant |r|^2: from their Gram
+                    # matrix and gradient, without touching the rows again
+                    scores[i] += float(2.0 * gradients[h] @ step + step @ grams[h] @ step)
             return float(grid[int(np.argmin(scores))])
 
-        every = list(range(n_folds))
-        return {"full": choose(every), "folds": [choose([g for g in every if g != f]) for f in every],
+        every = list(range(len(self.folds)))
+        per_repeat = [[choose(folds, grams, [g for g in range(len(folds)) if g != f]) for f in range(len(folds))]
+                      for folds, grams in zip(self.repeats, fold_grams)]
+        return {"full": choose(self.folds, first, every), "folds": per_repeat,
                 "grid_relative": [float(self.PENALTY_GRID[0]), float(self.PENALTY_GRID[-1])]}
 
     def cached(self, effects, free=()) -> dict | None:
@@ -507,18 +535,29 @@ class FitEngine:
 
         The full fit starts from the best of: zeros, the values last fitted for these
         parameters, and the optimum of the best model evaluated so far that is nested in
-        this one; each fold's fit from the better of the full fit and the nested model's
-        fit on the same fold. Fits only accept steps that lower the cost, so along a
-        ladder of nested models the training cost never rises, in the full fit and in
-        every fold.
+        this one, and only accepts steps that lower the cost, so along a ladder of nested
+        models the training cost never rises.
+
+        Each fold is refitted from the full optimum by one Gauss-Newton step on the normal
+        equations less its held-out rows (the Jacobian is the engine's constant one, the
+        residual the exact kinematics at the full optimum; a box-constrained step where the
+        bounds stop it). It is exact for a model linear in its parameters and, the effects
+        being linearised per pose, within a second-order term of a full refit; it costs one
+        small solve instead of a Levenberg-Marquardt run over the training rows, which is
+        what makes several fold assignments affordable. The held-out rows' residual is the
+        exact one at the full fit moved by the Jacobian times the step (second order in the
+        step, which is of the size of the parameters' standard errors).
 
         Returns a dict: ``phi``, ``scale``, ``names``, ``keep``, ``n_parameters``,
         ``train_residual`` / ``heldout_residual`` (position errors, (N, 3) for one part,
-        (n_parts, N, 3) for several), ``train_orientation`` / ``heldout_orientation``
-        (rotation errors [rad], same shapes, or None), ``cost`` (training sum of squares
-        [m^2]), ``fold_phi`` and ``fold_cost`` (each fold's fit and its training cost),
-        ``phi_std`` (standard errors of phi from the Jacobian and the residual),
-        ``at_bound`` (which parameters sit on their physical bound), ``n_observations``.
+        (n_parts, N, 3) for several; held out: the first fold assignment),
+        ``heldout_repeats`` (the held-out position errors of every fold assignment),
+        ``heldout_squares`` ((N,) each row's squared held-out error, its parts added up,
+        averaged over the assignments: what the paired tests compare),
+        ``train_orientation`` / ``heldout_orientation`` (rotation errors [rad], same shapes,
+        or None), ``cost`` (training sum of squares [m^2]), ``fold_phi`` (each fold's fit, first
+        assignment), ``phi_std`` (standard errors of phi from the Jacobian and the residual),
+        ``at_bound`` (which parameters sit on a bound), ``n_observations``.
         """
         free = tuple(sorted(free))
         key = (tuple(effects), None if keep is None else tuple((e, tuple(v)) for e, v in keep.items()), free)
@@ -540,7 +579,7 @@ class FitEngine:
         phi, train = self._best_start(cols, starts, every)
         jacs = self._jacobians(cols) if k else []
         gram = _gram(jacs, None) if jacs else None
-        fold_grams = [_gram(jacs, test) for _, test in self.folds] if k else []
+        fold_grams = [[_gram(jacs, test) for _, test in folds] for folds in self.repeats] if k else []
         penalties = self._penalties(cols, jacs, fold_grams, train, phi) if k and cols.penalty.any() else None
         if k:
             phi, train = self._minimise(cols, jacs, None, gram, phi, train,
@@ -549,27 +588,27 @@ class FitEngine:
             self.n_fits += 1
         if not free:
             self._last.update(zip(cols.names, phi))
-        oof = [np.empty((self.n_rows, p.rows_per_pose)) for p in self.parts]
-        fold_phi, fold_cost = [], []
-        for f, (train_rows, test) in enumerate(self.folds):
-            if k:  # from the full fit, on the normal equations less the held-out rows
-                lam = penalties["folds"][f] if penalties else 0.0
-                start, start_residual = phi, [r[train_rows] for r in train]
-                if inner is not None:  # or from the nested model's fit on this fold, if it fits these rows better
-                    flat = _flat(start_residual)
-                    candidate = mapped(inner["names"], inner["fold_phi"][f])
-                    if inner["fold_cost"][f] + lam * float(cols.penalty @ candidate**2) < \
-                            float(flat @ flat) + lam * float(cols.penalty @ phi**2):
-                        start, start_residual = self._best_start(cols, [candidate], train_rows)
-                phi_k, residual_k = self._minimise(cols, jacs, train_rows, gram - fold_grams[f], start,
-                                                   start_residual, lam)
-            else:
-                phi_k, residual_k = phi, [r[train_rows] for r in train]
-            flat = _flat(residual_k)
-            fold_phi.append(phi_k)
-            fold_cost.append(float(flat @ flat))
-            for p, r in enumerate(self.predict_residual(cols, phi_k, test)):
-                oof[p][test] = r
+        total_gradient = _gradient(jacs, train, None, self.n_rows) if k else None
+        repeats, fold_phi = [], []
+        for r, folds in enumerate(self.repeats):
+            oof = [np.empty((self.n_rows, p.rows_per_pose)) for p in self.parts]
+            for f, (_, test) in enumerate(folds):
+                phi_k = phi
+                if k:  # one step from the full fit, on the normal equations less the held-out rows
+                    lam = penalties["folds"][r][f] if penalties else 0.0
+                    held_gradient = _gradient(jacs, [res[test] for res in train], test, self.n_rows)
+                    phi_k = self._fold_step(cols, gram - fold_grams[r][f], phi, total_gradient - held_gradient, lam)
+                if r == 0:
+                    fold_phi.append(phi_k)
+                for p, (res, jac) in enumerate(zip(train, jacs or [None] * len(train))):
+                    # the held-out rows at the fold's fit: the exact residual at the full fit moved by
+                    # the Jacobian (the fold's fit is within a step of it; second order is below noise)
+                    oof[p][test] = res[test] if jac is None else res[test] + jac[test] @ (phi_k - phi)
+            repeats.append(oof)
+        oof = repeats[0] if repeats else [np.zeros((self.n_rows, p.rows_per_pose)) for p in self.parts]
+        heldout_repeats = [self._positions(o) for o in repeats]
+        squares = np.mean([row_squares(h) for h in heldout_repeats], axis=0) if heldout_repeats else \
+            np.zeros(self.n_rows)
         flat = _flat(train)
         cost = float(flat @ flat)
         n_obs = flat.size
@@ -585,7 +624,8 @@ class FitEngine:
                   "lower": cols.lower, "upper": cols.upper,
                   "train_residual": self._positions(train), "heldout_residual": self._positions(oof),
                   "train_orientation": self._rotations(train), "heldout_orientation": self._rotations(oof),
-                  "cost": cost, "fold_phi": fold_phi, "fold_cost": fold_cost, "phi_std": phi_std,
+                  "heldout_repeats": heldout_repeats, "heldout_squares": squares,
+                  "cost": cost, "fold_phi": fold_phi, "phi_std": phi_std,
                   "at_bound": at_bound, "n_observations": int(n_obs), "phi_cov": phi_cov,
                   "penalty": penalties, "penalty_weights": cols.penalty}
         self._full_cache[key] = result

@@ -25,6 +25,14 @@ class ErrorStats:
         norm = np.linalg.norm(stacked(errors), axis=1)
         return ErrorStats(float(norm.mean()), float(np.sqrt(np.mean(norm**2))), float(norm.max()), int(norm.size))
 
+    @staticmethod
+    def heldout(result: dict) -> "ErrorStats":
+        """A fit's held-out errors (:meth:`~tcr_accuracy.diagnosis.fitting.FitEngine.evaluate`),
+        pooled over its fold assignments; ``count`` is the number of measured points."""
+        repeats = [stacked(h) for h in result["heldout_repeats"]]
+        stats = ErrorStats.of(np.concatenate(repeats))
+        return ErrorStats(stats.mean, stats.rms, stats.max, repeats[0].shape[0])
+
     def to_dict(self) -> dict:
         return {"mean_mm": self.mean * 1e3, "rms_mm": self.rms * 1e3, "max_mm": self.max * 1e3, "count": self.count}
 

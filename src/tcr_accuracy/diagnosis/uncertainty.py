@@ -146,9 +146,9 @@ def _replay_forward(engine, current: list, pool: list, rows: np.ndarray, selecti
     """One forward selection on resampled rows, from ``current`` (extended in place)."""
     pool = list(pool)
     while pool:
-        prev = engine.evaluate(ordered(current))["heldout_residual"]
+        prev = engine.evaluate(ordered(current))["heldout_squares"]
         prev_sq = row_squares(prev)[rows]
-        trials = {e: row_squares(engine.evaluate(ordered(current + [e]))["heldout_residual"])[rows] for e in pool}
+        trials = {e: row_squares(engine.evaluate(ordered(current + [e]))["heldout_squares"])[rows] for e in pool}
         best = min(trials, key=lambda e: trials[e].mean())
         d = prev_sq - trials[best]
         sd = d.std(ddof=1)
@@ -166,7 +166,7 @@ def outside_physics(engine, current: list, candidates: list, selection_z: float,
     own bounds lifted; where that beats the bounded model by the selection test, the
     effect's own words for what the data show (``Effect.outside_physics``)."""
     final = engine.evaluate(ordered(current))
-    final_rms = float(np.sqrt(row_squares(final["heldout_residual"]).mean()))
+    final_rms = float(np.sqrt(row_squares(final["heldout_squares"]).mean()))
     findings = []
     for e in candidates:
         basis = engine.bases[e]
@@ -184,8 +184,8 @@ def outside_physics(engine, current: list, candidates: list, selection_z: float,
         outside = (values < lower - 1e-12 * np.abs(lower)) | (values > upper + 1e-12 * np.abs(upper))
         if not outside.any():
             continue
-        z = paired_z(final["heldout_residual"], free["heldout_residual"])
-        rms = float(np.sqrt(row_squares(free["heldout_residual"]).mean()))
+        z = paired_z(final["heldout_squares"], free["heldout_squares"])
+        rms = float(np.sqrt(row_squares(free["heldout_squares"]).mean()))
         if z > selection_z and rms < final_rms * (1.0 - min_relative_gain):
             effect = basis.per_part[0].effect
             full = values[basis.index[0]]

@@ -149,13 +149,13 @@ def explanation_ladder(engine: FitEngine, selected, first: Step) -> list[Step]:
     remaining = [e for e in selected if e != "frames"]
     while remaining:
         trials = {e: engine.evaluate(ordered(current + [e])) for e in remaining}
-        best = min(trials, key=lambda e: ErrorStats.of(trials[e]["heldout_residual"]).rms)
+        best = min(trials, key=lambda e: ErrorStats.heldout(trials[e]).rms)
         r = trials[best]
         current.append(best)
         remaining.remove(best)
         steps.append(Step(best, tuple(ordered(current)), r["n_parameters"], ErrorStats.of(r["train_residual"]).rms,
-                          ErrorStats.of(r["heldout_residual"]),
-                          paired_z(previous["heldout_residual"], r["heldout_residual"]),
-                          difference_interval(previous["heldout_residual"], r["heldout_residual"])))
+                          ErrorStats.heldout(r),
+                          paired_z(previous["heldout_squares"], r["heldout_squares"]),
+                          difference_interval(previous["heldout_squares"], r["heldout_squares"])))
         previous = r
     return steps

@@ -174,7 +174,7 @@ NOT_IDENTIFIABLE = "no identifiable parameter on these data (beyond frames)"
 
 
 def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, rank_tol: float,
-                     tracker_noise: float | None, rng: np.random.Generator) -> CandidateSet:
+                     tracker_noise: float | None, rng: np.random.Generator, fold_repeats: int = 1) -> CandidateSet:
     """Stage 2 of the diagnosis.
 
     Parameters
@@ -185,6 +185,8 @@ def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, r
         The effects to consider (vocabulary order, ``frames`` included).
     folds : int
         k of the k-fold cross-validation.
+    fold_repeats : int
+        How many fold assignments (repeated k-fold): held-out errors are their mean.
     rank_tol : float
         Identifiability tolerance on normalised pivots.
     tracker_noise : float or None
@@ -192,7 +194,7 @@ def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, r
     rng : numpy.random.Generator
         Draws the fold split, then the structure test's neighbours and permutations.
     """
-    from sklearn.model_selection import KFold
+    from sklearn.model_selection import RepeatedKFold
 
     parts = list(registered.parts)
     n = registered.n_rows
@@ -217,8 +219,9 @@ def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, r
         linearised.append(position_jacobians(part.robot, part.q, x_frames,
                                              part.orientation_weight if part.target_rotation is not None else None))
     relinearise(bases, linearised)
-    kfold = KFold(n_splits=folds, shuffle=True, random_state=int(rng.integers(2**31 - 1)))
-    split = [(np.asarray(a), np.asarray(b)) for a, b in kfold.split(np.arange(n))]
+    kfold = RepeatedKFold(n_splits=folds, n_repeats=fold_repeats, random_state=int(rng.integers(2**31 - 1)))
+    every = [(np.asarray(a), np.asarray(b)) for a, b in kfold.split(np.arange(n))]
+    split = [every[r * folds:(r + 1) * folds] for r in range(fold_repeats)]
     # the instrument's noise from the data's own redundancy: reflectors on one rigid body, else repeated poses
     redundancy = None
     if tracker_noise is None:

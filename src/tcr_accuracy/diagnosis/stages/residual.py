@@ -68,7 +68,9 @@ class ResidualAnalysis:
     final_residual : ndarray of shape (N, 3)
         The final model's in-sample residual [m].
     heldout_residual : ndarray of shape (N, 3)
-        The final model's out-of-fold residual [m].
+        The final model's out-of-fold residual [m] (the first fold assignment).
+    heldout_repeats : tuple of ndarray of shape (N, 3)
+        The out-of-fold residual of every fold assignment [m] (the held-out figures pool them).
     where_mm : dict
         Where the gap lies (JSON form: keys carry their unit, mostly mm).
     semivariograms : list
@@ -90,6 +92,7 @@ class ResidualAnalysis:
     gap_residual: np.ndarray
     final_residual: np.ndarray
     heldout_residual: np.ndarray
+    heldout_repeats: tuple
     where_mm: dict
     semivariograms: list
     noise: NoiseEstimate
@@ -154,25 +157,33 @@ def analyse_residual(registered: RegisteredMeasurements, candidate_set: Candidat
                                        leftover))
     name_scatter(scatter, structure, candidate_set.stochastic, noise, notes, detector, final_train)
 
-    held = final["heldout_residual"]
+    repeats = [_first_frame(h) for h in final["heldout_repeats"]]
+
+    def pooled(rows) -> ErrorStats:  # a subset's held-out errors over every fold assignment
+        stats = ErrorStats.of(np.concatenate([h[rows] for h in repeats]))
+        return ErrorStats(stats.mean, stats.rms, stats.max, int(np.size(rows)))
+
     sessions = []
     temperature = np.asarray(registered.parts[0].context.temperature_c, dtype=float)
     for s, label in enumerate(registered.session_labels):
         rows = np.flatnonzero(registered.session_of == s)
-        sessions.append(SessionFigures(label, int(rows.size), ErrorStats.of(gap_residual[rows]),
-                                       ErrorStats.of(_first_frame(held)[rows]),
+        sessions.append(SessionFigures(label, int(rows.size), ErrorStats.of(gap_residual[rows]), pooled(rows),
                                        (float(temperature[rows].min()), float(temperature[rows].max())),
                                        homogeneous(*registered.stations[s])))
     by_frame = {}
     if len(registered.parts) > 1:
-        by_frame = {part.label: ErrorStats.of(held[p]) for p, part in enumerate(registered.parts)}
+        by_frame = {}
+        for p, part in enumerate(registered.parts):
+            stats = ErrorStats.of(np.concatenate([h[p] for h in final["heldout_repeats"]]))
+            by_frame[part.label] = ErrorStats(stats.mean, stats.rms, stats.max, registered.n_rows)
     orientation = None
     if final["heldout_orientation"] is not None:
         angle = np.linalg.norm(stacked(final["heldout_orientation"]), axis=1)
         orientation = OrientationFigures(registered.orientation_weight, float(angle.mean()),
                                          float(np.sqrt(np.mean(angle**2))), float(angle.max()))
     return ResidualAnalysis(gap=ErrorStats.of(selection.gap_residual), gap_residual=gap_residual, final_residual=final_train,
-                            heldout_residual=_first_frame(held), where_mm=where, semivariograms=semis, noise=noise,
+                            heldout_residual=_first_frame(final["heldout_residual"]),
+                            heldout_repeats=tuple(repeats), where_mm=where, semivariograms=semis, noise=noise,
                             structure=structure, scatter=scatter, sessions=tuple(sessions),
                             heldout_by_frame=by_frame, orientation=orientation, notes=tuple(notes))
 

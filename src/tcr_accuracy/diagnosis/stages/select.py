@@ -153,7 +153,7 @@ def select_effects(registered: RegisteredMeasurements, candidate_set: CandidateS
     notes: list = []
     result = engine.evaluate(["frames"])
     steps = [Step("frames", ("frames",), result["n_parameters"], ErrorStats.of(result["train_residual"]).rms,
-                  ErrorStats.of(result["heldout_residual"]), None)]
+                  ErrorStats.heldout(result), None)]
     current = _forward(engine, testable, steps, candidates, say, selection_z, min_relative_gain)
     # a flexible effect of last resort is tried only where the others leave structure in joint space
     say("testing what the first selection leaves")
@@ -205,25 +205,25 @@ def _forward(engine: FitEngine, testable, steps: list, candidates: dict, say, se
             say(f"step {len(steps)}: trying {e}")
             trials[e] = engine.evaluate(ordered(current + [e]))
         prev = engine.evaluate(ordered(current))
-        prev_rms = ErrorStats.of(prev["heldout_residual"]).rms
+        prev_rms = ErrorStats.heldout(prev).rms
         for e in fresh:
             r = trials[e]
-            rms = ErrorStats.of(r["heldout_residual"]).rms
+            rms = ErrorStats.heldout(r).rms
             candidates[e] = Candidate(e, True, heldout_rms=rms, gain=prev_rms - rms,
-                                      z=paired_z(prev["heldout_residual"], r["heldout_residual"]),
+                                      z=paired_z(prev["heldout_squares"], r["heldout_squares"]),
                                       n_parameters=r["n_parameters"] - prev["n_parameters"],
                                       added_to=tuple(current) if len(current) > 1 else ())
         fresh = []
-        best = min(trials, key=lambda e: ErrorStats.of(trials[e]["heldout_residual"]).rms)
+        best = min(trials, key=lambda e: ErrorStats.heldout(trials[e]).rms)
         r = trials[best]
-        rms = ErrorStats.of(r["heldout_residual"]).rms
-        z = paired_z(prev["heldout_residual"], r["heldout_residual"])
+        rms = ErrorStats.heldout(r).rms
+        z = paired_z(prev["heldout_squares"], r["heldout_squares"])
         if not (z > selection_z and rms < prev_rms * (1.0 - min_relative_gain)):
             break
         current.append(best)
         pool.remove(best)
         steps.append(Step(best, tuple(ordered(current)), r["n_parameters"],
-                          ErrorStats.of(r["train_residual"]).rms, ErrorStats.of(r["heldout_residual"]), z))
+                          ErrorStats.of(r["train_residual"]).rms, ErrorStats.heldout(r), z))
     return current
 
 
@@ -234,7 +234,7 @@ def _backward(engine: FitEngine, current: list, say, selection_z: float):
     while True:
         chosen = [e for e in current if e != "frames"]
         final = engine.evaluate(ordered(current))
-        final_rms = ErrorStats.of(final["heldout_residual"]).rms
+        final_rms = ErrorStats.heldout(final).rms
         keep = engine.identify(tuple(ordered(current)))[0]
         loo = []
         for e in chosen:
@@ -242,10 +242,10 @@ def _backward(engine: FitEngine, current: list, say, selection_z: float):
             rest = ordered([s for s in current if s != e])
             r = engine.evaluate(rest)
             own = engine.evaluate(rest, keep={s: keep[s] for s in rest})
-            held, held_own = ErrorStats.of(r["heldout_residual"]), ErrorStats.of(own["heldout_residual"])
-            share = difference_interval(own["heldout_residual"], final["heldout_residual"])
+            held, held_own = ErrorStats.heldout(r), ErrorStats.heldout(own)
+            share = difference_interval(own["heldout_squares"], final["heldout_squares"])
             loo.append(LeaveOneOut(effect=e, heldout=held, increase=held.rms - final_rms,
-                                   z=paired_z(r["heldout_residual"], final["heldout_residual"]),
+                                   z=paired_z(r["heldout_squares"], final["heldout_squares"]),
                                    own_share_heldout=held_own, own_share_increase=held_own.rms - final_rms,
                                    own_share_interval=(share[1], share[2])))
         weakest = min(loo, key=lambda row: row.z) if loo else None
