@@ -109,7 +109,7 @@ def test_nested_models_never_fit_worse_on_ill_conditioned_data():
     position = _positions(robot, real) + 3e-5 * rng.standard_normal((q.shape[0], 3))
     fit = GapDiagnosis(robot=robot, folds=4, stability_replays=5).fit(_observations(q, position))
     engine = fit.engine_
-    results = [r for r in engine._full_cache.values() if not r["free"]]
+    results = list(engine._full_cache.values())
     pairs = 0
     for outer in results:
         for inner in results:
@@ -146,10 +146,11 @@ LEAD_ARM = """<?xml version="1.0"?>
 """
 
 
-def test_joints_that_lead_their_motion_are_described_not_called_backlash():
+def test_joints_that_lead_their_motion_are_kept_and_read_as_lost_motion_compensation():
     """Each joint ends ahead of its approach by 0.06-0.1 deg (a lost-motion compensation set
-    too high): backlash could fit it only with negative widths; it is not selected, nothing
-    reported leaves its range, and the output says the joints lead their motion."""
+    too high, written out here): the direction-dependent term is kept (backlash's signature with
+    negative widths, each within 10 % of the truth), the held-out error reaches the noise, and
+    the mechanism named is the controller's compensation, not a dead band."""
     robot = robot_from_urdf_text(LEAD_ARM, "tcp", name="lead_arm")
     rng = np.random.default_rng(5)
     n = 240
@@ -158,15 +159,15 @@ def test_joints_that_lead_their_motion_are_described_not_called_backlash():
     lead = np.radians([0.08, 0.06, 0.1])
     position = _positions(robot, q + lead * direction) + 1e-5 * rng.standard_normal((n, 3))
     d = GapDiagnosis(robot=robot, stability_replays=10).fit(_observations(q, position, direction)).result_
-    assert "backlash" not in d.selected_effects
-    for table in d.parameter_table.values():
-        for name, value in table["values"].items():
-            low, high = table["range"][name]
-            assert low <= value <= high, name
-    findings = {f["effect"]: f for f in d.outside_physics}
-    assert "backlash" in findings, d.notes
-    assert "ahead of their motion" in findings["backlash"]["description"]
-    assert any("ahead of their motion" in note for note in d.notes)
+    assert "backlash" in d.selected_effects
+    widths = d.parameter_table["backlash"]["values"]  # dq = width / 2 * (-direction): a lead is a negative width
+    for j, joint in enumerate(robot.joint_names):
+        assert -widths[f"backlash.{joint}"] / 2 == pytest.approx(lead[j], rel=0.1), joint
+    assert d.steps[-1].heldout.rms < 1.2 * d.noise_floor
+    reading = next(m for m in d.mechanisms if m["effect"] == "backlash")
+    assert reading["mechanism_keys"] == ["lost_motion_compensation"]
+    assert "ahead of their motion" in reading["mechanism"] and reading["physical"] and not reading["textbook"]
+    assert d.primary_family == "direction"
 
 
 def test_compliance_and_gear_errors_hidden_together_stay_inside_physics():

@@ -14,7 +14,7 @@ from pathlib import Path
 from .common import (add_robot_arguments, as_built_file, check_csv_memory, effect_names, effects_side_file, integer,
                      noise_mm_value, output_file, seed_value, status)
 from .output import RunOutput, add_output_arguments
-from ..view.diagnosis_summary import format_summary, primary_effect_text as _primary_text, \
+from ..view.diagnosis_summary import answer_lines, format_summary, primary_effect_text as _primary_text, \
     strongest_links as _strongest, structure_verdict_text as _verdict_text
 
 
@@ -308,6 +308,23 @@ def _report_tables(out, robot, d, source: str) -> None:
     out.add_text(f"{d.n_measurements} measurements of {robot.name} from {source}, {d.folds}-fold "
                  "cross-validation. Every held-out figure comes from measurements not used for that fit.",
                  heading="Data")
+    out.add_text("\n".join(answer_lines(d)), heading="Answer")
+    if d.families:
+        out.add_table("Families of effects", ["family", "chosen effects", "share", "share 95 % interval"],
+                      [(f["family"], ", ".join(f["effects"]), f["share_mm"],
+                        f"{f['interval_mm'][0]:+.4f} to {f['interval_mm'][1]:+.4f}") for f in d.families],
+                      units=["", "", "mm", "mm"],
+                      note="share: how much the held-out RMS rises without every member of the family, the other "
+                           "effects held to their parameters; the primary family is named where the held-out rows "
+                           "rank it above the others, the member where they rank it above the other members")
+    rows = [(m["effect"], m["family"], m["mechanism"], "yes" if m["physical"] else "no", m["check"])
+            for m in d.mechanisms if m["effect"] != "frames"]
+    if rows:
+        out.add_table("What mechanism each chosen effect stands for",
+                      ["effect", "family", "mechanism its fitted sign and size fit", "physical", "check"], rows,
+                      note="the model keeps whatever signature the held-out data want (within each effect's fit "
+                           "range, the union of the mechanisms it can stand for); the words name the mechanism "
+                           "whose range holds the fitted values")
     out.add_table("1. Gap after fitting only the tracker frame and TCP offset", ["statistic", "value"],
                   [("mean", d.gap.mean * mm), ("RMS", d.gap.rms * mm), ("max", d.gap.max * mm)],
                   units=["", "mm"])
@@ -347,18 +364,17 @@ def _report_tables(out, robot, d, source: str) -> None:
             low, high = table["interval"][name]
             lo, hi = table["range"][name]
             pinned = any(p["parameter"] == name for p in table["pinned"])
+            fit_lo, fit_hi = table["fit_range"][name]
             rows.append((name, f"{value:+.4g}", f"{table['std'][name]:.2g}", f"{low:+.4g} to {high:+.4g}",
-                         units.get(name, ""), f"{lo:.3g} to {hi:.3g}" + (" (held on a bound)" if pinned else "")))
+                         units.get(name, ""), f"{lo:.3g} to {hi:.3g}",
+                         f"{fit_lo:.3g} to {fit_hi:.3g}" + (" (held on its bound)" if pinned else "")))
     if rows:
         out.add_table("Fitted parameters", ["parameter", "value", "standard error", "95 % interval", "unit",
-                                            "physical range"], rows,
-                      note="standard errors from the fit's Jacobian and residual (the noise, not model error); the "
-                           "fit stays inside each effect's physical range: " + "; ".join(
+                                            "physical range", "fit range"], rows,
+                      note="standard errors from the fit's Jacobian and residual (the noise, not model error); "
+                           "physical range: what each effect's own physics allows; fit range: what the fit was held "
+                           "to (every mechanism the effect can stand for): " + "; ".join(
                                f"{e}: {why}" for e, why in d.physics.items() if why))
-    for finding in d.outside_physics:
-        out.add_text(f"{finding['description']} (with {finding['effect']} unbounded the held-out RMS would be "
-                     f"{finding['heldout_rms_mm']:.4g} mm instead of {finding['heldout_rms_bounded_mm']:.4g} mm)",
-                     heading="What the data fit only outside physics")
     if d.ambiguous:
         out.add_table("What the data cannot tell apart",
                       ["group", "member", "held-out RMS", "held-out mean", "parameters", "z (worse than chosen)"],

@@ -84,9 +84,26 @@ def one_standard_error_choice(rows: list) -> dict:
     return min(within, key=lambda r: (r["n_parameters"], r["_squares"].mean()))
 
 
-def settle_swaps(engine: FitEngine, current: list, pool, selection_z: float, say) -> tuple[list, list]:
+#: how much higher than the best model seen a model's held-out RMS may be, for the swaps and
+#: eliminations that make it (a relative figure: per-row squared errors are heavy-tailed, and a
+#: paired z alone lets a model 50 % worse pass when a few rows scatter)
+REACH = 0.02
+
+
+def within_reach(squares: np.ndarray, reference: np.ndarray, z: float) -> bool:
+    """Whether a model's per-row held-out squared errors are no significantly worse than the
+    reference's (paired z below ``z``) and its held-out RMS within :data:`REACH` of it."""
+    return paired_z(squares, reference) < z and \
+        math.sqrt(float(np.mean(squares))) <= (1.0 + REACH) * math.sqrt(float(np.mean(reference)))
+
+
+def settle_swaps(engine: FitEngine, current: list, pool, selection_z: float, say,
+                 reference: np.ndarray | None = None) -> tuple[list, list]:
     """Apply the one-standard-error rule to every ambiguity group until no swap is asked for
-    (each set is visited once, so it ends). Returns the new set and the swaps made."""
+    (each set is visited once, so it ends). With ``reference`` (the per-row held-out squared
+    errors of the best model seen), a swap must also stay within one standard error and
+    :data:`REACH` of it (:func:`within_reach`), so that a chain of swaps, each as good as the last,
+    cannot drift to a worse model. Returns the new set and the swaps made."""
     current = list(current)
     swaps, seen = [], {frozenset(current)}
     while True:
@@ -95,6 +112,8 @@ def settle_swaps(engine: FitEngine, current: list, pool, selection_z: float, say
         move = None
         for chosen, rows in groups.items():
             if len(rows) > 1:
+                if reference is not None:
+                    rows = [rows[0]] + [r for r in rows[1:] if within_reach(r["_squares"], reference, 1.0)]
                 keep = one_standard_error_choice(rows)
                 at = current.index(chosen)
                 candidate = current[:at] + keep["effects"] + current[at + 1:]

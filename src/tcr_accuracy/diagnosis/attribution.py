@@ -53,18 +53,19 @@ def fixed_point_check(part, bases, full_parameters, noise_floor) -> tuple[float,
     return rms, largest, note
 
 
-def tied_own_shares(engine, current: list, leave_one_out: list, selection_z: float) -> list:
-    """The effect with the largest own share (held-out error without it, the others held to
-    their own parameters) and every other chosen effect whose own share it does not beat by
-    a paired z of ``selection_z`` on the same held-out rows: a geometry error and a
-    compliance error that each leave 2 mm are not ranked by 0.01 mm between them."""
+def tied_own_shares(engine, model: list, leave_one_out: list, selection_z: float) -> list:
+    """Of the effects in ``leave_one_out`` (rows of the final ``model`` without each), the one with
+    the largest own share (held-out error without it, the others held to their own parameters)
+    and every other whose own share it does not beat by a paired z of ``selection_z`` on the
+    same held-out rows: a geometry error and a compliance error that each leave 2 mm are not
+    ranked by 0.01 mm between them."""
     if not leave_one_out:
         return []
     ranked = sorted(leave_one_out, key=lambda row: -row["own_share_increase_mm"])
-    keep = engine.identify(tuple(ordered(current)))[0]
+    keep = engine.identify(tuple(ordered(model)))[0]
 
     def without(effect):  # the leave-one-out fit of its own share (cached by the engine)
-        rest = ordered([s for s in current if s != effect])
+        rest = ordered([s for s in model if s != effect])
         return engine.evaluate(rest, keep={s: keep[s] for s in rest})["heldout_squares"]
 
     top = ranked[0]["dropped"]

@@ -321,7 +321,7 @@ class GapDiagnosis(BaseEstimator):
                                         stability_replays=self.stability_replays, seed=seed, say=say)
         residual = analyse_residual(registered, candidates, selection, tracker_noise=self.tracker_noise, rng=rng,
                                     seed=seed, say=say)
-        parameters = collect_parameters(registered, candidates, selection, attribution.outside_physics)
+        parameters = collect_parameters(registered, candidates, selection)
         first_order = first_order_reach(registered.parts[0], candidates.bases,
                                         [e for e in selection.selected if e != "frames"], parameters.full_vectors,
                                         registered.nominal[0].position, residual.noise_floor)

@@ -89,6 +89,7 @@ class EffectBasis:
         self.scales = np.asarray(effect.parameter_scales(), dtype=float)
         self.units = list(effect.parameter_units())
         self.lower, self.upper = (np.asarray(b, dtype=float) for b in effect.physical_range())
+        self.fit_lower, self.fit_upper = (np.asarray(b, dtype=float) for b in effect.fit_range())
         weights = effect.penalty_weights()
         self.penalty = np.zeros(len(self.names)) if weights is None else np.asarray(weights, dtype=float)
         n, k = part.q.shape[0], len(self.names)
@@ -129,20 +130,24 @@ class UnionBasis:
         names: list[str] = []
         scales: list[float] = []
         units: list[str] = []
-        bounds: list[tuple[float, float]] = []
+        bounds: list[tuple[float, float, float, float]] = []
         penalty: list[float] = []
         for b in per_part:
-            for name, scale, unit, lo, hi, w in zip(b.names, b.scales, b.units, b.lower, b.upper, b.penalty):
+            for name, scale, unit, lo, hi, fit_lo, fit_hi, w in zip(b.names, b.scales, b.units, b.lower, b.upper,
+                                                                    b.fit_lower, b.fit_upper, b.penalty):
                 if name not in names:
                     names.append(name)
                     scales.append(float(scale))
                     units.append(unit)
-                    bounds.append((float(lo), float(hi)))
+                    bounds.append((float(lo), float(hi), float(fit_lo), float(fit_hi)))
                     penalty.append(float(w))
         self.names, self.scales, self.units = names, np.array(scales), units
         #: (P,) physical range of each parameter [SI] (the effect's ``physical_range``)
-        self.lower = np.array([lo for lo, _ in bounds])
-        self.upper = np.array([hi for _, hi in bounds])
+        self.lower = np.array([bound[0] for bound in bounds])
+        self.upper = np.array([bound[1] for bound in bounds])
+        #: (P,) the range a fit stays in [SI] (the effect's ``fit_range``)
+        self.fit_lower = np.array([bound[2] for bound in bounds])
+        self.fit_upper = np.array([bound[3] for bound in bounds])
         #: (P,) smoothness-penalty weight of each parameter in scaled units (0: not penalised)
         self.penalty = np.array(penalty)
         self.index = [np.array([names.index(n) for n in b.names], dtype=int) for b in per_part]
@@ -307,10 +312,9 @@ class FitEngine:
         return self._keep_cache[key]
 
     # -- columns of a model ------------------------------------------------------------
-    def columns(self, effects, keep: dict | None = None, free=()) -> "Columns":
+    def columns(self, effects, keep: dict | None = None) -> "Columns":
         """The kept parameters of a set of effects: per-part bases and their union layout,
-        bounded by each parameter's physical range, except the effects named in ``free``
-        (unbounded, to see where the data alone would put them)."""
+        bounded by each parameter's fit range (what keeps a fit sane, any sign)."""
         keep = keep if keep is not None else self.identify(effects)[0]
         names, scale, lower, upper, penalty = [], [], [], [], []
         for e in effects:
@@ -318,9 +322,8 @@ class FitEngine:
             names += [b.names[k] for k in keep[e]]
             scale.append(b.scales[keep[e]])
             penalty.append(b.penalty[keep[e]])
-            unbounded = np.full(keep[e].size, np.inf)
-            lower.append(-unbounded if e in free else b.lower[keep[e]] / b.scales[keep[e]])
-            upper.append(unbounded if e in free else b.upper[keep[e]] / b.scales[keep[e]])
+            lower.append(b.fit_lower[keep[e]] / b.scales[keep[e]])
+            upper.append(b.fit_upper[keep[e]] / b.scales[keep[e]])
         scale = np.concatenate(scale) if scale else np.zeros(0)
         lower = np.concatenate(lower) if lower else np.zeros(0)
         upper = np.concatenate(upper) if upper else np.zeros(0)
@@ -510,28 +513,28 @@ class FitEngine:
         return {"full": choose(self.folds, first, every), "folds": per_repeat,
                 "grid_relative": [float(self.PENALTY_GRID[0]), float(self.PENALTY_GRID[-1])]}
 
-    def cached(self, effects, free=()) -> dict | None:
+    def cached(self, effects) -> dict | None:
         """The fit of a set of effects (own identifiability) if it was evaluated already, else None."""
-        return self._full_cache.get((tuple(effects), None, tuple(sorted(free))))
+        return self._full_cache.get((tuple(effects), None))
 
-    def _inner(self, effects, free) -> dict | None:
+    def _inner(self, effects) -> dict | None:
         """The best-fitting model already evaluated whose effects lie inside ``effects``: its
         optimum (the new parameters at zero) is a point of the larger model, and starting
         there is what keeps a nested model from fitting worse than the one inside it."""
         inside = set(effects)
         best = None
         for result in self._full_cache.values():
-            if set(result["free"]) <= set(free) and set(result["effects"]) < inside:
+            if set(result["effects"]) < inside:
                 if best is None or result["cost"] < best["cost"]:
                     best = result
         return best
 
-    def evaluate(self, effects, keep: dict | None = None, free=()):
+    def evaluate(self, effects, keep: dict | None = None):
         """Full-data fit and k-fold out-of-fold residuals for a set of effects.
 
         ``keep``: identifiable columns to use instead of the set's own (the leave-one-out
-        of an effect's own share keeps the full model's partition). ``free``: effects whose
-        parameters are not bounded by their physics (where the data alone put them).
+        of an effect's own share keeps the full model's partition). Parameters stay inside
+        their fit range (:meth:`~tcr_accuracy.effects.base.Effect.fit_range`).
 
         The full fit starts from the best of: zeros, the values last fitted for these
         parameters, and the optimum of the best model evaluated so far that is nested in
@@ -557,17 +560,16 @@ class FitEngine:
         ``train_orientation`` / ``heldout_orientation`` (rotation errors [rad], same shapes,
         or None), ``cost`` (training sum of squares [m^2]), ``fold_phi`` (each fold's fit, first
         assignment), ``phi_std`` (standard errors of phi from the Jacobian and the residual),
-        ``at_bound`` (which parameters sit on a bound), ``n_observations``.
+        ``at_bound`` (which parameters sit on their fit range's bound), ``n_observations``.
         """
-        free = tuple(sorted(free))
-        key = (tuple(effects), None if keep is None else tuple((e, tuple(v)) for e, v in keep.items()), free)
+        key = (tuple(effects), None if keep is None else tuple((e, tuple(v)) for e, v in keep.items()))
         if key in self._full_cache:
             return self._full_cache[key]
         keep = keep if keep is not None else self.identify(effects)[0]
-        cols = self.columns(effects, keep, free)
+        cols = self.columns(effects, keep)
         k = cols.scale.size
         every = np.arange(self.n_rows)
-        inner = self._inner(effects, free)
+        inner = self._inner(effects)
 
         def mapped(names, values) -> np.ndarray:
             known = dict(zip(names, values))
@@ -586,8 +588,7 @@ class FitEngine:
                                         penalties["full"] if penalties else 0.0)
         else:
             self.n_fits += 1
-        if not free:
-            self._last.update(zip(cols.names, phi))
+        self._last.update(zip(cols.names, phi))
         total_gradient = _gradient(jacs, train, None, self.n_rows) if k else None
         repeats, fold_phi = [], []
         for r, folds in enumerate(self.repeats):
@@ -619,7 +620,7 @@ class FitEngine:
         phi_cov = solver.covariance(cost / max(n_obs - k, 1)) if k and cols.penalty.any() else None
         span = np.maximum(np.abs(phi), 1.0) * 1e-9
         at_bound = (phi <= cols.lower + span) | (phi >= cols.upper - span)
-        result = {"effects": tuple(effects), "free": free, "phi": phi, "scale": cols.scale,
+        result = {"effects": tuple(effects), "phi": phi, "scale": cols.scale,
                   "names": cols.names, "keep": keep, "n_parameters": int(k),
                   "lower": cols.lower, "upper": cols.upper,
                   "train_residual": self._positions(train), "heldout_residual": self._positions(oof),
@@ -646,7 +647,7 @@ class FitEngine:
 @dataclass(frozen=True)
 class Columns:
     """The kept parameters of a model: union names and scales, per part (basis, g, index),
-    and the bounds of the scaled parameters phi = theta / scale (+-inf where free)."""
+    and the bounds of the scaled parameters phi = theta / scale (the fit range)."""
 
     names: list
     scale: np.ndarray

@@ -280,9 +280,27 @@ class Diagnosis:
         return self.stages.attribute.stability
 
     @property
+    def mechanisms(self) -> list:
+        """For every chosen effect, the mechanism its fitted sign and size fit (JSON form)."""
+        return [m.to_dict() for m in self.stages.attribute.mechanisms]
+
+    @property
+    def families(self) -> list:
+        """Every family with a chosen effect and its share, largest first (JSON form, mm)."""
+        return [f.to_dict() for f in self.stages.attribute.families]
+
+    @property
+    def primary_family(self) -> str | None:
+        """The family with the largest share, when the held-out rows rank it above the others."""
+        return self.stages.attribute.primary_family
+
+    @property
     def outside_physics(self) -> list:
-        """What the data fit only outside an effect's physics."""
-        return list(self.stages.attribute.outside_physics)
+        """The chosen effects whose fitted values another mechanism than their own physics explains
+        (a controller's compensation, the instrument), with its words."""
+        return [{"effect": m.effect, "description": m.mechanism, "physical": m.physical,
+                 "n_outside": sum(1 for p in m.parameters if not p["textbook"])}
+                for m in self.stages.attribute.mechanisms if not m.textbook and m.effect != "frames"]
 
     @property
     def contribution(self) -> dict:
@@ -357,11 +375,14 @@ class Diagnosis:
                               for e, t in self.parameter_table.items()},
             "parameter_interval_95": {e: dict(t["interval"]) for e, t in self.parameter_table.items()},
             "parameter_units": self.parameter_units,
-            "physical": {e: {"plausible": e not in {f["effect"] for f in self.outside_physics},
-                             "range": dict(t["range"]), "pinned": list(t["pinned"]),
-                             "reason": self.physics.get(e, "")}
+            "physical": {e: {"plausible": bool(getattr(self.stages.attribute.mechanism_of(e), "physical", True)),
+                             "range": dict(t["range"]), "fit_range": dict(t["fit_range"]),
+                             "pinned": list(t["pinned"]), "reason": self.physics.get(e, "")}
                          for e, t in self.parameter_table.items()},
             "outside_physics": list(self.outside_physics),
+            "mechanisms": self.mechanisms,
+            "families": self.families,
+            "primary_family": self.primary_family,
             "sessions": list(self.sessions),
             "drift": list(self.drift),
             "effect_options": {e: {k: (v.tolist() if isinstance(v, np.ndarray) else

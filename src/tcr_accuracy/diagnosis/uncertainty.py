@@ -1,5 +1,5 @@
 """How sure the diagnosis is: parameter intervals, each effect's share and each step's gain
-with their intervals, how stable the selection is, and what the data fit only outside physics.
+with their intervals, and how stable the selection is.
 
 * :func:`parameter_table` -- every fitted parameter [SI] with its standard error (from the
   fit's Jacobian and residual: s^2 (J^T J)^-1), its 95 % interval, its physical range and
@@ -9,8 +9,6 @@ with their intervals, how stable the selection is, and what the data fit only ou
 * :func:`selection_frequency` -- the forward selection replayed on bootstrap resamples of
   the rows (each model's held-out errors as fitted; the resampling moves which effect wins
   each step and whether it passes the test): how often each effect is chosen.
-* :func:`outside_physics` -- effects that the data fit significantly better with their
-  parameters free of the physical bounds: what the data show instead, in physical words.
 
 Lengths in m inside; the returned dicts carry mm in ``_mm`` keys.
 """
@@ -28,11 +26,12 @@ Z95 = 1.959963984540054
 
 
 def parameter_table(result: dict, bases: dict, effects) -> dict:
-    """Per effect: {"values", "std", "interval", "range", "pinned"} by parameter name [SI].
+    """Per effect: {"values", "std", "interval", "range", "fit_range", "pinned"} by parameter name [SI].
 
-    ``result`` is a fit of :meth:`~tcr_accuracy.diagnosis.fitting.FitEngine.evaluate`.
-    The interval is value +- 1.96 std cut to the physical range; ``pinned`` lists the
-    parameters the physics holds on a bound, with the side.
+    ``result`` is a fit of :meth:`~tcr_accuracy.diagnosis.fitting.FitEngine.evaluate`. ``range``
+    is the effect's physical range (its own physics), ``fit_range`` what the fit was held to;
+    the interval is value +- 1.96 std cut to the fit range; ``pinned`` lists the parameters
+    held on the fit range's bound, with the side.
     """
     theta = result["phi"] * result["scale"]
     std = result["phi_std"] * result["scale"]
@@ -42,14 +41,17 @@ def parameter_table(result: dict, bases: dict, effects) -> dict:
         size = result["keep"][e].size
         block = slice(offset, offset + size)
         offset += size
+        basis = bases[e]
+        physical = {name: (float(lo), float(hi)) for name, lo, hi in zip(basis.names, basis.lower, basis.upper)}
         names = result["names"][block]
-        rows = {"values": {}, "std": {}, "interval": {}, "range": {}, "pinned": []}
-        for name, v, s, lo, hi, pinned in zip(names, theta[block], std[block], lower[block], upper[block],
-                                             result["at_bound"][block]):
+        rows = {"values": {}, "std": {}, "interval": {}, "range": {}, "fit_range": {}, "pinned": []}
+        for name, v, s_, lo, hi, pinned in zip(names, theta[block], std[block], lower[block], upper[block],
+                                              result["at_bound"][block]):
             rows["values"][name] = float(v)
-            rows["std"][name] = float(s)
-            rows["interval"][name] = [float(max(v - Z95 * s, lo)), float(min(v + Z95 * s, hi))]
-            rows["range"][name] = [float(lo), float(hi)]
+            rows["std"][name] = float(s_)
+            rows["interval"][name] = [float(max(v - Z95 * s_, lo)), float(min(v + Z95 * s_, hi))]
+            rows["range"][name] = list(physical.get(name, (float(lo), float(hi))))
+            rows["fit_range"][name] = [float(lo), float(hi)]
             if pinned and (np.isfinite(lo) or np.isfinite(hi)):
                 rows["pinned"].append({"parameter": name,
                                        "bound": "lower" if abs(v - lo) <= abs(v - hi) else "upper"})
@@ -158,52 +160,3 @@ def _replay_forward(engine, current: list, pool: list, rows: np.ndarray, selecti
             return
         current.append(best)
         pool.remove(best)
-
-
-def outside_physics(engine, current: list, candidates: list, selection_z: float, min_relative_gain: float) -> list:
-    """Effects the data fit significantly better with their parameters outside the physical
-    range: each candidate added to the final model (or, when chosen, freed in it) with its
-    own bounds lifted; where that beats the bounded model by the selection test, the
-    effect's own words for what the data show (``Effect.outside_physics``)."""
-    final = engine.evaluate(ordered(current))
-    final_rms = float(np.sqrt(row_squares(final["heldout_squares"]).mean()))
-    findings = []
-    for e in candidates:
-        basis = engine.bases[e]
-        if np.all(np.isneginf(basis.lower)) and np.all(np.isposinf(basis.upper)):
-            continue  # nothing bounds it
-        model = ordered(set(current) | {e})
-        bounded = engine.cached(model)
-        if bounded is not None and not _effect_values(
-                {**bounded, "phi": bounded["at_bound"].astype(float), "scale": np.ones(bounded["phi"].size)},
-                e, len(basis.names)).any():
-            continue  # the bounded fit holds none of its parameters on a bound: the data ask nothing beyond
-        free = engine.evaluate(model, free=(e,))
-        values = _effect_values(free, e, len(basis.names))
-        lower, upper = basis.lower, basis.upper
-        outside = (values < lower - 1e-12 * np.abs(lower)) | (values > upper + 1e-12 * np.abs(upper))
-        if not outside.any():
-            continue
-        z = paired_z(final["heldout_squares"], free["heldout_squares"])
-        rms = float(np.sqrt(row_squares(free["heldout_squares"]).mean()))
-        if z > selection_z and rms < final_rms * (1.0 - min_relative_gain):
-            effect = basis.per_part[0].effect
-            full = values[basis.index[0]]
-            findings.append({"effect": e, "heldout_rms_mm": rms * 1e3, "heldout_rms_bounded_mm": final_rms * 1e3,
-                             "z": z, "n_outside": int(outside.sum()),
-                             "description": effect.outside_physics(full)})
-    return findings
-
-
-def _effect_values(result: dict, effect: str, size_all: int) -> np.ndarray:
-    """(P,) an effect's fitted values in its union layout [SI] (zeros where not kept)."""
-    theta = result["phi"] * result["scale"]
-    offset = 0
-    for e in result["effects"]:
-        size = result["keep"][e].size
-        if e == effect:
-            values = np.zeros(size_all)
-            values[result["keep"][e]] = theta[offset:offset + size]
-            return values
-        offset += size
-    raise KeyError(effect)

@@ -29,6 +29,7 @@ class Backlash(PerJointEffect):
     context_columns = ("payload_kg", "<joint>_dir")
     non_negative = True
     dominant_candidate = 2
+    family = "direction"
     physics = ("a dead band is a width (positive) and stays below 0.5 deg (0.5 mm) in any gearbox that still "
                "holds a load")
 
@@ -58,17 +59,22 @@ class Backlash(PerJointEffect):
     def physical_range(self):
         return np.zeros(self.n_params), per_joint_kind(self.robot, math.radians(0.5), 5e-4)
 
-    def outside_physics(self, values):
-        lead = [(n.split(".", 1)[1], v, u) for n, v, u in zip(self.parameter_names(), values, self.parameter_units())
-                if v < 0]
-        if lead:
-            lead.sort(key=lambda t: t[1])
-            said = ", ".join(f"{j} {(-v / 2) * (180 / math.pi) if u == 'rad' else -v / 2 * 1e3:.3g} "
-                             f"{'deg' if u == 'rad' else 'mm'}" for j, v, u in lead[:4])
-            return (f"the joints end ahead of their motion, not behind it ({said}): not a dead band; check the "
-                    "controller's backlash (lost-motion) compensation, which may be set too high, and the time "
-                    "offset between the tracker and the joint log")
-        return super().outside_physics(values)
+    def fit_range(self):
+        _, upper = self.physical_range()  # as far ahead of the motion as a dead band leaves a joint behind
+        return -upper, upper
+
+    def mechanisms(self):
+        from .mechanisms import Mechanism
+
+        _, upper = self.physical_range()
+        return (Mechanism("dead_band", "a dead band (lost motion) in the gear train: joints that end behind their "
+                          "motion", "reverse each joint slowly under the tracker or a dial gauge and measure the "
+                          "lost motion", np.zeros_like(upper), upper),
+                Mechanism("lost_motion_compensation", "joints that end ahead of their motion: the controller's "
+                          "lost-motion (backlash) compensation set too high, or a time offset between the tracker "
+                          "and the joint log", "check the controller's backlash-compensation parameters; check the "
+                          "time stamps of the tracker and the joint log (measure with the robot at rest)",
+                          -upper, np.zeros_like(upper), False))
 
     def signal(self, q, context):
         return 0.5 * self.side(q, context)

@@ -27,7 +27,15 @@ class attribute             meaning
                             says (the diagnosis fits inside that range and reports it)
 ``last_resort``             a flexible effect the diagnosis tries only once the others leave
                             structure in joint space (it could otherwise stand in for them)
+``family``                  the family of mechanisms (:data:`~tcr_accuracy.effects.mechanisms.FAMILIES`):
+                            the level a diagnosis names when the members cannot be told apart
 ==========================  ===========================================================
+
+Three ranges per parameter: :meth:`Effect.parameter_scales` (its typical size),
+:meth:`Effect.physical_range` (what the effect's own physics allows) and :meth:`Effect.fit_range`
+(what keeps a fit sane: the diagnosis keeps any signature the data want inside it). What a fitted
+value means is read from :meth:`Effect.mechanisms`: the effect's own physics and the other causes
+with the same signature, each with the values it explains.
 
 Options are explicit keyword-only arguments of the class's ``__init__`` (a misspelt
 option fails); :attr:`Effect.options` lists those that differ from their defaults.
@@ -113,6 +121,9 @@ class Effect(abc.ABC):
     physics: ClassVar[str] = ""
     #: tried by the diagnosis only where the other effects leave structure in joint space
     last_resort: ClassVar[bool] = False
+    #: the family of mechanisms it belongs to (``geometric``, ``gravity``, ``direction``, ``periodic``,
+    #: ``scale``, ``thermal``, ``time``; ``setup`` for the tracker frame)
+    family: ClassVar[str] = ""
 
     def __init_subclass__(cls, **kwargs) -> None:
         super().__init_subclass__(**kwargs)
@@ -171,6 +182,28 @@ class Effect(abc.ABC):
         k = self.n_params
         return (np.zeros(k) if self.non_negative else np.full(k, -np.inf)), np.full(k, np.inf)
 
+    def fit_range(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) of each parameter that keeps a fit sane [SI]: the diagnosis fits inside
+        it, whatever the sign, so that a signature the data show is kept even where it belongs
+        to another mechanism than the effect's own (:meth:`mechanisms` says which). It is the
+        union of the mechanisms' ranges: a value held on its bound is one the data push beyond
+        every known mechanism.
+
+        Default: ten times the largest finite bound of :meth:`physical_range`, either sign.
+        """
+        lower, upper = self.physical_range()
+        bound = 10.0 * np.maximum(np.abs(lower), np.abs(upper))
+        return -bound, bound
+
+    def mechanisms(self):
+        """The mechanisms this effect's signature can stand for, each with the parameter values it
+        explains (:class:`~tcr_accuracy.effects.mechanisms.Mechanism`), the effect's own physics
+        first. Default: its own physics over :meth:`physical_range`."""
+        from .mechanisms import Mechanism
+
+        lower, upper = self.physical_range()
+        return (Mechanism(self.name, self.summary, "", lower, upper),)
+
     @classmethod
     def options_for_data(cls, robot: RobotModel, q: np.ndarray, context: MeasurementContext) -> dict:
         """Options the diagnosis builds the effect with for measurements at joints q (N, n)
@@ -186,18 +219,6 @@ class Effect(abc.ABC):
         higher terms the data may not support (a Fourier series' roughness, ``cyclic``).
         """
         return None
-
-    def outside_physics(self, values: np.ndarray) -> str:
-        """What the data show, in physical words, when they fit this effect only with
-        ``values`` (k,) [SI] outside :meth:`physical_range` (one sentence, no effect name
-        claimed as the cause). Effects override it where the phenomenon has a name."""
-        lower, upper = self.physical_range()
-        names, units = self.parameter_names(), self.parameter_units()
-        out = [i for i in np.argsort(-np.abs(values)) if values[i] < lower[i] or values[i] > upper[i]]
-        listed = ", ".join(f"{names[i]} = {values[i]:.3g} {units[i]} (range {lower[i]:.3g} to {upper[i]:.3g})"
-                           for i in out[:3])
-        return (f"the data fit {self.name} only with {len(out)} parameter(s) outside what a real joint can have: "
-                f"{listed}; another cause with the same signature is more likely")
 
     def zeros(self) -> np.ndarray:
         return np.zeros(self.n_params)

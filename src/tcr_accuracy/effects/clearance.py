@@ -29,6 +29,7 @@ class Clearance(Effect):
     summary = "random joint play (scatter, not bias)"
     non_negative = True
     stochastic = True
+    family = "scatter"
     analytic_jacobian = False
 
     def __init__(self, robot, *, joints=None, rng=None) -> None:

@@ -30,6 +30,7 @@ class Compliance(PerJointEffect):
     context_columns = ("payload_kg",)
     non_negative = True
     dominant_candidate = 1
+    family = "gravity"
     physics = ("a joint gives way to gravity (positive), by less than 2 deg (10 mm) under its typical gravity load "
                "(200 x the typical compliance): a softer joint would be felt by hand")
 
@@ -54,14 +55,22 @@ class Compliance(PerJointEffect):
     def physical_range(self):
         return np.zeros(self.n_params), 200.0 * self.parameter_scales()
 
-    def outside_physics(self, values):
-        lower, _ = self.physical_range()
-        negative = [n.split(".", 1)[1] for n, v in zip(self.parameter_names(), values) if v < 0]
-        if negative:
-            return (f"the joints {', '.join(negative[:4])} move against the gravity torque they carry, which no elastic "
-                    "joint does: a gravity compensation in the controller that over-corrects, or masses and centres "
-                    "of mass in the URDF far from the real ones")
-        return super().outside_physics(values)
+    def fit_range(self):
+        _, upper = self.physical_range()  # as far against gravity as an elastic joint goes with it
+        return -upper, upper
+
+    def mechanisms(self):
+        from .mechanisms import Mechanism
+
+        _, upper = self.physical_range()
+        return (Mechanism("elastic_joint", "joints that give way to the gravity torque they carry: gear and bearing "
+                          "elasticity", "hang a known load at the tool and measure the sag with the tracker (a static "
+                          "load test); compare with the gearboxes' torsional stiffness", np.zeros_like(upper), upper),
+                Mechanism("gravity_compensation", "joints that end against the gravity torque they carry: the "
+                          "controller's gravity compensation over-corrects (its payload or gain set too high), or the "
+                          "URDF's masses and centres of mass are far from the real ones",
+                          "check the payload and gravity-compensation settings in the controller; compare the URDF's "
+                          "link masses with the real ones", -upper, np.zeros_like(upper), False))
 
     def signal(self, q, context):
         payload = context_column(context, "payload_kg", q.shape[0], 0.0)

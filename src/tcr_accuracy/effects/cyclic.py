@@ -35,6 +35,7 @@ class CyclicError(LinearEffect):
     physics = ("strain-wave gear and encoder cyclic errors are a few hundred microradians in all; one harmonic "
                "above 1 mrad (3.4 arc-min) is a damaged gear, not a cyclic error")
     last_resort = True
+    family = "periodic"
     #: the lowest order: orders 1 and 2 are transmission's
     FIRST_ORDER = 3
 
@@ -67,6 +68,19 @@ class CyclicError(LinearEffect):
     def physical_range(self):
         return np.full(self.n_params, -1e-3), np.full(self.n_params, 1e-3)
 
+
+    def fit_range(self):
+        return np.full(self.n_params, -1e-2), np.full(self.n_params, 1e-2)
+
+    def mechanisms(self):
+        from .mechanisms import Mechanism
+
+        lower, upper = self.physical_range()
+        wide_lower, wide_upper = self.fit_range()
+        return (Mechanism("cyclic_gear_encoder", "cyclic errors of high order: strain-wave gear tooth mesh and encoder "
+                          "interpolation", "compare with the gear maker's transmission error curve", lower, upper),
+                Mechanism("damaged_gear", "a cyclic error above 1 mrad per harmonic: a damaged gear or a loose "
+                          "encoder", "inspect the gear and the encoder's mounting", wide_lower, wide_upper, False))
     def penalty_weights(self) -> np.ndarray:
         """(k,) roughness weight of each parameter, (n / 3)^4: the fit's penalty is
         lambda * sum(w * (theta / scale)^2)."""

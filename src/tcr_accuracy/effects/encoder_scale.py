@@ -14,6 +14,7 @@ class EncoderScale(PerJointEffect):
     order = 55.0
     summary = "gear ratio (scale) error per joint"
     dominant_candidate = 5
+    family = "scale"
     physics = "a gear ratio the controller has wrong by more than 1 % would be seen as a joint that misses its end stops"
 
     def parameter_units(self):
@@ -24,6 +25,20 @@ class EncoderScale(PerJointEffect):
 
     def physical_range(self):
         return np.full(self.n_params, -0.01), np.full(self.n_params, 0.01)
+
+    def fit_range(self):
+        return np.full(self.n_params, -0.1), np.full(self.n_params, 0.1)
+
+    def mechanisms(self):
+        from .mechanisms import Mechanism
+
+        lower, upper = self.physical_range()
+        wide_lower, wide_upper = self.fit_range()
+        return (Mechanism("ratio_error", "a gear ratio slightly off what the controller assumes (an encoder scale)",
+                          "drive the joint between two marks a known angle apart and compare", lower, upper),
+                Mechanism("wrong_ratio", "a gear ratio wrong by more than 1 % in the controller's configuration (or "
+                          "a coupling ratio, for a coupled joint)", "compare the configured gear ratio with the "
+                          "gearbox's nameplate", wide_lower, wide_upper, False))
 
     def signal(self, q, context):
         return q

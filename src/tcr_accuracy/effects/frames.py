@@ -26,6 +26,7 @@ class Frames(ErrorVectorEffect):
     order = 0.0
     summary = "tracker frame and TCP offset"
     geometric = True
+    family = "setup"
     physics = "the tracker's frame and where the reflector sits on the tool belong to the setup, not the robot: unbounded"
 
     def __init__(self, robot, *, tool_rotation: bool = False, sessions=None) -> None:

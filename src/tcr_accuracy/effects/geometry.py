@@ -25,6 +25,7 @@ class Geometry(ErrorVectorEffect):
     order = 20.0
     summary = "error screws on the joint placements"
     geometric = True
+    family = "geometric"
     physics = ("link machining and assembly: a placement off by more than 20 mm or 3 deg is a URDF that describes "
                "another robot")
 
@@ -49,4 +50,22 @@ class Geometry(ErrorVectorEffect):
         rotation = np.array([n.split(".")[-1].startswith("r") for n in self.parameter_names()])
         bound = np.where(rotation, np.radians(3.0), 0.02)
         return -bound, bound
+
+    def fit_range(self):
+        rotation = np.array([n.split(".")[-1].startswith("r") for n in self.parameter_names()])
+        bound = np.where(rotation, np.radians(15.0), 0.1)
+        return -bound, bound
+
+    def mechanisms(self):
+        from .mechanisms import Mechanism
+
+        lower, upper = self.physical_range()
+        wide_lower, wide_upper = self.fit_range()
+        return (Mechanism("link_tolerances", "link machining and assembly: lengths, offsets and axis tilts off the "
+                          "drawing", "measure the links (or their axes with the tracker, circle point analysis) and "
+                          "compare with the drawings' tolerances", lower, upper),
+                Mechanism("another_variant", "link dimensions more than 20 mm or 3 deg off the URDF's: the URDF "
+                          "describes another variant of the robot, or a link was changed", "compare the URDF with "
+                          "the robot's datasheet (variant, link lengths, tool flange)", wide_lower, wide_upper,
+                          False))
 

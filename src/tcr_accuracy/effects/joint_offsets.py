@@ -17,6 +17,7 @@ class JointOffsets(PerJointEffect):
     order = 10.0
     summary = "encoder zero offsets"
     geometric = True
+    family = "geometric"
     physics = ("an encoder zero off by more than 10 deg (20 mm on a prismatic joint) is a joint mastered on the "
                "wrong mark, not a calibration error")
 
@@ -30,6 +31,20 @@ class JointOffsets(PerJointEffect):
     def physical_range(self):
         bound = per_joint_kind(self.robot, math.radians(10.0), 0.02)
         return -bound, bound
+
+    def fit_range(self):
+        bound = per_joint_kind(self.robot, math.radians(45.0), 0.1)
+        return -bound, bound
+
+    def mechanisms(self):
+        from .mechanisms import Mechanism
+
+        lower, upper = self.physical_range()
+        wide_lower, wide_upper = self.fit_range()
+        return (Mechanism("encoder_zero", "encoder zero offsets: joints mastered a little off their marks",
+                          "re-master the joints on their marks and compare the offsets", lower, upper),
+                Mechanism("wrong_mark", "a joint mastered on the wrong mark (more than 10 deg or 20 mm off)",
+                          "check each joint's mastering position against its mark", wide_lower, wide_upper, False))
 
     def signal(self, q, context):
         return np.ones_like(q)

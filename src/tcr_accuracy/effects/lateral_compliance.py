@@ -38,6 +38,7 @@ class LateralCompliance(LinearEffect):
     summary = "joint tilt across each axis under the gravity wrench it carries"
     context_columns = ("payload_kg",)
     non_negative = True
+    family = "gravity"
     physics = ("a bearing tilts the way the gravity moment pushes it (positive), by less than 2 deg under its "
                "typical moment (200 x the typical compliance)")
 
@@ -89,6 +90,22 @@ class LateralCompliance(LinearEffect):
 
     def physical_range(self):
         return np.zeros(self.n_params), 200.0 * self.parameter_scales()
+
+    def fit_range(self):
+        _, upper = self.physical_range()  # as far against the moment as an elastic bearing goes with it
+        return -upper, upper
+
+    def mechanisms(self):
+        from .mechanisms import Mechanism
+
+        _, upper = self.physical_range()
+        return (Mechanism("elastic_bearing", "joints that tilt across their axis the way the gravity moment pushes "
+                          "them: bearing and housing elasticity", "load the tool sideways with a known weight and "
+                          "measure the tilt; compare with the bearings' tilting stiffness", np.zeros_like(upper),
+                          upper),
+                Mechanism("tilt_against_gravity", "joints that tilt against the gravity moment: preloaded or "
+                          "misaligned bearings, or a mass model far from the real one", "compare the URDF's masses "
+                          "with the real ones; check the bearings' preload", -upper, np.zeros_like(upper), False))
 
     def parameter_jacobian(self, params, q, context):
         q = np.atleast_2d(np.asarray(q, dtype=float))

@@ -23,6 +23,7 @@ class LinkBending(Effect):
     order = 210.0
     summary = "the longest link sagging as a beam (simulate only)"
     in_vocabulary = False
+    family = "gravity"
     analytic_jacobian = False  # finite differences of perturb (base class)
 
     def parameter_names(self):

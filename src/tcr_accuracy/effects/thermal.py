@@ -26,6 +26,7 @@ class Thermal(LinearEffect):
     requires_context = True
     dominant_candidate = 3
     non_negative = True
+    family = "thermal"
     physics = ("links expand with temperature, between invar (1.2e-6/K) and aluminium (2.3e-5/K): 0 to 2.5e-5 "
                "per K")
 
@@ -66,11 +67,24 @@ class Thermal(LinearEffect):
         temperature = np.asarray(context.temperature_c, dtype=float)
         return {"reference_temperature_c": float(np.round(temperature.mean(), 6))}
 
-    def outside_physics(self, values):
-        return (f"a length scale of {float(np.max(np.abs(values))):.3g} per K between the measurements, beyond any "
-                "material the arm can be made of (0 to 2.5e-5 per K): not thermal expansion but a difference "
-                "between the sessions (another day, station or floor, the tracker's own scale or its weather "
-                "station)")
+    def fit_range(self):
+        # an instrument's scale error with temperature: a weather station off by a few kelvin or a
+        # refraction model off by a few ppm per kelvin, 40 times a metal's expansion at most
+        return np.full(self.n_params, -1e-3), np.full(self.n_params, 1e-3)
+
+    def mechanisms(self):
+        from .mechanisms import Mechanism
+
+        lower, upper = self.physical_range()
+        wide_lower, wide_upper = self.fit_range()
+        return (Mechanism("thermal_expansion", "links expanding with temperature (steel 1.2e-5/K, aluminium "
+                          "2.3e-5/K)", "measure at two temperatures after the arm has settled; compare with the "
+                          "links' material", lower, upper),
+                Mechanism("instrument_scale", "a length scale with temperature beyond any metal the arm is made of: "
+                          "the instrument's scale (the tracker's weather station or its refraction compensation) or a "
+                          "difference between sessions (another day, floor or station)", "check the tracker's "
+                          "weather-station readings against an independent thermometer and barometer; measure a "
+                          "calibrated scale bar at two temperatures", wide_lower, wide_upper, False))
 
     def growth_directions(self) -> np.ndarray:
         """(n_error_params, k): d(x)/d(alpha dT) for each parameter."""

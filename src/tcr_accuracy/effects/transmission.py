@@ -22,6 +22,7 @@ class Transmission(LinearEffect):
     order = 60.0
     summary = "periodic gear error (harmonics of each joint angle)"
     dominant_candidate = 4
+    family = "periodic"
     physics = ("cyclic gear and encoder errors are arc-minutes; more than 0.25 deg (15 arc-min) per harmonic is a "
                "damaged gear or a loose encoder, not a periodic error")
 
@@ -45,6 +46,21 @@ class Transmission(LinearEffect):
 
     def physical_range(self):
         return np.full(self.n_params, -math.radians(0.25)), np.full(self.n_params, math.radians(0.25))
+
+    def fit_range(self):
+        return np.full(self.n_params, -math.radians(5.0)), np.full(self.n_params, math.radians(5.0))
+
+    def mechanisms(self):
+        from .mechanisms import Mechanism
+
+        lower, upper = self.physical_range()
+        wide_lower, wide_upper = self.fit_range()
+        return (Mechanism("gear_error", "periodic transmission error of the gears, once and twice per revolution",
+                          "compare with the gearbox maker's transmission error; measure the joint with an "
+                          "output-side encoder", lower, upper),
+                Mechanism("eccentric_encoder", "a periodic error of degrees: an eccentric or loose encoder, or a "
+                          "wrong gear ratio", "check the encoder's mounting and the configured gear ratio",
+                          wide_lower, wide_upper, False))
 
     def parameter_jacobian(self, params, q, context):
         q = np.atleast_2d(np.asarray(q, dtype=float))

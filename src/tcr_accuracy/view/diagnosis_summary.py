@@ -54,8 +54,10 @@ def format_summary(robot, d, source: str) -> str:
     robot_name = d.robot_name if robot is None else robot.name
     joint_names = list(d.joint_names if robot is None else robot.joint_names)
     mm = 1e3
+    repeats = len(d.stages.residual.heldout_repeats)
     out = [f"Diagnosis of {source}: {d.n_measurements} measurements of {robot_name}, "
-           f"{d.folds}-fold cross-validation"]
+           f"{d.folds}-fold cross-validation" + (f" over {repeats} fold assignments" if repeats > 1 else "")]
+    out.extend(answer_lines(d))
     out.append(f"\n1. Gap after fitting the tracker frame and TCP offset (frames): "
                f"mean {d.gap.mean * mm:.4f} mm, RMS {d.gap.rms * mm:.4f} mm, max {d.gap.max * mm:.4f} mm")
     if d.sessions:
@@ -136,6 +138,12 @@ def format_summary(robot, d, source: str) -> str:
                                 for m in group["members"])
             out.append(f"     {{{', '.join(group['effects'])}}}: {members}")
     out.append(f"   primary effect: {primary_effect_text(d)}")
+    if d.families:
+        out.append("   families (held-out RMS without all their members, the others held to their parameters):")
+        for f in d.families:
+            low, high = f["interval_mm"]
+            out.append(f"     {f['family']:10s} {{{', '.join(f['effects'])}}}: +{f['share_mm']:.4f} mm "
+                       f"[{low:+.4f}, {high:+.4f}]")
     selection = d.selection
     if selection.get("frequency"):
         chosen = [e for e in d.selected_effects if e != "frames"]
@@ -232,6 +240,38 @@ def parameter_lines(d, per_effect: int = 4) -> list[str]:
             out.append(f"       held on a physical bound: " + ", ".join(
                 f"{p['parameter']} ({p['bound']})" for p in table["pinned"][:6])
                 + (f" and {len(table['pinned']) - 6} more" if len(table["pinned"]) > 6 else ""))
+    return out
+
+
+def answer_lines(d) -> list[str]:
+    """The answer first: the family and, where the data resolve it, the effect that causes the
+    largest share of the gap, and what mechanism each chosen effect's sign and size fit."""
+    out = []
+    families = {f["family"]: f for f in d.families}
+    if d.primary_family:
+        f = families[d.primary_family]
+        low, high = f["interval_mm"]
+        head = (f"the gap is mostly {d.primary_family} ({f['what']}): without it the held-out RMS rises by "
+                f"{f['share_mm']:.4g} mm [95 %: {low:.4g} to {high:.4g}]")
+        if d.primary_effect:
+            head += f"; within it, {d.primary_effect}"
+        elif len(d.primary_group) > 1:
+            head += f"; the data do not tell apart {', '.join(d.primary_group)}"
+        out.append("Answer: " + head)
+    elif d.primary_effect:
+        out.append(f"Answer: {d.primary_effect} causes the largest share of the gap")
+    elif d.families:
+        out.append("Answer: the held-out rows do not rank the families apart: " + ", ".join(
+            f"{f['family']} +{f['share_mm']:.4g} mm" for f in d.families[:3]))
+    else:
+        out.append("Answer: nothing beyond the tracker frame and the TCP offset (frames) is resolved")
+    for m in d.mechanisms:
+        if m["effect"] == "frames":
+            continue
+        mark = "" if m["physical"] else " [no known mechanism fits most of it]"
+        out.append(f"  {m['effect']} ({m['family']}): {m['mechanism']}{mark}")
+        if m["check"]:
+            out.append(f"    check: {m['check']}")
     return out
 
 

@@ -1,6 +1,7 @@
-"""Stage 4: attribute the gap -- the primary effect (or the group the data cannot rank apart),
-the shrink table in the order the chosen effects explain the data, how stable the selection is,
-what the data fit only outside physics, and where the first-order effect models end.
+"""Stage 4: attribute the gap -- what mechanism each chosen effect's fitted signature stands for,
+the families of effects and their shares, the primary family and, where the data tell the members
+apart, the primary effect; the shrink table in the order the chosen effects explain the data, how
+stable the selection is, and where the first-order effect models end.
 """
 
 from __future__ import annotations
@@ -10,12 +11,43 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...effects.mechanisms import FAMILIES, MechanismReading, read_mechanism
 from ..attribution import contributions, fixed_point_check, tied_own_shares
 from ..fitting import FitEngine, ordered, paired_z
 from ..records import ErrorStats, Step
-from ..uncertainty import difference_interval, outside_physics, selection_frequency
+from ..uncertainty import difference_interval, selection_frequency
 from .candidates import CandidateSet
 from .select import Selection
+
+
+@dataclass(frozen=True)
+class FamilyShare:
+    """A family of chosen effects and what it accounts for (SI units).
+
+    Attributes
+    ----------
+    family : str
+    effects : tuple of str
+        Its chosen members.
+    share : float
+        How much the held-out RMS rises without the whole family, the other effects held to
+        their parameters [m].
+    interval : (float, float)
+        The share's 95 % interval [m].
+    heldout_without : ErrorStats
+        Held-out errors without the family.
+    """
+
+    family: str
+    effects: tuple
+    share: float
+    interval: tuple
+    heldout_without: ErrorStats
+
+    def to_dict(self) -> dict:
+        return {"family": self.family, "effects": list(self.effects), "share_mm": self.share * 1e3,
+                "interval_mm": [self.interval[0] * 1e3, self.interval[1] * 1e3],
+                "heldout_rms_without_mm": self.heldout_without.rms * 1e3, "what": FAMILIES.get(self.family, "")}
 
 
 @dataclass(frozen=True)
@@ -25,27 +57,37 @@ class Attribution:
     Attributes
     ----------
     primary_effect : str or None
-        The chosen effect with the largest own share, None when the data cannot single it out.
+        The chosen effect the data single out as the largest cause, None where they cannot
+        tell it from another (then :attr:`primary_family` is the answer).
     primary_group : tuple of str
         The primary effect and what stands in for it or ties with it.
     primary_tied : tuple of str
         The largest own share and those not ranked below it by the held-out rows.
+    primary_family : str or None
+        The family with the largest share, when the held-out rows rank it above the others.
+    families : tuple of FamilyShare
+        Every family with a chosen member, largest share first.
+    mechanisms : tuple of MechanismReading
+        For every chosen effect, the mechanism its fitted sign and size fit.
     steps : tuple of Step
         The shrink table in the order of explanation (with each step's gain and interval).
     stability : dict
         How often bootstrap replays of the selection choose each effect (JSON form).
-    outside_physics : tuple of dict
-        What the data fit only with parameters outside an effect's physical range (JSON form).
     notes : tuple of str
     """
 
     primary_effect: str | None
     primary_group: tuple
     primary_tied: tuple
+    primary_family: str | None
+    families: tuple
+    mechanisms: tuple
     steps: tuple
     stability: dict
-    outside_physics: tuple
     notes: tuple
+
+    def mechanism_of(self, effect: str) -> MechanismReading | None:
+        return next((m for m in self.mechanisms if m.effect == effect), None)
 
 
 def attribute_effects(candidate_set: CandidateSet, selection: Selection, *, selection_z: float,
@@ -66,15 +108,32 @@ def attribute_effects(candidate_set: CandidateSet, selection: Selection, *, sele
     current = list(selection.selected)
     loo = [r.to_dict() for r in selection.leave_one_out]
     notes: list = []
-    # the largest own share and those it does not clear, compared on the same held-out rows (paired: the
-    # two shares' own intervals overlap more than their difference's does)
-    tied = tied_own_shares(engine, current, loo, selection_z)
+    mechanisms = tuple(fitted_mechanisms(engine, current))
+    unexplained = [m.effect for m in mechanisms if not m.physical]
+    families = family_shares(engine, current)
+    top_families = _tied_families(engine, current, [f.family for f in families], selection_z)
+    primary_family = top_families[0] if len(top_families) == 1 else None
+    # within the primary family (or among every chosen effect when no family stands out): the member
+    # with the largest own share and those the held-out rows do not rank below it
+    members = [e for e in current if e != "frames"]
+    if primary_family is not None:
+        members = [e for e in members if _family(engine, e) == primary_family]
+    tied = tied_own_shares(engine, current, [r for r in loo if r["dropped"] in members], selection_z)
     primary = tied[0] if tied else None
     primary_group = [r["effect"] for r in selection.groups.get(primary, [])] or ([primary] if primary else [])
     primary_group += [e for e in tied[1:] if e not in primary_group]
-    if len(primary_group) > 1:
+    if primary is not None and any(_family(engine, e) != primary_family for e in primary_group) and \
+            primary_family is not None:
+        primary_family = None  # a stand-in from another family: not even the family is resolved
+    if unexplained and set(unexplained) & set(primary_group):
+        notes.append(f"{', '.join(unexplained)}: fitted values that no known mechanism explains; not named as the "
+                     "cause (see the mechanisms)")
+        primary_group = [e for e in primary_group if e not in unexplained]
+    if len(primary_group) != 1:
         primary = None  # the data cannot say which of the group it is
         primary_group = ordered(primary_group)
+    else:
+        primary = primary_group[0]
     # the shrink table in the order the chosen effects explain the data
     steps = explanation_ladder(engine, current, selection.forward_steps[0])
     say("selection stability")
@@ -82,21 +141,76 @@ def attribute_effects(candidate_set: CandidateSet, selection: Selection, *, sele
     stability = selection_frequency(engine, testable, selection_z, min_relative_gain, stability_replays,
                                     np.random.default_rng([seed, 2]), say,
                                     late=[e for e in selection.late if e in testable])
-    say("what the data fit only outside physics")
-    beyond = outside_physics(engine, current, testable, selection_z, min_relative_gain)
-    # an effect in the model that the data fit significantly better beyond its physics is not named as the cause
-    flagged = [f["effect"] for f in beyond if f["effect"] in current]
-    if flagged and (set(flagged) & set(primary_group)):
-        primary_group = [e for e in primary_group if e not in flagged]
-        if not primary_group:
-            shares = {r["dropped"]: r["own_share_increase_mm"] for r in loo if r["dropped"] not in flagged}
-            primary_group = [max(shares, key=shares.get)] if shares else []
-        primary = primary_group[0] if len(primary_group) == 1 else None
-        tied = [e for e in tied if e not in flagged]
-        notes.append(f"{', '.join(flagged)} stays in the model only at its physical bound and is not named as the "
-                     "cause: see what the data fit outside physics")
     return Attribution(primary_effect=primary, primary_group=tuple(primary_group), primary_tied=tuple(tied),
-                       steps=tuple(steps), stability=stability, outside_physics=tuple(beyond), notes=tuple(notes))
+                       primary_family=primary_family, families=tuple(families), mechanisms=mechanisms,
+                       steps=tuple(steps), stability=stability, notes=tuple(notes))
+
+
+def _family(engine: FitEngine, effect: str) -> str:
+    return engine.bases[effect].per_part[0].effect.family
+
+
+def fitted_mechanisms(engine: FitEngine, current) -> list[MechanismReading]:
+    """Each chosen effect's mechanism, read from its fitted values and standard errors (the main
+    measured frame's parameters)."""
+    final = engine.evaluate(ordered(current))
+    theta = final["phi"] * final["scale"]
+    std = final["phi_std"] * final["scale"]
+    out, offset = [], 0
+    for e in ordered(current):
+        basis = engine.bases[e]
+        kept = final["keep"][e]
+        values, spread = np.zeros(len(basis.names)), np.full(len(basis.names), np.inf)
+        pinned = np.zeros(len(basis.names), dtype=bool)
+        values[kept] = theta[offset:offset + kept.size]
+        spread[kept] = std[offset:offset + kept.size]
+        pinned[kept] = final["at_bound"][offset:offset + kept.size] & np.isfinite(final["lower"][offset:offset + kept.size])
+        offset += kept.size
+        effect = basis.per_part[0].effect
+        index = basis.index[0]
+        g = basis.per_part[0].g[:, :3, :]  # (N, 3, k): TCP position motion per unit of each parameter
+        motion = np.sqrt(np.mean(np.sum(g**2, axis=1), axis=0))
+        out.append(read_mechanism(effect, values[index], spread[index], [basis.names[i] for i in index], motion,
+                                  pinned[index]))
+    return out
+
+
+def _without(engine: FitEngine, current, dropped) -> dict:
+    """The final model without some effects, the others held to their own parameters."""
+    keep = engine.identify(tuple(ordered(current)))[0]
+    rest = ordered([s for s in current if s not in dropped])
+    return engine.evaluate(rest, keep={s: keep[s] for s in rest})
+
+
+def family_shares(engine: FitEngine, current) -> list[FamilyShare]:
+    """Every family with a chosen member and its own share: how much the held-out RMS rises
+    without all its members (the other effects held to their parameters), largest first."""
+    final = engine.evaluate(ordered(current))
+    final_rms = ErrorStats.heldout(final).rms
+    members: dict = {}
+    for e in ordered(current):
+        if e != "frames":
+            members.setdefault(_family(engine, e), []).append(e)
+    out = []
+    for family, effects in members.items():
+        without = _without(engine, current, effects)
+        held = ErrorStats.heldout(without)
+        _, low, high = difference_interval(without["heldout_squares"], final["heldout_squares"])
+        out.append(FamilyShare(family, tuple(effects), held.rms - final_rms, (low, high), held))
+    out.sort(key=lambda f: -f.share)
+    return out
+
+
+def _tied_families(engine: FitEngine, current, ranked_families, selection_z: float) -> list:
+    """The first family and those whose removal the held-out rows do not rank below its removal
+    (paired z on the rows without each)."""
+    if not ranked_families:
+        return []
+    members = {f: [e for e in current if e != "frames" and _family(engine, e) == f] for f in ranked_families}
+    top = _without(engine, current, members[ranked_families[0]])["heldout_squares"]
+    return [ranked_families[0]] + [f for f in ranked_families[1:]
+                                   if paired_z(top, _without(engine, current, members[f])["heldout_squares"])
+                                   < selection_z]
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,5 @@
 """Stage 6: the fitted parameters -- every value with its standard error, 95 % interval and
-physical range, the parameters the physics holds on a bound, the as-built geometry and the
+physical range, the parameters held on their fit range's bound, the as-built geometry and the
 tracker frame ``trackerMbase``.
 """
 
@@ -63,10 +63,9 @@ class FittedParameters:
     notes: tuple
 
 
-def collect_parameters(registered: RegisteredMeasurements, candidate_set: CandidateSet, selection: Selection,
-                       outside_physics) -> FittedParameters:
-    """Stage 6 of the diagnosis; ``outside_physics`` are stage 4's findings (their notes go with
-    the parameters)."""
+def collect_parameters(registered: RegisteredMeasurements, candidate_set: CandidateSet,
+                       selection: Selection) -> FittedParameters:
+    """Stage 6 of the diagnosis."""
     engine, bases = candidate_set.engine, candidate_set.bases
     selected = ordered(selection.selected)
     final = engine.evaluate(selected)
@@ -76,13 +75,9 @@ def collect_parameters(registered: RegisteredMeasurements, candidate_set: Candid
     table = parameter_table(final, bases, selected)
     for e, rows in table.items():
         for pinned in rows["pinned"]:
-            if not (pinned["bound"] == "lower" and rows["range"][pinned["parameter"]][0] == 0.0):
-                notes.append(f"{pinned['parameter']} is held at its physical {pinned['bound']} bound "
-                             f"({effect_class(e).physics}): the data push beyond it")
-    for finding in outside_physics:
-        notes.append(f"outside physics: {finding['description']} (with {finding['effect']} unbounded the "
-                     f"held-out RMS would be {finding['heldout_rms_mm']:.4g} mm instead of "
-                     f"{finding['heldout_rms_bounded_mm']:.4g} mm, z = {finding['z']:.1f}; not named as a cause)")
+            notes.append(f"{pinned['parameter']} is held at the {pinned['bound']} end of its fit range (what keeps a "
+                         f"fit sane, far beyond its physics: {effect_class(e).physics}): the data push further, which "
+                         "no mechanism explains")
     theta = final["phi"] * final["scale"]
     values, units, full_vectors = {}, {}, {}
     robot = registered.robot

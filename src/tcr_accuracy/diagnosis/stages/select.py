@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..ambiguity import ambiguity_report, settle_swaps, swap_alternatives
+from ..ambiguity import ambiguity_report, settle_swaps, swap_alternatives, within_reach
 from ..fitting import FitEngine, ordered, paired_z
 from ..records import ErrorStats, Step
 from ..uncertainty import difference_interval
@@ -181,8 +181,22 @@ def select_effects(registered: RegisteredMeasurements, candidate_set: CandidateS
     # a stand-in must explain the gap on its own, as an effect entering first would have to
     # (its paired z against frames alone at the first step): the rest cannot replace anything
     rivals = [e for e in testable if (candidates[e].z or 0.0) > selection_z]
-    current, swaps = settle_swaps(engine, current, rivals, selection_z, say)
-    current, loo, eliminated = _backward(engine, current, say, selection_z)
+    reference = engine.evaluate(ordered(current))["heldout_squares"]  # the best model forward selection found
+    current, swaps = settle_swaps(engine, current, rivals, selection_z, say, reference)
+    current, loo, eliminated = _backward(engine, current, say, selection_z, reference)
+    # stepwise: what backward elimination and the swaps left may again take an effect forward selection
+    # would add (a chain of swaps can end on a worse set); repeat until the set stands, each set once
+    seen = {frozenset(current)}
+    for _ in range(4):
+        grown = _forward(engine, testable, [], candidates, say, selection_z, min_relative_gain, current)
+        if set(grown) == set(current):
+            break
+        grown, more_swaps = settle_swaps(engine, grown, rivals, selection_z, say, reference)
+        grown, grown_loo, more_eliminated = _backward(engine, grown, say, selection_z, reference)
+        if frozenset(grown) in seen:
+            break
+        seen.add(frozenset(grown))
+        current, loo, swaps, eliminated = grown, grown_loo, swaps + more_swaps, eliminated + more_eliminated
     groups = swap_alternatives(engine, current, rivals, selection_z)
     return Selection(selected=tuple(current), forward_steps=tuple(steps), candidates=tuple(candidates.values()),
                      testable=tuple(testable), late=tuple(late), rivals=tuple(rivals), swaps=tuple(swaps),
@@ -227,9 +241,11 @@ def _forward(engine: FitEngine, testable, steps: list, candidates: dict, say, se
     return current
 
 
-def _backward(engine: FitEngine, current: list, say, selection_z: float):
+def _backward(engine: FitEngine, current: list, say, selection_z: float, reference: np.ndarray | None = None):
     """Backward elimination: an effect that no longer earns its place once the others are
-    in (a flexible one picked early that later effects explain better) goes out."""
+    in (a flexible one picked early that later effects explain better) goes out, unless the
+    model without it is significantly worse than ``reference`` (the per-row held-out squared
+    errors of the best model seen): one by one, eliminations must not add up to a worse model."""
     eliminated = []
     while True:
         chosen = [e for e in current if e != "frames"]
@@ -249,7 +265,9 @@ def _backward(engine: FitEngine, current: list, say, selection_z: float):
                                    own_share_heldout=held_own, own_share_increase=held_own.rms - final_rms,
                                    own_share_interval=(share[1], share[2])))
         weakest = min(loo, key=lambda row: row.z) if loo else None
-        if weakest is None or weakest.z > selection_z:
+        if weakest is None or weakest.z > selection_z or (reference is not None and not within_reach(
+                engine.evaluate(ordered([s for s in current if s != weakest.effect]))["heldout_squares"],
+                reference, selection_z)):
             return current, loo, eliminated
         eliminated.append(Elimination(weakest.effect, weakest.z, weakest.increase))
         current.remove(weakest.effect)
