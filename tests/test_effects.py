@@ -69,7 +69,7 @@ def _context(n, n_joints, payload=0.0, temperature=20.0, direction=None):
 
 def test_vocabulary_order_and_interface(tool_changer):
     assert list(EFFECTS) == ["frames", "joint_offsets", "geometry", "compliance", "lateral_compliance", "backlash",
-                             "thermal", "encoder_scale", "transmission", "cyclic", "clearance"]
+                             "thermal", "drift", "encoder_scale", "transmission", "cyclic", "clearance"]
     for name, cls in EFFECTS.items():
         effect = cls(tool_changer)
         assert isinstance(effect, Effect) and effect.name == name
@@ -236,7 +236,8 @@ def test_prediction_jacobian_matches_finite_differences(robot_name, request):
     assert jac.shape == fd.shape
     # columns are compared relative to their own size (compliance columns are ~1e4)
     size = np.abs(fd).max(axis=(0, 1))
-    assert np.all(np.abs(jac - fd).max(axis=(0, 1)) <= 1e-6 * size + 1e-8)
+    # (columns that barely move the TCP here, ~1e-8, are at the finite differences' round-off: 5e-8 absolute)
+    assert np.all(np.abs(jac - fd).max(axis=(0, 1)) <= 1e-6 * size + 5e-8)
     assert np.count_nonzero(size > 1e-3) > 0.8 * size.size  # most columns really move the TCP
     pos_only = prediction_jacobian(robot, effects, params, q, ctx)
     np.testing.assert_allclose(pos_only, jac[:, :3])

@@ -173,7 +173,8 @@ def simulate_measurements(robot: RobotModel, scenario: Scenario | dict, n: int, 
     if context is None:
         context = draw_context(robot, scenario.context, n, rng)
     elif context.rng is None:
-        context = MeasurementContext(context.payload_kg, context.temperature_c, context.direction, rng)
+        context = MeasurementContext(context.payload_kg, context.temperature_c, context.direction, rng,
+                                     context.outside_q, context.session, context.time_s, context.order)
     noise = noise_m if noise_m is not None else (scenario.noise_m if scenario.noise_m is not None
                                                   else DEFAULT_NOISE_M)
     if noise < 0:

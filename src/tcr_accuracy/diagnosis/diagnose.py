@@ -316,7 +316,7 @@ class GapDiagnosis(BaseEstimator):
         say("fitting frames")
         selection = select_effects(registered, candidates, selection_z=self.selection_z,
                                    min_relative_gain=self.min_relative_gain, rng=rng, say=say)
-        attribution = attribute_effects(candidates, selection, selection_z=self.selection_z,
+        attribution = attribute_effects(registered, candidates, selection, selection_z=self.selection_z,
                                         min_relative_gain=self.min_relative_gain,
                                         stability_replays=self.stability_replays, seed=seed, say=say)
         residual = analyse_residual(registered, candidates, selection, tracker_noise=self.tracker_noise, rng=rng,

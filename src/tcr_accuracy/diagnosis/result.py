@@ -383,6 +383,7 @@ class Diagnosis:
             "mechanisms": self.mechanisms,
             "families": self.families,
             "primary_family": self.primary_family,
+            "confounding": [c.to_dict() for c in self.stages.attribute.confounding],
             "sessions": list(self.sessions),
             "drift": list(self.drift),
             "effect_options": {e: {k: (v.tolist() if isinstance(v, np.ndarray) else

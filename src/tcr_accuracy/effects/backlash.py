@@ -60,8 +60,8 @@ class Backlash(PerJointEffect):
         return np.zeros(self.n_params), per_joint_kind(self.robot, math.radians(0.5), 5e-4)
 
     def fit_range(self):
-        _, upper = self.physical_range()  # as far ahead of the motion as a dead band leaves a joint behind
-        return -upper, upper
+        _, upper = self.physical_range()  # a compensation set too high leads by up to a band's width
+        return -2.0 * upper, upper
 
     def mechanisms(self):
         from .mechanisms import Mechanism
@@ -74,7 +74,7 @@ class Backlash(PerJointEffect):
                           "lost-motion (backlash) compensation set too high, or a time offset between the tracker "
                           "and the joint log", "check the controller's backlash-compensation parameters; check the "
                           "time stamps of the tracker and the joint log (measure with the robot at rest)",
-                          -upper, np.zeros_like(upper), False))
+                          -2.0 * upper, np.zeros_like(upper), False))
 
     def signal(self, q, context):
         return 0.5 * self.side(q, context)

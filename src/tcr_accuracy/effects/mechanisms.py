@@ -82,6 +82,8 @@ class MechanismReading:
     parameters : tuple of dict
         The resolved parameters: name, value [SI], std [SI], unit, mechanism key (or None) and
         whether that is the effect's own physics.
+    confounded : tuple of str
+        Why the data cannot tell this effect from another (empty when they can).
     """
 
     effect: str
@@ -92,11 +94,14 @@ class MechanismReading:
     textbook: bool
     check: str
     parameters: tuple
+    #: what the data cannot tell this effect from (a variable that follows the measurement order)
+    confounded: tuple = ()
 
     def to_dict(self) -> dict:
         return {"effect": self.effect, "family": self.family, "mechanism": self.mechanism,
                 "mechanism_keys": list(self.keys), "physical": self.physical, "textbook": self.textbook,
-                "check": self.check, "parameters": [dict(p) for p in self.parameters]}
+                "check": self.check, "parameters": [dict(p) for p in self.parameters],
+                "confounded_with": list(self.confounded)}
 
 
 def _joint_of(name: str) -> str:

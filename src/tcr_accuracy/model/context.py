@@ -17,7 +17,8 @@ REFERENCE_TEMPERATURE_C = 20.0
 
 #: Context column an effect may declare -> the :class:`MeasurementContext` field it fills
 #: (``<joint>_dir`` stands for all the per-joint direction columns).
-CONTEXT_FIELDS = {"payload_kg": "payload_kg", "temperature_c": "temperature_c", "<joint>_dir": "direction"}
+CONTEXT_FIELDS = {"payload_kg": "payload_kg", "temperature_c": "temperature_c", "<joint>_dir": "direction",
+                  "time_s": "time_s"}
 
 
 @dataclass
@@ -40,6 +41,13 @@ class MeasurementContext:
         (:attr:`RobotModel.outside_joint_names`), e.g. a second arm whose masses load
         the torso; None: every such joint at its neutral value (or its mimic rule).
         Only the gravity torques read them.
+    session : ndarray of shape (N,) of int or None
+        The measurement session of each row (its own tracker frame); None: one session.
+    time_s : ndarray of shape (N,) or None
+        When each row was measured [s]; None when not recorded.
+    order : ndarray of shape (N,) of int or None
+        Each row's place in the order of measurement (0 first); None when unknown (poses to
+        predict, simulated rows).
     """
 
     payload_kg: np.ndarray
@@ -49,6 +57,8 @@ class MeasurementContext:
     outside_q: np.ndarray | None = None
     #: (N,) int: the measurement session of each row (its own tracker frame), or None: one session
     session: np.ndarray | None = None
+    time_s: np.ndarray | None = None
+    order: np.ndarray | None = None
 
     @classmethod
     def defaults(cls, n_rows: int, n_joints: int, *, payload_kg: float = 0.0,
@@ -62,9 +72,12 @@ class MeasurementContext:
 
     def subset(self, rows) -> "MeasurementContext":
         """The context of some rows (index array or boolean mask)."""
+        def pick(values):
+            return None if values is None else values[rows]
+
         return MeasurementContext(self.payload_kg[rows], self.temperature_c[rows], self.direction[rows],
-                                  self.rng, None if self.outside_q is None else self.outside_q[rows],
-                                  None if self.session is None else self.session[rows])
+                                  self.rng, pick(self.outside_q), pick(self.session), pick(self.time_s),
+                                  pick(self.order))
 
 
 def context_column(context: MeasurementContext | None, attr: str, n: int, default: float) -> np.ndarray:

@@ -265,6 +265,9 @@ def answer_lines(d) -> list[str]:
             f"{f['family']} +{f['share_mm']:.4g} mm" for f in d.families[:3]))
     else:
         out.append("Answer: nothing beyond the tracker frame and the TCP offset (frames) is resolved")
+    for c in d.stages.attribute.confounding:
+        out.append(f"  mind the order of measurement: {c.to_dict()['why']}; tcr-accuracy plan-poses writes an order "
+                   "that separates them")
     for m in d.mechanisms:
         if m["effect"] == "frames":
             continue

@@ -6,6 +6,7 @@ stable the selection is, and where the first-order effect models end.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -13,10 +14,12 @@ import numpy as np
 
 from ...effects.mechanisms import FAMILIES, MechanismReading, read_mechanism
 from ..attribution import contributions, fixed_point_check, tied_own_shares
+from ..confounding import confounded_variables
 from ..fitting import FitEngine, ordered, paired_z
 from ..records import ErrorStats, Step
 from ..uncertainty import difference_interval, selection_frequency
 from .candidates import CandidateSet
+from .register import RegisteredMeasurements, measured_context
 from .select import Selection
 
 
@@ -69,6 +72,8 @@ class Attribution:
         Every family with a chosen member, largest share first.
     mechanisms : tuple of MechanismReading
         For every chosen effect, the mechanism its fitted sign and size fit.
+    confounding : tuple of Confounding
+        Variables that follow the measurement order (the effects they confound).
     steps : tuple of Step
         The shrink table in the order of explanation (with each step's gain and interval).
     stability : dict
@@ -82,6 +87,7 @@ class Attribution:
     primary_family: str | None
     families: tuple
     mechanisms: tuple
+    confounding: tuple
     steps: tuple
     stability: dict
     notes: tuple
@@ -90,14 +96,14 @@ class Attribution:
         return next((m for m in self.mechanisms if m.effect == effect), None)
 
 
-def attribute_effects(candidate_set: CandidateSet, selection: Selection, *, selection_z: float,
-                      min_relative_gain: float, stability_replays: int, seed: int,
+def attribute_effects(registered: RegisteredMeasurements, candidate_set: CandidateSet, selection: Selection, *,
+                      selection_z: float, min_relative_gain: float, stability_replays: int, seed: int,
                       say=lambda message: None) -> Attribution:
     """Stage 4 of the diagnosis.
 
     Parameters
     ----------
-    candidate_set, selection : the results of stages 2 and 3
+    registered, candidate_set, selection : the results of stages 1-3
     selection_z, min_relative_gain : the selection test (see :func:`~.select.select_effects`)
     stability_replays : int
         Bootstrap replays of the selection.
@@ -108,8 +114,11 @@ def attribute_effects(candidate_set: CandidateSet, selection: Selection, *, sele
     current = list(selection.selected)
     loo = [r.to_dict() for r in selection.leave_one_out]
     notes: list = []
-    mechanisms = tuple(fitted_mechanisms(engine, current))
+    confounding = confounded_variables(registered.robot.joint_names, registered.measurements.q,
+                                       registered.parts[0].context, measured_context(registered.measurements))
+    mechanisms = tuple(_with_confounding(m, confounding) for m in fitted_mechanisms(engine, current))
     unexplained = [m.effect for m in mechanisms if not m.physical]
+    confounded = [m.effect for m in mechanisms if m.confounded]
     families = family_shares(engine, current)
     top_families = _tied_families(engine, current, [f.family for f in families], selection_z)
     primary_family = top_families[0] if len(top_families) == 1 else None
@@ -125,6 +134,12 @@ def attribute_effects(candidate_set: CandidateSet, selection: Selection, *, sele
     if primary is not None and any(_family(engine, e) != primary_family for e in primary_group) and \
             primary_family is not None:
         primary_family = None  # a stand-in from another family: not even the family is resolved
+    if confounded and set(confounded) & set(primary_group):
+        notes.append(f"{', '.join(confounded)}: cannot be told from a drift in time ("
+                     + "; ".join(c for m in mechanisms for c in m.confounded) + "); not named as the cause: measure "
+                     "in an order that does not follow the joints (tcr-accuracy plan-poses writes one)")
+        primary_group = ordered(set(primary_group) | {"drift"})
+        primary_family = None
     if unexplained and set(unexplained) & set(primary_group):
         notes.append(f"{', '.join(unexplained)}: fitted values that no known mechanism explains; not named as the "
                      "cause (see the mechanisms)")
@@ -143,7 +158,24 @@ def attribute_effects(candidate_set: CandidateSet, selection: Selection, *, sele
                                     late=[e for e in selection.late if e in testable])
     return Attribution(primary_effect=primary, primary_group=tuple(primary_group), primary_tied=tuple(tied),
                        primary_family=primary_family, families=tuple(families), mechanisms=mechanisms,
-                       steps=tuple(steps), stability=stability, notes=tuple(notes))
+                       confounding=tuple(confounding), steps=tuple(steps), stability=stability, notes=tuple(notes))
+
+
+def _with_confounding(reading: MechanismReading, confounding) -> MechanismReading:
+    """The reading, said to be indistinguishable from a drift in time where a variable its
+    resolved parameters grow with follows the measurement order."""
+    why = []
+    for c in confounding:
+        if reading.effect not in c.effects:
+            continue
+        if c.variable.startswith("joint ") and not any(
+                p["parameter"].split(".")[1] == c.variable[len("joint "):] for p in reading.parameters):
+            continue
+        why.append(c.to_dict()["why"])
+    if not why:
+        return reading
+    return dataclasses.replace(reading, mechanism=reading.mechanism + "; or a drift in time, which the data cannot "
+                               "tell it from: " + "; ".join(why), confounded=tuple(why))
 
 
 def _family(engine: FitEngine, effect: str) -> str:

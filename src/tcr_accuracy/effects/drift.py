@@ -1,0 +1,115 @@
+"""``drift``: encoder zeros and the robot's base drifting during the campaign (warm-up, a moving base)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..units import REVOLUTE
+from .base import EffectJacobian, LinearEffect, joint_unit, per_joint_kind
+
+
+class Drift(LinearEffect):
+    """Encoder zero offsets and the base (or the tracker) drifting over the campaign, as a straight
+    line and a warm-up that settles: for every joint and each base translation,
+    ``d(u) = a_lin * u + a_warm * (1 - exp(-u / tau)) / (1 - exp(-1 / tau))``, with ``u`` the
+    campaign's progress from 0 (first row) to 1 (last row), in ``time_s`` where the rows carry
+    it, else in measurement order.
+
+    Both shapes are zero at the campaign's start: what the robot was like then is the other
+    effects' business (a constant is a joint offset or the tracker frame), and the parameters are
+    what drifted by the end [rad, m]. Rows without a time or an order (poses to predict) are at
+    the start. ``time_axis``: ``"time_s"`` or ``"order"``; ``start``, ``span``: where u = 0 and
+    how long the campaign lasted in that axis' unit (s or rows); ``time_constant``: the warm-up's
+    tau as a share of the campaign (default 0.25). The diagnosis sets them from the data
+    (:meth:`options_for_data`), and keeps them for any prediction.
+    """
+
+    name = "drift"
+    order = 52.0  # before encoder_scale: a joint swept in measurement order is a drift until shown otherwise
+    summary = "encoder zeros and the base drifting over the campaign (warm-up, a moving base)"
+    context_columns = ("time_s",)
+    family = "time"
+    physics = ("a robot warming up moves its encoder zeros by hundredths of a degree and its base by tenths of a "
+               "millimetre: more than 0.2 deg or 0.5 mm over a campaign is a joint or a base that slipped")
+
+    def __init__(self, robot, *, time_axis: str = "order", start: float = 0.0, span: float = 1.0,
+                 time_constant: float = 0.25) -> None:
+        super().__init__(robot)
+        self.time_axis = time_axis
+        self.start = start
+        self.span = span
+        self.time_constant = time_constant
+
+    @classmethod
+    def options_for_data(cls, robot, q, context) -> dict:
+        """The time axis the rows carry (``time_s`` where it varies, else the measurement order)
+        and the campaign's start and span in it."""
+        time = None if context is None else context.time_s
+        if time is not None and np.all(np.isfinite(time)) and np.ptp(time) > 0:
+            return {"time_axis": "time_s", "start": float(np.min(time)), "span": float(np.ptp(time))}
+        order = None if context is None else context.order
+        if order is not None and np.ptp(order) > 0:
+            return {"time_axis": "order", "start": float(np.min(order)), "span": float(np.ptp(order))}
+        return {}
+
+    def parameter_names(self):
+        joints = [f"drift.{j}.{shape}" for j in self.robot.joint_names for shape in ("linear", "warmup")]
+        return joints + [f"drift.base.{axis}.{shape}" for axis in ("dx", "dy", "dz") for shape in ("linear", "warmup")]
+
+    def parameter_units(self):
+        joints = [joint_unit(k) for k in self.robot.joint_kinds for _ in range(2)]
+        return joints + ["m"] * 6
+
+    def parameter_scales(self):
+        joints = [math.radians(0.01) if k == REVOLUTE else 2e-5 for k in self.robot.joint_kinds for _ in range(2)]
+        return np.array(joints + [5e-5] * 6)
+
+    def physical_range(self):
+        bound = np.concatenate([np.repeat(per_joint_kind(self.robot, math.radians(0.2), 5e-4), 2),
+                                np.full(6, 5e-4)])
+        return -bound, bound
+
+    def fit_range(self):
+        bound = np.concatenate([np.repeat(per_joint_kind(self.robot, math.radians(5.0), 0.01), 2), np.full(6, 0.01)])
+        return -bound, bound
+
+    def mechanisms(self):
+        from .mechanisms import Mechanism
+
+        lower, upper = self.physical_range()
+        wide_lower, wide_upper = self.fit_range()
+        return (Mechanism("warm_up", "encoder zeros or the base drifting while the campaign ran: the arm warming up, "
+                          "or the base or the tracker settling", "measure a reference pose (or a target on the base) "
+                          "at the start, middle and end of a campaign; warm the robot up before measuring",
+                          lower, upper),
+                Mechanism("slip", "more than 0.2 deg or 0.5 mm of drift over the campaign: a joint, the base or the "
+                          "tracker that slipped", "check the base's anchoring, the tracker's stand and each joint's "
+                          "brake and coupling", wide_lower, wide_upper, False))
+
+    def progress(self, context, n: int) -> np.ndarray:
+        """(n,) the campaign's progress u in [0, 1] of each row (0 where the row has no time)."""
+        values = None if context is None else (context.time_s if self.time_axis == "time_s" else context.order)
+        if values is None:
+            return np.zeros(n)
+        return np.clip((np.asarray(values, dtype=float) - self.start) / max(self.span, 1e-300), 0.0, None)
+
+    def shapes(self, u: np.ndarray) -> np.ndarray:
+        """(n, 2) the linear and warm-up shapes at progress u (each 1 at u = 1)."""
+        tau = self.time_constant
+        return np.stack([u, (1.0 - np.exp(-u / tau)) / (1.0 - math.exp(-1.0 / tau))], axis=1)
+
+    def parameter_jacobian(self, params, q, context):
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        n, nj = q.shape
+        shape = self.shapes(self.progress(context, n))  # (n, 2)
+        k = self.n_params
+        ddq = np.zeros((n, nj, k))
+        for j in range(nj):
+            ddq[:, j, 2 * j:2 * j + 2] = shape
+        em = self.error_model
+        dx = np.zeros((n, em.size, k))
+        for a in range(3):  # the base translation, applied on the left of the chain as frames' base twist
+            dx[:, em.base_slice.start + a, 2 * nj + 2 * a:2 * nj + 2 * a + 2] = shape
+        return EffectJacobian(dq=ddq, x=dx)
