@@ -63,15 +63,18 @@ def test_encoder_scale_on_60_poses_is_named_or_grouped_with_the_chosen_effect(to
 def test_one_standard_error_rule_prefers_fewer_parameters_within_one_se():
     rng = np.random.default_rng(3)
     base = rng.chisquare(3, 400)
-    # b: same errors plus a little noise (well within one SE); c: clearly better than both
-    rows = [{"effect": "a", "effects": ["a"], "n_parameters": 16, "_squares": base},
-            {"effect": "b", "effects": ["b"], "n_parameters": 6, "_squares": base + rng.normal(0, 0.01, 400)}]
+    # b: same errors plus a little noise (within one SE of a, the rule written out below); c: clearly better
+    noise = rng.normal(0, 0.01, 400)
+    d = noise - 0.0  # b's excess over a, row by row
+    assert d.mean() <= d.std(ddof=1) / math.sqrt(d.size)  # the rule by hand: b is within one SE of a
+    rows = [{"effect": "a", "effects": ["a"], "n_parameters": 16, "size_over_physics": 0.2, "_squares": base},
+            {"effect": "b", "effects": ["b"], "n_parameters": 6, "size_over_physics": 0.3, "_squares": base + noise}]
     assert one_standard_error_choice(rows)["effect"] == "b"
-    better = {"effect": "c", "effects": ["c"], "n_parameters": 20, "_squares": 0.5 * base}
+    better = {"effect": "c", "effects": ["c"], "n_parameters": 20, "size_over_physics": 0.2, "_squares": 0.5 * base}
     assert one_standard_error_choice(rows + [better])["effect"] == "c"
-    # the rule by hand: b's mean excess over a, against its standard error
-    d = rows[1]["_squares"] - rows[0]["_squares"]
-    assert d.mean() <= d.std(ddof=1) / math.sqrt(d.size) or one_standard_error_choice(rows)["effect"] == "a"
+    # within one SE, sizes its own physics explains come before the parameter count
+    implausible = dict(rows[1], size_over_physics=4.0)
+    assert one_standard_error_choice([rows[0], implausible])["effect"] == "a"
 
 
 def test_power_probe_flags_each_shape_at_the_amplitude_it_reports(tool_changer):

@@ -14,7 +14,8 @@ import pytest
 from scipy.optimize import lsq_linear
 
 from tcr_accuracy.diagnosis.diagnose import GapDiagnosis
-from tcr_accuracy.diagnosis.fitting import FitEngine, box_quadratic
+from tcr_accuracy.diagnosis.fitting import FitEngine
+from tcr_accuracy.diagnosis.least_squares import box_quadratic
 from tcr_accuracy.io.measurements import MeasurementSet
 from tcr_accuracy.effects import effect_classes, make_effect
 from tcr_accuracy.model.robot import load_robot, robot_from_urdf_text
@@ -73,7 +74,8 @@ def test_box_quadratic_matches_scipy_bvls():
 
 def test_every_effect_declares_its_physics():
     """Each effect in the vocabulary says why its parameters lie where they do; magnitudes
-    cannot be negative; the ranges hold the typical sizes."""
+    cannot be negative in its own physics; the ranges hold the typical sizes; the fit range is
+    the union of its mechanisms' ranges, its own physics first among them."""
     robot = load_robot("ur5")
     for name, cls in effect_classes().items():
         if cls.stochastic:
@@ -87,6 +89,13 @@ def test_every_effect_declares_its_physics():
             assert np.all(lower == 0.0), name
         else:
             assert np.all(lower <= -scales) or name == "thermal", name
+        mechanisms = effect.mechanisms()
+        fit_lower, fit_upper = effect.fit_range()
+        np.testing.assert_allclose(mechanisms[0].lower, lower, err_msg=name)  # its own physics first
+        np.testing.assert_allclose(mechanisms[0].upper, upper, err_msg=name)
+        if name != "frames":
+            np.testing.assert_allclose(np.minimum.reduce([m.lower for m in mechanisms]), fit_lower, err_msg=name)
+            np.testing.assert_allclose(np.maximum.reduce([m.upper for m in mechanisms]), fit_upper, err_msg=name)
 
 
 # ---------------------------------------------------------------------------------------

@@ -155,3 +155,40 @@ def test_the_package_root_exports_the_api_lazily():
         assert getattr(tcr_accuracy, name) is defined, name
     with pytest.raises(AttributeError, match="no attribute 'diagnosis_of'"):
         tcr_accuracy.diagnosis_of  # noqa: B018
+
+
+# ---------------------------------------------------------------------------------------
+# What only the edges do
+# ---------------------------------------------------------------------------------------
+EDGES = ("view", "cli")
+PLOTTING = ("matplotlib", "meshcat")
+
+
+def _library_modules():
+    """(name, path, tree) of every module below the edges (view/ and cli/)."""
+    for name, path in sorted((m, PACKAGE.parent.joinpath(*m.split(".")).with_suffix(".py")) for m in GRAPH):
+        if name == "tcr_accuracy" or _layer(name) in EDGES or name.endswith("__main__"):
+            continue
+        if not path.exists():
+            path = path.with_suffix("") / "__init__.py"
+        yield name, path, ast.parse(path.read_text())
+
+
+def test_nothing_below_the_edges_prints_plots_or_parses_arguments():
+    """The library computes: no print(), no sys.stdout/stderr writes, no matplotlib or meshcat, no
+    argparse, no sys.argv below view/ and cli/ (read from the source, as the import graph)."""
+    found = []
+    for name, path, tree in _library_modules():
+        for node in ast.walk(tree):
+            where = f"{path.relative_to(PACKAGE.parent)}:{getattr(node, 'lineno', '?')}"
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "print":
+                found.append(f"{where} print()")
+            elif isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "sys" \
+                    and node.attr in ("stdout", "stderr", "argv"):
+                found.append(f"{where} sys.{node.attr}")
+            elif isinstance(node, (ast.Import, ast.ImportFrom)):
+                modules = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]
+                for module in modules:
+                    if module.split(".")[0] in PLOTTING + ("argparse",):
+                        found.append(f"{where} imports {module}")
+    assert not found, found

@@ -57,7 +57,7 @@ def test_scenario_errors_name_file_and_key(tool_changer, tmp_path):
         "effects: {gravity_sag: {}}": "unknown effect 'gravity_sag'",
         "effects: {joint_offsets: {offsets_per_k: 1}}": "effects.joint_offsets.offsets_per_k: no parameter",
         "effects: {joint_offsets: {offsets_deg: {j9: 1}}}": "'j9' selects no rad parameter",
-        "effects: {backlash: {band_deg: -0.01}}": "cannot be negative",
+        "effects: {backlash: {band_deg: -5}}": "outside what any mechanism of backlash explains",
         "context: {humidity: 3}": "context: unknown key(s) humidity",
         "noise_mm: [1, 2]": "noise_mm",
         "effects: [1, 2": "not valid YAML",

@@ -120,7 +120,7 @@ def scenario_from_dict(data: dict, source: str = "<scenario>") -> Scenario:
     """Check the structure of a scenario mapping and wrap it."""
     if not isinstance(data, dict):
         raise InputError(f"{source}: a scenario is a mapping with keys effects, context, noise_mm")
-    unknown = set(data) - {"effects", "context", "noise_mm", "robot", "dominant", "outside_vocabulary",
+    unknown = set(data) - {"effects", "context", "noise_mm", "robot", "dominant", "outside_vocabulary", "beyond_physics",
                            "seed", "n", "orientation_noise_rad", "noise_m", "notes"}
     if unknown:
         raise InputError(f"{source}: unknown key(s) {', '.join(sorted(unknown))} (keys: effects, context, noise_mm)")
@@ -255,8 +255,12 @@ def resolve_effect(robot: RobotModel, name: str, spec: dict, rng: np.random.Gene
             target[matching] = _number(value, f"{where}.{key}") * factor
     if np.any(spreads < 0):
         raise InputError(f"{where}: spreads must be >= 0")
-    if cls.non_negative and np.any(values < 0):
-        raise InputError(f"{where}: {name} parameters cannot be negative")
+    lower, upper = effect.fit_range()  # every mechanism the effect's signature stands for
+    outside = np.flatnonzero(~np.isnan(values) & ((values < lower) | (values > upper)))
+    if outside.size:
+        k = int(outside[0])
+        raise InputError(f"{where}: {effect.parameter_names()[k]} = {values[k]:.4g} {units[k]} is outside what any "
+                         f"mechanism of {name} explains ({lower[k]:.4g} to {upper[k]:.4g} {units[k]})")
     draw = np.isnan(values)
     if np.all(draw) and np.all(np.isnan(spreads)):
         spreads = effect.parameter_scales()  # no values at all: around the typical scales

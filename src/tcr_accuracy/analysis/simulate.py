@@ -242,7 +242,7 @@ def _effect_truth(hidden: HiddenEffect, robot, q, context) -> dict:
 @renamed_keyword("rng", "random_state")
 def random_scenario(robot: RobotModel, random_state=None, dominant: list[str] | None = None, *,
                     n_dominant: int | None = None, outside: str | None = None, clearance: bool = False,
-                    dominance: float = 3.0, noise_m: float = DEFAULT_NOISE_M) -> dict:
+                    dominance: float = 3.0, noise_m: float = DEFAULT_NOISE_M, beyond_physics: float = 0.0) -> dict:
     """A scenario with realistic magnitudes: geometry always, plus one or two dominant effects.
 
     Magnitudes (tool-changer scale; the same for other arms): base frame 20 mm / 5 mrad,
@@ -276,6 +276,10 @@ def random_scenario(robot: RobotModel, random_state=None, dominant: list[str] | 
         How many times as much as the background the first dominant effect moves the TCP.
     noise_m : float
         Tracker noise of the scenario, std per axis [m].
+    beyond_physics : float, default=0.0
+        Chance that a dominant effect is drawn as the other mechanism with its signature, a sign
+        or size its own physics does not have (joints against gravity, ahead of their motion, a
+        length scale of an instrument, degrees of gear harmonics: ``Effect.beyond_physics``).
 
     Returns
     -------
@@ -308,11 +312,16 @@ def random_scenario(robot: RobotModel, random_state=None, dominant: list[str] | 
     ref_rng = np.random.default_rng(rng.integers(2**63))
     q_ref = sample_poses(robot, 400, ref_rng)
     ctx_ref = draw_context(robot, ContextSpec(**context), 400, ref_rng)
-    resolved = {}
+    resolved, beyond = {}, []
     for name, spec in specs.items():
         effect, params, tcp_rms = resolve_effect(robot, name, spec, rng, "random_scenario", lenient=True)
         if name in dominant:
             params = effect.finish_dominant(params, rng)
+            if beyond_physics > 0 and rng.uniform() < beyond_physics:
+                other = effect.beyond_physics(params, rng)
+                if other is not None:
+                    params = other
+                    beyond.append(name)
         if tcp_rms is not None:
             sig = _signature(robot, effect, params, q_ref, ctx_ref)
             params = params * tcp_rms / max(float(np.sqrt(np.mean(np.sum(sig**2, axis=1)))), 1e-300)
@@ -336,7 +345,7 @@ def random_scenario(robot: RobotModel, random_state=None, dominant: list[str] | 
     if need > 1.0:
         # the dominant effects grow only as far as their physics allows (a real robot's
         # parameters are inside their physical ranges), the background shrinks for the rest
-        room = min(_physical_room(*resolved[name]) for name in dominant)
+        room = min(_physical_room(*resolved[name], beyond=name in beyond) for name in dominant)
         grow = min(max(need * 0.2, 1.0), room)
         shrink = max(grow / need, 0.02)
         for name in ("geometry", "joint_offsets"):
@@ -361,14 +370,16 @@ def random_scenario(robot: RobotModel, random_state=None, dominant: list[str] | 
         "noise_m": float(noise_m),
         "dominant": [str(k) for k in order],
         "outside_vocabulary": [outside] if outside else [],
+        "beyond_physics": beyond,
         "notes": {k: float(v) for k, v in notes.items()},
     }
     return _plain(scenario)
 
 
-def _physical_room(effect, params: np.ndarray) -> float:
-    """How many times the parameters can grow and stay inside the effect's physical range."""
-    lower, upper = effect.physical_range()
+def _physical_room(effect, params: np.ndarray, beyond: bool = False) -> float:
+    """How many times the parameters can grow and stay inside the effect's physical range (its fit
+    range, every mechanism's, for a draw beyond its own physics)."""
+    lower, upper = effect.fit_range() if beyond else effect.physical_range()
     params = np.asarray(params, dtype=float)
     with np.errstate(divide="ignore", invalid="ignore"):
         room = np.where(params > 0, upper / params, np.where(params < 0, lower / params, np.inf))

@@ -126,7 +126,7 @@ def _run_plan_poses(args) -> int:
     import numpy as np
 
     from ..atomic import write_text_atomically
-    from ..diagnosis.design import plan_discriminating_poses, plan_poses
+    from ..diagnosis.design import plan_discriminating_poses, plan_poses, separating_order
     from ..diagnosis.ambiguity import rival_models
     from ..diagnosis.diagnose import GapDiagnosis
     from ..io.measurements import read_measurements
@@ -149,7 +149,7 @@ def _run_plan_poses(args) -> int:
     payload = args.payload_kg
     if payload is None:
         payload = float(np.mean(measured.payload_kg)) if measured.payload_kg is not None else 0.0
-    groups, separate, pairs = [], None, []
+    groups, separate, pairs, confounding = [], None, [], []
     noise_m = 2e-5 if args.noise_mm is None else args.noise_mm * 1e-3
     effects = effect_names(args.effects)
     if effects is None:
@@ -162,6 +162,7 @@ def _run_plan_poses(args) -> int:
         effects = sorted(set(result.selected_effects) | rivals)
         separate = sorted(rivals) or None
         pairs = rival_models(estimator) if separate else []
+        confounding = [c.to_dict() for c in result.stages.attribute.confounding]
     if pairs:  # rival fitted models: the poses where they differ beyond refitting (T-optimal)
         candidates = plan_discriminating_poses(robot, measured.q, pairs, k, candidates=candidates,
                                                n_candidates=args.n_candidates, payload_kg=payload,
@@ -170,7 +171,10 @@ def _run_plan_poses(args) -> int:
     plan = plan_poses(robot, measured.q, effects, k, separate=separate, candidates=candidates,
                       n_candidates=args.n_candidates, payload_kg=payload, noise_m=noise_m,
                       rng=np.random.default_rng(args.seed))
-    write_text_atomically(Path(args.out), _plan_csv(robot, plan.q, args, plan.effects, pose_filter.checks))
+    # measured in this order, no joint follows time: a drift cannot pass for an error growing with a joint
+    order, largest_r = separating_order(plan.q, np.random.default_rng([args.seed, 3]))
+    plan_q = plan.q[order]
+    write_text_atomically(Path(args.out), _plan_csv(robot, plan_q, args, plan.effects, pose_filter.checks))
     summary = {"measurements": str(args.measurements), "n_measured": len(measured), "k": k,
                "candidates": {"source": source, "tried": screened.tried, "kept": len(screened.q),
                               "rejected": {reason.replace(" ", "_").replace("-", "_"): n
@@ -180,7 +184,8 @@ def _run_plan_poses(args) -> int:
                "effects": plan.effects, "separate": plan.separate, "ambiguous": groups,
                "n_parameters": plan.n_parameters, "log_det_gain": plan.log_det_gain,
                "resolved_before": plan.resolved_before, "resolved_after": plan.resolved_after,
-               "payload_kg": payload, "out": str(args.out), "q_display": (plan.q * robot.display_scale).tolist()}
+               "payload_kg": payload, "out": str(args.out), "q_display": (plan_q * robot.display_scale).tolist(),
+               "order_largest_abs_r": largest_r, "confounding": confounding}
     if args.json:
         emit_json(summary, args.json)
     if args.json != "-":
@@ -193,7 +198,10 @@ def _run_plan_poses(args) -> int:
         print(f"{k} poses chosen: information log det +{plan.log_det_gain:.1f}; parameter combinations "
               f"determined to better than their typical size: {plan.resolved_before} -> {plan.resolved_after} "
               f"of {plan.n_parameters}")
-        print(f"written: {args.out}")
+        for c in confounding:
+            print(f"  the measurements' order: {c['why']}")
+        print(f"written: {args.out}, in an order to measure them in: no joint follows it (largest |r| with the "
+              f"row's place {largest_r:.2f}), so a drift in time cannot pass for an error growing with a joint")
     return 0
 
 

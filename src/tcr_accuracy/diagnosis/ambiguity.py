@@ -25,8 +25,11 @@ import math
 import numpy as np
 
 from ..effects import effect_class
-from .fitting import FitEngine, ordered, paired_z, row_squares
+from .fitting import FitEngine
+from .bases import ordered
+from .paired import paired_z, row_squares
 from .records import ErrorStats
+from .uncertainty import implausibility
 
 
 def swap_alternatives(engine: FitEngine, current: list, pool, selection_z: float) -> dict:
@@ -48,7 +51,7 @@ def swap_alternatives(engine: FitEngine, current: list, pool, selection_z: float
                     paired_z(without["heldout_squares"], swapped["heldout_squares"]))
 
         rows = [_row([chosen], final, z_worse=0.0, z_explains=paired_z(without["heldout_squares"],
-                                                                          final["heldout_squares"]))]
+                                                                          final["heldout_squares"]), engine=engine)]
         for alternative in unchosen:
             swapped, z_worse, z_explains = judged([alternative])
             if z_explains > selection_z and z_worse >= selection_z:  # explains, but not all: a companion?
@@ -58,22 +61,24 @@ def swap_alternatives(engine: FitEngine, current: list, pool, selection_z: float
                     alternative = [alternative, w]
             if z_worse < selection_z and z_explains > selection_z:
                 rows.append(_row(alternative if isinstance(alternative, list) else [alternative], swapped,
-                                 z_worse, z_explains))
+                                 z_worse, z_explains, engine=engine))
         groups[chosen] = rows
     return groups
 
 
-def _row(effects: list, result: dict, z_worse: float, z_explains: float) -> dict:
+def _row(effects: list, result: dict, z_worse: float, z_explains: float, engine: FitEngine) -> dict:
     held = ErrorStats.heldout(result)
+    beyond = max((implausibility(result, engine.bases, e) for e in effects), default=0.0)
     return {"effect": "+".join(effects), "effects": list(effects), "heldout_rms_mm": held.rms * 1e3,
             "heldout_mean_mm": held.mean * 1e3, "heldout_max_mm": held.max * 1e3,
             "n_parameters": result["n_parameters"], "z_worse_than_chosen": z_worse, "z_over_neither": z_explains,
-            "_squares": row_squares(result["heldout_squares"])}
+            "size_over_physics": beyond, "_squares": row_squares(result["heldout_squares"])}
 
 
 def one_standard_error_choice(rows: list) -> dict:
-    """The row to keep: fewest parameters among those within one standard error of the best
-    held-out mean squared error (paired differences); ties go to the lower error."""
+    """The row to keep: of those within one standard error of the best held-out mean squared
+    error (paired differences), those whose fitted sizes their own physics explains (RMS of value
+    over physical bound at most 1) first, then the fewest parameters; ties go to the lower error."""
     best = min(rows, key=lambda r: r["_squares"].mean())
     within = []
     for r in rows:
@@ -81,7 +86,7 @@ def one_standard_error_choice(rows: list) -> dict:
         se = d.std(ddof=1) / math.sqrt(d.size) if d.size > 1 else 0.0
         if d.mean() <= se:
             within.append(r)
-    return min(within, key=lambda r: (r["n_parameters"], r["_squares"].mean()))
+    return min(within, key=lambda r: (r["size_over_physics"] > 1.0, r["n_parameters"], r["_squares"].mean()))
 
 
 #: how much higher than the best model seen a model's held-out RMS may be, for the swaps and

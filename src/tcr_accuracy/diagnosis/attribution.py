@@ -16,7 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..effects.compose import fixed_point_motion
-from .fitting import ordered, paired_z
+from .bases import ordered
+from .paired import paired_z
 from ..model.errors import ErrorModel
 from ..model.kinematics import tcp_poses
 

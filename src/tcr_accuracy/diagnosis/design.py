@@ -38,7 +38,7 @@ from ..exceptions import InputError
 from ..model.context import MeasurementContext
 from ..model.errors import ErrorModel
 from ..model.robot import JointLimitWarning, RobotModel
-from .fitting import EffectBasis, Part, ordered, position_jacobians
+from .bases import EffectBasis, Part, ordered, position_jacobians
 
 
 @dataclass
@@ -261,3 +261,32 @@ def plan_discriminating_poses(robot: RobotModel, measured_q: np.ndarray, rivals,
         for t, g, d in trackers:
             t.add(g[best], d[best])
     return candidates[picked]
+
+
+def separating_order(q: np.ndarray, rng: np.random.Generator, tries: int = 256) -> tuple[np.ndarray, float]:
+    """An order to measure poses q (N, n_joints) in so that no joint's angle follows the order:
+    of ``tries`` random permutations, the one whose largest |correlation| between a joint's value
+    and the row's place is smallest. Measured so, a drift in time (a warm-up, a tracker that moves)
+    cannot pass for an error that grows with a joint (an encoder scale), nor the reverse.
+
+    Returns
+    -------
+    order : ndarray of shape (N,)
+        Row indices of q in the order to measure them.
+    largest_r : float
+        The largest |correlation| of a joint with the place in that order.
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    n = q.shape[0]
+    moving = np.std(q, axis=0) > 0
+    if n < 3 or not moving.any():
+        return np.arange(n), 0.0
+    centred = (q[:, moving] - q[:, moving].mean(axis=0)) / q[:, moving].std(axis=0)
+    place = (np.arange(n) - (n - 1) / 2.0) / np.std(np.arange(n))
+    best, best_r = np.arange(n), float(np.max(np.abs(place @ centred / n)))
+    for _ in range(tries):
+        order = rng.permutation(n)
+        r = float(np.max(np.abs(place @ centred[order] / n)))
+        if r < best_r:
+            best, best_r = order, r
+    return best, best_r

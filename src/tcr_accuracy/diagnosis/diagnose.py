@@ -58,7 +58,8 @@ from ..io.measurements import MeasurementSet
 from ..model.context import MeasurementContext
 from ..model.robot import RobotModel
 from ..random_state import int_seed, renamed_keyword
-from .fitting import ordered, paired_z
+from .bases import ordered
+from .paired import paired_z
 from .records import ErrorStats, Step
 from .result import Diagnosis, DiagnosisStages
 from .stages.attribute import attribute_effects, first_order_reach

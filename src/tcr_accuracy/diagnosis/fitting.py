@@ -8,11 +8,8 @@ whichever hand sees it, the tracker frame (``frames.base.*``) is one, and each m
 frame has its own TCP offset (``frames.tool.*``, renamed ``frames.<frame>.*`` when there
 are several).
 
-For every effect and part, the effect's parameters map linearly onto error vectors per
-pose (:class:`EffectBasis`: joint-side offsets go into the drive slice of
-:class:`~tcr_accuracy.model.errors.ErrorModel`); chained with Pinocchio's error Jacobian
-(:func:`~tcr_accuracy.model.jacobians.error_jacobians`) this gives each parameter's column of
-the identification Jacobian. :class:`FitEngine` fits sets of effects by nonlinear least
+Each effect is linearised per part (:mod:`tcr_accuracy.diagnosis.bases`: each parameter's
+column of the identification Jacobian). :class:`FitEngine` fits sets of effects by nonlinear least
 squares (Gauss-Newton: exact batched forward kinematics as the residual, the chained
 Jacobian as the constant Jacobian) and scores them by k-fold held-out error.
 
@@ -25,219 +22,18 @@ distance).
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..model.context import MeasurementContext
-from ..effects import vocabulary
-from ..effects.base import LinearEffect
 from ..model.errors import ErrorModel
+from ..model.kinematics import tcp_poses
+from .bases import Part, ordered
 from .error_map import ErrorMap
 from .identifiability import compressed, identifiability
-from ..model.jacobians import error_jacobians
-from ..model.kinematics import tcp_poses
-from ..model.robot import JointLimitWarning, RobotModel
-
-
-def ordered(effects) -> list:
-    """The effects in vocabulary order."""
-    return [e for e in vocabulary() if e in effects]
-
-
-@dataclass
-class Part:
-    """One measured frame: its chain, joint values and targets (in the robot's base frame).
-
-    q : (N, n_joints) commanded joints of this chain [rad, m]
-    target : (N, 3) measured position in the base frame [m]
-    target_rotation : (N, 3, 3) measured orientation in the base frame, or None
-    context : the rows' context for this chain (directions of its joints, the other joints)
-    orientation_weight : [m/rad] weight of the orientation rows
-    label : the frame's name
-    """
-
-    robot: RobotModel
-    q: np.ndarray
-    target: np.ndarray
-    context: MeasurementContext
-    label: str
-    target_rotation: np.ndarray | None = None
-    orientation_weight: float = 0.0
-
-    @property
-    def rows_per_pose(self) -> int:
-        return 6 if self.target_rotation is not None else 3
-
-
-class EffectBasis:
-    """One effect on one part, linearised: x_total(theta) = basis @ theta per pose.
-
-    ``basis`` (:class:`~tcr_accuracy.diagnosis.error_map.ErrorMap`) gives the error vectors
-    (N, p_em) of the parameters, with joint-side offsets dq placed in the drive slice
-    (``q + dq`` is a drive offset).
-    ``g`` (N, r, P) is the TCP sensitivity (error Jacobian chained with it): position
-    rows, then weighted orientation rows when the part measures orientation.
-    """
-
-    def __init__(self, effect, part: Part, em: ErrorModel, jac_x: np.ndarray, names: list[str] | None = None):
-        self.effect = effect
-        self.name = effect.name
-        self.names = list(names if names is not None else effect.parameter_names())
-        self.scales = np.asarray(effect.parameter_scales(), dtype=float)
-        self.units = list(effect.parameter_units())
-        self.lower, self.upper = (np.asarray(b, dtype=float) for b in effect.physical_range())
-        self.fit_lower, self.fit_upper = (np.asarray(b, dtype=float) for b in effect.fit_range())
-        weights = effect.penalty_weights()
-        self.penalty = np.zeros(len(self.names)) if weights is None else np.asarray(weights, dtype=float)
-        n, k = part.q.shape[0], len(self.names)
-        maps = effect.parameter_jacobian(np.zeros(k), part.q, part.context)
-        self.basis = ErrorMap.of(n, em.size, em.drive_slice, maps.x, maps.dq, k)
-        self.relinearise(jac_x)
-        self.nonlinearity = 0.0
-        if type(effect).perturb is LinearEffect.perturb:
-            return  # perturb is this very map: nothing to check
-        # check perturb against the map at one point
-        probe = self.scales * np.linspace(-1.0, 1.0, k) if k > 1 else self.scales
-        out = effect.perturb(probe, part.q, part.context)
-        total = np.zeros((n, em.size))
-        if out.x is not None:
-            total += out.x
-        if out.dq is not None:
-            total[:, em.drive_slice] += out.dq
-        size = max(float(np.abs(total).max()), 1e-300)
-        self.nonlinearity = float(np.abs(total - self.basis.errors(probe)).max() / size)
-
-    def relinearise(self, jac_x: np.ndarray) -> None:
-        """TCP sensitivity (N, r, P) for error Jacobians jac_x (N, r, p_em)."""
-        self.g = self.basis.sensitivity(jac_x)
-
-
-class UnionBasis:
-    """One effect over all parts: its parameters by name, and the stacked sensitivity.
-
-    ``names`` and ``scales`` are the union over the parts (first part's order, then new
-    names of later parts); ``index[p]`` maps part p's columns into the union; ``g`` is
-    (sum of the parts' N, r, P_union), zero where a part lacks a parameter, for the
-    identifiability test.
-    """
-
-    def __init__(self, per_part: list[EffectBasis]):
-        self.per_part = per_part
-        self.name = per_part[0].name
-        names: list[str] = []
-        scales: list[float] = []
-        units: list[str] = []
-        bounds: list[tuple[float, float, float, float]] = []
-        penalty: list[float] = []
-        for b in per_part:
-            for name, scale, unit, lo, hi, fit_lo, fit_hi, w in zip(b.names, b.scales, b.units, b.lower, b.upper,
-                                                                    b.fit_lower, b.fit_upper, b.penalty):
-                if name not in names:
-                    names.append(name)
-                    scales.append(float(scale))
-                    units.append(unit)
-                    bounds.append((float(lo), float(hi), float(fit_lo), float(fit_hi)))
-                    penalty.append(float(w))
-        self.names, self.scales, self.units = names, np.array(scales), units
-        #: (P,) physical range of each parameter [SI] (the effect's ``physical_range``)
-        self.lower = np.array([bound[0] for bound in bounds])
-        self.upper = np.array([bound[1] for bound in bounds])
-        #: (P,) the range a fit stays in [SI] (the effect's ``fit_range``)
-        self.fit_lower = np.array([bound[2] for bound in bounds])
-        self.fit_upper = np.array([bound[3] for bound in bounds])
-        #: (P,) smoothness-penalty weight of each parameter in scaled units (0: not penalised)
-        self.penalty = np.array(penalty)
-        self.index = [np.array([names.index(n) for n in b.names], dtype=int) for b in per_part]
-        self.nonlinearity = max(b.nonlinearity for b in per_part)
-        self.restack()
-
-    def restack(self) -> None:
-        rows = max(b.g.shape[1] for b in self.per_part)
-        blocks = []
-        for b, idx in zip(self.per_part, self.index):
-            block = np.zeros((b.g.shape[0], rows, len(self.names)))
-            block[:, :b.g.shape[1], idx] = b.g
-            blocks.append(block)
-        self.g = np.concatenate(blocks, axis=0)
-
-    @property
-    def basis(self) -> ErrorMap:
-        """The first part's error map: the robot of a single-frame diagnosis."""
-        return self.per_part[0].basis
-
-
-def position_jacobians(robot: RobotModel, q: np.ndarray, x: np.ndarray | None = None,
-                       orientation_weight: float | None = None) -> np.ndarray:
-    """Error Jacobians (N, r, p_em) at error vector x: position rows, plus weighted rotation rows."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", JointLimitWarning)
-        _, jx = error_jacobians(robot, q, x)
-    if orientation_weight is None:
-        return np.ascontiguousarray(jx[:, :3])
-    jx = jx.copy()
-    jx[:, 3:] *= orientation_weight
-    return np.ascontiguousarray(jx)
-
-
-def register(nominal: np.ndarray, measured: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rotation R and translation t with measured ~ R nominal + t (Kabsch, scipy)."""
-    mn, mm = nominal.mean(axis=0), measured.mean(axis=0)
-    rot, _ = Rotation.align_vectors(measured - mm, nominal - mn)
-    r = rot.as_matrix()
-    return r, mm - r @ mn
-
-
-def paired_z(before: np.ndarray, after: np.ndarray) -> float:
-    """z of the mean cut in per-measurement squared held-out errors (one-sided, paired).
-
-    before, after : (N, 3) or (n_parts, N, 3) position errors (parts of a row add up), or (N,)
-    squared errors per row (a fit's ``heldout_squares``).
-    """
-    d = row_squares(before) - row_squares(after)
-    sd = d.std(ddof=1)
-    if sd == 0:
-        return 0.0 if d.mean() == 0 else math.copysign(math.inf, d.mean())
-    return float(d.mean() / (sd / math.sqrt(d.size)))
-
-
-def signed_rank_z(before: np.ndarray, after: np.ndarray) -> float:
-    """z of Wilcoxon's signed-rank test that per-row squared held-out errors fall (one-sided,
-    normal approximation with ties averaged, zero differences dropped): the test the paired
-    mean's z misses when a few rows carry most of the error, as with few poses.
-
-    before, after : as for :func:`paired_z`.
-    """
-    from scipy.stats import rankdata
-
-    d = row_squares(before) - row_squares(after)
-    d = d[d != 0]
-    n = d.size
-    if n == 0:
-        return 0.0
-    ranks = rankdata(np.abs(d))
-    _, counts = np.unique(np.abs(d), return_counts=True)
-    variance = n * (n + 1) * (2 * n + 1) / 24.0 - float(np.sum(counts**3 - counts)) / 48.0
-    return float((ranks[d > 0].sum() - n * (n + 1) / 4.0) / math.sqrt(variance)) if variance > 0 else 0.0
-
-
-def row_squares(residual: np.ndarray) -> np.ndarray:
-    """(N,) squared position error of each row, the parts of a row added up; a (N,) array is
-    taken as such squares already (a fit's ``heldout_squares``)."""
-    residual = np.asarray(residual)
-    if residual.ndim == 1:
-        return residual
-    if residual.ndim == 2:
-        return np.sum(residual**2, axis=1)
-    return np.sum(residual**2, axis=(0, 2))
-
-
-def stacked(residual: np.ndarray) -> np.ndarray:
-    """(n_parts, N, 3) or (N, 3) position errors as (n_parts * N, 3) points."""
-    residual = np.asarray(residual)
-    return residual if residual.ndim == 2 else residual.reshape(-1, 3)
+from .least_squares import DampedSolver, cholesky_solve
+from .paired import row_squares
 
 
 class FitEngine:
@@ -433,7 +229,7 @@ class FitEngine:
         self.n_fits += 1
         every = _rows(rows, self.n_rows)
         weights = penalty * cols.penalty
-        damped = _DampedSolver(gram + np.diag(weights) if penalty else gram)
+        damped = DampedSolver(gram + np.diag(weights) if penalty else gram)
         flat = _flat(residual)
         cost = float(flat @ flat) + float(weights @ phi**2)
         # first an undamped step: the model is nearly linear, so it usually lands on the optimum
@@ -464,7 +260,7 @@ class FitEngine:
         """phi moved by one Gauss-Newton step on a fold's training rows (their Gram matrix and
         their gradient J^T r at phi), inside the bounds, with the smoothness penalty lambda."""
         weights = penalty * cols.penalty
-        solver = _DampedSolver(gram + np.diag(weights) if penalty else gram)
+        solver = DampedSolver(gram + np.diag(weights) if penalty else gram)
         step, _ = solver.step(gradient + weights * phi, 0.0, cols.lower - phi, cols.upper - phi)
         return cols.clip(phi + step)
 
@@ -520,7 +316,7 @@ class FitEngine:
                 g_train = total_gram - grams[h]
                 b_train = total_gradient - gradients[h]
                 for i, lam in enumerate(grid):
-                    step = _cholesky_solve(g_train + np.diag(lam * cols.penalty + ridge),
+                    step = cholesky_solve(g_train + np.diag(lam * cols.penalty + ridge),
                                            -(b_train + lam * cols.penalty * phi))
                     # |r + J s|^2 on the held-out rows, less the constant |r|^2: from their Gram
                     # matrix and gradient, without touching the rows again
@@ -635,7 +431,7 @@ class FitEngine:
         n_obs = flat.size
         lam = penalties["full"] if penalties else 0.0
         # with a smoothness penalty, the posterior covariance of the penalised fit (as for penalised splines)
-        solver = _DampedSolver(gram + np.diag(lam * cols.penalty)) if k else None
+        solver = DampedSolver(gram + np.diag(lam * cols.penalty)) if k else None
         phi_std = solver.standard_errors(cost / max(n_obs - k, 1)) if k else np.zeros(0)
         phi_cov = solver.covariance(cost / max(n_obs - k, 1)) if k and cols.penalty.any() else None
         span = np.maximum(np.abs(phi), 1.0) * 1e-9
@@ -708,107 +504,3 @@ def _gradient(jacs: list[np.ndarray], residual: list[np.ndarray], rows, n: int) 
             r = padded
         total += j.reshape(-1, k).T @ r.ravel()
     return total
-
-
-class _DampedSolver:
-    """Levenberg-Marquardt steps from a fixed Gram matrix J^T J (k, k): columns scaled to
-    unit norm, one eigendecomposition, so that a step for any damping is two small products
-    (and a small box-constrained least squares when bounds stop the free step)."""
-
-    def __init__(self, gram: np.ndarray):
-        self.norms = np.sqrt(np.clip(np.diag(gram), 0.0, None))
-        self.norms[self.norms == 0] = 1.0
-        self.values, self.vectors = np.linalg.eigh(gram / np.outer(self.norms, self.norms))
-        top = float(self.values[-1]) if self.values.size else 0.0
-        # eigenvalues within round-off of zero carry no information (lstsq drops them too)
-        self.kept = self.values > top * self.values.size * np.finfo(float).eps * 10
-        self.top = top
-        self.first_damping = 1e-3 * top if top > 0 else 1.0
-
-    def step(self, gradient: np.ndarray, damping: float, room_low: np.ndarray | None = None,
-             room_high: np.ndarray | None = None) -> tuple[np.ndarray, float]:
-        """The step d minimising |r + J d|^2 + damping |D d|^2 (D: the column norms) for
-        gradient J^T r, with room_low <= d <= room_high when given, and the cost cut the
-        linear model predicts for it."""
-        scaled = gradient / self.norms
-        c = self.vectors.T @ scaled
-        coefficient = np.zeros_like(c)
-        coefficient[self.kept] = -c[self.kept] / (self.values[self.kept] + damping)
-        d = (self.vectors @ coefficient) / self.norms
-        if room_low is not None and (np.any(d < room_low) or np.any(d > room_high)):
-            d = self._boxed(scaled, damping, room_low, room_high)
-            coefficient = self.vectors.T @ (d * self.norms)
-        predicted = -float(2.0 * gradient @ d + np.clip(self.values, 0.0, None) @ coefficient**2)
-        return d, predicted
-
-    def _boxed(self, scaled_gradient, damping, room_low, room_high) -> np.ndarray:
-        """The damped quadratic model minimised inside the box, in the scaled coordinates."""
-        curvature = np.clip(self.values, 0.0, None) + max(damping, 1e-10 * self.top, 1e-300)
-        hessian = (self.vectors * curvature) @ self.vectors.T
-        low, high = room_low * self.norms, room_high * self.norms
-        return box_quadratic(hessian, scaled_gradient, low, np.maximum(high, low)) / self.norms
-
-    def covariance(self, variance: float) -> np.ndarray:
-        """(k, k) s^2 (J^T J)^+ of the scaled parameters (directions the data do not see: 0)."""
-        inverse = np.where(self.kept, 1.0 / np.where(self.kept, self.values, 1.0), 0.0)
-        return variance * ((self.vectors * inverse) @ self.vectors.T) / np.outer(self.norms, self.norms)
-
-    def standard_errors(self, variance: float) -> np.ndarray:
-        """(k,) standard errors of the parameters, sqrt(diag(s^2 (J^T J)^+)), for residual
-        variance s^2 per observation; directions the data do not see get inf."""
-        inverse = np.where(self.kept, 1.0 / np.where(self.kept, self.values, 1.0), 0.0)
-        diag = (self.vectors**2) @ inverse / self.norms**2
-        unseen = (self.vectors[:, ~self.kept] ** 2).sum(axis=1) > 1e-6
-        return np.where(unseen, np.inf, np.sqrt(variance * diag))
-
-
-def box_quadratic(hessian: np.ndarray, gradient: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
-    """argmin 1/2 d^T H d + g^T d subject to low <= d <= high, for H (k, k) positive definite
-    and low <= 0 <= high (d = 0 feasible): the primal active-set method (Nocedal & Wright,
-    Algorithm 16.3) on a box.
-
-    Hand-written: scipy's only box-constrained least squares, ``lsq_linear`` (BVLS or TRF),
-    calls a dense ``lstsq`` at every inner iteration; on the diagnosis' small problems
-    (k <= a few hundred, a handful of active bounds) that was half of a real robot's
-    diagnosis time, where this takes one Cholesky solve per change of the active set.
-    """
-    k = gradient.size
-    d = np.zeros(k)
-    fixed = ((d <= low) & (gradient > 0)) | ((d >= high) & (gradient < 0))
-    for _ in range(4 * k + 10):
-        free = ~fixed
-        target = d.copy()
-        if free.any():
-            rhs = -(gradient[free] + hessian[np.ix_(free, fixed)] @ d[fixed])
-            target[free] = np.linalg.solve(hessian[np.ix_(free, free)], rhs)
-        move = target - d
-        # the longest step along move that stays in the box, and the bound that stops it
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = np.where(move < 0, (low - d) / move, np.where(move > 0, (high - d) / move, np.inf))
-        ratio[fixed] = np.inf
-        blocking = int(np.argmin(ratio)) if ratio.size else 0
-        if ratio.size and ratio[blocking] < 1.0:
-            d = d + max(ratio[blocking], 0.0) * move
-            d[blocking] = low[blocking] if move[blocking] < 0 else high[blocking]
-            fixed[blocking] = True
-            continue
-        d = target
-        if not fixed.any():
-            return d
-        multiplier = hessian[fixed] @ d + gradient[fixed]  # > 0 holds a lower bound, < 0 an upper
-        on_low = d[fixed] <= low[fixed]
-        wrong = np.where(on_low, -multiplier, multiplier)
-        if wrong.max() <= 1e-12 * max(float(np.abs(gradient).max()), 1e-300):
-            return d
-        fixed[np.flatnonzero(fixed)[int(np.argmax(wrong))]] = False
-    return np.clip(d, low, high)
-
-
-def _cholesky_solve(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """matrix^-1 rhs for a symmetric positive definite matrix (LU where round-off breaks Cholesky)."""
-    from scipy.linalg import LinAlgError, cho_factor, cho_solve
-
-    try:
-        return cho_solve(cho_factor(matrix, check_finite=False), rhs, check_finite=False)
-    except LinAlgError:
-        return np.linalg.solve(matrix, rhs)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .fitting import stacked
+from .paired import stacked
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ import numpy as np
 from scipy import stats
 
 from ..analysis.semivariogram import empirical_semivariogram, fit_gaussian_variogram, standardize
-from .fitting import stacked
+from .paired import stacked
 
 #: Amplitudes [x the per-axis noise, RMS per axis] at which the power probe injects a
 #: leftover, smallest first; beyond the last the test is said to see nothing of that shape.

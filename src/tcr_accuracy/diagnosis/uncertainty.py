@@ -19,7 +19,8 @@ import math
 
 import numpy as np
 
-from .fitting import ordered, paired_z, row_squares
+from .bases import ordered
+from .paired import row_squares
 
 #: two-sided 95 % normal quantile
 Z95 = 1.959963984540054
@@ -160,3 +161,27 @@ def _replay_forward(engine, current: list, pool: list, rows: np.ndarray, selecti
             return
         current.append(best)
         pool.remove(best)
+
+
+def implausibility(result: dict, bases: dict, effect: str) -> float:
+    """How far an effect's fitted parameters in a fit lie from what its own physics makes typical:
+    the RMS over its parameters of value / physical bound (the bound on the value's side, or the
+    other side's where its physics allows only one sign), 0 for an unbounded effect. Below 1: the
+    textbook sizes; above: sizes only another mechanism (or a stand-in role) explains."""
+    basis = bases[effect]
+    theta = result["phi"] * result["scale"]
+    offset = 0
+    for e in result["effects"]:
+        size = result["keep"][e].size
+        if e == effect:
+            kept = result["keep"][e]
+            values = theta[offset:offset + size]
+            lower, upper = basis.lower[kept], basis.upper[kept]
+            bound = np.where(values >= 0, upper, -lower)
+            bound = np.where(bound > 0, bound, np.maximum(upper, -lower))
+            finite = np.isfinite(bound) & (bound > 0)
+            if not finite.any():
+                return 0.0
+            return float(np.sqrt(np.mean((values[finite] / bound[finite]) ** 2)))
+        offset += size
+    return 0.0

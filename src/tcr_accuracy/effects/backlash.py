@@ -79,6 +79,9 @@ class Backlash(PerJointEffect):
     def signal(self, q, context):
         return 0.5 * self.side(q, context)
 
+    def beyond_physics(self, params, rng):
+        return -np.asarray(params, dtype=float) * rng.uniform(1.0, 1.5)  # ahead: lost-motion compensation too high
+
     def dominant_spec(self, rng):
         return {"backlash_deg": float(rng.uniform(0.01, 0.05)), "backlash_mm": float(rng.uniform(0.01, 0.05))}
 

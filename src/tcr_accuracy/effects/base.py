@@ -251,6 +251,12 @@ class Effect(abc.ABC):
         """Last touch on the parameters resolved from :meth:`dominant_spec` (default: as they are)."""
         return params
 
+    def beyond_physics(self, params: np.ndarray, rng: np.random.Generator) -> np.ndarray | None:
+        """A dominant draw turned into the other mechanism with the same signature (a sign or a
+        size the effect's own physics does not have: a controller's compensation, the
+        instrument), for ``random_scenario``; None when the effect has no such draw."""
+        return None
+
     # -- what it does --------------------------------------------------------------------
     @abc.abstractmethod
     def perturb(self, params, q: np.ndarray, context: MeasurementContext) -> EffectOutput:

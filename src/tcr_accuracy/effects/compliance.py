@@ -77,6 +77,9 @@ class Compliance(PerJointEffect):
         outside = None if context is None else context.outside_q
         return gravity_torque(self.robot, q, payload, self.link_mass_factors, outside)
 
+    def beyond_physics(self, params, rng):
+        return -np.asarray(params, dtype=float)  # against gravity: a gravity compensation that over-corrects
+
     def dominant_spec(self, rng):
         # each joint turned by a similar angle under its typical torque, then scaled
         pattern = self.parameter_scales() * np.exp(0.5 * rng.standard_normal(self.robot.n_joints))

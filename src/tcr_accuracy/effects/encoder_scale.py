@@ -43,6 +43,9 @@ class EncoderScale(PerJointEffect):
     def signal(self, q, context):
         return q
 
+    def beyond_physics(self, params, rng):
+        return np.asarray(params, dtype=float) * rng.uniform(30.0, 60.0)  # a gear ratio wrong in the configuration
+
     def dominant_spec(self, rng):
         return {"spread_ppm": float(rng.uniform(100.0, 500.0))}
 

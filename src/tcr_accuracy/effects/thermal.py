@@ -109,5 +109,8 @@ class Thermal(LinearEffect):
         d_t = temperature - t_ref
         return EffectJacobian(x=d_t[:, None, None] * self.growth_directions()[None])
 
+    def beyond_physics(self, params, rng):
+        return np.asarray(params, dtype=float) * rng.uniform(5.0, 10.0)  # the instrument's scale, not a metal
+
     def dominant_spec(self, rng):
         return {"alpha_per_k": float(rng.uniform(1.0e-5, 2.4e-5))}

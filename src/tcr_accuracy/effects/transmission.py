@@ -70,5 +70,8 @@ class Transmission(LinearEffect):
             ddq[:, j, k] = np.sin(h * q[:, j]) if trig == "a" else np.cos(h * q[:, j])
         return EffectJacobian(dq=ddq)
 
+    def beyond_physics(self, params, rng):
+        return np.asarray(params, dtype=float) * rng.uniform(30.0, 80.0)  # an eccentric encoder: degrees
+
     def dominant_spec(self, rng):
         return {"spread_deg": float(rng.uniform(0.005, 0.02))}

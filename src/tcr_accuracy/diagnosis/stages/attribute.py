@@ -7,7 +7,6 @@ stable the selection is, and where the first-order effect models end.
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,7 +14,9 @@ import numpy as np
 from ...effects.mechanisms import FAMILIES, MechanismReading, read_mechanism
 from ..attribution import contributions, fixed_point_check, tied_own_shares
 from ..confounding import confounded_variables
-from ..fitting import FitEngine, ordered, paired_z
+from ..fitting import FitEngine
+from ..bases import ordered
+from ..paired import paired_z
 from ..records import ErrorStats, Step
 from ..uncertainty import difference_interval, selection_frequency
 from .candidates import CandidateSet

@@ -14,7 +14,8 @@ from ...exceptions import AnalysisError, InputError
 from ...frames.noise import NoiseEstimate, noise_from_rigid_frames
 from ...model.context import CONTEXT_FIELDS
 from ...model.errors import ErrorModel
-from ..fitting import EffectBasis, FitEngine, Part, UnionBasis, ordered, position_jacobians
+from ..fitting import FitEngine
+from ..bases import EffectBasis, Part, UnionBasis, ordered, position_jacobians
 from ..residuals import noise_from_repeats
 from ..structure import StructureDetector
 from .register import RegisteredMeasurements

@@ -13,7 +13,7 @@ import pinocchio as pin
 from ...effects import effect_class
 from ...frames.rigid import homogeneous
 from ...model.errors import ErrorModel
-from ..fitting import ordered
+from ..bases import ordered
 from ..uncertainty import joint_function_bands, parameter_table
 from .candidates import CandidateSet
 from .register import RegisteredMeasurements

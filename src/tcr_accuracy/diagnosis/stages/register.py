@@ -17,7 +17,7 @@ from ...io.measurements import MeasurementSet
 from ...model.gravity import gravity_torque
 from ...model.kinematics import tcp_poses
 from ...model.robot import RobotModel
-from ..fitting import Part
+from ..bases import Part
 
 #: the context fields a MeasurementSet may have measured (the others take defaults)
 MEASURED_CONTEXT = ("payload_kg", "temperature_c", "direction")

@@ -13,7 +13,8 @@ import numpy as np
 from ...frames.noise import NoiseEstimate
 from ...frames.rigid import homogeneous
 from ..ambiguity import stand_in_shapes
-from ..fitting import ordered, stacked
+from ..bases import ordered
+from ..paired import stacked
 from ..residuals import noise_from_residual, where_analysis
 from ..records import ErrorStats
 from ..structure import name_scatter, scatter_beyond_noise, smallest_detectable_structure, smooth_shape, \

@@ -10,9 +10,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..ambiguity import ambiguity_report, settle_swaps, swap_alternatives, within_reach
-from ..fitting import FitEngine, ordered, paired_z, signed_rank_z
+from ..fitting import FitEngine
+from ..bases import ordered
+from ..paired import paired_z, signed_rank_z
 from ..records import ErrorStats, Step
-from ..uncertainty import difference_interval
+from ..uncertainty import difference_interval, implausibility
 from .candidates import NOT_IDENTIFIABLE, Candidate, CandidateSet, build_bases, identifiable_alone, relinearise, \
     untried
 from .register import RegisteredMeasurements
@@ -228,7 +230,7 @@ def _forward(engine: FitEngine, testable, steps: list, candidates: dict, say, se
                                       n_parameters=r["n_parameters"] - prev["n_parameters"],
                                       added_to=tuple(current) if len(current) > 1 else ())
         fresh = []
-        best = min(trials, key=lambda e: ErrorStats.heldout(trials[e]).rms)
+        best = _plausible_best(engine, trials)
         r = trials[best]
         rms = ErrorStats.heldout(r).rms
         z = entry_z(prev["heldout_squares"], r["heldout_squares"])
@@ -239,6 +241,19 @@ def _forward(engine: FitEngine, testable, steps: list, candidates: dict, say, se
         steps.append(Step(best, tuple(ordered(current)), r["n_parameters"],
                           ErrorStats.of(r["train_residual"]).rms, ErrorStats.heldout(r), z))
     return current
+
+
+def _plausible_best(engine: FitEngine, trials: dict) -> str:
+    """The candidate to take: of those whose held-out errors the rows do not rank more than one
+    standard error above the best's (paired), the one whose parameters are likeliest under its
+    physics (:func:`~tcr_accuracy.diagnosis.uncertainty.implausibility`), then the lower error. An
+    effect that explains the data only at sizes far from its own physics loses to one that explains
+    them as well at typical sizes (gravity sag through degrees of gear harmonics, say)."""
+    rms = {e: ErrorStats.heldout(r).rms for e, r in trials.items()}
+    best = min(rms, key=rms.get)
+    near = [e for e in trials if e == best or paired_z(trials[e]["heldout_squares"], trials[best]["heldout_squares"])
+            < 1.0]
+    return min(near, key=lambda e: (implausibility(trials[e], engine.bases, e) > 1.0, rms[e]))
 
 
 def entry_z(before: np.ndarray, after: np.ndarray) -> float:

@@ -1,0 +1,164 @@
+"""Each effect linearised on the measured poses: the measured frames (:class:`Part`), one effect on
+one part (:class:`EffectBasis`), one effect over all parts with its parameters by name
+(:class:`UnionBasis`), and the error Jacobians they are chained with.
+
+For every effect and part, the effect's parameters map linearly onto error vectors per pose
+(joint-side offsets go into the drive slice of :class:`~tcr_accuracy.model.errors.ErrorModel`);
+chained with Pinocchio's error Jacobian (:func:`~tcr_accuracy.model.jacobians.error_jacobians`)
+this gives each parameter's column of the identification Jacobian.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..effects import vocabulary
+from ..effects.base import LinearEffect
+from ..model.context import MeasurementContext
+from ..model.errors import ErrorModel
+from ..model.jacobians import error_jacobians
+from ..model.robot import JointLimitWarning, RobotModel
+from .error_map import ErrorMap
+
+
+def ordered(effects) -> list:
+    """The effects in vocabulary order."""
+    return [e for e in vocabulary() if e in effects]
+
+
+@dataclass
+class Part:
+    """One measured frame: its chain, joint values and targets (in the robot's base frame).
+
+    q : (N, n_joints) commanded joints of this chain [rad, m]
+    target : (N, 3) measured position in the base frame [m]
+    target_rotation : (N, 3, 3) measured orientation in the base frame, or None
+    context : the rows' context for this chain (directions of its joints, the other joints)
+    orientation_weight : [m/rad] weight of the orientation rows
+    label : the frame's name
+    """
+
+    robot: RobotModel
+    q: np.ndarray
+    target: np.ndarray
+    context: MeasurementContext
+    label: str
+    target_rotation: np.ndarray | None = None
+    orientation_weight: float = 0.0
+
+    @property
+    def rows_per_pose(self) -> int:
+        return 6 if self.target_rotation is not None else 3
+
+
+class EffectBasis:
+    """One effect on one part, linearised: x_total(theta) = basis @ theta per pose.
+
+    ``basis`` (:class:`~tcr_accuracy.diagnosis.error_map.ErrorMap`) gives the error vectors
+    (N, p_em) of the parameters, with joint-side offsets dq placed in the drive slice
+    (``q + dq`` is a drive offset).
+    ``g`` (N, r, P) is the TCP sensitivity (error Jacobian chained with it): position
+    rows, then weighted orientation rows when the part measures orientation.
+    """
+
+    def __init__(self, effect, part: Part, em: ErrorModel, jac_x: np.ndarray, names: list[str] | None = None):
+        self.effect = effect
+        self.name = effect.name
+        self.names = list(names if names is not None else effect.parameter_names())
+        self.scales = np.asarray(effect.parameter_scales(), dtype=float)
+        self.units = list(effect.parameter_units())
+        self.lower, self.upper = (np.asarray(b, dtype=float) for b in effect.physical_range())
+        self.fit_lower, self.fit_upper = (np.asarray(b, dtype=float) for b in effect.fit_range())
+        weights = effect.penalty_weights()
+        self.penalty = np.zeros(len(self.names)) if weights is None else np.asarray(weights, dtype=float)
+        n, k = part.q.shape[0], len(self.names)
+        maps = effect.parameter_jacobian(np.zeros(k), part.q, part.context)
+        self.basis = ErrorMap.of(n, em.size, em.drive_slice, maps.x, maps.dq, k)
+        self.relinearise(jac_x)
+        self.nonlinearity = 0.0
+        if type(effect).perturb is LinearEffect.perturb:
+            return  # perturb is this very map: nothing to check
+        # check perturb against the map at one point
+        probe = self.scales * np.linspace(-1.0, 1.0, k) if k > 1 else self.scales
+        out = effect.perturb(probe, part.q, part.context)
+        total = np.zeros((n, em.size))
+        if out.x is not None:
+            total += out.x
+        if out.dq is not None:
+            total[:, em.drive_slice] += out.dq
+        size = max(float(np.abs(total).max()), 1e-300)
+        self.nonlinearity = float(np.abs(total - self.basis.errors(probe)).max() / size)
+
+    def relinearise(self, jac_x: np.ndarray) -> None:
+        """TCP sensitivity (N, r, P) for error Jacobians jac_x (N, r, p_em)."""
+        self.g = self.basis.sensitivity(jac_x)
+
+
+class UnionBasis:
+    """One effect over all parts: its parameters by name, and the stacked sensitivity.
+
+    ``names`` and ``scales`` are the union over the parts (first part's order, then new
+    names of later parts); ``index[p]`` maps part p's columns into the union; ``g`` is
+    (sum of the parts' N, r, P_union), zero where a part lacks a parameter, for the
+    identifiability test.
+    """
+
+    def __init__(self, per_part: list[EffectBasis]):
+        self.per_part = per_part
+        self.name = per_part[0].name
+        names: list[str] = []
+        scales: list[float] = []
+        units: list[str] = []
+        bounds: list[tuple[float, float, float, float]] = []
+        penalty: list[float] = []
+        for b in per_part:
+            for name, scale, unit, lo, hi, fit_lo, fit_hi, w in zip(b.names, b.scales, b.units, b.lower, b.upper,
+                                                                    b.fit_lower, b.fit_upper, b.penalty):
+                if name not in names:
+                    names.append(name)
+                    scales.append(float(scale))
+                    units.append(unit)
+                    bounds.append((float(lo), float(hi), float(fit_lo), float(fit_hi)))
+                    penalty.append(float(w))
+        self.names, self.scales, self.units = names, np.array(scales), units
+        #: (P,) physical range of each parameter [SI] (the effect's ``physical_range``)
+        self.lower = np.array([bound[0] for bound in bounds])
+        self.upper = np.array([bound[1] for bound in bounds])
+        #: (P,) the range a fit stays in [SI] (the effect's ``fit_range``)
+        self.fit_lower = np.array([bound[2] for bound in bounds])
+        self.fit_upper = np.array([bound[3] for bound in bounds])
+        #: (P,) smoothness-penalty weight of each parameter in scaled units (0: not penalised)
+        self.penalty = np.array(penalty)
+        self.index = [np.array([names.index(n) for n in b.names], dtype=int) for b in per_part]
+        self.nonlinearity = max(b.nonlinearity for b in per_part)
+        self.restack()
+
+    def restack(self) -> None:
+        rows = max(b.g.shape[1] for b in self.per_part)
+        blocks = []
+        for b, idx in zip(self.per_part, self.index):
+            block = np.zeros((b.g.shape[0], rows, len(self.names)))
+            block[:, :b.g.shape[1], idx] = b.g
+            blocks.append(block)
+        self.g = np.concatenate(blocks, axis=0)
+
+    @property
+    def basis(self) -> ErrorMap:
+        """The first part's error map: the robot of a single-frame diagnosis."""
+        return self.per_part[0].basis
+
+
+def position_jacobians(robot: RobotModel, q: np.ndarray, x: np.ndarray | None = None,
+                       orientation_weight: float | None = None) -> np.ndarray:
+    """Error Jacobians (N, r, p_em) at error vector x: position rows, plus weighted rotation rows."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", JointLimitWarning)
+        _, jx = error_jacobians(robot, q, x)
+    if orientation_weight is None:
+        return np.ascontiguousarray(jx[:, :3])
+    jx = jx.copy()
+    jx[:, 3:] *= orientation_weight
+    return np.ascontiguousarray(jx)
