@@ -156,13 +156,20 @@ def test_thermal_matches_a_robot_built_with_scaled_links(tool_changer):
     scaled = ToolChangerDimensions(**{f"l{k}": getattr(d, f"l{k}") * growth for k in range(1, 7)})
     hot = robot_from_urdf_text(tool_changer_urdf(scaled), "tool", name="hot")
     q = random_joint_values(tool_changer, 9, np.random.default_rng(2))
-    predicted = predict_positions(tool_changer, [Thermal(tool_changer)], [[alpha]], q,
+    predicted = predict_positions(tool_changer, [Thermal(tool_changer)], [[alpha, 0.0, 0.0, 0.0]], q,
                                   _context(9, 6, temperature=temperature))
     np.testing.assert_allclose(predicted, tcp_poses(hot, q).position, atol=1e-12)
+    # the base moving with temperature: every TCP translated by dT times the base's rate [m/K]
+    rate = np.array([2e-5, -1e-5, 3e-5])
+    moved = predict_positions(tool_changer, [Thermal(tool_changer)], [np.r_[0.0, rate]], q,
+                              _context(9, 6, temperature=temperature))
+    np.testing.assert_allclose(moved, tcp_poses(tool_changer, q).position + (temperature - 20.0) * rate,
+                               atol=1e-12)
     per_link = Thermal(tool_changer, per_link=True)
-    assert per_link.parameter_names() == [f"thermal.alpha.j{k}" for k in range(1, 7)]
+    assert per_link.parameter_names() == [f"thermal.alpha.j{k}" for k in range(1, 7)] + list(Thermal.BASE)
     np.testing.assert_allclose(
-        predict_positions(tool_changer, [per_link], [np.full(6, alpha)], q, _context(9, 6, temperature=temperature)),
+        predict_positions(tool_changer, [per_link], [np.r_[np.full(6, alpha), 0.0, 0.0, 0.0]], q,
+                          _context(9, 6, temperature=temperature)),
         predicted, atol=1e-12)
 
 

@@ -313,12 +313,29 @@ def predictable_leftover(detector: StructureDetector, residual: np.ndarray) -> f
     return math.sqrt(best)
 
 
+def predictable_from_context(features: np.ndarray, residual: np.ndarray, split) -> float:
+    """RMS per axis [m] of what is left of a residual (N, 3) once a ridge regression on the rows'
+    context (F columns: temperature, time or measurement order, payload, approach directions)
+    predicts it out of sample (k-fold ``split``)."""
+    from sklearn.linear_model import RidgeCV
+    from sklearn.model_selection import cross_val_predict
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import StandardScaler
+
+    centred = residual - residual.mean(axis=0)
+    model = make_pipeline(StandardScaler(), RidgeCV(alphas=np.logspace(-6, 3, 10)))
+    predicted = cross_val_predict(model, features, centred, cv=split)
+    return math.sqrt(min(float(np.mean(centred**2)), float(np.mean((centred - predicted) ** 2))))
+
+
 def name_scatter(scatter, structure, stochastic, noise, notes, detector: StructureDetector | None = None,
-                 residual: np.ndarray | None = None) -> None:
+                 residual: np.ndarray | None = None, context: dict | None = None) -> None:
     """Scatter beyond the instrument without structure is named only when the structure
-    test could have seen a leftover of its size, and when the joints cannot predict it out
-    of sample: a leftover that k-NN or a ridge on joint features predicts to within half of
-    its excess variance over the instrument's is structure, not scatter."""
+    test could have seen a leftover of its size, and when neither the joints nor the rows'
+    context (``context``: name -> (N,) or (N, k) values, e.g. temperature, measurement order)
+    predict it out of sample: a leftover that k-NN or a ridge on joint features, or a ridge on
+    the context, predicts to within half of its excess variance over the instrument's is
+    structure, not scatter."""
     if not scatter["detected"]:
         return
     if detector is not None and residual is not None:
@@ -333,6 +350,21 @@ def name_scatter(scatter, structure, stochastic, noise, notes, detector: Structu
                          f"but predicted from the joint values out of sample it leaves {after * 1e3:.4f} mm: "
                          "structure the vocabulary does not express, not random scatter")
             return
+        varying = {k: np.asarray(v, dtype=float).reshape(len(residual), -1) for k, v in (context or {}).items()}
+        varying = {k: v for k, v in varying.items() if np.any(np.std(v, axis=0) > 0)}
+        if varying:
+            features = np.concatenate(list(varying.values()), axis=1)
+            after = predictable_from_context(detector.restrict(features), detector.restrict(residual),
+                                             detector.split)
+            excess_after = max(after**2 - noise.per_axis**2, 0.0)
+            scatter["predicted_from_context_left_per_axis_mm"] = after * 1e3
+            if excess_before > 0 and excess_after < 0.5 * excess_before:
+                scatter["named"] = None
+                notes.append(f"{sigma * 1e3:.4f} mm per axis is left against {noise.per_axis * 1e3:.4f} mm of noise, "
+                             f"but predicted out of sample from the rows' {', '.join(varying)} it leaves "
+                             f"{after * 1e3:.4f} mm: structure along them that the vocabulary does not express, "
+                             "not random scatter")
+                return
     if structure["verdict"] == "no":
         scatter["named"] = "clearance" if "clearance" in stochastic else "random scatter"
         notes.append(f"random scatter beyond the tracker noise: {scatter['estimated_noise_per_axis_mm']:.4f} mm "

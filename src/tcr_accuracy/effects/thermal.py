@@ -15,8 +15,11 @@ class Thermal(LinearEffect):
     ``v = alpha dT R^T t`` on the right (exact: a pure translation). The TCP frame's
     offset grows the same way. Parameters: ``thermal.alpha`` [1/K] for the whole arm, or
     with ``per_link=True`` one ``thermal.alpha.<joint>`` per placement that has a length
-    (and ``thermal.alpha.tool``). ``reference_temperature_c``: where the URDF holds
-    (default 20 degC). Context: ``temperature_c`` per row.
+    (and ``thermal.alpha.tool``); and ``thermal.base.dx, dy, dz`` [m/K], the robot's base moving
+    with temperature in its own frame (a stand or a floor that grows; or, far beyond that, an
+    instrument whose length scale changes about its own origin, which moves the base as seen
+    from it). ``reference_temperature_c``: where the URDF holds (default 20 degC). Context:
+    ``temperature_c`` per row.
     """
 
     name = "thermal"
@@ -25,8 +28,7 @@ class Thermal(LinearEffect):
     context_columns = ("temperature_c",)
     requires_context = True
     dominant_candidate = 3
-    non_negative = True
-    family = "thermal"
+    family = "thermal"  # (not non_negative: the base may move either way; alpha's own lower bound is 0)
     physics = ("links expand with temperature, between invar (1.2e-6/K) and aluminium (2.3e-5/K): 0 to 2.5e-5 "
                "per K")
 
@@ -44,19 +46,28 @@ class Thermal(LinearEffect):
             links.append(("tool", None))
         return links
 
-    def parameter_names(self):
+    BASE = ("thermal.base.dx", "thermal.base.dy", "thermal.base.dz")
+
+    def _alphas(self) -> list[str]:
         if self.per_link:
             return [f"thermal.alpha.{label}" for label, _ in self._links()]
         return ["thermal.alpha"]
 
+    def parameter_names(self):
+        return self._alphas() + list(self.BASE)
+
     def parameter_units(self):
-        return ["1/K"] * self.n_params
+        return ["1/K"] * len(self._alphas()) + ["m/K"] * 3
 
     def parameter_scales(self):
-        return np.full(self.n_params, 1.2e-5)  # steel
+        return np.array([1.2e-5] * len(self._alphas()) + [1e-5] * 3)  # steel; a metre of steel stand
+
+    def _per_kind(self, alpha: float, base: float) -> np.ndarray:
+        return np.array([alpha] * len(self._alphas()) + [base] * 3)
 
     def physical_range(self):
-        return np.zeros(self.n_params), np.full(self.n_params, 2.5e-5)
+        # links between invar and aluminium; the base moved by up to 2.5 m of steel stand or floor
+        return self._per_kind(0.0, -3e-5), self._per_kind(2.5e-5, 3e-5)
 
     @classmethod
     def options_for_data(cls, robot, q, context) -> dict:
@@ -69,17 +80,18 @@ class Thermal(LinearEffect):
 
     def fit_range(self):
         # an instrument's scale error with temperature: a weather station off by a few kelvin or a
-        # refraction model off by a few ppm per kelvin, 40 times a metal's expansion at most
-        return np.full(self.n_params, -1e-3), np.full(self.n_params, 1e-3)
+        # refraction model off by a few ppm per kelvin, 40 times a metal's expansion at most, about
+        # an origin up to a few metres from the base
+        return self._per_kind(-1e-3, -2e-3), self._per_kind(1e-3, 2e-3)
 
     def mechanisms(self):
         from .mechanisms import Mechanism
 
         lower, upper = self.physical_range()
         wide_lower, wide_upper = self.fit_range()
-        return (Mechanism("thermal_expansion", "links expanding with temperature (steel 1.2e-5/K, aluminium "
-                          "2.3e-5/K)", "measure at two temperatures after the arm has settled; compare with the "
-                          "links' material", lower, upper),
+        return (Mechanism("thermal_expansion", "links (and the robot's mount) expanding with temperature (steel "
+                          "1.2e-5/K, aluminium 2.3e-5/K)", "measure at two temperatures after the arm has settled; "
+                          "compare with the links' material", lower, upper),
                 Mechanism("instrument_scale", "a length scale with temperature beyond any metal the arm is made of: "
                           "the instrument's scale (the tracker's weather station or its refraction compensation) or a "
                           "difference between sessions (another day, floor or station)", "check the tracker's "
@@ -107,7 +119,12 @@ class Thermal(LinearEffect):
         t_ref = float(self.reference_temperature_c)
         temperature = context_column(context, "temperature_c", q.shape[0], t_ref)
         d_t = temperature - t_ref
-        return EffectJacobian(x=d_t[:, None, None] * self.growth_directions()[None])
+        em = self.error_model
+        directions = np.zeros((em.size, self.n_params))
+        directions[:, :len(self._alphas())] = self.growth_directions()
+        for a in range(3):  # the base translated in its own frame, per kelvin
+            directions[em.base_slice.start + a, len(self._alphas()) + a] = 1.0
+        return EffectJacobian(x=d_t[:, None, None] * directions[None])
 
     def beyond_physics(self, params, rng):
         return np.asarray(params, dtype=float) * rng.uniform(5.0, 10.0)  # the instrument's scale, not a metal

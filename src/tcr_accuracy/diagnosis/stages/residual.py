@@ -156,7 +156,15 @@ def analyse_residual(registered: RegisteredMeasurements, candidate_set: Candidat
                                  else float(np.sqrt(np.mean(final_train**2))))
     structure.update(structure_verdict(structure, structure["power"], scatter, math.sqrt(3.0) * noise.per_axis,
                                        leftover))
-    name_scatter(scatter, structure, candidate_set.stochastic, noise, notes, detector, final_train)
+    context = registered.parts[0].context
+    along = {k: context_values[k] for k in ("temperature_c", "payload_kg") if k in context_values}
+    if "direction" in context_values:
+        along["approach directions"] = context_values["direction"]
+    along["measurement order"] = np.asarray(context.order if context.order is not None
+                                            else np.arange(registered.n_rows), dtype=float)
+    if context.time_s is not None:
+        along["time_s"] = np.asarray(context.time_s, dtype=float)
+    name_scatter(scatter, structure, candidate_set.stochastic, noise, notes, detector, final_train, along)
 
     repeats = [_first_frame(h) for h in final["heldout_repeats"]]
 

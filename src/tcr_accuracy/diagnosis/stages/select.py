@@ -245,15 +245,18 @@ def _forward(engine: FitEngine, testable, steps: list, candidates: dict, say, se
 
 def _plausible_best(engine: FitEngine, trials: dict) -> str:
     """The candidate to take: of those whose held-out errors the rows do not rank more than one
-    standard error above the best's (paired), the one whose parameters are likeliest under its
-    physics (:func:`~tcr_accuracy.diagnosis.uncertainty.implausibility`), then the lower error. An
-    effect that explains the data only at sizes far from its own physics loses to one that explains
-    them as well at typical sizes (gravity sag through degrees of gear harmonics, say)."""
+    standard error above the best's (paired), one whose parameters its own physics explains
+    (:func:`~tcr_accuracy.diagnosis.uncertainty.implausibility` at most 1), then the first in the
+    vocabulary (the more basic cause: an encoder offset before a dead band that mimics it), then
+    the lower error. An effect that explains the data only at sizes far from its own physics loses
+    to one that explains them as well at typical sizes (gravity sag through degrees of gear
+    harmonics, say), and a stand-in does not win a step by a hair."""
     rms = {e: ErrorStats.heldout(r).rms for e, r in trials.items()}
     best = min(rms, key=rms.get)
     near = [e for e in trials if e == best or paired_z(trials[e]["heldout_squares"], trials[best]["heldout_squares"])
             < 1.0]
-    return min(near, key=lambda e: (implausibility(trials[e], engine.bases, e) > 1.0, rms[e]))
+    order = {e: k for k, e in enumerate(ordered(list(trials)))}  # the vocabulary's: the more basic cause first
+    return min(near, key=lambda e: (implausibility(trials[e], engine.bases, e) > 1.0, order[e], rms[e]))
 
 
 def entry_z(before: np.ndarray, after: np.ndarray) -> float:
