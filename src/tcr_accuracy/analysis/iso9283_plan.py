@@ -32,9 +32,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
 
 from ..exceptions import InputError
+from ..model.jacobians import tcp_jacobian
 from ..model.kinematics import tcp_poses
 from ..model.robot import RobotModel
 from .collision import CollisionChecker, collision_checker
@@ -179,12 +179,10 @@ def _orientation_mode(robot: RobotModel, rng: np.random.Generator) -> str:
 
 def _jacobian_spectra(robot: RobotModel, q: np.ndarray) -> np.ndarray:
     """(N, min(6, n_joints)) singular values of the TCP frame Jacobian at each configuration."""
-    model, data = robot.model, robot.model.createData()
+    data = robot.model.createData()
     spectra = []
     for row in q:
-        pin.computeJointJacobians(model, data, robot.to_pinocchio_q(row))
-        pin.updateFramePlacements(model, data)
-        jac = pin.getFrameJacobian(model, data, robot.tool_frame_id, pin.LOCAL_WORLD_ALIGNED)
+        jac = tcp_jacobian(robot, row, data)[1]
         spectra.append(np.linalg.svd(jac, compute_uv=False)[:6])
     return np.array(spectra)
 

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 from ..exceptions import InputError
+from ..model.jacobians import tcp_jacobian
 from ..model.kinematics import euler_zyx, rotation_from_euler_zyx, tcp_poses
 from ..model.robot import RobotModel
 
@@ -164,7 +165,7 @@ def _damped_step(jac: np.ndarray, err: np.ndarray, damping: float) -> np.ndarray
 
 def _dls(robot, positions, rotations, q, tol_p, tol_r, max_iter, damping, max_step,
          orientation) -> IkResult:
-    model, data = robot.model, robot.model.createData()
+    data = robot.model.createData()
     fid = robot.tool_frame_id
     n_targets, n = q.shape
     lo, hi = robot.joint_bounds(np.inf)
@@ -174,8 +175,6 @@ def _dls(robot, positions, rotations, q, tol_p, tol_r, max_iter, damping, max_st
     rot_err = np.zeros(n_targets)
     iterations = np.zeros(n_targets, dtype=int)
     last_step = np.full(n_targets, np.inf)
-    # Pinocchio's velocity index of each of our joints (one DoF each)
-    idx_v = [model.joints[j].idx_v for j in range(1, model.njoints)]
     for it in range(max_iter + 1):
         idx = np.flatnonzero(active)
         if idx.size == 0:
@@ -184,9 +183,7 @@ def _dls(robot, positions, rotations, q, tol_p, tol_r, max_iter, damping, max_st
         e_r = np.zeros((idx.size, 3))
         jac = np.empty((idx.size, 6, n))
         for k, i in enumerate(idx):
-            pin.computeJointJacobians(model, data, robot.to_pinocchio_q(q[i]))  # also the placements
-            oMf = pin.updateFramePlacement(model, data, fid)
-            jac[k] = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:, idx_v]
+            oMf, jac[k] = tcp_jacobian(robot, q[i], data, fid)
             e_p[k] = positions[i] - oMf.translation
             if full:
                 e_r[k] = pin.log3(rotations[i] @ oMf.rotation.T)  # base-frame rotation vector

@@ -1,8 +1,9 @@
-"""First-order sensitivity of the TCP to the error parameters: the one home of the error Jacobian.
+"""The one home of the TCP's Jacobians: in the joints (:func:`tcp_jacobian`, what IK and
+compensation step with) and in the error parameters (the error Jacobian).
 
-From Pinocchio's frame Jacobian (joint side) and frame kinematic regressor (placement side),
-chained with the derivative of ``exp6`` at the current error vector; batched over poses
-(:func:`error_jacobians`), one pose at x = 0 (:func:`error_jacobian`).
+The error Jacobian comes from Pinocchio's frame Jacobian (joint side) and frame kinematic
+regressor (placement side), chained with the derivative of ``exp6`` at the current error vector;
+batched over poses (:func:`error_jacobians`), one pose at x = 0 (:func:`error_jacobian`).
 """
 
 from __future__ import annotations
@@ -12,6 +13,41 @@ import pinocchio as pin
 
 from .errors import ErrorModel
 from .robot import RobotModel
+
+
+def chain_columns(model: pin.Model) -> list[int]:
+    """Pinocchio's velocity index of each joint of a chain model (one DoF each), in joint order."""
+    return [model.joints[j].idx_v for j in range(1, model.njoints)]
+
+
+def tcp_jacobian(robot: RobotModel, q: np.ndarray, data: pin.Data | None = None,
+                 frame_id: int | None = None) -> tuple[pin.SE3, np.ndarray]:
+    """The TCP's pose and its Jacobian in the joints at one configuration.
+
+    Parameters
+    ----------
+    robot : RobotModel
+    q : ndarray of shape (n_joints,)
+        Joint values [rad, m].
+    data : pinocchio.Data, optional
+        Work data of ``robot.model`` to reuse across calls (made when not given).
+    frame_id : int, optional
+        Another frame of ``robot.model`` (default the TCP).
+
+    Returns
+    -------
+    oMf : pinocchio.SE3
+        The frame's pose in the base frame.
+    jacobian : ndarray of shape (6, n_joints)
+        Its spatial velocity per joint velocity, linear rows first, axes of the base frame
+        (``LOCAL_WORLD_ALIGNED``) [m/rad, rad/rad; m/m for prismatic joints].
+    """
+    model = robot.model
+    data = model.createData() if data is None else data
+    frame = robot.tool_frame_id if frame_id is None else frame_id
+    pin.computeJointJacobians(model, data, robot.to_pinocchio_q(np.asarray(q, dtype=float)))
+    pose = pin.updateFramePlacement(model, data, frame)
+    return pose, pin.getFrameJacobian(model, data, frame, pin.LOCAL_WORLD_ALIGNED)[:, chain_columns(model)]
 
 
 # ---------------------------------------------------------------------------------------

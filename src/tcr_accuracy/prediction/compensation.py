@@ -38,6 +38,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..exceptions import InputError
+from ..model.jacobians import tcp_jacobian
 from ..model.kinematics import tcp_poses
 from ..model.robot import RobotModel
 from .composed import predict_with_context
@@ -146,7 +147,7 @@ def compensate_joints(robot: RobotModel, predictor, q_target: np.ndarray, *, thr
         if idx.size == 0 or it == max_iter:
             break
         for i in idx:
-            jac = _frame_jacobian(robot, q[i])
+            jac = tcp_jacobian(robot, q[i])[1]
             turn = pin.log3(rotation[i] @ nominal.rotation[i].T) if orientation == "best_effort" else np.zeros(3)
             step, gain = _step(jac, d[i], turn, orientation == "best_effort")
             if it == 0:
@@ -178,15 +179,6 @@ def compensate_joints(robot: RobotModel, predictor, q_target: np.ndarray, *, thr
     converged = reason == ""
     return CompensationResult(q=q, target=target, predicted_miss=miss, converged=converged,
                               iterations=iterations, reason=reason, detail=detail, first_order=first_order)
-
-
-def _frame_jacobian(robot: RobotModel, q: np.ndarray) -> np.ndarray:
-    """(6, n_joints) TCP frame Jacobian (LOCAL_WORLD_ALIGNED: linear rows first) at q (n_joints,)."""
-    model, data = robot.model, robot.model.createData()
-    pin.computeJointJacobians(model, data, robot.to_pinocchio_q(q))
-    pin.updateFramePlacements(model, data)
-    columns = [model.joints[j].idx_v for j in range(1, model.njoints)]
-    return pin.getFrameJacobian(model, data, robot.tool_frame_id, pin.LOCAL_WORLD_ALIGNED)[:, columns]
 
 
 def _step(jac: np.ndarray, d: np.ndarray, turn: np.ndarray, hold: bool, rcond: float = 1e-8):
