@@ -107,7 +107,8 @@ def collision_checker(robot: RobotModel) -> CollisionChecker | None:
     if "<collision" not in robot.urdf_text:
         return None
     model = robot.full_model
-    geometry = robot.geometry_model("collision")  # bodies whose mesh is missing left out (load_robot warned)
+    # a copy: the pairs below are this checker's, the robot's own model stays as the URDF says
+    geometry = robot.geometry_model("collision").copy()  # bodies whose mesh is missing left out (load_robot warned)
     if geometry.ngeoms < 2:
         return None
     geometry.addAllCollisionPairs()

@@ -372,7 +372,9 @@ class RobotModel:
     def geometry_model(self, kind: str = "visual") -> pin.GeometryModel:
         """Pinocchio's ``GeometryModel`` of the URDF's ``<visual>`` or ``<collision>`` elements
         (``kind``) on ``full_model``, each mesh read from the file :meth:`mesh_places` found; an
-        element whose mesh is missing is left out (kinematics never needs it).
+        element whose mesh is missing is left out (kinematics never needs it). Built once per
+        robot and kind (as Pinocchio's ``RobotWrapper`` builds its models once): the URDF and
+        its meshes are read on the first call only.
 
         Raises
         ------
@@ -381,6 +383,12 @@ class RobotModel:
             references (a COLLADA image, an OBJ's material library and its textures) lies outside
             the URDF's folder and the package folders.
         """
+        cache = self.__dict__.setdefault("_geometry_models", {})
+        if kind not in cache:
+            cache[kind] = self._build_geometry_model(kind)
+        return cache[kind]
+
+    def _build_geometry_model(self, kind: str) -> pin.GeometryModel:
         roots, source = self.mesh_roots(), self.urdf_source
         root = parse_urdf_xml(self.urdf_text, source)
         places = mesh_places(root, (kind,), self.urdf_path.parent if self.urdf_path is not None else None,
@@ -410,12 +418,13 @@ class RobotModel:
         InputError
             See :meth:`geometry_model`.
         """
-        geometry = self.geometry_model("visual")
-        chain = set(self.chain_joint_ids)
-        locked = [j for j in range(1, self.full_model.njoints) if j not in chain]
-        if not locked:
-            return geometry
-        return reduce_model(self.full_model, locked, geometry)[1]
+        cache = self.__dict__.setdefault("_geometry_models", {})
+        if "visual_reduced" not in cache:
+            geometry = self.geometry_model("visual")
+            chain = set(self.chain_joint_ids)
+            locked = [j for j in range(1, self.full_model.njoints) if j not in chain]
+            cache["visual_reduced"] = geometry if not locked else reduce_model(self.full_model, locked, geometry)[1]
+        return cache["visual_reduced"]
 
     # -- copies ----------------------------------------------------------------------
     def with_model(self, model: pin.Model, name: str | None = None) -> "RobotModel":
