@@ -116,9 +116,9 @@ def read_mechanism(effect, values: np.ndarray, std: np.ndarray, names: list[str]
     """The mechanism an effect's fitted values stand for.
 
     Each parameter the data resolve (|value| beyond ``significance`` standard errors) is read by
-    the first mechanism whose range holds its value, else by the first whose range its interval
-    (value +- ``significance`` standard errors) reaches: the data cannot place it beyond that
-    one. Mechanisms are weighed by the TCP motion of the parameters they explain.
+    the first mechanism whose range its interval (value +- ``significance`` standard errors)
+    reaches: the effect's own physics unless the data place the value beyond it. Mechanisms are
+    weighed by the TCP motion of the parameters they explain.
 
     Parameters
     ----------
@@ -151,11 +151,9 @@ def read_mechanism(effect, values: np.ndarray, std: np.ndarray, names: list[str]
     if not resolved.any():
         resolved = values != 0
     reach = np.where(np.isfinite(finite_std), significance * finite_std, 0.0)
-    holds, touches = np.full(values.size, -1), np.full(values.size, -1)
-    for m, mechanism in reversed(list(enumerate(mechanisms))):  # the first mechanism wins
-        holds = np.where(mechanism.explains(values), m, holds)
-        touches = np.where((values + reach >= mechanism.lower) & (values - reach <= mechanism.upper), m, touches)
-    which = np.where(holds >= 0, holds, touches)
+    which = np.full(values.size, -1)
+    for m, mechanism in reversed(list(enumerate(mechanisms))):  # the first mechanism the interval reaches wins
+        which = np.where((values + reach >= mechanism.lower) & (values - reach <= mechanism.upper), m, which)
     if pinned is not None:
         which = np.where(np.asarray(pinned, dtype=bool), -1, which)
     per_unit = (1.0 / np.maximum(np.asarray(effect.parameter_scales(), dtype=float), 1e-300)) if motion is None \
