@@ -13,14 +13,15 @@ from .base import EffectJacobian, LinearEffect, joint_unit, per_joint_kind
 class Drift(LinearEffect):
     """Encoder zero offsets and the base (or the tracker) drifting over the campaign, as a straight
     line and a warm-up that settles: for every joint and each base translation,
-    ``d(u) = a_lin * u + a_warm * (1 - exp(-u / tau)) / (1 - exp(-1 / tau))``, with ``u`` the
-    campaign's progress from 0 (first row) to 1 (last row), in ``time_s`` where the rows carry
-    it, else in measurement order.
+    ``d(u) = a_lin * (u - 1/2) + a_warm * (w(u) - mean w)``, ``w(u) = (1 - exp(-u / tau)) /
+    (1 - exp(-1 / tau))``, with ``u`` the campaign's progress from 0 (first row) to 1 (last row),
+    in ``time_s`` where the rows carry it, else in measurement order.
 
-    Both shapes are zero at the campaign's start: what the robot was like then is the other
-    effects' business (a constant is a joint offset or the tracker frame), and the parameters are
-    what drifted by the end [rad, m]. Rows without a time or an order (poses to predict) are at
-    the start. ``time_axis``: ``"time_s"`` or ``"order"``; ``start``, ``span``: where u = 0 and
+    Both shapes average to zero over the campaign: the other effects describe the robot as it was
+    on average (a constant is a joint offset or the tracker frame), and the parameters are what
+    drifted from the first row to the last [rad, m]. Rows without a time or an order (poses to
+    predict) are taken at that average. ``time_axis``: ``"time_s"`` or ``"order"``; ``start``,
+    ``span``: where u = 0 and
     how long the campaign lasted in that axis' unit (s or rows); ``time_constant``: the warm-up's
     tau as a share of the campaign (default 0.25). The diagnosis sets them from the data
     (:meth:`options_for_data`), and keeps them for any prediction.
@@ -88,22 +89,29 @@ class Drift(LinearEffect):
                           "tracker that slipped", "check the base's anchoring, the tracker's stand and each joint's "
                           "brake and coupling", wide_lower, wide_upper, False))
 
-    def progress(self, context, n: int) -> np.ndarray:
-        """(n,) the campaign's progress u in [0, 1] of each row (0 where the row has no time)."""
+    def progress(self, context, n: int) -> np.ndarray | None:
+        """(n,) the campaign's progress u in [0, 1] of each row, or None when the rows have no
+        time or order (then they stand for the campaign's average)."""
         values = None if context is None else (context.time_s if self.time_axis == "time_s" else context.order)
         if values is None:
-            return np.zeros(n)
+            return None
         return np.clip((np.asarray(values, dtype=float) - self.start) / max(self.span, 1e-300), 0.0, None)
 
-    def shapes(self, u: np.ndarray) -> np.ndarray:
-        """(n, 2) the linear and warm-up shapes at progress u (each 1 at u = 1)."""
+    def shapes(self, u: np.ndarray | None, n: int) -> np.ndarray:
+        """(n, 2) the linear and warm-up shapes at progress u, each rising by 1 from the first row to
+        the last and averaging zero over the campaign (zero where u is None)."""
+        if u is None:
+            return np.zeros((n, 2))
         tau = self.time_constant
-        return np.stack([u, (1.0 - np.exp(-u / tau)) / (1.0 - math.exp(-1.0 / tau))], axis=1)
+        settle = 1.0 - math.exp(-1.0 / tau)
+        warm = (1.0 - np.exp(-u / tau)) / settle
+        warm_mean = (1.0 - tau * settle) / settle  # the mean of warm over u in [0, 1]
+        return np.stack([u - 0.5, warm - warm_mean], axis=1)
 
     def parameter_jacobian(self, params, q, context):
         q = np.atleast_2d(np.asarray(q, dtype=float))
         n, nj = q.shape
-        shape = self.shapes(self.progress(context, n))  # (n, 2)
+        shape = self.shapes(self.progress(context, n), n)  # (n, 2)
         k = self.n_params
         ddq = np.zeros((n, nj, k))
         for j in range(nj):

@@ -167,7 +167,6 @@ class MeasurementSet:
             outside_q=None if self.outside_q is None else self.outside_q.copy(),
             session=self.session_index(),
             time_s=None if self.time_s is None else np.asarray(self.time_s, dtype=float).copy(),
-            order=np.arange(n),
         )
 
     @property

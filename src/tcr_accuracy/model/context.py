@@ -46,8 +46,9 @@ class MeasurementContext:
     time_s : ndarray of shape (N,) or None
         When each row was measured [s]; None when not recorded.
     order : ndarray of shape (N,) of int or None
-        Each row's place in the order of measurement (0 first); None when unknown (poses to
-        predict, simulated rows).
+        Each row's place in the order the campaign being diagnosed was measured in (0 first); None
+        for rows that are not such a campaign's (poses to predict or compensate: a file's own row
+        order says nothing about the campaign's time).
     """
 
     payload_kg: np.ndarray

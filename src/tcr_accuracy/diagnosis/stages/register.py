@@ -144,7 +144,8 @@ def register_measurements(frames: list[MeasuredFrame], references=(),
             tracker_rotation = Rotation.from_quat(np.stack([x, y, z, w], axis=1)).as_matrix()
             station_rotation = np.stack([stations[s][0] for s in session_of])
             target_rotation = np.einsum("nji,njk->nik", station_rotation, tracker_rotation)  # R^T R_tracker
-        parts.append(Part(f.robot, m.q, to_base_frame(m.position, session_of, stations), m.context, f.label,
+        context = dataclasses.replace(m.context, order=np.arange(n))  # these rows are the campaign: their order is
+        parts.append(Part(f.robot, m.q, to_base_frame(m.position, session_of, stations), context, f.label,
                           target_rotation, weight))
     if any(p.target_rotation is not None for p in parts):
         notes.append(f"measured orientation enters the fit: rotation errors [rad] weighted by {weight:.4g} m/rad "
