@@ -182,9 +182,11 @@ class GapDiagnosis(BaseEstimator):
         [m/rad] weight of measured orientation; None: the measured points' RMS spread.
     stability_replays : int, default=50
         Bootstrap replays of the selection that give each effect's selection frequency.
-    fold_repeats : int, default=5
+    fold_repeats : int or None, default=None
         Fold assignments of the repeated k-fold cross-validation: every held-out figure and
         test is over all of them, so that the answer does not hang on one split of the rows.
+        None: 5 up to 2,000 measurements, fewer above (one from 10,000), where one split
+        already decides the same way.
 
     Attributes
     ----------
@@ -216,7 +218,7 @@ class GapDiagnosis(BaseEstimator):
     def __init__(self, *, robot=None, effects=None, folds: int = 5, random_state=0,
                  tracker_noise: float | None = None, selection_z: float = 3.0, min_relative_gain: float = 0.002,
                  rank_tol: float = 1e-6, orientation_weight: float | None = None, stability_replays: int = 50,
-                 fold_repeats: int = 5):
+                 fold_repeats: int | None = None):
         self.robot = robot
         self.effects = effects
         self.folds = folds
@@ -312,8 +314,10 @@ class GapDiagnosis(BaseEstimator):
         say("registering the tracker frame")
         registered = register_measurements(frames, references, self.orientation_weight)
         say("building effect models")
+        repeats = self.fold_repeats if self.fold_repeats is not None else \
+            int(np.clip(round(10_000 / registered.n_rows), 1, 5))
         candidates = build_candidates(registered, names, folds=self.folds, rank_tol=self.rank_tol,
-                                      tracker_noise=self.tracker_noise, rng=rng, fold_repeats=self.fold_repeats)
+                                      tracker_noise=self.tracker_noise, rng=rng, fold_repeats=repeats)
         say("fitting frames")
         selection = select_effects(registered, candidates, selection_z=self.selection_z,
                                    min_relative_gain=self.min_relative_gain, rng=rng, say=say)

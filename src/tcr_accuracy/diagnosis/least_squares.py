@@ -104,11 +104,20 @@ def box_quadratic(hessian: np.ndarray, gradient: np.ndarray, low: np.ndarray, hi
     return np.clip(d, low, high)
 
 
-def cholesky_solve(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """matrix^-1 rhs for a symmetric positive definite matrix (LU where round-off breaks Cholesky)."""
+def cholesky_solve(matrix: np.ndarray, rhs: np.ndarray, strict: bool = False) -> np.ndarray:
+    """matrix^-1 rhs for a symmetric positive definite matrix (LU where round-off breaks Cholesky;
+    with ``strict``, numpy's LinAlgError instead, and also where the matrix is too ill-conditioned
+    for the step to mean anything)."""
     from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
     try:
-        return cho_solve(cho_factor(matrix, check_finite=False), rhs, check_finite=False)
+        factor = cho_factor(matrix, check_finite=False)
+        if strict:
+            diagonal = np.abs(np.diag(factor[0]))
+            if diagonal.min() <= 1e-7 * diagonal.max():
+                raise np.linalg.LinAlgError("near singular")
+        return cho_solve(factor, rhs, check_finite=False)
     except LinAlgError:
+        if strict:
+            raise np.linalg.LinAlgError("not positive definite") from None
         return np.linalg.solve(matrix, rhs)
