@@ -77,6 +77,13 @@ class FitEngine:
         self._compressed = None
         self._keep_cache.clear()
 
+    def reset(self) -> None:
+        """Forget every fit and identifiability judgement (the bases were linearised again); the
+        last fitted values stay as warm starts."""
+        self._compressed = None
+        self._keep_cache.clear()
+        self._full_cache.clear()
+
     def resize(self, factors: dict) -> bool:
         """Judge identifiability at fitted sizes: an effect fitted at f times its typical size
         resolves columns f times smaller (min_motion / f). Returns whether anything changed
