@@ -138,6 +138,9 @@ class UnionBasis:
 
     def restack(self) -> None:
         rows = max(b.g.shape[1] for b in self.per_part)
+        if len(self.per_part) == 1 and np.array_equal(self.index[0], np.arange(len(self.names))):
+            self.g = self.per_part[0].g  # one measured frame: the union is the part itself, no copy
+            return
         blocks = []
         for b, idx in zip(self.per_part, self.index):
             block = np.zeros((b.g.shape[0], rows, len(self.names)))

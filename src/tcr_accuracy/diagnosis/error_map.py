@@ -11,7 +11,9 @@ the three parts apart:
 * ``per_pose`` (N, p_em, k_pose) for the columns ``pose_columns`` whose error-vector entries
   change with the pose (lateral compliance, thermal growth);
 * ``drive`` (N, n_joints, k_drive) for the columns ``drive_columns``: joint-side offsets,
-  placed in the error model's drive slice.
+  placed in the error model's drive slice; where each of them moves one joint only (every
+  per-joint effect: offsets, compliance, gear errors, a cyclic series of 300 terms), stored as
+  (N, k_drive) values and the joint each moves (``drive_joint``), n_joints times smaller.
 """
 
 from __future__ import annotations
@@ -25,11 +27,25 @@ class ErrorMap:
 
     def __init__(self, n_poses: int, size: int, drive_slice: slice, fixed: np.ndarray,
                  per_pose: np.ndarray | None = None, pose_columns=(), drive: np.ndarray | None = None,
-                 drive_columns=()):
+                 drive_columns=(), drive_joint=None):
         self.n_poses, self.size, self.drive_slice = n_poses, size, drive_slice
         self.fixed = fixed
         self.per_pose, self.pose_columns = per_pose, np.asarray(pose_columns, dtype=int)
         self.drive, self.drive_columns = drive, np.asarray(drive_columns, dtype=int)
+        #: (k_drive,) the joint each drive column moves, when ``drive`` is (N, k_drive); else None
+        self.drive_joint = None if drive_joint is None else np.asarray(drive_joint, dtype=int)
+
+    @property
+    def n_drive(self) -> int:
+        return self.drive_slice.stop - self.drive_slice.start
+
+    def dense_drive(self) -> np.ndarray | None:
+        """``drive`` as (N, n_joints, k_drive), whichever way it is stored."""
+        if self.drive is None or self.drive_joint is None:
+            return self.drive
+        dense = np.zeros((self.drive.shape[0], self.n_drive, self.drive.shape[1]))
+        dense[:, self.drive_joint, np.arange(self.drive.shape[1])] = self.drive
+        return dense
 
     @classmethod
     def of(cls, n_poses: int, size: int, drive_slice: slice, x: np.ndarray | None,
@@ -45,11 +61,16 @@ class ErrorMap:
             fixed += x[0] * ~moving
             pose_columns = np.flatnonzero(moving)
             per_pose = np.ascontiguousarray(x[:, :, pose_columns]) if pose_columns.size else None
-        drive, drive_columns = None, []
+        drive, drive_columns, drive_joint = None, [], None
         if dq is not None:
-            drive_columns = np.flatnonzero(np.any(dq != 0, axis=(0, 1)))
-            drive = np.ascontiguousarray(dq[:, :, drive_columns]) if drive_columns.size else None
-        return cls(n_poses, size, drive_slice, fixed, per_pose, pose_columns, drive, drive_columns)
+            moved = np.any(dq != 0, axis=0)  # (n_joints, k): which joints each column moves
+            drive_columns = np.flatnonzero(moved.any(axis=0))
+            if drive_columns.size and np.all(moved[:, drive_columns].sum(axis=0) == 1):
+                drive_joint = np.argmax(moved[:, drive_columns], axis=0)
+                drive = np.ascontiguousarray(dq[:, drive_joint, drive_columns])
+            elif drive_columns.size:
+                drive = np.ascontiguousarray(dq[:, :, drive_columns])
+        return cls(n_poses, size, drive_slice, fixed, per_pose, pose_columns, drive, drive_columns, drive_joint)
 
     @property
     def n_columns(self) -> int:
@@ -62,7 +83,12 @@ class ErrorMap:
         out[:] = self.fixed @ theta
         if self.per_pose is not None:
             out += _rows(self.per_pose @ theta[self.pose_columns], rows)
-        if self.drive is not None:
+        if self.drive is not None and self.drive_joint is not None:
+            values = _rows(self.drive, rows) * theta[self.drive_columns]
+            joint = np.zeros((len(self.drive_joint), self.n_drive))
+            joint[np.arange(len(self.drive_joint)), self.drive_joint] = 1.0
+            out[:, self.drive_slice] += values @ joint
+        elif self.drive is not None:
             out[:, self.drive_slice] += _rows(self.drive @ theta[self.drive_columns], rows)
         return out
 
@@ -71,7 +97,9 @@ class ErrorMap:
         g = jac_x @ self.fixed
         if self.per_pose is not None:
             g[:, :, self.pose_columns] += jac_x @ self.per_pose  # batched over poses
-        if self.drive is not None:
+        if self.drive is not None and self.drive_joint is not None:
+            g[:, :, self.drive_columns] += jac_x[:, :, self.drive_slice][:, :, self.drive_joint] * self.drive[:, None, :]
+        elif self.drive is not None:
             g[:, :, self.drive_columns] += jac_x[:, :, self.drive_slice] @ self.drive
         return g
 
@@ -80,9 +108,11 @@ class ErrorMap:
         columns = np.asarray(columns, dtype=int)
         pose_pos, pose_new = _positions(self.pose_columns, columns)
         drive_pos, drive_new = _positions(self.drive_columns, columns)
+        compact = self.drive_joint is not None
+        drive = None if not drive_pos.size else (self.drive[:, drive_pos] if compact else self.drive[:, :, drive_pos])
         return ErrorMap(self.n_poses, self.size, self.drive_slice, self.fixed[:, columns],
                         self.per_pose[:, :, pose_pos] if pose_pos.size else None, pose_new,
-                        self.drive[:, :, drive_pos] if drive_pos.size else None, drive_new)
+                        drive, drive_new, self.drive_joint[drive_pos] if compact and drive_pos.size else None)
 
     @classmethod
     def concatenate(cls, maps: list["ErrorMap"]) -> "ErrorMap":
@@ -91,12 +121,16 @@ class ErrorMap:
         offsets = np.cumsum([0] + [m.n_columns for m in maps])
         fixed = np.concatenate([m.fixed for m in maps], axis=1)
         pose = [(m.per_pose, m.pose_columns + o) for m, o in zip(maps, offsets) if m.per_pose is not None]
-        drive = [(m.drive, m.drive_columns + o) for m, o in zip(maps, offsets) if m.drive is not None]
+        driven = [m for m in maps if m.drive is not None]
+        compact = bool(driven) and all(m.drive_joint is not None for m in driven)
+        drive = [(m.drive if compact else m.dense_drive(), m.drive_columns + o)
+                 for m, o in zip(maps, offsets) if m.drive is not None]
         return cls(first.n_poses, first.size, first.drive_slice, fixed,
                    np.concatenate([p for p, _ in pose], axis=2) if pose else None,
                    np.concatenate([c for _, c in pose]) if pose else (),
-                   np.concatenate([d for d, _ in drive], axis=2) if drive else None,
-                   np.concatenate([c for _, c in drive]) if drive else ())
+                   np.concatenate([d for d, _ in drive], axis=1 if compact else 2) if drive else None,
+                   np.concatenate([c for _, c in drive]) if drive else (),
+                   np.concatenate([m.drive_joint for m in driven]) if compact else None)
 
 
 def _rows(values: np.ndarray, rows) -> np.ndarray:
