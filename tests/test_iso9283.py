@@ -229,7 +229,7 @@ def _independent_collisions(robot, q):
 
 @pytest.mark.parametrize("name", ["tool_changer", "ur10", "panda"])
 def test_plan_poses_are_on_the_iso_plane_reachable_within_limits_and_collision_free(name):
-    from tcr_accuracy.analysis.iso9283_plan import plan_iso_cube
+    from tcr_accuracy.iso9283.plan import plan_iso_cube
 
     robot = load_robot(name)
     plan = plan_iso_cube(robot, np.random.default_rng(0))

@@ -74,7 +74,7 @@ def add_parsers(sub) -> None:
 def _run_plan(args) -> int:
     import numpy as np
 
-    from ..analysis.iso9283_plan import cycle_order, plan_iso_cube
+    from ..iso9283.plan import cycle_order, plan_iso_cube
     from ..atomic import write_text_atomically
     from ..exceptions import InputError
     from ..model.robot import load_robot
@@ -143,7 +143,7 @@ def _run_evaluate(args) -> int:
 
     from ..io.measurements import MeasurementWarning, read_measurements
     from ..model.robot import load_robot
-    from ..prediction.iso9283_evaluation import compensated_readings, evaluate_measurements, register_from
+    from ..iso9283.evaluate import compensated_readings, evaluate_measurements, register_from
     from .output import RunOutput
 
     robot = load_robot(args.robot, args.tool)
@@ -203,7 +203,7 @@ def _read_model(robot, path: str):
 
     from ..exceptions import InputError
     from ..io.measurements import read_user_text
-    from ..prediction.iso9283_evaluation import diagnosis_model
+    from ..iso9283.evaluate import diagnosis_model
 
     try:
         payload = json.loads(read_user_text(Path(path), "diagnosis JSON"))
@@ -230,7 +230,7 @@ def _pose_dict(f) -> dict:
 
 
 def evaluation_dict(result) -> dict:
-    """JSON-ready figures of an :class:`~tcr_accuracy.prediction.iso9283_evaluation.IsoEvaluation` (mm, deg)."""
+    """JSON-ready figures of an :class:`~tcr_accuracy.iso9283.evaluate.IsoEvaluation` (mm, deg)."""
     import numpy as np
 
     fig = result.figures

@@ -37,8 +37,8 @@ import pinocchio as pin
 from ..exceptions import InputError
 from ..model.kinematics import tcp_poses
 from ..model.robot import RobotModel
-from .collision import CollisionChecker, collision_checker
-from .sampling import inverse_kinematics
+from ..analysis.collision import CollisionChecker, collision_checker
+from ..analysis.sampling import inverse_kinematics
 
 #: P2..P5 sit this fraction of the diagonal's length from the plane's corners (ISO 9283: 10 %).
 CORNER_OFFSET = 0.10

@@ -2,7 +2,7 @@
 
 Written from the standard's definitions (clauses 7.2, 7.3, 7.4 and 7.5). Inputs are in the
 robot's base frame, already registered (see
-:mod:`tcr_accuracy.prediction.iso9283_evaluation`, which fits the measurement frame first).
+:mod:`tcr_accuracy.iso9283.evaluate`, which fits the measurement frame first).
 
 For a pose j visited n times with measured positions (x_i, y_i, z_i) and commanded
 (x_c, y_c, z_c):

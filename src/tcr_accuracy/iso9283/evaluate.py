@@ -3,7 +3,7 @@
 A pose test's CSV (``tcr-accuracy iso9283 plan`` writes its joints) holds, per reading, the
 commanded joints, a ``pose_id`` (and optionally ``cycle``, ``approach`` and the commanded TCP
 ``target_x_mm`` ...) and the position the instrument measured in its own frame. Before the
-standard's formulas (:mod:`tcr_accuracy.analysis.iso9283`) apply, the readings must be in the
+standard's formulas (:mod:`tcr_accuracy.iso9283.formulas`) apply, the readings must be in the
 robot's base frame:
 
 - ``frame="fit"`` (default): the barycentre of each pose is matched to the robot's nominal TCP
@@ -35,7 +35,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..analysis.iso9283 import IsoFigures, check_repeats, iso_figures
+from .formulas import IsoFigures, check_repeats, iso_figures
 from ..effects import make_effect, predict_positions
 from ..exceptions import InputError
 from ..io.measurements import MeasurementSet
