@@ -316,7 +316,7 @@ def test_other_commands_read_a_pose_test_file_and_ignore_its_labels(tmp_path):
     np.testing.assert_array_equal(labelled.q, plain.q)
     np.testing.assert_array_equal(labelled.position, plain.position)
     assert plain.annotations is None
-    assert labelled.subset([0, 5]).annotations["pose_id"].tolist() == [rows[0][0], rows[5][0]]
+    assert labelled.subset([0, 5]).annotations["pose_id"].tolist() == [str(rows[0][0]), str(rows[5][0])]
 
 
 @pytest.mark.parametrize("edit, words", [

@@ -51,12 +51,15 @@ def add_parsers(sub) -> None:
                     "poses' barycentres (Kabsch, TCP offset where identifiable) unless --frame base.")
     evaluate.add_argument("measurements", metavar="MEAS.csv", help="the measured pose test (see README)")
     add_robot_arguments(evaluate)
-    evaluate.add_argument("--frame", choices=("fit", "base"), default="fit",
+    evaluate.add_argument("--frame", choices=("fit", "base"), default=None,
                           help="fit: register the instrument's frame to the poses (default); base: the readings "
                                "are already base-frame TCP positions")
     evaluate.add_argument("--frame-from", default=None, metavar="CAL.csv",
                           help="fit the instrument frame on these measurements instead (other poses measured in the "
-                               "same instrument frame, e.g. a calibration set of the same session)")
+                               "same instrument frame, e.g. a calibration set of the same session); not with --frame")
+    evaluate.add_argument("--band-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
+                          metavar="R", help="limit band radius for the pose stabilisation time and overshoot of "
+                                            "time-stamped visits (default: each pose's RP)")
     evaluate.add_argument("--model", default=None, metavar="DIAGNOSIS.json",
                           help="a 'diagnose --json' result: also the figures predicted after compensating with it")
     add_output_arguments(evaluate, plots=False)
@@ -141,11 +144,16 @@ def _plan_text(robot, plan, args) -> str:
 def _run_evaluate(args) -> int:
     import warnings
 
+    from ..exceptions import InputError
     from ..io.measurements import MeasurementWarning, read_measurements
+    from ..iso9283.evaluate import compensated_readings, evaluate_pose_test, register_from
     from ..model.robot import load_robot
-    from ..iso9283.evaluate import compensated_readings, evaluate_measurements, register_from
     from .output import RunOutput
 
+    if args.frame_from and args.frame is not None:
+        raise InputError(f"--frame {args.frame} and --frame-from {args.frame_from}: give one (--frame-from fits "
+                         "the instrument frame on other poses; --frame base takes the readings as base-frame "
+                         "positions)")
     robot = load_robot(args.robot, args.tool)
     check_csv_memory(args, args.measurements, "MEAS.csv", sample_bytes(robot))
     model = _read_model(robot, args.model) if args.model else None
@@ -156,11 +164,12 @@ def _run_evaluate(args) -> int:
     if args.frame_from:
         given = {"registration": register_from(robot, read_measurements(args.frame_from, robot, min_rows=3)),
                  "registration_source": args.frame_from}
-    result = evaluate_measurements(robot, mset, frame=args.frame, **given)
+    band = None if args.band_mm is None else args.band_mm * 1e-3
+    result = evaluate_pose_test(robot, mset, frame=args.frame or "fit", band=band, **given)
     after = None
     if model is not None:
-        after = evaluate_measurements(robot, compensated_readings(robot, mset, result.registration, *model),
-                                      frame=args.frame, **given)
+        after = evaluate_pose_test(robot, compensated_readings(robot, mset, result.registration, *model),
+                                   frame=args.frame or "fit", band=band, **given)
     from .diagnose import robot_source
 
     out = RunOutput(args, f"ISO 9283 pose test: {robot.name}")
@@ -212,16 +221,25 @@ def _read_model(robot, path: str):
     return diagnosis_model(robot, payload, path)
 
 
+def json_label(label):
+    """A label as JSON: a whole number as an int (as the pose ids ``iso9283 plan`` writes), else text."""
+    import re
+
+    return None if label is None else int(label) if re.fullmatch(r"[+-]?\d+", str(label)) else str(label)
+
+
 def _pose_dict(f) -> dict:
     import numpy as np
 
-    out = {"pose_id": f.pose_id, "n": f.n, "ap_mm": f.ap * 1e3,
+    from ..iso9283.formulas import pose_name
+
+    out = {"pose_id": json_label(f.pose_id), "pose": pose_name(f.pose_id), "n": f.n, "ap_mm": f.ap * 1e3,
            **{f"ap_{a}_mm": float(v * 1e3) for a, v in zip("xyz", f.ap_xyz)},
            "rp_mm": None if f.rp is None else f.rp * 1e3, "l_mean_mm": f.l_mean * 1e3,
            "s_l_mm": None if f.l_std is None else f.l_std * 1e3,
            "barycentre_mm": (f.barycentre * 1e3).tolist(), "commanded_mm": (f.commanded * 1e3).tolist()}
     if f.approach is not None:
-        out["approach"] = f.approach
+        out["approach"] = json_label(f.approach)
     if f.ap_abc is not None:
         out.update({f"ap_{a}_deg": float(np.degrees(v)) for a, v in zip("abc", f.ap_abc)})
         out.update({f"rp_{a}_deg": None if f.rp_abc is None else float(np.degrees(f.rp_abc[k]))
@@ -229,33 +247,48 @@ def _pose_dict(f) -> dict:
     return out
 
 
+def _mm(value):
+    return None if value is None else value * 1e3
+
+
 def evaluation_dict(result) -> dict:
-    """JSON-ready figures of an :class:`~tcr_accuracy.iso9283.evaluate.IsoEvaluation` (mm, deg)."""
+    """JSON-ready figures of an :class:`~tcr_accuracy.iso9283.evaluate.IsoEvaluation` (mm, deg, s)."""
     import numpy as np
 
     fig = result.figures
     rps = [f.rp for f in fig.poses if f.rp is not None]
     return {
-        "n_readings": result.n_readings, "frame": result.frame, "frame_fit": result.how,
+        "n_readings": result.n_readings, "n_visits": result.n_visits, "frame": result.frame, "frame_fit": result.how,
         "registration": None if result.registration is None else result.registration.to_dict(),
         "poses": [_pose_dict(f) for f in fig.poses],
         "summary": {"ap_max_mm": max(f.ap for f in fig.poses) * 1e3,
+                    "ap_mean_mm": float(np.mean([f.ap for f in fig.poses])) * 1e3,
                     "rp_max_mm": max(rps) * 1e3 if rps else None},
-        "directional": [{"pose_id": d.pose_id, "approaches": list(d.approaches), "vap_mm": d.vap * 1e3,
+        "directional": [{"pose_id": json_label(d.pose_id), "approaches": [json_label(a) for a in d.approaches],
+                         "vap_mm": d.vap * 1e3,
                          **({} if d.vap_abc is None else
                             {f"vap_{a}_deg": float(np.degrees(v)) for a, v in zip("abc", d.vap_abc)})}
                         for d in fig.directional],
-        "distances": [{"pose_a": d.pose_a, "pose_b": d.pose_b, "n": d.n, "commanded_mm": d.commanded * 1e3,
+        "distances": [{"pose_a": json_label(d.pose_a), "pose_b": json_label(d.pose_b),
+                       **({} if d.approach is None else {"approach": json_label(d.approach)}),
+                       "n": d.n, "commanded_mm": d.commanded * 1e3,
                        "mean_mm": d.mean * 1e3, "ad_mm": d.ad * 1e3,
                        **{f"ad_{a}_mm": float(v * 1e3) for a, v in zip("xyz", d.ad_xyz)}, "rd_mm": d.rd * 1e3}
                       for d in fig.distances],
+        "stabilisation": [{"pose_id": json_label(s.pose_id),
+                           **({} if s.approach is None else {"approach": json_label(s.approach)}),
+                           "visits": s.n, "band_mm": s.band * 1e3, "time_mean_s": s.time_mean,
+                           "time_max_s": s.time_max, "overshoot_mean_mm": _mm(s.overshoot_mean),
+                           "overshoot_max_mm": _mm(s.overshoot_max), "never_entered": s.never_entered}
+                          for s in fig.stabilisation],
         "notes": list(fig.notes),
     }
 
 
 def format_evaluation(robot, args, result, after=None) -> str:
     """The printed figures: the per-pose table, the summary, and what could not be computed."""
-    lines = [f"{robot.name}: ISO 9283 pose test {args.measurements} ({result.n_readings} readings, "
+    visits = "" if result.n_visits == result.n_readings else f" in {result.n_visits} visits"
+    lines = [f"{robot.name}: ISO 9283 pose test {args.measurements} ({result.n_readings} readings{visits}, "
              f"{len(result.pose_q)} poses)", f"  measurement frame {result.how}"]
     lines += _figures_lines(result)
     if after is not None:
@@ -264,19 +297,27 @@ def format_evaluation(robot, args, result, after=None) -> str:
     return "\n".join(lines)
 
 
+#: Distance pairs printed at most (all are in --json); the standard's P2-P4 pairs first.
+PRINTED_DISTANCES = 10
+
+
 def _figures_lines(result, table_only: bool = False) -> list:
     import numpy as np
+
+    from ..iso9283.formulas import pose_name
 
     fig = result.figures
     angles = any(f.ap_abc is not None for f in fig.poses)
     labelled = any(f.approach is not None for f in fig.poses)
-    head = f"  {'pose':<5}" + (f"{'appr':>5}" if labelled else "") + f"{'n':>4}" + \
+    width = max([5] + [len(pose_name(f.pose_id)) + 1 for f in fig.poses])
+    appr = max([5] + [len(str(f.approach)) + 1 for f in fig.poses if f.approach is not None])
+    head = f"  {'pose':<{width}}" + (f"{'appr':>{appr}}" if labelled else "") + f"{'n':>4}" + \
         "".join(f"{h:>10}" for h in ("AP_P", "AP_x", "AP_y", "AP_z", "RP_l")) + "  [mm]"
     if angles:
         head += "".join(f"{h:>9}" for h in ("AP_a", "AP_b", "AP_c", "RP_a", "RP_b", "RP_c")) + "  [deg]"
     lines = [head]
     for f in fig.poses:
-        row = f"  P{f.pose_id:<4}" + (f"{f.approach:>5}" if labelled else "") + f"{f.n:>4}" + \
+        row = f"  {pose_name(f.pose_id):<{width}}" + (f"{f.approach:>{appr}}" if labelled else "") + f"{f.n:>4}" + \
             "".join(f"{v * 1e3:10.4f}" for v in (f.ap, *f.ap_xyz)) + \
             (f"{f.rp * 1e3:10.4f}" if f.rp is not None else f"{'-':>10}")
         if f.ap_abc is not None:
@@ -287,11 +328,37 @@ def _figures_lines(result, table_only: bool = False) -> list:
     lines.append(f"  largest AP_P {max(f.ap for f in fig.poses) * 1e3:.4f} mm, largest RP_l "
                  + (f"{max(rps) * 1e3:.4f} mm" if rps else "- (no pose with 3 readings)"))
     for d in fig.directional:
-        lines.append(f"  vAP P{d.pose_id} over approaches {', '.join(map(str, d.approaches))}: {d.vap * 1e3:.4f} mm")
+        lines.append(f"  vAP {pose_name(d.pose_id)} over approaches {', '.join(map(str, d.approaches))}: "
+                     f"{d.vap * 1e3:.4f} mm")
     if fig.distances and not table_only:
-        lines.append(f"  distance {'poses':<8}{'n':>4}{'D_c':>11}{'AD_P':>10}{'RD':>10}  [mm]")
-        for d in fig.distances:
-            lines.append(f"           P{d.pose_a}-P{d.pose_b}   {d.n:>4}{d.commanded * 1e3:11.3f}{d.ad * 1e3:10.4f}"
-                         f"{d.rd * 1e3:10.4f}")
+        lines += _distance_lines(fig.distances)
+    if fig.stabilisation and not table_only:
+        lines.append(f"  stabilisation {'pose':<{width}}{'visits':>7}{'band':>9}{'t_mean':>9}{'t_max':>9}"
+                     f"{'OV_mean':>9}{'OV_max':>9}  [mm, s]")
+        for s in fig.stabilisation:
+            cells = [s.band * 1e3, s.time_mean, s.time_max, _mm(s.overshoot_mean), _mm(s.overshoot_max)]
+            lines.append(f"                {pose_name(s.pose_id):<{width}}{s.n:>7}" +
+                         "".join(f"{'-':>9}" if v is None else f"{v:9.4f}" for v in cells) +
+                         (f"  ({s.never_entered} never within the band)" if s.never_entered else ""))
     lines += [f"  note: {n}" for n in fig.notes]
+    return lines
+
+
+def _distance_lines(distances) -> list:
+    """The AD/RD table: the standard's pairs (P2-P4 of a cube) first, at most PRINTED_DISTANCES rows."""
+    from ..iso9283.formulas import pose_name
+
+    def standard(d):
+        a, b = pose_name(d.pose_a), pose_name(d.pose_b)
+        return a.endswith("P2") and b.endswith("P4") and a[:-2] == b[:-2]
+
+    shown = sorted(distances, key=lambda d: not standard(d))[:PRINTED_DISTANCES]
+    width = max(len(f"{pose_name(d.pose_a)}-{pose_name(d.pose_b)}") for d in shown) + 2
+    lines = [f"  distance {'poses':<{width}}{'n':>4}{'D_c':>11}{'AD_P':>10}{'RD':>10}  [mm]"]
+    for d in shown:
+        pair = f"{pose_name(d.pose_a)}-{pose_name(d.pose_b)}"
+        lines.append(f"           {pair:<{width}}{d.n:>4}{d.commanded * 1e3:11.3f}{d.ad * 1e3:10.4f}"
+                     f"{d.rd * 1e3:10.4f}")
+    if len(distances) > len(shown):
+        lines.append(f"           ... {len(distances) - len(shown)} more pairs in --json")
     return lines
