@@ -23,26 +23,53 @@ def add_parsers(sub) -> None:
     steps = p.add_subparsers(dest="step", metavar="STEP", parser_class=Parser)
     steps.required = True
     plan = steps.add_parser(
-        "plan", help="the largest ISO test cube, its five poses, joint solutions and cycle order, as a CSV",
+        "plan", help="the largest ISO test cube, its five poses, joint solutions, cycle order and test conditions, "
+                     "as a CSV (--path: the test paths)",
         description="Find the largest cube (edges along the base axes) whose 8 corners and 5 ISO poses the robot "
-                    "reaches at one TCP orientation, within its joint limits and free of self-collision (coal on "
+                    "reaches at one TCP orientation, within its joint limits, every revolute joint within half a "
+                    "turn of --home (of the equivalent joint values the nearest), above the mounting plane (or "
+                    "--floor-mm) and inside --box, no body below that floor and free of self-collision (coal on "
                     "the URDF's collision geometry, where it has any), or take the cube given; P1 at its centre, "
-                    "P2..P5 on the diagonal plane at 10 % of the diagonal from its corners. Writes the cycles "
-                    "(P5, P4, P3, P2, P1 each) as a measurement CSV without positions: joint columns, pose_id, "
-                    "cycle, target_x_mm, target_y_mm, target_z_mm (commanded TCP, base frame).")
+                    "P2..P5 on the diagonal plane at 10 % of the diagonal from its corners. Writes, for each test "
+                    "condition (% of the rated load and speed), the cycles (start at P1, then P5, P4, P3, P2, P1 "
+                    "each) as a measurement CSV without positions: joint columns, payload_kg (when the rated load "
+                    "is known), pose_id, cycle, load_pct, speed_pct, target_x_mm, target_y_mm, target_z_mm "
+                    "(commanded TCP, base frame). With --path: the standard's test paths in the cube's plane "
+                    "instead (see README, ISO 9283).")
     add_robot_arguments(plan)
-    plan.add_argument("--cycles", type=integer(low=1, high=100_000), default=30,
-                      help="cycles of the five poses (default 30, as the standard)")
+    plan.add_argument("--cycles", type=integer(low=1, high=100_000), default=None,
+                      help="cycles (default 30 for the pose test, 10 for --path, as the standard)")
     plan.add_argument("--cube-centre-mm", nargs=3, type=number(low=-MAX_MM, high=MAX_MM, unit="mm"), default=None,
                       metavar=("X", "Y", "Z"), help="plan this cube instead of searching (with --cube-size-mm)")
-    plan.add_argument("--cube-size-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
-                      metavar="S", help="edge of the given cube [mm]")
+    plan.add_argument("--cube-size-mm", type=number(low=10, high=MAX_MM, unit="mm"), default=None,
+                      metavar="S", help="edge of the given cube [mm], at least 10")
+    plan.add_argument("--home", nargs="+", type=number(low=-MAX_MM, high=MAX_MM), default=None, metavar="Q",
+                      help="the home configuration, one value per joint [deg, mm for prismatic joints]; default the "
+                           "robot's reference pose")
+    plan.add_argument("--floor-mm", type=number(low=-MAX_MM, high=MAX_MM, unit="mm"), default=0.0, metavar="Z",
+                      help="keep the test and the robot's bodies above z = Z of the base frame (default 0, the "
+                           "mounting plane)")
+    plan.add_argument("--box", nargs=6, type=number(low=-MAX_MM, high=MAX_MM, unit="mm"), default=None,
+                      metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
+                      help="a cell box [mm], base frame: keep the test's points inside")
+    plan.add_argument("--rated-load-kg", type=number(low=0, low_open=True, high=1e6, unit="kg"), default=None,
+                      metavar="M", help="the rated load (default: the maker's for ur3, ur5, ur10, panda; the disc "
+                                        "cutter for the tool-changer)")
+    plan.add_argument("--conditions", nargs="+", type=condition, default=None, metavar="LOAD/SPEED",
+                      help="test conditions as %% of the rated load / %% of the rated speed (default the "
+                           "standard's: 100/100 100/50 100/10 10/100)")
+    plan.add_argument("--path", action="store_true",
+                      help="write the path tests instead: a straight line, two circles and a rectangle in the "
+                           "cube's plane, at 100, 50 and 10 %% of the rated path speed")
+    plan.add_argument("--path-speed-mm-s", type=number(low=0, low_open=True, high=MAX_MM, unit="mm/s"), default=None,
+                      metavar="V", help="the rated path speed [mm/s] (default: the largest every joint's velocity "
+                                        "limit allows on every path)")
     plan.add_argument("--seed", type=seed_value, default=0, help="seed of the cube search (default 0)")
     plan.add_argument("--out", required=True, type=output_file, metavar="FILE.csv", help="the test to run")
     plan.add_argument("--json", nargs="?", const="-", default=None, type=output_file, metavar="FILE",
                       help="also write the plan as JSON (stdout without FILE)")
     add_quiet_argument(plan)
-    plan.set_defaults(run=_run_plan)
+    plan.set_defaults(run=_run_plan, tracker_mm=None)
     evaluate = steps.add_parser(
         "evaluate", help="AP, RP (vAP, AD, RD where the data allow) of a measured pose test",
         description="Per pose (pose_id column): AP_P and its components, RP_l, and with orientations (qw..qz) "
@@ -62,6 +89,13 @@ def add_parsers(sub) -> None:
                                             "time-stamped visits (default: each pose's RP)")
     evaluate.add_argument("--model", default=None, metavar="DIAGNOSIS.json",
                           help="a 'diagnose --json' result: also the figures predicted after compensating with it")
+    evaluate.add_argument("--path", default=None, metavar="COMMANDED.csv",
+                          help="evaluate a path test: MEAS.csv is the tracker's stream (time_s, x_mm, y_mm, z_mm; "
+                               "path, speed_pct and cycle labels), COMMANDED.csv the commanded path ('iso9283 plan "
+                               "--path' writes it; or the joints of its points): AT, RT, corner deviations CR, CO "
+                               "and the path velocity figures AV, RV, FV")
+    evaluate.add_argument("--planes", type=integer(low=3, high=100_000), default=100, metavar="M",
+                          help="--path: normal planes along each path (default 100)")
     add_output_arguments(evaluate, plots=False)
     evaluate.set_defaults(run=_run_evaluate)
     for parser in (plan, evaluate):  # as main() adds them to every command, also after the step
@@ -74,56 +108,104 @@ def add_parsers(sub) -> None:
 
 
 # ---------------------------------------------------------------------------------------
-def _run_plan(args) -> int:
-    import numpy as np
+def condition(text: str) -> tuple:
+    """argparse type of a test condition ``LOAD/SPEED`` [% of the rated load, % of the rated speed]."""
+    load, _, speed = text.partition("/")
+    low = {"load": (number(low=0, high=100, unit="%"), load), "speed": (number(low=0, low_open=True, high=100,
+                                                                                 unit="%"), speed)}
+    try:
+        return tuple(convert(value) for convert, value in low.values())
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"{text!r}: want LOAD/SPEED, a load of 0-100 % and a speed of (0, 100] % "
+                                         "of the rated ones, e.g. 100/50") from None
 
-    from ..iso9283.plan import cycle_order, plan_iso_cube
-    from ..atomic import write_text_atomically
+
+def plan_inputs(args):
+    """(robot, home, workspace, conditions, condition words) from the plan's arguments."""
     from ..exceptions import InputError
+    from ..iso9283.plan import STANDARD_CONDITIONS, Workspace, plan_conditions
     from ..model.robot import load_robot
+    from .common import joint_values_si, reach_values
 
     if (args.cube_centre_mm is None) != (args.cube_size_mm is None):
         raise InputError("--cube-centre-mm and --cube-size-mm: give both, or neither to search the largest cube")
     robot = load_robot(args.robot, args.tool)
+    home = None if args.home is None else joint_values_si(robot, args.home, "--home")
+    box, _ = reach_values(args)
+    workspace = Workspace(floor=args.floor_mm * 1e-3, box=None if box is None else box.T)
+    if box is not None and box[2, 1] <= workspace.floor:
+        raise InputError(f"--box and --floor-mm {args.floor_mm:g}: the box lies below the floor")
+    conditions, said = plan_conditions(robot, tuple(args.conditions or STANDARD_CONDITIONS), args.rated_load_kg)
+    return robot, home, workspace, conditions, said
+
+
+def _run_plan(args) -> int:
+    import numpy as np
+
+    from ..atomic import write_text_atomically
+    from ..iso9283.plan import DEFAULT_CYCLES, cycle_order, plan_iso_cube
+
+    if args.path:
+        from .iso9283_path import run_path_plan
+
+        return run_path_plan(args)
+    robot, home, workspace, conditions, rated = plan_inputs(args)
     centre = None if args.cube_centre_mm is None else np.asarray(args.cube_centre_mm) * 1e-3
     size = None if args.cube_size_mm is None else args.cube_size_mm * 1e-3
-    plan = plan_iso_cube(robot, np.random.default_rng(args.seed), centre=centre, size=size)
-    pose_id, cycle = cycle_order(args.cycles)
+    plan = plan_iso_cube(robot, np.random.default_rng(args.seed), centre=centre, size=size, home=home,
+                         workspace=workspace)
+    cycles = args.cycles or DEFAULT_CYCLES
+    pose_id, cycle = cycle_order(cycles)
     from pathlib import Path
 
-    write_text_atomically(Path(args.out), _plan_csv(robot, plan, pose_id, cycle))
+    write_text_atomically(Path(args.out), _plan_csv(robot, plan, pose_id, cycle, conditions, rated))
     payload = {"robot": robot.name, "tool": robot.tool_frame, "cube_centre_mm": (plan.centre * 1e3).tolist(),
                "cube_size_mm": plan.size * 1e3, "searched": plan.searched, "candidate_centres": plan.n_centres,
-               "orientation": plan.orientation, "collision": plan.collision, "cycles": args.cycles,
-               "order": "P5, P4, P3, P2, P1 in every cycle",
+               "orientation": plan.orientation, "collision": plan.collision, "workspace": plan.workspace,
+               "home_display": (plan.home * robot.display_scale).tolist(),
+               "max_swing_deg": float(np.degrees(plan.max_swing)), "cycles": cycles,
+               "order": "start at P1, then P5, P4, P3, P2, P1 in every cycle",
+               "conditions": [{"load_pct": c.load_pct, "speed_pct": c.speed_pct, "payload_kg": c.payload_kg}
+                              for c in conditions], "rated_load": rated,
                "poses": [{"pose_id": k + 1, "target_mm": (plan.positions[k] * 1e3).tolist(),
                           "q_display": (plan.q[k] * robot.display_scale).tolist()} for k in range(5)],
-               "joint_units": robot.display_units, "out": str(args.out)}
+               "joint_units": robot.display_units, "rows": len(pose_id) * len(conditions), "out": str(args.out)}
     if args.json:
         emit_json(payload, args.json)
     if args.json != "-":
-        print(_plan_text(robot, plan, args))
+        print(_plan_text(robot, plan, args, cycles, conditions, rated))
     status(args, f"plan written to {args.out}")
     return EXIT_OK
 
 
-def _plan_csv(robot, plan, pose_id, cycle) -> str:
+def _plan_csv(robot, plan, pose_id, cycle, conditions, rated) -> str:
     import io
 
     joints = [f"{n}_{u}" for n, u in zip(robot.joint_names, robot.display_units)]
+    payload = all(c.payload_kg is not None for c in conditions)
     out = io.StringIO()
     out.write(f"# ISO 9283 pose test of {robot.name} (TCP {robot.tool_frame}), written by tcr-accuracy iso9283 plan\n")
     out.write(f"# cube centre {', '.join(f'{v * 1e3:.3f}' for v in plan.centre)} mm, edge {plan.size * 1e3:.3f} mm; "
               "run the rows in order, add the measured x_mm,y_mm,z_mm (and qw,qx,qy,qz) columns\n")
-    out.write(",".join(joints + ["pose_id", "cycle", "target_x_mm", "target_y_mm", "target_z_mm"]) + "\n")
-    for pid, c in zip(pose_id, cycle):
-        row = [format(v, ".10g") for v in plan.q[pid - 1] * robot.display_scale]
-        row += [str(pid), str(c)] + [format(v, ".10g") for v in plan.positions[pid - 1] * 1e3]
-        out.write(",".join(row) + "\n")
+    out.write(f"# {len(conditions)} test condition(s), {rated}; before each block, set the load and speed and "
+              "move to P1\n")
+    out.write(",".join(joints + (["payload_kg"] if payload else []) + ["pose_id", "cycle", "load_pct", "speed_pct",
+                                                                       "target_x_mm", "target_y_mm", "target_z_mm"])
+              + "\n")
+    for k, cond in enumerate(conditions):
+        out.write(f"# condition {k + 1}: {cond.words()}; start at P1\n")
+        for pid, c in zip(pose_id, cycle):
+            row = [format(v, ".10g") for v in plan.q[pid - 1] * robot.display_scale]
+            row += [format(cond.payload_kg, ".10g")] if payload else []
+            row += [str(pid), str(c), format(cond.load_pct, "g"), format(cond.speed_pct, "g")]
+            row += [format(v, ".10g") for v in plan.positions[pid - 1] * 1e3]
+            out.write(",".join(row) + "\n")
     return out.getvalue()
 
 
-def _plan_text(robot, plan, args) -> str:
+def _plan_text(robot, plan, args, cycles, conditions, rated) -> str:
+    import numpy as np
+
     how = (f"the largest found over {plan.n_centres} candidate centres" if plan.searched else "as given")
     lines = [f"{robot.name}: ISO 9283 test cube ({how})",
              f"  centre [mm]      {', '.join(f'{v * 1e3:.1f}' for v in plan.centre)}",
@@ -131,12 +213,18 @@ def _plan_text(robot, plan, args) -> str:
              "  orientation      " + ("one TCP orientation at every pose" if plan.orientation == "exact" else
                                      "positions exact, orientation as close as the robot can (rank < 6)"),
              f"  self-collision   {plan.collision}",
+             f"  workspace        {plan.workspace}",
+             f"  home [{', '.join(robot.display_units)}]  " + " ".join(f"{v:.2f}" for v in plan.home * robot.display_scale)
+             + f"; no joint turns more than {np.degrees(plan.max_swing):.1f} deg from it",
              f"  {'pose':<5}" + "".join(f"{a + ' [mm]':>12}" for a in "xyz") + "  joints [" +
              ", ".join(robot.display_units) + "]"]
     for k in range(5):
         lines.append(f"  P{k + 1:<4}" + "".join(f"{v * 1e3:12.1f}" for v in plan.positions[k]) + "  " +
                      " ".join(f"{v:.2f}" for v in plan.q[k] * robot.display_scale))
-    lines.append(f"  {args.cycles} cycles of P5, P4, P3, P2, P1 ({5 * args.cycles} rows) -> {args.out}")
+    lines.append(f"  conditions       {rated}:")
+    lines += [f"    {k + 1}. {c.words()}" for k, c in enumerate(conditions)]
+    lines.append(f"  each: start at P1, {cycles} cycles of P5, P4, P3, P2, P1 ({5 * cycles * len(conditions)} rows) "
+                 f"-> {args.out}")
     return "\n".join(lines)
 
 
@@ -146,7 +234,7 @@ def _run_evaluate(args) -> int:
 
     from ..exceptions import InputError
     from ..io.measurements import MeasurementWarning, read_measurements
-    from ..iso9283.evaluate import compensated_readings, evaluate_pose_test, register_from
+    from ..iso9283.evaluate import compensated_readings, evaluate_conditions, register_from
     from ..model.robot import load_robot
     from .output import RunOutput
 
@@ -154,6 +242,10 @@ def _run_evaluate(args) -> int:
         raise InputError(f"--frame {args.frame} and --frame-from {args.frame_from}: give one (--frame-from fits "
                          "the instrument frame on other poses; --frame base takes the readings as base-frame "
                          "positions)")
+    if args.path:
+        from .iso9283_path import run_path_evaluate
+
+        return run_path_evaluate(args)
     robot = load_robot(args.robot, args.tool)
     check_csv_memory(args, args.measurements, "MEAS.csv", sample_bytes(robot))
     model = _read_model(robot, args.model) if args.model else None
@@ -165,20 +257,30 @@ def _run_evaluate(args) -> int:
         given = {"registration": register_from(robot, read_measurements(args.frame_from, robot, min_rows=3)),
                  "registration_source": args.frame_from}
     band = None if args.band_mm is None else args.band_mm * 1e-3
-    result = evaluate_pose_test(robot, mset, frame=args.frame or "fit", band=band, **given)
-    after = None
+    blocks = evaluate_conditions(robot, mset, frame=args.frame or "fit", band=band, **given)
+    afters = [None] * len(blocks)
     if model is not None:
-        after = evaluate_pose_test(robot, compensated_readings(robot, mset, result.registration, *model),
-                                   frame=args.frame or "fit", band=band, **given)
+        compensated = compensated_readings(robot, mset, blocks[0][1].registration, *model)
+        afters = [r for _, r in evaluate_conditions(robot, compensated, frame=args.frame or "fit", band=band,
+                                                    **given)]
     from .diagnose import robot_source
 
     out = RunOutput(args, f"ISO 9283 pose test: {robot.name}")
-    text = format_evaluation(robot, args, result, after)
+    text = "\n".join(format_evaluation(robot, args, result, after, block if len(blocks) > 1 else None)
+                     for (block, result), after in zip(blocks, afters))
+    parts = []
+    for (block, result), after in zip(blocks, afters):
+        part = {**({} if block.load_pct is None and block.speed_pct is None else
+                   {"condition": {"load_pct": block.load_pct, "speed_pct": block.speed_pct}}),
+                **evaluation_dict(result)}
+        if after is not None:
+            part["compensated"] = {"model": str(args.model), "kind": "predicted: the model's displacement removed "
+                                   "from each reading (first order, positions only)", **evaluation_dict(after)}
+        parts.append(part)
     payload = {"measurements": str(args.measurements), "robot": robot.name, "robot_source": robot_source(args.robot),
-               "tool_frame": robot.tool_frame, **evaluation_dict(result)}
-    if after is not None:
-        payload["compensated"] = {"model": str(args.model), "kind": "predicted: the model's displacement removed "
-                                  "from each reading (first order, positions only)", **evaluation_dict(after)}
+               "tool_frame": robot.tool_frame, **parts[0]}
+    if len(parts) > 1:
+        payload["conditions"] = parts
     if out.report is not None:
         _calibration_page(out.report, args, robot, payload)
     out.add_preformatted(text, "ISO 9283 figures")
@@ -285,11 +387,13 @@ def evaluation_dict(result) -> dict:
     }
 
 
-def format_evaluation(robot, args, result, after=None) -> str:
-    """The printed figures: the per-pose table, the summary, and what could not be computed."""
+def format_evaluation(robot, args, result, after=None, block=None) -> str:
+    """The printed figures: the per-pose table, the summary, and what could not be computed (of one
+    test condition when ``block`` is given)."""
     visits = "" if result.n_visits == result.n_readings else f" in {result.n_visits} visits"
-    lines = [f"{robot.name}: ISO 9283 pose test {args.measurements} ({result.n_readings} readings{visits}, "
-             f"{len(result.pose_q)} poses)", f"  measurement frame {result.how}"]
+    condition = "" if block is None else f", {block.words()}"
+    lines = [f"{robot.name}: ISO 9283 pose test {args.measurements}{condition} ({result.n_readings} "
+             f"readings{visits}, {len(result.pose_q)} poses)", f"  measurement frame {result.how}"]
     lines += _figures_lines(result)
     if after is not None:
         lines += [f"after compensation with {args.model} (predicted: the model's displacement removed from "

@@ -18,8 +18,9 @@ column                      meaning
                             axis of the tracker's drift seen by base references
 ``pose_id``, ``cycle``,     optional labels of a pose test (``tcr-accuracy iso9283 plan``
 ``approach``,               writes them): which commanded pose, which cycle, which
-``target_x_mm`` ...         approach direction (names or numbers: ``P1``, ``S01.P1``, ``+x``),
-                            the commanded TCP in the base frame [mm];
+``load_pct``,               approach direction (names or numbers: ``P1``, ``S01.P1``, ``+x``),
+``speed_pct``,              the test condition (% of the rated load and speed), the
+``target_x_mm`` ...         commanded TCP in the base frame [mm];
                             carried through (:attr:`MeasurementSet.annotations`), ignored
                             by every analysis but ``iso9283 evaluate``
 ==========================  ===============================================================
@@ -73,7 +74,8 @@ def _check_range(source, rows, column: str, values_si, bound: float, si_unit: st
         raise InputError(f"{source}: row {rows[r]}, column {column}: {values_si[r] * to_shown:g} {shown_unit} is "
                          f"beyond the {bound * to_shown:g} {shown_unit} a measurement may have")
 #: Labels a pose test adds to a row (ISO 9283, ``iso9283 plan``): accepted, carried, not used by a fit.
-ANNOTATION_COLUMNS = ("pose_id", "cycle", "approach", "target_x_mm", "target_y_mm", "target_z_mm")
+ANNOTATION_COLUMNS = ("pose_id", "cycle", "approach", "load_pct", "speed_pct", "target_x_mm", "target_y_mm",
+                      "target_z_mm")
 #: The annotations that are names, not numbers (``P1``, ``S01.P1``, ``+x``): kept as text.
 TEXT_ANNOTATIONS = ("pose_id", "cycle", "approach")
 #: A label written as a whole number within this magnitude is that integer's digits ("1.0" -> "1").

@@ -322,6 +322,59 @@ def _stabilisation(mset, labels, visits, positions, figures, band) -> list:
                                  [v for _, _, v in chosen], {k: radius for k, radius, _ in chosen})
 
 
+@dataclass(frozen=True)
+class ConditionBlock:
+    """The readings of one test condition: ``load_pct``, ``speed_pct`` (None when the file has no such
+    column) and ``rows`` (indices into the measurement set)."""
+
+    load_pct: float | None
+    speed_pct: float | None
+    rows: np.ndarray
+
+    def words(self) -> str:
+        parts = ([] if self.load_pct is None else [f"{self.load_pct:g} % rated load"]) + \
+                ([] if self.speed_pct is None else [f"{self.speed_pct:g} % rated speed"])
+        return ", ".join(parts) or "one condition"
+
+
+def condition_blocks(mset: MeasurementSet) -> list:
+    """The test conditions of a pose test (``load_pct``, ``speed_pct`` columns), the reference one
+    (100 % load and speed, else the first in the file) first, then in file order; one block of
+    every row without those columns."""
+    labels = mset.annotations or {}
+    load, speed = labels.get("load_pct"), labels.get("speed_pct")
+    if load is None and speed is None:
+        return [ConditionBlock(None, None, np.arange(len(mset)))]
+    keys = list(zip(*(np.asarray(v, dtype=float).tolist() if v is not None else [None] * len(mset)
+                      for v in (load, speed))))
+    order = list(dict.fromkeys(keys))
+    order.sort(key=lambda k: k != (100.0, 100.0) and k != (100.0, None) and k != (None, 100.0))
+    return [ConditionBlock(k[0], k[1], np.array([i for i, key in enumerate(keys) if key == k])) for k in order]
+
+
+def evaluate_conditions(robot: RobotModel, mset: MeasurementSet, *, frame: str = "fit",
+                        registration: Registration | None = None, registration_source: str = "",
+                        band: float | None = None) -> list:
+    """:func:`evaluate_pose_test` per test condition: the measurement frame fitted on the reference
+    condition (``frame="fit"``) is used for the others, so that what changes with load and speed
+    shows in their AP.
+
+    Returns
+    -------
+    list of (ConditionBlock, IsoEvaluation)
+    """
+    out = []
+    for block in condition_blocks(mset):
+        part = mset.subset(block.rows)
+        result = evaluate_pose_test(robot, part, frame=frame, registration=registration,
+                                    registration_source=registration_source, band=band)
+        out.append((block, result))
+        if frame == "fit" and registration is None:
+            registration = result.registration
+            registration_source = f"the {block.words()} block of this test"
+    return out
+
+
 def register_from(robot: RobotModel, other: MeasurementSet) -> Registration:
     """The instrument frame and TCP offset fitted on other measured poses of the same session."""
     return register_tracker(robot, other.q, other.position, context=other.context)
@@ -395,5 +448,5 @@ def compensated_readings(robot: RobotModel, mset: MeasurementSet, registration: 
     return replace(mset, position=mset.position - shift, quaternion=None)
 
 
-__all__ = ["IsoEvaluation", "PoseLabels", "Visits", "compensated_readings", "diagnosis_model", "evaluate_pose_test",
+__all__ = ["ConditionBlock", "IsoEvaluation", "condition_blocks", "evaluate_conditions", "PoseLabels", "Visits", "compensated_readings", "diagnosis_model", "evaluate_pose_test",
            "pose_joints", "pose_labels", "register_from", "visits_of"]

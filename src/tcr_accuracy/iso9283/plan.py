@@ -1,4 +1,5 @@
-"""The ISO 9283:1998 test cube of a robot: where it fits, its five poses and their joints.
+"""The ISO 9283:1998 test cube of a robot: where it fits, its five poses, their joints, the order
+of the cycles and the test conditions.
 
 ISO 9283 (clause 6.8) measures pose accuracy and repeatability at five poses on a diagonal
 plane of a cube whose edges are parallel to the base frame's axes, placed in the working
@@ -14,31 +15,42 @@ space with the largest volume the robot can serve. Here:
   so that a tool or reflector offset is the same translation everywhere; a robot that
   cannot hold an orientation while it moves (a frame Jacobian of rank < 6, like the
   tool-changer) gets its positions exactly and the orientation as close as it can;
-- a cube is accepted when its 8 corners and the 5 poses are reached by inverse
-  kinematics (:func:`tcr_accuracy.analysis.sampling.inverse_kinematics`, started from the
-  centre's configuration) within the joint limits, and none of those configurations is in
+- a cube is accepted when its 8 corners and the 5 poses are reached by inverse kinematics
+  (:func:`tcr_accuracy.analysis.sampling.inverse_kinematics`) within the joint limits, with
+  every revolute joint within half a turn of a home configuration (the robot's reference
+  pose unless given; of the joint values that place the TCP alike, those one or more full
+  turns apart, the one nearest home is taken), with every point above the mounting plane
+  (the base frame's z = 0, or a floor given) and inside a cell box when one is given, with no
+  body of the robot below the mounting plane, or the floor when it is lower (coal's half-space
+  against the URDF's collision geometry; without it, the joint origins) and none of those
+  configurations in
   self-collision (:mod:`tcr_accuracy.analysis.collision`; not checked, and said, for a URDF
-  without collision geometry);
-- the largest cube is searched over centres taken from random joint configurations with
-  the best-conditioned Jacobians (the robot's whole joint range, collision-free), each
-  grown by bisection on the edge length.
+  without collision geometry). Bodies fixed to the base, and those of the first joint that
+  reach below the floor at home (a base flange turning on it), are not held to the floor;
+- the largest cube is searched over centres taken from random joint configurations within
+  half a turn of home with the best-conditioned Jacobians, each grown by bisection on the
+  edge length; the cube found is solved again from home and that solution kept when its
+  joints are nearer home.
 
-The cycle order of the test (clause 7.2.1): ``cycles`` times P5, P4, P3, P2, P1.
-Lengths are metres, angles radians; nothing here prints.
+The cycle order of the test (clause 7.2.1): the robot starts at P1, then ``cycles`` times P5,
+P4, P3, P2, P1. The test conditions (clause 6 and its table of tests): rated load at 100 %,
+50 % and 10 % of the rated speed, and 10 % of the rated load at 100 % speed; each condition
+is one block of cycles. Lengths are metres, angles radians; nothing here prints.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
 
+from ..analysis.collision import CollisionChecker, collision_checker
+from ..analysis.sampling import inverse_kinematics
 from ..exceptions import InputError
 from ..model.kinematics import tcp_poses
 from ..model.robot import RobotModel
-from ..analysis.collision import CollisionChecker, collision_checker
-from ..analysis.sampling import inverse_kinematics
+from ..units import REVOLUTE
 
 #: P2..P5 sit this fraction of the diagonal's length from the plane's corners (ISO 9283: 10 %).
 CORNER_OFFSET = 0.10
@@ -48,6 +60,15 @@ DEFAULT_CYCLES = 30
 PLANE_CORNERS = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, 1], [-1, 1, 1]], dtype=float)
 #: Signs of the cube's eight corners.
 CUBE_CORNERS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+#: The smallest cube edge planned [m]: below it the five poses lie within the instrument's reach of
+#: one another and the measurement reader's unit check (which needs a spread of a millimetre) is blind.
+MIN_CUBE_SIZE = 0.01
+#: How far a revolute joint may turn from home [rad].
+MAX_SWING = np.pi
+#: The standard's test conditions: (load, speed) in % of the rated load and of the rated speed.
+STANDARD_CONDITIONS = ((100.0, 100.0), (100.0, 50.0), (100.0, 10.0), (10.0, 100.0))
+#: Rated payloads [kg] from the makers' data sheets, for the robots known by name.
+RATED_LOAD_KG = {"ur3": 3.0, "ur5": 5.0, "ur10": 10.0, "panda": 3.0}
 
 
 def iso_points(centre, size: float) -> np.ndarray:
@@ -64,7 +85,8 @@ def cube_corners(centre, size: float) -> np.ndarray:
 
 
 def cycle_order(cycles: int) -> tuple[np.ndarray, np.ndarray]:
-    """(pose_id, cycle) of each visit, (5 * cycles,) each: every cycle P5, P4, P3, P2, P1."""
+    """(pose_id, cycle) of each visit, (5 * cycles,) each: every cycle P5, P4, P3, P2, P1 (the robot
+    starts at P1)."""
     if cycles < 1:
         raise InputError(f"cycles {cycles}: need at least 1 (the standard uses {DEFAULT_CYCLES})")
     pose_id = np.tile(np.arange(5, 0, -1), cycles)
@@ -72,6 +94,238 @@ def cycle_order(cycles: int) -> tuple[np.ndarray, np.ndarray]:
     return pose_id, cycle
 
 
+# ---------------------------------------------------------------------------------------
+# Test conditions
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Condition:
+    """One block of cycles: ``load_pct`` of the rated load (``payload_kg`` [kg], None when the rated
+    load is unknown) at ``speed_pct`` of the rated speed."""
+
+    load_pct: float
+    speed_pct: float
+    payload_kg: float | None
+
+    def words(self) -> str:
+        load = f"{self.load_pct:g} % rated load" + ("" if self.payload_kg is None else f" ({self.payload_kg:g} kg)")
+        return f"{load}, {self.speed_pct:g} % rated speed"
+
+
+def plan_conditions(robot: RobotModel, conditions=STANDARD_CONDITIONS,
+                    rated_load_kg: float | None = None) -> tuple[list, str]:
+    """The test conditions with their payloads, and where the rated load came from.
+
+    Parameters
+    ----------
+    robot : RobotModel
+    conditions : sequence of (float, float)
+        (load, speed) in % of the rated ones; default the standard's four.
+    rated_load_kg : float, optional
+        The rated load [kg]; default the maker's for robots known by name (:data:`RATED_LOAD_KG`),
+        the tool-changer's disc cutter, else unknown (payloads left out, said).
+
+    Returns
+    -------
+    tuple of (list of Condition, str)
+    """
+    for load, speed in conditions:
+        if not (0 <= load <= 100 and 0 < speed <= 100):
+            raise InputError(f"test condition {load:g} % load, {speed:g} % speed: want a load of 0-100 % and a "
+                             "speed of (0, 100] % of the rated ones")
+    if rated_load_kg is not None:
+        if not (np.isfinite(rated_load_kg) and rated_load_kg > 0):
+            raise InputError(f"rated load {rated_load_kg!r} kg: want a positive load")
+        source = f"rated load {rated_load_kg:g} kg (given)"
+    elif robot.name in RATED_LOAD_KG:
+        rated_load_kg = RATED_LOAD_KG[robot.name]
+        source = f"rated load {rated_load_kg:g} kg ({robot.name}'s data sheet)"
+    elif robot.payload_kg is not None:
+        rated_load_kg = float(robot.payload_kg)
+        source = f"rated load {rated_load_kg:g} kg (the robot's design payload)"
+    else:
+        source = "rated load unknown (give it): the loads are percentages only, no payload_kg column"
+    out = [Condition(float(load), float(speed), None if rated_load_kg is None else rated_load_kg * load / 100.0)
+           for load, speed in conditions]
+    return out, source
+
+
+# ---------------------------------------------------------------------------------------
+# Where the test may go
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Workspace:
+    """The room the test has: above ``floor`` (z of the base frame [m]; the mounting plane by
+    default) and, when given, inside ``box`` ((2, 3) lower and upper corners [m])."""
+
+    floor: float = 0.0
+    box: np.ndarray | None = None
+
+    def __post_init__(self):
+        if not np.isfinite(self.floor):
+            raise InputError(f"floor {self.floor!r} m: want a finite height")
+        if self.box is not None:
+            box = np.asarray(self.box, dtype=float).reshape(2, 3)
+            if not np.all(np.isfinite(box)) or np.any(box[1] <= box[0]):
+                raise InputError("cell box: want finite lower < upper bounds on x, y and z")
+            object.__setattr__(self, "box", box)
+
+    @property
+    def lowest(self) -> float:
+        """The plane the robot's bodies must stay above [m]: the mounting plane, or the floor when it
+        is lower (a robot on a pedestal); a floor above the mounting plane (a table top the test is
+        above) holds the test's points, not the arm that rises through it."""
+        return min(self.floor, 0.0)
+
+    def inside(self, points) -> np.ndarray:
+        """(N,) True where the points (N, 3) [m] are above the floor (and in the box)."""
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        ok = points[:, 2] >= self.floor
+        if self.box is not None:
+            ok &= np.all((points >= self.box[0]) & (points <= self.box[1]), axis=1)
+        return ok
+
+    def room(self, centre) -> float:
+        """The largest cube edge [m] centred at ``centre`` (3,) that fits the floor and the box."""
+        centre = np.asarray(centre, dtype=float)
+        half = centre[2] - self.floor
+        if self.box is not None:
+            half = min(half, float(np.min(centre - self.box[0])), float(np.min(self.box[1] - centre)))
+        return 2.0 * max(half, 0.0)
+
+    def words(self) -> str:
+        out = f"above z = {self.floor * 1e3:g} mm" + (" (the mounting plane)" if self.floor == 0 else "")
+        if self.box is not None:
+            out += ", inside the cell box " + " x ".join(f"[{lo * 1e3:g}, {hi * 1e3:g}]"
+                                                       for lo, hi in zip(self.box[0], self.box[1])) + " mm"
+        return out
+
+
+@dataclass
+class Reach:
+    """What a configuration of the test must satisfy (see the module docstring), and the checks.
+
+    Attributes
+    ----------
+    robot : RobotModel
+    checker : CollisionChecker or None
+    workspace : Workspace
+    home : ndarray of shape (n_joints,)
+        The home configuration [rad, m].
+    mode : str
+        ``exact`` or ``best_effort`` (see :func:`tcr_accuracy.analysis.sampling.inverse_kinematics`).
+    """
+
+    robot: RobotModel
+    checker: CollisionChecker | None
+    workspace: Workspace
+    home: np.ndarray
+    mode: str
+    floor_exempt: set = field(default_factory=set)
+
+    def __post_init__(self):
+        self.revolute = np.array([k == REVOLUTE for k in self.robot.joint_kinds])
+        self.floor_exempt = self._floor_exempt()
+
+    # -- joints ---------------------------------------------------------------------------
+    def nearest_home(self, q) -> np.ndarray:
+        """q (N, n_joints), one set of configurations the robot moves between, with each revolute joint
+        moved by the same whole turns in every row to the values nearest home that its limits allow
+        (the TCP does not move, and a move between two rows keeps its short way)."""
+        q = np.array(np.atleast_2d(q), dtype=float)
+        lo, hi = self.robot.joint_bounds(np.inf)
+        for j in np.flatnonzero(self.revolute):
+            best, far = q[:, j], np.max(np.abs(q[:, j] - self.home[j]))
+            for turns in (-2, -1, 1, 2):
+                shifted = q[:, j] + 2 * np.pi * turns
+                if np.all(shifted >= lo[j] - 1e-12) and np.all(shifted <= hi[j] + 1e-12) and \
+                        np.max(np.abs(shifted - self.home[j])) < far:
+                    best, far = shifted, np.max(np.abs(shifted - self.home[j]))
+            q[:, j] = best
+        return q
+
+    def swing(self, q) -> np.ndarray:
+        """(N,) the largest turn of a revolute joint from home [rad]."""
+        q = np.atleast_2d(q)
+        if not self.revolute.any():
+            return np.zeros(len(q))
+        return np.max(np.abs(q[:, self.revolute] - self.home[self.revolute]), axis=1)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Joint ranges to draw candidates from: the limits, revolute joints within half a turn of home."""
+        lo, hi = self.robot.joint_bounds(np.pi)
+        lo = np.where(self.revolute, np.maximum(lo, self.home - MAX_SWING), lo)
+        hi = np.where(self.revolute, np.minimum(hi, self.home + MAX_SWING), hi)
+        return lo, hi
+
+    # -- the floor ------------------------------------------------------------------------
+    def _floor_exempt(self) -> set:
+        """Bodies (or joint origins) not held to the floor: fixed to the base, or on the first joint
+        and below the floor already at home."""
+        below_home = set(self._below(self.home, exempt=False))
+        if self.checker is None:
+            return {name for name in below_home if name == self.robot.joint_names[0]}
+        first = self.robot.chain_joint_ids[0] if self.robot.chain_joint_ids else -1
+        out = set()
+        for body in self.checker.geometry.geometryObjects:
+            if body.parentJoint == 0 or (body.parentJoint == first and body.name in below_home):
+                out.add(body.name)
+        return out
+
+    def _below(self, q, exempt: bool = True) -> list:
+        lowest = self.workspace.lowest
+        if self.checker is not None:
+            names = self.checker.bodies_below(q, lowest)
+        else:  # no geometry: the kinematic skeleton's joint origins
+            model, data = self.robot.model, self.robot.model.createData()
+            pin.forwardKinematics(model, data, self.robot.to_pinocchio_q(np.asarray(q, dtype=float)))
+            names = [model.names[j] for j in range(1, model.njoints) if data.oMi[j].translation[2] < lowest]
+        return [n for n in names if not (exempt and n in self.floor_exempt)]
+
+    def floor_words(self) -> str:
+        what = "collision bodies (coal half-space)" if self.checker is not None else "joint origins"
+        exempt = ", ".join(sorted(self.floor_exempt)) or "none"
+        return f"the robot's {what} above z = {self.workspace.lowest * 1e3:g} mm (not held: {exempt})"
+
+    # -- a set of targets -------------------------------------------------------------------
+    def solve(self, targets, rotation, q_start):
+        """Joint values (k, n) reaching every target (k, 3) [m] at ``rotation`` (3, 3), or None."""
+        q, bad = self._attempt(targets, rotation, q_start)
+        return None if bad.any() else q
+
+    def failures(self, targets, rotation, q_start) -> list[str]:
+        """Why each target fails, in words ('' where it does not), in target order."""
+        return self._attempt(targets, rotation, q_start, reasons=True)[1]
+
+    def _attempt(self, targets, rotation, q_start, reasons: bool = False):
+        """(q, bad): bad a (k,) mask, or with ``reasons`` a list of words per target ('' where fine);
+        without reasons, the checks stop at the first that fails (q None when before IK)."""
+        targets = np.atleast_2d(targets)
+        k = len(targets)
+        checks = {"outside the workspace": ~self.workspace.inside(targets)}
+        if not reasons and checks["outside the workspace"].any():
+            return None, checks["outside the workspace"]
+        ik = inverse_kinematics(self.robot, targets, np.broadcast_to(rotation, (k, 3, 3)), q_start,
+                                orientation=self.mode, max_iter=150, tol_position=1e-7, tol_rotation=1e-7)
+        q = self.nearest_home(ik.q)
+        steps = (("not reachable", lambda: ~ik.success),
+                 ("a joint more than half a turn from home", lambda: self.swing(q) > MAX_SWING + 1e-9),
+                 ("self-collision", lambda: np.zeros(k, bool) if self.checker is None else ~self.checker.is_free(q)),
+                 ("a body below the floor", lambda: np.array([bool(self._below(row)) for row in q])))
+        for word, check in steps:
+            checks[word] = check()
+            if not reasons and checks[word].any():
+                return q, checks[word]
+        if not reasons:
+            return q, np.zeros(k, dtype=bool)
+        unreachable = checks["not reachable"]
+        return q, [", ".join(w for w, flags in checks.items()
+                             if flags[i] and (w in ("outside the workspace", "not reachable") or not unreachable[i]))
+                   for i in range(k)]
+
+
+# ---------------------------------------------------------------------------------------
+# The cube
+# ---------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class IsoPlan:
     """An ISO 9283 test cube and its five poses.
@@ -100,6 +354,12 @@ class IsoPlan:
         True: the largest cube found; False: the cube the caller gave.
     n_centres : int
         Candidate centres tried.
+    home : ndarray of shape (n_joints,)
+        The home configuration [rad, m].
+    max_swing : float
+        The largest turn of a revolute joint from home over the poses and corners [rad].
+    workspace : str
+        Where the test was kept, in words (floor, box, the bodies above the floor).
     """
 
     centre: np.ndarray
@@ -112,11 +372,15 @@ class IsoPlan:
     collision: str
     searched: bool
     n_centres: int
+    home: np.ndarray | None = None
+    max_swing: float = 0.0
+    workspace: str = ""
 
 
 def plan_iso_cube(robot: RobotModel, rng: np.random.Generator, *, centre=None, size: float | None = None,
-                  n_samples: int = 1000, n_centres: int = 60, bisections: int = 10) -> IsoPlan:
-    """The largest ISO test cube in the reachable, collision-free workspace, or the one given.
+                  home=None, workspace: Workspace | None = None, n_samples: int = 1000, n_centres: int = 60,
+                  bisections: int = 10) -> IsoPlan:
+    """The largest ISO test cube the robot serves (see the module docstring), or the one given.
 
     Parameters
     ----------
@@ -126,7 +390,11 @@ def plan_iso_cube(robot: RobotModel, rng: np.random.Generator, *, centre=None, s
     centre : array-like of shape (3,), optional
         A cube centre [m] (with ``size``): plan that cube instead of searching.
     size : float, optional
-        Its edge [m].
+        Its edge [m], at least :data:`MIN_CUBE_SIZE`.
+    home : array-like of shape (n_joints,), optional
+        The home configuration [rad, m]; default the robot's reference pose (``working_pose``).
+    workspace : Workspace, optional
+        Floor and cell box; default above the mounting plane (z = 0 of the base frame).
     n_samples : int, default=1000
         Random joint configurations the candidate centres are chosen from.
     n_centres : int, default=60
@@ -134,40 +402,77 @@ def plan_iso_cube(robot: RobotModel, rng: np.random.Generator, *, centre=None, s
     bisections : int, default=10
         Bisection steps on each candidate's edge length.
 
+    Returns
+    -------
+    IsoPlan
+
     Raises
     ------
     InputError
-        The given cube does not fit (naming the points that fail), or no cube was found.
+        The given cube does not fit (naming the points that fail and why), or no cube was found.
     """
-    checker = collision_checker(robot)
-    mode = _orientation_mode(robot, rng)
+    workspace = workspace or Workspace()
+    home = _home(robot, home)
+    reach = Reach(robot, collision_checker(robot), workspace, home, _orientation_mode(robot, rng))
     if centre is not None:
-        if size is None or not size > 0:
-            raise InputError("a given cube needs its centre and a size > 0")
-        return _given_cube(robot, np.asarray(centre, dtype=float), float(size), checker, mode, rng)
-    candidates = _candidate_configurations(robot, checker, rng, n_samples, n_centres)
+        if size is None or not np.isfinite(size) or size < MIN_CUBE_SIZE:
+            raise InputError(f"a given cube needs its centre and an edge of at least {MIN_CUBE_SIZE * 1e3:g} mm "
+                             f"(got {size!r} m)")
+        return _given_cube(reach, np.asarray(centre, dtype=float), float(size), rng)
+    candidates = _candidate_configurations(reach, rng, n_samples, n_centres)
+    if not len(candidates):
+        raise InputError(f"{robot.name}: none of {n_samples} random configurations within half a turn of home puts "
+                         f"the TCP {workspace.words()} free of collision; check the floor, box and home")
     poses = tcp_poses(robot, candidates)
-    reach = float(np.max(np.linalg.norm(poses.position, axis=1))) + 1e-3
+    far = float(np.max(np.linalg.norm(poses.position, axis=1))) + 1e-3
     best = (0.0, None)
     for k in range(len(candidates)):
         q_c, p_c, r_c = candidates[k], poses.position[k], poses.rotation[k]
-        low, high = best[0], 2.0 * reach / np.sqrt(3.0)
-        if best[1] is not None and _solve(robot, p_c, low * 1.01, r_c, q_c, checker, mode) is None:
+        low, high = best[0], min(2.0 * far / np.sqrt(3.0), workspace.room(p_c))
+        if high <= low or (best[1] is not None and reach.solve(_targets(p_c, low * 1.01), r_c, q_c) is None):
             continue  # cannot beat the best cube so far
         for _ in range(bisections):
             mid = 0.5 * (low + high)
-            if _solve(robot, p_c, mid, r_c, q_c, checker, mode) is not None:
+            if reach.solve(_targets(p_c, mid), r_c, q_c) is not None:
                 low = mid
             else:
                 high = mid
-        if low > best[0] and _solve(robot, p_c, low, r_c, q_c, checker, mode) is not None:
+        if low > best[0] and reach.solve(_targets(p_c, low), r_c, q_c) is not None:
             best = (low, (p_c, r_c, q_c))
-    if best[1] is None:
-        raise InputError(f"{robot.name}: no ISO test cube found among {len(candidates)} candidate centres; "
-                         "give one with --cube-centre-mm and --cube-size-mm")
+    if best[1] is None or best[0] < MIN_CUBE_SIZE:
+        raise InputError(f"{robot.name}: no ISO test cube of {MIN_CUBE_SIZE * 1e3:g} mm or more found among "
+                         f"{len(candidates)} candidate centres {workspace.words()}; give one with the cube's centre "
+                         "and size, or another floor, box or home")
     p_c, r_c, q_c = best[1]
-    solved = _solve(robot, p_c, best[0], r_c, q_c, checker, mode)
-    return _plan(robot, p_c, best[0], solved, checker, mode, searched=True, n_centres=len(candidates))
+    solved = reach.solve(_targets(p_c, best[0]), r_c, q_c)
+    return _plan(reach, p_c, best[0], _nearer_home(reach, p_c, best[0], r_c, solved), searched=True,
+                 n_centres=len(candidates))
+
+
+def _home(robot: RobotModel, home) -> np.ndarray:
+    if home is None:
+        return np.asarray(robot.working_pose, dtype=float).copy()
+    home = np.asarray(home, dtype=float).ravel()
+    if home.shape != (robot.n_joints,) or not np.all(np.isfinite(home)):
+        raise InputError(f"home: want {robot.n_joints} finite joint values ({', '.join(robot.joint_names)})")
+    if not robot.within_limits(home[None])[0]:
+        raise InputError(f"home: outside the joint limits of {robot.name}")
+    return home
+
+
+def _targets(centre, size) -> np.ndarray:
+    """(13, 3) P1..P5 then the 8 corners [m]."""
+    return np.vstack([iso_points(centre, size), cube_corners(centre, size)])
+
+
+def _nearer_home(reach: Reach, centre, size, rotation, solved) -> np.ndarray:
+    """The cube solved again from home; kept when its joints are nearer home than ``solved``."""
+    again = reach.solve(centre[None], rotation, reach.home)
+    if again is not None:
+        again = reach.solve(_targets(centre, size), rotation, again[0])
+    if again is not None and np.sum(reach.swing(again)) < np.sum(reach.swing(solved)):
+        return again
+    return solved
 
 
 def _orientation_mode(robot: RobotModel, rng: np.random.Generator) -> str:
@@ -193,12 +498,17 @@ def _generic_rank(spectra: np.ndarray) -> int:
     return int(np.max(np.sum(spectra > 1e-6 * spectra[:, :1], axis=1)))
 
 
-def _candidate_configurations(robot, checker, rng, n_samples, n_centres) -> np.ndarray:
-    """Collision-free random configurations with the best-conditioned Jacobians, spread out."""
-    lo, hi = robot.joint_bounds(np.pi)
-    q = rng.uniform(lo, hi, (n_samples, robot.n_joints))
-    if checker is not None:
-        q = q[checker.is_free(q)]
+def _candidate_configurations(reach: Reach, rng, n_samples, n_centres) -> np.ndarray:
+    """Random configurations within half a turn of home, TCP in the workspace, free of collision and
+    the floor, with the best-conditioned Jacobians, spread out."""
+    robot = reach.robot
+    q = rng.uniform(*reach.bounds(), (n_samples, robot.n_joints))
+    q = q[reach.workspace.inside(tcp_poses(robot, q).position)]
+    if reach.checker is not None and len(q):
+        q = q[reach.checker.is_free(q)]
+    q = q[[not reach._below(row) for row in q]] if len(q) else q
+    if not len(q):
+        return q
     spectra = _jacobian_spectra(robot, q)
     score = spectra[:, _generic_rank(spectra) - 1]  # the smallest singular value of the generic rank
     top = np.argsort(-score)[: max(n_centres * 4, n_centres)]
@@ -210,50 +520,40 @@ def _candidate_configurations(robot, checker, rng, n_samples, n_centres) -> np.n
     return q[top[chosen]]
 
 
-def _solve(robot, centre, size, rotation, q_start, checker: CollisionChecker | None, mode):
-    """Joint values (13, n) of P1..P5 then the 8 corners, or None when one fails."""
-    targets = np.vstack([iso_points(centre, size), cube_corners(centre, size)])
-    ik = inverse_kinematics(robot, targets, np.broadcast_to(rotation, (13, 3, 3)), q_start,
-                            orientation=mode, max_iter=150, tol_position=1e-7, tol_rotation=1e-7)
-    if not ik.success.all():
-        return None
-    if checker is not None and not checker.is_free(ik.q).all():
-        return None
-    return ik.q
-
-
-def _given_cube(robot, centre, size, checker, mode, rng) -> IsoPlan:
+def _given_cube(reach: Reach, centre, size, rng) -> IsoPlan:
     """The caller's cube: an orientation found at its centre that serves every point, or InputError."""
+    robot = reach.robot
     failures = []
-    starts = [robot.working_pose] + list(rng.uniform(*robot.joint_bounds(np.pi), (16, robot.n_joints)))
+    starts = [reach.home] + list(rng.uniform(*reach.bounds(), (16, robot.n_joints)))
     for start in starts:
         ik = inverse_kinematics(robot, centre[None], None, start, max_iter=200)
-        if not ik.success[0] or (checker is not None and not checker.is_free(ik.q).all()):
+        q_centre = reach.nearest_home(ik.q)
+        if not ik.success[0] or reach.swing(q_centre)[0] > MAX_SWING + 1e-9 or \
+                (reach.checker is not None and not reach.checker.is_free(q_centre).all()):
             continue
-        rotation = tcp_poses(robot, ik.q).rotation[0]
-        solved = _solve(robot, centre, size, rotation, ik.q[0], checker, mode)
+        rotation = tcp_poses(robot, q_centre).rotation[0]
+        solved = reach.solve(_targets(centre, size), rotation, q_centre[0])
         if solved is not None:
-            return _plan(robot, centre, size, solved, checker, mode, searched=False, n_centres=1)
-        failures.append(_failing_points(robot, centre, size, rotation, ik.q[0], checker, mode))
-    said = failures[0] if failures else "the centre itself"
+            return _plan(reach, centre, size, _nearer_home(reach, centre, size, rotation, solved), searched=False,
+                         n_centres=1)
+        failures.append(_failing_points(reach, centre, size, rotation, q_centre[0]))
+    said = failures[0] if failures else "the centre itself (not reachable within half a turn of home)"
     raise InputError(f"cube centre ({', '.join(f'{v * 1e3:.1f}' for v in centre)}) mm, edge {size * 1e3:.1f} mm: "
-                     f"{said} not reachable collision-free within the joint limits at one orientation; "
-                     "give a smaller cube or omit --cube-centre-mm/--cube-size-mm to search the largest")
+                     f"{said}; the test must be reachable collision-free within the joint limits at one orientation, "
+                     f"{reach.workspace.words()}: give a smaller cube or omit the centre and size to search the "
+                     "largest")
 
 
-def _failing_points(robot, centre, size, rotation, q_start, checker, mode) -> str:
+def _failing_points(reach: Reach, centre, size, rotation, q_start) -> str:
     names = [f"P{k}" for k in range(1, 6)] + [f"corner ({', '.join('+' if s > 0 else '-' for s in c)})"
                                                for c in CUBE_CORNERS]
-    targets = np.vstack([iso_points(centre, size), cube_corners(centre, size)])
-    ik = inverse_kinematics(robot, targets, np.broadcast_to(rotation, (13, 3, 3)), q_start, orientation=mode,
-                            max_iter=150)
-    bad = ~ik.success
-    if checker is not None:
-        bad |= ~checker.is_free(ik.q)
-    return ", ".join(n for n, b in zip(names, bad) if b) or "a point"
+    words = reach.failures(_targets(centre, size), rotation, q_start)
+    failing = [f"{n} {w}" for n, w in zip(names, words) if w]
+    return "; ".join(failing[:4]) + (f" (and {len(failing) - 4} more)" if len(failing) > 4 else "") or "a point"
 
 
-def _plan(robot, centre, size, solved, checker, mode, *, searched, n_centres) -> IsoPlan:
+def _plan(reach: Reach, centre, size, solved, *, searched, n_centres) -> IsoPlan:
+    robot, checker = reach.robot, reach.checker
     poses = tcp_poses(robot, solved[:5])
     if checker is None:
         collision = f"not checked: the URDF of {robot.name} has no collision geometry"
@@ -261,9 +561,12 @@ def _plan(robot, centre, size, solved, checker, mode, *, searched, n_centres) ->
         collision = (f"checked with coal on the URDF's collision geometry: {checker.n_pairs} body pairs "
                      f"(ignored: {', '.join(f'{n} {k}' for k, n in checker.ignored.items() if n) or 'none'})")
     return IsoPlan(centre=np.asarray(centre, dtype=float), size=float(size), positions=iso_points(centre, size),
-                   q=solved[:5], rotation=poses.rotation, corner_q=solved[5:], orientation=mode,
-                   collision=collision, searched=searched, n_centres=n_centres)
+                   q=solved[:5], rotation=poses.rotation, corner_q=solved[5:], orientation=reach.mode,
+                   collision=collision, searched=searched, n_centres=n_centres, home=reach.home.copy(),
+                   max_swing=float(np.max(reach.swing(solved))),
+                   workspace=f"{reach.workspace.words()}; {reach.floor_words()}")
 
 
-__all__ = ["CORNER_OFFSET", "DEFAULT_CYCLES", "IsoPlan", "cube_corners", "cycle_order", "iso_points",
-           "plan_iso_cube"]
+__all__ = ["CORNER_OFFSET", "DEFAULT_CYCLES", "IsoPlan", "MAX_SWING", "MIN_CUBE_SIZE", "RATED_LOAD_KG", "Reach",
+           "STANDARD_CONDITIONS", "Condition", "Workspace", "cube_corners", "cycle_order", "iso_points",
+           "plan_iso_cube", "plan_conditions"]
