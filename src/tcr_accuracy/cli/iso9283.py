@@ -248,7 +248,7 @@ def _run_evaluate(args) -> int:
         return run_path_evaluate(args)
     robot = load_robot(args.robot, args.tool)
     check_csv_memory(args, args.measurements, "MEAS.csv", sample_bytes(robot))
-    model = _read_model(robot, args.model) if args.model else None
+    model = read_model(robot, args.model) if args.model else None
     with warnings.catch_warnings():  # a pose test repeats its poses on purpose, labelled or not
         warnings.filterwarnings("ignore", message=".*repeated pose", category=MeasurementWarning)
         mset = read_measurements(args.measurements, robot)
@@ -298,7 +298,7 @@ def _calibration_page(report, args, robot, payload: dict) -> None:
 
     documents = [(str(args.measurements), payload)]
     files = [("ISO 9283 JSON", args.json)] if args.json not in (None, "-") else []
-    if args.model:  # read and checked already (_read_model); one of ours written before the report: shown
+    if args.model:  # read and checked already (read_model); one of ours written before the report: shown
         model = json.loads(Path(args.model).read_text(encoding="utf-8"))
         if kind_or_none(model) == "diagnosis":
             documents.insert(0, (str(args.model), model))
@@ -308,7 +308,7 @@ def _calibration_page(report, args, robot, payload: dict) -> None:
     add_iso_tables(report, str(args.measurements), payload)
 
 
-def _read_model(robot, path: str):
+def read_model(robot, path: str):
     import json
     from pathlib import Path
 

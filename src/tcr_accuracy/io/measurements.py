@@ -20,7 +20,9 @@ column                      meaning
 ``approach``,               writes them): which commanded pose, which cycle, which
 ``load_pct``,               approach direction (names or numbers: ``P1``, ``S01.P1``, ``+x``),
 ``speed_pct``,              the test condition (% of the rated load and speed), the
-``target_x_mm`` ...         commanded TCP in the base frame [mm];
+``target_x_mm`` ...         commanded TCP in the base frame [mm]; of a commanded path
+``path``, ``speed_mm_s``,   (``iso9283 plan --path``): which path, its speed [mm/s] and the
+``s_mm``                    arc length of the point [mm];
                             carried through (:attr:`MeasurementSet.annotations`), ignored
                             by every analysis but ``iso9283 evaluate``
 ==========================  ===============================================================
@@ -73,11 +75,11 @@ def _check_range(source, rows, column: str, values_si, bound: float, si_unit: st
         r = bad[0]
         raise InputError(f"{source}: row {rows[r]}, column {column}: {values_si[r] * to_shown:g} {shown_unit} is "
                          f"beyond the {bound * to_shown:g} {shown_unit} a measurement may have")
-#: Labels a pose test adds to a row (ISO 9283, ``iso9283 plan``): accepted, carried, not used by a fit.
+#: Labels a pose or path test adds to a row (ISO 9283, ``iso9283 plan``): accepted, carried, not used by a fit.
 ANNOTATION_COLUMNS = ("pose_id", "cycle", "approach", "load_pct", "speed_pct", "target_x_mm", "target_y_mm",
-                      "target_z_mm")
-#: The annotations that are names, not numbers (``P1``, ``S01.P1``, ``+x``): kept as text.
-TEXT_ANNOTATIONS = ("pose_id", "cycle", "approach")
+                      "target_z_mm", "path", "speed_mm_s", "s_mm")
+#: The annotations that are names, not numbers (``P1``, ``S01.P1``, ``+x``, ``line``): kept as text.
+TEXT_ANNOTATIONS = ("pose_id", "cycle", "approach", "path")
 #: A label written as a whole number within this magnitude is that integer's digits ("1.0" -> "1").
 _EXACT_INTEGER = 2.0 ** 53
 

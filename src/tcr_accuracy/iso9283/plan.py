@@ -261,7 +261,7 @@ class Reach:
     def _floor_exempt(self) -> set:
         """Bodies (or joint origins) not held to the floor: fixed to the base, or on the first joint
         and below the floor already at home."""
-        below_home = set(self._below(self.home, exempt=False))
+        below_home = set(self.below(self.home, exempt=False))
         if self.checker is None:
             return {name for name in below_home if name == self.robot.joint_names[0]}
         first = self.robot.chain_joint_ids[0] if self.robot.chain_joint_ids else -1
@@ -271,7 +271,8 @@ class Reach:
                 out.add(body.name)
         return out
 
-    def _below(self, q, exempt: bool = True) -> list:
+    def below(self, q, exempt: bool = True) -> list:
+        """Names of the bodies (joint origins without collision geometry) below the floor at q (n_joints,)."""
         lowest = self.workspace.lowest
         if self.checker is not None:
             names = self.checker.bodies_below(q, lowest)
@@ -292,6 +293,15 @@ class Reach:
         q, bad = self._attempt(targets, rotation, q_start)
         return None if bad.any() else q
 
+    def solve_raw(self, targets, rotation, q_start, tol: float = 1e-7):
+        """Joint values (k, n) reaching every target (k, 3) [m] at ``rotation`` (None: positions only)
+        by IK within the joint limits and ``tol`` [m, rad], or None; nothing else checked."""
+        targets = np.atleast_2d(targets)
+        rotations = None if rotation is None else np.broadcast_to(rotation, (len(targets), 3, 3))
+        ik = inverse_kinematics(self.robot, targets, rotations, q_start, orientation=self.mode, max_iter=150,
+                                tol_position=tol, tol_rotation=tol)
+        return ik.q if ik.success.all() else None
+
     def failures(self, targets, rotation, q_start) -> list[str]:
         """Why each target fails, in words ('' where it does not), in target order."""
         return self._attempt(targets, rotation, q_start, reasons=True)[1]
@@ -310,7 +320,7 @@ class Reach:
         steps = (("not reachable", lambda: ~ik.success),
                  ("a joint more than half a turn from home", lambda: self.swing(q) > MAX_SWING + 1e-9),
                  ("self-collision", lambda: np.zeros(k, bool) if self.checker is None else ~self.checker.is_free(q)),
-                 ("a body below the floor", lambda: np.array([bool(self._below(row)) for row in q])))
+                 ("a body below the floor", lambda: np.array([bool(self.below(row)) for row in q])))
         for word, check in steps:
             checks[word] = check()
             if not reasons and checks[word].any():
@@ -506,7 +516,7 @@ def _candidate_configurations(reach: Reach, rng, n_samples, n_centres) -> np.nda
     q = q[reach.workspace.inside(tcp_poses(robot, q).position)]
     if reach.checker is not None and len(q):
         q = q[reach.checker.is_free(q)]
-    q = q[[not reach._below(row) for row in q]] if len(q) else q
+    q = q[[not reach.below(row) for row in q]] if len(q) else q
     if not len(q):
         return q
     spectra = _jacobian_spectra(robot, q)
