@@ -14,13 +14,14 @@ with time stamps. Inputs here are in the robot's base frame, already registered
   points of plane i and ``c_i`` the commanded point;
 - path repeatability ``RT_P = max_i (l̄_i + 3 S_li)`` with ``l_ij = |p_ij - bar_i|``, ``l̄_i``
   their mean and ``S_li = sqrt(Σ_j (l_ij - l̄_i)² / (n - 1))``;
-- corner deviations at each corner K passed at speed (incoming direction a, outgoing b): the
+- corner deviations at each corner K passed at speed (incoming direction a, outgoing b: the
+  chords of its straight edges, from the corner or path end before it and to the one after): the
   cornering round-off error ``CR`` is the smallest distance from K to the attained path, the
   cornering overshoot ``CO`` the largest excursion beyond K in the incoming direction after
   turning, ``max((p - K)·a)`` over the readings past the corner (``(p - K)·b > 0``), 0 when the
   robot cuts the corner; both per cycle, reported as mean and largest over the cycles;
 - path velocity characteristics over the part of the path commanded at constant speed
-  ``v_c`` (where the commanded speed is within 1 % of it; without commanded times, the middle
+  ``v_c`` (where the commanded speed is within 0.1 % of it; without commanded times, the middle
   half of the path): the speed between neighbouring planes (not across a corner's zone) ``v_ij = |p_{i+1,j} - p_ij| /
   (t_{i+1,j} - t_ij)``; path velocity accuracy ``AV = (v̄ - v_c) / v_c`` (in %) with ``v̄``
   the mean of all v_ij, repeatability ``RV = 3 S_v / v_c`` (in %) with ``S_v`` the standard
@@ -43,7 +44,7 @@ CORNER_ZONE = 0.05
 #: A crossing farther from the commanded point than this fraction of the path's length is no crossing.
 CROSSING_LIMIT = 0.10
 #: The commanded speed is constant where it is within this fraction of the path speed.
-CONSTANT_SPEED = 0.01
+CONSTANT_SPEED = 0.001
 #: Fewest cycles for a repeatability figure.
 MIN_CYCLES = 2
 
@@ -206,10 +207,10 @@ def corner_deviations(points, corners, cycles) -> list:
     out = []
     for n, k in enumerate(corners):
         corner = points[k]
-        a = corner - points[k - 1]
-        b = points[k + 1] - corner
+        a = corner - points[marks[n]]  # the edges' directions over their whole length (the samples are IK
+        b = points[marks[n + 2]] - corner  # solutions: a neighbour's chord turns by their error)
+        reach = 0.5 * min(np.linalg.norm(a), np.linalg.norm(b))
         a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
-        reach = 0.5 * min(np.linalg.norm(corner - points[marks[n]]), np.linalg.norm(points[marks[n + 2]] - corner))
         cr, co = np.full(len(cycles), np.nan), np.full(len(cycles), np.nan)
         for j, x in enumerate(cycles):
             near = np.flatnonzero(np.linalg.norm(x - corner, axis=1) < reach)
