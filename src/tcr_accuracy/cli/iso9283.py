@@ -12,6 +12,7 @@ import argparse
 
 from .common import (DEFAULT_MEMORY_GB, EXIT_OK, MAX_MM, Parser, add_quiet_argument, add_robot_arguments,
                      check_csv_memory, emit_json, integer, number, output_file, sample_bytes, seed_value, status)
+from .iso9283_inputs import condition, plan_inputs, read_model
 from .output import add_output_arguments
 
 
@@ -108,37 +109,6 @@ def add_parsers(sub) -> None:
 
 
 # ---------------------------------------------------------------------------------------
-def condition(text: str) -> tuple:
-    """argparse type of a test condition ``LOAD/SPEED`` [% of the rated load, % of the rated speed]."""
-    load, _, speed = text.partition("/")
-    low = {"load": (number(low=0, high=100, unit="%"), load), "speed": (number(low=0, low_open=True, high=100,
-                                                                                 unit="%"), speed)}
-    try:
-        return tuple(convert(value) for convert, value in low.values())
-    except argparse.ArgumentTypeError:
-        raise argparse.ArgumentTypeError(f"{text!r}: want LOAD/SPEED, a load of 0-100 % and a speed of (0, 100] % "
-                                         "of the rated ones, e.g. 100/50") from None
-
-
-def plan_inputs(args):
-    """(robot, home, workspace, conditions, condition words) from the plan's arguments."""
-    from ..exceptions import InputError
-    from ..iso9283.plan import STANDARD_CONDITIONS, Workspace, plan_conditions
-    from ..model.robot import load_robot
-    from .common import joint_values_si, reach_values
-
-    if (args.cube_centre_mm is None) != (args.cube_size_mm is None):
-        raise InputError("--cube-centre-mm and --cube-size-mm: give both, or neither to search the largest cube")
-    robot = load_robot(args.robot, args.tool)
-    home = None if args.home is None else joint_values_si(robot, args.home, "--home")
-    box, _ = reach_values(args)
-    workspace = Workspace(floor=args.floor_mm * 1e-3, box=None if box is None else box.T)
-    if box is not None and box[2, 1] <= workspace.floor:
-        raise InputError(f"--box and --floor-mm {args.floor_mm:g}: the box lies below the floor")
-    conditions, said = plan_conditions(robot, tuple(args.conditions or STANDARD_CONDITIONS), args.rated_load_kg)
-    return robot, home, workspace, conditions, said
-
-
 def _run_plan(args) -> int:
     import numpy as np
 
@@ -252,17 +222,20 @@ def _run_evaluate(args) -> int:
     with warnings.catch_warnings():  # a pose test repeats its poses on purpose, labelled or not
         warnings.filterwarnings("ignore", message=".*repeated pose", category=MeasurementWarning)
         mset = read_measurements(args.measurements, robot)
-    given = {}
+    given, given_after = {}, {}
     if args.frame_from:
-        given = {"registration": register_from(robot, read_measurements(args.frame_from, robot, min_rows=3)),
-                 "registration_source": args.frame_from}
+        calibration = read_measurements(args.frame_from, robot, min_rows=3)
+        given = {"registration": register_from(robot, calibration), "registration_source": args.frame_from}
+        if model is not None:  # the compensated robot seen from the same poses, compensated alike
+            given_after = {**given, "registration": register_from(robot, compensated_readings(
+                robot, calibration, given["registration"], *model))}
     band = None if args.band_mm is None else args.band_mm * 1e-3
     blocks = evaluate_conditions(robot, mset, frame=args.frame or "fit", band=band, **given)
     afters = [None] * len(blocks)
     if model is not None:
         compensated = compensated_readings(robot, mset, blocks[0][1].registration, *model)
         afters = [r for _, r in evaluate_conditions(robot, compensated, frame=args.frame or "fit", band=band,
-                                                    **given)]
+                                                    **given_after)]
     from .diagnose import robot_source
 
     out = RunOutput(args, f"ISO 9283 pose test: {robot.name}")
@@ -306,21 +279,6 @@ def _calibration_page(report, args, robot, payload: dict) -> None:
     add_calibration_page(report, args.out, Campaign(RobotFacts.of_robot(robot, payload["robot_source"]), documents),
                          files)
     add_iso_tables(report, str(args.measurements), payload)
-
-
-def read_model(robot, path: str):
-    import json
-    from pathlib import Path
-
-    from ..exceptions import InputError
-    from ..io.measurements import read_user_text
-    from ..iso9283.evaluate import diagnosis_model
-
-    try:
-        payload = json.loads(read_user_text(Path(path), "diagnosis JSON"))
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: not JSON (line {exc.lineno}: {exc.msg})") from None
-    return diagnosis_model(robot, payload, path)
 
 
 def json_label(label):

@@ -18,7 +18,7 @@ def run_path_plan(args) -> int:
 
     from ..atomic import write_text_atomically
     from ..iso9283.path_plan import PATH_CYCLES, plan_path_test
-    from .iso9283 import plan_inputs
+    from .iso9283_inputs import plan_inputs
 
     robot, home, workspace, conditions, rated = plan_inputs(args)
     top = max(c.load_pct for c in conditions)
@@ -107,11 +107,11 @@ def run_path_evaluate(args) -> int:
     from ..exceptions import InputError
     from ..io.measurements import MeasurementWarning, read_measurements
     from ..io.tracker_stream import read_tracker_stream
-    from ..iso9283.evaluate import register_from
+    from ..iso9283.evaluate import compensated_readings, register_from
     from ..iso9283.path_evaluate import evaluate_path_test
     from ..model.robot import load_robot
     from .diagnose import robot_source
-    from .iso9283 import read_model
+    from .iso9283_inputs import read_model
     from .output import RunOutput
 
     if args.band_mm is not None:
@@ -126,8 +126,11 @@ def run_path_evaluate(args) -> int:
     stream = read_tracker_stream(args.measurements)
     given = {}
     if args.frame_from:
-        given = {"registration": register_from(robot, read_measurements(args.frame_from, robot, min_rows=3)),
-                 "registration_source": args.frame_from}
+        calibration = read_measurements(args.frame_from, robot, min_rows=3)
+        given = {"registration": register_from(robot, calibration), "registration_source": args.frame_from}
+        if model is not None:  # the compensated robot seen from the same poses, compensated alike
+            given["registration_after"] = register_from(robot, compensated_readings(
+                robot, calibration, given["registration"], *model))
     before, after = evaluate_path_test(robot, commanded, stream, frame=args.frame or "fit", planes=args.planes,
                                        model=model, **given)
     out = RunOutput(args, f"ISO 9283 path test: {robot.name}")

@@ -4,7 +4,8 @@ runs and cycles, the stream registered into the base frame, then the path charac
 - The commanded paths come as a measurement CSV without positions (``iso9283 plan --path``
   writes it): the joints of each sample, and per row ``path``, ``speed_pct``, ``speed_mm_s`` and
   the commanded ``time_s``. The commanded point of a sample is the nominal TCP at its joints (a
-  ``target_x_mm`` ... column farther than 10 um from it warns); a run is one (path, speed).
+  ``target_x_mm`` ... column farther than 10 um from it warns), with the measured point's offset
+  from the TCP when a registration from poses fitted one; a run is one (path, speed).
 - The stream (:func:`tcr_accuracy.io.tracker_stream.read_tracker_stream`) is matched to the runs
   by its ``path`` and ``speed_pct`` labels (either may be left out where the commanded file has
   one value of it) and cut into cycles by its ``cycle`` labels (without them, one cycle: no RT
@@ -88,8 +89,9 @@ class CommandedRun:
         return self.path + ("" if self.speed_pct is None else f" at {self.speed_pct:g} %")
 
 
-def commanded_runs(robot: RobotModel, commanded: MeasurementSet) -> list:
-    """The runs of a commanded path file, in file order (InputError naming file and row)."""
+def commanded_runs(robot: RobotModel, commanded: MeasurementSet, registration: Registration | None = None) -> list:
+    """The runs of a commanded path file, in file order (InputError naming file and row); with a
+    ``registration``, the commanded points are the measured point's (the TCP with its fitted offset)."""
     labels = commanded.annotations or {}
     n = len(commanded)
     path = np.asarray(labels.get("path", np.full(n, "path", dtype=object)), dtype=object)
@@ -97,6 +99,8 @@ def commanded_runs(robot: RobotModel, commanded: MeasurementSet) -> list:
     keys = list(zip(path, [None] * n if speed is None else np.asarray(speed, dtype=float).tolist()))
     points = tcp_poses(robot, commanded.q).position
     _check_targets(commanded, points)
+    if registration is not None:
+        points = registration.tcp_positions(robot, commanded.q, commanded.context)
     out = []
     for key in dict.fromkeys(keys):
         rows = np.array([i for i, k in enumerate(keys) if k == key])
@@ -271,7 +275,8 @@ class PathEvaluation:
 
 def evaluate_path_test(robot: RobotModel, commanded: MeasurementSet, stream: TrackerStream, *, frame: str = "fit",
                        registration: Registration | None = None, registration_source: str = "",
-                       planes: int = 100, model=None) -> tuple[PathEvaluation, PathEvaluation | None]:
+                       planes: int = 100, model=None, registration_after: Registration | None = None
+                       ) -> tuple[PathEvaluation, PathEvaluation | None]:
     """Every path characteristic of a measured path test (see the module docstring).
 
     Parameters
@@ -290,6 +295,10 @@ def evaluate_path_test(robot: RobotModel, commanded: MeasurementSet, stream: Tra
         Normal planes per path.
     model : tuple of (list, list), optional
         Effects and parameter vectors of a diagnosis (:func:`tcr_accuracy.iso9283.evaluate.diagnosis_model`).
+    registration_after : Registration, optional
+        With ``registration`` and ``model``: the frame fitted on the same poses with the model's
+        displacement removed from them (the frame the compensated robot is seen in); default
+        ``registration``.
 
     Returns
     -------
@@ -302,7 +311,7 @@ def evaluate_path_test(robot: RobotModel, commanded: MeasurementSet, stream: Tra
         raise InputError("frame 'base' and a registration from other poses: give one")
     if planes < 3:
         raise InputError(f"planes {planes}: want at least 3 normal planes per path")
-    runs = commanded_runs(robot, commanded)
+    runs = commanded_runs(robot, commanded, registration)
     cycles, notes = stream_cycles(stream, runs)
     measured_runs = sorted(cycles)
     check_spread_units(stream.position, np.vstack([runs[k].points for k in measured_runs]), stream.position_columns,
@@ -322,6 +331,9 @@ def evaluate_path_test(robot: RobotModel, commanded: MeasurementSet, stream: Tra
     before = _figures(runs, measured_runs, cycles, stream.time_s, base, planes, used, how, notes)
     after = None
     if model is not None:
+        if registration is not None and registration_after is not None:  # the compensated robot's frame
+            base = registration_after.to_base(stream.position)
+            runs = commanded_runs(robot, commanded, registration_after)
         shifted = base - _model_shift(robot, runs, cycles, base, *model)
         after = _figures(runs, measured_runs, cycles, stream.time_s, shifted, planes, used, how, notes)
     return before, after
@@ -350,7 +362,7 @@ def _model_shift(robot, runs, cycles, base, effects, params) -> np.ndarray:
     shift = np.zeros_like(base)
     for k, rows_of in cycles.items():
         run = runs[k]
-        delta = predict_positions(robot, effects, params, run.q, run.context) - run.points
+        delta = predict_positions(robot, effects, params, run.q, run.context) - tcp_poses(robot, run.q).position
         rows = np.concatenate(rows_of)
         _, s_foot = project_on_path(base[rows], run.points, run.s)
         shift[rows] = np.stack([np.interp(s_foot, run.s, delta[:, a]) for a in range(3)], axis=1)
