@@ -17,10 +17,11 @@ from .output import add_output_arguments
 
 
 def add_parsers(sub) -> None:
-    p = sub.add_parser("iso9283", help="ISO 9283 pose accuracy and repeatability: plan the test, evaluate it",
+    p = sub.add_parser("iso9283", help="ISO 9283 pose and path tests: plan the test, evaluate it",
                        description="ISO 9283:1998 pose accuracy (AP) and repeatability (RP) over the standard's "
-                                   "test cube: 'plan' finds the cube and writes the poses to run, 'evaluate' "
-                                   "computes the figures from the measured test.")
+                                   "test cube, and the path tests (AT, RT, corner deviations, path velocity) in its "
+                                   "plane: 'plan' finds the cube and writes the poses (--path: the paths) to run, "
+                                   "'evaluate' computes the figures from the measured test.")
     steps = p.add_subparsers(dest="step", metavar="STEP", parser_class=Parser)
     steps.required = True
     plan = steps.add_parser(
@@ -72,12 +73,17 @@ def add_parsers(sub) -> None:
     add_quiet_argument(plan)
     plan.set_defaults(run=_run_plan, tracker_mm=None)
     evaluate = steps.add_parser(
-        "evaluate", help="AP, RP (vAP, AD, RD where the data allow) of a measured pose test",
-        description="Per pose (pose_id column): AP_P and its components, RP_l, and with orientations (qw..qz) "
-                    "AP_a/b/c and RP_a/b/c; vAP where an 'approach' column labels directions; AD and RD between "
-                    "poses measured in the same cycles ('cycle' column). The measurement frame is fitted to the "
-                    "poses' barycentres (Kabsch, TCP offset where identifiable) unless --frame base.")
-    evaluate.add_argument("measurements", metavar="MEAS.csv", help="the measured pose test (see README)")
+        "evaluate", help="AP, RP (vAP, AD, RD, stabilisation where the data allow) of a measured pose test; "
+                         "--path: AT, RT, corners, path velocity of a measured path",
+        description="Per pose (pose_id column, labels such as P1 or S01.P1): AP_P and its components, RP_l, and "
+                    "with orientations (qw..qz) AP_a/b/c and RP_a/b/c; vAP where an 'approach' column labels "
+                    "directions; AD and RD between poses measured in the same cycles ('cycle' column); pose "
+                    "stabilisation time and overshoot where a visit is a time-stamped stream; per test condition "
+                    "(load_pct, speed_pct columns). The measurement frame is fitted to the poses' barycentres "
+                    "(Kabsch, TCP offset where identifiable) unless --frame base or --frame-from. With --path "
+                    "COMMANDED.csv, MEAS.csv is the tracker's stream of a path test (see README, ISO 9283).")
+    evaluate.add_argument("measurements", metavar="MEAS.csv",
+                          help="the measured pose test, or with --path the tracker's stream (see README)")
     add_robot_arguments(evaluate)
     evaluate.add_argument("--frame", choices=("fit", "base"), default=None,
                           help="fit: register the instrument's frame to the poses (default); base: the readings "

@@ -192,13 +192,15 @@ def _path_lines(result, notes: bool = True) -> list:
         lines.append(f"  {run.path:<14}{speed:>7}{f.n_cycles:>7}{f.at * 1e3:9.4f}" + cell(_mm(f.rt), 9, 4) + "      " +
                      cell(_mm(f.speed), 9, 1) + cell(_mm(f.av, 100.0), 8, 2) + cell(_mm(f.rv, 100.0), 8, 2) +
                      "           " + cell(_mm(f.fv), 8, 2))
-    for run, f in result.runs:
-        passed = [c for c in f.corners if np.isfinite(c.cr).any()]
-        if passed:
-            lines.append(f"  corners of the {run.words()}: " + "; ".join(
-                f"({', '.join(f'{v * 1e3:.0f}' for v in c.point)}) CR {np.nanmean(c.cr) * 1e3:.4f} "
-                f"(max {np.nanmax(c.cr) * 1e3:.4f}), CO {np.nanmean(c.co) * 1e3:.4f} (max {np.nanmax(c.co) * 1e3:.4f})"
-                for c in passed) + " mm")
+    corners = [(run, c) for run, f in result.runs for c in f.corners if np.isfinite(c.cr).any()]
+    if corners:
+        lines.append(f"  {'corner':<14}{'speed':>7}  {'at (x, y, z) [mm]':<22}{'CR':>9}{'CR max':>9}{'CO':>9}"
+                     f"{'CO max':>9}  [mm, mean and largest over the cycles]")
+        for run, c in corners:
+            speed = "-" if run.speed_pct is None else f"{run.speed_pct:g} %"
+            lines.append(f"  {run.path:<14}{speed:>7}  {', '.join(f'{v * 1e3:.0f}' for v in c.point):<22}"
+                         + "".join(f"{v * 1e3:9.4f}" for v in (np.nanmean(c.cr), np.nanmax(c.cr), np.nanmean(c.co),
+                                                               np.nanmax(c.co))))
     if notes:
         lines += [f"  note: {n}" for n in result.notes]
     return lines
