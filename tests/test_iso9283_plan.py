@@ -15,6 +15,7 @@ import pytest
 from tcr_accuracy.iso9283.plan import Workspace, plan_iso_cube
 from tcr_accuracy.model.robot import load_robot
 
+from conftest import pinocchio_kinematics
 from conftest import run_command as run
 
 
@@ -60,14 +61,8 @@ def _body_troubles(robot, geom, q, design_contacts, floor=0.0):
 
 
 def _tcp(robot, q):
-    data = robot.model.createData()
-    qp = pin.neutral(robot.model)
-    for name, v in zip(robot.joint_names, q):
-        qp[robot.model.joints[robot.model.getJointId(name)].idx_q] = v
-    pin.forwardKinematics(robot.model, data, qp)
-    pin.updateFramePlacements(robot.model, data)
-    return data.oMf[robot.model.getFrameId(robot.tool_frame)].translation.copy(), \
-        [data.oMi[j].translation[2] for j in range(1, robot.model.njoints)]
+    data, placement = pinocchio_kinematics(robot, q)
+    return placement.translation.copy(), [data.oMi[j].translation[2] for j in range(1, robot.model.njoints)]
 
 
 def _plan_rows(path, robot):

@@ -13,6 +13,7 @@ import pytest
 
 from tcr_accuracy.model.robot import load_robot
 
+from conftest import pinocchio_kinematics
 from conftest import run_command as run
 
 CUBES = ["S01", "S02", "S03", "S04", "S05"]
@@ -21,12 +22,7 @@ POSES = ["P1", "P2", "P3", "P4", "P5"]
 
 def _tcp(robot, q):
     """Base-frame TCP position [m] and rotation of chain joints q, from Pinocchio on the URDF model."""
-    data = robot.model.createData()
-    qp = pin.neutral(robot.model)
-    for name, v in zip(robot.joint_names, q):
-        qp[robot.model.joints[robot.model.getJointId(name)].idx_q] = v
-    pin.framesForwardKinematics(robot.model, data, qp)
-    placement = data.oMf[robot.model.getFrameId(robot.tool_frame)]
+    _, placement = pinocchio_kinematics(robot, q)
     return placement.translation.copy(), placement.rotation.copy()
 
 

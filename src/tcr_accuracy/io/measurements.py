@@ -84,6 +84,27 @@ TEXT_ANNOTATIONS = ("pose_id", "cycle", "approach", "path")
 _EXACT_INTEGER = 2.0 ** 53
 
 
+def number_cell(cell: str, source: str, row: int, column: str) -> float:
+    """A CSV cell (stripped) as a finite number, or InputError naming the file, row and column.
+    Strict: ``1_5`` and full-width digits are no numbers."""
+    try:
+        value = parse_number(cell, finite=False)
+    except ValueError:
+        what = "an empty cell" if not cell else f"{cell!r} is not a number"
+        raise InputError(f"{source}: row {row}, column {column}: {what}") from None
+    if not math.isfinite(value):
+        raise InputError(f"{source}: row {row}, column {column}: non-finite value {cell!r}")
+    return value
+
+
+def label_cell(cell: str, source: str, row: int, column: str, what: str = "label", canonical: bool = True) -> str:
+    """A CSV cell (stripped) as a label: printable ASCII, not empty (else InputError naming the file, row
+    and column), a whole number written as its digits when ``canonical`` (:func:`canonical_label`)."""
+    if not cell or not cell.isprintable() or not cell.isascii():
+        raise InputError(f"{source}: row {row}, column {column}: a {what} must be printable ASCII, got {cell!r}")
+    return canonical_label(cell) if canonical else cell
+
+
 def canonical_label(cell: str) -> str:
     """A label cell as a name: a whole number is written as its digits (``1.0``, ``+1`` and ``1``
     name one pose), any other text is kept as written.
@@ -382,24 +403,16 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
         for c, cell in enumerate(cells):
             cell = cell.strip()
             if c in label_columns:
-                if not cell or not cell.isprintable() or not cell.isascii():
-                    what = "session label" if label_columns[c] in LABEL_COLUMNS else "label"
-                    raise InputError(f"{source}: row {line_no}, column {shown[c]}: a {what} must be "
-                                     f"printable ASCII, got {cell!r}")
                 name = label_columns[c]
-                labels[name].append(cell if name in LABEL_COLUMNS else canonical_label(cell))
+                if name in LABEL_COLUMNS:
+                    labels[name].append(label_cell(cell, source, line_no, shown[c], "session label", canonical=False))
+                    values[k, c] = 0.0
+                    continue
+                labels[name].append(label_cell(cell, source, line_no, shown[c]))
                 # a text annotation's number: its label's index, so that rows differing only in it differ
-                values[k, c] = 0.0 if name in LABEL_COLUMNS else float(codes[name].setdefault(labels[name][-1],
-                                                                                              len(codes[name])))
+                values[k, c] = float(codes[name].setdefault(labels[name][-1], len(codes[name])))
                 continue
-            try:
-                value = parse_number(cell, finite=False)  # strict: 1_5 and full-width digits are no numbers
-            except ValueError:
-                what = "an empty cell" if not cell else f"{cell!r} is not a number"
-                raise InputError(f"{source}: row {line_no}, column {shown[c]}: {what}") from None
-            if not math.isfinite(value):
-                raise InputError(f"{source}: row {line_no}, column {shown[c]}: non-finite value {cell!r}")
-            values[k, c] = value
+            values[k, c] = number_cell(cell, source, line_no, shown[c])
         rows[k] = line_no
     if len(rows) < min_rows:
         raise InputError(f"{source}: {len(rows)} measurement rows, at least {min_rows} are needed")

@@ -22,16 +22,15 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..exceptions import InputError
-from ..units import POSITION_UNITS, parse_number
-from .measurements import MAX_POSITION_M, MAX_TIME_S, QUATERNION_COLUMNS, _check_range, _header, canonical_label, \
-    read_user_text
+from ..units import POSITION_UNITS
+from .measurements import (MAX_POSITION_M, MAX_TIME_S, QUATERNION_COLUMNS, _check_range, _header, label_cell,
+                           number_cell, read_user_text)
 
 #: The labels of a stream's rows.
 STREAM_LABELS = ("path", "cycle")
@@ -114,21 +113,9 @@ def read_tracker_stream(path: str | Path) -> TrackerStream:
         if len(cells) != len(header):
             raise InputError(f"{source}: row {line_no}: {len(cells)} cells, the header has {len(header)} columns")
         for c in numeric:
-            cell = cells[c].strip()
-            try:
-                value = parse_number(cell, finite=False)
-            except ValueError:
-                what = "an empty cell" if not cell else f"{cell!r} is not a number"
-                raise InputError(f"{source}: row {line_no}, column {header[c]}: {what}") from None
-            if not math.isfinite(value):
-                raise InputError(f"{source}: row {line_no}, column {header[c]}: non-finite value {cell!r}")
-            values[k, c] = value
+            values[k, c] = number_cell(cells[c].strip(), source, line_no, header[c])
         for name in labels:
-            cell = cells[header.index(name)].strip()
-            if not cell or not cell.isprintable() or not cell.isascii():
-                raise InputError(f"{source}: row {line_no}, column {name}: a label must be printable ASCII, got "
-                                 f"{cell!r}")
-            labels[name].append(canonical_label(cell))
+            labels[name].append(label_cell(cells[header.index(name)].strip(), source, line_no, name))
         rows[k] = line_no
     if len(rows) < 2:
         raise InputError(f"{source}: {len(rows)} readings; a path is a stream of many")
