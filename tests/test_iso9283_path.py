@@ -204,7 +204,7 @@ def test_corner_round_off_and_overshoot_of_known_size(planned, capsys):
     attained = base.copy()
     k1, k2 = corners[0], corners[1]
     a1, b1 = d[k1 - 1], d[k1]
-    a2, b2 = d[k2 - 1], d[k2]
+    a2 = d[k2 - 1]
     sk1, sk2 = run_["s"][k1], run_["s"][k2]
     # corner 1: the arc of radius rho tangent to both edges, from s_k1 - rho to s_k1 + rho
     zone = np.abs(s - sk1) <= rho

@@ -12,7 +12,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from tcr_accuracy.iso9283.plan import Workspace, plan_iso_cube
+from tcr_accuracy.iso9283.plan import plan_iso_cube
+from tcr_accuracy.iso9283.reach import Workspace
 from tcr_accuracy.model.robot import load_robot
 
 from conftest import pinocchio_kinematics

@@ -25,7 +25,8 @@ def condition(text: str) -> tuple:
 def plan_inputs(args):
     """(robot, home, workspace, conditions, condition words) from the plan's arguments."""
     from ..exceptions import InputError
-    from ..iso9283.plan import STANDARD_CONDITIONS, Workspace, plan_conditions
+    from ..iso9283.plan import STANDARD_CONDITIONS, plan_conditions
+    from ..iso9283.reach import Workspace
     from ..model.robot import load_robot
     from .common import joint_values_si, reach_values
 

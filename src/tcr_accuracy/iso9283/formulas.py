@@ -358,7 +358,7 @@ def _distances(pose_id, labels, cycle, positions, commanded, labelled: bool) -> 
         notes.append(f"{len(repeated)} (pose, cycle) pair(s) read more than once, left out of AD and RD (first: "
                      f"pose {pose_name(pid)}" + (f" approach {label}" if labelled else "") + f", cycle {c})")
     if not out:
-        notes.append(f"no AD, RD: no two poses" + (" of one approach" if labelled else "") +
+        notes.append("no AD, RD: no two poses" + (" of one approach" if labelled else "") +
                      f" were each read once in {MIN_REPEATS} or more common cycles")
     return out, notes
 

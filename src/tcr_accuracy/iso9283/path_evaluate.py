@@ -42,7 +42,7 @@ from ..io.tracker_stream import TrackerStream
 from ..model.kinematics import tcp_poses
 from ..model.robot import RobotModel
 from .formulas import label_key
-from .path import PathFigures, path_figures
+from .path import path_figures
 from .path_plan import arc_length, corners_of
 
 #: A target column farther than this from the nominal TCP at the sample's joints warns [m].

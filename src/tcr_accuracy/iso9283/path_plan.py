@@ -32,7 +32,8 @@ import numpy as np
 from ..exceptions import InputError
 from ..analysis.collision import collision_checker
 from ..model.robot import RobotModel
-from .plan import IsoPlan, Reach, Workspace, cube_corners, iso_points, plan_iso_cube
+from .plan import IsoPlan, cube_corners, iso_points, plan_iso_cube
+from .reach import Reach, Workspace
 
 #: The standard's path speeds [% of the rated path speed].
 PATH_SPEEDS = (100.0, 50.0, 10.0)
