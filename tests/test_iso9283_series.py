@@ -270,3 +270,30 @@ def test_a_huge_pose_id_is_a_name_not_an_overflow(tmp_path, capsys):
     code, out, err = run(["iso9283", "evaluate", str(path), "--robot", "ur10", "--frame", "base"], capsys)
     assert code == 0, err
     assert "P99999999999999999999" in out
+
+
+def test_a_test_too_small_for_the_unit_check_says_so(tmp_path, capsys):
+    """Five poses within a millimetre: the reader's spread check cannot tell a unit there (nor can
+    diagnose's, the same check); the evaluation says the check did not run, in metres and in mm."""
+    robot = load_robot("ur10")
+    rng = np.random.default_rng(8)
+    q0 = np.radians([20, -80, 100, -110, -90, 10])
+    poses = q0 + rng.uniform(-5e-4, 5e-4, (5, 6))
+    head = ",".join(f"{n}_deg" for n in robot.joint_names) + ",x_mm,y_mm,z_mm,pose_id,cycle"
+    for name, scale in (("tiny_m.csv", 1e-3), ("tiny_mm.csv", 1.0)):
+        lines = [head]
+        for cycle in range(1, 5):
+            for k, q in enumerate(poses):
+                p = (_tcp(robot, q)[0] + rng.normal(0, 1e-6, 3)) * 1e3 * scale
+                lines.append(",".join([*(repr(float(v)) for v in np.degrees(q)), *(repr(float(v)) for v in p),
+                                       str(k + 1), str(cycle)]))
+        (tmp_path / name).write_text("\n".join(lines) + "\n")
+        code, out, err = run(["iso9283", "evaluate", str(tmp_path / name), "--robot", "ur10", "--frame", "base",
+                              "--json", "-"], capsys)
+        assert code == 0, err
+        assert any("too close for the measurement reader's unit check" in n for n in json.loads(out)["notes"])
+    # a test that spreads (the usual cube) gets no such note
+    path = _small_test(tmp_path)
+    code, out, err = run(["iso9283", "evaluate", str(path), "--robot", "ur10", "--frame", "base", "--json", "-"],
+                         capsys)
+    assert not any("unit check" in n for n in json.loads(out)["notes"])

@@ -63,6 +63,16 @@ def check_duplicates(mset, values, header, source, context_columns):
         )
 
 
+#: Below this RMS spread of the nominal points [m] the unit check cannot tell a unit (and is not made).
+MIN_UNIT_SPREAD = 1e-3
+
+
+def rms_spread(points) -> float:
+    """RMS distance [m] of points (N, 3) [m] from their centre."""
+    points = np.asarray(points, dtype=float)
+    return float(np.sqrt(np.mean(np.sum((points - points.mean(axis=0)) ** 2, axis=1))))
+
+
 def check_position_units(mset, robot, columns, source):
     """Compare the spread of the measured TCP with the nominal model's spread.
 
@@ -93,10 +103,8 @@ def check_spread_units(measured, nominal, position_columns, source, other_hint):
     other_hint : str
         What to check when the ratio is not a unit's factor.
     """
-    measured, nominal = np.asarray(measured, dtype=float), np.asarray(nominal, dtype=float)
-    model_spread = float(np.sqrt(np.mean(np.sum((nominal - nominal.mean(axis=0)) ** 2, axis=1))))
-    measured_spread = float(np.sqrt(np.mean(np.sum((measured - measured.mean(axis=0)) ** 2, axis=1))))
-    if model_spread < 1e-3:  # all poses (nearly) the same: nothing to compare
+    model_spread, measured_spread = rms_spread(nominal), rms_spread(measured)
+    if model_spread < MIN_UNIT_SPREAD:  # all poses (nearly) the same: nothing to compare
         return
     ratio = measured_spread / model_spread
     if 0.5 <= ratio <= 2.0:

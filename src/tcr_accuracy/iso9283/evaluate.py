@@ -46,6 +46,7 @@ from scipy.spatial.transform import Rotation
 from .formulas import IsoFigures, as_labels, check_repeats, iso_figures, ordered, stabilisation_figures
 from ..effects import make_effect, predict_positions
 from ..exceptions import InputError
+from ..io.measurement_checks import MIN_UNIT_SPREAD, rms_spread
 from ..io.measurements import MeasurementSet
 from ..model.kinematics import tcp_poses
 from ..model.robot import RobotModel
@@ -280,6 +281,11 @@ def evaluate_pose_test(robot: RobotModel, mset: MeasurementSet, *, frame: str = 
         figures.notes.insert(0, f"no pose_id column: the readings grouped by their joint values (within "
                                 f"{POSE_GROUP_TOL:g} rad or m) into {len(ids)} poses, numbered in order of first "
                                 "visit")
+    if rms_spread(nominal.position[row_pose]) < MIN_UNIT_SPREAD:
+        figures.notes.append(f"the poses lie within {rms_spread(nominal.position[row_pose]) * 1e3:.3g} mm (RMS) of "
+                             f"one another: too close for the measurement reader's unit check (it needs "
+                             f"{MIN_UNIT_SPREAD * 1e3:g} mm), which did not run; make sure the position columns' "
+                             "unit is the file's")
     spread = max(float(np.abs(mset.q[row_pose == k] - q_poses[k]).max()) for k in range(len(ids)))
     if spread > SAME_POSE_TOL:
         figures.notes.append(f"the joint values of one pose scatter by up to {spread:.2g} rad or m (encoder "
