@@ -31,6 +31,19 @@ def run_command(argv, capsys):
     return code, out, err
 
 
+def pinocchio_kinematics(robot, q):
+    """(data, TCP placement) of the robot's Pinocchio model at chain joints q (n_joints,), set joint by
+    joint by name: Pinocchio's own forward kinematics, none of the package's."""
+    import pinocchio as pin
+
+    data = robot.model.createData()
+    qp = pin.neutral(robot.model)
+    for name, v in zip(robot.joint_names, q):
+        qp[robot.model.joints[robot.model.getJointId(name)].idx_q] = v
+    pin.framesForwardKinematics(robot.model, data, qp)
+    return data, data.oMf[robot.model.getFrameId(robot.tool_frame)]
+
+
 def random_joint_values(robot, n, rng, span=np.pi):
     """(n, n_joints) joint values inside the limits (unbounded joints within +-span)."""
     lo = np.where(np.isnan(robot.lower_limits), -span, np.maximum(robot.lower_limits, -span))

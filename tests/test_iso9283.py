@@ -229,7 +229,7 @@ def _independent_collisions(robot, q):
 
 @pytest.mark.parametrize("name", ["tool_changer", "ur10", "panda"])
 def test_plan_poses_are_on_the_iso_plane_reachable_within_limits_and_collision_free(name):
-    from tcr_accuracy.analysis.iso9283_plan import plan_iso_cube
+    from tcr_accuracy.iso9283.plan import plan_iso_cube
 
     robot = load_robot(name)
     plan = plan_iso_cube(robot, np.random.default_rng(0))
@@ -283,11 +283,12 @@ def test_plan_simulate_evaluate_round_trip(tmp_path, capsys):
     """The plan's CSV runs through simulate (labels carried) and evaluate; a perfect robot seen
     from a tracker frame with a reflector offset, without noise, has AP = RP = 0 once the frame is fitted."""
     plan, meas = tmp_path / "plan.csv", tmp_path / "meas.csv"
-    code, out, err = run(["iso9283", "plan", "--cycles", "4", "--out", str(plan)], capsys)
+    code, out, err = run(["iso9283", "plan", "--cycles", "4", "--conditions", "100/100", "--out", str(plan)], capsys)
     assert code == 0, err
     header = [line for line in plan.read_text().splitlines() if not line.startswith("#")]
-    assert header[0].endswith("pose_id,cycle,target_x_mm,target_y_mm,target_z_mm")
-    assert [int(r.split(",")[6]) for r in header[1:6]] == [5, 4, 3, 2, 1] and len(header) == 21
+    assert header[0].endswith("payload_kg,pose_id,cycle,load_pct,speed_pct,target_x_mm,target_y_mm,target_z_mm")
+    assert [int(r.split(",")[7]) for r in header[1:6]] == [5, 4, 3, 2, 1] and len(header) == 21
+    assert {r.split(",")[6] for r in header[1:]} == {"150"}  # the disc cutter, the rated load
     scenario = tmp_path / "frames.yaml"
     scenario.write_text("effects:\n  frames:\n    base_mm: {dx: 1250.0, dy: -830.0, dz: -410.0}\n"
                         "    base_deg: {rz: 35.0, rx: 2.0}\n    tool_mm: {dx: 0.8, dy: -0.5, dz: 1.2}\n")
@@ -316,7 +317,7 @@ def test_other_commands_read_a_pose_test_file_and_ignore_its_labels(tmp_path):
     np.testing.assert_array_equal(labelled.q, plain.q)
     np.testing.assert_array_equal(labelled.position, plain.position)
     assert plain.annotations is None
-    assert labelled.subset([0, 5]).annotations["pose_id"].tolist() == [rows[0][0], rows[5][0]]
+    assert labelled.subset([0, 5]).annotations["pose_id"].tolist() == [str(rows[0][0]), str(rows[5][0])]
 
 
 @pytest.mark.parametrize("edit, words", [

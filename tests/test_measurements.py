@@ -183,9 +183,10 @@ def test_allowed_columns_for_example_robot(ur5):
     assert "shoulder_pan_joint_rad" in cols and "shoulder_pan_joint_deg" in cols
     assert "shoulder_pan_joint_mm" not in cols and "shoulder_pan_joint_dir" in cols
     # joints in two units, positions in two, quaternion, context (payload, temperature, time), session,
-    # directions, the pose-test labels
-    assert math.isclose(len(cols), 6 * 2 + 6 + 4 + 3 + 1 + 6 + 6)
-    assert {"pose_id", "cycle", "approach", "target_x_mm", "target_y_mm", "target_z_mm"} <= set(cols)
+    # directions, the pose-test labels (pose, cycle, approach, condition, target) and the commanded path's
+    assert math.isclose(len(cols), 6 * 2 + 6 + 4 + 3 + 1 + 6 + 8 + 3)
+    assert {"pose_id", "cycle", "approach", "load_pct", "speed_pct", "target_x_mm", "target_y_mm", "target_z_mm",
+            "path", "speed_mm_s", "s_mm"} <= set(cols)
 
 
 def test_semicolon_files_get_a_hint(tool_changer, tmp_path):

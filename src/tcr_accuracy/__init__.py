@@ -4,7 +4,8 @@ One folder per layer, each importing only from the layers before it (the README'
 "Architecture" section draws them): ``model`` (robot, URDF, error model, kinematics, gravity)
 -> ``io`` (measurement CSV) -> ``effects`` (the effect library) -> ``analysis`` (Monte Carlo,
 sensitivity, simulation, sampling) -> ``diagnosis`` -> ``prediction`` (predictors,
-compensation) -> ``view`` (reports, plots, meshcat) -> ``cli``.
+compensation) -> ``iso9283`` (the standard's pose and path tests) -> ``view`` (reports, plots,
+meshcat) -> ``cli``.
 
 The names most scripts need are importable from here; they load on first use, so
 ``import tcr_accuracy`` stays light::
@@ -34,6 +35,9 @@ _EXPORTS = {
     "make_predictor": "prediction.methods", "MeasuredErrorModel": "prediction.composed",
     "compensate_joints": "prediction.compensation", "register_tracker": "frames.registration",
     "load_as_built": "prediction.as_built_model", "AsBuiltModel": "prediction.as_built_model",
+    "plan_iso_cube": "iso9283.plan", "evaluate_pose_test": "iso9283.evaluate",
+    "plan_path_test": "iso9283.path_plan", "evaluate_path_test": "iso9283.path_evaluate",
+    "read_tracker_stream": "io.tracker_stream",
     "Scene": "view.viewer", "diagnosis_summary": "view.diagnosis_summary",
 }
 

@@ -89,6 +89,21 @@ class CollisionChecker:
                 out.append(body.name)
         return out
 
+    def bodies_below(self, q, height: float) -> list[str]:
+        """Names of the bodies that reach below the plane z = ``height`` [m] of the base frame (a
+        floor or mounting plane: coal's ``Halfspace``) at chain joint values q (n_joints,)."""
+        full_q = self.robot.full_configurations(np.atleast_2d(np.asarray(q, dtype=float)))[0]
+        model = self.robot.full_model
+        data, geometry_data = model.createData(), self.geometry.createData()
+        pin.updateGeometryPlacements(model, data, self.geometry, geometry_data, full_q)
+        floor, at_origin = coal.Halfspace(np.array([0.0, 0.0, 1.0]), float(height)), coal.Transform3s()
+        out = []
+        for body, placement in zip(self.geometry.geometryObjects, geometry_data.oMg):
+            if coal.collide(floor, at_origin, body.geometry, coal.Transform3s(placement.rotation, placement.translation),
+                            coal.CollisionRequest(), coal.CollisionResult()):
+                out.append(body.name)
+        return out
+
     def is_free(self, q) -> np.ndarray:
         """(N,) True where the configuration q (N, n_joints) has no self-collision."""
         q = np.atleast_2d(np.asarray(q, dtype=float))

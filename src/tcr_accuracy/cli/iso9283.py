@@ -12,53 +12,97 @@ import argparse
 
 from .common import (DEFAULT_MEMORY_GB, EXIT_OK, MAX_MM, Parser, add_quiet_argument, add_robot_arguments,
                      check_csv_memory, emit_json, integer, number, output_file, sample_bytes, seed_value, status)
+from .iso9283_inputs import condition, plan_inputs, read_model
 from .output import add_output_arguments
 
 
 def add_parsers(sub) -> None:
-    p = sub.add_parser("iso9283", help="ISO 9283 pose accuracy and repeatability: plan the test, evaluate it",
+    p = sub.add_parser("iso9283", help="ISO 9283 pose and path tests: plan the test, evaluate it",
                        description="ISO 9283:1998 pose accuracy (AP) and repeatability (RP) over the standard's "
-                                   "test cube: 'plan' finds the cube and writes the poses to run, 'evaluate' "
-                                   "computes the figures from the measured test.")
+                                   "test cube, and the path tests (AT, RT, corner deviations, path velocity) in its "
+                                   "plane: 'plan' finds the cube and writes the poses (--path: the paths) to run, "
+                                   "'evaluate' computes the figures from the measured test.")
     steps = p.add_subparsers(dest="step", metavar="STEP", parser_class=Parser)
     steps.required = True
     plan = steps.add_parser(
-        "plan", help="the largest ISO test cube, its five poses, joint solutions and cycle order, as a CSV",
+        "plan", help="the largest ISO test cube, its five poses, joint solutions, cycle order and test conditions, "
+                     "as a CSV (--path: the test paths)",
         description="Find the largest cube (edges along the base axes) whose 8 corners and 5 ISO poses the robot "
-                    "reaches at one TCP orientation, within its joint limits and free of self-collision (coal on "
+                    "reaches at one TCP orientation, within its joint limits, every revolute joint within half a "
+                    "turn of --home (of the equivalent joint values the nearest), above the mounting plane (or "
+                    "--floor-mm) and inside --box, no body below that floor and free of self-collision (coal on "
                     "the URDF's collision geometry, where it has any), or take the cube given; P1 at its centre, "
-                    "P2..P5 on the diagonal plane at 10 % of the diagonal from its corners. Writes the cycles "
-                    "(P5, P4, P3, P2, P1 each) as a measurement CSV without positions: joint columns, pose_id, "
-                    "cycle, target_x_mm, target_y_mm, target_z_mm (commanded TCP, base frame).")
+                    "P2..P5 on the diagonal plane at 10 % of the diagonal from its corners. Writes, for each test "
+                    "condition (% of the rated load and speed), the cycles (start at P1, then P5, P4, P3, P2, P1 "
+                    "each) as a measurement CSV without positions: joint columns, payload_kg (when the rated load "
+                    "is known), pose_id, cycle, load_pct, speed_pct, target_x_mm, target_y_mm, target_z_mm "
+                    "(commanded TCP, base frame). With --path: the standard's test paths in the cube's plane "
+                    "instead (see README, ISO 9283).")
     add_robot_arguments(plan)
-    plan.add_argument("--cycles", type=integer(low=1, high=100_000), default=30,
-                      help="cycles of the five poses (default 30, as the standard)")
+    plan.add_argument("--cycles", type=integer(low=1, high=100_000), default=None,
+                      help="cycles (default 30 for the pose test, 10 for --path, as the standard)")
     plan.add_argument("--cube-centre-mm", nargs=3, type=number(low=-MAX_MM, high=MAX_MM, unit="mm"), default=None,
                       metavar=("X", "Y", "Z"), help="plan this cube instead of searching (with --cube-size-mm)")
-    plan.add_argument("--cube-size-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
-                      metavar="S", help="edge of the given cube [mm]")
+    plan.add_argument("--cube-size-mm", type=number(low=10, high=MAX_MM, unit="mm"), default=None,
+                      metavar="S", help="edge of the given cube [mm], at least 10")
+    plan.add_argument("--home", nargs="+", type=number(low=-MAX_MM, high=MAX_MM), default=None, metavar="Q",
+                      help="the home configuration, one value per joint [deg, mm for prismatic joints]; default the "
+                           "robot's reference pose")
+    plan.add_argument("--floor-mm", type=number(low=-MAX_MM, high=MAX_MM, unit="mm"), default=0.0, metavar="Z",
+                      help="keep the test and the robot's bodies above z = Z of the base frame (default 0, the "
+                           "mounting plane)")
+    plan.add_argument("--box", nargs=6, type=number(low=-MAX_MM, high=MAX_MM, unit="mm"), default=None,
+                      metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
+                      help="a cell box [mm], base frame: keep the test's points inside")
+    plan.add_argument("--rated-load-kg", type=number(low=0, low_open=True, high=1e6, unit="kg"), default=None,
+                      metavar="M", help="the rated load (default: the maker's for ur3, ur5, ur10, panda; the disc "
+                                        "cutter for the tool-changer)")
+    plan.add_argument("--conditions", nargs="+", type=condition, default=None, metavar="LOAD/SPEED",
+                      help="test conditions as %% of the rated load / %% of the rated speed (default the "
+                           "standard's: 100/100 100/50 100/10 10/100)")
+    plan.add_argument("--path", action="store_true",
+                      help="write the path tests instead: a straight line, two circles and a rectangle in the "
+                           "cube's plane, at 100, 50 and 10 %% of the rated path speed")
+    plan.add_argument("--path-speed-mm-s", type=number(low=0, low_open=True, high=MAX_MM, unit="mm/s"), default=None,
+                      metavar="V", help="the rated path speed [mm/s] (default: the largest every joint's velocity "
+                                        "limit allows on every path)")
     plan.add_argument("--seed", type=seed_value, default=0, help="seed of the cube search (default 0)")
     plan.add_argument("--out", required=True, type=output_file, metavar="FILE.csv", help="the test to run")
     plan.add_argument("--json", nargs="?", const="-", default=None, type=output_file, metavar="FILE",
                       help="also write the plan as JSON (stdout without FILE)")
     add_quiet_argument(plan)
-    plan.set_defaults(run=_run_plan)
+    plan.set_defaults(run=_run_plan, tracker_mm=None)
     evaluate = steps.add_parser(
-        "evaluate", help="AP, RP (vAP, AD, RD where the data allow) of a measured pose test",
-        description="Per pose (pose_id column): AP_P and its components, RP_l, and with orientations (qw..qz) "
-                    "AP_a/b/c and RP_a/b/c; vAP where an 'approach' column labels directions; AD and RD between "
-                    "poses measured in the same cycles ('cycle' column). The measurement frame is fitted to the "
-                    "poses' barycentres (Kabsch, TCP offset where identifiable) unless --frame base.")
-    evaluate.add_argument("measurements", metavar="MEAS.csv", help="the measured pose test (see README)")
+        "evaluate", help="AP, RP (vAP, AD, RD, stabilisation where the data allow) of a measured pose test; "
+                         "--path: AT, RT, corners, path velocity of a measured path",
+        description="Per pose (pose_id column, labels such as P1 or S01.P1): AP_P and its components, RP_l, and "
+                    "with orientations (qw..qz) AP_a/b/c and RP_a/b/c; vAP where an 'approach' column labels "
+                    "directions; AD and RD between poses measured in the same cycles ('cycle' column); pose "
+                    "stabilisation time and overshoot where a visit is a time-stamped stream; per test condition "
+                    "(load_pct, speed_pct columns). The measurement frame is fitted to the poses' barycentres "
+                    "(Kabsch, TCP offset where identifiable) unless --frame base or --frame-from. With --path "
+                    "COMMANDED.csv, MEAS.csv is the tracker's stream of a path test (see README, ISO 9283).")
+    evaluate.add_argument("measurements", metavar="MEAS.csv",
+                          help="the measured pose test, or with --path the tracker's stream (see README)")
     add_robot_arguments(evaluate)
-    evaluate.add_argument("--frame", choices=("fit", "base"), default="fit",
+    evaluate.add_argument("--frame", choices=("fit", "base"), default=None,
                           help="fit: register the instrument's frame to the poses (default); base: the readings "
                                "are already base-frame TCP positions")
     evaluate.add_argument("--frame-from", default=None, metavar="CAL.csv",
                           help="fit the instrument frame on these measurements instead (other poses measured in the "
-                               "same instrument frame, e.g. a calibration set of the same session)")
+                               "same instrument frame, e.g. a calibration set of the same session); not with --frame")
+    evaluate.add_argument("--band-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
+                          metavar="R", help="limit band radius for the pose stabilisation time and overshoot of "
+                                            "time-stamped visits (default: each pose's RP)")
     evaluate.add_argument("--model", default=None, metavar="DIAGNOSIS.json",
                           help="a 'diagnose --json' result: also the figures predicted after compensating with it")
+    evaluate.add_argument("--path", default=None, metavar="COMMANDED.csv",
+                          help="evaluate a path test: MEAS.csv is the tracker's stream (time_s, x_mm, y_mm, z_mm; "
+                               "path, speed_pct and cycle labels), COMMANDED.csv the commanded path ('iso9283 plan "
+                               "--path' writes it; or the joints of its points): AT, RT, corner deviations CR, CO "
+                               "and the path velocity figures AV, RV, FV")
+    evaluate.add_argument("--planes", type=integer(low=3, high=100_000), default=100, metavar="M",
+                          help="--path: normal planes along each path (default 100)")
     add_output_arguments(evaluate, plots=False)
     evaluate.set_defaults(run=_run_evaluate)
     for parser in (plan, evaluate):  # as main() adds them to every command, also after the step
@@ -74,53 +118,70 @@ def add_parsers(sub) -> None:
 def _run_plan(args) -> int:
     import numpy as np
 
-    from ..analysis.iso9283_plan import cycle_order, plan_iso_cube
     from ..atomic import write_text_atomically
-    from ..exceptions import InputError
-    from ..model.robot import load_robot
+    from ..iso9283.plan import DEFAULT_CYCLES, cycle_order, plan_iso_cube
 
-    if (args.cube_centre_mm is None) != (args.cube_size_mm is None):
-        raise InputError("--cube-centre-mm and --cube-size-mm: give both, or neither to search the largest cube")
-    robot = load_robot(args.robot, args.tool)
+    if args.path:
+        from .iso9283_path import run_path_plan
+
+        return run_path_plan(args)
+    robot, home, workspace, conditions, rated = plan_inputs(args)
     centre = None if args.cube_centre_mm is None else np.asarray(args.cube_centre_mm) * 1e-3
     size = None if args.cube_size_mm is None else args.cube_size_mm * 1e-3
-    plan = plan_iso_cube(robot, np.random.default_rng(args.seed), centre=centre, size=size)
-    pose_id, cycle = cycle_order(args.cycles)
+    plan = plan_iso_cube(robot, np.random.default_rng(args.seed), centre=centre, size=size, home=home,
+                         workspace=workspace)
+    cycles = args.cycles or DEFAULT_CYCLES
+    pose_id, cycle = cycle_order(cycles)
     from pathlib import Path
 
-    write_text_atomically(Path(args.out), _plan_csv(robot, plan, pose_id, cycle))
+    write_text_atomically(Path(args.out), _plan_csv(robot, plan, pose_id, cycle, conditions, rated))
     payload = {"robot": robot.name, "tool": robot.tool_frame, "cube_centre_mm": (plan.centre * 1e3).tolist(),
                "cube_size_mm": plan.size * 1e3, "searched": plan.searched, "candidate_centres": plan.n_centres,
-               "orientation": plan.orientation, "collision": plan.collision, "cycles": args.cycles,
-               "order": "P5, P4, P3, P2, P1 in every cycle",
+               "orientation": plan.orientation, "collision": plan.collision, "workspace": plan.workspace,
+               "home_display": (plan.home * robot.display_scale).tolist(),
+               "max_swing_deg": float(np.degrees(plan.max_swing)), "cycles": cycles,
+               "order": "start at P1, then P5, P4, P3, P2, P1 in every cycle",
+               "conditions": [{"load_pct": c.load_pct, "speed_pct": c.speed_pct, "payload_kg": c.payload_kg}
+                              for c in conditions], "rated_load": rated,
                "poses": [{"pose_id": k + 1, "target_mm": (plan.positions[k] * 1e3).tolist(),
                           "q_display": (plan.q[k] * robot.display_scale).tolist()} for k in range(5)],
-               "joint_units": robot.display_units, "out": str(args.out)}
+               "joint_units": robot.display_units, "rows": len(pose_id) * len(conditions), "out": str(args.out)}
     if args.json:
         emit_json(payload, args.json)
     if args.json != "-":
-        print(_plan_text(robot, plan, args))
+        print(_plan_text(robot, plan, args, cycles, conditions, rated))
     status(args, f"plan written to {args.out}")
     return EXIT_OK
 
 
-def _plan_csv(robot, plan, pose_id, cycle) -> str:
+def _plan_csv(robot, plan, pose_id, cycle, conditions, rated) -> str:
     import io
 
     joints = [f"{n}_{u}" for n, u in zip(robot.joint_names, robot.display_units)]
+    payload = all(c.payload_kg is not None for c in conditions)
     out = io.StringIO()
     out.write(f"# ISO 9283 pose test of {robot.name} (TCP {robot.tool_frame}), written by tcr-accuracy iso9283 plan\n")
     out.write(f"# cube centre {', '.join(f'{v * 1e3:.3f}' for v in plan.centre)} mm, edge {plan.size * 1e3:.3f} mm; "
               "run the rows in order, add the measured x_mm,y_mm,z_mm (and qw,qx,qy,qz) columns\n")
-    out.write(",".join(joints + ["pose_id", "cycle", "target_x_mm", "target_y_mm", "target_z_mm"]) + "\n")
-    for pid, c in zip(pose_id, cycle):
-        row = [format(v, ".10g") for v in plan.q[pid - 1] * robot.display_scale]
-        row += [str(pid), str(c)] + [format(v, ".10g") for v in plan.positions[pid - 1] * 1e3]
-        out.write(",".join(row) + "\n")
+    out.write(f"# {len(conditions)} test condition(s), {rated}; before each block, set the load and speed and "
+              "move to P1\n")
+    out.write(",".join(joints + (["payload_kg"] if payload else []) + ["pose_id", "cycle", "load_pct", "speed_pct",
+                                                                       "target_x_mm", "target_y_mm", "target_z_mm"])
+              + "\n")
+    for k, cond in enumerate(conditions):
+        out.write(f"# condition {k + 1}: {cond.words()}; start at P1\n")
+        for pid, c in zip(pose_id, cycle):
+            row = [format(v, ".10g") for v in plan.q[pid - 1] * robot.display_scale]
+            row += [format(cond.payload_kg, ".10g")] if payload else []
+            row += [str(pid), str(c), format(cond.load_pct, "g"), format(cond.speed_pct, "g")]
+            row += [format(v, ".10g") for v in plan.positions[pid - 1] * 1e3]
+            out.write(",".join(row) + "\n")
     return out.getvalue()
 
 
-def _plan_text(robot, plan, args) -> str:
+def _plan_text(robot, plan, args, cycles, conditions, rated) -> str:
+    import numpy as np
+
     how = (f"the largest found over {plan.n_centres} candidate centres" if plan.searched else "as given")
     lines = [f"{robot.name}: ISO 9283 test cube ({how})",
              f"  centre [mm]      {', '.join(f'{v * 1e3:.1f}' for v in plan.centre)}",
@@ -128,12 +189,18 @@ def _plan_text(robot, plan, args) -> str:
              "  orientation      " + ("one TCP orientation at every pose" if plan.orientation == "exact" else
                                      "positions exact, orientation as close as the robot can (rank < 6)"),
              f"  self-collision   {plan.collision}",
+             f"  workspace        {plan.workspace}",
+             f"  home [{', '.join(robot.display_units)}]  " + " ".join(f"{v:.2f}" for v in plan.home * robot.display_scale)
+             + f"; no joint turns more than {np.degrees(plan.max_swing):.1f} deg from it",
              f"  {'pose':<5}" + "".join(f"{a + ' [mm]':>12}" for a in "xyz") + "  joints [" +
              ", ".join(robot.display_units) + "]"]
     for k in range(5):
         lines.append(f"  P{k + 1:<4}" + "".join(f"{v * 1e3:12.1f}" for v in plan.positions[k]) + "  " +
                      " ".join(f"{v:.2f}" for v in plan.q[k] * robot.display_scale))
-    lines.append(f"  {args.cycles} cycles of P5, P4, P3, P2, P1 ({5 * args.cycles} rows) -> {args.out}")
+    lines.append(f"  conditions       {rated}:")
+    lines += [f"    {k + 1}. {c.words()}" for k, c in enumerate(conditions)]
+    lines.append(f"  each: start at P1, {cycles} cycles of P5, P4, P3, P2, P1 ({5 * cycles * len(conditions)} rows) "
+                 f"-> {args.out}")
     return "\n".join(lines)
 
 
@@ -141,35 +208,58 @@ def _plan_text(robot, plan, args) -> str:
 def _run_evaluate(args) -> int:
     import warnings
 
+    from ..exceptions import InputError
     from ..io.measurements import MeasurementWarning, read_measurements
+    from ..iso9283.evaluate import compensated_readings, evaluate_conditions, register_from
     from ..model.robot import load_robot
-    from ..prediction.iso9283_evaluation import compensated_readings, evaluate_measurements, register_from
     from .output import RunOutput
 
+    if args.frame_from and args.frame is not None:
+        raise InputError(f"--frame {args.frame} and --frame-from {args.frame_from}: give one (--frame-from fits "
+                         "the instrument frame on other poses; --frame base takes the readings as base-frame "
+                         "positions)")
+    if args.path:
+        from .iso9283_path import run_path_evaluate
+
+        return run_path_evaluate(args)
     robot = load_robot(args.robot, args.tool)
     check_csv_memory(args, args.measurements, "MEAS.csv", sample_bytes(robot))
-    model = _read_model(robot, args.model) if args.model else None
+    model = read_model(robot, args.model) if args.model else None
     with warnings.catch_warnings():  # a pose test repeats its poses on purpose, labelled or not
         warnings.filterwarnings("ignore", message=".*repeated pose", category=MeasurementWarning)
         mset = read_measurements(args.measurements, robot)
-    given = {}
+    given, given_after = {}, {}
     if args.frame_from:
-        given = {"registration": register_from(robot, read_measurements(args.frame_from, robot, min_rows=3)),
-                 "registration_source": args.frame_from}
-    result = evaluate_measurements(robot, mset, frame=args.frame, **given)
-    after = None
+        calibration = read_measurements(args.frame_from, robot, min_rows=3)
+        given = {"registration": register_from(robot, calibration), "registration_source": args.frame_from}
+        if model is not None:  # the compensated robot seen from the same poses, compensated alike
+            given_after = {**given, "registration": register_from(robot, compensated_readings(
+                robot, calibration, given["registration"], *model))}
+    band = None if args.band_mm is None else args.band_mm * 1e-3
+    blocks = evaluate_conditions(robot, mset, frame=args.frame or "fit", band=band, **given)
+    afters = [None] * len(blocks)
     if model is not None:
-        after = evaluate_measurements(robot, compensated_readings(robot, mset, result.registration, *model),
-                                      frame=args.frame, **given)
+        compensated = compensated_readings(robot, mset, blocks[0][1].registration, *model)
+        afters = [r for _, r in evaluate_conditions(robot, compensated, frame=args.frame or "fit", band=band,
+                                                    **given_after)]
     from .diagnose import robot_source
 
     out = RunOutput(args, f"ISO 9283 pose test: {robot.name}")
-    text = format_evaluation(robot, args, result, after)
+    text = "\n".join(format_evaluation(robot, args, result, after, block if len(blocks) > 1 else None)
+                     for (block, result), after in zip(blocks, afters))
+    parts = []
+    for (block, result), after in zip(blocks, afters):
+        part = {**({} if block.load_pct is None and block.speed_pct is None else
+                   {"condition": {"load_pct": block.load_pct, "speed_pct": block.speed_pct}}),
+                **evaluation_dict(result)}
+        if after is not None:
+            part["compensated"] = {"model": str(args.model), "kind": "predicted: the model's displacement removed "
+                                   "from each reading (first order, positions only)", **evaluation_dict(after)}
+        parts.append(part)
     payload = {"measurements": str(args.measurements), "robot": robot.name, "robot_source": robot_source(args.robot),
-               "tool_frame": robot.tool_frame, **evaluation_dict(result)}
-    if after is not None:
-        payload["compensated"] = {"model": str(args.model), "kind": "predicted: the model's displacement removed "
-                                  "from each reading (first order, positions only)", **evaluation_dict(after)}
+               "tool_frame": robot.tool_frame, **parts[0]}
+    if len(parts) > 1:
+        payload["conditions"] = parts
     if out.report is not None:
         _calibration_page(out.report, args, robot, payload)
     out.add_preformatted(text, "ISO 9283 figures")
@@ -187,7 +277,7 @@ def _calibration_page(report, args, robot, payload: dict) -> None:
 
     documents = [(str(args.measurements), payload)]
     files = [("ISO 9283 JSON", args.json)] if args.json not in (None, "-") else []
-    if args.model:  # read and checked already (_read_model); one of ours written before the report: shown
+    if args.model:  # read and checked already (read_model); one of ours written before the report: shown
         model = json.loads(Path(args.model).read_text(encoding="utf-8"))
         if kind_or_none(model) == "diagnosis":
             documents.insert(0, (str(args.model), model))
@@ -197,31 +287,25 @@ def _calibration_page(report, args, robot, payload: dict) -> None:
     add_iso_tables(report, str(args.measurements), payload)
 
 
-def _read_model(robot, path: str):
-    import json
-    from pathlib import Path
+def json_label(label):
+    """A label as JSON: a whole number as an int (as the pose ids ``iso9283 plan`` writes), else text."""
+    import re
 
-    from ..exceptions import InputError
-    from ..io.measurements import read_user_text
-    from ..prediction.iso9283_evaluation import diagnosis_model
-
-    try:
-        payload = json.loads(read_user_text(Path(path), "diagnosis JSON"))
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: not JSON (line {exc.lineno}: {exc.msg})") from None
-    return diagnosis_model(robot, payload, path)
+    return None if label is None else int(label) if re.fullmatch(r"[+-]?\d+", str(label)) else str(label)
 
 
 def _pose_dict(f) -> dict:
     import numpy as np
 
-    out = {"pose_id": f.pose_id, "n": f.n, "ap_mm": f.ap * 1e3,
+    from ..iso9283.formulas import pose_name
+
+    out = {"pose_id": json_label(f.pose_id), "pose": pose_name(f.pose_id), "n": f.n, "ap_mm": f.ap * 1e3,
            **{f"ap_{a}_mm": float(v * 1e3) for a, v in zip("xyz", f.ap_xyz)},
            "rp_mm": None if f.rp is None else f.rp * 1e3, "l_mean_mm": f.l_mean * 1e3,
            "s_l_mm": None if f.l_std is None else f.l_std * 1e3,
            "barycentre_mm": (f.barycentre * 1e3).tolist(), "commanded_mm": (f.commanded * 1e3).tolist()}
     if f.approach is not None:
-        out["approach"] = f.approach
+        out["approach"] = json_label(f.approach)
     if f.ap_abc is not None:
         out.update({f"ap_{a}_deg": float(np.degrees(v)) for a, v in zip("abc", f.ap_abc)})
         out.update({f"rp_{a}_deg": None if f.rp_abc is None else float(np.degrees(f.rp_abc[k]))
@@ -229,34 +313,51 @@ def _pose_dict(f) -> dict:
     return out
 
 
+def _mm(value):
+    return None if value is None else value * 1e3
+
+
 def evaluation_dict(result) -> dict:
-    """JSON-ready figures of an :class:`~tcr_accuracy.prediction.iso9283_evaluation.IsoEvaluation` (mm, deg)."""
+    """JSON-ready figures of an :class:`~tcr_accuracy.iso9283.evaluate.IsoEvaluation` (mm, deg, s)."""
     import numpy as np
 
     fig = result.figures
     rps = [f.rp for f in fig.poses if f.rp is not None]
     return {
-        "n_readings": result.n_readings, "frame": result.frame, "frame_fit": result.how,
+        "n_readings": result.n_readings, "n_visits": result.n_visits, "frame": result.frame, "frame_fit": result.how,
         "registration": None if result.registration is None else result.registration.to_dict(),
         "poses": [_pose_dict(f) for f in fig.poses],
         "summary": {"ap_max_mm": max(f.ap for f in fig.poses) * 1e3,
+                    "ap_mean_mm": float(np.mean([f.ap for f in fig.poses])) * 1e3,
                     "rp_max_mm": max(rps) * 1e3 if rps else None},
-        "directional": [{"pose_id": d.pose_id, "approaches": list(d.approaches), "vap_mm": d.vap * 1e3,
+        "directional": [{"pose_id": json_label(d.pose_id), "approaches": [json_label(a) for a in d.approaches],
+                         "vap_mm": d.vap * 1e3,
                          **({} if d.vap_abc is None else
                             {f"vap_{a}_deg": float(np.degrees(v)) for a, v in zip("abc", d.vap_abc)})}
                         for d in fig.directional],
-        "distances": [{"pose_a": d.pose_a, "pose_b": d.pose_b, "n": d.n, "commanded_mm": d.commanded * 1e3,
+        "distances": [{"pose_a": json_label(d.pose_a), "pose_b": json_label(d.pose_b),
+                       **({} if d.approach is None else {"approach": json_label(d.approach)}),
+                       "n": d.n, "commanded_mm": d.commanded * 1e3,
                        "mean_mm": d.mean * 1e3, "ad_mm": d.ad * 1e3,
                        **{f"ad_{a}_mm": float(v * 1e3) for a, v in zip("xyz", d.ad_xyz)}, "rd_mm": d.rd * 1e3}
                       for d in fig.distances],
+        "stabilisation": [{"pose_id": json_label(s.pose_id),
+                           **({} if s.approach is None else {"approach": json_label(s.approach)}),
+                           "visits": s.n, "band_mm": s.band * 1e3, "time_mean_s": s.time_mean,
+                           "time_max_s": s.time_max, "overshoot_mean_mm": _mm(s.overshoot_mean),
+                           "overshoot_max_mm": _mm(s.overshoot_max), "never_entered": s.never_entered}
+                          for s in fig.stabilisation],
         "notes": list(fig.notes),
     }
 
 
-def format_evaluation(robot, args, result, after=None) -> str:
-    """The printed figures: the per-pose table, the summary, and what could not be computed."""
-    lines = [f"{robot.name}: ISO 9283 pose test {args.measurements} ({result.n_readings} readings, "
-             f"{len(result.pose_q)} poses)", f"  measurement frame {result.how}"]
+def format_evaluation(robot, args, result, after=None, block=None) -> str:
+    """The printed figures: the per-pose table, the summary, and what could not be computed (of one
+    test condition when ``block`` is given)."""
+    visits = "" if result.n_visits == result.n_readings else f" in {result.n_visits} visits"
+    condition = "" if block is None else f", {block.words()}"
+    lines = [f"{robot.name}: ISO 9283 pose test {args.measurements}{condition} ({result.n_readings} "
+             f"readings{visits}, {len(result.pose_q)} poses)", f"  measurement frame {result.how}"]
     lines += _figures_lines(result)
     if after is not None:
         lines += [f"after compensation with {args.model} (predicted: the model's displacement removed from "
@@ -264,19 +365,27 @@ def format_evaluation(robot, args, result, after=None) -> str:
     return "\n".join(lines)
 
 
+#: Distance pairs printed at most (all are in --json); the standard's P2-P4 pairs first.
+PRINTED_DISTANCES = 10
+
+
 def _figures_lines(result, table_only: bool = False) -> list:
     import numpy as np
+
+    from ..iso9283.formulas import pose_name
 
     fig = result.figures
     angles = any(f.ap_abc is not None for f in fig.poses)
     labelled = any(f.approach is not None for f in fig.poses)
-    head = f"  {'pose':<5}" + (f"{'appr':>5}" if labelled else "") + f"{'n':>4}" + \
+    width = max([5] + [len(pose_name(f.pose_id)) + 1 for f in fig.poses])
+    appr = max([5] + [len(str(f.approach)) + 1 for f in fig.poses if f.approach is not None])
+    head = f"  {'pose':<{width}}" + (f"{'appr':>{appr}}" if labelled else "") + f"{'n':>4}" + \
         "".join(f"{h:>10}" for h in ("AP_P", "AP_x", "AP_y", "AP_z", "RP_l")) + "  [mm]"
     if angles:
         head += "".join(f"{h:>9}" for h in ("AP_a", "AP_b", "AP_c", "RP_a", "RP_b", "RP_c")) + "  [deg]"
     lines = [head]
     for f in fig.poses:
-        row = f"  P{f.pose_id:<4}" + (f"{f.approach:>5}" if labelled else "") + f"{f.n:>4}" + \
+        row = f"  {pose_name(f.pose_id):<{width}}" + (f"{f.approach:>{appr}}" if labelled else "") + f"{f.n:>4}" + \
             "".join(f"{v * 1e3:10.4f}" for v in (f.ap, *f.ap_xyz)) + \
             (f"{f.rp * 1e3:10.4f}" if f.rp is not None else f"{'-':>10}")
         if f.ap_abc is not None:
@@ -287,11 +396,37 @@ def _figures_lines(result, table_only: bool = False) -> list:
     lines.append(f"  largest AP_P {max(f.ap for f in fig.poses) * 1e3:.4f} mm, largest RP_l "
                  + (f"{max(rps) * 1e3:.4f} mm" if rps else "- (no pose with 3 readings)"))
     for d in fig.directional:
-        lines.append(f"  vAP P{d.pose_id} over approaches {', '.join(map(str, d.approaches))}: {d.vap * 1e3:.4f} mm")
+        lines.append(f"  vAP {pose_name(d.pose_id)} over approaches {', '.join(map(str, d.approaches))}: "
+                     f"{d.vap * 1e3:.4f} mm")
     if fig.distances and not table_only:
-        lines.append(f"  distance {'poses':<8}{'n':>4}{'D_c':>11}{'AD_P':>10}{'RD':>10}  [mm]")
-        for d in fig.distances:
-            lines.append(f"           P{d.pose_a}-P{d.pose_b}   {d.n:>4}{d.commanded * 1e3:11.3f}{d.ad * 1e3:10.4f}"
-                         f"{d.rd * 1e3:10.4f}")
+        lines += _distance_lines(fig.distances)
+    if fig.stabilisation and not table_only:
+        lines.append(f"  stabilisation {'pose':<{width}}{'visits':>7}{'band':>9}{'t_mean':>9}{'t_max':>9}"
+                     f"{'OV_mean':>9}{'OV_max':>9}  [mm, s]")
+        for s in fig.stabilisation:
+            cells = [s.band * 1e3, s.time_mean, s.time_max, _mm(s.overshoot_mean), _mm(s.overshoot_max)]
+            lines.append(f"                {pose_name(s.pose_id):<{width}}{s.n:>7}" +
+                         "".join(f"{'-':>9}" if v is None else f"{v:9.4f}" for v in cells) +
+                         (f"  ({s.never_entered} never within the band)" if s.never_entered else ""))
     lines += [f"  note: {n}" for n in fig.notes]
+    return lines
+
+
+def _distance_lines(distances) -> list:
+    """The AD/RD table: the standard's pairs (P2-P4 of a cube) first, at most PRINTED_DISTANCES rows."""
+    from ..iso9283.formulas import pose_name
+
+    def standard(d):
+        a, b = pose_name(d.pose_a), pose_name(d.pose_b)
+        return a.endswith("P2") and b.endswith("P4") and a[:-2] == b[:-2]
+
+    shown = sorted(distances, key=lambda d: not standard(d))[:PRINTED_DISTANCES]
+    width = max(len(f"{pose_name(d.pose_a)}-{pose_name(d.pose_b)}") for d in shown) + 2
+    lines = [f"  distance {'poses':<{width}}{'n':>4}{'D_c':>11}{'AD_P':>10}{'RD':>10}  [mm]"]
+    for d in shown:
+        pair = f"{pose_name(d.pose_a)}-{pose_name(d.pose_b)}"
+        lines.append(f"           {pair:<{width}}{d.n:>4}{d.commanded * 1e3:11.3f}{d.ad * 1e3:10.4f}"
+                     f"{d.rd * 1e3:10.4f}")
+    if len(distances) > len(shown):
+        lines.append(f"           ... {len(distances) - len(shown)} more pairs in --json")
     return lines

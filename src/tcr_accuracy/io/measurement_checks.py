@@ -63,6 +63,16 @@ def check_duplicates(mset, values, header, source, context_columns):
         )
 
 
+#: Below this RMS spread of the nominal points [m] the unit check cannot tell a unit (and is not made).
+MIN_UNIT_SPREAD = 1e-3
+
+
+def rms_spread(points) -> float:
+    """RMS distance [m] of points (N, 3) [m] from their centre."""
+    points = np.asarray(points, dtype=float)
+    return float(np.sqrt(np.mean(np.sum((points - points.mean(axis=0)) ** 2, axis=1))))
+
+
 def check_position_units(mset, robot, columns, source):
     """Compare the spread of the measured TCP with the nominal model's spread.
 
@@ -73,22 +83,39 @@ def check_position_units(mset, robot, columns, source):
 
     if len(mset) < 3:
         return
-    nominal = tcp_poses(robot, mset.q).position
-    model_spread = float(np.sqrt(np.mean(np.sum((nominal - nominal.mean(axis=0)) ** 2, axis=1))))
-    measured_spread = float(np.sqrt(np.mean(np.sum((mset.position - mset.position.mean(axis=0)) ** 2, axis=1))))
-    if model_spread < 1e-3:  # all poses (nearly) the same: nothing to compare
+    joint_units = ", ".join(col or f"{name} (its <mimic> rule)" for name, col, _ in columns["joints"])
+    check_spread_units(mset.position, tcp_poses(robot, mset.q).position, columns["position"], source,
+                       f"check the position units and the joint columns' units ({joint_units})")
+
+
+def check_spread_units(measured, nominal, position_columns, source, other_hint):
+    """InputError when measured points (N, 3) [m, as read] spread over more than twice or less than
+    half what the nominal points (M, 3) [m] they stand for spread (RMS about their centre): a file in
+    metres labelled mm or the reverse (the hint names the other unit), else ``other_hint``.
+
+    Parameters
+    ----------
+    measured : array-like of shape (N, 3)
+    nominal : array-like of shape (M, 3)
+    position_columns : tuple of (list of str, str)
+        The position columns and their unit, as the file names them.
+    source : str
+    other_hint : str
+        What to check when the ratio is not a unit's factor.
+    """
+    model_spread, measured_spread = rms_spread(nominal), rms_spread(measured)
+    if model_spread < MIN_UNIT_SPREAD:  # all poses (nearly) the same: nothing to compare
         return
     ratio = measured_spread / model_spread
     if 0.5 <= ratio <= 2.0:
         return
-    cols, unit = columns["position"]
+    cols, unit = position_columns
     other = "m" if unit == "mm" else "mm"
     if 0.3e-3 <= ratio <= 3e-3 or 0.3e3 <= ratio <= 3e3:
         hint = (f"the values look like {other}: name the columns "
                 f"{', '.join(f'{a}_{other}' for a in 'xyz')}")
     else:
-        joint_units = ", ".join(col or f"{name} (its <mimic> rule)" for name, col, _ in columns["joints"])
-        hint = f"check the position units and the joint columns' units ({joint_units})"
+        hint = other_hint
     raise InputError(
         f"{source}: columns {', '.join(cols)}: the measured points spread over "
         f"{measured_spread * 1e3:.4g} mm (RMS about their centre) while the model's TCP at the same "

@@ -18,7 +18,11 @@ column                      meaning
                             axis of the tracker's drift seen by base references
 ``pose_id``, ``cycle``,     optional labels of a pose test (``tcr-accuracy iso9283 plan``
 ``approach``,               writes them): which commanded pose, which cycle, which
-``target_x_mm`` ...         approach direction, the commanded TCP in the base frame [mm];
+``load_pct``,               approach direction (names or numbers: ``P1``, ``S01.P1``, ``+x``),
+``speed_pct``,              the test condition (% of the rated load and speed), the
+``target_x_mm`` ...         commanded TCP in the base frame [mm]; of a commanded path
+``path``, ``speed_mm_s``,   (``iso9283 plan --path``): which path, its speed [mm/s] and the
+``s_mm``                    arc length of the point [mm];
                             carried through (:attr:`MeasurementSet.annotations`), ignored
                             by every analysis but ``iso9283 evaluate``
 ==========================  ===============================================================
@@ -71,8 +75,56 @@ def _check_range(source, rows, column: str, values_si, bound: float, si_unit: st
         r = bad[0]
         raise InputError(f"{source}: row {rows[r]}, column {column}: {values_si[r] * to_shown:g} {shown_unit} is "
                          f"beyond the {bound * to_shown:g} {shown_unit} a measurement may have")
-#: Labels a pose test adds to a row (ISO 9283, ``iso9283 plan``): accepted, carried, not used by a fit.
-ANNOTATION_COLUMNS = ("pose_id", "cycle", "approach", "target_x_mm", "target_y_mm", "target_z_mm")
+#: Labels a pose or path test adds to a row (ISO 9283, ``iso9283 plan``): accepted, carried, not used by a fit.
+ANNOTATION_COLUMNS = ("pose_id", "cycle", "approach", "load_pct", "speed_pct", "target_x_mm", "target_y_mm",
+                      "target_z_mm", "path", "speed_mm_s", "s_mm")
+#: The annotations that are names, not numbers (``P1``, ``S01.P1``, ``+x``, ``line``): kept as text.
+TEXT_ANNOTATIONS = ("pose_id", "cycle", "approach", "path")
+#: A label written as a whole number within this magnitude is that integer's digits ("1.0" -> "1").
+_EXACT_INTEGER = 2.0 ** 53
+
+
+def number_cell(cell: str, source: str, row: int, column: str) -> float:
+    """A CSV cell (stripped) as a finite number, or InputError naming the file, row and column.
+    Strict: ``1_5`` and full-width digits are no numbers."""
+    try:
+        value = parse_number(cell, finite=False)
+    except ValueError:
+        what = "an empty cell" if not cell else f"{cell!r} is not a number"
+        raise InputError(f"{source}: row {row}, column {column}: {what}") from None
+    if not math.isfinite(value):
+        raise InputError(f"{source}: row {row}, column {column}: non-finite value {cell!r}")
+    return value
+
+
+def label_cell(cell: str, source: str, row: int, column: str, what: str = "label", canonical: bool = True) -> str:
+    """A CSV cell (stripped) as a label: printable ASCII, not empty (else InputError naming the file, row
+    and column), a whole number written as its digits when ``canonical`` (:func:`canonical_label`)."""
+    if not cell or not cell.isprintable() or not cell.isascii():
+        raise InputError(f"{source}: row {row}, column {column}: a {what} must be printable ASCII, got {cell!r}")
+    return canonical_label(cell) if canonical else cell
+
+
+def canonical_label(cell: str) -> str:
+    """A label cell as a name: a whole number is written as its digits (``1.0``, ``+1`` and ``1``
+    name one pose), any other text is kept as written.
+
+    Parameters
+    ----------
+    cell : str
+        The cell, stripped.
+
+    Returns
+    -------
+    str
+    """
+    try:
+        value = parse_number(cell)
+    except ValueError:
+        return cell
+    if value == int(value) and abs(value) < _EXACT_INTEGER:
+        return str(int(value))
+    return cell
 
 
 # ---------------------------------------------------------------------------------------
@@ -104,8 +156,10 @@ class MeasurementSet:
         (``robot.outside_joint_names``: another arm, a head), for the gravity torques;
         None when the file has none of their columns and no mimic rule sets them.
     annotations : dict of str to ndarray of shape (N,), or None
-        The file's :data:`ANNOTATION_COLUMNS` by column name, values as written (the
-        name carries the unit: ``target_x_mm``); None when it has none.
+        The file's :data:`ANNOTATION_COLUMNS` by column name: the :data:`TEXT_ANNOTATIONS`
+        as names (object arrays of str, a whole number as its digits: see
+        :func:`canonical_label`), the others as numbers (the name carries the unit:
+        ``target_x_mm``); None when it has none.
     source : str
         Where the rows came from (file path or a label).
     rows : ndarray of shape (N,)
@@ -338,8 +392,9 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
     n_cols = len(header)
     values = np.empty((len(lines) - 1, n_cols))
     rows = np.empty(len(lines) - 1, dtype=int)
-    label_columns = {c: name for c, name in enumerate(header) if name in LABEL_COLUMNS}
+    label_columns = {c: name for c, name in enumerate(header) if name in LABEL_COLUMNS + TEXT_ANNOTATIONS}
     labels = {name: [] for name in label_columns.values()}
+    codes = {name: {} for name in label_columns.values()}
     for k, (line_no, line) in enumerate(lines[1:]):
         cells = next(csv.reader(io.StringIO(line)))
         if len(cells) != n_cols:
@@ -347,20 +402,16 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
         for c, cell in enumerate(cells):
             cell = cell.strip()
             if c in label_columns:
-                if not cell or not cell.isprintable() or not cell.isascii():
-                    raise InputError(f"{source}: row {line_no}, column {shown[c]}: a session label must be "
-                                     f"printable ASCII, got {cell!r}")
-                labels[label_columns[c]].append(cell)
-                values[k, c] = 0.0
+                name = label_columns[c]
+                if name in LABEL_COLUMNS:
+                    labels[name].append(label_cell(cell, source, line_no, shown[c], "session label", canonical=False))
+                    values[k, c] = 0.0
+                    continue
+                labels[name].append(label_cell(cell, source, line_no, shown[c]))
+                # a text annotation's number: its label's index, so that rows differing only in it differ
+                values[k, c] = float(codes[name].setdefault(labels[name][-1], len(codes[name])))
                 continue
-            try:
-                value = parse_number(cell, finite=False)  # strict: 1_5 and full-width digits are no numbers
-            except ValueError:
-                what = "an empty cell" if not cell else f"{cell!r} is not a number"
-                raise InputError(f"{source}: row {line_no}, column {shown[c]}: {what}") from None
-            if not math.isfinite(value):
-                raise InputError(f"{source}: row {line_no}, column {shown[c]}: non-finite value {cell!r}")
-            values[k, c] = value
+            values[k, c] = number_cell(cell, source, line_no, shown[c])
         rows[k] = line_no
     if len(rows) < min_rows:
         raise InputError(f"{source}: {len(rows)} measurement rows, at least {min_rows} are needed")
@@ -446,7 +497,8 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
     if time_s is not None:
         _check_range(source, rows, "time_s", time_s, MAX_TIME_S, "s", 1.0, "s")
     session = np.array(labels["session"], dtype=object) if "session" in labels else None
-    annotations = {name: column(name) for name in ANNOTATION_COLUMNS if name in header} or None
+    annotations = {name: np.array(labels[name], dtype=object) if name in TEXT_ANNOTATIONS else column(name)
+                   for name in ANNOTATION_COLUMNS if name in header} or None
     mset = MeasurementSet(
         joint_names=list(robot.joint_names), q=q,
         position=position if position is not None else np.full((len(rows), 3), np.nan),
@@ -572,10 +624,13 @@ def format_measurements(robot: RobotModel, mset: MeasurementSet, unit: str = "mm
         used = [j for j in range(robot.n_joints) if np.any(mset.direction[:, j] != 0)]
         blocks.append(mset.direction[:, used])
     labels = _annotation_columns(mset)
-    table = np.concatenate(blocks + [np.stack([mset.annotations[c] for c in labels], axis=1)] if labels else blocks,
-                           axis=1)
+    numbers = [c for c in labels if c not in TEXT_ANNOTATIONS]
+    table = np.concatenate(blocks + [np.stack([np.asarray(mset.annotations[c], dtype=float) for c in numbers], axis=1)]
+                           if numbers else blocks, axis=1)
     if not np.all(np.isfinite(table)):
         raise InputError("measurement set has non-finite values; nothing written")
+    names = [[_label_cell(mset.annotations[c][k]) if c in TEXT_ANNOTATIONS else None for c in labels]
+             for k in range(len(table))]
     out = io.StringIO()
     if comment:
         for line in comment.splitlines():
@@ -583,12 +638,19 @@ def format_measurements(robot: RobotModel, mset: MeasurementSet, unit: str = "mm
     out.write(",".join(cols) + "\n")
     n_values = len(cols) - len(labels) - sum(c.endswith("_dir") for c in cols)
     n_dirs = len(cols) - len(labels)
-    for row in table:
+    for row, text in zip(table, names):
         cells = [format(v, ".12g") for v in row[:n_values]]
         cells += [f"{int(v):+d}" for v in row[n_values:n_dirs]]
-        cells += [format(v, ".12g") for v in row[n_dirs:]]
+        given = iter(format(v, ".12g") for v in row[n_dirs:])
+        cells += [next(given) if name is None else name for name in text]
         out.write(",".join(cells) + "\n")
     return out.getvalue()
+
+
+def _label_cell(value) -> str:
+    """A text annotation as a CSV cell (quoted when it holds a comma or a quote)."""
+    text = str(value)
+    return f'"{text.replace(chr(34), chr(34) * 2)}"' if ("," in text or '"' in text) else text
 
 
 def write_measurements(path: str | Path, robot: RobotModel, mset: MeasurementSet, unit: str = "mm",

@@ -534,7 +534,7 @@ def add_iso_tables(report, source: str, iso) -> None:
             continue
         report.add_table(f"ISO 9283 pose figures, {label} ({source})", ["pose", "n", "AP_P", "AP_x", "AP_y", "AP_z",
                                                                         "RP_l"],
-                         [(f"P{p['pose_id']}", p["n"], p["ap_mm"], p["ap_x_mm"], p["ap_y_mm"], p["ap_z_mm"],
+                         [(p.get("pose") or f"P{p['pose_id']}", p["n"], p["ap_mm"], p["ap_x_mm"], p["ap_y_mm"], p["ap_z_mm"],
                            "-" if p["rp_mm"] is None else p["rp_mm"]) for p in figures["poses"]],
                          units=["", "", "mm", "mm", "mm", "mm", "mm"], note=f"measurement frame: {iso.get('frame_fit', '')}")
 

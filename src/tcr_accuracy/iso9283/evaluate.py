@@ -3,7 +3,7 @@
 A pose test's CSV (``tcr-accuracy iso9283 plan`` writes its joints) holds, per reading, the
 commanded joints, a ``pose_id`` (and optionally ``cycle``, ``approach`` and the commanded TCP
 ``target_x_mm`` ...) and the position the instrument measured in its own frame. Before the
-standard's formulas (:mod:`tcr_accuracy.analysis.iso9283`) apply, the readings must be in the
+standard's formulas (:mod:`tcr_accuracy.iso9283.formulas`) apply, the readings must be in the
 robot's base frame:
 
 - ``frame="fit"`` (default): the barycentre of each pose is matched to the robot's nominal TCP
@@ -21,6 +21,14 @@ robot's base frame:
   frame (``iso9283 evaluate --frame-from CAL.csv``: a calibration set of the same session), so
   that the test's own poses are not used to place the frame and AP keeps all it measures.
 
+Pose ids, cycles and approach directions are labels (``P1``, ``S01.P1``, ``+x``; whole numbers
+name the same pose however written). A visit is one reading, or, where the readings carry
+``time_s`` and a ``cycle`` column and a (pose, approach, cycle) was read several times, the
+stream of readings of that visit: its last reading is the attained pose (every figure uses
+it) and the readings before it give the pose stabilisation time and overshoot
+(:func:`tcr_accuracy.iso9283.formulas.settling`), with the limit band ``band`` or else the
+pose's RP.
+
 :func:`diagnosis_model` reads a ``diagnose --json`` result and :func:`compensated_readings`
 removes what that model predicts at each reading's joints and context, which is what a
 compensation with it would leave to first order (positions only; the session's tracker frame
@@ -35,9 +43,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..analysis.iso9283 import IsoFigures, check_repeats, iso_figures
+from .formulas import IsoFigures, as_labels, check_repeats, iso_figures, ordered, stabilisation_figures
 from ..effects import make_effect, predict_positions
 from ..exceptions import InputError
+from ..io.measurement_checks import MIN_UNIT_SPREAD, rms_spread
 from ..io.measurements import MeasurementSet
 from ..model.kinematics import tcp_poses
 from ..model.robot import RobotModel
@@ -69,8 +78,11 @@ class IsoEvaluation:
     orientation_offset : ndarray of shape (3, 3) or None
         Fitted rotation of the measured frame relative to the TCP frame.
     n_readings : int
-    pose_q : dict of int to ndarray of shape (n_joints,)
-        Commanded joints [rad, m] of each pose.
+        Readings in the file.
+    pose_q : dict of str to ndarray of shape (n_joints,)
+        Commanded joints [rad, m] of each pose, by label.
+    n_visits : int
+        Visits (one reading each, or one stream each: the attained readings the figures use).
     """
 
     figures: IsoFigures
@@ -80,11 +92,12 @@ class IsoEvaluation:
     orientation_offset: np.ndarray | None
     n_readings: int
     pose_q: dict
+    n_visits: int = 0
 
 
 @dataclass(frozen=True)
 class PoseLabels:
-    """``pose_id``, ``cycle`` (or None) and ``approach`` (or None), (N,) integer arrays;
+    """``pose_id``, ``cycle`` (or None) and ``approach`` (or None), (N,) object arrays of str labels;
     ``grouped``: the pose ids were read off the joint values (no ``pose_id`` column)."""
 
     pose_id: np.ndarray
@@ -113,7 +126,7 @@ def group_by_joints(q: np.ndarray, tol: float = POSE_GROUP_TOL) -> np.ndarray:
 
 def pose_labels(mset: MeasurementSet) -> PoseLabels:
     """The pose test's labels of each reading, checked (InputError naming file, row, column)."""
-    labels = mset.annotations or {}
+    labels = dict(mset.annotations or {})
     grouped = "pose_id" not in labels
     if grouped:
         pose_id = group_by_joints(mset.q)
@@ -121,28 +134,21 @@ def pose_labels(mset: MeasurementSet) -> PoseLabels:
             raise InputError(f"{mset.source}: no pose_id column, and no two readings at the same joint values "
                              f"(within {POSE_GROUP_TOL:g} rad or m): a pose test measures each pose several times "
                              "(tcr-accuracy iso9283 plan writes the poses with their pose_id)")
-        labels = {**labels, "pose_id": pose_id.astype(float)}
+        labels["pose_id"] = pose_id
 
-    def integers(name):
-        if name not in labels:
-            return None
-        values = labels[name]
-        bad = np.flatnonzero(values != np.round(values))
-        if len(bad):
-            raise InputError(f"{mset.source}: row {mset.rows[bad[0]]}, column {name}: {values[bad[0]]:g} is not "
-                             "an integer")
-        return values.astype(int)
+    def named(name):
+        return None if name not in labels else as_labels(labels[name])
 
-    out = PoseLabels(integers("pose_id"), integers("cycle"), integers("approach"), grouped)
+    out = PoseLabels(named("pose_id"), named("cycle"), named("approach"), grouped)
     check_repeats(out.pose_id, mset.rows, mset.source)
     return out
 
 
 def pose_joints(mset: MeasurementSet, pose_id: np.ndarray) -> dict:
-    """pose id -> its commanded joints (n_joints,): the mean of its readings' joint values, which
+    """pose label -> its commanded joints (n_joints,): the mean of its readings' joint values, which
     may scatter by up to POSE_GROUP_TOL (encoder readings); InputError when they differ more."""
     out = {}
-    for pid in np.unique(pose_id):
+    for pid in ordered(pose_id):
         rows = np.flatnonzero(pose_id == pid)
         q = mset.q[rows]
         far = np.abs(q - q[0]).max(axis=1) > POSE_GROUP_TOL
@@ -152,12 +158,49 @@ def pose_joints(mset: MeasurementSet, pose_id: np.ndarray) -> dict:
             raise InputError(f"{mset.source}: row {mset.rows[r]}, column {mset.joint_names[j]}: pose {pid} is "
                              f"commanded with other joint values than in row {mset.rows[rows[0]]}; one pose_id "
                              "is one commanded pose")
-        out[int(pid)] = q.mean(axis=0)
+        out[pid] = q.mean(axis=0)
     return out
 
 
-def evaluate_measurements(robot: RobotModel, mset: MeasurementSet, *, frame: str = "fit",
-                          registration: Registration | None = None, registration_source: str = "") -> IsoEvaluation:
+@dataclass(frozen=True)
+class Visits:
+    """How the readings group into visits: ``attained`` (V,) row of each visit's attained reading,
+    ``streams`` a list of (V,) row arrays in time order (None: one reading per visit)."""
+
+    attained: np.ndarray
+    streams: list | None = None
+
+
+def visits_of(mset: MeasurementSet, labels: PoseLabels) -> Visits:
+    """One visit per reading, or, with ``time_s`` and ``cycle`` and a (pose, approach, cycle) read
+    several times, one per such group (InputError when a stream's times repeat)."""
+    n = len(mset)
+    if mset.time_s is None or labels.cycle is None:
+        return Visits(np.arange(n))
+    approach = labels.approach if labels.approach is not None else np.full(n, "", dtype=object)
+    keys = list(zip(labels.pose_id, approach, labels.cycle))
+    groups = {}
+    for r, key in enumerate(keys):
+        groups.setdefault(key, []).append(r)
+    if all(len(rows) == 1 for rows in groups.values()):
+        return Visits(np.arange(n))
+    streams = []
+    for rows in groups.values():
+        rows = np.array(rows)[np.argsort(mset.time_s[rows], kind="stable")]
+        same = np.flatnonzero(np.diff(mset.time_s[rows]) <= 0)
+        if len(same):
+            r = rows[same[0] + 1]
+            raise InputError(f"{mset.source}: row {mset.rows[r]}, column time_s: {mset.time_s[r]:g} s repeats a "
+                             f"time of the same visit (pose {labels.pose_id[r]}, cycle {labels.cycle[r]}); the "
+                             "readings of one visit are a stream in time")
+        streams.append(rows)
+    streams.sort(key=lambda rows: rows[-1])
+    return Visits(np.array([rows[-1] for rows in streams]), streams)
+
+
+def evaluate_pose_test(robot: RobotModel, mset: MeasurementSet, *, frame: str = "fit",
+                       registration: Registration | None = None, registration_source: str = "",
+                       band: float | None = None) -> IsoEvaluation:
     """Register the readings (see the module docstring) and compute every ISO 9283 figure.
 
     Parameters
@@ -165,24 +208,38 @@ def evaluate_measurements(robot: RobotModel, mset: MeasurementSet, *, frame: str
     robot : RobotModel
     mset : MeasurementSet
         With ``annotations["pose_id"]`` (and optionally ``cycle``, ``approach``,
-        ``target_x_mm`` ...).
+        ``target_x_mm`` ...; ``time_s`` for streamed visits).
     frame : {"fit", "base"}, default="fit"
-        Ignored when ``registration`` is given.
+        How the readings are brought into the base frame when no ``registration`` is given.
     registration : Registration, optional
-        The instrument frame (and TCP offset) fitted on other poses (:func:`register_from`).
+        The instrument frame (and TCP offset) fitted on other poses (:func:`register_from`);
+        not with ``frame="base"``.
     registration_source : str
         Where that registration came from, for the record.
+    band : float, optional
+        Radius of the limit band for stabilisation time and overshoot [m]; default each pose's RP.
+
+    Returns
+    -------
+    IsoEvaluation
     """
     if frame not in ("fit", "base"):
         raise InputError(f"frame {frame!r}: use 'fit' or 'base'")
+    if registration is not None and frame == "base":
+        raise InputError("frame 'base' and a registration from other poses: the readings are either in the base "
+                         "frame already or in the instrument's; give one")
+    if band is not None and not (np.isfinite(band) and band > 0):
+        raise InputError(f"band {band!r} m: want a positive limit band radius")
     if registration is not None:
         frame = "given"
     labels = pose_labels(mset)
+    visits = visits_of(mset, labels)
+    attained = visits.attained
     joints = pose_joints(mset, labels.pose_id)
-    ids = sorted(joints)
+    ids = list(joints)
     q_poses = np.array([joints[i] for i in ids])
     index = {pid: k for k, pid in enumerate(ids)}
-    row_pose = np.array([index[int(p)] for p in labels.pose_id])
+    row_pose = np.array([index[p] for p in labels.pose_id])
     nominal = tcp_poses(robot, q_poses)
     _check_targets(mset, labels.pose_id, nominal.position, index)
     if frame == "given":
@@ -192,42 +249,136 @@ def evaluate_measurements(robot: RobotModel, mset: MeasurementSet, *, frame: str
                f"{registration.n_points} poses (Kabsch, then least squares with the TCP offset; fit residual RMS "
                f"{registration.residual_rms * 1e3:.4f} mm)")
     elif frame == "fit":
-        barycentres = np.array([mset.position[row_pose == k].mean(axis=0) for k in range(len(ids))])
         if len(ids) < 3:
             raise InputError(f"{mset.source}: {len(ids)} poses; fitting the measurement frame needs at least 3 "
-                             "(give --frame base when the readings are already in the robot's base frame)")
+                             "(or readings already in the robot's base frame, evaluated with frame 'base')")
+        barycentres = np.array([mset.position[attained][row_pose[attained] == k].mean(axis=0)
+                                for k in range(len(ids))])
         registration = register_tracker(robot, q_poses, barycentres)
         commanded = registration.tcp_positions(robot, q_poses)
         positions = registration.to_base(mset.position)
-        tool = [n.rpartition(".")[2] for n in registration.fitted if n.startswith("frames.tool.")]
-        if len(tool) == 3:
-            offset = "with the measured point's offset from the TCP frame fitted"
-        elif tool:
-            offset = (f"with the measured point's offset from the TCP frame fitted along {', '.join(tool)} "
-                      "(the rest is not identifiable from these poses, held at 0)")
-        else:
-            offset = ("the measured point's offset from the TCP frame is not identifiable from these poses (one "
-                      "orientation: it moves the frame) and held at 0")
-        how = (f"fitted: Kabsch on the barycentres of the {len(ids)} poses against the nominal TCP, refined by "
-               f"least squares; {offset}; fit residual RMS {registration.residual_rms * 1e3:.4f} mm")
+        how = f"fitted: {_fit_words(registration, len(ids))}"
     else:
         commanded, positions = nominal.position, mset.position
         how = "not fitted: the readings are taken as base-frame TCP positions (frame base)"
     deviations = offset = None
     if mset.quaternion is not None:
-        deviations, offset = _orientation_deviations(mset.quaternion, nominal.rotation[row_pose], registration)
-    figures = iso_figures(labels.pose_id, positions, commanded[row_pose], deviations=deviations,
-                          cycle=labels.cycle, approach=labels.approach)
+        deviations, offset = _orientation_deviations(mset.quaternion[attained], nominal.rotation[row_pose[attained]],
+                                                     registration)
+
+    def pick(values):
+        return None if values is None else values[attained]
+
+    figures = iso_figures(labels.pose_id[attained], positions[attained], commanded[row_pose[attained]],
+                          deviations=deviations, cycle=pick(labels.cycle), approach=pick(labels.approach))
+    if visits.streams is not None:
+        figures.stabilisation.extend(_stabilisation(mset, labels, visits, positions, figures, band))
+        figures.notes.insert(0, f"{len(mset)} time-stamped readings in {len(attained)} visits (pose, cycle): the "
+                                "last reading of each is its attained pose; the readings before it give the "
+                                "stabilisation time and overshoot (band: "
+                                + ("the pose's RP" if band is None else f"{band * 1e3:g} mm") + ")")
     if labels.grouped:
         figures.notes.insert(0, f"no pose_id column: the readings grouped by their joint values (within "
                                 f"{POSE_GROUP_TOL:g} rad or m) into {len(ids)} poses, numbered in order of first "
                                 "visit")
+    if rms_spread(nominal.position[row_pose]) < MIN_UNIT_SPREAD:
+        figures.notes.append(f"the poses lie within {rms_spread(nominal.position[row_pose]) * 1e3:.3g} mm (RMS) of "
+                             f"one another: too close for the measurement reader's unit check (it needs "
+                             f"{MIN_UNIT_SPREAD * 1e3:g} mm), which did not run; make sure the position columns' "
+                             "unit is the file's")
     spread = max(float(np.abs(mset.q[row_pose == k] - q_poses[k]).max()) for k in range(len(ids)))
     if spread > SAME_POSE_TOL:
         figures.notes.append(f"the joint values of one pose scatter by up to {spread:.2g} rad or m (encoder "
                              "readings?): each pose's commanded joints taken as their mean")
     return IsoEvaluation(figures=figures, frame=frame, registration=registration, how=how,
-                         orientation_offset=offset, n_readings=len(mset), pose_q=joints)
+                         orientation_offset=offset, n_readings=len(mset), pose_q=joints, n_visits=len(attained))
+
+
+def _fit_words(registration: Registration, n_poses: int) -> str:
+    tool = [n.rpartition(".")[2] for n in registration.fitted if n.startswith("frames.tool.")]
+    if len(tool) == 3:
+        offset = "with the measured point's offset from the TCP frame fitted"
+    elif tool:
+        offset = (f"with the measured point's offset from the TCP frame fitted along {', '.join(tool)} "
+                  "(the rest is not identifiable from these poses, held at 0)")
+    else:
+        offset = ("the measured point's offset from the TCP frame is not identifiable from these poses (one "
+                  "orientation: it moves the frame) and held at 0")
+    return (f"Kabsch on the barycentres of the {n_poses} poses against the nominal TCP, refined by least squares; "
+            f"{offset}; fit residual RMS {registration.residual_rms * 1e3:.4f} mm")
+
+
+def _stabilisation(mset, labels, visits, positions, figures, band) -> list:
+    """Stabilisation time and overshoot of each (pose, approach) from its streamed visits (band: the
+    given radius, else the pose's RP; poses without RP are left out and said)."""
+    rp = {(f.pose_id, f.approach): f.rp for f in figures.poses}
+    chosen, said = [], []
+    for rows in visits.streams:
+        r = rows[-1]
+        key = (labels.pose_id[r], None if labels.approach is None else labels.approach[r])
+        radius = band if band is not None else rp.get(key)
+        if radius is None or radius <= 0:
+            said.append(key)
+            continue
+        chosen.append((key, radius, (mset.time_s[rows], positions[rows])))
+    if said:
+        figures.notes.append(f"no stabilisation time for {len(set(said))} pose(s) without RP to take as the limit "
+                             "band (give one)")
+    return stabilisation_figures([k[0] for k, _, _ in chosen], [k[1] for k, _, _ in chosen],
+                                 [v for _, _, v in chosen], {k: radius for k, radius, _ in chosen})
+
+
+@dataclass(frozen=True)
+class ConditionBlock:
+    """The readings of one test condition: ``load_pct``, ``speed_pct`` (None when the file has no such
+    column) and ``rows`` (indices into the measurement set)."""
+
+    load_pct: float | None
+    speed_pct: float | None
+    rows: np.ndarray
+
+    def words(self) -> str:
+        parts = ([] if self.load_pct is None else [f"{self.load_pct:g} % rated load"]) + \
+                ([] if self.speed_pct is None else [f"{self.speed_pct:g} % rated speed"])
+        return ", ".join(parts) or "one condition"
+
+
+def condition_blocks(mset: MeasurementSet) -> list:
+    """The test conditions of a pose test (``load_pct``, ``speed_pct`` columns), the reference one
+    (100 % load and speed, else the first in the file) first, then in file order; one block of
+    every row without those columns."""
+    labels = mset.annotations or {}
+    load, speed = labels.get("load_pct"), labels.get("speed_pct")
+    if load is None and speed is None:
+        return [ConditionBlock(None, None, np.arange(len(mset)))]
+    keys = list(zip(*(np.asarray(v, dtype=float).tolist() if v is not None else [None] * len(mset)
+                      for v in (load, speed))))
+    order = list(dict.fromkeys(keys))
+    order.sort(key=lambda k: k != (100.0, 100.0) and k != (100.0, None) and k != (None, 100.0))
+    return [ConditionBlock(k[0], k[1], np.array([i for i, key in enumerate(keys) if key == k])) for k in order]
+
+
+def evaluate_conditions(robot: RobotModel, mset: MeasurementSet, *, frame: str = "fit",
+                        registration: Registration | None = None, registration_source: str = "",
+                        band: float | None = None) -> list:
+    """:func:`evaluate_pose_test` per test condition: the measurement frame fitted on the reference
+    condition (``frame="fit"``) is used for the others, so that what changes with load and speed
+    shows in their AP.
+
+    Returns
+    -------
+    list of (ConditionBlock, IsoEvaluation)
+    """
+    out = []
+    for block in condition_blocks(mset):
+        part = mset.subset(block.rows)
+        result = evaluate_pose_test(robot, part, frame=frame, registration=registration,
+                                    registration_source=registration_source, band=band)
+        out.append((block, result))
+        if frame == "fit" and registration is None:
+            registration = result.registration
+            registration_source = f"the {block.words()} block of this test"
+    return out
 
 
 def register_from(robot: RobotModel, other: MeasurementSet) -> Registration:
@@ -241,7 +392,7 @@ def _check_targets(mset, pose_id, nominal_positions, index) -> None:
     if not all(n in labels for n in names):
         return
     target = np.stack([labels[n] for n in names], axis=1) * 1e-3
-    expected = nominal_positions[[index[int(p)] for p in pose_id]]
+    expected = nominal_positions[[index[p] for p in pose_id]]
     gap = np.linalg.norm(target - expected, axis=1)
     if gap.max() > TARGET_TOL:
         r = int(np.argmax(gap))
@@ -303,5 +454,5 @@ def compensated_readings(robot: RobotModel, mset: MeasurementSet, registration: 
     return replace(mset, position=mset.position - shift, quaternion=None)
 
 
-__all__ = ["IsoEvaluation", "PoseLabels", "compensated_readings", "diagnosis_model", "evaluate_measurements",
-           "pose_joints", "pose_labels", "register_from"]
+__all__ = ["ConditionBlock", "IsoEvaluation", "condition_blocks", "evaluate_conditions", "PoseLabels", "Visits", "compensated_readings", "diagnosis_model", "evaluate_pose_test",
+           "pose_joints", "pose_labels", "register_from", "visits_of"]
