@@ -12,8 +12,15 @@ class TcrError(Exception):
 class InputError(TcrError, ValueError):
     """Bad input from the user: a file, a row, a column or an argument at fault.
 
-    The message names what is wrong and, where it can, how to fix it.
+    The message names what is wrong and, where it can, how to fix it. ``parameter`` and
+    ``value``, where given, are the library parameter at fault and the value it had: the command
+    line words them as its flag (a library names no flag).
     """
+
+    def __init__(self, message: str = "", *, parameter: str | None = None, value=None):
+        super().__init__(message)
+        self.parameter = parameter
+        self.value = value
 
 
 class FixedFrameError(InputError):

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 from .common import (add_robot_arguments, as_built_file, check_csv_memory, effect_names, effects_side_file, integer,
-                     noise_mm_value, output_file, seed_value, status)
+                     noise_mm_value, number, output_file, seed_value, status)
 from .output import RunOutput, add_output_arguments
 from ..view.diagnosis_summary import answer_lines, format_summary, primary_effect_text as _primary_text, \
     strongest_links as _strongest, structure_verdict_text as _verdict_text
@@ -44,6 +44,16 @@ def add_parsers(sub) -> None:
     p.add_argument("--noise-mm", type=noise_mm_value, default=None,
                    help="the instrument's noise, std per axis [mm]; noise floor = sqrt(3) x this (default: "
                         "estimated from repeated poses, else from the final residual, and said which)")
+    p.add_argument("--instrument", default=None, metavar="NAME",
+                   help="the measuring instrument, by name (leica-at9xx, leica-at500, api-radian, leica-ts60): every "
+                        "point weighed by its own noise from the maker's MPE along and across the beam at its "
+                        "distance, and the noise floor from it where the data's redundancy gives none")
+    p.add_argument("--instrument-mpe", nargs=2, type=number(low=0, unit="um, um/m"), default=None,
+                   metavar=("A_UM", "B_UM_PER_M"),
+                   help="the instrument's MPE across the beam, A [um] + B [um/m] x distance (and along it unless "
+                        "--instrument-radial-mpe); positions in the instrument's own frame, it at the origin")
+    p.add_argument("--instrument-radial-mpe", nargs=2, type=number(low=0, unit="um, um/m"), default=None,
+                   metavar=("A_UM", "B_UM_PER_M"), help="the instrument's MPE along the beam, where it differs")
     p.add_argument("--as-built-urdf", default=None, type=as_built_file, metavar="FILE",
                    help="write the calibrated URDF to FILE and the other effects' parameters to "
                         "FILE with suffix .effects.yaml")
@@ -147,6 +157,7 @@ def _run_diagnose(args) -> int:
     try:
         result = diagnose(robot, data, effects=effects, folds=args.folds, random_state=args.seed,
                           tracker_noise=None if args.noise_mm is None else args.noise_mm * 1e-3,
+                          instrument=_instrument(args),
                           references=[(f, p, m.position, m.time_s) for f, p, m in references],
                           progress=bar.set_postfix_str)
     finally:
@@ -301,6 +312,22 @@ PLOT_CAPTIONS = {
     "semivariograms.png": "Per-joint semivariograms of the residual (along which joints it varies)",
     "cyclic_joints.png": "Cyclic joint errors: each joint's fitted error against its own angle, with its 95 % band",
 }
+
+
+def _instrument(args):
+    """The instrument --instrument or --instrument-mpe names (SI), or None."""
+    from ..exceptions import InputError
+    from ..frames.instrument import instrument_from
+
+    if args.instrument is not None and args.instrument_mpe is not None:
+        raise InputError("--instrument and --instrument-mpe: give one of them")
+    if args.instrument_radial_mpe is not None and args.instrument_mpe is None:
+        raise InputError("--instrument-radial-mpe: give --instrument-mpe too (the MPE across the beam)")
+
+    def si(pair):
+        return None if pair is None else (pair[0] * 1e-6, pair[1] * 1e-6)
+
+    return instrument_from(args.instrument, si(args.instrument_mpe), si(args.instrument_radial_mpe))
 
 
 def _report_tables(out, robot, d, source: str) -> None:

@@ -39,6 +39,7 @@ class Part:
     context : the rows' context for this chain (directions of its joints, the other joints)
     orientation_weight : [m/rad] weight of the orientation rows
     label : the frame's name
+    whitening : (N, 3, 3) or None, the instrument's per-point weights of the position rows
     """
 
     robot: RobotModel
@@ -48,6 +49,9 @@ class Part:
     label: str
     target_rotation: np.ndarray | None = None
     orientation_weight: float = 0.0
+    #: (N, 3, 3) each measured point's whitening in the base frame: Sigma^-1/2 of the instrument's
+    #: noise times a reference noise (so weighted rows stay metres), or None (every point alike)
+    whitening: np.ndarray | None = None
 
     @property
     def rows_per_pose(self) -> int:

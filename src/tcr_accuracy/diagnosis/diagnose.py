@@ -77,7 +77,7 @@ from .stages.select import select_effects
 def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, random_state=0,
              tracker_noise: float | None = None, selection_z: float = 3.0, min_relative_gain: float = 0.002,
              rank_tol: float = 1e-6, orientation_weight: float | None = None, progress=None,
-             references=()) -> Diagnosis:
+             references=(), instrument=None) -> Diagnosis:
     """Diagnose the gap between the nominal robot and its measurements.
 
     The function form of :class:`GapDiagnosis`: ``GapDiagnosis(robot=robot, ...).fit(measurements).result_``.
@@ -113,6 +113,9 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, r
         about their centre.
     progress : callable(str), default=None
         Called with a short message as the work advances (the CLI's progress bar).
+    instrument : Instrument, default=None
+        The measuring instrument's specification: per-point weights, and the noise floor where
+        the data's redundancy gives none (see :class:`GapDiagnosis`).
     references : list of (frame, position (3,) [m], measured (N, 3) [m], time_s (N,) or None), default=()
         Base references: frames fixed to the robot's base (their place in the base frame), measured on
         the same rows in the tracker frame: they pin the tracker frame and show its drift
@@ -134,7 +137,7 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, r
     """
     return GapDiagnosis(robot=robot, effects=effects, folds=folds, random_state=random_state,
                         tracker_noise=tracker_noise, selection_z=selection_z, min_relative_gain=min_relative_gain,
-                        rank_tol=rank_tol, orientation_weight=orientation_weight).fit(
+                        rank_tol=rank_tol, orientation_weight=orientation_weight, instrument=instrument).fit(
         measurements, progress=progress, references=references).result_
 
 
@@ -187,6 +190,11 @@ class GapDiagnosis(BaseEstimator):
         test is over all of them, so that the answer does not hang on one split of the rows.
         None: 5 up to 2,000 measurements, fewer above (one from 10,000), where one split
         already decides the same way.
+    instrument : Instrument, default=None
+        The measuring instrument's specification (:data:`tcr_accuracy.frames.instrument.INSTRUMENTS`
+        or :func:`~tcr_accuracy.frames.instrument.instrument_from`): every measured point weighed
+        by its own noise (an MPE growing with its distance, along and across the beam), and the
+        noise floor from it where the data's redundancy gives none. None: every point alike.
 
     Attributes
     ----------
@@ -218,7 +226,7 @@ class GapDiagnosis(BaseEstimator):
     def __init__(self, *, robot=None, effects=None, folds: int = 5, random_state=0,
                  tracker_noise: float | None = None, selection_z: float = 3.0, min_relative_gain: float = 0.002,
                  rank_tol: float = 1e-6, orientation_weight: float | None = None, stability_replays: int = 50,
-                 fold_repeats: int | None = None):
+                 fold_repeats: int | None = None, instrument=None):
         self.robot = robot
         self.effects = effects
         self.folds = folds
@@ -230,6 +238,7 @@ class GapDiagnosis(BaseEstimator):
         self.orientation_weight = orientation_weight
         self.stability_replays = stability_replays
         self.fold_repeats = fold_repeats
+        self.instrument = instrument
 
     def __repr__(self, N_CHAR_MAX=700) -> str:
         """scikit-learn's repr of the parameters on one line, and once fitted what was found."""
@@ -312,12 +321,13 @@ class GapDiagnosis(BaseEstimator):
         rng = np.random.default_rng(seed)  # one stream, drawn in stage order: folds, structure test, residual
         names = [e for e in vocabulary() if self.effects is None or e in self.effects or e == "frames"]
         say("registering the tracker frame")
-        registered = register_measurements(frames, references, self.orientation_weight)
+        registered = register_measurements(frames, references, self.orientation_weight, self.instrument)
         say("building effect models")
         repeats = self.fold_repeats if self.fold_repeats is not None else \
             int(np.clip(round(10_000 / registered.n_rows), 1, 5))
         candidates = build_candidates(registered, names, folds=self.folds, rank_tol=self.rank_tol,
-                                      tracker_noise=self.tracker_noise, rng=rng, fold_repeats=repeats)
+                                      tracker_noise=self.tracker_noise, rng=rng, fold_repeats=repeats,
+                                      instrument=self.instrument)
         say("fitting frames")
         selection = select_effects(registered, candidates, selection_z=self.selection_z,
                                    min_relative_gain=self.min_relative_gain, rng=rng, say=say)

@@ -181,6 +181,30 @@ class FitEngine:
         rot = Rotation.from_matrix(rel).as_rotvec() * part.orientation_weight
         return np.concatenate([res, rot], axis=1)
 
+    def _weighted(self, residual: list[np.ndarray], rows) -> list[np.ndarray]:
+        """The residual rows as the fit weighs them: each measured point's position rows through its
+        part's whitening (the instrument's per-point noise, :attr:`Part.whitening`); as they are
+        without one."""
+        out = []
+        for part, res in zip(self.parts, residual):
+            if part.whitening is None:
+                out.append(res)
+                continue
+            w = part.whitening if rows is None else part.whitening[rows]
+            res = res.copy()
+            res[:, :3] = np.einsum("nij,nj->ni", w, res[:, :3])
+            out.append(res)
+        return out
+
+    def _unweighted(self, p: int, rows, moved: np.ndarray) -> np.ndarray:
+        """Residual changes (len(rows), r) computed with the weighted Jacobian, back in metres."""
+        part = self.parts[p]
+        if part.whitening is None:
+            return moved
+        moved = moved.copy()
+        moved[:, :3] = np.linalg.solve(part.whitening[rows], moved[:, :3, None])[:, :, 0]
+        return moved
+
     def predict_residual(self, cols: "Columns", phi: np.ndarray, rows) -> list[np.ndarray]:
         """Residual rows of every part at scaled parameters phi (theta = phi * scale)."""
         theta = phi * cols.scale
@@ -191,9 +215,11 @@ class FitEngine:
         """Per part, the chained Jacobian (N, r, k) of the residual in phi, over all rows."""
         k = cols.scale.size
         out = []
-        for _, g, idx in cols.per_part:
+        for part, (_, g, idx) in zip(self.parts, cols.per_part):
             block = np.zeros((g.shape[0], g.shape[1], k))
             block[:, :, idx] = g * cols.scale[idx]
+            if part.whitening is not None:  # weighted as the residual rows are
+                block[:, :3] = np.einsum("nij,njk->nik", part.whitening, block[:, :3])
             out.append(block)
         return out
 
@@ -237,18 +263,18 @@ class FitEngine:
         every = _rows(rows, self.n_rows)
         weights = penalty * cols.penalty
         damped = DampedSolver(gram + np.diag(weights) if penalty else gram)
-        flat = _flat(residual)
+        flat = _flat(self._weighted(residual, rows))
         cost = float(flat @ flat) + float(weights @ phi**2)
         # first an undamped step: the model is nearly linear, so it usually lands on the optimum
         damping, growth = 0.0, 2.0
         for _ in range(self.MAX_EVALUATIONS):
-            step, predicted = damped.step(_gradient(jacs, residual, rows, self.n_rows) + weights * phi, damping,
-                                          cols.lower - phi, cols.upper - phi)
+            step, predicted = damped.step(_gradient(jacs, self._weighted(residual, rows), rows, self.n_rows)
+                                          + weights * phi, damping, cols.lower - phi, cols.upper - phi)
             if predicted <= self.COST_TOLERANCE * cost:
                 break  # the linear model cannot lower the cost any further
             trial = cols.clip(phi + step)
             trial_residual = self.predict_residual(cols, trial, every)
-            trial_flat = _flat(trial_residual)
+            trial_flat = _flat(self._weighted(trial_residual, rows))
             trial_cost = float(trial_flat @ trial_flat) + float(weights @ trial**2)
             if trial_cost < cost:
                 gain = cost - trial_cost
@@ -295,7 +321,7 @@ class FitEngine:
                 continue
             seen.append(phi)
             residual = self.predict_residual(cols, phi, rows)
-            flat = _flat(residual)
+            flat = _flat(self._weighted(residual, None if len(rows) == self.n_rows else rows))
             cost = float(flat @ flat)
             if cost < best_cost:
                 best, best_cost, best_residual = phi, cost, residual
@@ -323,7 +349,8 @@ class FitEngine:
                 return float(grid[len(grid) // 2])
             key = id(folds)
             if key not in gradients_of:
-                gradients_of[key] = [_gradient(jacs, [r[test] for r in residual], test, self.n_rows)
+                gradients_of[key] = [_gradient(jacs, self._weighted([r[test] for r in residual], test), test,
+                                               self.n_rows)
                                      for _, test in folds]
             gradients = gradients_of[key]
             total_gram = sum(grams[f] for f in allowed)
@@ -426,7 +453,7 @@ class FitEngine:
         else:
             self.n_fits += 1
         self._last.update(zip(cols.names, phi))
-        total_gradient = _gradient(jacs, train, None, self.n_rows) if k else None
+        total_gradient = _gradient(jacs, self._weighted(train, None), None, self.n_rows) if k else None
         repeats, fold_phi = [], []
         for r, folds in enumerate(self.repeats):
             oof = [np.empty((self.n_rows, p.rows_per_pose)) for p in self.parts]
@@ -434,20 +461,22 @@ class FitEngine:
                 phi_k = phi
                 if k:  # one step from the full fit, on the normal equations less the held-out rows
                     lam = penalties["folds"][r][f] if penalties else 0.0
-                    held_gradient = _gradient(jacs, [res[test] for res in train], test, self.n_rows)
+                    held_gradient = _gradient(jacs, self._weighted([res[test] for res in train], test), test,
+                                              self.n_rows)
                     phi_k = self._fold_step(cols, gram - fold_grams[r][f], phi, total_gradient - held_gradient, lam)
                 if r == 0:
                     fold_phi.append(phi_k)
                 for p, (res, jac) in enumerate(zip(train, jacs or [None] * len(train))):
                     # the held-out rows at the fold's fit: the exact residual at the full fit moved by
                     # the Jacobian (the fold's fit is within a step of it; second order is below noise)
-                    oof[p][test] = res[test] if jac is None else res[test] + jac[test] @ (phi_k - phi)
+                    oof[p][test] = res[test] if jac is None else res[test] + self._unweighted(
+                        p, test, jac[test] @ (phi_k - phi))
             repeats.append(oof)
         oof = repeats[0] if repeats else [np.zeros((self.n_rows, p.rows_per_pose)) for p in self.parts]
         heldout_repeats = [self._positions(o) for o in repeats]
         squares = np.mean([row_squares(h) for h in heldout_repeats], axis=0) if heldout_repeats else \
             np.zeros(self.n_rows)
-        flat = _flat(train)
+        flat = _flat(self._weighted(train, None))
         cost = float(flat @ flat)
         n_obs = flat.size
         lam = penalties["full"] if penalties else 0.0

@@ -384,6 +384,8 @@ class Diagnosis:
             "families": self.families,
             "primary_family": self.primary_family,
             "confounding": [c.to_dict() for c in self.stages.attribute.confounding],
+            "instrument": (None if self.stages.register.instrument is None
+                           else self.stages.register.instrument.to_dict()),
             "sessions": list(self.sessions),
             "drift": list(self.drift),
             "effect_options": {e: {k: (v.tolist() if isinstance(v, np.ndarray) else

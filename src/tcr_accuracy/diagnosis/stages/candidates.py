@@ -175,7 +175,8 @@ NOT_IDENTIFIABLE = "no identifiable parameter on these data (beyond frames)"
 
 
 def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, rank_tol: float,
-                     tracker_noise: float | None, rng: np.random.Generator, fold_repeats: int = 1) -> CandidateSet:
+                     tracker_noise: float | None, rng: np.random.Generator, fold_repeats: int = 1,
+                     instrument=None) -> CandidateSet:
     """Stage 2 of the diagnosis.
 
     Parameters
@@ -188,6 +189,8 @@ def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, r
         k of the k-fold cross-validation.
     fold_repeats : int
         How many fold assignments (repeated k-fold): held-out errors are their mean.
+    instrument : Instrument or None
+        The instrument's specification: its noise where the data's redundancy gives none.
     rank_tol : float
         Identifiability tolerance on normalised pivots.
     tracker_noise : float or None
@@ -231,6 +234,11 @@ def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, r
                                              [f.measurements.position for f in registered.frames],
                                              [f.label for f in registered.frames]) or registered.reference_noise or \
             noise_from_repeats(main.q, main.position, _context_table(parts[0]))
+        if redundancy is None and instrument is not None:
+            points = np.concatenate([f.measurements.position for f in registered.frames])
+            redundancy = NoiseEstimate(instrument.per_axis_noise(points), "instrument specification", True,
+                                       instrument.describe() + "; per point from its distance, the RMS over the "
+                                       "measured points")
     resolution = tracker_noise or (redundancy.per_axis if redundancy else RESOLUTION_NOISE)
     engine = FitEngine(parts, bases, split, rank_tol, min_motion=0.1 * resolution)
     _, identifiability_all = engine.identify(order)

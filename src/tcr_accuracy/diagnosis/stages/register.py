@@ -69,6 +69,8 @@ class RegisteredMeasurements:
         The gravity torque on each joint of the main frame's chain [N m, N].
     measured_context : frozenset of str
         The context fields measured in any frame.
+    instrument : Instrument or None
+        The instrument's specification the points are weighed by.
     notes : tuple of str
     """
 
@@ -85,6 +87,7 @@ class RegisteredMeasurements:
     gravity_torque: np.ndarray
     measured_context: frozenset
     notes: tuple
+    instrument: object = None
 
     @property
     def robot(self) -> RobotModel:
@@ -101,8 +104,8 @@ class RegisteredMeasurements:
         return len(self.frames[0].measurements)
 
 
-def register_measurements(frames: list[MeasuredFrame], references=(),
-                          orientation_weight: float | None = None) -> RegisteredMeasurements:
+def register_measurements(frames: list[MeasuredFrame], references=(), orientation_weight: float | None = None,
+                          instrument=None) -> RegisteredMeasurements:
     """Stage 1 of the diagnosis.
 
     Parameters
@@ -114,6 +117,10 @@ def register_measurements(frames: list[MeasuredFrame], references=(),
     orientation_weight : float or None
         [m/rad] weight of measured orientation; None: the RMS spread of the measured points
         about their centre.
+    instrument : Instrument or None
+        The instrument's specification (:mod:`tcr_accuracy.frames.instrument`): each point's
+        position rows are weighed by its noise, from the measured positions as the instrument's
+        frame holds them (the instrument at the origin).
     """
     first = frames[0].measurements
     n = len(first)
@@ -145,8 +152,11 @@ def register_measurements(frames: list[MeasuredFrame], references=(),
             station_rotation = np.stack([stations[s][0] for s in session_of])
             target_rotation = np.einsum("nji,njk->nik", station_rotation, tracker_rotation)  # R^T R_tracker
         context = dataclasses.replace(m.context, order=np.arange(n))  # these rows are the campaign: their order is
+        whitening = None
+        if instrument is not None:
+            whitening = instrument.whitening(m.position, np.stack([stations[s][0] for s in session_of]))
         parts.append(Part(f.robot, m.q, to_base_frame(m.position, session_of, stations), context, f.label,
-                          target_rotation, weight))
+                          target_rotation, weight, whitening))
     if any(p.target_rotation is not None for p in parts):
         notes.append(f"measured orientation enters the fit: rotation errors [rad] weighted by {weight:.4g} m/rad "
                      "(an angle counts as the position error it makes at the measured points' RMS spread "
@@ -159,4 +169,4 @@ def register_measurements(frames: list[MeasuredFrame], references=(),
         frames=tuple(frames), parts=tuple(parts), nominal=tuple(nominal), stations=tuple(stations),
         session_labels=tuple(sessions), session_of=session_of, drift=tuple(drift_report),
         reference_noise=reference_noise, references=tuple(references), orientation_weight=weight,
-        gravity_torque=tau, measured_context=measured, notes=tuple(notes))
+        gravity_torque=tau, measured_context=measured, notes=tuple(notes), instrument=instrument)

@@ -144,6 +144,11 @@ def analyse_residual(registered: RegisteredMeasurements, candidate_set: Candidat
         noise = NoiseEstimate(float(tracker_noise), "given", True, "the instrument's figure (--noise-mm)")
     elif candidate_set.instrument_noise is not None:
         noise = candidate_set.instrument_noise
+        if noise.source == "instrument specification":  # the data's own figure beside the specification's
+            own = noise_from_residual(measurements.q, final_train, final["n_parameters"], structure["remains"])
+            noise = NoiseEstimate(noise.per_axis, noise.source, True,
+                                  f"{noise.detail}; the data's own estimate ({own.source}): {own.per_axis * 1e3:.4g} mm "
+                                  "per axis")
     else:
         noise = noise_from_residual(measurements.q, final_train, final["n_parameters"], structure["remains"])
     scatter = scatter_beyond_noise(noise, final, candidate_set.stochastic)
