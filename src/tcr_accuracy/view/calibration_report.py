@@ -347,9 +347,7 @@ def _next_steps(c: Campaign, d, isos, comparisons) -> list:
         for finding in d.get("outside_physics") or []:
             items.append(f"Check {finding.get('effect')} on the robot: the data fit it only outside physics.")
         items += [f"Note: {n}" for n in d.get("notes") or []]
-        if d.get("primary_effect"):
-            items.append(f"Load the calibrated model (largest effect: {d['primary_effect']}) into the controller: "
-                         "the as-built URDF and effects YAML, or tcr-accuracy export.")
+        items += _calibration_forms(d, c)
     else:
         items.append(("To calibrate, measure the robot at 100 or more poses spread over the joint ranges and run ",
                       _Code(f"tcr-accuracy diagnose MEASUREMENTS.csv{_robot_options(c.robot)} --json diagnosis.json"),
@@ -360,6 +358,29 @@ def _next_steps(c: Campaign, d, isos, comparisons) -> list:
         for name in cmp.get("significant") or []:
             items.append(f"Check on the robot what changed {name} between the campaigns (beyond both fits' "
                          "uncertainty).")
+    return items
+
+
+def _calibration_forms(d, c: Campaign) -> list:
+    """How to carry the calibration to the robot: the forms and what each reaches (the export's figures
+    where the diagnosis wrote its calibration URDF, else the command that writes them)."""
+    from .as_built_summary import next_step_items
+
+    sources = [s for s, _ in c.of_kind("diagnosis")]
+    path = sources[-1] if sources and str(sources[-1]).endswith(".json") else "DIAGNOSIS.json"
+    as_built = d.get("as_built") if isinstance(d.get("as_built"), dict) else {}
+    items = next_step_items(as_built.get("accuracy") or [], shlex.quote(str(path)))
+    steps = d.get("steps") or []
+    final = steps[-1].get("heldout_mean_mm") if steps and isinstance(steps[-1], dict) else None
+    gap = (d.get("gap") or {}).get("mean_mm")
+    reach = (f": the full model reaches {final:.4f} mm mean k-fold held-out, the nominal robot with only the tracker "
+             f"frame and TCP offset {gap:.4f} mm" if isinstance(final, float) and isinstance(gap, float) else "")
+    items.append(("Carry the calibration to the robot: ", _Code(f"tcr-accuracy export {shlex.quote(str(path))} --to "
+                                                                "calibration"),
+                  " writes the calibration URDF (geometry refitted to the full model; tool0 unchanged, the measured "
+                  "point a frame of its own), DH and MDH tables, the UR ROS 2 driver's calibration file for a UR arm "
+                  "and with --targets the compensation filter for controllers that take no model, each with what it "
+                  f"reaches{reach}."))
     return items
 
 
