@@ -162,8 +162,24 @@ def mdh_table(robot: RobotModel, nominal: RobotModel | None = None, *, reference
               hayati: bool = True) -> DhTable:
     """The modified DH table of ``robot`` (Craig; Hayati's beta after pairs parallel by design).
 
-    Parameters and returns as :func:`dh_table`; frame 0 lies on the first axis, nearest the
-    reference's frame 0 (default: the base origin), so the first row is ``Rz(theta) Tz(d)``.
+    Frame 0 lies on the first axis, nearest the reference's frame 0 (default: the base origin),
+    so the first row is ``Rz(theta) Tz(d)``; frame i on axis i, its x towards axis i+1.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The chain to tabulate (nominal or as built).
+    nominal : RobotModel, optional
+        Says which consecutive axes are parallel by design (default: robot).
+    reference : DhTable, optional
+        An MDH table of the same chain whose frames decide the free choices.
+    hayati : bool, default=True
+        Hayati's beta after pairs parallel by design; False: the plain table.
+
+    Returns
+    -------
+    DhTable
+        Checked against the robot's forward kinematics (1e-9 m); NoDhForm otherwise.
     """
     lines, tcp = _lines(robot)
     parallel = _parallel_pairs(nominal or robot) + [False]

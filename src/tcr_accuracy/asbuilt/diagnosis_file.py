@@ -15,9 +15,8 @@ from pathlib import Path
 
 from ..effects.file_values import file_number
 from ..exceptions import InputError
-from ..model.robot import load_robot
 from .model import AsBuiltModel
-from .model_file import tracker_matrix
+from .model_file import model_from_values, read_bounded_text
 
 #: Largest diagnosis JSON read [bytes].
 MAX_BYTES = 200_000_000
@@ -43,35 +42,14 @@ def parse_diagnosis_json(text: str, source: str) -> dict:
 
 def read_diagnosis_json(path) -> dict:
     """:func:`parse_diagnosis_json` of a file (a regular file of at most :data:`MAX_BYTES`)."""
-    path = Path(path)
-    try:
-        if not path.is_file():
-            raise InputError(f"{path}: {'no such file' if not path.exists() else 'not a regular file'}")
-        if path.stat().st_size > MAX_BYTES:
-            raise InputError(f"{path}: {path.stat().st_size / 1e6:.0f} MB is more than a diagnosis")
-        text = path.read_bytes().decode("utf-8-sig")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    return parse_diagnosis_json(text, str(path))
+    return parse_diagnosis_json(read_bounded_text(Path(path), MAX_BYTES, "a diagnosis"), str(path))
 
 
 def model_from_diagnosis(data: dict, source: str) -> AsBuiltModel:
     """The full model a diagnosis JSON holds, every value checked."""
-    robot_source, tool = data["robot_source"], data["tool_frame"]
-    for key, value in (("robot_source", robot_source), ("tool_frame", tool)):
-        if not isinstance(value, str) or not value or len(value) > 4096:
-            raise InputError(f"{source}: {key}: {value!r} is not a robot name, path or frame name")
-    parameters, options = data["effect_parameters"], data.get("effect_options") or {}
-    for key, value in (("effect_parameters", parameters), ("effect_options", options)):
-        if not isinstance(value, dict) or not all(isinstance(v, dict) or v is None for v in value.values()):
-            raise InputError(f"{source}: {key}: must map effect names to {{name: value}}")
-    tracker = tracker_matrix(data["tracker_transform"], f"{source}: tracker_transform")
-    robot = load_robot(None if robot_source == "tool_changer" else robot_source, tool)
-    return AsBuiltModel(robot, {str(e): dict(p or {}) for e, p in parameters.items()}, robot_source, tracker,
-                        {str(e): dict(o or {}) for e, o in options.items()}, source=source,
-                        source_keys=("effect_parameters", "effect_options"))
+    return model_from_values(source, ("effect_parameters", "effect_options"), data["robot_source"],
+                             data["tool_frame"], data["effect_parameters"], data.get("effect_options"),
+                             data["tracker_transform"], "tracker_transform")
 
 
 def measurement_files(data: dict, source: str) -> list[str]:

@@ -51,8 +51,9 @@ MAX_BYTES = 20_000_000
 TRACKER_MAX_M = 1000.0
 RIGID_TOL = 1e-6
 UNITS = "SI (m, rad, rad/Nm, m/N, 1/K)"
-STATE = ("tcp_poses(q, context) at each row's context; rows without the campaign's time (new poses) are the "
-         "robot at the campaign's end (what drifted during it, drifted)")
+STATE = ("tcp_poses(q, context) at each row's context (a row without the campaign's time at its start); the "
+         "exported forms, held-out figures and the compensation filter take new poses at the campaign's end "
+         "(AsBuiltModel.state_context)")
 
 
 def model_document(model: AsBuiltModel, **extra) -> dict:
@@ -133,20 +134,22 @@ def load_as_built(path) -> AsBuiltModel:
     if path.suffix.lower() == ".urdf":
         candidates = [path.with_suffix(".yaml"), path.with_suffix(".effects.yaml")]
         path = next((c for c in candidates if c.is_file()), candidates[0])
-    return read_model_document(_read_text(path), str(path))
+    return read_model_document(read_bounded_text(path, MAX_BYTES, "the as-built model written by tcr-accuracy "
+                                                                  "export"), str(path))
 
 
-def _read_text(path: Path) -> str:
+def read_bounded_text(path: Path, max_bytes: int, what: str) -> str:
+    """A regular UTF-8 file of at most ``max_bytes`` (a byte-order mark dropped), or one InputError line."""
+    path = Path(path)
     try:
         if not path.is_file():
-            raise InputError(f"{path}: {'no such file' if not path.exists() else 'not a regular file'} "
-                             "(the as-built model written by tcr-accuracy export)")
-        if path.stat().st_size > MAX_BYTES:
-            raise InputError(f"{path}: {path.stat().st_size / 1e6:.0f} MB is more than an as-built model "
-                             f"({MAX_BYTES / 1e6:.0f} MB at most)")
+            raise InputError(f"{path}: {'no such file' if not path.exists() else 'not a regular file'} ({what})")
+        if path.stat().st_size > max_bytes:
+            raise InputError(f"{path}: {path.stat().st_size / 1e6:.0f} MB is more than {what} "
+                             f"({max_bytes / 1e6:.0f} MB at most)")
         return path.read_bytes().decode("utf-8-sig")
     except OSError as exc:
-        raise InputError(f"{path}: cannot read the as-built model ({exc.strerror or exc})") from None
+        raise InputError(f"{path}: cannot read {what} ({exc.strerror or exc})") from None
     except UnicodeDecodeError as exc:
         raise InputError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
 
@@ -162,18 +165,26 @@ def read_model_document(text: str, source: str) -> AsBuiltModel:
     for key in doc:
         if key not in KEYS:
             raise InputError(f"{source}: key {key!r} is not part of the format (keys: {', '.join(KEYS)})")
-    robot_source, tool = doc["robot_source"], doc["tool_frame"]
-    for key, value in (("robot_source", robot_source), ("tool_frame", tool)):
+    return model_from_values(source, ("effects", "options"), doc["robot_source"], doc["tool_frame"],
+                             doc["effects"], doc.get("options"), doc.get("tracker_from_base"), "tracker_from_base")
+
+
+def model_from_values(source: str, keys: tuple, robot_source, tool_frame, parameters, options, tracker,
+                      tracker_key: str) -> AsBuiltModel:
+    """The model of values read from a file (a model file's or a diagnosis JSON's), each checked;
+    ``keys`` names the parameters' and the options' mappings in that file, ``tracker_key`` the
+    tracker frame's."""
+    for key, value in (("robot_source", robot_source), ("tool_frame", tool_frame)):
         if not isinstance(value, str) or not value or len(value) > 4096:
             raise InputError(f"{source}: {key}: {value!r} is not a robot name, path or frame name")
-    effects, options = doc["effects"], doc.get("options") or {}
-    for key, value in (("effects", effects), ("options", options)):
+    options = options or {}
+    for key, value in zip(keys, (parameters, options)):
         if not isinstance(value, dict) or not all(isinstance(v, dict) or v is None for v in value.values()):
             raise InputError(f"{source}: {key}: must map effect names to {{name: value}}")
-    robot = load_robot(None if robot_source == "tool_changer" else robot_source, tool)
-    tracker = tracker_matrix(doc.get("tracker_from_base"), f"{source}: tracker_from_base")
-    return AsBuiltModel(robot, {str(e): dict(p or {}) for e, p in effects.items()}, robot_source, tracker,
-                        {str(e): dict(o or {}) for e, o in options.items()}, source=source)
+    tracker = tracker_matrix(tracker, f"{source}: {tracker_key}")
+    robot = load_robot(None if robot_source == "tool_changer" else robot_source, tool_frame)
+    return AsBuiltModel(robot, {str(e): dict(p or {}) for e, p in parameters.items()}, robot_source, tracker,
+                        {str(e): dict(o or {}) for e, o in options.items()}, source=source, source_keys=keys)
 
 
 def tracker_matrix(value, where: str) -> np.ndarray | None:

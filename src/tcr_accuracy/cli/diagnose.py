@@ -167,9 +167,7 @@ def _run_diagnose(args) -> int:
                                              ", ".join(Path(f).name for f in files))
         status(args, f"as-built URDF written to {urdf} (the whole model, every effect and the tracker frame: {side})")
         payload.update(as_built_urdf=str(urdf), as_built_effects=str(side), as_built=summary)
-        written += [("calibration URDF (geometry refitted to the full model; tool0 unchanged)", urdf),
-                    ("the whole model (every effect, the tracker frame, uncertainties; tcr_accuracy.load_as_built)",
-                     side)]
+        written += [("calibration URDF", urdf), ("the whole model (tcr_accuracy.load_as_built)", side)]
     if out.report is not None:
         _calibration_page(out.report, args, robot, payload, written)
     return out.finish(payload, lambda: print(format_summary(robot, result, source)))

@@ -79,25 +79,15 @@ def ur_file_header(export) -> str:
     ]) + "\n"
 
 
-def next_step_items(accuracy, diagnosis_path: str) -> list[str]:
-    """The report's "what to do next" about loading the calibration: each form and its accuracy."""
+def urdf_phrase(accuracy) -> str:
+    """What the calibration URDF and the nominal robot reach, in a few words ("" without figures)."""
     records = accuracy_records(accuracy)
-    kind = next((k for k, _ in KINDS if any(r["on"] == k and r["form"] == "URDF alone" for r in records)), None)
-    items = []
-    if kind is not None:
-        label = dict(KINDS)[kind]
+    for kind, label in KINDS:
         rows = {r["form"]: r for r in records if r["on"] == kind}
-        full = next((r for r in records if r["form"] == "full model" and r["on"] == "k-fold held-out"), None)
-        full = full or rows.get("full model")
-        items.append(f"Load the calibration URDF into the controller or ROS ({rows['URDF alone']['file']}: "
-                     f"{rows['URDF alone']['mean_mm']:.4f} mm mean {label}, the nominal URDF "
-                     f"{rows['nominal']['mean_mm']:.4f} mm); tool0 is unchanged, the measured point is a frame of "
-                     "its own.")
-        if full is not None:
-            items.append(f"Where the controller takes no model, send the compensation filter's corrected targets "
-                         f"(tcr-accuracy export {diagnosis_path} --to DIR --targets CSV): they carry the full model "
-                         f"({full['mean_mm']:.4f} mm mean {dict(KINDS)[full['on']]}).")
-    return items
+        if "URDF alone" in rows and "nominal" in rows:
+            return (f"{rows['URDF alone']['file']} {rows['URDF alone']['mean_mm']:.4f} mm mean {label}, the nominal "
+                    f"URDF {rows['nominal']['mean_mm']:.4f} mm")
+    return ""
 
 
 def _rotation_vector(rotation: np.ndarray) -> np.ndarray:

@@ -362,26 +362,22 @@ def _next_steps(c: Campaign, d, isos, comparisons) -> list:
 
 
 def _calibration_forms(d, c: Campaign) -> list:
-    """How to carry the calibration to the robot: the forms and what each reaches (the export's figures
-    where the diagnosis wrote its calibration URDF, else the command that writes them)."""
-    from .as_built_summary import next_step_items
+    """How to carry the calibration to the robot: the forms and what they reach (the calibration
+    URDF's figures where the diagnosis wrote it, the full model's k-fold held-out figure)."""
+    from .as_built_summary import urdf_phrase
 
     sources = [s for s, _ in c.of_kind("diagnosis")]
     path = sources[-1] if sources and str(sources[-1]).endswith(".json") else "DIAGNOSIS.json"
     as_built = d.get("as_built") if isinstance(d.get("as_built"), dict) else {}
-    items = next_step_items(as_built.get("accuracy") or [], shlex.quote(str(path)))
+    urdf = urdf_phrase(as_built.get("accuracy") or [])
     steps = d.get("steps") or []
     final = steps[-1].get("heldout_mean_mm") if steps and isinstance(steps[-1], dict) else None
-    gap = (d.get("gap") or {}).get("mean_mm")
-    reach = (f": the full model reaches {final:.4f} mm mean k-fold held-out, the nominal robot with only the tracker "
-             f"frame and TCP offset {gap:.4f} mm" if isinstance(final, float) and isinstance(gap, float) else "")
-    items.append(("Carry the calibration to the robot: ", _Code(f"tcr-accuracy export {shlex.quote(str(path))} --to "
-                                                                "calibration"),
-                  " writes the calibration URDF (geometry refitted to the full model; tool0 unchanged, the measured "
-                  "point a frame of its own), DH and MDH tables, the UR ROS 2 driver's calibration file for a UR arm "
-                  "and with --targets the compensation filter for controllers that take no model, each with what it "
-                  f"reaches{reach}."))
-    return items
+    full = f" ({final:.4f} mm mean k-fold held-out)" if isinstance(final, float) else ""
+    return [(f"Load the calibration into the controller{': ' + urdf if urdf else ''}. ",
+             _Code(f"tcr-accuracy export {shlex.quote(str(path))} --to calibration"),
+             " writes it as a URDF (tool0 unchanged, the measured point a frame of its own), DH tables, the UR "
+             f"driver's calibration file and a compensation filter that carries the full model{full}, each with "
+             "what it reaches.")]
 
 
 def _robot_options(robot: RobotFacts) -> str:
