@@ -186,7 +186,7 @@ def test_the_ur_calibration_file_round_trips_through_the_xacro_formula(campaign)
     nominal = ur_kinematics(robot, robot, "ur5")["kinematics"]
     q = np.random.default_rng(5).uniform(-math.pi, math.pi, 6)
     default_doc = {k: dict(zip(("x", "y", "z", "roll", "pitch", "yaw"), v)) for k, v in default.items()}
-    np.testing.assert_allclose(_xacro_tool0(nominal, q), _xacro_tool0(default_doc, q), atol=1e-8)
+    np.testing.assert_allclose(_xacro_tool0(nominal, q), _xacro_tool0(default_doc, q), atol=1e-9)
 
 
 def _table_product(folder, csv_name, q):

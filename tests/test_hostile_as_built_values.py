@@ -159,3 +159,21 @@ def test_a_model_file_with_an_unknown_key_or_nested_deep_is_one_line(exported, t
     with pytest.raises(InputError) as info:
         tcr.load_as_built(path)
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("text, fragment", [
+    ("x_mm,y_mm,z_mm,seed_j1_deg\n1000,200,300,10\n", "column seed_j2_... is missing"),
+    ("x_mm,y_mm,z_mm,qw,qx\n1000,200,300,1,0\n", "needs all of qw, qx, qy, qz"),
+    ("x_mm,y_mm,z_mm,qw,qx,qy,qz\n1000,200,300,2,0,0,0\n", "quaternion norm is 2"),
+    ("x_mm,y_mm,z_mm\n1000,200,0x10\n", "row 2, column z_mm: '0x10' is not a finite number"),
+    ("x_mm,y_mm,z_mm,payload_kg\n1000,200,300,-5\n", "column payload_kg: -5 kg is not a load"),
+    ("x_mm,y_mm,z_mm,colour\n1000,200,300,1\n", "column 'colour' is not a target column"),
+], ids=["partial seeds", "partial quaternion", "quaternion norm", "hex", "negative load", "unknown column"])
+def test_cartesian_targets_at_fault_are_one_line(exported, tmp_path, capsys, text, fragment):
+    targets = tmp_path / "targets.csv"
+    targets.write_text(text)
+    code, out, err = run(["export", str(exported / "d.json"), "--to", str(tmp_path / "never"), "--targets",
+                          str(targets)], capsys)
+    assert code == 2
+    assert_one_line(err, str(targets), fragment)
+    assert not (tmp_path / "never").exists()

@@ -19,7 +19,7 @@ measurements it was fitted to into:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pinocchio as pin
@@ -67,6 +67,7 @@ class AsBuiltExport:
     tables : the DH-type forms; not_tabled : form -> why it has no table
     ur : the UR calibration document, or None
     accuracy : every form's FormAccuracy (measured, held-out, k-fold)
+    urdf_file, model_file : the names the URDF and the model file are written under
     """
 
     model: AsBuiltModel
@@ -78,6 +79,8 @@ class AsBuiltExport:
     not_tabled: dict
     ur: dict | None
     accuracy: tuple = field(default=())
+    urdf_file: str = URDF_FILE
+    model_file: str = MODEL_FILE
 
     @property
     def measured_frame(self) -> str:
@@ -89,9 +92,9 @@ class AsBuiltExport:
                                 comment=comment)
         return text
 
-    def model_text(self, urdf: str | None = URDF_FILE, **informational) -> str:
+    def model_text(self, **informational) -> str:
         """The one model file's text (:mod:`tcr_accuracy.asbuilt.model_file`), with the URDF it goes with."""
-        extra = {"urdf": urdf, "urdf_measured_frame": self.measured_frame} if urdf else {}
+        extra = {"urdf": self.urdf_file, "urdf_measured_frame": self.measured_frame}
         extra["accuracy"] = [a.to_dict() for a in self.accuracy]
         return model_yaml(model_document(self.model, **extra, **informational))
 
@@ -113,7 +116,8 @@ class AsBuiltExport:
 
 
 def build_export(model: AsBuiltModel, measured: MeasuredPoses, held_out: MeasuredPoses | None = None, *,
-                 payload_kg: float | None = None, kfold: dict | None = None) -> AsBuiltExport:
+                 payload_kg: float | None = None, kfold: dict | None = None, urdf_file: str = URDF_FILE,
+                 model_file: str = MODEL_FILE) -> AsBuiltExport:
     """Every form of the calibration and what each reaches.
 
     Parameters
@@ -129,6 +133,8 @@ def build_export(model: AsBuiltModel, measured: MeasuredPoses, held_out: Measure
     kfold : dict, optional
         The diagnosis' own k-fold held-out figures of the full model: ``mean``, ``rms``, ``max`` [m],
         ``folds``, ``n``.
+    urdf_file, model_file : str
+        The names the URDF and the model file will be written under (named in the figures).
 
     Returns
     -------
@@ -144,9 +150,9 @@ def build_export(model: AsBuiltModel, measured: MeasuredPoses, held_out: Measure
     offset = pin.exp6(geometry.x[em.tool_slice]).homogeneous
     tables, not_tabled = _tables(model, flange)
     ur = ur_kinematics(flange, robot, model.robot_source) if is_ur(model.robot_source, robot) else None
-    export = AsBuiltExport(model, geometry, calibrated, flange, offset, tuple(tables), not_tabled, ur)
-    accuracy = _accuracies(export, measured, held_out, kfold)
-    return AsBuiltExport(model, geometry, calibrated, flange, offset, tuple(tables), not_tabled, ur, tuple(accuracy))
+    export = AsBuiltExport(model, geometry, calibrated, flange, offset, tuple(tables), not_tabled, ur, (),
+                           urdf_file, model_file)
+    return replace(export, accuracy=tuple(_accuracies(export, measured, held_out, kfold)))
 
 
 def _tables(model: AsBuiltModel, flange: RobotModel) -> tuple[list[TableForm], dict]:
@@ -188,14 +194,14 @@ def _accuracies(export: AsBuiltExport, measured: MeasuredPoses, held_out, kfold)
     def nominal(q, context, later):
         return tcp_poses(model.measured_point_robot(), q).position
 
-    forms = [("full model", MODEL_FILE, full), ("URDF alone", URDF_FILE, urdf)]
+    forms = [("full model", export.model_file, full), ("URDF alone", export.urdf_file, urdf)]
     if export.ur is not None:
         forms.append(("UR calibration file", UR_FILE, ur))
     forms += [(f"{t.name} table", t.file, table(t.as_built)) for t in export.tables]
     forms.append(("nominal", "", nominal))
     out = []
     if kfold:
-        out.append(FormAccuracy("full model", MODEL_FILE, "k-fold held-out",
+        out.append(FormAccuracy("full model", export.model_file, "k-fold held-out",
                                 f"{kfold.get('folds', '')}-fold cross-validation of the diagnosis", int(kfold.get("n", 0)),
                                 float(kfold["mean"]), float(kfold["rms"]), float(kfold["max"])))
     for form, file, kinematics in forms:

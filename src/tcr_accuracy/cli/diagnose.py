@@ -180,7 +180,8 @@ def _calibration_page(report, args, robot, payload: dict, written: list) -> None
 
     if args.json not in (None, "-"):
         written = [("diagnosis JSON (every figure of the report)", args.json), *written]
-    campaign = Campaign(RobotFacts.of_robot(robot, payload["robot_source"]), [("diagnosis", payload)])
+    source = args.json if args.json not in (None, "-") else "diagnosis"
+    campaign = Campaign(RobotFacts.of_robot(robot, payload["robot_source"]), [(str(source), payload)])
     add_calibration_page(report, args.out, campaign, written)
 
 
@@ -243,9 +244,10 @@ def write_as_built(robot, d, path: Path, measurements, source: str, label: str) 
     model = AsBuiltModel.from_diagnosis(robot, d, robot_source(source))
     final = d.steps[-1].heldout
     kfold = {"mean": final.mean, "rms": final.rms, "max": final.max, "folds": d.folds, "n": d.n_measurements}
-    export = build_export(model, MeasuredPoses.of(measurements, label), kfold=kfold)
-    write_text_atomically(path, export.urdf_text(urdf_comment(export, "this diagnosis")))
     side = effects_side_file(path)
+    export = build_export(model, MeasuredPoses.of(measurements, label), kfold=kfold, urdf_file=path.name,
+                          model_file=side.name)
+    write_text_atomically(path, export.urdf_text(urdf_comment(export, "this diagnosis")))
     informational = {
         **({"measured_frames": list(d.frames_measured),
             "chain_in_urdf": f"the URDF is the chain to {d.frames_measured[0]}; the other frames' TCP offsets "
@@ -264,7 +266,7 @@ def write_as_built(robot, d, path: Path, measurements, source: str, label: str) 
                                     "error_rad to the joint's angle; interpolate between rows)"}
            if d.joint_function_bands else {}),
     }
-    write_text_atomically(side, export.model_text(urdf=path.name, **informational))
+    write_text_atomically(side, export.model_text(**informational))
     return path, side, export.to_dict()
 
 

@@ -56,12 +56,12 @@ def headline(accuracy) -> str:
 def urdf_comment(export, diagnosis: str) -> str:
     """The comment at the top of the calibration URDF."""
     geometry = export.geometry
-    return (f"Calibrated {export.model.robot.name} from {diagnosis}, written by tcr-accuracy export. The joint origins "
+    return (f"Calibrated {export.model.robot.name} from {diagnosis}, written by tcr-accuracy. The joint origins "
             f"hold the geometry and joint zero offsets refitted to the full model over {geometry.n_measured} measured "
             f"poses and {geometry.n_sampled} between them (RMS {geometry.rms * 1e3:.4f} mm from the full model); "
             f"{export.model.robot.tool_frame} is where the maker put it, the measured point is the frame "
             f"{export.measured_frame}. " + headline(export.accuracy) + ". Compliance, gear errors and the other "
-            "non-geometric effects are not in a URDF: the full model (as_built.yaml, tcr_accuracy.load_as_built) "
+            f"non-geometric effects are not in a URDF: the full model ({export.model_file}, tcr_accuracy.load_as_built) "
             "or the compensation filter carry them.")
 
 

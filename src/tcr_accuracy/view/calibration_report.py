@@ -375,7 +375,7 @@ def _calibration_forms(d, c: Campaign) -> list:
     full = f" ({final:.4f} mm mean k-fold held-out)" if isinstance(final, float) else ""
     return [(f"Load the calibration into the controller{': ' + urdf if urdf else ''}. ",
              _Code(f"tcr-accuracy export {shlex.quote(str(path))} --to calibration"),
-             " writes it as a URDF (tool0 unchanged, the measured point a frame of its own), DH tables, the UR "
+             " writes it as a URDF (the TCP frame unchanged, the measured point a frame of its own), DH tables, the UR "
              f"driver's calibration file and a compensation filter that carries the full model{full}, each with "
              "what it reaches.")]
 

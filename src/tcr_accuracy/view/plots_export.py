@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from .as_built_summary import KINDS, accuracy_records
-from .plots_common import figure, legend_beside, save_figure
+from .plots_common import figure, save_figure
 
 
 def write_accuracy_plot(accuracy, path) -> Path:
@@ -16,7 +16,8 @@ def write_accuracy_plot(accuracy, path) -> Path:
     records = accuracy_records(accuracy)
     forms = list(dict.fromkeys(r["form"] for r in records))
     kinds = [(k, label) for k, label in KINDS if any(r["on"] == k for r in records)]
-    fig, axes = figure(size=(7.5, 0.45 * len(forms) * max(len(kinds), 1) + 1.2))
+    bars = sum(1 for r in records)
+    fig, axes = figure(size=(7.0, 0.22 * bars + 0.35 * len(forms) + 1.4))
     ax = axes[0, 0]
     height = 0.8 / max(len(kinds), 1)
     colours = ("#1f77b4", "#ff7f0e", "#7f7f7f")
@@ -35,5 +36,5 @@ def write_accuracy_plot(accuracy, path) -> Path:
     ax.invert_yaxis()
     ax.set_xlabel("TCP position error [mm]")
     ax.set_title("What each form of the calibration reaches", fontsize=9)
-    legend_beside(ax)
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", fontsize=8, ncols=min(len(kinds), 2))
     return save_figure(fig, path)
