@@ -347,9 +347,7 @@ def _next_steps(c: Campaign, d, isos, comparisons) -> list:
         for finding in d.get("outside_physics") or []:
             items.append(f"Check {finding.get('effect')} on the robot: the data fit it only outside physics.")
         items += [f"Note: {n}" for n in d.get("notes") or []]
-        if d.get("primary_effect"):
-            items.append(f"Load the calibrated model (largest effect: {d['primary_effect']}) into the controller: "
-                         "the as-built URDF and effects YAML, or tcr-accuracy export.")
+        items += _calibration_forms(d, c)
     else:
         items.append(("To calibrate, measure the robot at 100 or more poses spread over the joint ranges and run ",
                       _Code(f"tcr-accuracy diagnose MEASUREMENTS.csv{_robot_options(c.robot)} --json diagnosis.json"),
@@ -361,6 +359,25 @@ def _next_steps(c: Campaign, d, isos, comparisons) -> list:
             items.append(f"Check on the robot what changed {name} between the campaigns (beyond both fits' "
                          "uncertainty).")
     return items
+
+
+def _calibration_forms(d, c: Campaign) -> list:
+    """How to carry the calibration to the robot: the forms and what they reach (the calibration
+    URDF's figures where the diagnosis wrote it, the full model's k-fold held-out figure)."""
+    from .as_built_summary import urdf_phrase
+
+    sources = [s for s, _ in c.of_kind("diagnosis")]
+    path = sources[-1] if sources and str(sources[-1]).endswith(".json") else "DIAGNOSIS.json"
+    as_built = d.get("as_built") if isinstance(d.get("as_built"), dict) else {}
+    urdf = urdf_phrase(as_built.get("accuracy") or [])
+    steps = d.get("steps") or []
+    final = steps[-1].get("heldout_mean_mm") if steps and isinstance(steps[-1], dict) else None
+    full = f" ({final:.4f} mm mean k-fold held-out)" if isinstance(final, float) else ""
+    return [(f"Load the calibration into the controller{': ' + urdf if urdf else ''}. ",
+             _Code(f"tcr-accuracy export {shlex.quote(str(path))} --to calibration"),
+             " writes it as a URDF (the TCP frame unchanged, the measured point a frame of its own), DH tables, the UR "
+             f"driver's calibration file and a compensation filter that carries the full model{full}, each with "
+             "what it reaches.")]
 
 
 def _robot_options(robot: RobotFacts) -> str:
