@@ -74,3 +74,50 @@ def renamed_keyword(old: str, new: str):
         return wrapper
 
     return decorate
+
+
+def fill_standard_normal(rng: np.random.Generator, out: np.ndarray) -> np.ndarray:
+    """Fill ``out`` with independent standard normal draws from ``rng`` (Box-Muller), in place.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Source of the uniform draws: ``ceil(n / 2)`` float64, then as many float32.
+    out : ndarray of float64, C-contiguous, any shape (n values)
+        Filled and returned.
+
+    Returns
+    -------
+    ndarray
+        ``out``.
+
+    Notes
+    -----
+    Each pair of draws is ``r (cos t, sin t)`` with ``r = sqrt(-2 ln(1 - u))``, u a float64
+    uniform on [0, 1) (53 bits: draws reach 8.57 standard deviations), and t = 2 pi v, v a
+    float32 uniform on [0, 1) (24 bits). The first half of ``out`` gets the cosines, the
+    second half the sines. Written out because numpy's ``Generator.standard_normal`` runs
+    its ziggurat one value at a time (about 8 ns a draw on the reference machine, half of
+    a Monte Carlo sample's budget), while this runs on numpy's vectorised log, sqrt and
+    float32 sin and cos (about 3 ns). The angle alone is float32: it rounds each draw by
+    a relative 6e-8 at most and takes 2^24 values, which moves any probability of the
+    draws by less than 1e-7, far below the sampling noise of any run that fits in memory.
+    """
+    if out.dtype != np.float64 or not out.flags.c_contiguous:
+        raise TypeError("fill_standard_normal needs a C-contiguous float64 array")
+    flat = out.reshape(-1)
+    half = (flat.size + 1) // 2
+    rest = flat.size - half
+    radius = flat[:half]
+    rng.random(out=radius)
+    np.subtract(1.0, radius, out=radius)  # (0, 1]: the log stays finite
+    np.log(radius, out=radius)
+    radius *= -2.0
+    np.sqrt(radius, out=radius)
+    angle = rng.random(half, dtype=np.float32)
+    angle *= np.float32(2.0 * np.pi)
+    trig = np.sin(angle[:rest])
+    np.multiply(radius[:rest], trig, out=flat[half:])
+    np.cos(angle, out=angle)
+    radius *= angle
+    return out
