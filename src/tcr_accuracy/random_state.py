@@ -76,7 +76,7 @@ def renamed_keyword(old: str, new: str):
     return decorate
 
 
-def fill_standard_normal(rng: np.random.Generator, out: np.ndarray) -> np.ndarray:
+def fill_standard_normal(rng: np.random.Generator, out: np.ndarray, work: np.ndarray | None = None) -> np.ndarray:
     """Fill ``out`` with independent standard normal draws from ``rng`` (Box-Muller), in place.
 
     Parameters
@@ -85,6 +85,8 @@ def fill_standard_normal(rng: np.random.Generator, out: np.ndarray) -> np.ndarra
         Source of the uniform draws: ``ceil(n / 2)`` float64, then as many float32.
     out : ndarray of float64, C-contiguous, any shape (n values)
         Filled and returned.
+    work : ndarray of float32 and shape (2, ceil(n / 2)), optional
+        Room for the angles and their sines (allocated when omitted).
 
     Returns
     -------
@@ -114,9 +116,12 @@ def fill_standard_normal(rng: np.random.Generator, out: np.ndarray) -> np.ndarra
     np.log(radius, out=radius)
     radius *= -2.0
     np.sqrt(radius, out=radius)
-    angle = rng.random(half, dtype=np.float32)
+    if work is None:
+        work = np.empty((2, half), np.float32)
+    angle, trig = work[0], work[1, :rest]
+    rng.random(out=angle, dtype=np.float32)
     angle *= np.float32(2.0 * np.pi)
-    trig = np.sin(angle[:rest])
+    np.sin(angle[:rest], out=trig)
     np.multiply(radius[:rest], trig, out=flat[half:])
     np.cos(angle, out=angle)
     radius *= angle

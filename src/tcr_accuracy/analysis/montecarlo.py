@@ -34,6 +34,7 @@ import numpy as np
 
 from ..model.errors import ErrorBudget, ErrorModel
 from ..model.kinematics import euler_zyx, euler_zyx_entries, tcp_chain_soa, tcp_poses
+from ..model.scratch import ScratchArrays, scratch, scratch_like
 from ..random_state import fill_standard_normal, renamed_keyword
 
 #: Default chunk of samples processed at once (cache-friendly; part of the seeding contract).
@@ -244,7 +245,9 @@ def sample_rows(sampler, n: int, rng: np.random.Generator) -> list:
         values: list = [None] * len(sources)
         normal = [i for i, src in enumerate(sources) if src.distribution == "normal"]
         if normal:
-            z = fill_standard_normal(rng, np.empty((len(normal), n)))
+            z = scratch((len(normal), n))
+            z = fill_standard_normal(rng, np.empty((len(normal), n)) if z is None else z,
+                                     scratch((2, (len(normal) * n + 1) // 2), np.float32))
             for row, i in enumerate(normal):
                 values[i] = z[row]
         for i, src in enumerate(sources):
@@ -263,7 +266,7 @@ def sample_rows(sampler, n: int, rng: np.random.Generator) -> list:
                     row = values[i]
                     row *= scale
                 elif row is None:
-                    row = values[i] * scale
+                    row = np.multiply(values[i], scale, out=scratch_like(values[i]))
                 else:
                     row += values[i] * scale
             if offset != 0.0:
@@ -281,10 +284,12 @@ def error_rows(nominal_position: np.ndarray, nominal_euler: np.ndarray, rot: np.
     Built row by row in place (rows not yet filled serve as scratch), so the only new
     array is the result.
     """
-    out = np.empty((len(STAT_COLUMNS), pos.shape[1]))
-    scratch = out[4]  # free until the Euler angles are written
-    _norm_into(np.subtract(pos, nominal_position[:, None], out=out[:3]), out[3], scratch)
-    _norm_into(pos, out[7], scratch)
+    shape = (len(STAT_COLUMNS), pos.shape[1])
+    out = scratch(shape)
+    out = np.empty(shape) if out is None else out
+    free_row = out[4]  # free until the Euler angles are written
+    _norm_into(np.subtract(pos, nominal_position[:, None], out=out[:3]), out[3], free_row)
+    _norm_into(pos, out[7], free_row)
     out[7] -= np.linalg.norm(nominal_position)
     angles = euler_zyx_entries(rot[0], rot[3], rot[6], rot[7], rot[8], out=out[4:7])  # on the rows of R
     angles -= nominal_euler[:, None]
@@ -316,7 +321,7 @@ def run_chunk(task: ChunkTask, index: int, size: int, seed: np.random.SeedSequen
     keep = max(0, min(size, task.keep_cloud - index * task.chunk))
     cloud = values[:3, :keep].T.copy()
     inside_position = np.array([np.count_nonzero(values[3] < t) for t in task.tolerances], dtype=np.int64)
-    magnitude = np.abs(values[4:7])
+    magnitude = np.abs(values[4:7], out=scratch((3, size)))
     inside_angle = np.array([np.count_nonzero(row < task.angle_tolerance) for row in magnitude], dtype=np.int64)
     del magnitude
     minimum, maximum = values.min(axis=1), values.max(axis=1)
@@ -398,10 +403,11 @@ def run_monte_carlo(budget: ErrorBudget | Sampler, q: np.ndarray, n_samples: int
     seeds = root.spawn(len(sizes))
     merged = _Merger(len(tolerances))
     if client is None:
-        for k, (size, seed) in enumerate(zip(sizes, seeds)):
-            merged.add(run_chunk(task, k, size, seed))
-            if progress is not None:
-                progress(size)
+        with ScratchArrays().active():  # the chunks reuse one set of temporaries
+            for k, (size, seed) in enumerate(zip(sizes, seeds)):
+                merged.add(run_chunk(task, k, size, seed))
+                if progress is not None:
+                    progress(size)
     else:
         _run_on_cluster(client, task, sizes, seeds, merged, progress, max_pending)
     return MonteCarloResult(
