@@ -27,6 +27,7 @@ which has the seed row's sign behaviour and is defined independently of the fram
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 from typing import Callable, Protocol
 
@@ -213,7 +214,13 @@ def chunk_plan(n_samples: int, chunk: int) -> list[int]:
 
 @dataclass
 class ChunkTask:
-    """Everything a worker needs to run one chunk (picklable)."""
+    """Everything a worker needs to run one chunk (picklable).
+
+    Each thread that runs chunks of the task keeps its own :class:`ScratchArrays` on it
+    (:meth:`scratch_arrays`), so a process that runs many chunks (this one, or a Dask
+    worker holding the scattered task) reuses the same warm memory; the pools are not
+    pickled.
+    """
 
     sampler: object
     q: np.ndarray
@@ -223,6 +230,20 @@ class ChunkTask:
     angle_tolerance: float
     keep_cloud: int
     chunk: int
+    _threads: threading.local = field(default_factory=threading.local, init=False, repr=False, compare=False)
+
+    def scratch_arrays(self) -> ScratchArrays:
+        """The calling thread's scratch pool for this task's chunks."""
+        pool = getattr(self._threads, "pool", None)
+        if pool is None:
+            pool = self._threads.pool = ScratchArrays()
+        return pool
+
+    def __getstate__(self) -> dict:
+        return {k: v for k, v in self.__dict__.items() if k != "_threads"}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state, _threads=threading.local())
 
 
 def sample_rows(sampler, n: int, rng: np.random.Generator) -> list:
@@ -311,6 +332,11 @@ def _norm_into(vectors: np.ndarray, out: np.ndarray, scratch: np.ndarray) -> np.
 
 def run_chunk(task: ChunkTask, index: int, size: int, seed: np.random.SeedSequence) -> ChunkSummary:
     """Sample and evaluate one chunk; a pure function of its arguments."""
+    with task.scratch_arrays().active():
+        return _run_chunk(task, index, size, seed)
+
+
+def _run_chunk(task: ChunkTask, index: int, size: int, seed: np.random.SeedSequence) -> ChunkSummary:
     rng = np.random.default_rng(seed)
     sampler = task.sampler
     rows = sample_rows(sampler, size, rng)
@@ -403,11 +429,10 @@ def run_monte_carlo(budget: ErrorBudget | Sampler, q: np.ndarray, n_samples: int
     seeds = root.spawn(len(sizes))
     merged = _Merger(len(tolerances))
     if client is None:
-        with ScratchArrays().active():  # the chunks reuse one set of temporaries
-            for k, (size, seed) in enumerate(zip(sizes, seeds)):
-                merged.add(run_chunk(task, k, size, seed))
-                if progress is not None:
-                    progress(size)
+        for k, (size, seed) in enumerate(zip(sizes, seeds)):
+            merged.add(run_chunk(task, k, size, seed))
+            if progress is not None:
+                progress(size)
     else:
         _run_on_cluster(client, task, sizes, seeds, merged, progress, max_pending)
     return MonteCarloResult(
