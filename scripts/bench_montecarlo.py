@@ -162,7 +162,8 @@ def main() -> int:
             archive = subprocess.run(["git", "-C", str(REPO), "archive", commit, "src"], capture_output=True,
                                      check=True).stdout
             subprocess.run(["tar", "-x", "-C", folder], input=archive, check=True)
-            codes = {"this code": str(REPO / "src"), f"code at {args.before} ({commit})": str(Path(folder) / "src")}
+            label = f"code at {args.before}" + ("" if commit.startswith(args.before) else f" ({commit})")
+            codes = {"this code": str(REPO / "src"), label: str(Path(folder) / "src")}
             rates = {name: [] for name in codes}
             for _ in range(args.repeats):
                 for name, src in codes.items():

@@ -321,12 +321,12 @@ def error_rows(nominal_position: np.ndarray, nominal_euler: np.ndarray, rot: np.
     return out
 
 
-def _norm_into(vectors: np.ndarray, out: np.ndarray, scratch: np.ndarray) -> np.ndarray:
-    """Euclidean norms of (3, N) column vectors into out (N,), using scratch (N,)."""
+def _norm_into(vectors: np.ndarray, out: np.ndarray, work: np.ndarray) -> np.ndarray:
+    """Euclidean norms of (3, N) column vectors into out (N,), using work (N,)."""
     np.multiply(vectors[0], vectors[0], out=out)
     for component in vectors[1:]:
-        np.multiply(component, component, out=scratch)
-        out += scratch
+        np.multiply(component, component, out=work)
+        out += work
     return np.sqrt(out, out=out)
 
 
