@@ -238,13 +238,18 @@ def check_csv_memory(args, path, what: str, row_bytes: float, fixed_bytes=lambda
     """Count the rows of a CSV (without reading it into memory) and refuse it with
     :func:`check_memory` when reading it (about 12 bytes per byte of text, ``row_bytes``
     per row) and ``fixed_bytes(rows)`` would exceed the budget; returns the row count
-    (0 when the file cannot be opened: its reader says why)."""
+    (0 when the file is missing or cannot be opened: its reader says why). A pipe, a device
+    or a folder is refused here, in one line, before anything opens it."""
     import os
 
+    from ..input_files import SIZE_LIMITS, open_input
+
+    if not os.path.lexists(path):
+        return 0
+    fd, st = open_input(path, "measurement file", limit=SIZE_LIMITS["table"])
+    size, rows = st.st_size, 0
     try:
-        size = os.stat(path).st_size
-        rows = 0
-        with open(path, "rb") as handle:
+        with os.fdopen(fd, "rb") as handle:
             for block in iter(lambda: handle.read(1 << 20), b""):
                 rows += block.count(b"\n")
     except OSError:

@@ -96,21 +96,17 @@ def _calibration_page(report, args, robot, payload: dict, new: dict) -> None:
 
 def _read_json(path: str):
     """The JSON document of ``path``, or None when it is a measurement CSV (not JSON)."""
-    import json
-    from pathlib import Path
-
     from ..exceptions import InputError
-    from ..io.measurements import read_user_text
+    from ..input_files import SIZE_LIMITS, parse_json, read_input_text
 
-    text = read_user_text(Path(path), "diagnosis or measurement file")
+    text = read_input_text(path, "diagnosis or measurement file", limit=SIZE_LIMITS["table"])
     if not text.lstrip().startswith(("{", "[")):
         if path.lower().endswith(".json"):
             raise InputError(f"{path}: not JSON; give a diagnose --json result or a measurement CSV")
         return None
-    try:
-        return json.loads(text)
-    except ValueError as exc:
-        raise InputError(f"{path}: not valid JSON ({exc})") from None
+    if len(text.encode("utf-8")) > SIZE_LIMITS["json"]:
+        raise InputError(f"{path}: a JSON result larger than the {SIZE_LIMITS['json'] >> 20} MB a result may have")
+    return parse_json(text, path, "give a diagnose --json result or a measurement CSV")
 
 
 def _load_named(load_robot, source, tool):

@@ -94,8 +94,7 @@ def _run_demo(args) -> int:
 
 
 def _demo_steps(args, out_dir: Path) -> int:
-    import yaml
-
+    from ..input_files import read_settings_file
     from ..view.report import Report
 
     quiet = ["--quiet"] if args.quiet else []
@@ -129,7 +128,7 @@ def _demo_steps(args, out_dir: Path) -> int:
     accuracy = json.loads(read_output(accuracy_json))
     diagnosis = json.loads(read_output(diagnosis_json))
     # the hidden truth, read only now that the diagnosis is done
-    truth = yaml.safe_load(bundled_file(TRUTH).read_text())
+    truth = read_settings_file(bundled_file(TRUTH), "hidden truth", "yaml")
     hidden = [name for name in truth["effects"]]
     selected = list(diagnosis["selected_effects"])
     final = diagnosis["steps"][-1]

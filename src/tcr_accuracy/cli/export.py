@@ -45,16 +45,10 @@ def add_parsers(sub) -> None:
 
 def read_diagnosis_json(path: str) -> dict:
     """The JSON of ``diagnose --json``, with what export needs checked (one line naming what is missing)."""
-    import json
-
     from ..exceptions import InputError
+    from ..input_files import read_json_file
 
-    try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    except ValueError as exc:
-        raise InputError(f"{path}: not JSON ({exc})") from None
+    data = read_json_file(path, "diagnosis JSON", hint="give the JSON that 'diagnose --json FILE' wrote")
     if not isinstance(data, dict):
         raise InputError(f"{path}: not a diagnosis (a JSON object was expected)")
     for key in ("effect_parameters", "robot_source", "tool_frame", "tracker_transform"):

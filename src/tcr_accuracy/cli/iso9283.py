@@ -179,16 +179,14 @@ def _run_evaluate(args) -> int:
 def _calibration_page(report, args, robot, payload: dict) -> None:
     """The report opens with the calibration report's first page (with the diagnosis of --model, if given),
     then the per-pose tables."""
-    import json
-    from pathlib import Path
-
+    from ..input_files import read_json_file
     from ..view.calibration_report import Campaign, RobotFacts, add_iso_tables, kind_or_none as kind_or_none
     from .report import add_calibration_page
 
     documents = [(str(args.measurements), payload)]
     files = [("ISO 9283 JSON", args.json)] if args.json not in (None, "-") else []
     if args.model:  # read and checked already (_read_model); one of ours written before the report: shown
-        model = json.loads(Path(args.model).read_text(encoding="utf-8"))
+        model = read_json_file(args.model, "diagnosis JSON")
         if kind_or_none(model) == "diagnosis":
             documents.insert(0, (str(args.model), model))
         files.append(("diagnosis JSON (--model)", args.model))
@@ -198,18 +196,10 @@ def _calibration_page(report, args, robot, payload: dict) -> None:
 
 
 def _read_model(robot, path: str):
-    import json
-    from pathlib import Path
-
-    from ..exceptions import InputError
-    from ..io.measurements import read_user_text
+    from ..input_files import read_json_file
     from ..prediction.iso9283_evaluation import diagnosis_model
 
-    try:
-        payload = json.loads(read_user_text(Path(path), "diagnosis JSON"))
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: not JSON (line {exc.lineno}: {exc.msg})") from None
-    return diagnosis_model(robot, payload, path)
+    return diagnosis_model(robot, read_json_file(path, "diagnosis JSON"), path)
 
 
 def _pose_dict(f) -> dict:

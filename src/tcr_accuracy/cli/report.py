@@ -67,17 +67,9 @@ def _run_report(args) -> int:
 
 
 def _read_result(path: str):
-    import json
+    from ..input_files import read_json_file
 
-    from ..exceptions import InputError
-    from ..io.measurements import read_user_text
-
-    text = read_user_text(Path(path), "JSON result")
-    try:
-        return json.loads(text)
-    except ValueError as exc:
-        raise InputError(f"{path}: not JSON ({exc}); give the --json result of diagnose, iso9283 evaluate or "
-                         "compare") from None
+    return read_json_file(path, "JSON result", hint="give the --json result of diagnose, iso9283 evaluate or compare")
 
 
 def _robot_facts(facts):

@@ -40,6 +40,7 @@ import numpy as np
 
 from ..model.context import REFERENCE_TEMPERATURE_C, MeasurementContext
 from ..exceptions import InputError
+from ..input_files import SIZE_LIMITS, read_input_text
 from .measurement_checks import MeasurementWarning, check_duplicates, check_position_units, warn_outside_limits
 from ..model.robot import RobotModel
 from ..units import JOINT_COLUMN_UNITS as _JOINT_UNITS
@@ -269,13 +270,10 @@ def read_measurements(path: str | Path, robot: RobotModel, *, min_rows: int = 1,
 
 
 def read_user_text(path: Path, what: str) -> str:
-    """A user's UTF-8 text file (a byte-order mark is dropped), or one InputError line."""
-    try:
-        return Path(path).read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such {what}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read {what} as UTF-8 text ({exc})") from None
+    """A user's UTF-8 table (a byte-order mark is dropped), or one InputError line: through the
+    package's one opener (:func:`tcr_accuracy.input_files.read_input_text`: a regular file of at
+    most the size bound of a table)."""
+    return read_input_text(path, what, limit=SIZE_LIMITS["table"])
 
 
 #: Column suffixes a measured frame's columns carry after ``<frame>.``

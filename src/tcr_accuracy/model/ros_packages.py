@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from xml.etree import ElementTree
 
+from ..exceptions import InputError
+from ..input_files import SIZE_LIMITS, read_input_bytes
 from .urdf import one_line
 
 #: The file that makes a folder a ROS package.
@@ -69,9 +71,8 @@ def package_name(folder: Path) -> str | None:
     if not manifest.is_file():
         return None
     try:
-        with manifest.open("rb") as handle:
-            head = handle.read(65536)
-    except OSError:
+        head = read_input_bytes(manifest, "package manifest", limit=SIZE_LIMITS["urdf"])[:65536]
+    except InputError:  # a pipe or device named package.xml, or unreadable: the folder's name
         return folder.name
     match = _MANIFEST_NAME.search(head)
     return match.group(1).decode("utf-8", "replace") if match else folder.name

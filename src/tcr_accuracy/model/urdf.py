@@ -17,26 +17,17 @@ import numpy as np
 import pinocchio as pin
 
 from ..exceptions import InputError
+from ..input_files import SIZE_LIMITS, read_input_text
 from ..units import PRISMATIC, REVOLUTE, parse_number
 
 
 _ENTITY = re.compile(r"<!\s*(ENTITY|DOCTYPE)", re.IGNORECASE)
-MAX_URDF_BYTES = 50 * 1024 * 1024
+MAX_URDF_BYTES = SIZE_LIMITS["urdf"]
 
 
 def read_urdf_text(path: Path) -> str:
     """Read a URDF file, refusing DTDs and entities (no entity expansion, ever)."""
-    try:
-        size = path.stat().st_size
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read URDF ({exc.strerror})") from None
-    if size > MAX_URDF_BYTES:
-        raise InputError(f"{path}: URDF is {size} bytes, larger than the {MAX_URDF_BYTES} allowed")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read URDF as UTF-8 text ({exc})") from None
-    return text
+    return read_input_text(path, "URDF", limit=MAX_URDF_BYTES)
 
 
 def parse_urdf_xml(text: str, source: str) -> ElementTree.Element:

@@ -168,17 +168,12 @@ def load_as_built(path) -> AsBuiltModel:
     AsBuiltModel
         The nominal robot and every effect with its fitted parameters [SI].
     """
-    import yaml
+    from ..input_files import read_settings_file
 
     path = Path(path)
     if path.suffix.lower() == ".urdf":
         path = path.with_suffix(".yaml")
-    try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read the as-built model ({exc.strerror or exc})") from None
-    except yaml.YAMLError as exc:
-        raise InputError(f"{path}: not YAML ({str(exc).splitlines()[0]})") from None
+    doc = read_settings_file(path, "as-built model", "yaml")  # the one opener: regular file, size, depth
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise InputError(f"{path}: not an as-built model written by tcr-accuracy export (no 'format: {FORMAT}')")
     for key in ("robot_source", "tool_frame", "effects"):
