@@ -13,8 +13,8 @@ from tcr_accuracy.io.measurements import (
     MeasurementWarning,
     allowed_columns,
     read_measurements,
-    write_measurements,
 )
+from tcr_accuracy.cli.writers import write_measurements
 
 from conftest import random_joint_values
 

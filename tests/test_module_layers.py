@@ -24,7 +24,7 @@ SRC = str(PACKAGE.parent)
 #: layer and those before it.
 LAYERS = ["base", "model", "io", "effects", "frames", "analysis", "diagnosis", "prediction", "asbuilt", "iso9283", "view",
           "cli"]
-BASE = {"tcr_accuracy", "tcr_accuracy.units", "tcr_accuracy.exceptions", "tcr_accuracy.atomic",
+BASE = {"tcr_accuracy", "tcr_accuracy.units", "tcr_accuracy.exceptions", "tcr_accuracy.input_files",
         "tcr_accuracy.random_state"}
 
 

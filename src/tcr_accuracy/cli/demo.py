@@ -122,7 +122,7 @@ def _demo_steps(args, out_dir: Path) -> int:
     if code != EXIT_OK:
         return code
 
-    from ..atomic import read_output
+    from .staging import read_output
 
     # the steps' files are staged with the demo's own, written together at its end
     accuracy = json.loads(read_output(accuracy_json))
@@ -174,6 +174,8 @@ def _demo_steps(args, out_dir: Path) -> int:
         ("accuracy.json", "accuracy.json"), ("diagnosis.json", "diagnosis.json"),
         ("as-built URDF of the diagnosed robot", "tool_changer_as_built.urdf"),
     ])
-    index = report.write(out_dir)
+    from .writers import write_report
+
+    index = write_report(report, out_dir)
     status(args, f"report written to {index}")
     return EXIT_OK

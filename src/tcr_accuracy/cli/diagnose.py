@@ -232,12 +232,12 @@ def write_as_built(robot, d, path: Path) -> tuple[Path, Path]:
     import yaml
 
     from ..model.asbuilt import as_built_urdf
-    from ..atomic import write_text_atomically
+    from .staging import write_text
     from ..effects import effect_class
     from ..model.errors import ErrorModel
 
     text, tool_frame = as_built_urdf(robot, d.as_built_x, ErrorModel(robot), name=f"{robot.name}_as_built")
-    write_text_atomically(path, text)
+    write_text(path, text)
     side = effects_side_file(path)
     doc = {
         "robot": robot.name,
@@ -269,7 +269,7 @@ def write_as_built(robot, d, path: Path) -> tuple[Path, Path]:
                             "error); interval_95: value +- 1.96 std cut to the physical range; physical_range: "
                             "where the effect's parameters can lie on a real robot, the fit stays inside it",
     }
-    write_text_atomically(side, yaml.safe_dump(doc, sort_keys=False))
+    write_text(side, yaml.safe_dump(doc, sort_keys=False))
     return path, side
 
 

@@ -61,7 +61,7 @@ def read_diagnosis_json(path: str) -> dict:
 def _run_export(args) -> int:
     import numpy as np
 
-    from ..atomic import stage_folder, write_text_atomically
+    from .staging import stage_folder, write_text
     from ..exceptions import InputError
     from ..model.dh import NoDhForm
     from ..model.robot import load_robot
@@ -86,7 +86,9 @@ def _run_export(args) -> int:
         except NoDhForm as exc:
             import sys
 
-            sys.stderr.write(f"tcr-accuracy: warning: {exc}\n")
+            from .staging import hold_message
+
+            hold_message(sys.stderr, f"tcr-accuracy: warning: {exc}\n", "warning")  # once the files are written
             summary.append(f"  {convention}: not written ({exc})")
             continue
         files[f"{convention.lower()}.csv"], files[f"{convention.lower()}_base_tool.csv"] = table, frames
@@ -97,7 +99,7 @@ def _run_export(args) -> int:
                        + ("" if solved == total else " (the others listed with the reason, commands left empty)"))
     stage_folder(folder)
     for name, text in files.items():
-        write_text_atomically(folder / name, text)
+        write_text(folder / name, text)
     summary.insert(1, "  " + ", ".join(files))
     print("\n".join(summary))
     status(args, f"export written to {folder}")

@@ -75,7 +75,7 @@ def _run_plan(args) -> int:
     import numpy as np
 
     from ..analysis.iso9283_plan import cycle_order, plan_iso_cube
-    from ..atomic import write_text_atomically
+    from .staging import write_text
     from ..exceptions import InputError
     from ..model.robot import load_robot
 
@@ -88,7 +88,7 @@ def _run_plan(args) -> int:
     pose_id, cycle = cycle_order(args.cycles)
     from pathlib import Path
 
-    write_text_atomically(Path(args.out), _plan_csv(robot, plan, pose_id, cycle))
+    write_text(Path(args.out), _plan_csv(robot, plan, pose_id, cycle))
     payload = {"robot": robot.name, "tool": robot.tool_frame, "cube_centre_mm": (plan.centre * 1e3).tolist(),
                "cube_size_mm": plan.size * 1e3, "searched": plan.searched, "candidate_centres": plan.n_centres,
                "orientation": plan.orientation, "collision": plan.collision, "cycles": args.cycles,

@@ -125,7 +125,7 @@ def _reachable_candidates(args, robot, read_measurements):
 def _run_plan_poses(args) -> int:
     import numpy as np
 
-    from ..atomic import write_text_atomically
+    from .staging import write_text
     from ..diagnosis.design import plan_discriminating_poses, plan_poses
     from ..diagnosis.ambiguity import rival_models
     from ..diagnosis.diagnose import GapDiagnosis
@@ -170,7 +170,7 @@ def _run_plan_poses(args) -> int:
     plan = plan_poses(robot, measured.q, effects, k, separate=separate, candidates=candidates,
                       n_candidates=args.n_candidates, payload_kg=payload, noise_m=noise_m,
                       rng=np.random.default_rng(args.seed))
-    write_text_atomically(Path(args.out), _plan_csv(robot, plan.q, args, plan.effects, pose_filter.checks))
+    write_text(Path(args.out), _plan_csv(robot, plan.q, args, plan.effects, pose_filter.checks))
     summary = {"measurements": str(args.measurements), "n_measured": len(measured), "k": k,
                "candidates": {"source": source, "tried": screened.tried, "kept": len(screened.q),
                               "rejected": {reason.replace(" ", "_").replace("-", "_"): n

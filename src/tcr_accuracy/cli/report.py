@@ -40,8 +40,12 @@ def _run_report(args) -> int:
     from ..view.report import Report
 
     files = list(args.results)
-    if len(set(files)) < len(files):
-        raise InputError(f"RESULT.json: {next(f for f in files if files.count(f) > 1)} is given twice")
+    seen: dict = {}
+    for path in files:  # one file through two paths (a link, ./x) is still one result
+        key = _identity(path)
+        if key in seen:
+            raise InputError(f"RESULT.json: {path} is given twice" + ("" if seen[key] == path else f" (as {seen[key]})"))
+        seen[key] = path
     documents = [(path, _read_result(path)) for path in files]
     for path, doc in documents:
         kind_of(doc, path)
@@ -60,10 +64,21 @@ def _run_report(args) -> int:
     campaign = Campaign(robot, documents)
     add_calibration_page(report, args.out, campaign, links)
     add_technical_tables(report, campaign)
-    index = report.write(args.out)
+    from .writers import write_report
+
+    index = write_report(report, args.out)
     status(args, f"report written to {index}")
     pdf_status(args, report)
     return EXIT_OK
+
+
+def _identity(path: str):
+    """(device, inode) of an existing file, else its real path: one key per file however spelt."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return os.path.realpath(path)
+    return st.st_dev, st.st_ino
 
 
 def _read_result(path: str):

@@ -522,7 +522,7 @@ def _resolve_columns(header, robot, source, line_no, require_position, logical):
 # Writing
 # ---------------------------------------------------------------------------------------
 def measurement_columns(robot: RobotModel, mset: MeasurementSet, unit: str = "mm") -> list[str]:
-    """Header of the CSV :func:`write_measurements` writes."""
+    """Header of the CSV :func:`format_measurements` writes."""
     if unit not in ("mm", "m"):
         raise InputError(f"unit {unit!r}: use 'mm' (deg, mm columns) or 'm' (rad, m columns)")
     joint_unit = {REVOLUTE: "deg" if unit == "mm" else "rad", "prismatic": unit}
@@ -588,36 +588,10 @@ def format_measurements(robot: RobotModel, mset: MeasurementSet, unit: str = "mm
     return out.getvalue()
 
 
-def write_measurements(path: str | Path, robot: RobotModel, mset: MeasurementSet, unit: str = "mm",
-                       comment: str | None = None) -> None:
-    """Write a measurement CSV atomically (temporary file + rename).
-
-    Parameters
-    ----------
-    path : str or Path
-        The CSV file to write.
-    robot : RobotModel
-        Names the joint columns and their units.
-    mset : MeasurementSet
-        The rows to write [SI].
-    unit : str, default="mm"
-        ``mm``: positions in mm and joints in deg (mm for prismatic joints); ``m``: SI.
-    comment : str, optional
-        Written as ``#`` lines above the header.
-
-    Returns
-    -------
-    None
-    """
-    from ..atomic import write_text_atomically
-
-    write_text_atomically(Path(path), format_measurements(robot, mset, unit, comment))
-
-
 __all__ = [
     "ANNOTATION_COLUMNS", "MeasurementContext", "MeasurementSet", "MeasurementWarning", "REFERENCE_TEMPERATURE_C",
     "allowed_columns", "format_measurements", "measured_frames", "measurement_columns", "parse_measurements",
-    "read_measurements", "read_user_text", "write_measurements",
+    "read_measurements", "read_user_text",
 ]
 
 
