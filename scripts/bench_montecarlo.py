@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tcr_accuracy.atomic import write_text_atomically
+from tcr_accuracy.cli.staging import write_text
 from tcr_accuracy.model.errors import seed_budget
 from tcr_accuracy.model.kinematics import tcp_chain_soa, tcp_poses_pinocchio
 from tcr_accuracy.analysis.montecarlo import run_monte_carlo, sample_rows
@@ -122,7 +122,7 @@ def main() -> int:
               f"{wall:.1f} s wall")
         payload.update({"memory_samples": n_done, "peak_rss_mb": max_rss_kb / 1024, "memory_run_wall_s": wall})
     if args.json:
-        write_text_atomically(Path(args.json), json.dumps(payload, indent=2) + "\n")
+        write_text(Path(args.json), json.dumps(payload, indent=2) + "\n")
     return 0
 
 

@@ -25,6 +25,7 @@ Base layer: no import from the rest of the package but :mod:`tcr_accuracy.except
 from __future__ import annotations
 
 import json
+import math
 import os
 import stat
 from contextlib import contextmanager
@@ -219,12 +220,19 @@ def _too_deep(source) -> InputError:
 
 def parse_json(text: str, source, hint: str = "") -> object:
     """JSON text to Python, nested at most :data:`MAX_NESTING` deep, without ``NaN`` or
-    ``Infinity`` and without a key given twice in one object; anything else is one
+    ``Infinity`` (nor a number such as ``1e400`` that would read as one) and without a key given
+    twice in one object; anything else is one
     InputError line naming ``source`` (and ``hint``: what to give instead)."""
     hint = f"; {hint}" if hint else ""
 
     def constant(name):
         raise InputError(f"{source}: {name} is not a number JSON allows; write a finite number or null")
+
+    def finite(text):
+        value = float(text)
+        if not math.isfinite(value):
+            raise InputError(f"{source}: {_short(text, 40)} is beyond the range of a number (about 1.8e308)")
+        return value
 
     def unique(pairs):
         out = {}
@@ -235,7 +243,7 @@ def parse_json(text: str, source, hint: str = "") -> object:
         return out
 
     try:
-        data = json.loads(text, parse_constant=constant, object_pairs_hook=unique)
+        data = json.loads(text, parse_constant=constant, parse_float=finite, object_pairs_hook=unique)
     except InputError:
         raise
     except json.JSONDecodeError as exc:

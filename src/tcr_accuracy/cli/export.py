@@ -44,18 +44,12 @@ def add_parsers(sub) -> None:
 
 
 def read_diagnosis_json(path: str) -> dict:
-    """The JSON of ``diagnose --json``, with what export needs checked (one line naming what is missing)."""
-    from ..exceptions import InputError
-    from ..input_files import read_json_file
+    """The JSON of ``diagnose --json``, validated on read (:mod:`tcr_accuracy.cli.result_files`:
+    one line naming the key at fault)."""
+    from .result_files import MODEL_KEYS, read_result
 
-    data = read_json_file(path, "diagnosis JSON", hint="give the JSON that 'diagnose --json FILE' wrote")
-    if not isinstance(data, dict):
-        raise InputError(f"{path}: not a diagnosis (a JSON object was expected)")
-    for key in ("effect_parameters", "robot_source", "tool_frame", "tracker_transform"):
-        if key not in data:
-            raise InputError(f"{path}: key {key!r} is missing; write the JSON with 'tcr-accuracy diagnose "
-                             "MEASUREMENTS.csv --json FILE' of this version")
-    return data
+    return read_result(path, "diagnosis", hint="give the JSON that 'diagnose --json FILE' wrote",
+                       required=MODEL_KEYS)[1]
 
 
 def _run_export(args) -> int:
@@ -67,9 +61,12 @@ def _run_export(args) -> int:
     from ..model.robot import load_robot
     from ..prediction.as_built_model import AsBuiltModel, write_as_built_model
 
+    from .result_files import check_physics
+
     data = read_diagnosis_json(args.diagnosis)
     source = data["robot_source"]
     robot = load_robot(None if source == "tool_changer" else source, data["tool_frame"])
+    check_physics(data, robot, args.diagnosis)
     try:
         model = AsBuiltModel(robot, {e: dict(p) for e, p in data["effect_parameters"].items()}, source,
                              np.asarray(data["tracker_transform"], dtype=float),
@@ -93,6 +90,10 @@ def _run_export(args) -> int:
             continue
         files[f"{convention.lower()}.csv"], files[f"{convention.lower()}_base_tool.csv"] = table, frames
     if args.targets is not None:
+        from .common import check_csv_memory
+
+        # each target: the model's TCP and its Jacobian over the joints, a few copies
+        check_csv_memory(args, args.targets, "--targets", 3 * 64 * 8.0 * (robot.n_joints + 1), hint="use fewer targets")
         text, solved, total = compensation_csv(model, args.targets, args.threshold_mm * 1e-3)
         files["compensation.csv"] = text
         summary.append(f"  compensation.csv: {solved} of {total} targets corrected"

@@ -179,16 +179,16 @@ def _run_evaluate(args) -> int:
 def _calibration_page(report, args, robot, payload: dict) -> None:
     """The report opens with the calibration report's first page (with the diagnosis of --model, if given),
     then the per-pose tables."""
-    from ..input_files import read_json_file
     from ..view.calibration_report import Campaign, RobotFacts, add_iso_tables, kind_or_none as kind_or_none
     from .report import add_calibration_page
+    from .result_files import PAGE_KEYS, read_result, validate_result
 
     documents = [(str(args.measurements), payload)]
     files = [("ISO 9283 JSON", args.json)] if args.json not in (None, "-") else []
     if args.model:  # read and checked already (_read_model); one of ours written before the report: shown
-        model = read_json_file(args.model, "diagnosis JSON")
-        if kind_or_none(model) == "diagnosis":
-            documents.insert(0, (str(args.model), model))
+        model = read_result(args.model, "diagnosis")[1]
+        if kind_or_none(model) == "diagnosis":  # on the page: with what the page reads
+            documents.insert(0, (str(args.model), validate_result(model, "diagnosis", args.model, PAGE_KEYS)))
         files.append(("diagnosis JSON (--model)", args.model))
     add_calibration_page(report, args.out, Campaign(RobotFacts.of_robot(robot, payload["robot_source"]), documents),
                          files)
@@ -196,10 +196,12 @@ def _calibration_page(report, args, robot, payload: dict) -> None:
 
 
 def _read_model(robot, path: str):
-    from ..input_files import read_json_file
     from ..prediction.iso9283_evaluation import diagnosis_model
+    from .result_files import check_physics, read_result
 
-    return diagnosis_model(robot, read_json_file(path, "diagnosis JSON"), path)
+    payload = read_result(path, "diagnosis", hint="give the JSON that 'diagnose --json FILE' wrote")[1]
+    check_physics(payload, robot, path)
+    return diagnosis_model(robot, payload, path)
 
 
 def _pose_dict(f) -> dict:
