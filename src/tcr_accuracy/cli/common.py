@@ -127,6 +127,7 @@ def integer(*, low: int | None = None, high: int | None = None, what: str = ""):
         return value
 
     convert.__name__ = "integer"
+    convert.bounds = (low, high)  # read by the tests that try every count option at its largest
     return convert
 
 
