@@ -333,3 +333,35 @@ def test_view_arguments_plug_into_another_command(tmp_path, capsys, tool_changer
     emit_view(scene, parser.parse_args(["--view", str(tmp_path / "v.html")]))
     assert "robot: nominal" in (tmp_path / "v.html").read_text(encoding="utf-8")
     assert parser.parse_args(["--view"]).view == "view.html"
+
+
+def _outside_code(markdown: str) -> str:
+    """The Markdown text outside fenced code blocks and inline code spans, as CommonMark reads
+    them: a fence of N backticks closes at a line of at least N backticks; a span of N backticks
+    closes at the next run of exactly N."""
+    out, fence = [], None
+    for line in markdown.splitlines():
+        run = re.match(r"^(`{3,})\s*$", line)
+        if fence is None and run:
+            fence = run.group(1)
+        elif fence is not None:
+            if run and len(run.group(1)) >= len(fence):
+                fence = None
+        else:
+            out.append(re.sub(r"(`+)(?!`).*?(?<!`)\1(?!`)", "", line))
+    assert fence is None, "a fence left open"
+    return "\n".join(out)
+
+
+def test_29_10_report_md_shows_raw_html_from_outside_as_text():
+    hostile = "<script>alert(1)</script> ``` <iframe src=x> `` [a](javascript:x)"
+    report = Report(f"title {hostile}", command=["report", "--title", hostile])
+    report.add_text(f"note {hostile}", heading=f"heading {hostile}")
+    report.add_preformatted(f"printed\n```\n{hostile}\n````", heading="printed")
+    report.add_table(f"table {hostile}", ["a", hostile], [[hostile, 1]], note=hostile)
+    report.add_links("links", [(hostile, "a b).html")])
+    markdown = report.markdown()
+    assert "<" not in _outside_code(markdown)  # every raw tag is text (&lt;) or inside code
+    assert "&lt;script&gt;alert(1)&lt;/script&gt;" in markdown
+    assert "(a%20b%29.html)" in markdown  # a link target that cannot end early
+    assert hostile in report.markdown()  # shown whole inside the printed block and the command

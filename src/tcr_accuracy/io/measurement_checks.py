@@ -63,19 +63,31 @@ def check_duplicates(mset, values, header, source, context_columns):
         )
 
 
+def _spread_about_each_centre(points: np.ndarray, groups: np.ndarray) -> float:
+    """RMS distance [m] of points (N, 3) from the centre of their own group (groups (N,) int)."""
+    centres = np.zeros((groups.max() + 1, 3))
+    np.add.at(centres, groups, points)
+    centres /= np.bincount(groups)[:, None]
+    return float(np.sqrt(np.mean(np.sum((points - centres[groups]) ** 2, axis=1))))
+
+
 def check_position_units(mset, robot, columns, source):
     """Compare the spread of the measured TCP with the nominal model's spread.
 
     The tracker frame is unknown, so absolute values say nothing; distances between
-    measured points do, and a rigid frame change keeps them.
+    measured points do, and a rigid frame change keeps them. Each session (``session``
+    column) has its own tracker frame: the spreads are taken about each session's own centre,
+    so that sessions set up metres apart are not read as a unit error.
     """
     from ..model.kinematics import tcp_poses
 
     if len(mset) < 3:
         return
     nominal = tcp_poses(robot, mset.q).position
-    model_spread = float(np.sqrt(np.mean(np.sum((nominal - nominal.mean(axis=0)) ** 2, axis=1))))
-    measured_spread = float(np.sqrt(np.mean(np.sum((mset.position - mset.position.mean(axis=0)) ** 2, axis=1))))
+    groups = mset.session_index()
+    groups = np.zeros(len(mset), dtype=int) if groups is None else groups
+    model_spread = _spread_about_each_centre(nominal, groups)
+    measured_spread = _spread_about_each_centre(mset.position, groups)
     if model_spread < 1e-3:  # all poses (nearly) the same: nothing to compare
         return
     ratio = measured_spread / model_spread

@@ -312,44 +312,44 @@ class Report:
         return _PAGE.format(title=esc(self.title), css=_CSS, body="\n".join(body))
 
     def markdown(self, *, pdf: str | None = None) -> str:
-        """The same content as Markdown (tables as pipe tables)."""
-
-        def md(text: str) -> str:
-            return text.replace("|", "\\|")
+        """The same content as Markdown (tables as pipe tables); every string from outside made
+        safe there (:mod:`tcr_accuracy.view.markdown_text`: no raw HTML, no fence closed early)."""
+        from . import markdown_text as md
 
         out = []
         if self.first_page is not None:
-            out += [self.first_page[1].rstrip("\n"), "", "---", "", f"# Technical detail: {self.title}", ""]
+            out += [self.first_page[1].rstrip("\n"), "", "---", "", f"# Technical detail: {md.line(self.title)}", ""]
         else:
-            out += [f"# {self.title}", ""]
-        out += [f"Written {self.created} by tcr-accuracy {__version__}."
-                + (f" Printed: [{pdf}]({pdf})." if pdf else ""), ""]
+            out += [f"# {md.line(self.title)}", ""]
+        out += [f"Written {md.line(self.created)} by tcr-accuracy {__version__}."
+                + (f" Printed: [{md.label(pdf)}]({md.href(pdf)})." if pdf else ""), ""]
         for item in self.items:
             if isinstance(item, _Text):
                 if item.heading:
-                    out += [f"## {item.heading}", ""]
-                out += [item.text.strip(), ""]
+                    out += [f"## {md.line(item.heading)}", ""]
+                out += [md.text(item.text.strip()), ""]
             elif isinstance(item, _Preformatted):
                 if item.heading:
-                    out += [f"## {item.heading}", ""]
-                out += ["```", item.text, "```", ""]
+                    out += [f"## {md.line(item.heading)}", ""]
+                out += [*md.fenced(item.text), ""]
             elif isinstance(item, _Table):
-                out += [f"## {item.title}", "",
-                        "| " + " | ".join(md(c) for c in item.columns) + " |",
+                out += [f"## {md.line(item.title)}", "",
+                        "| " + " | ".join(md.cell(c) for c in item.columns) + " |",
                         "|" + "|".join("---" for _ in item.columns) + "|"]
-                out += ["| " + " | ".join(md(v) for v in row) + " |" for row in item.rows]
+                out += ["| " + " | ".join(md.cell(v) for v in row) + " |" for row in item.rows]
                 out.append("")
                 if item.note:
-                    out += [item.note, ""]
+                    out += [md.text(item.note), ""]
             elif isinstance(item, _Links):
-                out += [f"## {item.heading}", ""] + [f"- [{label}]({href})" for label, href in item.links] + [""]
+                out += [f"## {md.line(item.heading)}", ""] + [f"- [{md.label(label)}]({md.href(href)})"
+                                                              for label, href in item.links] + [""]
             elif isinstance(item, _Figure):
-                out += [f"![{item.caption}]({item.filename})", "", f"*{item.caption}*", ""]
+                out += [f"![{md.label(item.caption)}]({md.href(item.filename)})", "", f"*{md.line(item.caption)}*", ""]
             elif isinstance(item, _Scene):
-                out += [f"[{item.caption} (3D, opens in a browser)]({item.filename})", ""]
-        out += ["## How this report was made", "", "```", self.command, "```", "",
+                out += [f"[{md.label(item.caption)} (3D, opens in a browser)]({md.href(item.filename)})", ""]
+        out += ["## How this report was made", "", *md.fenced(self.command), "",
                 "| software | version |", "|---|---|"]
-        out += [f"| {k} | {v} |" for k, v in versions().items()]
+        out += [f"| {md.cell(k)} | {md.cell(v)} |" for k, v in versions().items()]
         return "\n".join(out) + "\n"
 
     def files(self) -> dict[str, bytes]:
