@@ -8,6 +8,7 @@ test checks that the decoy is byte for byte what it was.
 
 import argparse
 import ast
+import json
 import os
 import stat
 from pathlib import Path
@@ -330,3 +331,52 @@ def test_the_writer_check_finds_a_write(tmp_path):
                       "os.replace('a', 'b')\nos.open('c', os.O_WRONLY | os.O_CREAT)\n'x'.replace('a', 'b')\n")
     found = sorted(w.split(" ", 1)[1] for w in _writes_in(sample))
     assert found == sorted([".write_text(", "open(..., 'w')", "os.replace(", "os.open(writing)"])
+
+
+# ---------------------------------------------------------------------------------------
+# Issue 29 item 10: export's warning after its files, its repeated targets, an empty --to
+# ---------------------------------------------------------------------------------------
+def _tilted(diagnosis: Path, tmp_path: Path) -> Path:
+    """The diagnosis with j3's axis tilted 0.3 mrad as built: j2 and j3, parallel by design, then
+    admit no DH table (a warning), the MDH table carries them."""
+    doc = json.loads(diagnosis.read_text())
+    doc["effect_parameters"]["geometry"] = {"geometry.j3.ry": 2e-4, "geometry.j3.rz": 2e-4}
+    doc["effect_options"]["geometry"] = {}
+    path = tmp_path / "tilted.json"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_29_10_export_warns_only_once_its_files_are_written(campaign, tmp_path, capsys):
+    _, diagnosis = campaign
+    tilted = _tilted(diagnosis, tmp_path)
+    bad = tmp_path / "bad_targets.csv"
+    bad.write_text("j1_deg,j2_deg\n1,2\n")
+    code, out, err = run(["export", tilted, "--to", tmp_path / "to", "--targets", bad], capsys)
+    assert code == 2
+    assert_one_line(err, str(bad))  # the DH warning of a run that wrote nothing is not shown
+    code, out, err = run(["export", tilted, "--to", tmp_path / "to", "--quiet"], capsys)
+    assert code == 0 and "warning: no DH table" in err
+    assert not (tmp_path / "to" / "dh.csv").exists() and (tmp_path / "to" / "mdh.csv").is_file()
+
+
+def test_29_10_export_answers_repeated_targets_as_compensate_does(campaign, tmp_path, capsys):
+    _, diagnosis = campaign
+    targets = tmp_path / "targets.csv"
+    targets.write_text("j1_deg,j2_deg,j3_deg,j4_mm,j5_deg,j6_deg\n10,20,30,100,10,0\n10,20,30,100,10,0\n")
+    code, out, err = run(["export", diagnosis, "--to", tmp_path / "to", "--targets", targets, "--quiet"], capsys)
+    assert code == 0, err
+    rows = (tmp_path / "to" / "compensation.csv").read_text().splitlines()[1:]
+    assert len(rows) == 2 and rows[0].split(",")[6:12] == rows[1].split(",")[6:12]
+
+
+def test_29_10_an_empty_output_folder_or_effect_list_is_refused(campaign, tmp_path, capsys, monkeypatch):
+    csv, diagnosis = campaign
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run(["export", diagnosis, "--to", ""], capsys)
+    assert code == 2
+    assert_one_line(err, "--to '': an empty folder name")
+    assert list(tmp_path.iterdir()) == []
+    code, out, err = run(["diagnose", csv, "--effects", ""], capsys)
+    assert code == 2
+    assert_one_line(err, "--effects '': names no effect")

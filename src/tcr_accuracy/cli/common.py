@@ -33,15 +33,15 @@ class Parser(argparse.ArgumentParser):
 
 #: What the argparse types of this module say after the value ("--x VALUE: <one of these>...").
 _REFUSALS = ("want", "not a number", "non-finite", "the folder", "is a folder", "exists and is not a folder",
-             "not writable", "not a regular file", "its side file")
+             "not writable", "not a regular file", "its side file", "an empty folder name")
 _TYPE_REFUSAL = re.compile(r"argument (?P<option>--[\w-]+)(?:/[\w-]+)*: "
                            rf"(?P<rest>.+?: (?:{'|'.join(map(re.escape, _REFUSALS))}).*)", re.DOTALL)
 
 
 def effect_names(text: str | None) -> list[str] | None:
     """The effects named by ``--effects a,b,...`` (None when not given), each checked against the
-    vocabulary: one line naming the unknown ones."""
-    if not text:
+    vocabulary: one line naming the unknown ones. ``--effects ''`` names none, as ``,`` does: refused."""
+    if text is None:
         return None
     from ..effects import vocabulary
     from ..exceptions import InputError

@@ -171,7 +171,7 @@ def compensation_csv(model, targets: str, threshold: float) -> tuple[str, int, i
     from ..prediction.compensation import compensate_joints
 
     robot = model.robot
-    mset = read_measurements(targets, robot, require_position=False)
+    mset = read_measurements(targets, robot, require_position=False, repeats_allowed=True)  # as compensate
     context = mset.context
     point = _measured_point_robot(robot, model.tcp_offset())
 
