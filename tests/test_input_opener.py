@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from test_hostile_input import assert_one_line, run
-from tcr_accuracy.cli import build_parser, main
+from tcr_accuracy.cli import build_parser
 from tcr_accuracy.cli.output_paths import OUTPUT_TYPES
 from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.input_files import (MAX_NESTING, parse_json, parse_settings, read_input_bytes, read_input_text,
@@ -220,11 +220,9 @@ def test_every_input_option_has_a_case():
 
 
 @pytest.fixture(scope="module")
-def campaign(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("inputs")
-    csv, d, d2 = folder / "m.csv", folder / "d.json", folder / "d2.json"
-    assert main(["simulate", "--n", "24", "--random", "--seed", "2", "--out", str(csv), "--quiet"]) == 0
-    assert main(["diagnose", str(csv), "--effects", "joint_offsets", "--quiet", "--json", str(d)]) == 0
+def campaign(small_campaign, tmp_path_factory):
+    csv, d = small_campaign
+    d2 = tmp_path_factory.mktemp("inputs") / "d2.json"
     d2.write_bytes(d.read_bytes())
     return {"M": csv, "D": d, "D2": d2, "T": REPO / "examples" / "tracker_export.txt"}
 

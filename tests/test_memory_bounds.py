@@ -11,7 +11,7 @@ import signal
 import pytest
 
 from test_hostile_input import assert_one_line, run
-from tcr_accuracy.cli import build_parser, main
+from tcr_accuracy.cli import build_parser
 
 
 def _count_options():
@@ -58,11 +58,8 @@ def test_every_large_count_option_has_a_case():
 
 
 @pytest.fixture(scope="module")
-def files(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("sizes")
-    csv, d = folder / "m.csv", folder / "d.json"
-    assert main(["simulate", "--n", "24", "--random", "--seed", "2", "--out", str(csv), "--quiet"]) == 0
-    assert main(["diagnose", str(csv), "--effects", "joint_offsets", "--quiet", "--json", str(d)]) == 0
+def files(small_campaign):
+    csv, d = small_campaign
     return {"M": csv, "D": d}
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from test_hostile_input import assert_one_line, run
-from tcr_accuracy.cli import build_parser, main
+from tcr_accuracy.cli import build_parser
 from tcr_accuracy.cli.output_paths import OUTPUT_TYPES, OutputPaths, check_followable
 from tcr_accuracy.cli.staging import staged_outputs, write_text
 from tcr_accuracy.exceptions import InputError
@@ -28,13 +28,9 @@ DECOY = "root:x:0:0:root:/root:/bin/bash\n"
 
 
 @pytest.fixture(scope="module")
-def campaign(tmp_path_factory):
-    """A small simulated campaign: the measurement CSV and its diagnosis JSON."""
-    folder = tmp_path_factory.mktemp("campaign")
-    csv, diagnosis = folder / "m.csv", folder / "d.json"
-    assert main(["simulate", "--n", "24", "--random", "--seed", "2", "--out", str(csv), "--quiet"]) == 0
-    assert main(["diagnose", str(csv), "--effects", "joint_offsets", "--quiet", "--json", str(diagnosis)]) == 0
-    return csv, diagnosis
+def campaign(small_campaign):
+    """A small simulated campaign: the measurement CSV and its diagnosis JSON (conftest)."""
+    return small_campaign
 
 
 @pytest.fixture
@@ -177,24 +173,26 @@ def test_29_02_iso9283_evaluate_json_and_out_on_one_path_leaves_no_tmp(campaign,
     assert list(tmp_path.iterdir()) == []
 
 
+def _refused_over_its_input(argv, given: Path, capsys) -> None:
+    """``argv`` writes into ``given``'s folder at ``given``'s name: refused, the input and its folder as they were."""
+    before, entries = given.read_bytes(), sorted(p.name for p in given.parent.iterdir())
+    code, out, err = run(argv, capsys)
+    assert code == 2
+    assert_one_line(err, f"{given}: is also an input of this run")
+    assert given.read_bytes() == before and sorted(p.name for p in given.parent.iterdir()) == entries
+
+
 def test_29_02_export_over_its_own_diagnosis_or_targets(campaign, tmp_path, capsys):
     csv, diagnosis = campaign
     folder = tmp_path / "d"
     folder.mkdir()
     given = folder / "as_built.yaml"
     given.write_bytes(diagnosis.read_bytes())
-    code, out, err = run(["export", given, "--to", folder], capsys)
-    assert code == 2
-    assert_one_line(err, f"{given}: is also an input of this run")
-    assert given.read_bytes() == diagnosis.read_bytes() and [p.name for p in folder.iterdir()] == ["as_built.yaml"]
+    _refused_over_its_input(["export", given, "--to", folder], given, capsys)
     given.unlink()
     targets = folder / "compensation.csv"
     targets.write_text("j1_deg,j2_deg,j3_deg,j4_mm,j5_deg,j6_deg\n10,20,30,100,10,0\n")
-    before = targets.read_bytes()
-    code, out, err = run(["export", diagnosis, "--to", folder, "--targets", targets], capsys)
-    assert code == 2
-    assert_one_line(err, f"{targets}: is also an input of this run")
-    assert targets.read_bytes() == before and [p.name for p in folder.iterdir()] == ["compensation.csv"]
+    _refused_over_its_input(["export", diagnosis, "--to", folder, "--targets", targets], targets, capsys)
 
 
 def test_29_02_report_over_its_own_result_even_through_a_hard_link(campaign, tmp_path, capsys):
@@ -203,9 +201,7 @@ def test_29_02_report_over_its_own_result_even_through_a_hard_link(campaign, tmp
     folder.mkdir()
     given = folder / "index.html"
     given.write_bytes(diagnosis.read_bytes())
-    code, out, err = run(["report", given, "--out", folder], capsys)
-    assert code == 2
-    assert_one_line(err, f"{given}: is also an input of this run")
+    _refused_over_its_input(["report", given, "--out", folder], given, capsys)
     elsewhere = tmp_path / "result.json"
     os.link(given, elsewhere)  # the same file under another name: still the input
     code, out, err = run(["report", elsewhere, "--out", folder], capsys)

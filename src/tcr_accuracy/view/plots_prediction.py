@@ -15,7 +15,6 @@ the file it is meant for); the caller writes it.
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 
