@@ -25,7 +25,7 @@ SRC = str(PACKAGE.parent)
 LAYERS = ["base", "model", "io", "effects", "frames", "analysis", "diagnosis", "prediction", "asbuilt", "iso9283", "view",
           "cli"]
 BASE = {"tcr_accuracy", "tcr_accuracy.units", "tcr_accuracy.exceptions", "tcr_accuracy.input_files",
-        "tcr_accuracy.random_state"}
+        "tcr_accuracy.hyperparameters", "tcr_accuracy.random_state"}
 
 
 def _layer(module: str) -> str:
