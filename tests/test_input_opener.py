@@ -111,7 +111,10 @@ def test_nesting_is_bounded_without_a_recursion_error(kind, text):
 def test_nesting_up_to_the_bound_is_read():
     depth = MAX_NESTING
     assert parse_json("[" * depth + "]" * depth, "ok") is not None
-    assert parse_settings("a: " + "[" * (depth - 1) + "]" * (depth - 1), "ok") == {"a": eval("[" * (depth - 1) + "]" * (depth - 1))}
+    nested = []
+    for _ in range(depth - 2):
+        nested = [nested]
+    assert parse_settings("a: " + "[" * (depth - 1) + "]" * (depth - 1), "ok") == {"a": nested}
 
 
 @pytest.mark.parametrize("text, said", [

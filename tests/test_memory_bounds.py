@@ -69,7 +69,8 @@ def test_each_count_at_its_largest_is_refused_before_the_work(command, option, l
     if isinstance(case, str):  # bounded by its type, said why
         assert largest <= 10**5 or "min(" in case
         return
-    words = {"N": str(largest), "P2": str(2 ** (largest.bit_length() - 1)), "OUT": str(tmp_path / "out.html"), "DIR": str(tmp_path / "dir"),
+    words = {"N": str(largest), "P2": str(2 ** (largest.bit_length() - 1)), "OUT": str(tmp_path / "out.html"),
+             "DIR": str(tmp_path / "dir"),
              **{k: str(v) for k, v in files.items()}}
 
     def expire(signum, frame):

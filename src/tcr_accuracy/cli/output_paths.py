@@ -148,8 +148,8 @@ def _target_below(shown: Path, absolute: Path, root: Path) -> Target:
                              "the run writes its own files there and never through a link it was not given: "
                              "remove the link or choose another folder")
         if last and not stat.S_ISREG(mode) and not stat.S_ISDIR(mode):
-            raise InputError(f"{here}: is a device, pipe or socket inside the output folder {named_root}; the run writes "
-                             "a regular file there: remove it or choose another folder")
+            raise InputError(f"{here}: is a device, pipe or socket inside the output folder {named_root}; the run "
+                             "writes a regular file there: remove it or choose another folder")
         if not last and not stat.S_ISDIR(mode):
             raise InputError(f"{here}: is a file inside the output folder {named_root}, where the run needs a folder")
     return Target(shown, real_root.joinpath(*parts[:-1]), parts[-1])

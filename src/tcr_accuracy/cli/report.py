@@ -44,7 +44,8 @@ def _run_report(args) -> int:
     for path in files:  # one file through two paths (a link, ./x) is still one result
         key = _identity(path)
         if key in seen:
-            raise InputError(f"RESULT.json: {path} is given twice" + ("" if seen[key] == path else f" (as {seen[key]})"))
+            also = "" if seen[key] == path else f" (as {seen[key]})"
+            raise InputError(f"RESULT.json: {path} is given twice{also}")
         seen[key] = path
     documents = [(path, _read_result(path)) for path in files]  # each validated (cli.result_files)
     for key, what in (("robot", "robots"), ("tool_frame", "TCP frames")):
