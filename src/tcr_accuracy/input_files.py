@@ -10,6 +10,8 @@ a mesh) is read by :func:`read_input_bytes` and the helpers built on it:
   the file read;
 * each kind of file has a size bound (:data:`SIZE_LIMITS`), checked on the open file and again
   while reading (a file that grows while it is read, a ``/proc`` file that says it is empty);
+  inside :func:`memory_budget` (the command line's ``--max-memory-gb``), a file whose reading
+  would need more memory than the budget (:data:`MEMORY_PER_BYTE` per byte) is refused first;
 * text is UTF-8 (a byte-order mark is dropped); a byte that is not is one line naming the line;
 * JSON (:func:`parse_json`) and YAML or TOML (:func:`parse_settings`) are parsed with their
   nesting bounded (:data:`MAX_NESTING`, never a ``RecursionError``), without YAML aliases
@@ -43,6 +45,10 @@ MB = 1 << 20
 #: passes 100 MB.
 SIZE_LIMITS = {"table": 2048 * MB, "json": 256 * MB, "settings": 4 * MB, "urdf": 50 * MB, "mesh": 512 * MB}
 
+#: Memory [bytes] reading one byte of a file takes, parsed (text, cells or objects, numbers): the
+#: figure the command line's CSV estimate uses too.
+MEMORY_PER_BYTE = 12.0
+
 #: The deepest nesting of objects, lists or tables a JSON, YAML or TOML file may have (the
 #: tool's own files use at most 6; real settings files 3 or 4).
 MAX_NESTING = 20
@@ -52,6 +58,18 @@ MAX_NESTING = 20
 # The files a run has read
 # ---------------------------------------------------------------------------------------
 _inputs: ContextVar[list | None] = ContextVar("tcr_accuracy_inputs", default=None)
+_budget: ContextVar[tuple[float, str] | None] = ContextVar("tcr_accuracy_read_budget", default=None)
+
+
+@contextmanager
+def memory_budget(n_bytes: float, hint: str):
+    """Inside the block, refuse a file whose reading would need more than ``n_bytes`` of memory
+    (:data:`MEMORY_PER_BYTE` per byte); ``hint``: what the refusal says to do instead."""
+    token = _budget.set((float(n_bytes), hint))
+    try:
+        yield
+    finally:
+        _budget.reset(token)
 
 
 @contextmanager
@@ -174,6 +192,11 @@ def _check_size(path, what: str, size: int, limit: int) -> None:
     if size > limit:
         raise InputError(f"{path}: the {what} is larger than the {_size(limit)} this kind of file may have "
                          f"({_size(size)}{' or more' if size == limit + 1 else ''})")
+    budget = _budget.get()
+    if budget is not None and size * MEMORY_PER_BYTE > budget[0]:
+        need = size * MEMORY_PER_BYTE / 1e9
+        raise InputError(f"{path}: reading the {what} ({_size(size)}) needs about {need:.3g} GB of memory, more than "
+                         f"the {budget[0] / 1e9:.3g} GB allowed; {budget[1]}")
 
 
 def _size(n: int) -> str:

@@ -24,7 +24,7 @@ from contextlib import contextmanager
 from .. import __version__
 from . import (compare, demo, diagnose, export, iso9283, montecarlo, plan_poses, pose, prediction, report,
                sensitivity, simulate, tolerance, tracker_import, trajectory, view)
-from .common import EXIT_ANALYSIS, EXIT_INPUT, EXIT_OK, Parser, add_memory_argument
+from .common import DEFAULT_MEMORY_GB, EXIT_ANALYSIS, EXIT_INPUT, EXIT_OK, Parser, add_memory_argument
 
 
 # ---------------------------------------------------------------------------------------
@@ -125,14 +125,17 @@ def _main(argv: list[str], debug: bool, command: str | None) -> int:
         name = f"tcr-accuracy {args.command}"
         debug = debug or getattr(args, "debug", False)  # also an abbreviated --deb
         from .staging import staged_outputs
+        from ..input_files import memory_budget
         from ..model.ros_packages import package_dirs_given
         from .held import held_stdout
 
         # every file of the run is written at its end, together, or not at all, and what it
         # prints after them; SIGTERM and SIGHUP are interrupts until the commit is done, so that
         # one during the commit still cleans up
+        budget = (getattr(args, "max_memory_gb", None) or DEFAULT_MEMORY_GB) * 1e9  # every file read is held to it
         with warnings.catch_warnings(), _terminate_as_interrupt(), held_stdout(), staged_outputs(outputs) as stage, \
-                package_dirs_given(getattr(args, "package_dir", None)):  # --package-dir, for every load_robot
+                package_dirs_given(getattr(args, "package_dir", None)), \
+                memory_budget(budget, "use a smaller file, or allow more with --max-memory-gb"):
             warnings.simplefilter("default", UserWarning)
             warnings.showwarning = _show_warning
             return args.run(args)

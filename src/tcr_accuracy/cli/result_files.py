@@ -40,6 +40,7 @@ _NUMBER_OR_NULL = {"anyOf": [_NUMBER, {"type": "null"}]}
 _COUNT = {"type": "integer", "minimum": 1, "maximum": MAX_COUNT}
 _TEXTS = {"type": "array", "items": _TEXT, "maxItems": 100_000}
 _INTERVAL = {"type": "array", "items": _NUMBER_OR_NULL, "minItems": 2, "maxItems": 2}
+_MM_INTERVAL = {"type": "array", "items": _SIGNED_MM, "minItems": 2, "maxItems": 2}
 _TRANSFORM = {"type": "array", "minItems": 4, "maxItems": 4,
               "items": {"type": "array", "minItems": 4, "maxItems": 4, "items": _NUMBER}}
 
@@ -62,13 +63,21 @@ def _options_schema(names) -> dict:
 
 
 def _diagnosis_schema(names) -> dict:
-    step = {"type": "object", "required": ["effect", "heldout_rms_mm"],
-            "properties": {"effect": _NAME, "effects": {"type": "array", "items": {"enum": list(names)}},
+    step = {"type": "object",
+            "required": ["effect", "n_parameters", "train_rms_mm", "heldout_mean_mm", "heldout_rms_mm", "heldout_max_mm"],
+            "properties": {"effect": {"enum": list(names)}, "effects": {"type": "array", "items": {"enum": list(names)}},
                            "n_parameters": {"type": "integer", "minimum": 0, "maximum": MAX_COUNT},
                            "train_rms_mm": _MM, "heldout_rms_mm": _MM, "heldout_mean_mm": _MM, "heldout_max_mm": _MM,
-                           "gain_heldout_rms_mm": _NUMBER_OR_NULL,
-                           "gain_interval_mm": {"anyOf": [{"type": "null"}, _INTERVAL]},
+                           "gain_heldout_rms_mm": {"anyOf": [_SIGNED_MM, {"type": "null"}]},
+                           "gain_interval_mm": {"anyOf": [{"type": "null"}, _MM_INTERVAL]},
                            "z_vs_previous": _NUMBER_OR_NULL}}
+    # an effect tried alone with frames: its figures; one not tried: why
+    candidate = {"type": "object", "required": ["tried"],
+                 "properties": {"tried": {"type": "boolean"}, "why": _TEXT, "heldout_rms_mm_with_frames": _MM,
+                                "gain_mm": _SIGNED_MM, "z": {"type": "number", "minimum": -1e6, "maximum": 1e6},
+                                "n_parameters": {"type": "integer", "minimum": 0, "maximum": MAX_COUNT}},
+                 "if": {"properties": {"tried": {"const": True}}},
+                 "then": {"required": ["heldout_rms_mm_with_frames", "gain_mm", "z", "n_parameters"]}}
     return {
         "type": "object",
         "required": ["robot", "parameters"],  # each reader adds the keys it uses (FIT_KEYS, PAGE_KEYS, MODEL_KEYS)
@@ -93,7 +102,10 @@ def _diagnosis_schema(names) -> dict:
             "parameter_units": _by_effect(_by_parameter({"type": "string", "maxLength": 50}), names),
             "physical": _by_effect({"type": "object", "properties": {
                 "plausible": {"type": "boolean"}, "range": _by_parameter(_INTERVAL),
-                "pinned": {"type": "array", "items": {"type": "object"}}, "reason": _TEXT}}, names),
+                "pinned": {"type": "array", "maxItems": 1_000_000, "items": {
+                    "type": "object", "required": ["parameter", "bound"],
+                    "properties": {"parameter": _NAME, "bound": {"enum": ["lower", "upper"]}}}},
+                "reason": _TEXT}}, names),
             "effect_parameters": _by_effect(_by_parameter(_NUMBER), names),
             "effect_options": _options_schema(names),
             "tracker_transform": _TRANSFORM,
@@ -107,7 +119,7 @@ def _diagnosis_schema(names) -> dict:
             "selection_frequency": _by_effect({"type": "number", "minimum": 0, "maximum": 1}, names),
             "selection": {"type": "object", "properties": {"n_replays": {"type": "integer", "minimum": 0,
                                                                          "maximum": MAX_COUNT}}},
-            "candidates": _by_effect({"type": "object"}, names),
+            "candidates": _by_effect(candidate, names),
             "where": {"type": "object", "properties": {"joints": {"type": "object", "additionalProperties": {
                 "type": "object", "properties": {"unit": {"enum": ["m", "rad"]}}}}}},
             "as_built_urdf": _TEXT, "as_built_effects": _TEXT,
@@ -180,7 +192,7 @@ def schema_of(kind: str) -> dict:
 #: What a diagnosis must hold to be compared: each parameter's standard error and unit.
 FIT_KEYS = ("parameter_std", "parameter_units")
 #: What a diagnosis must hold for the report's first page.
-PAGE_KEYS = ("n_measurements", "folds", "steps", "selected_effects", "noise_floor_mm", *FIT_KEYS)
+PAGE_KEYS = ("n_measurements", "folds", "steps", "selected_effects", "noise_floor_mm", "candidates", *FIT_KEYS)
 #: What a diagnosis must hold to be exported (``diagnose --json`` writes them; a Python
 #: ``Diagnosis.to_dict()`` without the robot has not got them).
 MODEL_KEYS = ("robot_source", "tool_frame", "effect_parameters", "tracker_transform")
@@ -234,10 +246,16 @@ def _check_diagnosis_references(doc: dict, source) -> None:
                 if name not in (doc[key].get(effect) or {}):
                     raise InputError(f"{source}: $.{key}.{effect}: no entry for {name}; every fitted parameter has "
                                      "a standard error and a unit in a diagnosis")
-    for effect, values in (doc.get("effect_parameters") or {}).items():
-        bad = next((n for n in values if not n.startswith(f"{effect}.")), None)
+    for key in ("effect_parameters", "parameter_interval_95"):
+        for effect, values in (doc.get(key) or {}).items():
+            bad = next((n for n in values if not n.startswith(f"{effect}.")), None)
+            if bad is not None:
+                raise InputError(f"{source}: $.{key}.{effect}: parameter {bad!r} is not one of {effect}'s")
+    for effect, info in (doc.get("physical") or {}).items():
+        bad = next((p["parameter"] for p in info.get("pinned", []) if p["parameter"] not in doc["parameters"].get(
+            effect, {})), None)
         if bad is not None:
-            raise InputError(f"{source}: $.effect_parameters.{effect}: parameter {bad!r} is not one of {effect}'s")
+            raise InputError(f"{source}: $.physical.{effect}.pinned: {bad!r} is not a fitted parameter of {effect}")
     if "tracker_transform" in doc:
         _check_rigid(doc["tracker_transform"], f"{source}: $.tracker_transform")
 
@@ -269,6 +287,19 @@ def read_result(path, kind: str | None = None, *, hint: str = "", required=()) -
     return found, validate_result(doc, found, path, (*REQUIRED[found], *required) if kind is None else required)
 
 
+def _within(value: float, low: float, high: float, unit: str, where: str) -> None:
+    """InputError when ``value`` lies outside [low, high] (with rounding's slack)."""
+    slack = 1e-9 * max(1.0, *(abs(b) for b in (low, high) if math.isfinite(b)))
+    if not low - slack <= value <= high + slack:
+        raise InputError(f"{where}: {value:g} {unit} is outside the physical range [{low:g}, {high:g}] {unit} a "
+                         "diagnosis fits within")
+
+
+def _bound(value, infinite: float) -> float:
+    """A range bound as the JSON writes it (null: unbounded), rounded to 9 significant digits."""
+    return infinite if value is None or not math.isfinite(value) else float(f"{value:.9g}")
+
+
 def check_physics(doc: dict, robot, source) -> None:
     """Every parameter of a diagnosis (``parameters`` and ``effect_parameters``) a parameter of its
     effect on ``robot``, within the effect's physical range (a fit never leaves it); every option one
@@ -295,9 +326,15 @@ def check_physics(doc: dict, robot, source) -> None:
                     raise InputError(f"{source}: $.{key}.{effect}: {name} is not a parameter of {effect} on "
                                      f"{robot.name} (a diagnosis of another robot, or with other options)")
                 k = names.index(name)
-                slack = 1e-9 * max(1.0, abs(low[k]) if math.isfinite(low[k]) else 1.0,
-                                   abs(high[k]) if math.isfinite(high[k]) else 1.0)
-                if not low[k] - slack <= value <= high[k] + slack:
-                    unit = model.parameter_units()[k]
-                    raise InputError(f"{source}: $.{key}.{effect}['{name}']: {value:g} {unit} is outside the "
-                                     f"physical range [{low[k]:g}, {high[k]:g}] {unit} a diagnosis fits within")
+                _within(value, low[k], high[k], model.parameter_units()[k], f"{source}: $.{key}.{effect}['{name}']")
+                if key != "parameters":
+                    continue
+                interval = (doc.get("parameter_interval_95") or {}).get(effect, {}).get(name)
+                for bound in (b for b in (interval or []) if b is not None):  # value +- 1.96 std, cut to the range
+                    _within(bound, low[k], high[k], model.parameter_units()[k],
+                            f"{source}: $.parameter_interval_95.{effect}['{name}']")
+                said = ((doc.get("physical") or {}).get(effect) or {}).get("range", {}).get(name)
+                if said is not None and _bound(said[0], -math.inf) != _bound(low[k], -math.inf) or \
+                        said is not None and _bound(said[1], math.inf) != _bound(high[k], math.inf):
+                    raise InputError(f"{source}: $.physical.{effect}.range['{name}']: {said} is not {effect}'s physical "
+                                     f"range [{low[k]:g}, {high[k]:g}] on {robot.name}")
