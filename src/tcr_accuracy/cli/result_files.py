@@ -129,7 +129,7 @@ def _diagnosis_schema(names) -> dict:
 
 
 def _iso_figures(required: bool) -> dict:
-    pose = {"type": "object", "required": ["pose_id", "n", "ap_mm"],
+    pose = {"type": "object", "required": ["pose_id", "n", "ap_mm", "ap_x_mm", "ap_y_mm", "ap_z_mm", "rp_mm"],
             "properties": {"pose_id": {"type": "integer", "minimum": -(2**31), "maximum": 2**31 - 1}, "n": _COUNT,
                            "ap_mm": _MM, "rp_mm": _MM_OR_NULL, "ap_x_mm": _SIGNED_MM, "ap_y_mm": _SIGNED_MM,
                            "ap_z_mm": _SIGNED_MM, "l_mean_mm": _MM, "s_l_mm": _MM_OR_NULL}}
@@ -140,7 +140,7 @@ def _iso_figures(required: bool) -> dict:
             "n_readings": _COUNT, "frame": _NAME, "frame_fit": _TEXT, "measurements": _TEXT,
             "robot": _NAME, "robot_source": _NAME, "tool_frame": _NAME, "model": _TEXT, "kind": _TEXT,
             "poses": {"type": "array", "minItems": 1, "maxItems": 100_000, "items": pose},
-            "summary": {"type": "object", "required": ["ap_max_mm"],
+            "summary": {"type": "object", "required": ["ap_max_mm", "rp_max_mm"],
                         "properties": {"ap_max_mm": _MM, "rp_max_mm": _MM_OR_NULL}},
             "distances": {"type": "array", "items": {"type": "object", "properties": {
                 "n": _COUNT, "ad_mm": _SIGNED_MM, "rd_mm": _MM, "commanded_mm": _MM, "mean_mm": _MM}}},
@@ -157,13 +157,19 @@ def _iso_schema() -> dict:
 
 
 def _comparison_schema(names) -> dict:
-    change = {"type": "object", "required": ["parameter", "unit", "old", "new", "significant"],
-              "properties": {"parameter": _NAME, "effect": {"enum": list(names)}, "unit": {"type": "string"},
-                             "old": _NUMBER, "new": _NUMBER, "change": _NUMBER,
-                             "std_error": {"anyOf": [{"type": "number", "minimum": 0}, {"type": "null"}]},
-                             "z": {"anyOf": [{"type": "number", "minimum": 0}, {"type": "null"}]},
+    # a parameter's value and change in SI (m, rad, ...): within what any effect's physical range allows
+    value = {"type": "number", "minimum": -1e6, "maximum": 1e6}
+    change = {"type": "object", "required": ["parameter", "unit", "old", "new", "change", "std_error", "z",
+                                             "significant"],
+              "properties": {"parameter": _NAME, "effect": {"enum": list(names)}, "unit": {"type": "string",
+                                                                                          "maxLength": 50},
+                             "old": value, "new": value, "change": value,
+                             "std_error": {"anyOf": [{"type": "number", "minimum": 0, "maximum": 1e6},
+                                                     {"type": "null"}]},
+                             "z": {"anyOf": [{"type": "number", "minimum": 0, "maximum": 1e9}, {"type": "null"}]},
                              "significant": {"type": "boolean"}}}
-    tcp = {"type": "object", "properties": {"mean_mm": _MM, "rms_mm": _MM, "max_mm": _MM}}
+    tcp = {"type": "object", "required": ["mean_mm", "rms_mm", "max_mm"],
+           "properties": {"mean_mm": _MM, "rms_mm": _MM, "max_mm": _MM}}
     return {
         "type": "object",
         "required": ["changes", "tcp_effect", "z_threshold", "old", "new", "robot"],
@@ -173,7 +179,7 @@ def _comparison_schema(names) -> dict:
             "significant": {"type": "array", "items": _NAME},
             "changes": {"type": "array", "items": change}, "setup_changes": {"type": "array", "items": change},
             "one_fit_only": {"type": "array", "items": {"type": "object"}},
-            "tcp_effect": {"type": "object", "required": ["n_poses"],
+            "tcp_effect": {"type": "object", "required": ["n_poses", "all_changes", "significant_changes"],
                            "properties": {"n_poses": _COUNT, "all_changes": tcp, "significant_changes": tcp}},
             "notes": _TEXTS, "poses": _TEXT,
         },
