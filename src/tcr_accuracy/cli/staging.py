@@ -35,7 +35,7 @@ from contextvars import ContextVar
 from pathlib import Path
 
 from ..exceptions import InputError
-from ..input_files import recording_inputs
+from ..input_files import SIZE_LIMITS, read_input_bytes, recording_inputs
 from . import signals
 from .folder_swap import prepare_folders
 from .output_paths import OutputPaths, Target, named_target
@@ -76,9 +76,14 @@ class _Stage:
         created: list[Path] = []
         self.committed = False
         try:
-            targets = {}
+            targets, keys = {}, {}
             for target, data in staged.values():  # again: the folders may have changed since
-                targets[resolve(target.shown, self.outputs)] = data
+                now = resolve(target.shown, self.outputs)
+                if now.key in keys:  # a link put in meanwhile made two outputs one file
+                    raise InputError(f"{now.shown}: now the same file as {keys[now.key]}; one of the two would be "
+                                     "lost: give each output its own name")
+                keys[now.key] = now.shown
+                targets[now] = data
             remove_dead_leftovers({t.path for t in targets} | {Path(os.path.realpath(f)) for f in folders})
             plain = prepare_folders(targets, folders, swaps, created)
             for target, data in plain.items():
@@ -190,7 +195,7 @@ def read_output(path) -> bytes:
         for target, data in stage.files.values():
             if Path(os.path.abspath(target.shown)) == Path(os.path.abspath(path)):
                 return data
-    return Path(path).read_bytes()
+    return read_input_bytes(path, "file this run wrote", limit=SIZE_LIMITS["json"])
 
 
 def write_bytes(path, data: bytes) -> Path:
