@@ -423,7 +423,9 @@ def _inline_html(parts) -> str:
 
 
 def _inline_md(parts) -> str:
-    return "".join(f"`{p.text}`" if isinstance(p, _Code) else str(p) for p in _text(parts))
+    from . import markdown_text as md
+
+    return "".join(md.code(p.text) if isinstance(p, _Code) else md.line(p) for p in _text(parts))
 
 
 def _html(blocks) -> str:
@@ -469,33 +471,35 @@ def _html(blocks) -> str:
 
 
 def _markdown(blocks) -> str:
-    def md(text) -> str:
-        return str(text).replace("|", "\\|")
+    """The blocks as Markdown, every string made safe there (:mod:`tcr_accuracy.view.markdown_text`)."""
+    from . import markdown_text as md
 
     out = []
     for block in blocks:
         kind = block[0]
         if kind == "h1":
-            out += [f"# {block[1]}", ""]
+            out += [f"# {md.line(block[1])}", ""]
         elif kind == "h2":
-            out += [f"## {block[1]}", ""]
+            out += [f"## {md.line(block[1])}", ""]
         elif kind == "p":
             out += [_inline_md(block[1]), ""]
         elif kind == "facts":
             for k, v in block[1]:
-                out += [f"- **{k}**: " + ("; ".join(v) if isinstance(v, list) else v)]
+                out += [f"- **{md.line(k)}**: " + md.line("; ".join(v) if isinstance(v, list) else v)]
             out.append("")
         elif kind == "table":
             _, columns, rows, note, _ = block
-            out += ["| " + " | ".join(map(md, columns)) + " |", "|" + "|".join("---" for _ in columns) + "|"]
+            out += ["| " + " | ".join(map(md.cell, columns)) + " |", "|" + "|".join("---" for _ in columns) + "|"]
             for row in rows:
-                cells = [f"**{row[1]}**"] + [""] * (len(columns) - 1) if row[0] == "group" else list(row)
-                out.append("| " + " | ".join(map(md, cells)) + " |")
-            out += ["", note, ""] if note else [""]
+                cells = [f"**{md.cell(row[1])}**"] + [""] * (len(columns) - 1) if row[0] == "group" else \
+                    [md.cell(c) for c in row]
+                out.append("| " + " | ".join(cells) + " |")
+            out += ["", md.text(note), ""] if note else [""]
         elif kind == "list":
             out += [f"- {_inline_md(item)}" for item in block[1]] + [""]
         elif kind == "links":
-            out += ["Files: " + "; ".join(f"[{label}]({href})" for label, href in block[1]) + ".", ""]
+            out += ["Files: " + "; ".join(f"[{md.label(label)}]({md.href(href)})" for label, href in block[1]) + ".",
+                    ""]
         elif kind == "signatures":
             out += ["| " + " | ".join(SIGNATURES) + " |", "|" + "|".join("---" for _ in SIGNATURES) + "|",
                     "| " + " | ".join("name, signature, date" for _ in SIGNATURES) + " |", ""]

@@ -67,6 +67,9 @@ def format_summary(robot, d, source: str) -> str:
             out.append(f"     {s['session']:20s} {s['n_measurements']:6d} rows, gap RMS {s['gap']['rms_mm']:.4f} mm, "
                        f"final held-out RMS {s['heldout']['rms_mm']:.4f} mm, temperature {t[0]:.1f} to {t[1]:.1f} degC")
     for drift in d.drift:
+        if not drift.get("fitted", True):
+            out.append(f"   tracker drift: session {drift['session']} not fitted ({drift['why']})")
+            continue
         key = "drift_mm_per_h" if "drift_mm_per_h" in drift else "drift_mm_per_100_rows"
         unit = "mm/h" if key == "drift_mm_per_h" else "mm per 100 rows"
         speed = float(np.linalg.norm(drift[key]))
@@ -74,6 +77,9 @@ def format_summary(robot, d, source: str) -> str:
                    f"{drift['time_axis']}): {speed:.4f} +- {drift['drift_std_mm_per_unit']:.4f} {unit}, "
                    f"{drift['moved_over_session_mm']:.4f} mm over the session, z = {drift['z']:.1f}: "
                    + ("corrected" if drift["corrected"] else "not corrected (within the noise)"))
+        for far in drift.get("outliers", [])[:5]:
+            out.append(f"   base reference {far['reference']}, measurement {far['row'] + 1}: {far['off_mm']:.4g} mm off "
+                       "the drift, left out of the drift and the noise (a bumped reflector, a broken beam?)")
     out.append("\n2. Where it lies (residual after frames)")
     axes = d.where_mm["per_axis"]
     out.append("   per axis RMS [mm]: " + ", ".join(f"{a} {axes[a]['rms_mm']:.4f}" for a in "xyz"))
