@@ -651,20 +651,12 @@ def _label_cell(value) -> str:
     return f'"{text.replace(chr(34), chr(34) * 2)}"' if ("," in text or '"' in text) else text
 
 
-__all__ = [
-    "ANNOTATION_COLUMNS", "MeasurementContext", "MeasurementSet", "MeasurementWarning", "REFERENCE_TEMPERATURE_C",
-    "allowed_columns", "format_measurements", "measured_frames", "measurement_columns", "parse_measurements",
-    "read_measurements", "read_user_text",
-]
-
-
 def join_sessions(sets: list[MeasurementSet], labels: list[str]) -> MeasurementSet:
     """Several measurement sets of one robot as one, each its own session (its label, or
     ``<label>:<session>`` where a set has a session column already); columns one set has and
     another lacks take their defaults (no payload, the reference temperature, no direction)."""
     if len(sets) == 1:
         return sets[0]
-    n = [len(s) for s in sets]
     session = np.concatenate([np.array([f"{label}:{v}" for v in s.session], dtype=object) if s.session is not None
                               else np.full(len(s), label, dtype=object) for s, label in zip(sets, labels)])
 
@@ -687,3 +679,10 @@ def join_sessions(sets: list[MeasurementSet], labels: list[str]) -> MeasurementS
             o.outside_q.shape[1] for o in sets if o.outside_q is not None)))),
         session=session, time_s=joined("time_s", lambda s: np.full(len(s), np.nan)),
     )
+
+
+__all__ = [
+    "ANNOTATION_COLUMNS", "MeasurementContext", "MeasurementSet", "MeasurementWarning", "REFERENCE_TEMPERATURE_C",
+    "allowed_columns", "format_measurements", "join_sessions", "measured_frames", "measurement_columns",
+    "parse_measurements", "read_measurements", "read_user_text",
+]

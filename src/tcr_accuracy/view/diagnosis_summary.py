@@ -243,7 +243,7 @@ def parameter_lines(d, per_effect: int = 4) -> list[str]:
                        f"(band +-{1.96 * np.mean(band['std_rad']) * 1e6:.1f} urad)"
                        + (f", strongest {top} cycles per revolution" if top else ""))
         if table["pinned"]:
-            out.append(f"       held on a physical bound: " + ", ".join(
+            out.append("       held on a physical bound: " + ", ".join(
                 f"{p['parameter']} ({p['bound']})" for p in table["pinned"][:6])
                 + (f" and {len(table['pinned']) - 6} more" if len(table["pinned"]) > 6 else ""))
     return out
