@@ -14,6 +14,7 @@ from pathlib import Path
 from .common import (add_robot_arguments, as_built_file, check_csv_memory, effect_names, effects_side_file, integer,
                      noise_mm_value, number, output_file, seed_value, status)
 from .output import RunOutput, add_output_arguments
+from .report import add_campaign_arguments, read_campaign_arguments
 from ..view.diagnosis_summary import answer_lines, format_summary, primary_effect_text as _primary_text, \
     strongest_links as _strongest, structure_verdict_text as _verdict_text
 
@@ -58,6 +59,7 @@ def add_parsers(sub) -> None:
                    help="write the calibrated URDF to FILE and the other effects' parameters to "
                         "FILE with suffix .effects.yaml")
     add_output_arguments(p, view=True)
+    add_campaign_arguments(p)
     p.set_defaults(run=_run_diagnose)
 
 
@@ -102,6 +104,7 @@ def _run_diagnose(args) -> int:
     from ..model.robot import load_robot
 
     effects = effect_names(args.effects)
+    read_campaign_arguments(args)
     min_rows = max(3 * args.folds, 12)
     files = list(args.measurements)
     if len(set(map(str, files))) < len(files):
@@ -191,7 +194,7 @@ def _calibration_page(report, args, robot, payload: dict, written: list) -> None
     if args.json not in (None, "-"):
         written = [("diagnosis JSON (every figure of the report)", args.json), *written]
     campaign = Campaign(RobotFacts.of_robot(robot, payload["robot_source"]), [("diagnosis", payload)])
-    add_calibration_page(report, args.out, campaign, written)
+    add_calibration_page(report, args, campaign, written)
 
 
 def _session_labels(files) -> list[str]:
@@ -331,6 +334,8 @@ def _instrument(args):
 
 
 def _report_tables(out, robot, d, source: str) -> None:
+    from ..units import display_value
+
     mm = 1e3
     out.add_text(f"{d.n_measurements} measurements of {robot.name} from {source}, {d.folds}-fold "
                  "cross-validation. Every held-out figure comes from measurements not used for that fit.",
@@ -388,17 +393,27 @@ def _report_tables(out, robot, d, source: str) -> None:
     for e, table in d.parameter_table.items():
         units = d.parameter_units.get(e, {})
         for name, value in table["values"].items():
+            unit = units.get(name, "")
+            shown = display_value(0.0, unit)[1]
+
+            def v(x, fmt):
+                return fmt.format(display_value(x, unit)[0])
+
             low, high = table["interval"][name]
             lo, hi = table["range"][name]
             pinned = any(p["parameter"] == name for p in table["pinned"])
             fit_lo, fit_hi = table["fit_range"][name]
-            rows.append((name, f"{value:+.4g}", f"{table['std'][name]:.2g}", f"{low:+.4g} to {high:+.4g}",
-                         units.get(name, ""), f"{lo:.3g} to {hi:.3g}",
-                         f"{fit_lo:.3g} to {fit_hi:.3g}" + (" (held on its bound)" if pinned else "")))
+            def span(a, b):
+                return "unbounded" if math.isinf(a) and math.isinf(b) else f"{v(a, '{:.3g}')} to {v(b, '{:.3g}')}"
+
+            rows.append((name, v(value, "{:+.4g}"), v(table["std"][name], "{:.2g}"),
+                         f"{v(low, '{:+.4g}')} to {v(high, '{:+.4g}')}", shown, span(lo, hi),
+                         span(fit_lo, fit_hi) + (" (held on its bound)" if pinned else "")))
     if rows:
         out.add_table("Fitted parameters", ["parameter", "value", "standard error", "95 % interval", "unit",
                                             "physical range", "fit range"], rows,
-                      note="standard errors from the fit's Jacobian and residual (the noise, not model error); "
+                      note="display units (SI in the JSON and the effects YAML); "
+                           "standard errors from the fit's Jacobian and residual (the noise, not model error); "
                            "physical range: what each effect's own physics allows; fit range: what the fit was held "
                            "to (every mechanism the effect can stand for): " + "; ".join(
                                f"{e}: {why}" for e, why in d.physics.items() if why))

@@ -31,6 +31,7 @@ import io
 import math
 import os
 import platform
+import re
 import shlex
 import sys
 from dataclasses import dataclass
@@ -130,17 +131,34 @@ def _cell(value, float_format: str) -> str:
 #: smaller type with narrower cell padding, so that it fits the page's width on screen and on A4.
 WIDE_TABLE_COLUMNS = 9
 
-#: A word longer than this [characters] (a path, a long name) may break anywhere in a table cell,
-#: so that the table fits the page; shorter ones and numbers stay whole.
+#: A word longer than this [characters] (a path, a parameter name) may break in a table cell, so
+#: that the table fits the page: after its separators (:data:`SEPARATORS`), and anywhere only in
+#: a stretch between separators that is itself this long; shorter words and numbers stay whole.
 LONG_WORD = 24
+
+#: Where a long word may break: after these characters ("geometry.shoulder_lift_joint.dy",
+#: "/data/ur5/grid.csv"), so that a name wraps at its separators and never mid-word.
+SEPARATORS = "._/\\:,"
+
+
+def breakable_html(text: str) -> str:
+    """``text`` as escaped HTML in which each long word (> :data:`LONG_WORD` characters) may
+    break after its separators (``<wbr>``); a stretch between separators that is itself longer
+    than LONG_WORD (a hash, a long run of digits) may break anywhere (``span.long``, see the CSS)."""
+    out = []
+    for part in re.split(r"(\s+)", str(text)):
+        if len(part) <= LONG_WORD or part.isspace():
+            out.append(html.escape(part))
+            continue
+        pieces = re.split(f"(?<=[{re.escape(SEPARATORS)}])", part)
+        out.append("<wbr>".join(f'<span class="long">{html.escape(p)}</span>' if len(p) > LONG_WORD
+                                else html.escape(p) for p in pieces if p))
+    return "".join(out)
 
 
 def _td(value: str) -> str:
-    """A table cell; a long word in it may break anywhere (see the CSS), numbers and short words never."""
-    text = html.escape(value)
-    if any(len(word) > LONG_WORD for word in value.split()):
-        return f'<td><span class="long">{text}</span></td>'
-    return f"<td>{text}</td>"
+    """A table cell; a long word in it breaks after its separators (:func:`breakable_html`)."""
+    return f"<td>{breakable_html(value)}</td>"
 
 
 class Report:
@@ -411,8 +429,8 @@ h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ddd; padding
 /* nothing wider than the page: tables shrink to it and break long words (paths, parameter
    names) anywhere, printed text wraps its long lines */
 table { border-collapse: collapse; margin: 0.6em 0; font-variant-numeric: tabular-nums; max-width: 100%; }
-th, td { border: 1px solid #ccc; padding: 4px 10px; text-align: right; overflow-wrap: break-word; }
-span.long, .first-page table.facts td { overflow-wrap: anywhere; }
+th, td { border: 1px solid #ccc; padding: 4px 10px; text-align: right; overflow-wrap: normal; }
+span.long { overflow-wrap: anywhere; }
 th { background: #f0f2f5; }
 td:first-child, th:first-child { text-align: left; }
 tbody tr:nth-child(even) { background: #fafafa; }
@@ -432,8 +450,13 @@ a { overflow-wrap: anywhere; }
 .first-page h1 { margin-top: 0.5em; }
 .first-page h2 { font-size: 1.05em; margin-top: 1.1em; }
 .first-page table { width: 100%; }
-.first-page table.facts th { width: 16%; text-align: left; vertical-align: top; }
-.first-page table.facts td { text-align: left; }
+.first-page table.facts th { width: 10%; text-align: left; vertical-align: top; }
+.first-page table.facts td { text-align: left; vertical-align: top; width: 52%; }
+.first-page table.facts td + th + td { width: 28%; }
+.first-page table.facts td.wide { width: auto; }
+.first-page p.verdict { border: 2px solid #888; padding: 4px 8px; margin: 0.5em 0; }
+.first-page p.verdict.pass { border-color: #2e7d32; background: #eef7ee; }
+.first-page p.verdict.fail { border-color: #c62828; background: #fdeeee; }
 .first-page td.text, .first-page th.text { text-align: left; }
 .first-page ul { margin: 0.3em 0; padding-left: 1.3em; }
 .first-page .command { font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: 0.9em;
@@ -448,14 +471,14 @@ table.signatures td { height: 3.2em; text-align: left; vertical-align: bottom; c
 @media print {
   body { max-width: none; margin: 0; padding: 0; font-size: 9pt; line-height: 1.3; }
   .first-page { border: none; padding: 0; margin: 0; break-after: page; page-break-after: always;
-    font-size: 8.5pt; line-height: 1.25; }
+    font-size: 8.5pt; line-height: 1.22; }
   .first-page h1 { font-size: 14pt; margin: 0 0 0.1em; }
-  .first-page h2 { font-size: 10pt; margin: 0.7em 0 0.2em; }
+  .first-page h2 { font-size: 10pt; margin: 0.6em 0 0.15em; }
   .first-page p, .first-page ul { margin: 0.25em 0; }
   .first-page table { margin: 0.3em 0; }
   .first-page th, .first-page td { padding: 1px 5px; }
   .first-page p.note { font-size: 7.5pt; }
-  table.signatures td { height: 3em; }
+  table.signatures td { height: 3.6em; }
   th, td { padding: 2px 6px; }
   .table.wide table { font-size: 7pt; }
   .table.wide th, .table.wide td { padding: 1px 3px; }
