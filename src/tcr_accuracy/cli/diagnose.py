@@ -478,14 +478,16 @@ def _scene(robot, d, measurements):
     scene.add_point_cloud(measured, gap * 1e3, name="measured", size_m=point_size(extent),
                           label="measured points (tracker frame fitted, base frame), coloured by the gap after the "
                                 "tracker frame |dP| [mm]")
-    scene.add_points(tcp_poses(robot, d.q).position, "nominal TCP", COLORS["nominal_tcp"],
-                     size_m=0.5 * point_size(extent), label="nominal TCP (URDF) at the measured joints")
-    scene.add_error_segments(measured, nominal_model, magnify=magnify, name="gap", start_color=None,
-                             size_m=0.6 * point_size(extent), start_label="measured point",
-                             end_label="model with the tracker frame and TCP offset only")
+    scene.add_marker(measured[shown], "marked pose", f"the measured point of row {row}, the pose the robots are "
+                                                     "drawn at", radius_m=2.5 * point_size(extent))
+    drawn = scene.add_error_segments(measured, nominal_model, magnify=magnify, name="gap", start_color=None,
+                                     size_m=0.6 * point_size(extent), start_label="measured point",
+                                     end_label="model with the tracker frame and TCP offset only")
+    scene.add_points(tcp_poses(robot, d.q[drawn]).position, "nominal TCP", COLORS["nominal_tcp"],
+                     size_m=0.5 * point_size(extent), label="nominal TCP (URDF) at the measured joints"
+                     + (f" (of the {len(drawn)} with a line)" if len(drawn) < len(d.q) else ""))
     scene.add_frame(base_M_tracker, "tracker frame", length_m=frame_axis_length(measured),
                     label="tracker frame (fitted)")
-    scene.frame_central(np.vstack([measured, tcp_poses(robot, q_show).position]))
     scene.add_note(f"{d.n_measurements} measurements" + (f" of {d.frames_measured[0]}" if len(d.frames_measured) > 1
                                                         else "")
                    + f"; base frame of the robot; segments magnified x {magnify:g}, the as-built ghost's "

@@ -347,7 +347,9 @@ def _remains(d) -> list:
     scatter = d.get("extra_scatter") or {}
     if scatter.get("detected"):
         items.append("Random scatter beyond the instrument: YES (play, clearance).")
-    items += [f"{finding.get('description', '')}" for finding in d.get("outside_physics") or []]
+    described = {m["effect"] for m in d.get("mechanisms") or []}  # their words say it already
+    items += [Droppable(f"{finding.get('description', '')}", "finding") for finding in d.get("outside_physics") or []
+              if finding.get("effect") not in described]
     return items
 
 
