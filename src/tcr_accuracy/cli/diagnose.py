@@ -340,7 +340,7 @@ def _report_tables(out, robot, d, source: str) -> None:
     out.add_text(f"{d.n_measurements} measurements of {robot.name} from {source}, {d.folds}-fold "
                  "cross-validation. Every held-out figure comes from measurements not used for that fit.",
                  heading="Data")
-    out.add_text("\n".join(answer_lines(d)), heading="Answer")
+    out.add_text("\n\n".join(line.strip() for line in answer_lines(d)), heading="Answer")
     if d.families:
         out.add_table("Families of effects", ["family", "chosen effects", "share", "share 95 % interval"],
                       [(f["family"], ", ".join(f["effects"]), f["share_mm"],

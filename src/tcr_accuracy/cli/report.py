@@ -132,7 +132,17 @@ def _run_report(args) -> int:
     index = report.write(args.out)
     status(args, f"report written to {index}")
     pdf_status(args, report)
+    print(f"Result: {' '.join(verdict_line(campaign))}")
     return EXIT_OK
+
+
+def verdict_line(campaign) -> tuple[str, str]:
+    """(status, why) of the campaign's results against its limits: the first page's pass/fail line."""
+    from ..view.accuracy_verdict import accuracy_figures, verdict
+
+    diagnoses, isos = campaign.of_kind("diagnosis"), campaign.of_kind("iso9283")
+    status_, why = verdict(accuracy_figures(diagnoses[-1][1] if diagnoses else None, isos), campaign.facts.limits_mm)
+    return f"{status_}:", why
 
 
 def _read_result(path: str):

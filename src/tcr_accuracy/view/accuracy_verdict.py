@@ -86,4 +86,4 @@ def verdict(figures, limits_mm: dict) -> tuple[str, str]:
                               + ", but no figure in these results for "
                               + "; ".join(f"the limit on {LIMIT_FIGURES[k]} ({limits_mm[k]:g} mm)" for k in missing))
     return "PASS", ("the figure with a stated limit is within it" if len(within) == 1 else
-                    f"all {len(within)} figures with a stated limit are within them") + " (table above)"
+                    f"all {len(within)} figures with a stated limit are within them")

@@ -170,7 +170,7 @@ def _identification(c, created, d, diagnoses, isos, comparisons) -> list:
     r, f = c.robot, c.facts
     kinds = [k for _, k in r.joints]
     joints = (f"{len(kinds)} joints ({', '.join(f'{kinds.count(k)} {k}' for k in dict.fromkeys(kinds))}"
-              + (f": {', '.join(j for j, k in r.joints if k == 'prismatic')} prismatic" if 0 < kinds.count(
+              + (f": {', '.join(j for j, k in r.joints if k == 'prismatic')}" if 0 < kinds.count(
                   "prismatic") < len(kinds) else "") + ")" if r.joints else "joints not recorded in the results")
     robot = (f"{f.robot_model or r.name}, serial {_stated(f.robot_serial)}; URDF: {_urdf_source(r.source)}; "
              f"TCP frame {r.tool_frame}; {joints}")

@@ -132,6 +132,10 @@ class _Bounds:
 class Scene:
     """A meshcat scene under construction (see the module docstring).
 
+    The page fits the camera, when it opens, to the canvas it gets beside the legend: the robots'
+    bodies and the outline of the data in view (:data:`CAMERA_FOV_DEG`, :data:`VIEW_MARGIN`).
+    Each legend entry has a colour of its own (:data:`SPARE_COLORS` when one is taken).
+
     Parameters
     ----------
     title : str
@@ -143,10 +147,6 @@ class Scene:
         segments, trajectories; without far outliers: :data:`DATA_SHARE`) and the robots
         drawn among them, so that far frames (a tracker's triad metres away) or a few far-out
         points do not shrink them to a speck.
-
-    The camera holds the sphere around what it frames, for the canvas beside the legend at
-    its shape when the page opens (:data:`CAMERA_FOV_DEG`, :data:`VIEW_MARGIN`); each legend
-    entry has a colour of its own (:data:`SPARE_COLORS` when one is taken).
     """
 
     def __init__(self, title: str = "tcr-accuracy", *, grid: bool = True, frame: str = "all"):
