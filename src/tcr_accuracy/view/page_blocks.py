@@ -19,7 +19,7 @@ the last of the last list or table first, until the page's estimated height fits
 says under each list or table what it left out.
 
 Names and paths in tables break after their separators, never mid-word
-(:func:`tcr_accuracy.view.report.breakable_html`).
+(:func:`tcr_accuracy.view.html_text.breakable_html`).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import html
 import math
 from dataclasses import dataclass
 
-from .report import breakable_html
+from .html_text import breakable_html
 
 
 @dataclass(frozen=True)

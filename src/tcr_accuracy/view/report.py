@@ -31,7 +31,6 @@ import io
 import math
 import os
 import platform
-import re
 import shlex
 import sys
 from dataclasses import dataclass
@@ -41,6 +40,7 @@ from pathlib import Path
 from .. import __version__
 from ..atomic import read_output, stage_folder, unstaged, write_bytes_atomically
 from ..exceptions import InputError
+from .html_text import breakable_html
 
 #: Distributions whose versions every report lists (when installed).
 VERSION_PACKAGES = ("pin", "numpy", "scipy", "meshcat", "matplotlib", "scikit-learn", "SALib", "dask")
@@ -130,31 +130,6 @@ def _cell(value, float_format: str) -> str:
 #: A table with more columns than this (a per-pose table: joints, errors, spreads) is set in a
 #: smaller type with narrower cell padding, so that it fits the page's width on screen and on A4.
 WIDE_TABLE_COLUMNS = 9
-
-#: A word longer than this [characters] (a path, a parameter name) may break in a table cell, so
-#: that the table fits the page: after its separators (:data:`SEPARATORS`), and anywhere only in
-#: a stretch between separators that is itself this long; shorter words and numbers stay whole.
-LONG_WORD = 24
-
-#: Where a long word may break: after these characters ("geometry.shoulder_lift_joint.dy",
-#: "/data/ur5/grid.csv"), so that a name wraps at its separators and never mid-word.
-SEPARATORS = "._/\\:,"
-
-
-def breakable_html(text: str) -> str:
-    """``text`` as escaped HTML in which each long word (> :data:`LONG_WORD` characters) may
-    break after its separators (``<wbr>``); a stretch between separators that is itself longer
-    than LONG_WORD (a hash, a long run of digits) may break anywhere (``span.long``, see the CSS)."""
-    out = []
-    for part in re.split(r"(\s+)", str(text)):
-        if len(part) <= LONG_WORD or part.isspace():
-            out.append(html.escape(part))
-            continue
-        pieces = re.split(f"(?<=[{re.escape(SEPARATORS)}])", part)
-        out.append("<wbr>".join(f'<span class="long">{html.escape(p)}</span>' if len(p) > LONG_WORD
-                                else html.escape(p) for p in pieces if p))
-    return "".join(out)
-
 
 def _td(value: str) -> str:
     """A table cell; a long word in it breaks after its separators (:func:`breakable_html`)."""

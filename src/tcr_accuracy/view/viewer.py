@@ -21,6 +21,10 @@ text).
 
 Units: positions in metres (SI) as everywhere inside the package; the values that
 colour a point cloud are shown as given, with the unit in their label.
+
+One concept, the scene with its legend, and so one class above 500 lines: its sizes and factors
+live in :mod:`tcr_accuracy.view.view_scales`, where the camera stands in
+:mod:`tcr_accuracy.view.view_framing`, the page in :mod:`tcr_accuracy.view.meshcat_page`.
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ from ..model.robot import RobotModel
 from .meshcat_page import (LiveView, RecordingWindow, import_meshcat, legend_html, meshcat_color, serve_page,
                            static_page)
 from .robot_visuals import draw_robot
+from .view_framing import CAMERA_FOV_DEG, VIEW_MARGIN, camera_placement, framed_box, page_fit  # noqa: F401
 from .view_scales import (auto_magnification, data_extent, frame_axis_length, ghost_magnification,  # noqa: F401
                           grid_extent, point_size, rotate_vectors, segment_magnification, spread_subset,
                           transform_points)
@@ -61,19 +66,6 @@ MARKER_COLOR = (0.85, 0.0, 0.75)
 SPARE_COLORS = ((0.55, 0.34, 0.29), (0.09, 0.75, 0.81), (0.74, 0.74, 0.13), (0.89, 0.47, 0.76),
                 (0.58, 0.40, 0.74), (0.17, 0.63, 0.17), (0.84, 0.15, 0.16), (0.12, 0.47, 0.71))
 
-#: meshcat's camera: its vertical field of view [deg] (``PerspectiveCamera(75, ...)`` in its main.js).
-CAMERA_FOV_DEG = 75.0
-#: The view holds the sphere around what it frames with this margin (1: the sphere touches the edges).
-VIEW_MARGIN = 1.08
-#: Where the camera looks from, in the base frame: in front, to the right, above.
-VIEW_DIRECTION = (1.0, -0.55, 0.45)
-#: The share of the data points (per axis, the central quantiles) and how far beyond them, as a
-#: share of their extent, the view holds the data: a few far-out measurements do not shrink the
-#: robot and the rest to a speck, and the outer layer of a grid of poses stays in view.
-DATA_SHARE = 0.98
-DATA_REACH = 0.25
-#: The page fits the camera to at most this many of the data points (an even spread of them).
-FIT_POINTS = 400
 #: At most this many error segments are drawn (an even spread of them, the largest included):
 #: a thousand segments fill the view and hide the robot.
 MAX_SEGMENTS = 250
@@ -144,7 +136,7 @@ class Scene:
         Show a ground grid (z = 0 plane, squares of 5 cm to 1 m fitted to what is drawn: :func:`grid_extent`).
     frame : {"all", "data"}
         What the camera frames: everything drawn, or the data (point clouds, points, error
-        segments, trajectories; without far outliers: :data:`DATA_SHARE`) and the robots
+        segments, trajectories; without far outliers: :func:`framed_box`) and the robots
         drawn among them, so that far frames (a tracker's triad metres away) or a few far-out
         points do not shrink them to a speck.
     """
@@ -188,7 +180,8 @@ class Scene:
         name : str
             Node name in the meshcat tree (also the legend text).
         color : RGB triple in 0..1, optional
-            Paint every body in this colour (default: the URDF's materials).
+            Paint every body in this colour (default: the URDF's materials); another one when a
+            legend entry has it already.
         opacity : float
             1 opaque; below 1 a transparent "ghost".
         include_base : bool
@@ -201,6 +194,7 @@ class Scene:
         q = robot.check_joint_values(np.asarray(q, dtype=float), source=f"{name}: q")
         if not 0.0 < opacity <= 1.0:
             raise InputError(f"{name}: opacity {opacity} is outside (0, 1]")
+        color = None if color is None else self._own_color(color)
         points, skeleton = draw_robot(self.vis, robot, q, _node(name), color, opacity, include_base=include_base)
         points = points[np.all(np.isfinite(points), axis=1)]
         if framed:
@@ -342,7 +336,7 @@ class Scene:
                            include_base=base_error, framed=False)
             self.legend[-1] = LegendEntry(
                 f"as-built robot of the worst sample drawn (|dP| = {error.position_norm[worst] * 1000:.3g} mm), "
-                f"errors x {magnify:g}", COLORS["as_built"])
+                f"errors x {magnify:g}", self.legend[-1].color)
         return magnify
 
     def add_points(self, points_m, name: str, color=(0.1, 0.35, 0.95), size_m: float = 0.01,
@@ -508,32 +502,19 @@ class Scene:
         """(lower, upper) corners (3,) [m] of what the camera frames (see ``frame``), or None when
         nothing is drawn."""
         if self._frame == "data" and self._data:
-            data = np.concatenate(self._data)
-            low, high = np.quantile(data, [(1 - DATA_SHARE) / 2, (1 + DATA_SHARE) / 2], axis=0)
-            reach = DATA_REACH * (high - low)  # the edge of a grid of points is no outlier
-            box = _Bounds()
-            box.add(np.array([np.maximum(data.min(axis=0), low - reach), np.minimum(data.max(axis=0), high + reach)]))
-            if not self._robot_bounds.empty:
-                box.add(np.vstack([self._robot_bounds.lo, self._robot_bounds.hi]))
-            return box.lo, box.hi
+            return framed_box(np.concatenate(self._data), self._robot_bounds.lo, self._robot_bounds.hi)
         return None if self._bounds.empty else (self._bounds.lo, self._bounds.hi)
 
     def _view_target(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """(target, camera position) [m]: the one set, or one holding the sphere around what the view
-        frames on a canvas as wide as it is tall (the page moves the camera along the same line for
-        the canvas it gets: ``fit_radius_m``)."""
+        """(target, camera position) [m]: the one set, or :func:`camera_placement` of what the view
+        frames (the page moves the camera along the same line for the canvas it gets: :meth:`_fit`)."""
         if self._camera is not None:
             return self._camera
         bounds = self.framed_bounds()
         if bounds is None:
             return None
-        lo, hi = bounds
-        target = 0.5 * (lo + hi)
-        radius = max(0.5 * float(np.linalg.norm(hi - lo)), 0.05)
-        self.fit_radius_m = radius
-        distance = VIEW_MARGIN * radius / math.sin(math.radians(CAMERA_FOV_DEG) / 2)
-        direction = np.asarray(VIEW_DIRECTION, dtype=float)
-        return target, target + distance * direction / np.linalg.norm(direction)
+        target, position, self.fit_radius_m = camera_placement(*bounds)
+        return target, position
 
     def _finish(self) -> None:
         """Camera, ground grid and base axes, set once before output.
@@ -605,39 +586,13 @@ class Scene:
         return legend_html(self.title, self.color_bars, self.legend, self.notes)
 
     def _fit(self) -> dict | None:
-        """What the page needs to fit the camera to its canvas: up to :data:`FIT_POINTS` points the
-        view must hold (the framed robots' joints and body corners, and an even spread of the data
-        within the framed box; with ``frame="all"`` also the frames and markers) relative to the
-        view's centre, in three.js's axes (the base frame's (x, z, -y)) [m], the margin and
-        meshcat's field of view; None when the camera was set by hand."""
+        """What the page needs to fit the camera to its canvas (:func:`page_fit`); None when the
+        camera was set by hand."""
         if self.fit_radius_m is None or self._camera is not None:
             return None
         lo, hi = self.framed_bounds()
-        centre = 0.5 * (lo + hi)
         data = np.concatenate(self._data) if self._data else np.zeros((0, 3))
-        data = data[np.all((data >= lo - 1e-9) & (data <= hi + 1e-9), axis=1)]
-        data = data[_outline(data, FIT_POINTS)] if len(data) else data
-        held = [data, *self._robot_points] + (self._other_points if self._frame == "all" else [])
-        points = np.concatenate(held) - centre
-        if not len(points):
-            points = np.array([lo, hi]) - centre
-        return {"points_m": np.round(np.stack([points[:, 0], points[:, 2], -points[:, 1]], axis=1), 5).tolist(),
-                "margin": VIEW_MARGIN, "fov_deg": CAMERA_FOV_DEG}
-
-
-def _outline(points: np.ndarray, k: int) -> np.ndarray:
-    """Indices of the points that outline (N, 3) points: the vertices of their convex hull (qhull,
-    through scipy), else each axis' extremes when they lie in a plane or a line, and an even spread
-    of the others up to ``k``."""
-    from scipy.spatial import ConvexHull, QhullError
-
-    try:
-        outline = ConvexHull(points).vertices if len(points) > 4 else np.arange(len(points))
-    except QhullError:  # flat or too few: the extremes along each axis and each diagonal
-        directions = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1], [1, -1, 1], [1, 1, -1], [-1, 1, 1]])
-        along = points @ directions.T
-        outline = np.unique(np.concatenate([along.argmin(axis=0), along.argmax(axis=0)]))
-    return np.union1d(outline, spread_subset(points, k))
+        return page_fit(lo, hi, data, self._robot_points + (self._other_points if self._frame == "all" else []))
 
 
 def _node(name: str) -> str:
