@@ -5,19 +5,23 @@ Table 2 error sources of the seed paper on the built-in tool-changer at its work
 pose. Prints, in one run:
 
 - engine samples/s: the whole Monte Carlo pipeline (sampling, batched kinematics,
-  statistics and reliability counts), and the batched kinematics alone;
+  statistics, reliability and tail counts), and the batched kinematics alone (on reused
+  scratch arrays, as the pipeline runs it);
 - loop samples/s: one perturbed Pinocchio model and one ``framesForwardKinematics``
   per sample (``tcp_poses_pinocchio``), on a subset of the same samples;
 - their ratio, and the largest TCP position difference on the shared samples;
 - with ``--memory``: the peak resident memory of a separate process running a
-  10-million-sample Monte Carlo (chunks keep it flat).
+  10-million-sample Monte Carlo (chunks keep it flat);
+- with ``--before REV``: the whole pipeline of this code and of the code at git revision
+  REV (``git archive`` into a temporary folder), each in its own process, alternated
+  ``--repeats`` times, and the median of each, so both see the same machine load.
 
 Figures are CPU time of this process (``time.process_time``), which is what one core
 delivers even when other jobs share the machine; wall-clock rates and the load
 average are printed too.
 
     PYTHONPATH=src python scripts/bench_montecarlo.py [--samples N] [--loop-samples N]
-        [--memory] [--memory-samples N] [--json FILE]
+        [--memory] [--memory-samples N] [--before REV [--repeats K]] [--json FILE]
 """
 
 from __future__ import annotations
@@ -25,8 +29,10 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -37,6 +43,7 @@ from tcr_accuracy.model.errors import seed_budget
 from tcr_accuracy.model.kinematics import tcp_chain_soa, tcp_poses_pinocchio
 from tcr_accuracy.analysis.montecarlo import run_monte_carlo, sample_rows
 from tcr_accuracy.model.robot import load_robot
+from tcr_accuracy.model.scratch import ScratchArrays
 
 MEMORY_CHILD = """
 import resource, sys, numpy as np
@@ -47,6 +54,24 @@ robot = load_robot()
 result = run_monte_carlo(seed_budget(robot, "table2"), robot.working_pose, int(sys.argv[1]), 0)
 print(result.n_samples, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
 """
+
+
+#: One timed whole-pipeline run in a fresh process, for this code and an older revision
+#: (the same calls exist in both): prints CPU and wall samples/s.
+PIPELINE_CHILD = """
+import sys, time
+from tcr_accuracy.model.errors import seed_budget
+from tcr_accuracy.analysis.montecarlo import run_monte_carlo
+from tcr_accuracy.model.robot import load_robot
+robot = load_robot()
+budget = seed_budget(robot, "table2")
+run_monte_carlo(budget, robot.working_pose, 20_000, 1)  # warm-up
+n = int(sys.argv[1])
+wall, cpu = time.perf_counter(), time.process_time()
+run_monte_carlo(budget, robot.working_pose, n, 0)
+print(n / (time.process_time() - cpu), n / (time.perf_counter() - wall))
+"""
+REPO = Path(__file__).resolve().parents[1]
 
 
 def timed(fn):
@@ -61,8 +86,17 @@ def main() -> int:
     parser.add_argument("--loop-samples", type=int, default=2000, help="loop samples (default 2000)")
     parser.add_argument("--memory", action="store_true", help="also measure a 10M-sample run's peak memory")
     parser.add_argument("--memory-samples", type=int, default=10_000_000)
+    parser.add_argument("--before", default=None, metavar="REV",
+                        help="also time the whole pipeline of the code at this git revision (e.g. main)")
+    parser.add_argument("--repeats", type=int, default=3, help="alternated runs per code with --before (default 3)")
     parser.add_argument("--json", default=None, metavar="FILE")
     args = parser.parse_args()
+    if args.before is not None:
+        before_commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", f"{args.before}^{{commit}}"],
+                                       capture_output=True, text=True)
+        if before_commit.returncode != 0:
+            print(f"bench_montecarlo.py: --before {args.before}: not a revision of {REPO}", file=sys.stderr)
+            return 2
 
     robot = load_robot()
     budget = seed_budget(robot, "table2")
@@ -77,9 +111,10 @@ def main() -> int:
     rows = sample_rows(budget, args.loop_samples, np.random.default_rng(2))
     x = np.stack([np.broadcast_to(r, (args.loop_samples,)) for r in rows], axis=1)
     big_rows = sample_rows(budget, 200_000, np.random.default_rng(3))
-    _, kin_wall, kin_cpu = timed(lambda: [tcp_chain_soa(robot, q, [r if isinstance(r, float) else r[i:i + 20_000]
-                                                                  for r in big_rows], em)
-                                          for i in range(0, 200_000, 20_000)])
+    with ScratchArrays().active():  # each chunk's results dropped before the next, as in the pipeline
+        _, kin_wall, kin_cpu = timed(lambda: [tcp_chain_soa(robot, q, [r if isinstance(r, float) else r[i:i + 20_000]
+                                                                      for r in big_rows], em)[1].sum()
+                                              for i in range(0, 200_000, 20_000)])
     kinematics_rate = 200_000 / kin_cpu
     (_, pos), _, _ = timed(lambda: tcp_chain_soa(robot, q, rows, em))
     loop, loop_wall, loop_cpu = timed(lambda: tcp_poses_pinocchio(robot, q, x, em))
@@ -121,6 +156,32 @@ def main() -> int:
         print(f"  {n_done:,} samples in a separate process: peak RSS {max_rss_kb / 1024:.0f} MB, "
               f"{wall:.1f} s wall")
         payload.update({"memory_samples": n_done, "peak_rss_mb": max_rss_kb / 1024, "memory_run_wall_s": wall})
+    if args.before is not None:
+        commit = before_commit.stdout.strip()
+        with tempfile.TemporaryDirectory() as folder:
+            archive = subprocess.run(["git", "-C", str(REPO), "archive", commit, "src"], capture_output=True,
+                                     check=True).stdout
+            subprocess.run(["tar", "-x", "-C", folder], input=archive, check=True)
+            label = f"code at {args.before}" + ("" if commit.startswith(args.before) else f" ({commit})")
+            codes = {"this code": str(REPO / "src"), label: str(Path(folder) / "src")}
+            rates = {name: [] for name in codes}
+            for _ in range(args.repeats):
+                for name, src in codes.items():
+                    env = dict(os.environ, PYTHONPATH=src)
+                    out = subprocess.run([sys.executable, "-c", PIPELINE_CHILD, str(args.samples)], env=env,
+                                         capture_output=True, text=True, check=True, timeout=600).stdout
+                    rates[name].append([float(v) for v in out.split()])
+        load_end = os.getloadavg()
+        median = {name: [statistics.median(r[k] for r in runs) for k in range(2)] for name, runs in rates.items()}
+        print(f"  whole pipeline, {args.samples:,} samples, each in its own process, {args.repeats} runs "
+              f"alternated (median); load average (1 min) {load_end[0]:.2f}")
+        for name, (cpu_rate, wall_rate) in median.items():
+            print(f"    {name:42s} {cpu_rate:16,.0f} {wall_rate:17,.0f}")
+        new, old = median.values()
+        print(f"    speed-up over {args.before}: {new[0] / old[0]:.2f}x (CPU)")
+        payload.update({"before_revision": commit, "before_samples_per_s": old[0], "after_samples_per_s": new[0],
+                        "before_runs": rates[list(codes)[1]], "after_runs": rates["this code"],
+                        "load_average_1min_before_runs": load_end[0]})
     if args.json:
         write_text_atomically(Path(args.json), json.dumps(payload, indent=2) + "\n")
     return 0

@@ -211,7 +211,7 @@ def test_reprs_are_one_short_line_with_the_key_facts(tool_changer, ur5, measured
     budget = tcr.seed_budget(tool_changer, "table2")
     mc = tcr.run_monte_carlo(budget, tool_changer.working_pose, 200, random_state=0,
                              position_tolerances=[0.25e-3])
-    from tcr_accuracy.prediction.as_built_model import AsBuiltModel
+    from tcr_accuracy.asbuilt.model import AsBuiltModel
 
     as_built = AsBuiltModel.from_diagnosis(tool_changer, fitted.result_)
     final_mm = f"{fitted.result_.steps[-1].heldout.rms * 1e3:.4g} mm"

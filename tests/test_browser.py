@@ -300,7 +300,7 @@ def _diagnosed_view(tmp_path, csv, robot_args):
     assert main(["diagnose", str(csv), *robot_args, "--quiet", "--view", str(view), "--json", str(out_json),
                  "--as-built-urdf", str(urdf)]) == 0
     side = yaml.safe_load(urdf.with_name("as_built.effects.yaml").read_text())
-    return view, json.loads(out_json.read_text()), load_robot(str(urdf), side["tool_frame"])
+    return view, json.loads(out_json.read_text()), load_robot(str(urdf), side["urdf_measured_frame"])
 
 
 def _check_view_frame(chromium, tmp_path, view, data, as_built, q, raw_tracker, tolerance_m):

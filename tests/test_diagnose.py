@@ -144,7 +144,7 @@ def test_geometry_only_as_built_urdf_reproduces_the_robot(tmp_path, ur5):
 
     doc = yaml.safe_load(side.read_text())
     tracker = np.array(doc["tracker_from_base"])
-    asbuilt = load_robot(str(urdf), doc["tool_frame"])
+    asbuilt = load_robot(str(urdf), doc["urdf_measured_frame"])
     position = tcp_poses(asbuilt, mset.q).position @ tracker[:3, :3].T + tracker[:3, 3]
     rms = np.sqrt(np.mean(np.sum((position - mset.position) ** 2, axis=1)))
     assert rms < 1.5 * np.sqrt(3) * NOISE

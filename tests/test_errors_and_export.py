@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import yourdfpy
 
-from tcr_accuracy.model.asbuilt import as_built_urdf
+from tcr_accuracy.asbuilt.urdf import as_built_urdf
 from tcr_accuracy.model.errors import ErrorModel, ErrorSource, seed_budget
 from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.model.kinematics import tcp_poses
@@ -113,6 +113,13 @@ def test_as_built_urdf_reloaded_by_yourdfpy_gives_the_pinocchio_pose(name, tmp_p
         transform = urdf.get_transform(frame_to=tool, frame_from=urdf.base_link)
         np.testing.assert_allclose(transform[:3, 3], expected.position[0], atol=1e-9)
         np.testing.assert_allclose(transform[:3, :3], expected.rotation[0], atol=1e-9)
+    # the TCP frame itself stays where the maker put it (REP 199): only the measured frame is new
+    nominal = yourdfpy.URDF.load(str(robot.urdf_path), load_meshes=False, load_collision_meshes=False) \
+        if robot.urdf_path else None
+    if nominal is not None:
+        for joint in nominal.robot.joints:
+            if joint.type == "fixed":
+                np.testing.assert_array_equal(urdf.joint_map[joint.name].origin, joint.origin)
     # and Pinocchio reads it back as a nominal robot with the same pose
     reloaded = robot_from_urdf_text(text, tool)
     np.testing.assert_allclose(tcp_poses(reloaded, robot.working_pose).position,
@@ -125,7 +132,7 @@ def test_tool_error_on_a_moving_link_frame_adds_a_child_link(ur5):
     x = em.zeros()
     x[em.index("tool.dz")] = 0.01
     text, tool = as_built_urdf(robot, x, em)
-    assert tool == "wrist_3_link_as_built"
+    assert tool == "wrist_3_link_measured"
     reloaded = robot_from_urdf_text(text, tool)
     np.testing.assert_allclose(tcp_poses(reloaded, robot.working_pose).position,
                                tcp_poses(robot, robot.working_pose, x, em).position, atol=1e-12)

@@ -36,7 +36,7 @@ def test_diagnose_says_where_the_as_built_urdf_went(tmp_path, capsys):
     code, _, err = run(["diagnose", str(csv), "--effects", "frames,joint_offsets", "--folds", "2",
                         "--as-built-urdf", str(urdf)], capsys)
     assert code == 0 and urdf.is_file()
-    assert f"as-built URDF written to {urdf} (its other effects and the tracker frame: " \
+    assert f"as-built URDF written to {urdf} (the whole model, every effect and the tracker frame: " \
            f"{tmp_path / 'asbuilt.effects.yaml'})" in err
     # loaded again, it is labelled by the name inside the URDF, not by the file name
     assert load_robot(urdf).name == "tool_changer_as_built"

@@ -9,6 +9,7 @@ import pytest
 
 from tcr_accuracy.model.errors import ErrorModel
 from tcr_accuracy.model.jacobians import error_jacobian
+from tcr_accuracy.model.chain import SMALL_ANGLE, _small_cos_sin
 from tcr_accuracy.model.kinematics import (
     euler_zyx,
     exp6_batch,
@@ -117,3 +118,11 @@ def test_euler_difference_wraps_across_pi():
     nominal = TcpPoses(position=np.zeros((1, 3)), rotation=_rot([0, 0, 1], math.pi - 1e-3)[None])
     actual = TcpPoses(position=np.zeros((1, 3)), rotation=_rot([0, 0, 1], -math.pi + 1e-3)[None])
     assert pose_error(nominal, actual).euler_zyx[0, 0] == pytest.approx(2e-3, abs=1e-12)
+
+
+def test_small_angle_series_agree_with_libm_to_the_last_bits():
+    """The Horner series that replace numpy's cos and sin up to SMALL_ANGLE, against libm."""
+    x = np.concatenate([np.linspace(-SMALL_ANGLE, SMALL_ANGLE, 400_001), [1e-300, -1e-12, 3e-8]])
+    cos, sin = _small_cos_sin(x)
+    assert np.all(np.abs(cos - np.cos(x)) <= 2 * np.spacing(np.cos(x)))
+    assert np.all(np.abs(sin - np.sin(x)) <= 2 * np.spacing(np.abs(np.sin(x))))

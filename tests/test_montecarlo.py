@@ -5,6 +5,8 @@ import json
 
 import numpy as np
 import pytest
+from scipy import stats
+from scipy.spatial.transform import Rotation
 
 from tcr_accuracy.cli import main
 from tcr_accuracy.model.clearance import ClearanceModel
@@ -12,6 +14,7 @@ from tcr_accuracy.model.errors import ErrorModel, seed_budget
 from tcr_accuracy.model.kinematics import tcp_chain_soa, tcp_poses_pinocchio
 from tcr_accuracy.analysis.montecarlo import STAT_COLUMNS, chunk_plan, run_monte_carlo, sample_rows
 from tcr_accuracy.analysis.reliability import first_order
+from tcr_accuracy.random_state import fill_standard_normal
 
 
 class ToolShiftSampler:
@@ -117,3 +120,62 @@ def test_dask_local_cluster_gives_identical_statistics(tmp_path):
     assert cluster["stats_rad"] == single["stats_rad"]
     assert cluster["reliability_position"] == single["reliability_position"]
     assert cluster["reliability_angle"] == single["reliability_angle"]
+
+
+def _loop_error_columns(robot, q, x, em):
+    """dx, dy, dz, |dP|, the ZYX angle errors and |P| - |P0| by the plain per-sample Pinocchio
+    loop, with the Euler angles from scipy (not the package's own conversion)."""
+    nominal = tcp_poses_pinocchio(robot, q)
+    actual = tcp_poses_pinocchio(robot, q, x, em)
+    dpos = actual.position - nominal.position[0]
+    euler = Rotation.from_matrix(actual.rotation).as_euler("ZYX")
+    d_euler = euler - Rotation.from_matrix(nominal.rotation).as_euler("ZYX")[0]
+    d_euler = (d_euler + np.pi) % (2 * np.pi) - np.pi
+    radial = np.linalg.norm(actual.position, axis=1) - np.linalg.norm(nominal.position[0])
+    return np.column_stack([dpos, np.linalg.norm(dpos, axis=1), d_euler, radial])
+
+
+@pytest.mark.parametrize("robot_name,preset,pose", [("tool_changer", "table2", None),
+                                                    ("ur5", "table1", [0.3, -1.2, 1.4, -0.6, 1.1, 0.4])])
+def test_whole_pipeline_agrees_with_the_per_sample_pinocchio_loop_to_1e9_m(robot_name, preset, pose, request):
+    """run_monte_carlo (float32 angles in the normal draws, pooled scratch arrays over three
+    chunks of two sizes) against one perturbed Pinocchio model per sample: the kept cloud
+    sample by sample, every statistic, and the counts inside the tolerances."""
+    robot = request.getfixturevalue(robot_name)
+    budget = seed_budget(robot, preset)
+    em = budget.error_model
+    q = robot.working_pose if pose is None else np.array(pose)
+    n, chunk, seed = 2_500, 1_000, 7
+    # the samples, regenerated from the documented seeding contract
+    children = np.random.SeedSequence(seed).spawn(len(chunk_plan(n, chunk)))
+    x = np.concatenate([np.stack([np.broadcast_to(r, (size,)) for r in
+                                  sample_rows(budget, size, np.random.default_rng(child))], axis=1)
+                        for child, size in zip(children, chunk_plan(n, chunk))])
+    loop = _loop_error_columns(robot, q, x, em)
+    tolerances = np.quantile(loop[:, 3], [0.3, 0.7])  # informative counts, away from 0 and n
+    angle_tolerance = float(np.median(np.abs(loop[:, 4:7])))
+    result = run_monte_carlo(budget, q, n, seed, chunk=chunk, keep_cloud=n, position_tolerances=tolerances,
+                             angle_tolerance=angle_tolerance)
+    assert np.abs(result.cloud - loop[:, :3]).max() < 1e-9  # [m], every sample
+    s = result.stats
+    for got, expected in ((s.mean, loop.mean(axis=0)), (s.std, loop.std(axis=0, ddof=1)),
+                          (s.minimum, loop.min(axis=0)), (s.maximum, loop.max(axis=0))):
+        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9)  # [m] and [rad]
+    near = [int(np.sum(np.abs(loop[:, 3] - t) < 1e-9)) for t in tolerances]  # ties the 1e-9 may flip
+    expected_inside = [int(np.sum(loop[:, 3] < t)) for t in tolerances]
+    assert all(abs(int(got) - e) <= k for got, e, k in zip(result.inside_position, expected_inside, near))
+    np.testing.assert_array_equal(result.inside_angle, (np.abs(loop[:, 4:7]) < angle_tolerance).sum(axis=0))
+
+
+def test_box_muller_normals_are_standard_normal_and_reproducible():
+    """fill_standard_normal against scipy's normal law: Kolmogorov-Smirnov, tail counts
+    within binomial bounds, the cos/sin partners of a pair uncorrelated."""
+    n = 400_001  # odd: the last cosine has no sine partner
+    z = fill_standard_normal(np.random.default_rng(5), np.empty(n))
+    assert stats.kstest(z, "norm").pvalue > 1e-3
+    for k in (1.0, 2.0, 3.0):
+        p = 2 * stats.norm.sf(k)
+        assert abs(np.mean(np.abs(z) > k) - p) < 5 * np.sqrt(p * (1 - p) / n)
+    half = (n + 1) // 2
+    assert abs(np.corrcoef(z[:n - half], z[half:])[0, 1]) < 5 / np.sqrt(n - half)
+    np.testing.assert_array_equal(z, fill_standard_normal(np.random.default_rng(5), np.empty(n)))

@@ -294,7 +294,7 @@ def test_an_as_built_urdf_of_a_named_robot_finds_its_meshes_anywhere(tmp_path):
     # are errors in this suite) and the scene embeds the same mesh files as the named robot's
     import warnings
 
-    from tcr_accuracy.model.asbuilt import as_built_urdf
+    from tcr_accuracy.asbuilt.urdf import as_built_urdf
     from tcr_accuracy.model.errors import ErrorModel
 
     named = load_robot("ur10")

@@ -184,7 +184,7 @@ def test_diagnosis_view_frames_robot_and_points_marks_its_pose_and_thins_the_lin
     import yaml
 
     side = yaml.safe_load(urdf.with_name("as_built.effects.yaml").read_text())
-    as_built = load_robot(str(urdf), side["tool_frame"])
+    as_built = load_robot(str(urdf), side["urdf_measured_frame"])
     q = _csv_q(simulated / "train.csv", as_built, row)
     _, model_tcp = pinocchio_kinematics(as_built, q)
     ring = _marker(chromium, tmp_path, view)

@@ -4,7 +4,8 @@ One folder per layer, each importing only from the layers before it (the README'
 "Architecture" section draws them): ``model`` (robot, URDF, error model, kinematics, gravity)
 -> ``io`` (measurement CSV) -> ``effects`` (the effect library) -> ``analysis`` (Monte Carlo,
 sensitivity, simulation, sampling) -> ``diagnosis`` -> ``prediction`` (predictors,
-compensation) -> ``iso9283`` (the standard's pose and path tests) -> ``view`` (reports, plots,
+compensation) -> ``asbuilt`` (the calibrated robot and its forms) -> ``iso9283`` (the standard's
+pose and path tests) -> ``view`` (reports, plots,
 meshcat) -> ``cli``.
 
 The names most scripts need are importable from here; they load on first use, so
@@ -25,7 +26,7 @@ _EXPORTS = {
     "ErrorModel": "model.errors", "ErrorBudget": "model.errors", "seed_budget": "model.errors",
     "tcp_poses": "model.kinematics", "pose_error": "model.kinematics",
     "error_jacobian": "model.jacobians", "error_jacobians": "model.jacobians",
-    "gravity_torque": "model.gravity", "as_built_urdf": "model.asbuilt",
+    "gravity_torque": "model.gravity", "as_built_urdf": "asbuilt.urdf",
     "MeasurementSet": "io.measurements", "read_measurements": "io.measurements",
     "write_measurements": "io.measurements",
     "make_effect": "effects", "vocabulary": "effects", "Effect": "effects",
@@ -34,7 +35,10 @@ _EXPORTS = {
     "diagnose": "diagnosis.diagnose", "GapDiagnosis": "diagnosis.diagnose",
     "make_predictor": "prediction.methods", "MeasuredErrorModel": "prediction.composed",
     "compensate_joints": "prediction.compensation", "register_tracker": "frames.registration",
-    "load_as_built": "prediction.as_built_model", "AsBuiltModel": "prediction.as_built_model",
+    "load_as_built": "asbuilt.model_file", "AsBuiltModel": "asbuilt.model",
+    "build_export": "asbuilt.export", "refit_geometry": "asbuilt.refit", "dh_table": "asbuilt.dh",
+    "mdh_table": "asbuilt.dh", "filter_joint_targets": "asbuilt.compensation_filter",
+    "filter_pose_targets": "asbuilt.compensation_filter",
     "plan_iso_cube": "iso9283.plan", "evaluate_pose_test": "iso9283.evaluate",
     "plan_path_test": "iso9283.path_plan", "evaluate_path_test": "iso9283.path_evaluate",
     "read_tracker_stream": "io.tracker_stream",

@@ -27,6 +27,7 @@ which has the seed row's sign behaviour and is defined independently of the fram
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 from typing import Callable, Protocol
 
@@ -34,7 +35,8 @@ import numpy as np
 
 from ..model.errors import ErrorBudget, ErrorModel
 from ..model.kinematics import euler_zyx, euler_zyx_entries, tcp_chain_soa, tcp_poses
-from ..random_state import renamed_keyword
+from ..model.scratch import ScratchArrays, scratch, scratch_like
+from ..random_state import fill_standard_normal, renamed_keyword
 
 #: Default chunk of samples processed at once (cache-friendly; part of the seeding contract).
 CHUNK = 20_000
@@ -212,7 +214,13 @@ def chunk_plan(n_samples: int, chunk: int) -> list[int]:
 
 @dataclass
 class ChunkTask:
-    """Everything a worker needs to run one chunk (picklable)."""
+    """Everything a worker needs to run one chunk (picklable).
+
+    Each thread that runs chunks of the task keeps its own :class:`ScratchArrays` on it
+    (:meth:`scratch_arrays`), so a process that runs many chunks (this one, or a Dask
+    worker holding the scattered task) reuses the same warm memory; the pools are not
+    pickled.
+    """
 
     sampler: object
     q: np.ndarray
@@ -222,19 +230,35 @@ class ChunkTask:
     angle_tolerance: float
     keep_cloud: int
     chunk: int
+    _threads: threading.local = field(default_factory=threading.local, init=False, repr=False, compare=False)
+
+    def scratch_arrays(self) -> ScratchArrays:
+        """The calling thread's scratch pool for this task's chunks."""
+        pool = getattr(self._threads, "pool", None)
+        if pool is None:
+            pool = self._threads.pool = ScratchArrays()
+        return pool
+
+    def __getstate__(self) -> dict:
+        return {k: v for k, v in self.__dict__.items() if k != "_threads"}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state, _threads=threading.local())
 
 
 def sample_rows(sampler, n: int, rng: np.random.Generator) -> list:
     """n error vectors as a list of n_params rows: (n,) arrays, or 0.0 for unused parameters.
 
-    For an :class:`~tcr_accuracy.model.errors.ErrorBudget` the normal sources are drawn in
-    one ``standard_normal((n_normal, n))`` call (then the other sources in order, with
-    their own ``sample``), and each parameter row is built only from the sources
-    that touch it (the budget matrix is sparse: a link length or a drive error moves
-    one or a few parameters), so no (n, n_params) array is formed and transposed.
-    The values follow the budget's distributions exactly; the random stream is this
-    function's own (it is not ``budget.sample``'s). Any other sampler:
-    ``sampler.sample(n, rng)``, transposed.
+    For an :class:`~tcr_accuracy.model.errors.ErrorBudget` the normal sources are drawn
+    together into one (n_normal, n) array by
+    :func:`~tcr_accuracy.random_state.fill_standard_normal` (then the other sources in
+    order, with their own ``sample``), and each parameter row is built only from the
+    sources that touch it (the budget matrix is sparse: a link length or a drive error
+    moves one or a few parameters), scaling a source's draws in place when it moves one
+    parameter only, so no (n, n_params) array is formed and transposed. The values
+    follow the budget's distributions exactly; the random stream is this function's own
+    (it is not ``budget.sample``'s). Any other sampler: ``sampler.sample(n, rng)``,
+    transposed.
     """
     if isinstance(sampler, ErrorBudget):
         matrix = sampler.matrix
@@ -242,24 +266,32 @@ def sample_rows(sampler, n: int, rng: np.random.Generator) -> list:
         values: list = [None] * len(sources)
         normal = [i for i, src in enumerate(sources) if src.distribution == "normal"]
         if normal:
-            z = rng.standard_normal((len(normal), n))
+            z = scratch((len(normal), n))
+            z = fill_standard_normal(rng, np.empty((len(normal), n)) if z is None else z,
+                                     scratch((2, (len(normal) * n + 1) // 2), np.float32))
             for row, i in enumerate(normal):
                 values[i] = z[row]
         for i, src in enumerate(sources):
             if values[i] is None:
                 values[i] = src.sample(n, rng)
+        moves = np.count_nonzero(matrix, axis=0)  # parameters each source moves
         rows: list = [0.0] * matrix.shape[0]
         for k in np.flatnonzero(np.any(matrix != 0.0, axis=1)):
-            row = None
+            row, offset = None, 0.0
             for i in np.flatnonzero(matrix[k]):
-                src = sources[i]
+                src, weight = sources[i], matrix[k, i]
+                scale = weight * src.std if src.distribution == "normal" else weight
                 if src.distribution == "normal":  # value = mean + std z
-                    term = (matrix[k, i] * src.std) * values[i]
-                    if src.mean != 0.0:
-                        term += matrix[k, i] * src.mean
+                    offset += weight * src.mean
+                if row is None and moves[i] == 1:  # these draws serve this row only
+                    row = values[i]
+                    row *= scale
+                elif row is None:
+                    row = np.multiply(values[i], scale, out=scratch_like(values[i]))
                 else:
-                    term = matrix[k, i] * values[i]
-                row = term if row is None else row + term
+                    row += values[i] * scale
+            if offset != 0.0:
+                row += offset
             rows[k] = row
         return rows
     x = np.asarray(sampler.sample(n, rng), dtype=float)
@@ -268,42 +300,63 @@ def sample_rows(sampler, n: int, rng: np.random.Generator) -> list:
 
 def error_rows(nominal_position: np.ndarray, nominal_euler: np.ndarray, rot: np.ndarray,
                pos: np.ndarray) -> np.ndarray:
-    """(8, N) values of :data:`STAT_COLUMNS` from the engine's (9, N) rotations and (3, N) positions."""
-    out = np.empty((len(STAT_COLUMNS), pos.shape[1]))
-    np.subtract(pos, nominal_position[:, None], out=out[:3])
-    dx, dy, dz = out[0], out[1], out[2]
-    np.sqrt(dx * dx + dy * dy + dz * dz, out=out[3])
-    euler_zyx_entries(rot[0], rot[3], rot[6], rot[7], rot[8], out=out[4:7])  # on the rows of R
-    angles = out[4:7]
-    angles -= nominal_euler[:, None]
-    angles += np.pi
-    np.mod(angles, 2 * np.pi, out=angles)
-    angles -= np.pi
-    px, py, pz = pos
-    np.sqrt(px * px + py * py + pz * pz, out=out[7])
+    """(8, N) values of :data:`STAT_COLUMNS` from the engine's (9, N) rotations and (3, N) positions.
+
+    Built row by row in place (rows not yet filled serve as scratch), so the only new
+    array is the result.
+    """
+    shape = (len(STAT_COLUMNS), pos.shape[1])
+    out = scratch(shape)
+    out = np.empty(shape) if out is None else out
+    free_row = out[4]  # free until the Euler angles are written
+    _norm_into(np.subtract(pos, nominal_position[:, None], out=out[:3]), out[3], free_row)
+    _norm_into(pos, out[7], free_row)
     out[7] -= np.linalg.norm(nominal_position)
+    angles = euler_zyx_entries(rot[0], rot[3], rot[6], rot[7], rot[8], out=out[4:7])  # on the rows of R
+    angles -= nominal_euler[:, None]
+    if angles.min() < -np.pi or angles.max() >= np.pi:  # wrap to [-pi, pi) only when needed
+        angles += np.pi
+        np.mod(angles, 2 * np.pi, out=angles)
+        angles -= np.pi
     return out
+
+
+def _norm_into(vectors: np.ndarray, out: np.ndarray, work: np.ndarray) -> np.ndarray:
+    """Euclidean norms of (3, N) column vectors into out (N,), using work (N,)."""
+    np.multiply(vectors[0], vectors[0], out=out)
+    for component in vectors[1:]:
+        np.multiply(component, component, out=work)
+        out += work
+    return np.sqrt(out, out=out)
 
 
 def run_chunk(task: ChunkTask, index: int, size: int, seed: np.random.SeedSequence) -> ChunkSummary:
     """Sample and evaluate one chunk; a pure function of its arguments."""
+    with task.scratch_arrays().active():
+        return _run_chunk(task, index, size, seed)
+
+
+def _run_chunk(task: ChunkTask, index: int, size: int, seed: np.random.SeedSequence) -> ChunkSummary:
     rng = np.random.default_rng(seed)
     sampler = task.sampler
     rows = sample_rows(sampler, size, rng)
     rot, pos = tcp_chain_soa(sampler.error_model.robot, task.q, rows, sampler.error_model)
+    del rows
     values = error_rows(task.nominal_position, task.nominal_euler, rot, pos)
+    del rot, pos
     keep = max(0, min(size, task.keep_cloud - index * task.chunk))
+    cloud = values[:3, :keep].T.copy()
+    inside_position = np.array([np.count_nonzero(values[3] < t) for t in task.tolerances], dtype=np.int64)
+    magnitude = np.abs(values[4:7], out=scratch((3, size)))
+    inside_angle = np.array([np.count_nonzero(row < task.angle_tolerance) for row in magnitude], dtype=np.int64)
+    del magnitude
+    minimum, maximum = values.min(axis=1), values.max(axis=1)
     mean = values.mean(axis=1)
-    centred = values - mean[:, None]
-    stats = RunningStats(count=size, mean_=mean, m2=np.einsum("kn,kn->k", centred, centred),
-                         minimum=values.min(axis=1), maximum=values.max(axis=1))
-    return ChunkSummary(
-        index=index,
-        stats=stats,
-        inside_position=(values[3][None, :] < task.tolerances[:, None]).sum(axis=1),
-        inside_angle=(np.abs(values[4:7]) < task.angle_tolerance).sum(axis=1),
-        cloud=values[:3, :keep].T.copy(),
-    )
+    values -= mean[:, None]  # centred in place: the values are not needed any more
+    stats = RunningStats(count=size, mean_=mean, m2=np.einsum("kn,kn->k", values, values),
+                         minimum=minimum, maximum=maximum)
+    return ChunkSummary(index=index, stats=stats, inside_position=inside_position, inside_angle=inside_angle,
+                        cloud=cloud)
 
 
 @renamed_keyword("sampler", "budget")

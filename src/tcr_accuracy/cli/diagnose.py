@@ -1,8 +1,8 @@
 """``tcr-accuracy diagnose``: the sim-to-real gap of a robot from tracker measurements.
 
 Edge layer: reads the CSV, runs :func:`tcr_accuracy.diagnosis.diagnose.diagnose`, prints the
-summary (mm, labelled), writes JSON, the Markdown/HTML report with plots, and the
-as-built URDF with the non-geometric effects' parameters in YAML next to it.
+summary (mm, labelled), writes JSON, the Markdown/HTML report with plots, and the calibration
+URDF with the whole model beside it (the export's builder and model format, :mod:`tcr_accuracy.asbuilt`).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 from .common import (add_robot_arguments, as_built_file, check_csv_memory, effect_names, effects_side_file, integer,
-                     noise_mm_value, number, output_file, seed_value, status)
+                     noise_mm_value, number, seed_value, status)
 from .output import RunOutput, add_output_arguments
 from .report import add_campaign_arguments, read_campaign_arguments
 from ..view.diagnosis_summary import answer_lines, format_summary, primary_effect_text as _primary_text, \
@@ -56,8 +56,8 @@ def add_parsers(sub) -> None:
     p.add_argument("--instrument-radial-mpe", nargs=2, type=number(low=0, unit="um, um/m"), default=None,
                    metavar=("A_UM", "B_UM_PER_M"), help="the instrument's MPE along the beam, where it differs")
     p.add_argument("--as-built-urdf", default=None, type=as_built_file, metavar="FILE",
-                   help="write the calibrated URDF to FILE and the other effects' parameters to "
-                        "FILE with suffix .effects.yaml")
+                   help="write the calibration URDF (geometry refitted to the full model, tool0 unchanged) to "
+                        "FILE and the whole model (for tcr_accuracy.load_as_built) to FILE with suffix .effects.yaml")
     add_output_arguments(p, view=True)
     add_campaign_arguments(p)
     p.set_defaults(run=_run_diagnose)
@@ -165,8 +165,9 @@ def _run_diagnose(args) -> int:
                           progress=bar.set_postfix_str)
     finally:
         bar.close()
-    payload = jsonable({"measurements": ", ".join(map(str, files)), "robot_source": robot_source(args.robot),
-                        "tool_frame": robot.tool_frame, **result.to_dict(robot)})
+    payload = jsonable({"measurements": ", ".join(map(str, files)), "measurement_files": list(map(str, files)),
+                        "robot_source": robot_source(args.robot), "tool_frame": robot.tool_frame,
+                        **result.to_dict(robot)})
     source = ", ".join(map(str, files))
     _report_tables(out, robot, result, source)
     out.add_plots(lambda folder: list(write_plots(result, robot, folder).values()), PLOT_CAPTIONS)
@@ -176,11 +177,11 @@ def _run_diagnose(args) -> int:
                       "nominal robot and the calibrated as-built robot (geometric errors magnified)")
     written = []
     if args.as_built_urdf:
-        urdf, side = write_as_built(robot, result, Path(args.as_built_urdf))
-        status(args, f"as-built URDF written to {urdf} (its other effects and the tracker frame: {side})")
-        payload.update(as_built_urdf=str(urdf), as_built_effects=str(side))
-        written += [("as-built URDF (the geometric effects)", urdf),
-                    ("effects YAML (the other effects, the tracker frame, uncertainties)", side)]
+        urdf, side, summary = write_as_built(robot, result, Path(args.as_built_urdf), measurements, args.robot,
+                                             ", ".join(Path(f).name for f in files))
+        status(args, f"as-built URDF written to {urdf} (the whole model, every effect and the tracker frame: {side})")
+        payload.update(as_built_urdf=str(urdf), as_built_effects=str(side), as_built=summary)
+        written += [("calibration URDF", urdf), ("the whole model (tcr_accuracy.load_as_built)", side)]
     if out.report is not None:
         _calibration_page(out.report, args, robot, payload, written)
     return out.finish(payload, lambda: print(format_summary(robot, result, source)))
@@ -193,7 +194,8 @@ def _calibration_page(report, args, robot, payload: dict, written: list) -> None
 
     if args.json not in (None, "-"):
         written = [("diagnosis JSON (every figure of the report)", args.json), *written]
-    campaign = Campaign(RobotFacts.of_robot(robot, payload["robot_source"]), [("diagnosis", payload)])
+    source = args.json if args.json not in (None, "-") else "diagnosis"
+    campaign = Campaign(RobotFacts.of_robot(robot, payload["robot_source"]), [(str(source), payload)])
     add_calibration_page(report, args, campaign, written)
 
 
@@ -241,36 +243,34 @@ def jsonable(value):
 # ---------------------------------------------------------------------------------------
 # As-built model
 # ---------------------------------------------------------------------------------------
-def write_as_built(robot, d, path: Path) -> tuple[Path, Path]:
+def write_as_built(robot, d, path: Path, measurements, source: str, label: str) -> tuple[Path, Path, dict]:
+    """The calibration URDF at ``path`` and the whole model beside it (``X.effects.yaml``, the one
+    model format of :mod:`tcr_accuracy.asbuilt.model_file`), through the export's own builder;
+    returns (urdf, model file, the export's summary for the JSON)."""
     import numpy as np
-    import yaml
 
-    from ..model.asbuilt import as_built_urdf
+    from ..asbuilt.accuracy import MeasuredPoses
+    from ..asbuilt.export import build_export
+    from ..asbuilt.model import AsBuiltModel
     from ..atomic import write_text_atomically
-    from ..effects import effect_class
-    from ..model.errors import ErrorModel
+    from ..view.as_built_summary import urdf_comment
 
-    text, tool_frame = as_built_urdf(robot, d.as_built_x, ErrorModel(robot), name=f"{robot.name}_as_built")
-    write_text_atomically(path, text)
+    model = AsBuiltModel.from_diagnosis(robot, d, robot_source(source))
+    final = d.steps[-1].heldout
+    kfold = {"mean": final.mean, "rms": final.rms, "max": final.max, "folds": d.folds, "n": d.n_measurements}
     side = effects_side_file(path)
-    doc = {
-        "robot": robot.name,
-        "urdf": path.name,
-        "tool_frame": tool_frame,
-        "units": "SI (m, rad, rad/Nm, m/N, 1/K)",
-        "note": "geometric effects (frames' TCP offset, joint offsets, geometry) are built into the URDF; "
-                "the tracker frame is not part of the robot and is given separately",
-        "tracker_from_base": [[float(v) for v in row] for row in d.tracker_transform],
+    export = build_export(model, MeasuredPoses.of(measurements, label), kfold=kfold, urdf_file=path.name,
+                          model_file=side.name)
+    write_text_atomically(path, export.urdf_text(urdf_comment(export, "this diagnosis")))
+    informational = {
         **({"measured_frames": list(d.frames_measured),
             "chain_in_urdf": f"the URDF is the chain to {d.frames_measured[0]}; the other frames' TCP offsets "
                              "are among the parameters"} if len(d.frames_measured) > 1 else {}),
         "selected_effects": list(d.selected_effects),
-        "effects": {e: {"parameters": {k: float(v) for k, v in p.items()},
-                        "units": dict(d.parameter_units.get(e, {})), **_uncertainty(d, e)}
-                    for e, p in d.parameters.items() if not effect_class(e).geometric},
-        "geometric_parameters_in_urdf": {e: {"parameters": {k: float(v) for k, v in p.items()},
-                                             "units": dict(d.parameter_units.get(e, {})), **_uncertainty(d, e)}
-                                         for e, p in d.parameters.items() if effect_class(e).geometric},
+        "uncertainty": {e: {"units": dict(d.parameter_units.get(e, {})), **_uncertainty(d, e)} for e in d.parameters},
+        "uncertainty_note": "std: standard error from the fit's Jacobian and residual (noise only, not model "
+                            "error); interval_95: value +- 1.96 std cut to the physical range; physical_range: "
+                            "where the effect's parameters can lie on a real robot",
         **({"joint_functions": {e: {j: {"angle_deg": np.round(np.degrees(b["angle_rad"][::4]), 3).tolist(),
                                           "error_rad": b["value_rad"][::4].tolist(),
                                           "std_rad": b["std_rad"][::4].tolist()}
@@ -279,12 +279,9 @@ def write_as_built(robot, d, path: Path) -> tuple[Path, Path]:
             "joint_functions_note": "each joint's fitted error against its own angle over the measured range (add "
                                     "error_rad to the joint's angle; interpolate between rows)"}
            if d.joint_function_bands else {}),
-        "uncertainty_note": "std: standard error from the fit's Jacobian and residual (noise only, not model "
-                            "error); interval_95: value +- 1.96 std cut to the physical range; physical_range: "
-                            "where the effect's parameters can lie on a real robot, the fit stays inside it",
     }
-    write_text_atomically(side, yaml.safe_dump(doc, sort_keys=False))
-    return path, side
+    write_text_atomically(side, export.model_text(**informational))
+    return path, side, export.to_dict()
 
 
 def _uncertainty(d, effect: str) -> dict:

@@ -1,21 +1,19 @@
-"""``tcr-accuracy export``: the calibrated robot of a ``diagnose --json`` result in the forms
-controllers and other tools take.
+"""``tcr-accuracy export``: the calibration of a ``diagnose --json`` result in the forms controllers
+and ROS take, each with what it reaches.
 
-Writes into ``--to DIR`` (files written together at the end of the run):
+Reads the diagnosis (its full model) and the measurements it was fitted to (the files its JSON
+names, or ``--measurements``), builds every form (:func:`tcr_accuracy.asbuilt.export.build_export`)
+and writes into ``--to DIR`` (files written together at the end of the run):
 
-* ``as_built.urdf`` and ``as_built.yaml``: the geometry as a URDF, and the whole fitted model
-  (non-geometric effects included) that :func:`tcr_accuracy.load_as_built` reads back
-  (:mod:`tcr_accuracy.prediction.as_built_model`);
-* ``joint_offsets_tcp.csv``: joint zero offsets [deg, mm] and the TCP (offset in the TCP
-  frame and its pose on the flange) [mm, deg];
-* ``dh.csv``, ``mdh.csv`` and their ``*_base_tool.csv``: the standard and the modified
-  (Craig, Hayati's beta for parallel axes) Denavit-Hartenberg tables, nominal, as built and
-  the correction (:mod:`tcr_accuracy.model.dh`); where the axes admit no DH table (axes parallel
-  by design, tilted as built) a one-line warning says so and the rest is written;
-* ``compensation.csv`` (with ``--targets CSV``): for controllers that cannot take a model,
-  each target's corrected joint command: the calibrated robot's measured point at the
-  corrected command lands where the nominal robot with the fitted TCP offset puts it at
-  the target joints.
+* ``as_built.urdf``: the calibration URDF, geometry and joint offsets refitted to the full model;
+  ``tool0`` unchanged, the measured point the frame ``<tool>_measured``; its accuracy in a comment;
+* ``as_built.yaml``: the whole fitted model for :func:`tcr_accuracy.load_as_built`
+  (``docs/as-built-format.md``);
+* ``dh.csv``, ``mdh.csv`` (Hayati's beta for parallel axes) and for a named robot the maker's
+  convention (``ur5_dh.csv``, ``panda_mdh.csv``), each with ``*_base_tool.csv``;
+* ``ur_calibration.yaml`` for a UR arm (the ROS 2 driver's kinematics calibration file);
+* ``joint_offsets_tcp.csv``; ``accuracy.json`` and ``accuracy.png``: what every form reaches;
+* with ``--targets CSV``, ``compensation.csv``: the compensation filter's corrected commands.
 """
 
 from __future__ import annotations
@@ -24,185 +22,150 @@ from pathlib import Path
 
 from .common import EXIT_OK, MAX_MM, add_quiet_argument, number, output_folder, status
 
+#: Memory [bytes] planned per measured row (the refit holds six poses' Jacobians per row).
+EXPORT_ROW_BYTES = 40_000
+
 
 def add_parsers(sub) -> None:
     p = sub.add_parser(
-        "export", help="the calibrated robot of a diagnosis as URDF, model file, offsets, compensation table",
-        description="Read a 'diagnose --json' result and write the calibrated robot: the as-built URDF, "
-                    "the whole model (non-geometric effects included) as YAML for tcr_accuracy.load_as_built, "
-                    "joint offsets and the TCP in deg and mm, and with --targets a table of corrected commands.",
+        "export", help="the calibration in every form: URDF, model file, DH tables, UR file, compensation filter",
+        description="Read a 'diagnose --json' result and write the calibration in the forms controllers and ROS "
+                    "take, each with what it reaches: the calibration URDF (geometry refitted to the full model, "
+                    "tool0 unchanged, the measured point a frame of its own), the whole model as YAML for "
+                    "tcr_accuracy.load_as_built, DH/MDH tables (and the maker's convention), the UR ROS 2 driver's "
+                    "calibration file, and with --targets the compensation filter's corrected commands. "
+                    "Units: mm and deg in what is printed and in the CSV tables, SI in URDF and YAML.",
     )
     p.add_argument("diagnosis", metavar="DIAGNOSIS.json", help="the JSON that 'diagnose --json FILE' wrote")
     p.add_argument("--to", required=True, type=output_folder, metavar="DIR", help="folder to write the files to")
+    p.add_argument("--measurements", nargs="+", metavar="CSV", default=None,
+                   help="the measurements the diagnosis was fitted to (default: the files its JSON names)")
+    p.add_argument("--check", metavar="CSV", default=None,
+                   help="measurements the diagnosis was not fitted to, in the tracker frame of the first "
+                        "measurement file: every form's held-out error on them")
     p.add_argument("--targets", metavar="CSV", default=None,
-                   help="target joint values (CSV, the measurement format without positions): write "
-                        "compensation.csv, the corrected commands")
+                   help="targets to correct: joint values (the measurement format) or Cartesian positions of "
+                        "the measured point, base frame (x_mm,y_mm,z_mm [qw..qz] [seed_<joint>_deg ...] "
+                        "[payload_kg]); writes compensation.csv")
+    p.add_argument("--payload-kg", type=number(low=0, high=1e6, unit="kg"), default=None,
+                   help="the load the URDF and tables hold [kg] (default: each measured row's)")
     p.add_argument("--threshold-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=0.0001,
                    help="compensation: stop when the model's miss is below this [mm] (default 0.0001)")
     add_quiet_argument(p)
     p.set_defaults(run=_run_export)
 
 
-def read_diagnosis_json(path: str) -> dict:
-    """The JSON of ``diagnose --json``, with what export needs checked (one line naming what is missing)."""
+def _run_export(args) -> int:
     import json
 
-    from ..exceptions import InputError
-
-    try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    except ValueError as exc:
-        raise InputError(f"{path}: not JSON ({exc})") from None
-    if not isinstance(data, dict):
-        raise InputError(f"{path}: not a diagnosis (a JSON object was expected)")
-    for key in ("effect_parameters", "robot_source", "tool_frame", "tracker_transform"):
-        if key not in data:
-            raise InputError(f"{path}: key {key!r} is missing; write the JSON with 'tcr-accuracy diagnose "
-                             "MEASUREMENTS.csv --json FILE' of this version")
-    return data
-
-
-def _run_export(args) -> int:
-    import numpy as np
-
+    from ..asbuilt.diagnosis_file import kfold_figures, model_from_diagnosis, read_diagnosis_json
+    from ..asbuilt.export import MODEL_FILE, UR_FILE, URDF_FILE, build_export
     from ..atomic import stage_folder, write_text_atomically
-    from ..exceptions import InputError
-    from ..model.dh import NoDhForm
-    from ..model.robot import load_robot
-    from ..prediction.as_built_model import AsBuiltModel, write_as_built_model
+    from ..view.as_built_summary import accuracy_lines, ur_file_header, urdf_comment
+    from ..view.plots_export import write_accuracy_plot
+    from .export_tables import offsets_and_tcp_csv, table_csv
 
     data = read_diagnosis_json(args.diagnosis)
-    source = data["robot_source"]
-    robot = load_robot(None if source == "tool_changer" else source, data["tool_frame"])
-    try:
-        model = AsBuiltModel(robot, {e: dict(p) for e, p in data["effect_parameters"].items()}, source,
-                             np.asarray(data["tracker_transform"], dtype=float),
-                             {e: dict(o) for e, o in (data.get("effect_options") or {}).items()})
-    except (TypeError, ValueError, AttributeError) as exc:
-        raise InputError(f"{args.diagnosis}: effect_parameters: {exc}") from None
-    folder = Path(args.to)
-    files = write_as_built_model(model, folder, "as_built")
-    files["joint_offsets_tcp.csv"] = offsets_and_tcp_csv(model)
-    summary = [f"{robot.name}: calibrated model of {args.diagnosis} ({', '.join(model.parameters)}) -> {folder}"]
-    for convention in ("DH", "MDH"):
-        try:
-            table, frames = dh_csv(model, convention)
-        except NoDhForm as exc:
-            import sys
+    model = model_from_diagnosis(data, args.diagnosis)
+    measured = read_calibration_measurements(args, data, model.robot)
+    held_out = None
+    if args.check is not None:
+        from ..asbuilt.accuracy import MeasuredPoses
 
-            sys.stderr.write(f"tcr-accuracy: warning: {exc}\n")
-            summary.append(f"  {convention}: not written ({exc})")
-            continue
-        files[f"{convention.lower()}.csv"], files[f"{convention.lower()}_base_tool.csv"] = table, frames
-    if args.targets is not None:
-        text, solved, total = compensation_csv(model, args.targets, args.threshold_mm * 1e-3)
-        files["compensation.csv"] = text
-        summary.append(f"  compensation.csv: {solved} of {total} targets corrected"
-                       + ("" if solved == total else " (the others listed with the reason, commands left empty)"))
+        held_out = MeasuredPoses.of(_read(args.check, model.robot, 3), Path(args.check).name)
+    filtered = _targets(args, model) if args.targets is not None else None
+    export = build_export(model, measured, held_out, payload_kg=args.payload_kg,
+                          kfold=kfold_figures(data, args.diagnosis))
+    files = {URDF_FILE: export.urdf_text(urdf_comment(export, args.diagnosis)), MODEL_FILE: export.model_text(),
+             "joint_offsets_tcp.csv": offsets_and_tcp_csv(export)}
+    for table in export.tables:
+        files[table.file], files[table.file.replace(".csv", "_base_tool.csv")] = table_csv(table)
+    if export.ur is not None:
+        from ..asbuilt.model_file import model_yaml
+
+        files[UR_FILE] = ur_file_header(export) + model_yaml(export.ur)
+    if filtered is not None:
+        from .export_tables import compensation_csv
+
+        files["compensation.csv"] = compensation_csv(filtered[0], model.robot, filtered[1])
+    files["accuracy.json"] = json.dumps({"diagnosis": str(args.diagnosis), **export.to_dict()}, indent=1) + "\n"
+    folder = Path(args.to)
     stage_folder(folder)
     for name, text in files.items():
         write_text_atomically(folder / name, text)
-    summary.insert(1, "  " + ", ".join(files))
-    print("\n".join(summary))
+    write_accuracy_plot(export.accuracy, folder / "accuracy.png")
+    print("\n".join(_summary(args, export, files, filtered) + accuracy_lines(export.accuracy)))
     status(args, f"export written to {folder}")
     return EXIT_OK
 
 
-def offsets_and_tcp_csv(model) -> str:
-    """``quantity,value,unit`` rows: each joint's zero offset, the fitted TCP offset in the TCP
-    frame, and the as-built TCP pose on the last joint's frame (x, y, z, roll, pitch, yaw)."""
-    import numpy as np
-    import pinocchio as pin
-
-    robot = model.robot
-    rows = [("quantity", "value", "unit")]
-    for name, value, unit, scale in zip(robot.joint_names, model.joint_offsets(), robot.display_units,
-                                        robot.display_scale):
-        rows.append((f"joint_offset.{name}", f"{value * scale:.9g}", unit))
-    for axis, value in zip("xyz", model.tcp_offset()):
-        rows.append((f"tcp_offset_in_tcp_frame.{axis}", f"{value * 1e3:.9g}", "mm"))
-    as_built = model.geometric_robot()
-    placement = as_built.tool_placement
-    for axis, value in zip("xyz", placement.translation):
-        rows.append((f"tcp_on_last_joint.{axis}", f"{value * 1e3:.9g}", "mm"))
-    for axis, value in zip(("roll", "pitch", "yaw"), pin.rpy.matrixToRpy(placement.rotation)):
-        rows.append((f"tcp_on_last_joint.{axis}", f"{np.degrees(value):.9g}", "deg"))
-    return "\n".join(",".join(r) for r in rows) + "\n"
+def _summary(args, export, files, filtered) -> list[str]:
+    model = export.model
+    lines = [f"{model.robot.name}: calibration of {args.diagnosis} ({', '.join(model.parameters)}) -> {args.to}",
+             "  " + ", ".join([*files, "accuracy.png"])]
+    geometry = export.geometry
+    lines.append(f"  URDF: geometry and joint offsets refitted to the full model over {geometry.n_measured} measured "
+                 f"poses and {geometry.n_sampled} between them ({len(geometry.fitted)} parameters, RMS "
+                 f"{geometry.rms * 1e3:.4f} mm from the full model); {model.robot.tool_frame} unchanged, the measured "
+                 f"point is {export.measured_frame}")
+    for name, why in export.not_tabled.items():
+        lines.append(f"  {name}: not written ({why})")
+    if filtered is not None:
+        result = filtered[0]
+        solved = int(result.solved.sum())
+        lines.append(f"  compensation.csv: {solved} of {len(result.solved)} targets corrected"
+                     + ("" if solved == len(result.solved) else " (the others listed with the reason, commands left "
+                                                                "empty)"))
+    return lines
 
 
-def dh_csv(model, convention: str) -> tuple[str, str]:
-    """(rows, base and tool) of the DH or MDH table as CSV: nominal, as built and the correction
-    (as built - nominal), lengths in mm, angles in deg. Raises NoDhForm (one line) where the
-    robot's axes admit no such table."""
-    import numpy as np
-    import pinocchio as pin
+def read_calibration_measurements(args, data: dict, robot):
+    """The measurements the diagnosis was fitted to (``--measurements``, else the files its JSON
+    names, relative to the working folder or to the JSON's), one session per file."""
+    from ..asbuilt.accuracy import MeasuredPoses
+    from ..asbuilt.diagnosis_file import measurement_files
+    from ..exceptions import InputError
+    from ..io.measurements import join_sessions
+    from .common import check_csv_memory
+    from .diagnose import _session_labels
 
-    from ..model.dh import dh_table, mdh_table
-
-    build = dh_table if convention == "DH" else mdh_table
-    nominal = build(model.robot, model.robot)
-    as_built = build(model.geometric_robot(), model.robot)
-    names = ["a_mm", "alpha_deg", "d_mm", "theta_deg"] + (["beta_deg"] if convention == "MDH" else [])
-    scale = np.array([1e3, 180.0 / np.pi, 1e3, 180.0 / np.pi, 180.0 / np.pi])[:len(names)]
-    header = ["joint", "variable"] + names + [f"{n}_as_built" for n in names] + [f"{n}_correction" for n in names]
-    lines = [",".join(header)]
-    for i, joint in enumerate(nominal.joints):
-        before, after = nominal.params[i, :len(names)], as_built.params[i, :len(names)]
-        change = after - before
-        change[1::2] = np.angle(np.exp(1j * change[1::2]))  # angles wrapped to (-180, 180] deg
-        if convention == "MDH":
-            change[4] = after[4] - before[4]
-        cells = [joint, nominal.variable[i]] + [f"{v:.9g}" for v in np.concatenate([before, after, change]) *
-                                                np.tile(scale, 3)]
-        lines.append(",".join(cells))
-    frames = ["frame,model,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg"]
-    for label, table in (("nominal", nominal), ("as_built", as_built)):
-        for frame, matrix in (("base_to_frame0", table.base), ("last_frame_to_tcp", table.tool)):
-            rpy = np.degrees(pin.rpy.matrixToRpy(matrix[:3, :3]))
-            frames.append(",".join([frame, label] + [f"{v:.9g}" for v in (*matrix[:3, 3] * 1e3, *rpy)]))
-    return "\n".join(lines) + "\n", "\n".join(frames) + "\n"
+    if args.measurements:
+        files = list(args.measurements)
+    else:
+        files = []
+        for name in measurement_files(data, args.diagnosis):
+            candidates = [Path(name), Path(args.diagnosis).parent / name]
+            found = next((c for c in candidates if c.is_file()), None)
+            if found is None:
+                raise InputError(f"{args.diagnosis}: the measurements it was fitted to ({name}) are not found; give "
+                                 "them with --measurements CSV ...")
+            files.append(str(found))
+        if not files:
+            raise InputError(f"{args.diagnosis}: names no measurement file; give them with --measurements CSV ...")
+    for path in files:
+        check_csv_memory(args, path, "exporting", EXPORT_ROW_BYTES)
+    sets = [_read(path, robot, 3) for path in files]
+    joined = sets[0] if len(sets) == 1 else join_sessions(sets, _session_labels(files))
+    return MeasuredPoses.of(joined, ", ".join(Path(f).name for f in files))
 
 
-def compensation_csv(model, targets: str, threshold: float) -> tuple[str, int, int]:
-    """(CSV text, solved, total): target joints and their corrected commands [deg, mm]."""
-    import numpy as np
+def _read(path, robot, min_rows: int):
+    from ..io.measurements import measured_frames, read_measurements
 
+    frame = robot.tool_frame if measured_frames(path) else None
+    return read_measurements(path, robot, min_rows=min_rows, frame=frame)
+
+
+def _targets(args, model):
+    """(FilteredTargets, the targets' rows in their file) of ``--targets``."""
+    from ..asbuilt.compensation_filter import filter_joint_targets, filter_pose_targets
     from ..io.measurements import read_measurements
-    from ..model.kinematics import tcp_poses
-    from ..prediction.compensation import compensate_joints
+    from ..io.pose_targets import is_cartesian, read_pose_targets
 
-    robot = model.robot
-    mset = read_measurements(targets, robot, require_position=False)
-    context = mset.context
-    point = _measured_point_robot(robot, model.tcp_offset())
-
-    class _Model:  # the calibrated robot's error beyond the measured point, at the targets' context
-        @staticmethod
-        def predict(q, context=None):
-            return model.tcp_poses(q, context).position - tcp_poses(point, q).position
-
-    result = compensate_joints(point, _Model(), mset.q, threshold=threshold, context=context)
-    scale = robot.display_scale
-    header = ([f"target_{n}_{u}" for n, u in zip(robot.joint_names, robot.display_units)]
-              + [f"command_{n}_{u}" for n, u in zip(robot.joint_names, robot.display_units)]
-              + ["model_miss_mm", "target_row", "status"])
-    lines = [",".join(header)]
-    for i in range(len(mset.q)):
-        command = (result.q[i] * scale) if result.converged[i] else [None] * robot.n_joints
-        cells = [f"{v:.9g}" for v in mset.q[i] * scale] + ["" if v is None else f"{v:.9g}" for v in command]
-        cells += [f"{result.predicted_miss[i] * 1e3:.6g}", str(int(mset.rows[i])),
-                  "ok" if result.converged[i] else f"{result.reason[i]}: {result.detail[i]}".replace(",", ";")]
-        lines.append(",".join(cells))
-    return "\n".join(lines) + "\n", int(result.converged.sum()), len(mset.q)
-
-
-def _measured_point_robot(robot, offset):
-    """The nominal robot whose TCP is moved by the fitted TCP offset (in the TCP frame)."""
-    from ..model.errors import ErrorModel
-
-    em = ErrorModel(robot)
-    x = em.zeros()
-    x[em.tool_slice.start:em.tool_slice.start + 3] = offset
-    return em.perturbed_robot(x, name=robot.name)
+    threshold = args.threshold_mm * 1e-3
+    if is_cartesian(args.targets, model.robot):
+        targets = read_pose_targets(args.targets, model.robot)
+        return filter_pose_targets(model, targets.positions, targets.rotations, q_seed=targets.q_seed,
+                                   context=targets.context, threshold=threshold), targets.rows
+    mset = read_measurements(args.targets, model.robot, require_position=False, repeats_allowed=True)
+    return filter_joint_targets(model, mset.q, mset.context, threshold=threshold), mset.rows

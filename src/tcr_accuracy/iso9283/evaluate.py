@@ -44,7 +44,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .formulas import IsoFigures, as_labels, check_repeats, iso_figures, ordered, stabilisation_figures
-from ..effects import make_effect, predict_positions
+from ..effects import predict_positions
+from ..effects.file_values import checked_effect, parameter_vector
 from ..exceptions import InputError
 from ..io.measurement_checks import MIN_UNIT_SPREAD, rms_spread
 from ..io.measurements import MeasurementSet
@@ -426,20 +427,16 @@ def diagnosis_model(robot: RobotModel, payload: dict, source: str) -> tuple[list
                          "writes")
     if payload.get("robot") not in (None, robot.name):
         raise InputError(f"{source}: a diagnosis of {payload.get('robot')}, not of {robot.name}; give --robot")
+    options = payload.get("effect_options") or {}
+    if not isinstance(options, dict):
+        raise InputError(f"{source}: effect_options: must map effect names to {{option: value}}")
     effects, params = [], []
     for name, values in parameters.items():
         if name == "frames":
             continue
-        effect = make_effect(name, robot)
-        names = list(effect.parameter_names())
-        vector = effect.zeros()
-        for key, value in (values or {}).items():
-            if key not in names or not isinstance(value, (int, float)) or not np.isfinite(value):
-                raise InputError(f"{source}: parameters.{name}.{key}: not a finite parameter of {name} for "
-                                 f"{robot.name}")
-            vector[names.index(key)] = float(value)
+        effect = checked_effect(name, robot, options.get(name), f"{source}: effect_options")
+        params.append(parameter_vector(effect, values or {}, f"{source}: parameters.{name}"))
         effects.append(effect)
-        params.append(vector)
     return effects, params
 
 

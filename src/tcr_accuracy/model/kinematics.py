@@ -1,13 +1,9 @@
 """Batched forward kinematics of nominal and perturbed robots, and TCP pose errors.
 
-The engine works on whole batches in numpy, not one Pinocchio call per sample:
-the running rotation and translation are kept entry by entry ("structure of
-arrays"), each entry a Python float when it is the same for every sample or a
-contiguous length-N vector when it is not. At a fixed pose the nominal transforms
-fold into constants and only the error factors cost vector operations, and exact
-zeros and ones in a factor are skipped (see ``_chain``). Pinocchio computes one pose
-at a time; Monte Carlo needs millions, which is why this part is written by hand. ``tcp_poses_pinocchio`` is the plain per-sample Pinocchio path,
-kept as the reference the engine is tested and benchmarked against.
+The engine works on whole batches in numpy, not one Pinocchio call per sample
+(:mod:`tcr_accuracy.model.chain`, re-exported here as :func:`tcp_chain_soa`).
+``tcp_poses_pinocchio`` is the plain per-sample Pinocchio path, kept as the reference the
+engine is tested and benchmarked against.
 
 Shapes: N samples on axis 0 of every input and output. Joint values q are
 (N, n_joints) or (n_joints,) [rad, m]; error vectors x are (N, n_params) or
@@ -22,9 +18,10 @@ import numpy as np
 import pinocchio as pin
 from scipy.spatial.transform import Rotation
 
+from .chain import tcp_chain_soa
 from .errors import ErrorModel
 from ..exceptions import InputError
-from .robot import REVOLUTE, RobotModel
+from .robot import RobotModel
 
 
 @dataclass(frozen=True)
@@ -116,274 +113,6 @@ def _broadcast(q: np.ndarray, x: np.ndarray | None, n_joints: int, n_params: int
     return q, x, n
 
 
-# ---------------------------------------------------------------------------------------
-# The chain engine: 3x3 rotation and 3-vector as lists of scalars or (N,) arrays
-# ---------------------------------------------------------------------------------------
-# Every entry of the running rotation R (9, row-major) and translation p (3) is either a
-# Python float (the same for every sample) or a contiguous (N,) array. A factor whose
-# entries are exactly 0 or 1 costs nothing (skipped or passed through), constants are
-# multiplied once, and only entries that really vary per sample cost vector
-# operations. So at a fixed pose the nominal joint transforms fold into constants, a
-# pure translation error costs 3 multiply-adds per nonzero component, a drive error
-# about a coordinate axis only touches two columns, and no (3, 3, N) einsum is needed.
-# The result is the exact product of exponentials (no linearisation).
-def _mul(a, b):
-    if isinstance(a, float):
-        if a == 0.0:
-            return 0.0
-        if a == 1.0:
-            return b
-        if a == -1.0:
-            return -b
-    if isinstance(b, float):
-        if b == 0.0:
-            return 0.0
-        if b == 1.0:
-            return a
-        if b == -1.0:
-            return -a
-    return a * b
-
-
-def _add(a, b):
-    if isinstance(a, float) and a == 0.0:
-        return b
-    if isinstance(b, float) and b == 0.0:
-        return a
-    return a + b
-
-
-def _dot3_owned(r0, r1, r2, c0, c1, c2):
-    """(r0 c0 + r1 c1 + r2 c2, owned): zero/one factors skipped, arrays summed in place
-    when the sum is a fresh array (owned) rather than one of the inputs."""
-    acc, owned = 0.0, False
-    for a, b in ((r0, c0), (r1, c1), (r2, c2)):
-        term = _mul(a, b)
-        if isinstance(term, float) and term == 0.0:
-            continue
-        if isinstance(acc, float):
-            if isinstance(term, float):
-                acc = acc + term
-            elif acc == 0.0:
-                acc, owned = term, (term is not a and term is not b)
-            else:
-                acc, owned = term + acc, True
-        elif owned:
-            acc += term
-        else:
-            acc, owned = acc + term, True
-    return acc, owned
-
-
-def _dot3(r0, r1, r2, c0, c1, c2):
-    return _dot3_owned(r0, r1, r2, c0, c1, c2)[0]
-
-
-def _add_to(base, addend_owned):
-    """base + addend, in place in the addend when it is a fresh array."""
-    addend, owned = addend_owned
-    if owned and not isinstance(base, float):
-        addend += base
-        return addend
-    return _add(base, addend)
-
-
-def _chain_compose(r, p, c, t):
-    """(r, p) * (c, t): r, c lists of 9 entries (row-major), p, t lists of 3."""
-    new_p = p
-    if not all(isinstance(v, float) and v == 0.0 for v in t):
-        new_p = [_add_to(p[i], _dot3_owned(r[3 * i], r[3 * i + 1], r[3 * i + 2], t[0], t[1], t[2]))
-                 for i in range(3)]
-    if all(isinstance(v, float) for v in c) and c == [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]:
-        return r, new_p
-    new_r = [_dot3(r[3 * i], r[3 * i + 1], r[3 * i + 2], c[k], c[3 + k], c[6 + k])
-             for i in range(3) for k in range(3)]
-    return new_r, new_p
-
-
-def _cos_sin(angle):
-    if isinstance(angle, float):
-        return float(np.cos(angle)), float(np.sin(angle))
-    return np.cos(angle), np.sin(angle)
-
-
-def _axis_rotation(axis: np.ndarray, angle):
-    """Rot(axis, angle) as 9 entries; exact zeros/ones kept for a coordinate axis."""
-    c, s = _cos_sin(angle)
-    k = int(np.argmax(np.abs(axis)))
-    if abs(abs(axis[k]) - 1.0) < 1e-15:
-        if axis[k] < 0:
-            s = -s
-        m = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
-        i, j = (k + 1) % 3, (k + 2) % 3
-        m[3 * i + i], m[3 * j + j] = c, c
-        m[3 * i + j], m[3 * j + i] = -s if isinstance(s, float) else np.negative(s), s
-        return m
-    # Rodrigues for a general unit axis: I + sin [a] + (1 - cos) [a]^2
-    hat = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-    hat_sq = hat @ hat
-    one_minus_c = 1.0 - c
-    return [_add(float(np.eye(3)[i, k]), _add(_mul(float(hat[i, k]), s), _mul(float(hat_sq[i, k]), one_minus_c)))
-            for i in range(3) for k in range(3)]
-
-
-def _se3_entries(m: pin.SE3):
-    return [float(v) for v in m.rotation.reshape(-1)], [float(v) for v in m.translation]
-
-
-def _twist_factor(twist: list):
-    """exp6 of a twist given as 6 entries (floats or (N,) arrays) -> (9 entries, 3 entries)."""
-    if all(isinstance(v, float) for v in twist):
-        return _se3_entries(pin.exp6(np.array(twist)))
-    if all(isinstance(v, float) and v == 0.0 for v in twist[3:]):  # pure translation
-        return [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], list(twist[:3])
-    rot_nonzero = [k for k in range(3) if not (isinstance(twist[3 + k], float) and twist[3 + k] == 0.0)]
-    lin_zero = all(isinstance(v, float) and v == 0.0 for v in twist[:3])
-    if lin_zero and len(rot_nonzero) == 1:  # rotation about one coordinate axis
-        axis = np.zeros(3)
-        axis[rot_nonzero[0]] = 1.0
-        return _axis_rotation(axis, twist[3 + rot_nonzero[0]]), [0.0, 0.0, 0.0]
-    return _exp6_entries(twist)
-
-
-def _exp6_entries(twist: list):
-    """Rodrigues on entries (floats or (N,) arrays), as ``pin.exp6``; zero entries cost nothing.
-
-    R = I + a [w] + b [w]^2 and V = I + b [w] + c [w]^2 (translation V v), written out
-    with [w]^2 = w w^T - |w|^2 I, and the Taylor series of a, b, c below 1e-4 rad.
-    """
-    v, w = twist[:3], twist[3:]
-    theta_sq = _add(_add(_mul(w[0], w[0]), _mul(w[1], w[1])), _mul(w[2], w[2]))
-    theta_sq = np.asarray(theta_sq, dtype=float)
-    theta = np.sqrt(theta_sq)
-    small = theta < 1e-4
-    safe = np.where(small, 1.0, theta)
-    sin_t, cos_t = np.sin(safe), np.cos(safe)
-    a = np.where(small, 1.0 - theta_sq / 6.0, sin_t / safe)
-    b = np.where(small, 0.5 - theta_sq / 24.0, (1.0 - cos_t) / (safe * safe))
-    c = np.where(small, 1.0 / 6.0 - theta_sq / 120.0, (safe - sin_t) / (safe * safe * safe))
-
-    def matrix(f1, f2):
-        # I + f1 [w] + f2 (w w^T - theta^2 I)
-        out = []
-        for i in range(3):
-            for k in range(3):
-                entry = _mul(f2, _mul(w[i], w[k]))
-                if i == k:
-                    entry = _add(entry, 1.0 - f2 * theta_sq)
-                else:
-                    # [w]_ik = -eps_ikl w_l
-                    l_ = 3 - i - k
-                    sign = 1.0 if (i, k) in ((2, 1), (0, 2), (1, 0)) else -1.0
-                    entry = _add(entry, _mul(f1, _mul(sign, w[l_])))
-                out.append(entry)
-        return out
-
-    rot = matrix(a, b)
-    if all(isinstance(e, float) and e == 0.0 for e in v):
-        return rot, [0.0, 0.0, 0.0]
-    left = matrix(b, c)
-    trans = [_dot3(left[3 * i], left[3 * i + 1], left[3 * i + 2], v[0], v[1], v[2]) for i in range(3)]
-    return rot, trans
-
-
-def _column(values, i: int):
-    """Row i of a (p, M) array as a float (M == 1), 0.0 when it is all zero, else a contiguous array.
-
-    ``values`` may also be a list of rows, each a float or an (M,) array.
-    """
-    row = values[i]
-    if isinstance(row, float):
-        return row
-    if row.shape[0] == 1:
-        return float(row[0])
-    if not row.any():
-        return 0.0
-    return row
-
-
-def _chain(robot: RobotModel, q_cols: np.ndarray, x_cols: np.ndarray | None, error_model: ErrorModel | None):
-    """TCP (R entries, p entries) from joint values (n, Nq) and error vectors (p, Nx), axis 1 samples."""
-    axes = robot.motion_axes
-    kinds = robot.joint_kinds
-    identity = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
-    r, p = identity, [0.0, 0.0, 0.0]
-    em = error_model
-    if x_cols is not None:
-        base = [_column(x_cols, i) for i in range(em.base_slice.start, em.base_slice.stop)]
-        if not all(isinstance(v, float) and v == 0.0 for v in base):
-            r, p = _twist_factor(base)
-    for j, placement in enumerate(robot.joint_placements):
-        r, p = _chain_compose(r, p, *_se3_entries(placement))
-        value = _column(q_cols, j)
-        if x_cols is not None:
-            start = em.placement_slice.start + 6 * j
-            twist = [_column(x_cols, i) for i in range(start, start + 6)]
-            if not all(isinstance(v, float) and v == 0.0 for v in twist):
-                r, p = _chain_compose(r, p, *_twist_factor(twist))
-            drive = _column(x_cols, em.drive_slice.start + j)
-            if isinstance(value, float) and not isinstance(drive, float):
-                # Rot(a, q + dq) = Rot(a, dq) Rot(a, q): the constant part stays a constant
-                r, p = _joint_motion(r, p, kinds[j], axes[j], drive)
-            else:
-                value = _add(value, drive)
-        r, p = _joint_motion(r, p, kinds[j], axes[j], value)
-    r, p = _chain_compose(r, p, *_se3_entries(robot.tool_placement))
-    if x_cols is not None:
-        tool = [_column(x_cols, i) for i in range(em.tool_slice.start, em.tool_slice.stop)]
-        if not all(isinstance(v, float) and v == 0.0 for v in tool):
-            r, p = _chain_compose(r, p, *_twist_factor(tool))
-    return r, p
-
-
-def _joint_motion(r, p, kind, axis6, value):
-    if isinstance(value, float) and value == 0.0:
-        return r, p
-    if kind == REVOLUTE:
-        return _chain_compose(r, p, _axis_rotation(axis6[3:], value), [0.0, 0.0, 0.0])
-    identity = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
-    return _chain_compose(r, p, identity, [_mul(float(a), value) for a in axis6[:3]])
-
-
-def tcp_chain_soa(robot: RobotModel, q: np.ndarray, x_t: np.ndarray | None = None,
-                  error_model: ErrorModel | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The engine in structure-of-arrays form, for callers that loop over chunks.
-
-    Parameters
-    ----------
-    q : array-like of shape (n_joints,) or (n_joints, N)
-        Joint values [rad, m], samples on axis 1.
-    x_t : array-like of shape (n_params, N) or (n_params, 1), optional
-        Error vectors, transposed (samples on axis 1; contiguous rows are fastest).
-        May also be a list of n_params rows, each a float (same for every sample,
-        0.0 for an unused parameter) or an (N,) array.
-
-    Returns
-    -------
-    rotation : (9, N) row-major entries of the TCP rotations
-    position : (3, N) TCP positions [m]
-    """
-    q_cols = np.asarray(q, dtype=float)
-    if q_cols.ndim == 1:
-        q_cols = q_cols[:, None]
-    n = q_cols.shape[1]
-    if x_t is not None:
-        if not isinstance(x_t, list):
-            x_t = np.asarray(x_t, dtype=float)
-            n = max(n, x_t.shape[1])
-        else:
-            n = max([n] + [np.size(v) for v in x_t])
-        error_model = error_model or ErrorModel(robot)
-    r, p = _chain(robot, q_cols, x_t, error_model)
-    rot = np.empty((9, n))
-    pos = np.empty((3, n))
-    for i, v in enumerate(r):
-        rot[i] = v
-    for i, v in enumerate(p):
-        pos[i] = v
-    return rot, pos
-
-
 def tcp_poses(robot: RobotModel, q: np.ndarray, x: np.ndarray | None = None,
               error_model: ErrorModel | None = None) -> TcpPoses:
     """TCP poses of the nominal robot (x None) or of as-built robots, batched.
@@ -464,8 +193,15 @@ def euler_zyx(rotation: np.ndarray) -> np.ndarray:
 def euler_zyx_entries(r00, r10, r20, r21, r22, out: np.ndarray | None = None) -> np.ndarray:
     """(3, N) ZYX Euler angles from five entries of the rotations (each (N,)), into ``out`` if given."""
     out = np.empty((3, np.shape(r00)[0])) if out is None else out
+    # cos(beta) = sqrt(r21^2 + r22^2), squared in out[1] with out[2] as scratch: the entries of a
+    # rotation are at most 1, so np.hypot's guard against overflow is not needed (it costs 4x)
+    np.multiply(r21, r21, out=out[1])
+    np.multiply(r22, r22, out=out[2])
+    out[1] += out[2]
+    np.sqrt(out[1], out=out[1])
+    np.arctan2(r20, out[1], out=out[1])
+    np.negative(out[1], out=out[1])  # atan2(-y, x) = -atan2(y, x)
     np.arctan2(r10, r00, out=out[0])
-    np.arctan2(-r20, np.hypot(r21, r22), out=out[1])
     np.arctan2(r21, r22, out=out[2])
     return out
 

@@ -420,17 +420,27 @@ def _next_steps(c: Campaign, d, comparisons) -> list:
             items.append(Droppable(f"Check on the robot what changed {name} between the campaigns (beyond both fits' "
                                    "uncertainty).", "check"))
     if d is not None:
-        items.append(export_step(d))
+        items += _calibration_forms(d, c)
     return items
 
 
-def export_step(d):
-    """The step that loads the calibrated model into the controller (its forms and their accuracies)."""
-    if not d.get("primary_effect"):
-        return ("Load the calibrated model into the controller: the as-built URDF and effects YAML, or ",
-                Code("tcr-accuracy export"), ".")
-    return (f"Load the calibrated model (largest effect: {d['primary_effect']}) into the controller: the as-built "
-            "URDF and effects YAML, or ", Code("tcr-accuracy export"), ".")
+def _calibration_forms(d, c: Campaign) -> list:
+    """How to carry the calibration to the robot: the forms and what they reach (the calibration
+    URDF's figures where the diagnosis wrote it, the full model's k-fold held-out figure)."""
+    from .as_built_summary import urdf_phrase
+
+    sources = [s for s, _ in c.of_kind("diagnosis")]
+    path = sources[-1] if sources and str(sources[-1]).endswith(".json") else "DIAGNOSIS.json"
+    as_built = d.get("as_built") if isinstance(d.get("as_built"), dict) else {}
+    urdf = urdf_phrase(as_built.get("accuracy") or [])
+    steps = d.get("steps") or []
+    final = steps[-1].get("heldout_mean_mm") if steps and isinstance(steps[-1], dict) else None
+    full = f" ({final:.4f} mm mean k-fold held-out)" if isinstance(final, float) else ""
+    return [(f"Load the calibration into the controller{': ' + urdf if urdf else ''}. ",
+             Code(f"tcr-accuracy export {shlex.quote(str(path))} --to calibration"),
+             " writes it as a URDF (the TCP frame unchanged, the measured point a frame of its own), DH tables, the UR "
+             f"driver's calibration file and a compensation filter that carries the full model{full}, each with "
+             "what it reaches.")]
 
 
 def _robot_options(robot: RobotFacts) -> str:
