@@ -122,7 +122,7 @@ def _run_report(args) -> int:
     report = Report(title, command=getattr(args, "argv", None))
     links = [(f"{kind_of(doc, path)} JSON", path) for path, doc in documents]
     for path, doc in documents:
-        for key, label in (("as_built_urdf", "as-built URDF"), ("as_built_effects", "effects YAML")):
+        for key, label in (("as_built_urdf", "calibration URDF"), ("as_built_effects", "the whole model")):
             if isinstance(doc.get(key), str) and _find(doc[key], path) is not None:
                 links.append((label, str(_find(doc[key], path))))
     campaign = Campaign(robot, documents)

@@ -53,10 +53,10 @@ NEXT_POSES = 30
 FIRST_PAGE_CHANGES = 5
 
 #: Lines of body text (:func:`tcr_accuracy.view.page_blocks.estimated_lines`) page 1 fills at
-#: most: an A4 page less a few lines of room for what loading the model into the controller
-#: says (the exported forms and their accuracies); chosen effects beyond the first two and the
-#: checks to make are left out, the last first, until the page fits (:func:`fit_page`).
-FIRST_PAGE_LINES = PAGE_LINES - 5
+#: most: chosen effects beyond the first two, the checks to make and the changes beyond the first
+#: two are left out, the last first, until the estimate fits (:func:`fit_page`); what the estimate
+#: misses, the printed page's own measurement scales away (``view.report``: CSS zoom, at least 0.8).
+FIRST_PAGE_LINES = PAGE_LINES
 
 
 def kind_of(doc, source: str) -> str:

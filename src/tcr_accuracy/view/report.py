@@ -307,6 +307,8 @@ class Report:
         rows = "".join(f"<tr><td>{esc(k)}</td><td>{esc(v)}</td></tr>" for k, v in versions().items())
         body.append(f'<table class="versions"><thead><tr><th>software</th><th>version</th></tr></thead>'
                     f"<tbody>{rows}</tbody></table>")
+        if self.first_page is not None:
+            body.append(_FIT_FIRST_PAGE)
         return _PAGE.format(title=esc(self.title), css=_CSS, body="\n".join(body))
 
     def markdown(self, *, pdf: str | None = None) -> str:
@@ -446,7 +448,7 @@ table.signatures td { height: 3.2em; text-align: left; vertical-align: bottom; c
 @media print {
   body { max-width: none; margin: 0; padding: 0; font-size: 9pt; line-height: 1.3; }
   .first-page { border: none; padding: 0; margin: 0; break-after: page; page-break-after: always;
-    font-size: 8.5pt; line-height: 1.22; }
+    font-size: 8.5pt; line-height: 1.22; zoom: var(--print-zoom, 1); }
   .first-page h1 { font-size: 14pt; margin: 0 0 0.1em; }
   .first-page h2 { font-size: 10pt; margin: 0.6em 0 0.15em; }
   .first-page p, .first-page ul { margin: 0.25em 0; }
@@ -467,6 +469,51 @@ table.signatures td { height: 3.2em; text-align: left; vertical-align: bottom; c
   tbody tr:nth-child(even) { background: none; }
 }
 """
+
+#: The printable area of A4 at the ``@page`` margins in CSS px (96 per inch): 186 x 274 mm.
+PRINT_WIDTH_PX = round((210 - 12 - 12) / 25.4 * 96)
+PRINT_HEIGHT_PX = (297 - 11 - 12) / 25.4 * 96
+
+# The first page stays one page when printed, whatever its fonts make of the estimate it was cut
+# to (tcr_accuracy.view.page_blocks.fit_page): the page lays the first page out as printed (the
+# print rules on, the printable width) and measures it; when it is taller than the printable
+# height it scales it down (CSS zoom, used by the print rules only) until it fits, no further than
+# 0.8. It runs when the page loads (Chromium's print to PDF included) and before printing.
+_FIT_FIRST_PAGE = """<script>
+(function () {
+  var page = document.querySelector(".first-page");
+  if (!page) { return; }
+  function printRules() {
+    var found = [];
+    for (var i = 0; i < document.styleSheets.length; i++) {
+      var rules = document.styleSheets[i].cssRules;
+      for (var k = 0; k < rules.length; k++) {
+        if (rules[k].media && rules[k].media.mediaText === "print") { found.push(rules[k]); }
+      }
+    }
+    return found;
+  }
+  function height() {
+    var last = page.lastElementChild || page;
+    return last.getBoundingClientRect().bottom - page.getBoundingClientRect().top;
+  }
+  function fit() {
+    var rules = printRules(), body = document.body, width = body.style.width, zoom = 1;
+    rules.forEach(function (r) { r.media.mediaText = "all"; });
+    body.style.width = "PRINT_WIDTHpx";
+    page.style.setProperty("--print-zoom", "1");
+    for (var k = 0; k < 12 && height() > PRINT_HEIGHT && zoom > 0.8; k++) {
+      zoom = Math.max(0.8, zoom * Math.min(0.98, PRINT_HEIGHT / height()));
+      page.style.setProperty("--print-zoom", String(zoom));
+    }
+    page.setAttribute("data-print-zoom", zoom.toFixed(3));
+    body.style.width = width;
+    rules.forEach(function (r) { r.media.mediaText = "print"; });
+  }
+  fit();
+  window.addEventListener("beforeprint", fit);
+})();
+</script>""".replace("PRINT_WIDTH", str(PRINT_WIDTH_PX)).replace("PRINT_HEIGHT", f"{PRINT_HEIGHT_PX - 6:.0f}")
 
 _PAGE = """<!DOCTYPE html>
 <html lang="en">
