@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from tcr_accuracy.atomic import write_text_atomically
+from tcr_accuracy.cli.staging import write_text
 from tcr_accuracy.diagnosis.diagnose import diagnose
 from tcr_accuracy.effects import make_effect, predict_positions
 from tcr_accuracy.model.robot import load_robot
@@ -88,7 +88,7 @@ def main(argv=None) -> int:
           f"(train RMS {plain_rms * 1e3:.4f} mm); x {result.n_fits} fits = {plain_seconds * result.n_fits:8.1f} s")
     print("  goal: < 60 s for the whole diagnosis")
     if args.json:
-        write_text_atomically(Path(args.json), json.dumps({
+        write_text(Path(args.json), json.dumps({
             "seconds": seconds, "cpu_seconds": cpu_seconds, "n_measurements": args.n, "folds": args.folds, "n_fits": result.n_fits,
             "plain_single_fit_seconds": plain_seconds, "plain_projected_seconds": plain_seconds * result.n_fits,
             "selected_effects": result.selected_effects}, indent=2) + "\n")

@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tcr_accuracy.atomic import write_text_atomically
+from tcr_accuracy.cli.staging import write_text
 from tcr_accuracy.model.errors import seed_budget
 from tcr_accuracy.model.kinematics import tcp_chain_soa, tcp_poses_pinocchio
 from tcr_accuracy.analysis.montecarlo import run_monte_carlo, sample_rows
@@ -183,7 +183,7 @@ def main() -> int:
                         "before_runs": rates[list(codes)[1]], "after_runs": rates["this code"],
                         "load_average_1min_before_runs": load_end[0]})
     if args.json:
-        write_text_atomically(Path(args.json), json.dumps(payload, indent=2) + "\n")
+        write_text(Path(args.json), json.dumps(payload, indent=2) + "\n")
     return 0
 
 

@@ -36,10 +36,11 @@ from pathlib import Path
 
 import numpy as np
 
-from tcr_accuracy.atomic import write_text_atomically
+from tcr_accuracy.cli.staging import write_text
 from tcr_accuracy.diagnosis.diagnose import diagnose
+from tcr_accuracy.cli.writers import write_measurements
 from tcr_accuracy.effects import effect_class
-from tcr_accuracy.io.measurements import read_measurements, write_measurements
+from tcr_accuracy.io.measurements import read_measurements
 from tcr_accuracy.model.robot import load_robot
 from tcr_accuracy.analysis.simulate import random_scenario, simulate_measurements
 
@@ -165,7 +166,7 @@ def main(argv=None) -> int:
     for key, value in summary.items():
         print(f"{key}: {value}")
     if args.json:
-        write_text_atomically(Path(args.json), json.dumps({**summary, "scenarios": rows}, indent=2) + "\n")
+        write_text(Path(args.json), json.dumps({**summary, "scenarios": rows}, indent=2) + "\n")
     return 0
 
 

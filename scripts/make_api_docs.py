@@ -31,7 +31,7 @@ SECTIONS = ("Parameters", "Attributes", "Returns", "Yields", "Raises", "Warns", 
 LAYER_TITLES = {"model": "Robot, error model, kinematics", "io": "Measurements", "effects": "Effects",
                 "frames": "Measurement frames", "analysis": "Monte Carlo and simulation", "diagnosis": "Diagnosis",
                 "prediction": "Prediction and compensation", "asbuilt": "As-built model and export",
-                "iso9283": "ISO 9283", "view": "Reports and viewer"}
+                "iso9283": "ISO 9283", "view": "Reports and viewer", "cli": "Files written (the command line's one writer)"}
 
 
 def split_sections(doc: str) -> tuple[str, dict[str, str]]:

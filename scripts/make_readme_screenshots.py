@@ -66,7 +66,8 @@ def main() -> None:
 
     with tempfile.TemporaryDirectory() as work:
         work = Path(work)
-        view = scene.write_static_html(work / "view.html")
+        view = work / "view.html"
+        view.write_text(scene.static_html(), encoding="utf-8")
         screenshot(view, args.out / "viewer.png", 1200, 750)
 
         # the report is the one `tcr-accuracy demo` writes, not one made up for the picture

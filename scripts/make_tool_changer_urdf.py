@@ -13,7 +13,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from tcr_accuracy.atomic import write_text_atomically
+from tcr_accuracy.cli.staging import write_text
 from tcr_accuracy.model.tool_changer import ToolChangerDimensions, tool_changer_urdf
 
 DEFAULT_OUT = Path(__file__).resolve().parents[1] / "robots" / "tool_changer.urdf"
@@ -34,7 +34,7 @@ def main(argv=None) -> int:
         print("make_tool_changer_urdf: error: lengths and stroke must be > 0 mm", file=sys.stderr)
         return 2
     dims = replace(defaults, telescope_stroke=args.stroke_mm / 1000, **lengths)
-    write_text_atomically(args.out, tool_changer_urdf(dims))
+    write_text(args.out, tool_changer_urdf(dims))
     print(f"wrote {args.out}")
     return 0
 

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from tcr_accuracy.analysis.simulate import simulate_measurements
-from tcr_accuracy.atomic import write_text_atomically
+from tcr_accuracy.cli.staging import write_text
 from tcr_accuracy.diagnosis.design import plan_discriminating_poses
 from tcr_accuracy.diagnosis.ambiguity import rival_models
 from tcr_accuracy.diagnosis.diagnose import GapDiagnosis, diagnose
@@ -132,7 +132,7 @@ def main(argv=None) -> int:
     print(f"\nambiguous after {args.n} poses: {summary['n_ambiguous']}/{len(rows)}; separated by {args.k} more: "
           f"planned {summary['planned_separated']}/{len(cases)}, random {summary['random_separated']}/{len(cases)}")
     if args.json:
-        write_text_atomically(Path(args.json), json.dumps({**summary, "seeds": rows}, indent=2) + "\n")
+        write_text(Path(args.json), json.dumps({**summary, "seeds": rows}, indent=2) + "\n")
     return 0
 
 

@@ -38,7 +38,7 @@ import numpy as np
 from sklearn.exceptions import ConvergenceWarning
 from threadpoolctl import threadpool_limits
 
-from tcr_accuracy.atomic import write_text_atomically
+from tcr_accuracy.cli.staging import write_text
 from tcr_accuracy.prediction.compensation import compensate_joints
 from tcr_accuracy.model.kinematics import tcp_poses
 from tcr_accuracy.prediction.composed import MeasuredErrorModel
@@ -191,12 +191,12 @@ def run(robot_name: str, seed: int, plots: Path | None, quiet: bool, truth: str 
 
     similarity = similarity_study(robot, real, q_ref, workspace, mode, rng)
     if plots is not None:
+        from tcr_accuracy.cli.writers import write_plots
         from tcr_accuracy.view.plots_prediction import plot_semivariograms, plot_similarity
 
-        plots.mkdir(parents=True, exist_ok=True)
-        plot_similarity(similarity, plots / f"{robot.name}_similarity.png")
-        plot_semivariograms(q_train, e_train, plots / f"{robot.name}_semivariograms.png",
-                            joint_names=robot.joint_names)
+        write_plots([plot_similarity(similarity, plots / f"{robot.name}_similarity.png"),
+                     plot_semivariograms(q_train, e_train, plots / f"{robot.name}_semivariograms.png",
+                                         joint_names=robot.joint_names)])
 
     return {
         "robot": robot.name, "truth": truth, "frame": frame, "payload_kg": payload, "noise_mm": real.noise_m * 1e3,
@@ -281,7 +281,7 @@ def main(argv=None) -> int:
         payload = dict(results[0])
         if len(results) > 1:
             payload["robots"] = {r["robot"]: r for r in results}
-        write_text_atomically(Path(args.json), json.dumps(payload, indent=2) + "\n")
+        write_text(Path(args.json), json.dumps(payload, indent=2) + "\n")
     return 0
 
 

@@ -116,3 +116,16 @@ def write_measurement_csv(path, robot, q, positions=None):
         lines.append(",".join(f"{v:.10g}" for v in vals))
     path.write_text("\n".join(lines) + "\n")
     return str(path)
+
+
+@pytest.fixture(scope="session")
+def small_campaign(tmp_path_factory):
+    """(measurement CSV, diagnosis JSON) of 24 simulated poses of the tool-changer (seed 2) and
+    their diagnosis with joint offsets: what the hostile-input tests read, copy and forge."""
+    from tcr_accuracy.cli import main
+
+    folder = tmp_path_factory.mktemp("small_campaign")
+    csv, diagnosis = folder / "m.csv", folder / "d.json"
+    assert main(["simulate", "--n", "24", "--random", "--seed", "2", "--out", str(csv), "--quiet"]) == 0
+    assert main(["diagnose", str(csv), "--effects", "joint_offsets", "--quiet", "--json", str(diagnosis)]) == 0
+    return csv, diagnosis

@@ -15,7 +15,7 @@ import numpy as np
 
 @contextlib.contextmanager
 def capture_figures(monkeypatch):
-    """Keep the figures that ``save_figure`` writes (the PNG is still written), in order."""
+    """Keep the figures that ``save_figure`` draws (its PlotFile is still returned), in order."""
     import tcr_accuracy.view.plots_common as common
 
     kept = []
@@ -23,10 +23,10 @@ def capture_figures(monkeypatch):
 
     def keep(fig, path, **kwargs):
         kept.append(fig)
-        fig.saved_path = original(fig, path, **kwargs)
-        # measured now: a command's report folder is swapped in whole later, from another place
-        fig.saved_margins = white_margins(fig.saved_path)
-        return fig.saved_path
+        plot = original(fig, path, **kwargs)
+        fig.saved_path = plot.path
+        fig.saved_margins = white_margins(plot.png)
+        return plot
 
     for module in _plot_modules():
         monkeypatch.setattr(module, "save_figure", keep)
@@ -177,11 +177,14 @@ def display_aspect(ax) -> tuple[float, float]:
     return box.height / box.width, abs(y1 - y0) / abs(x1 - x0)
 
 
-def white_margins(png_path, white: int = 250) -> tuple[int, int, int, int]:
-    """Widths [pixels] of the white bands at the (left, right, top, bottom) of a PNG."""
+def white_margins(png, white: int = 250) -> tuple[int, int, int, int]:
+    """Widths [pixels] of the white bands at the (left, right, top, bottom) of a PNG (its bytes or its path)."""
+    import io
+
     import matplotlib.image as mpimg
 
-    rgb = mpimg.imread(str(png_path))[..., :3]
+    source = io.BytesIO(png) if isinstance(png, bytes) else str(png)
+    rgb = mpimg.imread(source, format="png")[..., :3]
     if rgb.dtype != np.uint8:
         rgb = (rgb * 255).round()
     ink = np.any(rgb < white, axis=-1)

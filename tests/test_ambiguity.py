@@ -21,7 +21,7 @@ from tcr_accuracy.diagnosis.structure import PROBE_AMPLITUDES, StructureDetector
     structure_verdict
 from tcr_accuracy.effects import make_effect
 from tcr_accuracy.effects.compose import fixed_point_motion
-from tcr_accuracy.io.measurements import write_measurements
+from tcr_accuracy.cli.writers import write_measurements
 from tcr_accuracy.model.context import MeasurementContext
 from tcr_accuracy.model.gravity import gravity_torque
 from tcr_accuracy.model.kinematics import tcp_poses

@@ -14,7 +14,7 @@ import pytest
 from sklearn.base import clone
 
 import tcr_accuracy as tcr
-from tcr_accuracy.io.measurements import write_measurements
+from tcr_accuracy.cli.writers import write_measurements
 from tcr_accuracy.prediction.methods import METHODS
 
 from conftest import REPO

@@ -13,12 +13,11 @@ from pathlib import Path
 
 import pytest
 
-from tcr_accuracy import atomic
-from tcr_accuracy.cli import main
+from tcr_accuracy.cli import folder_swap, main, output_paths, staging
 from tcr_accuracy.exceptions import InputError
 
 #: The folder holding the package under test, for the command lines run in a subprocess.
-SOURCE = str(Path(atomic.__file__).resolve().parents[1])
+SOURCE = str(Path(staging.__file__).resolve().parents[2])
 
 _MC = ["montecarlo", "--samples", "200", "--tail-samples", "0", "--view-samples", "20", "--quiet"]
 
@@ -58,10 +57,10 @@ def temporary_leftovers(parent: Path) -> list[str]:
 
 def write_report(folder: Path, generation: str, names=("index.html", "report.md", "figure-1.png")) -> None:
     """A stand-in report: every file says which generation wrote it."""
-    with atomic.staged_outputs():
-        atomic.stage_folder(folder)
+    with staging.staged_outputs():
+        staging.stage_folder(folder)
         for name in names:
-            atomic.write_text_atomically(folder / name, f"{generation} {name}")
+            staging.write_text(folder / name, f"{generation} {name}")
 
 
 @pytest.fixture
@@ -140,7 +139,7 @@ def test_a_symlinked_folder_is_written_through(old_report, tmp_path):
 
 
 def test_without_an_atomic_exchange_the_folder_is_renamed_aside_and_in(old_report, monkeypatch):
-    monkeypatch.setattr(atomic, "_exchange", lambda a, b: False)  # another OS, or a filesystem without it
+    monkeypatch.setattr(folder_swap, "_exchange", lambda a, b: False)  # another OS, or a filesystem without it
     write_report(old_report, "new")
     assert (old_report / "index.html").read_text() == "new index.html"
     assert (old_report / "notes.txt").read_text() == "mine"
@@ -151,7 +150,7 @@ def test_the_exchange_swaps_two_folders_or_says_it_cannot(tmp_path):
     (tmp_path / "a").mkdir()
     (tmp_path / "a" / "x").write_text("a")
     (tmp_path / "b").mkdir()
-    if atomic._exchange(tmp_path / "a", tmp_path / "b"):
+    if folder_swap._exchange(tmp_path / "a", tmp_path / "b"):
         assert (tmp_path / "b" / "x").read_text() == "a" and not (tmp_path / "a" / "x").exists()
     else:  # nothing done: the caller renames twice
         assert (tmp_path / "a" / "x").read_text() == "a" and not (tmp_path / "b" / "x").exists()
@@ -159,12 +158,12 @@ def test_the_exchange_swaps_two_folders_or_says_it_cannot(tmp_path):
 
 def test_nested_folders_are_one_swap_and_other_files_under_them_join_it(tmp_path):
     out = tmp_path / "demo"
-    with atomic.staged_outputs():
-        atomic.stage_folder(out / "accuracy")
-        atomic.write_text_atomically(out / "accuracy" / "index.html", "inner")
-        atomic.write_text_atomically(out / "accuracy.json", "{}")
-        atomic.stage_folder(out)
-        atomic.write_text_atomically(out / "index.html", "outer")
+    with staging.staged_outputs():
+        staging.stage_folder(out / "accuracy")
+        staging.write_text(out / "accuracy" / "index.html", "inner")
+        staging.write_text(out / "accuracy.json", "{}")
+        staging.stage_folder(out)
+        staging.write_text(out / "index.html", "outer")
     assert snapshot(out).keys() == {"accuracy", "accuracy/index.html", "accuracy.json", "index.html"}
     assert temporary_leftovers(tmp_path) == []
 
@@ -181,8 +180,8 @@ def test_the_current_folder_is_written_file_by_file(old_report, monkeypatch):
 
 def test_outside_a_staged_run_files_are_written_one_by_one(old_report):
     folder_before = old_report.stat().st_ino
-    atomic.stage_folder(old_report)  # nothing to declare it to: a no-op
-    atomic.write_text_atomically(old_report / "index.html", "direct")
+    staging.stage_folder(old_report)  # nothing to declare it to: a no-op
+    staging.write_text(old_report / "index.html", "direct")
     assert old_report.stat().st_ino == folder_before
     assert (old_report / "index.html").read_text() == "direct"
 
@@ -204,11 +203,11 @@ def _swap_fails(monkeypatch):
     def fail(new, target):
         raise InputError(f"{target}: cannot write (Device or resource busy)")
 
-    monkeypatch.setattr(atomic, "_swap_in", fail)
+    monkeypatch.setattr(folder_swap, "_swap_in", fail)
 
 
 def _disk_full_at_the_second_file(monkeypatch):
-    real, calls = atomic._write_flushed, []
+    real, calls = folder_swap.write_flushed, []
 
     def write(fd, data):
         calls.append(fd)
@@ -217,14 +216,14 @@ def _disk_full_at_the_second_file(monkeypatch):
             raise OSError(28, "No space left on device")
         real(fd, data)
 
-    monkeypatch.setattr(atomic, "_write_flushed", write)
+    monkeypatch.setattr(folder_swap, "write_flushed", write)
 
 
 def _ctrl_c_while_carrying(monkeypatch):
     def interrupted(old, new, device):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(atomic, "_carry", interrupted)
+    monkeypatch.setattr(folder_swap, "_carry", interrupted)
 
 
 @pytest.mark.parametrize("failure, error", [
@@ -252,13 +251,13 @@ def test_b_sigterm_while_the_new_folder_is_prepared_leaves_the_old_one(tmp_path,
     assert run([*_MC, "--out", out], capsys)[0] == 0
     (out / "notes.txt").write_text("mine")
     before = snapshot(out)
-    real = atomic._carry
+    real = folder_swap._carry
 
     def terminated(old, new, device):  # the CLI turns SIGTERM into an interrupt
         os.kill(os.getpid(), signal.SIGTERM)
         return real(old, new, device)
 
-    monkeypatch.setattr(atomic, "_carry", terminated)
+    monkeypatch.setattr(folder_swap, "_carry", terminated)
     previous = signal.signal(signal.SIGTERM, lambda *a: None)  # were the CLI's handler gone: no death
     try:
         code, _, err = run([*_MC, "--seed", "5", "--out", out], capsys)
@@ -275,13 +274,13 @@ def test_b_sigterm_while_the_new_folder_is_prepared_leaves_the_old_one(tmp_path,
 _CHILD = r"""
 import os, signal, sys
 from pathlib import Path
-from tcr_accuracy import atomic
+from tcr_accuracy.cli import folder_swap, staging
 
 target, generation, kill_point = Path(sys.argv[1]), sys.argv[2], sys.argv[3]
 calls = []
 
 
-def die_at(name, call, *, after, where=atomic):
+def die_at(name, call, *, after, where=folder_swap):
     real = getattr(where, name)
 
     def wrapper(*args, **kwargs):
@@ -297,7 +296,7 @@ def die_at(name, call, *, after, where=atomic):
 
 
 if kill_point.startswith("fallback"):
-    atomic._exchange = lambda a, b: False
+    folder_swap._exchange = lambda a, b: False
 if kill_point == "mid-prepare":
     die_at("_write_new_file", 5, after=True)
 elif kill_point == "before-swap":
@@ -307,18 +306,18 @@ elif kill_point == "after-exchange":
 elif kill_point == "before-old-removed":
     die_at("_remove_tree", 1, after=False)
 elif kill_point == "after-first-rename":  # of any kind: where file-by-file renames would mix two runs
-    for where, name in ((os, "replace"), (os, "rename"), (atomic, "_exchange")):
+    for where, name in ((os, "replace"), (os, "rename"), (folder_swap, "_exchange")):
         die_at(name, 1, after=True, where=where)
 elif kill_point == "fallback-after-aside":
     die_at("rename", 1, after=True, where=os)
 elif kill_point == "fallback-after-swap":
     die_at("rename", 2, after=True, where=os)
 
-with atomic.staged_outputs():
-    atomic.stage_folder(target)
+with staging.staged_outputs():
+    staging.stage_folder(target)
     for i in range(10):
-        atomic.write_text_atomically(target / f"figure-{i}.png", generation)
-    atomic.write_text_atomically(target / "index.html", generation)
+        staging.write_text(target / f"figure-{i}.png", generation)
+    staging.write_text(target / "index.html", generation)
 """
 
 
@@ -343,7 +342,7 @@ def _generation(folder: Path) -> str:
 def test_c_a_kill_at_any_step_leaves_the_folder_all_old_or_all_new(kill_point, expected, tmp_path):
     (tmp_path / "a").mkdir()
     (tmp_path / "b").mkdir()
-    if kill_point in ("after-exchange", "after-first-rename") and not atomic._exchange(tmp_path / "a",
+    if kill_point in ("after-exchange", "after-first-rename") and not folder_swap._exchange(tmp_path / "a",
                                                                                      tmp_path / "b"):
         expected = "old"  # no RENAME_EXCHANGE here: killed before the fallback's renames
     target = tmp_path / "report"
@@ -407,7 +406,7 @@ def test_d_a_read_only_folder_is_refused_unless_files_can_be_created_there(optio
     try:
         writable = _can_create_a_file_in(folder)  # False for a user; True for root, who ignores the bits
         target = folder / name if name else folder
-        problem = (atomic.output_file_problem if option == "--json" else atomic.output_folder_problem)(target)
+        problem = (output_paths.output_file_problem if option == "--json" else output_paths.output_folder_problem)(target)
         assert (problem is None) == writable, problem
         code, out, err = run_cli(*_MC, "--samples", "50", option, target)
         if writable:
@@ -424,6 +423,6 @@ def test_d_a_read_only_folder_is_refused_unless_files_can_be_created_there(optio
 
 
 def test_d_the_probe_leaves_nothing_behind(tmp_path):
-    assert atomic.output_file_problem(tmp_path / "x.json") is None
-    assert atomic.output_folder_problem(tmp_path / "a" / "b") is None
+    assert output_paths.output_file_problem(tmp_path / "x.json") is None
+    assert output_paths.output_folder_problem(tmp_path / "a" / "b") is None
     assert list(tmp_path.iterdir()) == []

@@ -27,6 +27,8 @@ from matplotlib import colormaps
 from matplotlib.image import imread
 
 from tcr_accuracy.model.errors import seed_budget
+from tcr_accuracy.cli.staging import write_text
+from tcr_accuracy.cli.writers import write_report
 from tcr_accuracy.view.report import Report
 from tcr_accuracy.view.viewer import Scene
 
@@ -108,8 +110,8 @@ def views(tmp_path_factory, tool_changer):
     scene = Scene("tool-changer with a TCP error cloud")
     scene.add_robot(robot, q, "nominal")
     scene.add_tcp_error_cloud(robot, q, budget.sample(1500, np.random.default_rng(0)), budget.error_model)
-    full = scene.write_static_html(folder / "view.html")
-    empty = Scene("empty").write_static_html(folder / "empty.html")
+    full = write_text(folder / "view.html", scene.static_html())
+    empty = write_text(folder / "empty.html", Scene("empty").static_html())
     return full, empty
 
 
@@ -165,7 +167,7 @@ def test_report_shows_its_tables_and_its_3d_view(chromium, tmp_path, views, tool
     report = Report("Browser check", command=["view", "--error-preset", "table2"])
     report.add_table("TCP position error", ["axis", "std"], [["x", 0.1426], ["y", 0.0789]], units=["", "mm"])
     report.add_scene(views[0].read_text(encoding="utf-8"), "TCP error cloud", height_px=500)
-    index = report.write(tmp_path / "report")
+    index = write_report(report, tmp_path / "report")
     tables = _Tables()
     tables.feed(_dom(chromium, tmp_path, index))
     assert tables.tables[0] == [["axis", "std [mm]"], ["x", "0.1426"], ["y", "0.0789"]]
@@ -208,7 +210,7 @@ def test_printed_summary_renders_as_aligned_lines_in_chromium(chromium, tmp_path
                "   +compliance            13     0.3195")
     report = Report("Browser check", command=["diagnose", "m.csv"])
     report.add_preformatted(summary, heading="Full printed summary")
-    index = report.write(tmp_path / "report")
+    index = write_report(report, tmp_path / "report")
     dom = _dom(chromium, tmp_path, index)
     blocks = re.findall(r'<pre class="printed">(.*?)</pre>', dom, flags=re.S)
     assert blocks == [summary]
@@ -220,7 +222,7 @@ def test_printed_summary_renders_as_aligned_lines_in_chromium(chromium, tmp_path
 
     as_paragraph = Report("Browser check", command=["diagnose", "m.csv"])
     as_paragraph.add_text(summary, heading="Full printed summary")
-    paragraph_index = as_paragraph.write(tmp_path / "paragraph")
+    paragraph_index = write_report(as_paragraph, tmp_path / "paragraph")
     taller = last_text_row(index, "pre") - last_text_row(paragraph_index, "paragraph")
     assert taller > 30, f"the printed summary is only {taller} px taller than as a paragraph"
 

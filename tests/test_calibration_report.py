@@ -575,7 +575,8 @@ def test_a_crowded_first_page_leaves_out_what_does_not_fit_and_keeps_the_lines_t
     d["selected_effects"] += extra
     d["ambiguous"] = [{"effects": ["compliance", "lateral_compliance"], "members": []},
                       {"effects": ["transmission", "encoder_scale"], "members": []}]
-    d["physical"]["geometry"]["pinned"] = [{"parameter": f"geometry.j{j}.dx", "bound": "upper"} for j in range(2, 7)]
+    d["physical"]["geometry"]["pinned"] = [{"parameter": name, "bound": "upper"}
+                                           for name in list(d["parameters"]["geometry"])[:5]]
     for ch in cmp["changes"][:12]:
         ch["significant"], ch["z"] = True, 9.0
     cmp["significant"] = [ch["parameter"] for ch in cmp["changes"][:12]]

@@ -18,7 +18,7 @@ from tcr_accuracy.cli import main
 from tcr_accuracy.cli.diagnose import jsonable
 from tcr_accuracy.diagnosis.compare import FittedModel, parameter_changes
 from tcr_accuracy.diagnosis.diagnose import diagnose
-from tcr_accuracy.io.measurements import write_measurements
+from tcr_accuracy.cli.writers import write_measurements
 from conftest import run_command as _run
 
 NOISE_MM = 0.02

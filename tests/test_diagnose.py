@@ -16,7 +16,7 @@ from tcr_accuracy.diagnosis.diagnose import diagnose
 from tcr_accuracy.effects import predict_positions
 from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.model.kinematics import tcp_poses
-from tcr_accuracy.io.measurements import write_measurements
+from tcr_accuracy.cli.writers import write_measurements
 from tcr_accuracy.model.robot import load_robot
 from tcr_accuracy.analysis.simulate import simulate_measurements
 

@@ -367,10 +367,10 @@ def test_12_03_a_failed_simulate_leaves_no_csv(tmp_path, capsys, monkeypatch):
     assert code == 2
     assert_one_line(err, "--truth", "does not exist")
 
-    def fail(path, truth):
+    def fail(truth, path):
         raise RuntimeError("truth could not be written")
 
-    monkeypatch.setattr("tcr_accuracy.analysis.simulate.write_truth", fail)
+    monkeypatch.setattr("tcr_accuracy.analysis.simulate.truth_text", fail)
     code, out, err = run(["simulate", "--random", "--n", "20", "--out", tmp_path / "st.csv",
                           "--truth", tmp_path / "t.yaml"], capsys)
     assert code == 1
@@ -383,13 +383,13 @@ def test_12_04_sigterm_mid_run_leaves_nothing(tmp_path, capsys, monkeypatch):
 
     from tcr_accuracy.analysis import simulate
 
-    real = simulate.write_truth
+    real = simulate.truth_text
 
-    def terminated(path, truth):  # the CSV is written (staged) when the kill comes
+    def terminated(truth, path):  # the CSV is written (staged) when the kill comes
         os.kill(os.getpid(), signal.SIGTERM)
-        return real(path, truth)
+        return real(truth, path)
 
-    monkeypatch.setattr(simulate, "write_truth", terminated)
+    monkeypatch.setattr(simulate, "truth_text", terminated)
     before = signal.getsignal(signal.SIGTERM)
     code, out, err = run(["simulate", "--random", "--n", "20", "--out", tmp_path / "st.csv",
                           "--truth", tmp_path / "t.yaml"], capsys)
@@ -404,15 +404,15 @@ def test_12_04_sigterm_during_the_commit_leaves_nothing(tmp_path, capsys, monkey
     import os
     import signal
 
-    from tcr_accuracy import atomic
+    from tcr_accuracy.cli import staging
 
-    real = atomic._prepare
+    real = staging.prepare
 
-    def terminated(path, data):
+    def terminated(target, data):
         os.kill(os.getpid(), signal.SIGTERM)
-        return real(path, data)
+        return real(target, data)
 
-    monkeypatch.setattr(atomic, "_prepare", terminated)
+    monkeypatch.setattr(staging, "prepare", terminated)
     previous = signal.signal(signal.SIGTERM, lambda *a: None)  # were the CLI's handler gone: no death
     try:
         code, out, err = run(["pose", "--json", tmp_path / "p.json"], capsys)
@@ -567,24 +567,24 @@ def test_12_04_a_signal_during_the_renames_waits_for_them(tmp_path, monkeypatch)
     import os
     import signal
 
-    from tcr_accuracy import atomic
+    from tcr_accuracy.cli import staging, write_file
 
     renamed = []
     real_replace = os.replace
 
-    def replace(src, dst):
+    def replace(src, dst, **fds):
         if not renamed:
             os.kill(os.getpid(), signal.SIGTERM)  # held until the commit is done
         renamed.append(dst)
-        real_replace(src, dst)
+        real_replace(src, dst, **fds)
 
-    monkeypatch.setattr(atomic.os, "replace", replace)
+    monkeypatch.setattr(write_file.os, "replace", replace)
     stopped = []
     previous = signal.signal(signal.SIGTERM, lambda *a: stopped.append(len(renamed)))
     try:
-        with atomic.staged_outputs():
+        with staging.staged_outputs():
             for name in ("a.png", "b.png", "index.html"):
-                atomic.write_text_atomically(tmp_path / name, name)
+                staging.write_text(tmp_path / name, name)
     finally:
         signal.signal(signal.SIGTERM, previous)
     assert stopped == [3]  # delivered after the third rename, not after the first

@@ -367,15 +367,15 @@ def test_22_27_a_signal_during_the_renames_ends_the_run_with_exit_0(tmp_path, ca
     import os
     import signal
 
-    from tcr_accuracy import atomic
+    from tcr_accuracy.cli import write_file
 
     real_replace = os.replace
 
-    def replace(src, dst):  # SIGTERM in the commit window: held, delivered after the renames
+    def replace(src, dst, **fds):  # SIGTERM in the commit window: held, delivered after the renames
         os.kill(os.getpid(), signal.SIGTERM)
-        real_replace(src, dst)
+        real_replace(src, dst, **fds)
 
-    monkeypatch.setattr(atomic.os, "replace", replace)
+    monkeypatch.setattr(write_file.os, "replace", replace)
     code, out, err = run(["pose", "--json", tmp_path / "p.json"], capsys)
     assert code == 0, err
     assert "interrupted" not in err
@@ -389,13 +389,13 @@ def test_22_27_sighup_mid_run_is_an_interrupt_that_leaves_nothing(tmp_path, caps
 
     from tcr_accuracy.analysis import simulate
 
-    real = simulate.write_truth
+    real = simulate.truth_text
 
-    def hung_up(path, truth):  # the terminal closes while the CSV is staged
+    def hung_up(truth, path):  # the terminal closes while the CSV is staged
         os.kill(os.getpid(), signal.SIGHUP)
-        return real(path, truth)
+        return real(truth, path)
 
-    monkeypatch.setattr(simulate, "write_truth", hung_up)
+    monkeypatch.setattr(simulate, "truth_text", hung_up)
     before = signal.getsignal(signal.SIGHUP)
     code, out, err = run(["simulate", "--random", "--n", "20", "--out", tmp_path / "st.csv",
                           "--truth", tmp_path / "t.yaml"], capsys)
@@ -478,7 +478,7 @@ def test_fuzz_22_06_two_spellings_of_one_file_collide_two_names_do_not(first, se
     from pathlib import Path
 
     from tcr_accuracy.cli import build_parser
-    from tcr_accuracy.cli.collisions import check_distinct_paths
+    from tcr_accuracy.cli.output_paths import outputs_of_command
     from tcr_accuracy.exceptions import InputError
 
     with tempfile.TemporaryDirectory() as folder:
@@ -498,7 +498,7 @@ def test_fuzz_22_06_two_spellings_of_one_file_collide_two_names_do_not(first, se
             args = build_parser().parse_args(["simulate", "--out", spell(first, "a.csv"),
                                               "--truth", spell(second, "a.csv" if same_name else "b.csv")])
             try:
-                check_distinct_paths(build_parser(), args)
+                outputs_of_command(build_parser(), args)
             except InputError as exc:
                 assert same_name, exc
                 assert str(exc).startswith("--truth ") and "\n" not in str(exc)

@@ -281,3 +281,21 @@ def test_metres_under_mm_and_unknown_paths_are_one_line_and_exit_2(planned, caps
         code, out, err = run(["iso9283", "evaluate", str(tmp_path / name), "--path", str(folder / "path.csv"),
                               "--robot", "ur10", "--frame", "base"], capsys)
         assert code == 2 and len(err.strip().splitlines()) == 1 and words in err and str(tmp_path / name) in err, err
+
+
+def test_plane_crossings_in_blocks_equal_one_pass(monkeypatch):
+    """The planes crossed a few at a time (memory bounded whatever --planes is) give what one
+    pass over all of them gives; against the closed form of a straight line crossed at x = c."""
+    import tcr_accuracy.iso9283.path as path
+
+    rng = np.random.default_rng(4)
+    times = np.linspace(0.0, 2.0, 400)
+    stream = np.column_stack([0.5 * times, 1e-4 * rng.standard_normal(400), np.zeros(400)])
+    centres = np.column_stack([np.linspace(0.05, 0.95, 37), np.zeros(37), np.zeros(37)])
+    tangents = np.tile([1.0, 0.0, 0.0], (37, 1))
+    whole = path.plane_crossings(stream, times, centres, tangents, 0.01)
+    monkeypatch.setattr(path, "PLANE_BLOCK", 3 * len(stream))  # three planes per block
+    blocked = path.plane_crossings(stream, times, centres, tangents, 0.01)
+    np.testing.assert_array_equal(whole[0], blocked[0])
+    np.testing.assert_array_equal(whole[1], blocked[1])
+    np.testing.assert_allclose(blocked[1], centres[:, 0] / 0.5, atol=1e-12)  # x = 0.5 t crosses x = c at t = 2c

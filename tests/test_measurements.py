@@ -13,8 +13,8 @@ from tcr_accuracy.io.measurements import (
     MeasurementWarning,
     allowed_columns,
     read_measurements,
-    write_measurements,
 )
+from tcr_accuracy.cli.writers import write_measurements
 
 from conftest import random_joint_values
 
@@ -194,3 +194,32 @@ def test_semicolon_files_get_a_hint(tool_changer, tmp_path):
     path = tmp_path / "excel.csv"
     path.write_text(";".join(header) + "\n" + ";".join(map(str, rows[0])) + "\n")
     assert "separated by ';'" in _error(path, tool_changer)
+
+
+def _sessions_file(robot, path, scale=1.0, n_sessions=7, rows=20):
+    """One CSV of ``n_sessions`` tracker set-ups metres apart (a ``session`` column); ``scale``
+    multiplies the positions (1e-3: metres written under ``x_mm``)."""
+    from tcr_accuracy.analysis.simulate import simulate_measurements
+    from tcr_accuracy.io.measurements import format_measurements, join_sessions
+
+    sets = []
+    for k in range(n_sessions):
+        spec = {"effects": {"frames": {"base_mm": {"dx": 8000.0 * np.cos(k), "dy": 8000.0 * np.sin(k), "dz": 100.0 * k},
+                                       "base_mrad": {"rz": 500.0 * k}}}, "noise_mm": 0.02}
+        mset, _ = simulate_measurements(robot, spec, rows, np.random.default_rng(k))
+        sets.append(MeasurementSet(**{**mset.__dict__, "position": mset.position * scale}))
+    header, *lines = format_measurements(robot, join_sessions(sets, [f"s{k}" for k in range(n_sessions)])).splitlines()
+    path.write_text("\n".join([header + ",session"] + [f"{line},s{i // rows}" for i, line in enumerate(lines)]) + "\n")
+    return path
+
+
+def test_29_09_sessions_in_one_file_are_unit_checked_each_about_its_own_centre(tool_changer, tmp_path):
+    """Seven set-ups 8 m apart: pooled, the points spread four times the model's; each about its own
+    centre they spread as the model does. Metres under x_mm are still caught."""
+    mset = read_measurements(_sessions_file(tool_changer, tmp_path / "sessions.csv"), tool_changer)
+    assert mset.session_labels == [f"s{k}" for k in range(7)]
+    pooled = np.sqrt(np.mean(np.sum((mset.position - mset.position.mean(axis=0)) ** 2, axis=1)))
+    nominal = tcp_poses(tool_changer, mset.q).position
+    assert pooled / np.sqrt(np.mean(np.sum((nominal - nominal.mean(axis=0)) ** 2, axis=1))) > 2  # the old check's refusal
+    with pytest.raises(InputError, match="the values look like m"):
+        read_measurements(_sessions_file(tool_changer, tmp_path / "metres.csv", scale=1e-3), tool_changer)

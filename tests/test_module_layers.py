@@ -24,8 +24,8 @@ SRC = str(PACKAGE.parent)
 #: layer and those before it.
 LAYERS = ["base", "model", "io", "effects", "frames", "analysis", "diagnosis", "prediction", "asbuilt", "iso9283", "view",
           "cli"]
-BASE = {"tcr_accuracy", "tcr_accuracy.units", "tcr_accuracy.exceptions", "tcr_accuracy.atomic",
-        "tcr_accuracy.random_state"}
+BASE = {"tcr_accuracy", "tcr_accuracy.units", "tcr_accuracy.exceptions", "tcr_accuracy.input_files",
+        "tcr_accuracy.hyperparameters", "tcr_accuracy.random_state"}
 
 
 def _layer(module: str) -> str:

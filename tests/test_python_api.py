@@ -53,3 +53,36 @@ def test_top_level_names_load_and_are_listed():
         assert name in dir(tcr_accuracy) and callable(getattr(tcr_accuracy, name))
     with pytest.raises(AttributeError, match="no attribute 'not_a_name'"):
         tcr_accuracy.not_a_name  # noqa: B018
+
+
+# ---------------------------------------------------------------------------------------
+# Issue 29 item 10: hyper-parameters checked when fit starts, NaN joints refused
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("make, said", [
+    (lambda r: __import__("tcr_accuracy.prediction.baselines", fromlist=["x"]).InverseDistanceWeighting(
+        power=float("nan")), "The 'power' parameter of InverseDistanceWeighting must be a float in the range"),
+    (lambda r: __import__("tcr_accuracy.prediction.calibration", fromlist=["x"]).GeometricCalibration(
+        robot=r, rank_tol=float("nan")), "The 'rank_tol' parameter of GeometricCalibration"),
+    (lambda r: tcr_accuracy.GapDiagnosis(robot=r, tracker_noise=-2e-5), "The 'tracker_noise' parameter of GapDiagnosis"),
+    (lambda r: tcr_accuracy.GapDiagnosis(robot=r, selection_z=-3.0), "The 'selection_z' parameter of GapDiagnosis"),
+])
+def test_29_10_a_hyperparameter_outside_its_range_is_refused_when_fit_starts(make, said, tool_changer):
+    from sklearn.utils._param_validation import InvalidParameterError
+
+    from tcr_accuracy.exceptions import InputError
+
+    rng = np.random.default_rng(0)
+    q = rng.uniform(-1, 1, (30, tool_changer.n_joints))
+    estimator = make(tool_changer)
+    with pytest.raises(InputError, match=said) as caught:
+        estimator.fit(q, np.zeros((30, 3)))
+    assert isinstance(caught.value, InvalidParameterError)  # scikit-learn's own checks read it as theirs
+
+
+def test_29_10_tcp_poses_of_nan_joints_is_refused_naming_the_row(tool_changer):
+    from tcr_accuracy.exceptions import InputError
+
+    q = np.zeros((3, tool_changer.n_joints))
+    q[2, 4] = np.nan
+    with pytest.raises(InputError, match="joint values: row 2, column 4 is nan, not a finite number"):
+        tcr_accuracy.tcp_poses(tool_changer, q)

@@ -1,5 +1,6 @@
 """Loading robots by file and by name, and the errors a user gets for bad input."""
 
+import re
 import warnings
 
 import numpy as np
@@ -85,3 +86,32 @@ def test_joint_values_count_nonfinite_and_limits(tool_changer):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         tool_changer.check_joint_values(tool_changer.working_pose)
+
+
+_INERTIA = '<inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial>'
+
+
+def _mimic_urdf(j1_mimic: str = "", j2_mimic: str = "", j3_mimic: str = "") -> str:
+    """Three revolute joints in a row, each with the <mimic> element given."""
+    links = "".join(f'<link name="l{k}">{_INERTIA}</link>' for k in (1, 2, 3))
+    joints = "".join(
+        f'<joint name="j{k}" type="revolute"><parent link="{"base" if k == 1 else f"l{k - 1}"}"/>'
+        f'<child link="l{k}"/><origin xyz="0 0 0.3"/><axis xyz="0 1 0"/>'
+        f'<limit lower="-1" upper="1" effort="1" velocity="1"/>{m}</joint>'
+        for k, m in ((1, j1_mimic), (2, j2_mimic), (3, j3_mimic)))
+    return f'<robot name="m"><link name="base"/>{links}{joints}</robot>'
+
+
+@pytest.mark.parametrize("mimics, said", [
+    (dict(j2_mimic='<mimic joint="j2"/>'), "joint j2: <mimic> names the joint itself"),
+    (dict(j1_mimic='<mimic joint="j2"/>', j2_mimic='<mimic joint="j1"/>'), "(a loop of <mimic> rules)"),
+    (dict(j1_mimic='<mimic joint="j2"/>', j2_mimic='<mimic joint="j3"/>', j3_mimic='<mimic joint="j1"/>'),
+     "(a loop of <mimic> rules)"),
+    (dict(j2_mimic='<mimic joint="j3"/>', j3_mimic='<mimic joint="j1"/>'), "(a chain of <mimic> rules)"),
+    (dict(j2_mimic='<mimic joint="nosuch"/>'), "names 'nosuch', no joint of this URDF"),
+])
+def test_29_10_a_mimic_rule_needs_another_joint_that_follows_none(mimics, said):
+    with pytest.raises(InputError, match=re.escape(said)):
+        robot_from_urdf_text(_mimic_urdf(**mimics), "l3")
+    robot = robot_from_urdf_text(_mimic_urdf(j3_mimic='<mimic joint="j1" multiplier="2"/>'), "l3")
+    assert robot.mimic["j3"].joint == "j1" and robot.mimic["j3"].multiplier == 2.0  # one rule: read

@@ -309,3 +309,26 @@ def test_an_as_built_urdf_of_a_named_robot_finds_its_meshes_anywhere(tmp_path):
         loaded = load_robot(str(path), tool_frame)
     assert loaded.missing_mesh_message() in (None, "")
     assert sorted(p.name for p in loaded.mesh_places()) == sorted(p.name for p in named.mesh_places())
+
+
+def test_29_10_a_search_passes_over_folders_it_cannot_read_and_follows_no_link(ros, tmp_path, monkeypatch):
+    """``--package-dir /`` met /proc/1/cwd (no permission, even for root in a container) and
+    /proc/*/cwd links back to /: a folder that cannot be read is passed over, a link not followed."""
+    from tcr_accuracy.model import ros_packages
+
+    top = tmp_path / "top"
+    (top / "locked").mkdir(parents=True)
+    (top / "loop").symlink_to(top, target_is_directory=True)  # followed, the walk would see itself again
+    (top / "elsewhere").symlink_to(ros.src, target_is_directory=True)  # the package, only through a link
+    real_scandir = os.scandir
+
+    def scandir(path):
+        if Path(path).name == "locked":
+            raise PermissionError(13, "Permission denied", str(path))
+        return real_scandir(path)
+
+    monkeypatch.setattr(ros_packages.os, "scandir", scandir)
+    assert ros_packages.packages_below(top, {"mypkg"}) == {}
+    (top / "open").mkdir()
+    ros.pkg.rename(top / "open" / "mypkg")
+    assert ros_packages.packages_below(top, {"mypkg"}) == {"mypkg": top / "open" / "mypkg"}

@@ -308,7 +308,7 @@ def test_cli_sensitivity_json(tmp_path):
     assert dx[0]["name"] == "j1 drive" and dx[0]["linear_S1"] == pytest.approx(0.987, abs=0.005)
 
 
-def test_sweep_and_sobol_plots_are_written_whole(tool_changer, tmp_path):
+def test_sweep_and_sobol_plots_are_drawn_as_png_images(tool_changer, tmp_path):
     from tcr_accuracy.view.plots_sensitivity import POSITION_OUTPUTS, plot_sobol, plot_sweep
 
     q = tool_changer.working_pose
@@ -318,5 +318,6 @@ def test_sweep_and_sobol_plots_are_written_whole(tool_changer, tmp_path):
     files = [plot_sweep(sweep, POSITION_OUTPUTS, "t", "joint angle error [deg]", tmp_path / "out" / "sweep.png"),
              plot_sobol(idx, tmp_path / "out" / "sobol.png")]
     for f in files:
-        assert f.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f.stat().st_size > 10_000
-    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["sobol.png", "sweep.png"]
+        assert f.png[:8] == b"\x89PNG\r\n\x1a\n" and len(f.png) > 10_000
+    assert [f.path.name for f in files] == ["sweep.png", "sobol.png"]
+    assert not (tmp_path / "out").exists()  # drawn, not written: the caller writes them

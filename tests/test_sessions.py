@@ -271,3 +271,42 @@ def test_a_base_reference_shows_the_tracker_drift(tmp_path):
                             for a in ("dx", "dy", "dz")])
     assert moved == pytest.approx(0.2e-3, rel=0.25)
     assert results["without"]["final_over_noise"] < 1.15
+
+
+def _references(rng, n=200, sigma=0.02e-3, velocity=(0.03e-3, -0.04e-3, 0.0), hours=4.0):
+    """One base reference read n times over ``hours``, drifting at ``velocity`` [m/h], noise sigma [m] per axis."""
+    time_s = np.sort(rng.uniform(0.0, hours * 3600.0, n))
+    measured = np.array([1.2, -0.4, 0.3]) + np.outer(time_s / 3600.0, velocity) + sigma * rng.standard_normal((n, 3))
+    return time_s, measured
+
+
+def test_29_09_one_base_reference_reading_off_does_not_make_the_instrument_noisy():
+    """A reading 5 mm off among 200 of 0.02 mm noise: plain least squares would say 0.2 mm per axis
+    (sqrt(25 mm^2 / 600 dof)); it is left out, listed, and the noise stays the simulated one."""
+    from tcr_accuracy.frames.drift import tracker_drift
+
+    rng = np.random.default_rng(11)
+    time_s, measured = _references(rng)
+    measured[57] += np.array([5e-3, 0.0, 0.0])
+    plain = np.sqrt((np.sum((measured - measured.mean(axis=0)) ** 2)) / (3 * 199))  # what the outlier alone does
+    assert plain > 0.1e-3
+    _, report, noise = tracker_drift([("base_ref", np.zeros(3), measured, time_s)], np.zeros(200, dtype=int), 1, [])
+    assert noise.per_axis == pytest.approx(0.02e-3, rel=0.15)
+    assert [(o["row"], round(o["off_mm"])) for o in report[0]["outliers"]] == [(57, 5)]
+    assert "1 reading(s) more than 6 robust standard deviations off left out" in noise.detail
+    assert np.linalg.norm(report[0]["drift_mm_per_h"]) == pytest.approx(0.05, rel=0.2)
+
+
+def test_29_09_a_constant_time_column_falls_back_to_the_measurement_order_and_says_so():
+    from tcr_accuracy.frames.drift import tracker_drift
+
+    rng = np.random.default_rng(12)
+    _, measured = _references(rng, velocity=(0.0, 0.0, 0.0))
+    same = np.full(200, 1700000000.0)
+    _, report, noise = tracker_drift([("base_ref", np.zeros(3), measured, same)], np.zeros(200, dtype=int), 1, [])
+    assert report[0]["time_axis"] == "measurement order (time_s is the same on every row)"
+    assert "drift_mm_per_100_rows" in report[0] and noise.per_axis == pytest.approx(0.02e-3, rel=0.15)
+    _, report, _ = tracker_drift([("base_ref", np.zeros(3), measured[:2], same[:2])], np.zeros(2, dtype=int), 1, [])
+    assert report == [{"session": "all", "references": ["base_ref"], "time_axis":
+                       "measurement order (time_s is the same on every row)", "fitted": False,
+                       "why": "2 rows: a drift needs at least 3"}]

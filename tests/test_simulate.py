@@ -95,11 +95,11 @@ def test_truth_recreates_the_same_measurements(tool_changer):
 def test_a_truth_file_read_back_as_a_scenario_is_the_same_robot(tool_changer, tmp_path):
     """``simulate --truth`` then ``--scenario`` of that file: more poses of the same hidden robot
     (a test set), every parameter as written."""
-    from tcr_accuracy.analysis.simulate import write_truth
+    from tcr_accuracy.analysis.simulate import truth_text
 
     spec = {"effects": {"geometry": {"spread_mm": 0.2, "spread_mrad": 0.2}, "compliance": {}, "transmission": {}}}
     mset, truth = simulate_measurements(tool_changer, spec, 30, np.random.default_rng(4), noise_m=0.0)
-    write_truth(tmp_path / "truth.yaml", truth)
+    (tmp_path / "truth.yaml").write_text(truth_text(truth, "truth.yaml"))
     scenario = load_scenario(tmp_path / "truth.yaml")
     again, _ = simulate_measurements(tool_changer, scenario, 30, np.random.default_rng(9), noise_m=0.0,
                                      q=mset.q, context=mset.context)

@@ -19,7 +19,9 @@ import pytest
 matplotlib.use("Agg")
 
 from tcr_accuracy.view import report as report_module
-from tcr_accuracy.cli import main
+from tcr_accuracy.cli import main, write_file
+from tcr_accuracy.cli.staging import write_text
+from tcr_accuracy.cli.writers import write_report
 from tcr_accuracy.model.errors import ErrorModel, seed_budget
 from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.model.kinematics import tcp_poses
@@ -172,7 +174,7 @@ def test_tcp_error_cloud_matches_the_kinematics(tool_changer):
 def test_static_html_is_one_self_contained_file(tmp_path, tool_changer):
     scene = Scene("title <with> markup")
     scene.add_robot(tool_changer, tool_changer.working_pose, "nominal")
-    path = scene.write_static_html(tmp_path / "view.html")
+    path = write_text(tmp_path / "view.html", scene.static_html())
     page = path.read_text(encoding="utf-8")
     assert "title &lt;with&gt; markup" in page
     assert not re.search(r"<script[^>]+src=|<link[^>]+href=", page)  # nothing loaded from elsewhere
@@ -233,7 +235,7 @@ def _sample_report():
 
 
 def test_report_writes_tables_figures_scenes_command_and_versions(tmp_path):
-    index = _sample_report().write(tmp_path / "out")
+    index = write_report(_sample_report(), tmp_path / "out")
     out = index.parent
     assert sorted(p.name for p in out.iterdir()) == ["figure-1.png", "index.html", "report.md", "scene-1.html"]
     page = index.read_text(encoding="utf-8")
@@ -253,26 +255,26 @@ def test_report_writes_tables_figures_scenes_command_and_versions(tmp_path):
 
 def test_report_write_failure_keeps_the_old_index_and_leaves_no_temporary_files(tmp_path, monkeypatch):
     out = tmp_path / "out"
-    _sample_report().write(out)
+    write_report(_sample_report(), out)
     before = (out / "index.html").read_bytes()
     real_replace = os.replace
 
-    def interrupted(src, dst):
+    def interrupted(src, dst, **fds):
         if str(dst).endswith("index.html"):
             raise KeyboardInterrupt
-        return real_replace(src, dst)
+        return real_replace(src, dst, **fds)
 
-    monkeypatch.setattr(report_module.os, "replace", interrupted)
+    monkeypatch.setattr(write_file.os, "replace", interrupted)
     with pytest.raises(KeyboardInterrupt):
-        Report("new").write(out)
+        write_report(Report("new"), out)
     assert (out / "index.html").read_bytes() == before
     assert not [p.name for p in out.iterdir() if p.name.startswith(".")]
 
 
 def test_report_is_byte_identical_for_the_same_content_and_source_date(tmp_path, monkeypatch):
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
-    first = _sample_report().write(tmp_path / "a").parent
-    second = _sample_report().write(tmp_path / "b").parent
+    first = write_report(_sample_report(), tmp_path / "a").parent
+    second = write_report(_sample_report(), tmp_path / "b").parent
     for name in ("index.html", "report.md", "figure-1.png", "scene-1.html"):
         assert (first / name).read_bytes() == (second / name).read_bytes(), name
     assert "Written 2023-11-14 22:13:20 UTC" in (first / "index.html").read_text(encoding="utf-8")
@@ -284,11 +286,8 @@ def test_report_rejects_bad_tables_and_figures(tmp_path):
         report.add_table("t", ["a", "b"], [[1, 2], [3]])
     with pytest.raises(InputError, match="2 units for 1 columns"):
         report.add_table("t", ["a"], [[1]], units=["mm", "deg"])
-    (tmp_path / "x.png").write_text("not a png")
-    with pytest.raises(InputError, match="not a PNG"):
-        report.add_figure(tmp_path / "x.png", "bad")
-    with pytest.raises(InputError, match="cannot read figure"):
-        report.add_figure(tmp_path / "missing.png", "bad")
+    with pytest.raises(InputError, match="figure 'bad': not a PNG"):
+        report.add_figure(b"not a png", "bad")
 
 
 # ---------------------------------------------------------------------------------------
@@ -334,3 +333,35 @@ def test_view_arguments_plug_into_another_command(tmp_path, capsys, tool_changer
     emit_view(scene, parser.parse_args(["--view", str(tmp_path / "v.html")]))
     assert "robot: nominal" in (tmp_path / "v.html").read_text(encoding="utf-8")
     assert parser.parse_args(["--view"]).view == "view.html"
+
+
+def _outside_code(markdown: str) -> str:
+    """The Markdown text outside fenced code blocks and inline code spans, as CommonMark reads
+    them: a fence of N backticks closes at a line of at least N backticks; a span of N backticks
+    closes at the next run of exactly N."""
+    out, fence = [], None
+    for line in markdown.splitlines():
+        run = re.match(r"^(`{3,})\s*$", line)
+        if fence is None and run:
+            fence = run.group(1)
+        elif fence is not None:
+            if run and len(run.group(1)) >= len(fence):
+                fence = None
+        else:
+            out.append(re.sub(r"(`+)(?!`).*?(?<!`)\1(?!`)", "", line))
+    assert fence is None, "a fence left open"
+    return "\n".join(out)
+
+
+def test_29_10_report_md_shows_raw_html_from_outside_as_text():
+    hostile = "<script>alert(1)</script> ``` <iframe src=x> `` [a](javascript:x)"
+    report = Report(f"title {hostile}", command=["report", "--title", hostile])
+    report.add_text(f"note {hostile}", heading=f"heading {hostile}")
+    report.add_preformatted(f"printed\n```\n{hostile}\n````", heading="printed")
+    report.add_table(f"table {hostile}", ["a", hostile], [[hostile, 1]], note=hostile)
+    report.add_links("links", [(hostile, "a b).html")])
+    markdown = report.markdown()
+    assert "<" not in _outside_code(markdown)  # every raw tag is text (&lt;) or inside code
+    assert "&lt;script&gt;alert(1)&lt;/script&gt;" in markdown
+    assert "(a%20b%29.html)" in markdown  # a link target that cannot end early
+    assert hostile in report.markdown()  # shown whole inside the printed block and the command

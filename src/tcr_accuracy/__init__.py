@@ -28,7 +28,7 @@ _EXPORTS = {
     "error_jacobian": "model.jacobians", "error_jacobians": "model.jacobians",
     "gravity_torque": "model.gravity", "as_built_urdf": "asbuilt.urdf",
     "MeasurementSet": "io.measurements", "read_measurements": "io.measurements",
-    "write_measurements": "io.measurements",
+    "write_measurements": "cli.writers",
     "make_effect": "effects", "vocabulary": "effects", "Effect": "effects",
     "run_monte_carlo": "analysis.montecarlo", "simulate_measurements": "analysis.simulate",
     "random_scenario": "analysis.simulate", "load_scenario": "analysis.scenario",

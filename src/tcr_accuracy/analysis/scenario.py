@@ -57,7 +57,7 @@ from ..model.context import REFERENCE_TEMPERATURE_C
 from ..effects import Effect, effect_class
 from ..exceptions import InputError
 from ..io.budget_file import parse_table, setting_number
-from ..io.measurements import read_user_text
+from ..input_files import SIZE_LIMITS, read_input_text
 from ..model.robot import RobotModel
 from ..units import SUFFIXES, split_suffix
 
@@ -100,7 +100,7 @@ def load_scenario(path: str | Path) -> Scenario:
         The hidden effects, their parameters [SI] and the context to draw.
     """
     path = Path(path)
-    text = read_user_text(path, "scenario file")
+    text = read_input_text(path, "scenario file", limit=SIZE_LIMITS["settings"])
     data = parse_table(text, str(path), "toml" if path.suffix.lower() == ".toml" else "yaml")
     if _is_truth(data):  # a --truth file: the same robot again (more poses, a test set)
         data = truth_as_scenario(data)

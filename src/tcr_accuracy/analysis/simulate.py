@@ -404,17 +404,13 @@ def _plain(value):
     return value
 
 
-def write_truth(path: str | Path, truth: dict) -> None:
-    """Write the hidden truth as YAML (.yaml/.yml) or JSON (anything else), atomically."""
+def truth_text(truth: dict, path: str | Path) -> str:
+    """The hidden truth as the text of the file ``path`` (not written here): YAML for a
+    ``.yaml``/``.yml`` name, JSON for any other."""
     import json
 
     import yaml
 
-    from ..atomic import write_text_atomically
-
-    path = Path(path)
-    if path.suffix.lower() in (".yaml", ".yml"):
-        text = yaml.safe_dump(truth, sort_keys=False)
-    else:
-        text = json.dumps(truth, indent=2, allow_nan=False) + "\n"
-    write_text_atomically(path, text)
+    if Path(path).suffix.lower() in (".yaml", ".yml"):
+        return yaml.safe_dump(truth, sort_keys=False)
+    return json.dumps(truth, indent=2, allow_nan=False) + "\n"

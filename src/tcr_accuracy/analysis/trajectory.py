@@ -100,12 +100,9 @@ def read_trajectory_csv(path: str | Path, robot: RobotModel) -> JointTrajectory:
     JointTrajectory with q of shape (T, n_joints) [rad, m].
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such trajectory file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read the trajectory file ({exc})") from None
+    from ..input_files import SIZE_LIMITS, read_input_text
+
+    text = read_input_text(path, "trajectory file", limit=SIZE_LIMITS["table"])
     rows = [r for r in csv.reader(text.splitlines())]
     numbered = [(i + 1, r) for i, r in enumerate(rows) if any(cell.strip() for cell in r)]
     if not numbered:

@@ -10,13 +10,12 @@ Every value is checked as :mod:`tcr_accuracy.effects.file_values` and
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
 
 from ..effects.file_values import file_number
 from ..exceptions import InputError
+from ..input_files import parse_json, read_input_text
 from .model import AsBuiltModel
-from .model_file import model_from_values, read_bounded_text
+from .model_file import model_from_values
 
 #: Largest diagnosis JSON read [bytes].
 MAX_BYTES = 200_000_000
@@ -25,12 +24,7 @@ REQUIRED = ("effect_parameters", "robot_source", "tool_frame", "tracker_transfor
 
 def parse_diagnosis_json(text: str, source: str) -> dict:
     """The JSON object of a ``diagnose --json`` result with the keys export needs."""
-    try:
-        data = json.loads(text)
-    except RecursionError:
-        raise InputError(f"{source}: nested too deep to be a diagnosis") from None
-    except ValueError as exc:
-        raise InputError(f"{source}: not JSON ({exc})") from None
+    data = parse_json(text, source, "give the JSON that 'diagnose --json FILE' wrote")
     if not isinstance(data, dict):
         raise InputError(f"{source}: not a diagnosis (a JSON object was expected)")
     for key in REQUIRED:
@@ -42,7 +36,7 @@ def parse_diagnosis_json(text: str, source: str) -> dict:
 
 def read_diagnosis_json(path) -> dict:
     """:func:`parse_diagnosis_json` of a file (a regular file of at most :data:`MAX_BYTES`)."""
-    return parse_diagnosis_json(read_bounded_text(Path(path), MAX_BYTES, "a diagnosis"), str(path))
+    return parse_diagnosis_json(read_input_text(path, "diagnosis", limit=MAX_BYTES), str(path))
 
 
 def model_from_diagnosis(data: dict, source: str) -> AsBuiltModel:

@@ -26,12 +26,12 @@ dates) stay text and are refused as numbers; every value is checked as
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import numpy as np
 
 from ..exceptions import InputError
+from ..input_files import parse_settings, read_input_text
 from ..effects.file_values import file_number
 from ..model.robot import load_robot
 from .model import AsBuiltModel
@@ -134,29 +134,13 @@ def load_as_built(path) -> AsBuiltModel:
     if path.suffix.lower() == ".urdf":
         candidates = [path.with_suffix(".yaml"), path.with_suffix(".effects.yaml")]
         path = next((c for c in candidates if c.is_file()), candidates[0])
-    return read_model_document(read_bounded_text(path, MAX_BYTES, "the as-built model written by tcr-accuracy "
-                                                                  "export"), str(path))
-
-
-def read_bounded_text(path: Path, max_bytes: int, what: str) -> str:
-    """A regular UTF-8 file of at most ``max_bytes`` (a byte-order mark dropped), or one InputError line."""
-    path = Path(path)
-    try:
-        if not path.is_file():
-            raise InputError(f"{path}: {'no such file' if not path.exists() else 'not a regular file'} ({what})")
-        if path.stat().st_size > max_bytes:
-            raise InputError(f"{path}: {path.stat().st_size / 1e6:.0f} MB is more than {what} "
-                             f"({max_bytes / 1e6:.0f} MB at most)")
-        return path.read_bytes().decode("utf-8-sig")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read {what} ({exc.strerror or exc})") from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    return read_model_document(read_input_text(path, "as-built model written by tcr-accuracy export",
+                                               limit=MAX_BYTES), str(path))
 
 
 def read_model_document(text: str, source: str) -> AsBuiltModel:
     """The model of a file's text (see :func:`load_as_built`); ``source`` names it in messages."""
-    doc = strict_yaml(text, source)
+    doc = parse_settings(text, source, "yaml")  # YAML 1.2's numbers, no aliases, no key twice
     if not isinstance(doc, dict) or doc.get("format") not in READABLE:
         raise InputError(f"{source}: not an as-built model written by tcr-accuracy (no 'format: {FORMAT}')")
     for key in REQUIRED:
@@ -204,57 +188,3 @@ def tracker_matrix(value, where: str) -> np.ndarray | None:
         raise InputError(f"{where}: the tracker {np.linalg.norm(matrix[:3, 3]):.3g} m from the robot's base "
                          f"(at most {TRACKER_MAX_M:g} m)")
     return matrix
-
-
-# ---------------------------------------------------------------------------------------
-# YAML without 1.1's number shortcuts
-# ---------------------------------------------------------------------------------------
-_BOOL = re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$")
-_INT = re.compile(r"^[-+]?(?:0|[1-9][0-9]*)$")
-_FLOAT = re.compile(r"^(?:[-+]?(?:[0-9]+\.[0-9]*|\.[0-9]+|[0-9]+)(?:[eE][-+]?[0-9]+)?|[-+]?\.(?:inf|Inf|INF)"
-                    r"|\.(?:nan|NaN|NAN))$")
-
-
-def _strict_loader():
-    import yaml
-
-    class StrictLoader(yaml.SafeLoader):
-        """YAML 1.2's core schema: decimal numbers, true/false, null; everything else is text."""
-
-    StrictLoader.yaml_implicit_resolvers = {
-        first: [(tag, regexp) for tag, regexp in resolvers
-                if tag not in ("tag:yaml.org,2002:bool", "tag:yaml.org,2002:int", "tag:yaml.org,2002:float",
-                               "tag:yaml.org,2002:timestamp")]
-        for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()}
-    StrictLoader.add_implicit_resolver("tag:yaml.org,2002:bool", _BOOL, list("tTfF"))
-    StrictLoader.add_implicit_resolver("tag:yaml.org,2002:int", _INT, list("-+0123456789"))
-    StrictLoader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT, list("-+0123456789."))
-
-    def checked(pattern, build):
-        def construct(loader, node):
-            text = loader.construct_scalar(node)
-            if not pattern.match(text):
-                raise yaml.constructor.ConstructorError(None, None, f"{text!r} is not a plain decimal or true/false",
-                                                        node.start_mark)
-            return build(text)
-        return construct
-
-    StrictLoader.add_constructor("tag:yaml.org,2002:int", checked(_INT, int))
-    StrictLoader.add_constructor("tag:yaml.org,2002:float", checked(_FLOAT, lambda t: float(t.lower().replace(".inf", "inf").replace(".nan", "nan"))))
-    StrictLoader.add_constructor("tag:yaml.org,2002:bool", checked(_BOOL, lambda t: t.lower() == "true"))
-    return StrictLoader
-
-
-def strict_yaml(text: str, source: str):
-    """The YAML document of ``text`` with :func:`_strict_loader`'s schema; one InputError line on error."""
-    import yaml
-
-    try:
-        return yaml.load(text, Loader=_strict_loader())  # noqa: S506 - a SafeLoader subclass
-    except RecursionError:
-        raise InputError(f"{source}: nested too deep to be an as-built model") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" (line {mark.line + 1})" if mark is not None else ""
-        raise InputError(f"{source}: not a YAML document this format allows{where}: "
-                         f"{getattr(exc, 'problem', None) or str(exc).splitlines()[0]}") from None

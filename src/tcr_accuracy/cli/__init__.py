@@ -5,10 +5,13 @@ Exit codes: 0 ok, 1 the analysis failed (or an unexpected error), 2 bad input,
 command and what went wrong; ``--debug`` (before or after the command) prints the full
 traceback as well.
 
-Every command runs inside :func:`tcr_accuracy.atomic.staged_outputs`: its files are
-written together when it ends without an error, and not at all otherwise. Output paths
-are checked when the command line is read, and large work is estimated first and
-refused above ``--max-memory-gb`` (every command takes it; default 4 GB).
+Every command runs inside :func:`tcr_accuracy.cli.staging.staged_outputs`: its files are
+written together when it ends without an error, and not at all otherwise, each through the
+one output writer, which holds the outputs named on the command line
+(:mod:`tcr_accuracy.cli.output_paths`: no link inside an output folder followed, no input
+overwritten, no two outputs on one path). Output paths are checked when the command line is
+read, and large work is estimated first and refused above ``--max-memory-gb`` (every command
+takes it; default 4 GB).
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ from contextlib import contextmanager
 from .. import __version__
 from . import (compare, demo, diagnose, export, iso9283, montecarlo, plan_poses, pose, prediction, report,
                sensitivity, simulate, tolerance, tracker_import, trajectory, view)
-from .common import EXIT_ANALYSIS, EXIT_INPUT, EXIT_OK, Parser, add_memory_argument
+from .common import DEFAULT_MEMORY_GB, EXIT_ANALYSIS, EXIT_INPUT, EXIT_OK, Parser, add_memory_argument
 
 
 # ---------------------------------------------------------------------------------------
@@ -71,7 +74,7 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
         if key in _shown_limit_warnings:
             return
         _shown_limit_warnings.add(key)
-    from ..atomic import hold_message
+    from .staging import hold_message
 
     hold_message(sys.stderr, f"tcr-accuracy: warning: {text}\n", "warning")
 
@@ -115,21 +118,24 @@ def _main(argv: list[str], debug: bool, command: str | None) -> int:
             args = parser.parse_args(argv)
         except SystemExit as exc:  # --help, --version, or a usage error already said in one line
             return exc.code if isinstance(exc.code, int) else EXIT_INPUT
-        from .collisions import check_distinct_paths
+        from .output_paths import outputs_of_command
 
-        check_distinct_paths(parser, args)  # no output over an input or another output
+        outputs = outputs_of_command(parser, args)  # and no output over an input or another output
         args.argv = argv  # the command as typed, for reports
         name = f"tcr-accuracy {args.command}"
         debug = debug or getattr(args, "debug", False)  # also an abbreviated --deb
-        from ..atomic import staged_outputs
+        from .staging import staged_outputs
+        from ..input_files import memory_budget
         from ..model.ros_packages import package_dirs_given
         from .held import held_stdout
 
         # every file of the run is written at its end, together, or not at all, and what it
         # prints after them; SIGTERM and SIGHUP are interrupts until the commit is done, so that
         # one during the commit still cleans up
-        with warnings.catch_warnings(), _terminate_as_interrupt(), held_stdout(), staged_outputs() as stage, \
-                package_dirs_given(getattr(args, "package_dir", None)):  # --package-dir, for every load_robot
+        budget = (getattr(args, "max_memory_gb", None) or DEFAULT_MEMORY_GB) * 1e9  # every file read is held to it
+        with warnings.catch_warnings(), _terminate_as_interrupt(), held_stdout(), staged_outputs(outputs) as stage, \
+                package_dirs_given(getattr(args, "package_dir", None)), \
+                memory_budget(budget, "use a smaller file, or allow more with --max-memory-gb"):
             warnings.simplefilter("default", UserWarning)
             warnings.showwarning = _show_warning
             return args.run(args)
@@ -177,34 +183,15 @@ def _show_held_warnings(stage) -> None:
 @contextmanager
 def _terminate_as_interrupt():
     """SIGTERM (a kill, a job scheduler's stop) and SIGHUP (the terminal closed) end the run as
-    Ctrl-C does: through the
-    exception handlers, so staged and temporary files are removed (outermost main, main
-    thread only)."""
-    import signal
-    import threading
-
-    if _depth > 1 or threading.current_thread() is not threading.main_thread():
+    Ctrl-C does: through the exception handlers, so staged and temporary files are removed
+    (outermost main only; :func:`tcr_accuracy.cli.signals.as_interrupt`)."""
+    if _depth > 1:
         yield
         return
+    from .signals import as_interrupt
 
-    def interrupt(signum, frame):
-        raise KeyboardInterrupt
-
-    stops = [sig for sig in (getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None)) if sig is not None]
-    previous = {}
-    try:
-        for sig in stops:
-            previous[sig] = signal.signal(sig, interrupt)
-    except (ValueError, OSError):  # no signals here (an embedded interpreter)
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+    with as_interrupt():
         yield
-        return
-    try:
-        yield
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
 
 
 def _describe(exc: BaseException) -> str:

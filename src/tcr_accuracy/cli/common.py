@@ -13,6 +13,8 @@ import math
 import re
 import sys
 
+from .output_paths import as_built_file, effects_side_file, output_file, output_folder, shown as _shown  # noqa: F401
+
 EXIT_OK, EXIT_ANALYSIS, EXIT_INPUT = 0, 1, 2
 
 
@@ -31,15 +33,15 @@ class Parser(argparse.ArgumentParser):
 
 #: What the argparse types of this module say after the value ("--x VALUE: <one of these>...").
 _REFUSALS = ("want", "not a number", "non-finite", "the folder", "is a folder", "exists and is not a folder",
-             "not writable", "not a regular file", "its side file")
+             "not writable", "not a regular file", "its side file", "an empty folder name")
 _TYPE_REFUSAL = re.compile(r"argument (?P<option>--[\w-]+)(?:/[\w-]+)*: "
                            rf"(?P<rest>.+?: (?:{'|'.join(map(re.escape, _REFUSALS))}).*)", re.DOTALL)
 
 
 def effect_names(text: str | None) -> list[str] | None:
     """The effects named by ``--effects a,b,...`` (None when not given), each checked against the
-    vocabulary: one line naming the unknown ones."""
-    if not text:
+    vocabulary: one line naming the unknown ones. ``--effects ''`` names none, as ``,`` does: refused."""
+    if text is None:
         return None
     from ..effects import vocabulary
     from ..exceptions import InputError
@@ -125,58 +127,8 @@ def integer(*, low: int | None = None, high: int | None = None, what: str = ""):
         return value
 
     convert.__name__ = "integer"
+    convert.bounds = (low, high)  # read by the tests that try every count option at its largest
     return convert
-
-
-def _shown(text: str) -> str:
-    """An option's value as a message shows it: as typed, or quoted when empty, spaced or long."""
-    return text if text and len(text) <= 200 and not any(c.isspace() for c in text) else repr(text[:200])
-
-
-def output_file(text: str) -> str:
-    """argparse type of an option naming a file the run writes (``-``: stdout): refused now,
-    before any work, if it could not be written at the end."""
-    from ..atomic import output_file_problem
-
-    problem = output_file_problem(text)
-    if problem:
-        raise argparse.ArgumentTypeError(f"{_shown(text)}: {problem}")
-    return text
-
-
-def output_folder(text: str) -> str:
-    """argparse type of an option naming a folder the run fills (see :func:`output_file`)."""
-    from ..atomic import output_folder_problem
-
-    problem = output_folder_problem(text)
-    if problem:
-        raise argparse.ArgumentTypeError(f"{_shown(text)}: {problem}")
-    return text
-
-
-def effects_side_file(path) -> "Path":  # noqa: F821
-    """The file written beside an as-built URDF ``x.urdf``: ``x.effects.yaml`` (the effects a URDF cannot hold)."""
-    from pathlib import Path
-
-    path = Path(path)
-    return path.with_name(path.stem + ".effects.yaml")
-
-
-def as_built_file(text: str) -> str:
-    """argparse type of ``--as-built-urdf``: a regular file that can be written, with its side
-    file (:func:`effects_side_file`) too; a device or pipe is refused, as the pair would then
-    be one file written and another created beside the device (``/dev/null.effects.yaml``)."""
-    from ..atomic import is_special_file, output_file_problem
-
-    if text == "-" or is_special_file(text):
-        raise argparse.ArgumentTypeError(f"{_shown(text)}: not a regular file; the as-built model is two files "
-                                         f"(the URDF and {effects_side_file(text).name} beside it)")
-    output_file(text)
-    side = effects_side_file(text)
-    problem = output_file_problem(side) or ("is a device or pipe" if is_special_file(side) else None)
-    if problem:
-        raise argparse.ArgumentTypeError(f"{_shown(text)}: its side file {_shown(str(side))}: {problem}")
-    return text
 
 
 #: argparse type of ``--seed``: an integer that numpy's SeedSequence accepts.
@@ -238,13 +190,18 @@ def check_csv_memory(args, path, what: str, row_bytes: float, fixed_bytes=lambda
     """Count the rows of a CSV (without reading it into memory) and refuse it with
     :func:`check_memory` when reading it (about 12 bytes per byte of text, ``row_bytes``
     per row) and ``fixed_bytes(rows)`` would exceed the budget; returns the row count
-    (0 when the file cannot be opened: its reader says why)."""
+    (0 when the file is missing or cannot be opened: its reader says why). A pipe, a device
+    or a folder is refused here, in one line, before anything opens it."""
     import os
 
+    from ..input_files import SIZE_LIMITS, open_input
+
+    if not os.path.lexists(path):
+        return 0
+    fd, st = open_input(path, "measurement file", limit=SIZE_LIMITS["table"])
+    size, rows = st.st_size, 0
     try:
-        size = os.stat(path).st_size
-        rows = 0
-        with open(path, "rb") as handle:
+        with os.fdopen(fd, "rb") as handle:
             for block in iter(lambda: handle.read(1 << 20), b""):
                 rows += block.count(b"\n")
     except OSError:
@@ -344,7 +301,7 @@ def status(args, message: str) -> None:
     written, not at all if they are not.
     """
     if not getattr(args, "quiet", False):
-        from ..atomic import hold_message
+        from .staging import hold_message
 
         hold_message(sys.stderr, message.rstrip("\n") + "\n", "status")  # after the files are written
 
@@ -378,6 +335,6 @@ def emit_json(payload: dict, target: str) -> None:
     else:
         from pathlib import Path
 
-        from ..atomic import write_text_atomically
+        from .staging import write_text
 
-        write_text_atomically(Path(target), text)
+        write_text(Path(target), text)

@@ -7,8 +7,8 @@ changes in mm and deg, and writes JSON and the HTML report.
 
 from __future__ import annotations
 
-from .common import (MAX_COUNT, MAX_MM, add_robot_arguments, check_csv_memory, effect_names, integer, number,
-                     seed_value, status)
+from .common import (MAX_COUNT, MAX_MM, add_robot_arguments, check_csv_memory, check_memory, effect_names, integer,
+                     number, sample_bytes, seed_value, status)
 from .output import RunOutput, add_output_arguments
 from .report import add_campaign_arguments, read_campaign_arguments
 
@@ -50,19 +50,40 @@ def _run_compare(args) -> int:
 
     from ..analysis.simulate import sample_poses
     from ..diagnosis.compare import FittedModel, compare_models
+    from ..exceptions import InputError
     from ..model.robot import load_robot
 
     read_campaign_arguments(args)
-    docs = [_read_json(path) for path in (args.old, args.new)]
-    if args.robot is None:  # a diagnosis names its robot; a CSV's is the default one
-        named = {d["robot"] for d in docs if isinstance(d, dict) and isinstance(d.get("robot"), str)}
-        source = named.pop() if len(named) == 1 and all(d is not None for d in docs) else None
+    docs = [_read_json(path) for path in (args.old, args.new)]  # each validated (cli.result_files)
+    given = [d for d in docs if d is not None]
+    tool = args.tool
+    if args.robot is None:  # a diagnosis names its robot (and where it was loaded from); a CSV's is the default one
+        sources = {d.get("robot_source", d["robot"]) for d in given}
+        source = sources.pop() if len(sources) == 1 and len(given) == 2 else None
+        source = None if source == "tool_changer" else source
     else:
         source = args.robot
-    robot = _load_named(load_robot, source, args.tool)
+    frames = {d["tool_frame"] for d in given if "tool_frame" in d}
+    if len(frames) > 1:
+        raise InputError(f"{args.old} is a diagnosis of the TCP frame {docs[0]['tool_frame']}, {args.new} of "
+                         f"{docs[1]['tool_frame']}: compare two diagnoses of one TCP frame")
+    if len(given) == 2 and len(frames) == 1 and not all("tool_frame" in d for d in given):
+        raise InputError(f"{args.old if 'tool_frame' not in docs[0] else args.new}: does not say its TCP frame "
+                         f"(the other is of {next(iter(frames))}): compare two diagnoses of one TCP frame, "
+                         "written by tcr-accuracy diagnose --json")
+    if tool is None and frames:
+        tool = frames.pop()  # the frame the diagnoses are of
+    robot = _load_named(load_robot, source, tool)
+    _check_comparable(docs, (args.old, args.new), robot)
     docs = [doc if doc is not None else _diagnose_csv(args, path, robot)
             for doc, path in zip(docs, (args.old, args.new))]
     old, new = (FittedModel.from_dict(d, path) for d, path in zip(docs, (args.old, args.new)))
+    # the TCP effect: both fitted robots and the significant changes alone at every pose (about 1.6 kB a pose
+    # measured for 6 joints; sample_bytes is a generous 6 kB)
+    if args.poses is not None:
+        check_csv_memory(args, args.poses, "--poses", sample_bytes(robot))
+    else:
+        check_memory(args, f"--n-poses {args.n_poses}", args.n_poses * sample_bytes(robot), "use fewer poses")
     if args.poses is not None:
         from .prediction import read_joint_csv
 
@@ -104,21 +125,38 @@ def _calibration_page(report, args, robot, payload: dict, new: dict) -> None:
 
 def _read_json(path: str):
     """The JSON document of ``path``, or None when it is a measurement CSV (not JSON)."""
-    import json
-    from pathlib import Path
-
     from ..exceptions import InputError
-    from ..io.measurements import read_user_text
+    from ..input_files import SIZE_LIMITS, parse_json, read_input_text
 
-    text = read_user_text(Path(path), "diagnosis or measurement file")
+    text = read_input_text(path, "diagnosis or measurement file", limit=SIZE_LIMITS["table"])
     if not text.lstrip().startswith(("{", "[")):
         if path.lower().endswith(".json"):
             raise InputError(f"{path}: not JSON; give a diagnose --json result or a measurement CSV")
         return None
-    try:
-        return json.loads(text)
-    except ValueError as exc:
-        raise InputError(f"{path}: not valid JSON ({exc})") from None
+    if len(text.encode("utf-8")) > SIZE_LIMITS["json"]:
+        raise InputError(f"{path}: a JSON result larger than the {SIZE_LIMITS['json'] >> 20} MB a result may have")
+    from .result_files import FIT_KEYS, validate_result
+
+    return validate_result(parse_json(text, path, "give a diagnose --json result or a measurement CSV"), "diagnosis",
+                           path, FIT_KEYS)
+
+
+def _check_comparable(docs, paths, robot) -> None:
+    """Two diagnoses of one robot and one TCP frame, their parameters within each effect's physical
+    range (a forged standard error or value never decides what changed). InputError otherwise."""
+    from ..exceptions import InputError
+    from .result_files import check_physics
+
+    for doc, path in zip(docs, paths):
+        if doc is None:  # a CSV, diagnosed here with this robot
+            continue
+        if doc["robot"] != robot.name:
+            raise InputError(f"{path}: a diagnosis of {doc['robot']}, not of {robot.name}: compare two diagnoses of "
+                             "the same robot")
+        if doc.get("tool_frame", robot.tool_frame) != robot.tool_frame:
+            raise InputError(f"{path}: a diagnosis of the TCP frame {doc['tool_frame']}, not of --tool "
+                             f"{robot.tool_frame}: compare two diagnoses of one TCP frame")
+        check_physics(doc, robot, path)
 
 
 def _load_named(load_robot, source, tool):

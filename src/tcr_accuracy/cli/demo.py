@@ -94,8 +94,7 @@ def _run_demo(args) -> int:
 
 
 def _demo_steps(args, out_dir: Path) -> int:
-    import yaml
-
+    from ..input_files import read_settings_file
     from ..view.report import Report
 
     quiet = ["--quiet"] if args.quiet else []
@@ -123,13 +122,13 @@ def _demo_steps(args, out_dir: Path) -> int:
     if code != EXIT_OK:
         return code
 
-    from ..atomic import read_output
+    from .staging import read_output
 
     # the steps' files are staged with the demo's own, written together at its end
     accuracy = json.loads(read_output(accuracy_json))
     diagnosis = json.loads(read_output(diagnosis_json))
     # the hidden truth, read only now that the diagnosis is done
-    truth = yaml.safe_load(bundled_file(TRUTH).read_text())
+    truth = read_settings_file(bundled_file(TRUTH), "hidden truth", "yaml")
     hidden = [name for name in truth["effects"]]
     selected = list(diagnosis["selected_effects"])
     final = diagnosis["steps"][-1]
@@ -175,6 +174,8 @@ def _demo_steps(args, out_dir: Path) -> int:
         ("accuracy.json", "accuracy.json"), ("diagnosis.json", "diagnosis.json"),
         ("as-built URDF of the diagnosed robot", "tool_changer_as_built.urdf"),
     ])
-    index = report.write(out_dir)
+    from .writers import write_report
+
+    index = write_report(report, out_dir)
     status(args, f"report written to {index}")
     return EXIT_OK

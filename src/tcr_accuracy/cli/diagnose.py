@@ -252,7 +252,7 @@ def write_as_built(robot, d, path: Path, measurements, source: str, label: str) 
     from ..asbuilt.accuracy import MeasuredPoses
     from ..asbuilt.export import build_export
     from ..asbuilt.model import AsBuiltModel
-    from ..atomic import write_text_atomically
+    from .staging import write_text
     from ..view.as_built_summary import urdf_comment
 
     model = AsBuiltModel.from_diagnosis(robot, d, robot_source(source))
@@ -261,7 +261,7 @@ def write_as_built(robot, d, path: Path, measurements, source: str, label: str) 
     side = effects_side_file(path)
     export = build_export(model, MeasuredPoses.of(measurements, label), kfold=kfold, urdf_file=path.name,
                           model_file=side.name)
-    write_text_atomically(path, export.urdf_text(urdf_comment(export, "this diagnosis")))
+    write_text(path, export.urdf_text(urdf_comment(export, "this diagnosis")))
     informational = {
         **({"measured_frames": list(d.frames_measured),
             "chain_in_urdf": f"the URDF is the chain to {d.frames_measured[0]}; the other frames' TCP offsets "
@@ -280,7 +280,7 @@ def write_as_built(robot, d, path: Path, measurements, source: str, label: str) 
                                     "error_rad to the joint's angle; interpolate between rows)"}
            if d.joint_function_bands else {}),
     }
-    write_text_atomically(side, export.model_text(**informational))
+    write_text(side, export.model_text(**informational))
     return path, side, export.to_dict()
 
 

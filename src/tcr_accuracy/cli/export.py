@@ -57,16 +57,20 @@ def add_parsers(sub) -> None:
 
 def _run_export(args) -> int:
     import json
+    import sys
 
-    from ..asbuilt.diagnosis_file import kfold_figures, model_from_diagnosis, read_diagnosis_json
+    from ..asbuilt.diagnosis_file import kfold_figures, model_from_diagnosis
     from ..asbuilt.export import MODEL_FILE, UR_FILE, URDF_FILE, build_export
-    from ..atomic import stage_folder, write_text_atomically
     from ..view.as_built_summary import accuracy_lines, ur_file_header, urdf_comment
-    from ..view.plots_export import write_accuracy_plot
+    from ..view.plots_export import accuracy_plot
     from .export_tables import offsets_and_tcp_csv, table_csv
+    from .result_files import MODEL_KEYS, check_physics, read_result
+    from .staging import hold_message, stage_folder, write_bytes, write_text
 
-    data = read_diagnosis_json(args.diagnosis)
+    data = read_result(args.diagnosis, "diagnosis", hint="give the JSON that 'diagnose --json FILE' wrote",
+                       required=MODEL_KEYS)[1]  # validated on read: one line naming the key at fault
     model = model_from_diagnosis(data, args.diagnosis)
+    check_physics(data, model.robot, args.diagnosis)
     measured = read_calibration_measurements(args, data, model.robot)
     held_out = None
     if args.check is not None:
@@ -92,8 +96,11 @@ def _run_export(args) -> int:
     folder = Path(args.to)
     stage_folder(folder)
     for name, text in files.items():
-        write_text_atomically(folder / name, text)
-    write_accuracy_plot(export.accuracy, folder / "accuracy.png")
+        write_text(folder / name, text)
+    plot = accuracy_plot(export.accuracy, folder / "accuracy.png")
+    write_bytes(plot.path, plot.png)
+    for name, why in export.not_tabled.items():  # said on stderr too (--quiet), once the files are in place
+        hold_message(sys.stderr, f"tcr-accuracy: warning: {name}: not written ({why})\n", "warning")
     print("\n".join(_summary(args, export, files, filtered) + accuracy_lines(export.accuracy)))
     status(args, f"export written to {folder}")
     return EXIT_OK
@@ -162,6 +169,11 @@ def _targets(args, model):
     from ..io.measurements import read_measurements
     from ..io.pose_targets import is_cartesian, read_pose_targets
 
+    from .common import check_csv_memory
+
+    # each target: the model's TCP and its Jacobian over the joints, a few copies
+    check_csv_memory(args, args.targets, "--targets", 3 * 64 * 8.0 * (model.robot.n_joints + 1),
+                     hint="use fewer targets")
     threshold = args.threshold_mm * 1e-3
     if is_cartesian(args.targets, model.robot):
         targets = read_pose_targets(args.targets, model.robot)

@@ -1,7 +1,7 @@
 """What a command prints, held until its files are committed.
 
 A run's results (stdout), status lines ("JSON written to x") and warnings are held in the
-run's stage (:func:`tcr_accuracy.atomic.hold_message`) and shown after its files are in
+run's stage (`tcr_accuracy.cli.staging.hold_message`) and shown after its files are in
 place, in the order they came; a run refused for bad input shows its one error line and
 nothing else, a run that failed shows its warnings, never a result or a "written to" line
 for a file that was not written.
@@ -13,7 +13,7 @@ import io
 import sys
 from contextlib import contextmanager
 
-from ..atomic import hold_message
+from .staging import hold_message
 
 
 class _HeldStdout(io.TextIOBase):

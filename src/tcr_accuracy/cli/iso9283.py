@@ -120,8 +120,8 @@ def add_parsers(sub) -> None:
 def _run_plan(args) -> int:
     import numpy as np
 
-    from ..atomic import write_text_atomically
     from ..iso9283.plan import DEFAULT_CYCLES, cycle_order, plan_iso_cube
+    from .staging import write_text
 
     if args.path:
         from .iso9283_path import run_path_plan
@@ -136,7 +136,7 @@ def _run_plan(args) -> int:
     pose_id, cycle = cycle_order(cycles)
     from pathlib import Path
 
-    write_text_atomically(Path(args.out), _plan_csv(robot, plan, pose_id, cycle, conditions, rated))
+    write_text(Path(args.out), _plan_csv(robot, plan, pose_id, cycle, conditions, rated))
     payload = {"robot": robot.name, "tool": robot.tool_frame, "cube_centre_mm": (plan.centre * 1e3).tolist(),
                "cube_size_mm": plan.size * 1e3, "searched": plan.searched, "candidate_centres": plan.n_centres,
                "orientation": plan.orientation, "collision": plan.collision, "workspace": plan.workspace,
@@ -283,19 +283,17 @@ def _run_evaluate(args) -> int:
 def _calibration_page(report, args, robot, payload: dict) -> None:
     """The report opens with the calibration report's first page (with the diagnosis of --model, if given),
     then the per-pose tables."""
-    import json
-    from pathlib import Path
-
     from ..view.calibration_report import Campaign, RobotFacts, kind_or_none as kind_or_none
     from ..view.result_tables import add_iso_tables
     from .report import add_calibration_page
+    from .result_files import PAGE_KEYS, read_result, validate_result
 
     documents = [(str(args.measurements), payload)]
     files = [("ISO 9283 JSON", args.json)] if args.json not in (None, "-") else []
     if args.model:  # read and checked already (read_model); one of ours written before the report: shown
-        model = json.loads(Path(args.model).read_text(encoding="utf-8"))
-        if kind_or_none(model) == "diagnosis":
-            documents.insert(0, (str(args.model), model))
+        model = read_result(args.model, "diagnosis")[1]
+        if kind_or_none(model) == "diagnosis":  # on the page: with what the page reads
+            documents.insert(0, (str(args.model), validate_result(model, "diagnosis", args.model, PAGE_KEYS)))
         files.append(("diagnosis JSON (--model)", args.model))
     add_calibration_page(report, args, Campaign(RobotFacts.of_robot(robot, payload["robot_source"]), documents),
                          files)

@@ -43,16 +43,11 @@ def plan_inputs(args):
 
 
 def read_model(robot, path: str):
-    """The effects and parameter vectors of the ``diagnose --json`` result at ``path`` (``--model``)."""
-    import json
-    from pathlib import Path
-
-    from ..exceptions import InputError
-    from ..io.measurements import read_user_text
+    """The effects and parameter vectors of the ``diagnose --json`` result at ``path`` (``--model``),
+    validated on read (:mod:`tcr_accuracy.cli.result_files`) and held to each effect's physics."""
     from ..iso9283.evaluate import diagnosis_model
+    from .result_files import check_physics, read_result
 
-    try:
-        payload = json.loads(read_user_text(Path(path), "diagnosis JSON"))
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: not JSON (line {exc.lineno}: {exc.msg})") from None
+    payload = read_result(path, "diagnosis", hint="give the JSON that 'diagnose --json FILE' wrote")[1]
+    check_physics(payload, robot, path)
     return diagnosis_model(robot, payload, path)

@@ -16,7 +16,7 @@ from .common import EXIT_OK, check_csv_memory, emit_json, sample_bytes, status
 def run_path_plan(args) -> int:
     import numpy as np
 
-    from ..atomic import write_text_atomically
+    from .staging import write_text
     from ..iso9283.path_plan import PATH_CYCLES, plan_path_test
     from .iso9283_inputs import plan_inputs
 
@@ -32,7 +32,7 @@ def run_path_plan(args) -> int:
     from pathlib import Path
 
     text, rows = _path_csv(robot, plan, runs, cycles, rated)
-    write_text_atomically(Path(args.out), text)
+    write_text(Path(args.out), text)
     payload = {"robot": robot.name, "tool": robot.tool_frame, "cube_centre_mm": (plan.cube.centre * 1e3).tolist(),
                "cube_size_mm": plan.cube.size * 1e3, "orientation": plan.cube.orientation,
                "collision": plan.cube.collision, "workspace": plan.cube.workspace,

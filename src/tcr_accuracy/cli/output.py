@@ -8,18 +8,18 @@ its 3D view go, as asked, to ``--out DIR`` (an HTML report, ``DIR/index.html``, 
 
     out = RunOutput(args, "Monte Carlo accuracy")
     out.add_table("TCP error", columns, rows, units=[...])      # what the command prints
-    out.add_plots(lambda folder: write_plots(result, folder))   # PNGs: --plots and/or --out
+    out.add_plots(lambda folder: plots_of(result, folder))      # PlotFiles: --plots and/or --out
     if out.scene_wanted:                                        # --view, --serve or --out
         out.set_scene(build_scene(...), "TCP error cloud")
     return out.finish(payload, lambda: print_results(...))
 
 The output options are checked when the command line is read (their argparse types), so
 a path that cannot be written fails before any work. Every file of the run, plots
-included, is staged (:func:`tcr_accuracy.atomic.staged_outputs`, around every command)
+included, is staged (:func:`tcr_accuracy.cli.staging.staged_outputs`, around every command)
 and written only when the command ends without an error, each through a temporary file
-and a rename (plots asked for by ``--out`` alone are drawn in a temporary folder and kept
-in memory). The ``--out`` and ``--plots`` folders are written whole
-(:func:`tcr_accuracy.atomic.stage_folder`): new content beside the old, swapped in at once,
+and a rename (plots are drawn in memory, as PNG bytes, and written only where ``--plots``
+asks). The ``--out`` and ``--plots`` folders are written whole
+(:func:`tcr_accuracy.cli.staging.stage_folder`): new content beside the old, swapped in at once,
 other files of the old folder carried over. So a run that fails half-way leaves no report,
 no plots and no JSON, never half a file, and never a report folder mixing two runs. Status
 lines (which file was written) go to stderr and are silenced by ``--quiet``; results go to
@@ -116,14 +116,14 @@ class RunOutput:
         if self.report is not None:
             self.report.add_table(title, columns, rows, units, note=note, float_format=float_format)
 
-    def add_plots(self, write: Callable[[Path], list], captions: dict[str, str] | None = None) -> list[str]:
+    def add_plots(self, draw: Callable[[Path], list], captions: dict[str, str] | None = None) -> list[str]:
         """Draw the plots if ``--plots`` or ``--out`` asks for them.
 
         Parameters
         ----------
-        write : callable
-            ``write(folder) -> list of PNG paths``: the command's plot function. It gets
-            the ``--plots`` folder, or a temporary one when only ``--out`` wants the plots.
+        draw : callable
+            ``draw(folder) -> list of PlotFile``: the command's plot function, each plot meant
+            for a file in ``folder`` (the ``--plots`` folder, or a name only, without it).
         captions : dict, optional
             Report captions by file name (default: the file name).
 
@@ -135,28 +135,18 @@ class RunOutput:
         if not self.plots_wanted:
             return []
         folder = getattr(self.args, "plots", None)
-        if folder is not None:
-            from ..atomic import stage_folder
+        plots = draw(Path(folder if folder is not None else "plots"))
+        if self.report is not None:
+            for plot in plots:
+                name = plot.path.name
+                self.report.add_figure(plot.png, (captions or {}).get(name, name))
+        if folder is None:
+            return []
+        from .writers import write_plots
 
-            stage_folder(folder)  # its PNGs are swapped in together at the end of the run
-            files = [str(f) for f in write(Path(folder))]
-            self._add_figures(files, captions)
-            self.plot_files += files
-            return files
-        import tempfile
-
-        from ..atomic import unstaged
-
-        with tempfile.TemporaryDirectory(prefix="tcr-plots-") as tmp, unstaged():
-            self._add_figures([str(f) for f in write(Path(tmp))], captions)  # read into memory here
-        return []
-
-    def _add_figures(self, files: list[str], captions: dict[str, str] | None) -> None:
-        if self.report is None:
-            return
-        for f in files:
-            name = Path(f).name
-            self.report.add_figure(f, (captions or {}).get(name, name))
+        files = write_plots(plots, folder)  # its PNGs are swapped in together at the end of the run
+        self.plot_files += files
+        return files
 
     def set_scene(self, scene, caption: str = "3D view (meshcat)") -> None:
         """The run's :class:`~tcr_accuracy.view.viewer.Scene`, for ``--view``, ``--serve`` and the report."""
@@ -183,7 +173,9 @@ class RunOutput:
             emit_json(payload, target)
             status(args, f"JSON written to {target}")
         if self.report is not None:
-            index = self.report.write(args.out)
+            from .writers import write_report
+
+            index = write_report(self.report, args.out)
             status(args, f"report written to {index}")
             from .report import pdf_status
 

@@ -125,7 +125,7 @@ def _reachable_candidates(args, robot, read_measurements):
 def _run_plan_poses(args) -> int:
     import numpy as np
 
-    from ..atomic import write_text_atomically
+    from .staging import write_text
     from ..diagnosis.design import plan_discriminating_poses, plan_poses, separating_order
     from ..diagnosis.ambiguity import rival_models
     from ..diagnosis.diagnose import GapDiagnosis
@@ -174,7 +174,7 @@ def _run_plan_poses(args) -> int:
     # measured in this order, no joint follows time: a drift cannot pass for an error growing with a joint
     order, largest_r = separating_order(plan.q, np.random.default_rng([args.seed, 3]))
     plan_q = plan.q[order]
-    write_text_atomically(Path(args.out), _plan_csv(robot, plan_q, args, plan.effects, pose_filter.checks))
+    write_text(Path(args.out), _plan_csv(robot, plan_q, args, plan.effects, pose_filter.checks))
     summary = {"measurements": str(args.measurements), "n_measured": len(measured), "k": k,
                "candidates": {"source": source, "tried": screened.tried, "kept": len(screened.q),
                               "rejected": {reason.replace(" ", "_").replace("-", "_"): n

@@ -103,10 +103,10 @@ def read_joint_csv(path: str, robot, *, need_positions: bool, rows: bool = False
     return (*out, mset.rows) if rows else out
 
 
-def _write_csv_atomically(args, what: str, header: list[str], rows) -> None:
+def _write_csv(args, what: str, header: list[str], rows) -> None:
     import io
 
-    from ..atomic import write_text_atomically
+    from .staging import write_text
 
     if args.csv is None:
         return
@@ -114,7 +114,7 @@ def _write_csv_atomically(args, what: str, header: list[str], rows) -> None:
     buf.write(",".join(header) + "\n")
     for row in rows:
         buf.write(",".join(f"{v:.9g}" for v in row) + "\n")
-    write_text_atomically(Path(args.csv), buf.getvalue())
+    write_text(Path(args.csv), buf.getvalue())
     status(args, f"{what} written to {args.csv}")
 
 
@@ -386,7 +386,7 @@ def _run_predict(args) -> int:
     if measured is not None:
         header += ["measured_ex_mm", "measured_ey_mm", "measured_ez_mm", "heldout_miss_mm"]
         blocks += [measured_error * 1e3, np.linalg.norm(residual, axis=1)[:, None] * 1e3]
-    _write_csv_atomically(args, "predictions", header, np.hstack(blocks))
+    _write_csv(args, "predictions", header, np.hstack(blocks))
     lines = [_frame_line(model, args),
              (f"predicted |error| at {q.shape[0]} query poses: mean {robot_norm.mean() * 1e3:.4f} mm, "
               f"max {robot_norm.max() * 1e3:.4f} mm (beyond the nominal robot with the fitted TCP offset, "
@@ -567,13 +567,13 @@ def _run_compensate(args) -> int:
         out.set_scene(*_compensate_scene(robot, q, q_comp, target, before_tcp, after_tcp, before, args, model,
                                          measured, lines[solved]))
     header = _joint_columns(robot) + _joint_columns(robot, "d") + ["predicted_miss_mm", "target_row"]
-    _write_csv_atomically(args, "compensated joint values", header,
+    _write_csv(args, "compensated joint values", header,
                           np.hstack([q_comp * scale, dq, after[:, None] * 1e3, lines[solved][:, None]]))
     if unsolved:
         counts_by = {r: sum(u["reason"] == r for u in unsolved) for r in dict.fromkeys(u["reason"] for u in unsolved)}
         import sys
 
-        from ..atomic import hold_message
+        from .staging import hold_message
 
         # a warning of a run that succeeds: shown once its files are written, not at all if they are not
         hold_message(sys.stderr, f"tcr-accuracy: warning: {len(unsolved)} of {len(q_all)} targets not solved (rows "

@@ -108,28 +108,36 @@ def _run_report(args) -> int:
 
     facts = read_campaign_arguments(args)
     files = list(args.results)
-    if len(set(files)) < len(files):
-        raise InputError(f"RESULT.json: {next(f for f in files if files.count(f) > 1)} is given twice")
-    documents = [(path, _read_result(path)) for path in files]
-    for path, doc in documents:
-        kind_of(doc, path)
-    robots = {doc["robot"] for _, doc in documents if isinstance(doc.get("robot"), str)}
-    if len(robots) > 1:
-        named = ", ".join(f"{path} ({doc.get('robot')})" for path, doc in documents)
-        raise InputError(f"RESULT.json: results of different robots ({named}): one report is of one robot")
-    robot = _robot_facts(RobotFacts.from_documents(documents))
+    seen: dict = {}
+    for path in files:  # one file through two paths (a link, ./x) is still one result
+        key = _identity(path)
+        if key in seen:
+            also = "" if seen[key] == path else f" (as {seen[key]})"
+            raise InputError(f"RESULT.json: {path} is given twice{also}")
+        seen[key] = path
+    documents = [(path, _read_result(path)) for path in files]  # each validated (cli.result_files)
+    for key, what in (("robot", "robots"), ("tool_frame", "TCP frames")):
+        given = {doc[key] for _, doc in documents if key in doc}
+        if len(given) > 1:
+            named = ", ".join(f"{path} ({doc.get(key, 'not recorded')})" for path, doc in documents)
+            raise InputError(f"RESULT.json: results of different {what} ({named}): one report is of one robot and TCP")
+    robot = _robot_facts(RobotFacts.from_documents(documents), documents)
     title = facts.title or f"Calibration report: {robot.name}"
     report = Report(title, command=getattr(args, "argv", None))
     links = [(f"{kind_of(doc, path)} JSON", path) for path, doc in documents]
     for path, doc in documents:
-        for key, label in (("as_built_urdf", "calibration URDF"), ("as_built_effects", "the whole model")):
-            if isinstance(doc.get(key), str) and _find(doc[key], path) is not None:
-                links.append((label, str(_find(doc[key], path))))
+        for key, label, suffix in (("as_built_urdf", "calibration URDF", ".urdf"),
+                                   ("as_built_effects", "the whole model", ".effects.yaml")):
+            found = _find(doc[key], path, suffix) if isinstance(doc.get(key), str) else None
+            if found is not None:
+                links.append((label, str(found)))
     campaign = Campaign(robot, documents)
     add_calibration_page(report, args, campaign, links)
     add_technical_tables(report, campaign)
     _add_result_plots(report, campaign)
-    index = report.write(args.out)
+    from .writers import write_report
+
+    index = write_report(report, args.out)
     status(args, f"report written to {index}")
     pdf_status(args, report)
     print(f"Result: {' '.join(verdict_line(campaign))}")
@@ -145,53 +153,68 @@ def verdict_line(campaign) -> tuple[str, str]:
     return f"{status_}:", why
 
 
-def _read_result(path: str):
-    import json
-
-    from ..exceptions import InputError
-    from ..io.measurements import read_user_text
-
-    text = read_user_text(Path(path), "JSON result")
+def _identity(path: str):
+    """(device, inode) of an existing file, else its real path: one key per file however spelt."""
     try:
-        return json.loads(text)
-    except ValueError as exc:
-        raise InputError(f"{path}: not JSON ({exc}); give the --json result of diagnose, iso9283 evaluate or "
-                         "compare") from None
+        st = os.stat(path)
+    except OSError:
+        return os.path.realpath(path)
+    return st.st_dev, st.st_ino
 
 
-def _robot_facts(facts):
-    """The robot's joints from the robot itself when the results do not record them and it loads."""
-    if facts.joints or facts.source in ("", "not recorded"):
+def _read_result(path: str):
+    from .result_files import read_result
+
+    return read_result(path, hint="give the --json result of diagnose, iso9283 evaluate or compare")[1]
+
+
+def _robot_facts(facts, documents):
+    """The robot's joints from the robot itself when the results do not record them and it loads;
+    where it loads, each diagnosis' parameters are held to their effects' physical ranges
+    (:func:`tcr_accuracy.cli.result_files.check_physics`): a forged value never reaches the page."""
+    if facts.source in ("", "not recorded"):
         return facts
     from ..exceptions import InputError
     from ..model.robot import load_robot
-    from ..view.calibration_report import RobotFacts
+    from ..view.calibration_report import RobotFacts, kind_of
+    from .result_files import check_physics
 
     try:
         tool = None if facts.tool_frame == "not recorded" else facts.tool_frame
-        return RobotFacts.of_robot(load_robot(facts.source, tool), facts.source)
-    except InputError:
+        robot = load_robot(facts.source, tool)
+    except InputError:  # a URDF that is not here: the results' own facts
         return facts
+    for path, doc in documents:
+        if kind_of(doc, path) == "diagnosis":
+            check_physics(doc, robot, path)
+    return facts if facts.joints else RobotFacts.of_robot(robot, facts.source)
 
 
-def _find(path: str, result: str) -> Path | None:
-    """A file a result names: as given (from where the command ran), else beside the result."""
+def _find(path: str, result: str, suffix: str) -> Path | None:
+    """A file a result names, if it is what the key says (a regular file whose name ends in
+    ``suffix``) and lies in the result's folder or the current one: as given (from where the
+    command ran), else beside the result. Anything else (``/proc/<pid>/environ``) is not linked."""
+    import os
+    import stat
+
+    roots = {Path(os.path.realpath(Path(result).parent)), Path(os.getcwd()).resolve()}
     for candidate in (Path(path), Path(result).parent / Path(path).name):
-        if candidate.is_file():
+        real = Path(os.path.realpath(candidate))
+        try:
+            regular = stat.S_ISREG(os.stat(real).st_mode)
+        except OSError:
+            continue
+        if regular and real.name.endswith(suffix) and real.parent in roots:
             return candidate
     return None
 
 
 def _add_result_plots(report, campaign) -> None:
     """The plots of the results, drawn from their JSON (after the tables)."""
-    import tempfile
-
-    from ..atomic import unstaged
     from ..view.plots_results import write_result_plots
 
-    with tempfile.TemporaryDirectory(prefix="tcr-plots-") as tmp, unstaged():
-        for path, caption in write_result_plots(campaign.documents, Path(tmp), campaign.facts.limits_mm):
-            report.add_figure(path, caption)  # read into memory here
+    for plot, caption in write_result_plots(campaign.documents, Path("plots"), campaign.facts.limits_mm):
+        report.add_figure(plot.png, caption)
 
 
 def add_calibration_page(report, args, campaign, files) -> None:

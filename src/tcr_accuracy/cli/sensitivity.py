@@ -169,7 +169,7 @@ def _index_entry(indices, k: int, i: int) -> dict:
     return entry
 
 
-def _sensitivity_plots(folder, sweeps, clearance, indices) -> list[str]:
+def _sensitivity_plots(folder, sweeps, clearance, indices) -> list:
     from pathlib import Path
 
     from ..view.plots_sensitivity import ATTITUDE_OUTPUTS, POSITION_OUTPUTS, plot_sobol, plot_sweep
@@ -197,4 +197,4 @@ def _sensitivity_plots(folder, sweeps, clearance, indices) -> list[str]:
                                         "(seed Fig. 15-16)", f"{titles[key]} [deg]",
                                         d / f"sweep_clearance_{key}_attitude.png"))
     files.append(plot_sobol(indices, d / "sobol_indices.png"))
-    return [str(f) for f in files]
+    return files

@@ -46,12 +46,13 @@ def _run_simulate(args) -> int:
     import numpy as np
 
     from ..exceptions import InputError
-    from ..io.measurements import read_measurements, write_measurements
+    from ..io.measurements import read_measurements
     from ..model.robot import load_robot
     from ..analysis.scenario import load_scenario, scenario_from_dict
     from ..analysis.reachable import PoseFilter
-    from ..analysis.simulate import (random_scenario, screened_poses, simulate_measurements,
-                                     write_truth)
+    from ..analysis.simulate import random_scenario, screened_poses, simulate_measurements, truth_text
+    from .staging import write_text
+    from .writers import write_measurements
 
     # --poses fixes the poses: these would be ignored
     for given, option in ((args.n, "--n"), (args.box, "--box"), (args.tracker_mm, "--tracker-mm")):
@@ -93,7 +94,7 @@ def _run_simulate(args) -> int:
     truth["seed"] = args.seed
     write_measurements(args.out, robot, mset, unit=args.unit)
     if args.truth:
-        write_truth(args.truth, truth)
+        write_text(args.truth, truth_text(truth, args.truth))
     names = ", ".join(truth["effects"]) or "none"
     print(f"{robot.name}: {len(mset)} simulated measurements -> {args.out} "
           f"(hidden effects: {names}; noise {truth['noise_m'] * 1e3:.4g} mm)")

@@ -43,7 +43,7 @@ IMPORT_ROW_BYTES = 2_000
 def _run_import(args) -> int:
     from pathlib import Path
 
-    from ..atomic import write_text_atomically
+    from .staging import write_text
     from ..exceptions import InputError
     from ..io.measurements import parse_measurements
     from ..io.tracker_import import import_tracker, parse_map
@@ -68,7 +68,7 @@ def _run_import(args) -> int:
         parse_measurements(text, robot, source=str(out), min_rows=1)
     except InputError as exc:
         raise InputError(f"{exc} (in the imported rows)") from None
-    write_text_atomically(out, text)
+    write_text(out, text)
     print(f"{len(result.rows)} of {result.n_tracker_rows} tracker points from {args.tracker}{joined} "
           f"-> {out} ({robot.name}: {', '.join(result.columns)})")
     if result.unjoined:

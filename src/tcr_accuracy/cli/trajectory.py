@@ -132,7 +132,7 @@ def _print_trajectory(head: str, bands) -> None:
             print(f"    t = {rows[k][0]:g} s  " + " | ".join(f"{axis}: {text}" for _, axis, text in rows[k:k + 3]))
 
 
-def _trajectory_plots(folder, bands, label: str, n_samples: int) -> list[str]:
+def _trajectory_plots(folder, bands, label: str, n_samples: int) -> list:
     from pathlib import Path
 
     from ..view.plots_sensitivity import plot_trajectory_bands, plot_trajectory_contributions
@@ -144,7 +144,7 @@ def _trajectory_plots(folder, bands, label: str, n_samples: int) -> list[str]:
         files.append(plot_trajectory_contributions(
             bands, folder / "trajectory_contributions.png",
             f"First-order std of each error source along {source}, preset {label}"))
-    return [str(f) for f in files]
+    return files
 
 
 def _trajectory_scene(robot, bands, label: str):

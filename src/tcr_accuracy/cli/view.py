@@ -51,14 +51,23 @@ def emit_view(scene, args) -> None:
     serve_view(scene, args)
 
 
-def write_view(scene, args):
-    """The static page of ``--view [HTML]`` (``--html`` for ``view``), if asked; returns its path or None."""
+def view_file(args) -> str | None:
+    """The file of ``--view [HTML]`` (``--html`` for ``view``, whose default is
+    :data:`DEFAULT_VIEW_FILE` unless only ``--serve`` is asked for), or None."""
     html_file = getattr(args, "html", None) or getattr(args, "view", None)
     if html_file is None and not args.serve and hasattr(args, "html"):
         html_file = DEFAULT_VIEW_FILE
+    return html_file
+
+
+def write_view(scene, args):
+    """The static page of ``--view [HTML]`` (``--html`` for ``view``), if asked; returns its path or None."""
+    from .staging import write_text
+
+    html_file = view_file(args)
     if html_file is None:
         return None
-    path = scene.write_static_html(html_file)
+    path = write_text(html_file, scene.static_html())
     status(args, f"3D view written to {path} (open it in a browser; no server needed)")
     return path
 
@@ -69,7 +78,7 @@ def serve_view(scene, args) -> None:
         return
     import time
 
-    from ..atomic import commit_staged
+    from .staging import commit_staged
 
     commit_staged()  # the run's files are done: write them before serving until Ctrl-C
 
@@ -108,7 +117,8 @@ def add_parsers(sub) -> None:
                         "the largest error about 0.8 m long)")
     add_view_arguments(p, always=True)
     add_quiet_argument(p)
-    p.set_defaults(run=_run_view)
+    # the file written when no --view is given: an output too (cli.output_paths)
+    p.set_defaults(run=_run_view, implied_outputs=lambda args: [view_file(args)] if args.html is None else [])
 
 
 def _run_view(args) -> int:

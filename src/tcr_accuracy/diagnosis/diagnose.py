@@ -48,12 +48,15 @@ suffixed keys. Nothing here prints or plots.
 from __future__ import annotations
 
 import warnings
+from numbers import Integral, Real
 
 import numpy as np
 from sklearn.base import BaseEstimator
+from sklearn.utils._param_validation import Interval
 
 from ..effects import vocabulary
 from ..exceptions import AnalysisError, InputError
+from ..hyperparameters import validate_hyperparameters
 from ..io.measurements import MeasurementSet
 from ..model.context import MeasurementContext
 from ..model.robot import RobotModel
@@ -222,6 +225,18 @@ class GapDiagnosis(BaseEstimator):
     ['frames', 'compliance', 'geometry', 'joint_offsets']
     """
 
+    #: checked when fit starts (:func:`tcr_accuracy.hyperparameters.validate_hyperparameters`)
+    _parameter_constraints = {
+        "folds": [Interval(Integral, 2, None, closed="left")],
+        "tracker_noise": [None, Interval(Real, 0, 1, closed="right")],
+        "selection_z": [Interval(Real, 0, 100, closed="neither")],
+        "min_relative_gain": [Interval(Real, 0, 1, closed="left")],
+        "rank_tol": [Interval(Real, 0, 1, closed="neither")],
+        "orientation_weight": [None, Interval(Real, 0, 1e3, closed="neither")],
+        "stability_replays": [Interval(Integral, 0, 100_000, closed="both")],
+        "fold_repeats": [None, Interval(Integral, 1, 1000, closed="both")],
+    }
+
     @renamed_keyword("seed", "random_state")
     def __init__(self, *, robot=None, effects=None, folds: int = 5, random_state=0,
                  tracker_noise: float | None = None, selection_z: float = 3.0, min_relative_gain: float = 0.002,
@@ -302,6 +317,7 @@ class GapDiagnosis(BaseEstimator):
         GapDiagnosis
             self, fitted.
         """
+        validate_hyperparameters(self)
         if isinstance(measurements, RobotModel):  # the 0.1 form fit(robot, measurements)
             warnings.warn("GapDiagnosis.fit(robot, measurements) is deprecated and will be removed in 0.2; "
                           "use GapDiagnosis(robot=robot, ...).fit(measurements)", DeprecationWarning, stacklevel=2)

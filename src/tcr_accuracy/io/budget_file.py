@@ -41,7 +41,6 @@ reported as one line naming the file and the key.
 from __future__ import annotations
 
 import math
-import re
 from pathlib import Path
 
 import numpy as np
@@ -55,6 +54,7 @@ from ..model.errors import (
     link_length_direction,
 )
 from ..exceptions import InputError
+from ..input_files import MAX_NESTING, SIZE_LIMITS, parse_settings, read_input_text
 from ..model.robot import REVOLUTE, RobotModel
 from ..units import suffixes_of
 
@@ -65,8 +65,6 @@ SOURCE_GROUPS = ("link_length", "drive", "axis_deflection", "placement", "base",
 CLEARANCE_KEYS = {"axial_std": LENGTH_UNITS, "radial_std": LENGTH_UNITS, "deflection_std": ANGLE_UNITS}
 
 
-#: The deepest nesting of tables and lists a settings file may have (real files use 3 or 4).
-MAX_NESTING = 20
 #: The largest magnitude a number of a settings file may have, in the unit its key names.
 MAX_SETTING = 1e6
 
@@ -77,90 +75,21 @@ def read_table(path: Path) -> dict:
     suffix = path.suffix.lower()
     if suffix not in (".toml", ".yaml", ".yml"):
         raise InputError(f"{path}: unknown file type {suffix!r} (use .toml, .yaml or .yml)")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
+    text = read_input_text(path, "settings file", limit=SIZE_LIMITS["settings"])
     return parse_table(text, str(path), "toml" if suffix == ".toml" else "yaml")
 
 
 def parse_table(text: str, source: str, kind: str = "yaml") -> dict:
     """TOML or YAML settings text to a dict whose keys are all strings, nested at most
-    :data:`MAX_NESTING` deep; anything else is one InputError line naming ``source``."""
-    if _bracket_depth(text) > MAX_NESTING:  # before the parser recurses into it
-        raise InputError(f"{source}: tables or lists nested too deeply (at most {MAX_NESTING} levels)")
-    try:
-        if kind == "toml":
-            try:
-                import tomllib
-            except ModuleNotFoundError:  # Python 3.10: the same parser as the tomli package
-                import tomli as tomllib
-
-            try:
-                data = tomllib.loads(text)
-            except tomllib.TOMLDecodeError as exc:
-                raise InputError(f"{source}: not valid TOML: {_one_line(exc)}") from None
-        else:
-            import yaml
-
-            try:
-                data = yaml.load(text, Loader=_strict_yaml_loader(source))  # noqa: S506 - a SafeLoader
-            except yaml.YAMLError as exc:
-                raise InputError(f"{source}: not valid YAML: {_one_line(exc)}") from None
-    except RecursionError:
-        raise InputError(f"{source}: tables or lists nested too deeply (at most {MAX_NESTING} levels)") from None
+    :data:`MAX_NESTING` deep (:func:`tcr_accuracy.input_files.parse_settings`); anything else is
+    one InputError line naming ``source``."""
+    data = parse_settings(text, source, kind)
     if data is None:
         data = {}
     if not isinstance(data, dict):
         raise InputError(f"{source}: expected a table of settings at the top level")
     _check_structure(data, source)
     return data
-
-
-def _strict_yaml_loader(source: str):
-    """PyYAML's SafeLoader refusing aliases and repeated keys, in one line naming the line.
-
-    An alias (``*name``) lets a 500-byte file stand for 10^9 nodes (nine levels of ten
-    copies each): no walk over the result could end. A key given twice in one mapping would
-    silently keep the last value.
-    """
-    import yaml
-
-    class StrictLoader(yaml.SafeLoader):
-        def compose_node(self, parent, index):
-            if self.check_event(yaml.AliasEvent):
-                event = self.peek_event()
-                raise InputError(f"{source}: line {event.start_mark.line + 1}: YAML aliases "
-                                 f"(*{_one_line(event.anchor, 40)}) are refused; write the values out")
-            return super().compose_node(parent, index)
-
-        def construct_mapping(self, node, deep=False):
-            if isinstance(node, yaml.MappingNode):
-                self.flatten_mapping(node)
-                seen = set()
-                for key_node, _ in node.value:
-                    key = self.construct_object(key_node, deep=True)
-                    try:
-                        repeated = key in seen
-                    except TypeError:  # an unhashable key: SafeLoader names it
-                        break
-                    if repeated:
-                        raise InputError(f"{source}: line {key_node.start_mark.line + 1}: key "
-                                         f"{_one_line(key, 60)!r} is given twice in one table")
-                    seen.add(key)
-            return super().construct_mapping(node, deep)
-
-    return StrictLoader
-
-
-def _bracket_depth(text: str) -> int:
-    """The deepest nesting of [ ] and { } in text (brackets inside quoted strings count too:
-    a settings file has no reason for twenty of them)."""
-    depth = deepest = 0
-    for ch in re.sub(r"[^\[\]{}]", "", text):
-        depth = depth + 1 if ch in "[{" else max(depth - 1, 0)
-        deepest = max(deepest, depth)
-    return deepest
 
 
 def _one_line(exc, limit: int = 300) -> str:

@@ -67,28 +67,38 @@ def check_duplicates(mset, values, header, source, context_columns):
 MIN_UNIT_SPREAD = 1e-3
 
 
-def rms_spread(points) -> float:
-    """RMS distance [m] of points (N, 3) [m] from their centre."""
+def rms_spread(points, groups=None) -> float:
+    """RMS distance [m] of points (N, 3) [m] from their centre, or from the centre of their own
+    group where ``groups`` (N,) int is given (each session its own tracker frame)."""
     points = np.asarray(points, dtype=float)
-    return float(np.sqrt(np.mean(np.sum((points - points.mean(axis=0)) ** 2, axis=1))))
+    if groups is None:
+        return float(np.sqrt(np.mean(np.sum((points - points.mean(axis=0)) ** 2, axis=1))))
+    groups = np.asarray(groups, dtype=int)
+    centres = np.zeros((groups.max() + 1, 3))
+    np.add.at(centres, groups, points)
+    centres /= np.maximum(np.bincount(groups, minlength=len(centres)), 1)[:, None]
+    return float(np.sqrt(np.mean(np.sum((points - centres[groups]) ** 2, axis=1))))
 
 
 def check_position_units(mset, robot, columns, source):
     """Compare the spread of the measured TCP with the nominal model's spread.
 
     The tracker frame is unknown, so absolute values say nothing; distances between
-    measured points do, and a rigid frame change keeps them.
+    measured points do, and a rigid frame change keeps them. Each session (``session``
+    column) has its own tracker frame: the spreads are taken about each session's own centre,
+    so that sessions set up metres apart are not read as a unit error.
     """
     from ..model.kinematics import tcp_poses
 
     if len(mset) < 3:
         return
     joint_units = ", ".join(col or f"{name} (its <mimic> rule)" for name, col, _ in columns["joints"])
+    sessions = mset.session_index()  # None: one session
     check_spread_units(mset.position, tcp_poses(robot, mset.q).position, columns["position"], source,
-                       f"check the position units and the joint columns' units ({joint_units})")
+                       f"check the position units and the joint columns' units ({joint_units})", groups=sessions)
 
 
-def check_spread_units(measured, nominal, position_columns, source, other_hint):
+def check_spread_units(measured, nominal, position_columns, source, other_hint, groups=None):
     """InputError when measured points (N, 3) [m, as read] spread over more than twice or less than
     half what the nominal points (M, 3) [m] they stand for spread (RMS about their centre): a file in
     metres labelled mm or the reverse (the hint names the other unit), else ``other_hint``.
@@ -102,8 +112,11 @@ def check_spread_units(measured, nominal, position_columns, source, other_hint):
     source : str
     other_hint : str
         What to check when the ratio is not a unit's factor.
+    groups : array-like of shape (N,), optional
+        The session of each point (measured and nominal then row for row): spreads about each
+        session's own centre, so sessions set up metres apart are not read as a unit error.
     """
-    model_spread, measured_spread = rms_spread(nominal), rms_spread(measured)
+    model_spread, measured_spread = rms_spread(nominal, groups), rms_spread(measured, groups)
     if model_spread < MIN_UNIT_SPREAD:  # all poses (nearly) the same: nothing to compare
         return
     ratio = measured_spread / model_spread

@@ -44,6 +44,7 @@ import numpy as np
 
 from ..model.context import REFERENCE_TEMPERATURE_C, MeasurementContext
 from ..exceptions import InputError
+from ..input_files import SIZE_LIMITS, read_input_text
 from .measurement_checks import MeasurementWarning, check_duplicates, check_position_units, warn_outside_limits
 from ..model.robot import RobotModel
 from ..units import JOINT_COLUMN_UNITS as _JOINT_UNITS
@@ -324,13 +325,10 @@ def read_measurements(path: str | Path, robot: RobotModel, *, min_rows: int = 1,
 
 
 def read_user_text(path: Path, what: str) -> str:
-    """A user's UTF-8 text file (a byte-order mark is dropped), or one InputError line."""
-    try:
-        return Path(path).read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such {what}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read {what} as UTF-8 text ({exc})") from None
+    """A user's UTF-8 table (a byte-order mark is dropped), or one InputError line: through the
+    package's one opener (:func:`tcr_accuracy.input_files.read_input_text`: a regular file of at
+    most the size bound of a table)."""
+    return read_input_text(path, what, limit=SIZE_LIMITS["table"])
 
 
 #: Column suffixes a measured frame's columns carry after ``<frame>.``
@@ -577,7 +575,7 @@ def _resolve_columns(header, robot, source, line_no, require_position, logical):
 # Writing
 # ---------------------------------------------------------------------------------------
 def measurement_columns(robot: RobotModel, mset: MeasurementSet, unit: str = "mm") -> list[str]:
-    """Header of the CSV :func:`write_measurements` writes."""
+    """Header of the CSV :func:`format_measurements` writes."""
     if unit not in ("mm", "m"):
         raise InputError(f"unit {unit!r}: use 'mm' (deg, mm columns) or 'm' (rad, m columns)")
     joint_unit = {REVOLUTE: "deg" if unit == "mm" else "rad", "prismatic": unit}
@@ -653,46 +651,12 @@ def _label_cell(value) -> str:
     return f'"{text.replace(chr(34), chr(34) * 2)}"' if ("," in text or '"' in text) else text
 
 
-def write_measurements(path: str | Path, robot: RobotModel, mset: MeasurementSet, unit: str = "mm",
-                       comment: str | None = None) -> None:
-    """Write a measurement CSV atomically (temporary file + rename).
-
-    Parameters
-    ----------
-    path : str or Path
-        The CSV file to write.
-    robot : RobotModel
-        Names the joint columns and their units.
-    mset : MeasurementSet
-        The rows to write [SI].
-    unit : str, default="mm"
-        ``mm``: positions in mm and joints in deg (mm for prismatic joints); ``m``: SI.
-    comment : str, optional
-        Written as ``#`` lines above the header.
-
-    Returns
-    -------
-    None
-    """
-    from ..atomic import write_text_atomically
-
-    write_text_atomically(Path(path), format_measurements(robot, mset, unit, comment))
-
-
-__all__ = [
-    "ANNOTATION_COLUMNS", "MeasurementContext", "MeasurementSet", "MeasurementWarning", "REFERENCE_TEMPERATURE_C",
-    "allowed_columns", "format_measurements", "measured_frames", "measurement_columns", "parse_measurements",
-    "read_measurements", "read_user_text", "write_measurements",
-]
-
-
 def join_sessions(sets: list[MeasurementSet], labels: list[str]) -> MeasurementSet:
     """Several measurement sets of one robot as one, each its own session (its label, or
     ``<label>:<session>`` where a set has a session column already); columns one set has and
     another lacks take their defaults (no payload, the reference temperature, no direction)."""
     if len(sets) == 1:
         return sets[0]
-    n = [len(s) for s in sets]
     session = np.concatenate([np.array([f"{label}:{v}" for v in s.session], dtype=object) if s.session is not None
                               else np.full(len(s), label, dtype=object) for s, label in zip(sets, labels)])
 
@@ -715,3 +679,10 @@ def join_sessions(sets: list[MeasurementSet], labels: list[str]) -> MeasurementS
             o.outside_q.shape[1] for o in sets if o.outside_q is not None)))),
         session=session, time_s=joined("time_s", lambda s: np.full(len(s), np.nan)),
     )
+
+
+__all__ = [
+    "ANNOTATION_COLUMNS", "MeasurementContext", "MeasurementSet", "MeasurementWarning", "REFERENCE_TEMPERATURE_C",
+    "allowed_columns", "format_measurements", "join_sessions", "measured_frames", "measurement_columns",
+    "parse_measurements", "read_measurements", "read_user_text",
+]

@@ -145,10 +145,9 @@ def read_table(path, wanted: list[str] | None = None, *, header_test=None) -> Ta
     commas are recognised when the delimiter is not a comma.
     """
     path = Path(path)
-    try:
-        text = _decode(path.read_bytes())
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    from ..input_files import SIZE_LIMITS, read_input_bytes
+
+    text = _decode(read_input_bytes(path, "tracker or joint log file", limit=SIZE_LIMITS["table"]))
     # lines end at a newline only: str.splitlines() would also end one at U+2028, U+0085 (a
     # latin-1 byte 0x85) or a form feed inside a cell, and every row number after it would be off
     lines = [line.removesuffix("\r") for line in text.split("\n")]

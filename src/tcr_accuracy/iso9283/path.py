@@ -169,12 +169,26 @@ def plane_crossings(positions, times, centres, tangents, limit: float) -> tuple[
         The crossing times [s], NaN where none.
     """
     x, t = np.asarray(positions, dtype=float), np.asarray(times, dtype=float)
-    d = tangents @ x.T - np.sum(centres * tangents, axis=1)[:, None]  # (k, K) signed distances to the planes
+    centres, tangents = np.asarray(centres, dtype=float), np.asarray(tangents, dtype=float)
     points = np.full((len(centres), 3), np.nan)
     when = np.full(len(centres), np.nan)
+    block = max(1, PLANE_BLOCK // max(len(x), 1))  # planes per block: memory bounded whatever --planes is
+    for start in range(0, len(centres), block):
+        rows = slice(start, start + block)
+        _crossings_into(x, t, centres[rows], tangents[rows], limit, points[rows], when[rows])
+    return points, when
+
+
+#: Plane-to-reading distances held at once by :func:`plane_crossings` (32 MB of float64).
+PLANE_BLOCK = 4_000_000
+
+
+def _crossings_into(x, t, centres, tangents, limit, points, when) -> None:
+    """:func:`plane_crossings` for one block of planes, written into ``points`` and ``when``."""
+    d = tangents @ x.T - np.sum(centres * tangents, axis=1)[:, None]  # (k, K) signed distances to the planes
     plane, k = np.nonzero((d[:, :-1] < 0) & (d[:, 1:] >= 0))
     if not len(plane):
-        return points, when
+        return
     w = -d[plane, k] / (d[plane, k + 1] - d[plane, k])
     y = x[k] + w[:, None] * (x[k + 1] - x[k])
     ty = t[k] + w * (t[k + 1] - t[k])
@@ -183,7 +197,6 @@ def plane_crossings(positions, times, centres, tangents, limit: float) -> tuple[
     first = order[np.r_[True, plane[order][1:] != plane[order][:-1]]]
     keep = first[gap[first] <= limit]
     points[plane[keep]], when[plane[keep]] = y[keep], ty[keep]
-    return points, when
 
 
 def corner_deviations(points, corners, cycles) -> list:

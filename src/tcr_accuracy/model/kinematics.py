@@ -97,15 +97,26 @@ def exp6_batch(twist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return rot, p
 
 
+def _check_finite(values: np.ndarray, what: str) -> None:
+    """InputError naming the first row and column of ``values`` (N, k) that is NaN or infinite
+    (a pose of NaN joints has no TCP: it would come back as NaN, unsaid)."""
+    bad = ~np.isfinite(values)
+    if bad.any():
+        row, column = np.argwhere(bad)[0]
+        raise InputError(f"{what}: row {row}, column {column} is {values[row, column]}, not a finite number")
+
+
 def _broadcast(q: np.ndarray, x: np.ndarray | None, n_joints: int, n_params: int | None):
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if q.shape[1] != n_joints:
         raise InputError(f"joint values have {q.shape[1]} columns, the robot has {n_joints} joints")
+    _check_finite(q, "joint values")
     if x is None:
         return q, None, q.shape[0]
     x = np.atleast_2d(np.asarray(x, dtype=float))
     if x.shape[1] != n_params:
         raise InputError(f"error vectors have {x.shape[1]} columns, the error model has {n_params}")
+    _check_finite(x, "error vectors")
     n = max(q.shape[0], x.shape[0])
     for name, arr in (("joint values", q), ("error vectors", x)):
         if arr.shape[0] not in (1, n):

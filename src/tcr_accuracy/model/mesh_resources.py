@@ -17,6 +17,7 @@ from urllib.parse import unquote
 from xml.etree import ElementTree
 
 from ..exceptions import InputError
+from ..input_files import SIZE_LIMITS, read_input_bytes
 from .urdf import one_line
 
 #: Mesh formats a view draws, each with the references it can make (read by ``mesh_references``).
@@ -102,9 +103,9 @@ def _resolve(name: str, folder: Path) -> Path:
 def _dae_image_names(mesh: Path, source: str) -> list[str]:
     """The text of every ``<init_from>`` (COLLADA 1.4) and ``<init_from><ref>`` (1.5) in the file."""
     try:
-        data = mesh.read_bytes()
-    except OSError as exc:
-        raise InputError(f"{source}: mesh {mesh}: cannot read ({exc.strerror})") from None
+        data = read_input_bytes(mesh, "mesh", limit=SIZE_LIMITS["mesh"])
+    except InputError as exc:
+        raise InputError(f"{source}: mesh {exc}") from None
     if _DTD.search(data):
         raise InputError(f"{source}: mesh {mesh} declares a DTD or entity; entity expansion is refused")
     try:
@@ -124,16 +125,16 @@ def _statements(path: Path, keys: tuple[str, ...], source: str, maps: bool = Fal
     is not a map option or a number, so that no name slips through however it is written."""
     names = []
     try:
-        with path.open("rb") as lines:
-            for raw in lines:
-                key, *rest = raw.decode("latin-1").strip().split(None, 1) or [""]
-                key, rest = key.lower(), " ".join(rest)
-                if not rest.strip() or not (key in keys or (maps and key.startswith("map_"))):
-                    continue
-                names.append(rest.strip())
-                names += [w for w in rest.split() if w.lower() not in _MAP_OPTIONS and not _is_number(w)]
-    except OSError as exc:
-        raise InputError(f"{source}: mesh file {path}: cannot read ({exc.strerror})") from None
+        lines = read_input_bytes(path, "mesh file", limit=SIZE_LIMITS["mesh"]).splitlines()
+    except InputError as exc:
+        raise InputError(f"{source}: mesh file {exc}") from None
+    for raw in lines:
+        key, *rest = raw.decode("latin-1").strip().split(None, 1) or [""]
+        key, rest = key.lower(), " ".join(rest)
+        if not rest.strip() or not (key in keys or (maps and key.startswith("map_"))):
+            continue
+        names.append(rest.strip())
+        names += [w for w in rest.split() if w.lower() not in _MAP_OPTIONS and not _is_number(w)]
     return names
 
 

@@ -197,7 +197,8 @@ class RobotModel:
         pin.computeJointJacobians(self.model, data, q0)
         axes = np.empty((self.n_joints, 6))
         for j in range(1, self.model.njoints):
-            jac = pin.getJointJacobian(self.model, data, j, pin.LOCAL)
+            # (6, nv); eigenpy hands a one-joint model's (6, 1) back as a vector: shaped again
+            jac = np.asarray(pin.getJointJacobian(self.model, data, j, pin.LOCAL)).reshape(6, -1)
             axes[j - 1] = jac[:, self.model.joints[j].idx_v]
         axes.setflags(write=False)
         return axes

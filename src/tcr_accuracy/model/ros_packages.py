@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from xml.etree import ElementTree
 
+from ..exceptions import InputError
+from ..input_files import SIZE_LIMITS, read_input_bytes
 from .urdf import one_line
 
 #: The file that makes a folder a ROS package.
@@ -69,9 +71,8 @@ def package_name(folder: Path) -> str | None:
     if not manifest.is_file():
         return None
     try:
-        with manifest.open("rb") as handle:
-            head = handle.read(65536)
-    except OSError:
+        head = read_input_bytes(manifest, "package manifest", limit=SIZE_LIMITS["urdf"])[:65536]
+    except InputError:  # a pipe or device named package.xml, or unreadable: the folder's name
         return folder.name
     match = _MANIFEST_NAME.search(head)
     return match.group(1).decode("utf-8", "replace") if match else folder.name
@@ -81,25 +82,27 @@ def packages_below(folder: Path, wanted: set[str]) -> dict[str, Path]:
     """The packages named in ``wanted`` at or below ``folder`` (a package's own subfolders are
     not searched, nor hidden folders or those marked ``CATKIN_IGNORE``/``COLCON_IGNORE``/
     ``AMENT_IGNORE``), breadth first, at most :data:`MAX_SEARCH_DEPTH` folders down; the first
-    found of a name wins."""
+    found of a name wins. Links to folders are not followed (``--package-dir /`` would otherwise
+    walk ``/proc/*/cwd`` and loops), and a folder that cannot be read is passed over."""
     found: dict[str, Path] = {}
     level, opened = [folder], 0
     for _ in range(MAX_SEARCH_DEPTH + 1):
         below = []
         for current in level:
-            name = package_name(current)
-            if name is not None:
-                if name in wanted:
-                    found.setdefault(name, current)
-                continue
-            opened += 1
-            if opened > MAX_SEARCH_FOLDERS or any((current / m).exists() for m in _IGNORE_MARKERS):
-                continue
             try:
+                name = package_name(current)
+                if name is not None:
+                    if name in wanted:
+                        found.setdefault(name, current)
+                    continue
+                opened += 1
+                if opened > MAX_SEARCH_FOLDERS or any((current / m).exists() for m in _IGNORE_MARKERS):
+                    continue
                 entries = sorted(os.scandir(current), key=lambda e: e.name)
-            except OSError:
+                below += [Path(e.path) for e in entries
+                          if not e.name.startswith(".") and e.is_dir(follow_symlinks=False)]
+            except OSError:  # no permission (/proc/1/cwd), gone meanwhile
                 continue
-            below += [Path(e.path) for e in entries if not e.name.startswith(".") and e.is_dir()]
         if wanted <= found.keys() or not below:
             break
         level = below

@@ -17,26 +17,17 @@ import numpy as np
 import pinocchio as pin
 
 from ..exceptions import InputError
+from ..input_files import SIZE_LIMITS, read_input_text
 from ..units import PRISMATIC, REVOLUTE, parse_number
 
 
 _ENTITY = re.compile(r"<!\s*(ENTITY|DOCTYPE)", re.IGNORECASE)
-MAX_URDF_BYTES = 50 * 1024 * 1024
+MAX_URDF_BYTES = SIZE_LIMITS["urdf"]
 
 
 def read_urdf_text(path: Path) -> str:
     """Read a URDF file, refusing DTDs and entities (no entity expansion, ever)."""
-    try:
-        size = path.stat().st_size
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read URDF ({exc.strerror})") from None
-    if size > MAX_URDF_BYTES:
-        raise InputError(f"{path}: URDF is {size} bytes, larger than the {MAX_URDF_BYTES} allowed")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read URDF as UTF-8 text ({exc})") from None
-    return text
+    return read_input_text(path, "URDF", limit=MAX_URDF_BYTES)
 
 
 def parse_urdf_xml(text: str, source: str) -> ElementTree.Element:
@@ -284,8 +275,11 @@ class Mimic:
 def mimic_rules(root: ElementTree.Element, source: str) -> dict:
     """URDF ``<mimic joint=... multiplier=... offset=...>`` rules by joint name; the multiplier
     within +-:data:`MAX_MIMIC_MULTIPLIER`, the offset within the URDF's bound on lengths and
-    angles (a ``1e308`` multiplier made gravity torques infinite)."""
+    angles (a ``1e308`` multiplier made gravity torques infinite). A rule must name another joint
+    of the URDF, one that follows no rule itself: a joint mimicking itself, a loop of rules or a
+    chain of them has no joint value to start from (as ROS, which follows one rule, reads it)."""
     rules = {}
+    names = {joint.get("name") for joint in root.findall("joint")}
     for joint in root.findall("joint"):
         mimic = joint.find("mimic")
         if mimic is None:
@@ -295,8 +289,27 @@ def mimic_rules(root: ElementTree.Element, source: str) -> dict:
             raise InputError(f"{where} names no joint (joint=...)")
         multiplier = _number(mimic, "multiplier", where, -MAX_MIMIC_MULTIPLIER, MAX_MIMIC_MULTIPLIER, 1.0)
         offset = _number(mimic, "offset", where, -MAX_URDF_LENGTH, MAX_URDF_LENGTH, 0.0)
+        if mimic.get("joint") == joint.get("name"):
+            raise InputError(f"{where} names the joint itself; a joint follows another joint")
+        if mimic.get("joint") not in names:
+            raise InputError(f"{where} names {one_line(mimic.get('joint'))!r}, no joint of this URDF")
         rules[joint.get("name")] = Mimic(mimic.get("joint"), multiplier, offset)
+    for name, rule in rules.items():
+        if rule.joint in rules:
+            kind = "a loop of <mimic> rules" if rules[rule.joint].joint == name or _loops(rules, name) else \
+                "a chain of <mimic> rules"
+            raise InputError(f"{source}: joint {one_line(name)}: <mimic> names {one_line(rule.joint)}, which follows "
+                             f"{one_line(rules[rule.joint].joint)} itself ({kind}); name the joint that drives both")
     return rules
+
+
+def _loops(rules: dict, start: str) -> bool:
+    """Whether following the rules from ``start`` comes back to it."""
+    seen, here = set(), start
+    while here in rules and here not in seen:
+        seen.add(here)
+        here = rules[here].joint
+    return here == start
 
 
 _REVOLUTE_JOINT = re.compile(r"JointModel(R[XYZ]|RUB[XYZ]|RevoluteUnaligned|RevoluteUnboundedUnaligned)$")

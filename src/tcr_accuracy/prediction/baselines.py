@@ -10,15 +10,19 @@
 
 from __future__ import annotations
 
+from numbers import Real
+
 import numpy as np
 from sklearn.base import BaseEstimator, MultiOutputMixin, RegressorMixin, TransformerMixin
 from sklearn.compose import TransformedTargetRegressor
 from sklearn.neural_network import MLPRegressor
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
+from sklearn.utils._param_validation import Interval
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ..exceptions import InputError
+from ..hyperparameters import validate_hyperparameters
 from ..model.kinematics import tcp_poses
 from .checks import check_enough_points
 
@@ -35,10 +39,13 @@ class InverseDistanceWeighting(MultiOutputMixin, RegressorMixin, BaseEstimator):
     power : float, the exponent p
     """
 
+    _parameter_constraints = {"power": [Interval(Real, 0, 100, closed="right")]}
+
     def __init__(self, *, power=2.0):
         self.power = power
 
     def fit(self, X, y):
+        validate_hyperparameters(self)
         X, y = validate_data(self, X, y, multi_output=True, y_numeric=True)
         check_enough_points(X.shape[0], X.shape[1], type(self).__name__)
         self.scaler_ = StandardScaler().fit(X)

@@ -13,15 +13,18 @@ Both map joint values (n, n_joints) [rad, m] to base-frame TCP position errors (
 from __future__ import annotations
 
 import warnings
+from numbers import Integral, Real
 
 import numpy as np
 from scipy.optimize import least_squares
 from sklearn.base import BaseEstimator, MultiOutputMixin, RegressorMixin
 from sklearn.utils import check_random_state
+from sklearn.utils._param_validation import Interval
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ..diagnosis.identifiability import SensitivityColumns, identifiability
 from ..exceptions import InputError
+from ..hyperparameters import validate_hyperparameters
 from ..model.errors import ErrorModel
 from ..model.jacobians import error_jacobians
 from ..model.kinematics import tcp_poses
@@ -54,11 +57,14 @@ class GeometricCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
     parameter_names_ : names of the fitted parameters
     """
 
+    _parameter_constraints = {"rank_tol": [Interval(Real, 0, 1, closed="neither")]}
+
     def __init__(self, *, robot=None, rank_tol=1e-6):
         self.robot = robot
         self.rank_tol = rank_tol
 
     def fit(self, X, y):
+        validate_hyperparameters(self)
         X, y = validate_data(self, X, y, multi_output=True, y_numeric=True)
         check_joints_and_position_errors(self.robot, X, y, type(self).__name__)
         em = ErrorModel(self.robot)
@@ -134,6 +140,9 @@ class DiagnosisCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
     #: measured point: the effects act with their lever arms to it, as in ``diagnose``
     models_measured_point = True
 
+    _parameter_constraints = {"folds": [Interval(Integral, 2, 1000, closed="both")],
+                              "tracker_noise": [None, Interval(Real, 1e-9, 1.0, closed="both")]}
+
     def __init__(self, *, robot=None, effects=None, folds=5, tracker_noise=2e-5, random_state=None):
         self.robot = robot
         self.effects = effects
@@ -147,6 +156,7 @@ class DiagnosisCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
         ``context`` (MeasurementContext of the rows, optional): payload, temperature,
         approach directions and the joints outside the TCP chain, which the gravity
         effects need (a second arm loads the torso)."""
+        validate_hyperparameters(self)
         from ..diagnosis.diagnose import diagnose
         from ..io.measurements import MeasurementSet
 

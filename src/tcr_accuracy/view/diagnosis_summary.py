@@ -67,6 +67,9 @@ def format_summary(robot, d, source: str) -> str:
             out.append(f"     {s['session']:20s} {s['n_measurements']:6d} rows, gap RMS {s['gap']['rms_mm']:.4f} mm, "
                        f"final held-out RMS {s['heldout']['rms_mm']:.4f} mm, temperature {t[0]:.1f} to {t[1]:.1f} degC")
     for drift in d.drift:
+        if not drift.get("fitted", True):
+            out.append(f"   tracker drift: session {drift['session']} not fitted ({drift['why']})")
+            continue
         key = "drift_mm_per_h" if "drift_mm_per_h" in drift else "drift_mm_per_100_rows"
         unit = "mm/h" if key == "drift_mm_per_h" else "mm per 100 rows"
         speed = float(np.linalg.norm(drift[key]))
@@ -74,6 +77,9 @@ def format_summary(robot, d, source: str) -> str:
                    f"{drift['time_axis']}): {speed:.4f} +- {drift['drift_std_mm_per_unit']:.4f} {unit}, "
                    f"{drift['moved_over_session_mm']:.4f} mm over the session, z = {drift['z']:.1f}: "
                    + ("corrected" if drift["corrected"] else "not corrected (within the noise)"))
+        for far in drift.get("outliers", [])[:5]:
+            out.append(f"   base reference {far['reference']}, measurement {far['row'] + 1}: {far['off_mm']:.4g} mm off "
+                       "the drift, left out of the drift and the noise (a bumped reflector, a broken beam?)")
     out.append("\n2. Where it lies (residual after frames)")
     axes = d.where_mm["per_axis"]
     out.append("   per axis RMS [mm]: " + ", ".join(f"{a} {axes[a]['rms_mm']:.4f}" for a in "xyz"))
@@ -237,7 +243,7 @@ def parameter_lines(d, per_effect: int = 4) -> list[str]:
                        f"(band +-{1.96 * np.mean(band['std_rad']) * 1e6:.1f} urad)"
                        + (f", strongest {top} cycles per revolution" if top else ""))
         if table["pinned"]:
-            out.append(f"       held on a physical bound: " + ", ".join(
+            out.append("       held on a physical bound: " + ", ".join(
                 f"{p['parameter']} ({p['bound']})" for p in table["pinned"][:6])
                 + (f" and {len(table['pinned']) - 6} more" if len(table["pinned"]) > 6 else ""))
     return out
@@ -265,10 +271,10 @@ def family_answer(families, primary_family, primary_effect, primary_group) -> st
     within it: one sentence from a diagnosis' ``families`` (dicts as in its JSON), primary family,
     primary effect and the group that stands in for it."""
     by_name = {f["family"]: f for f in families}
-    if primary_family:
+    if primary_family in by_name:
         f = by_name[primary_family]
         low, high = f["interval_mm"]
-        head = (f"the gap is mostly {primary_family} ({f['what']}): without it the held-out RMS rises by "
+        head = (f"the gap is mostly {primary_family} ({f.get('what', '')}): without it the held-out RMS rises by "
                 f"{f['share_mm']:.4g} mm [95 %: {low:.4g} to {high:.4g}]")
         if primary_effect:
             head += f"; within it, {primary_effect}"

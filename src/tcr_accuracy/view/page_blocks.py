@@ -164,7 +164,9 @@ def _inline_html(parts) -> str:
 
 
 def _inline_md(parts) -> str:
-    return "".join(f"`{p.text}`" if isinstance(p, Code) else str(p) for p in _parts(parts))
+    from . import markdown_text as md
+
+    return "".join(md.code(p.text) if isinstance(p, Code) else md.line(p) for p in _parts(parts))
 
 
 def _cell(value) -> str:
@@ -221,44 +223,46 @@ def to_html(blocks) -> str:
 
 
 def to_markdown(blocks) -> str:
-    """The same blocks as Markdown."""
-
-    def md(text) -> str:
-        return str(text).replace("|", "\\|")
+    """The same blocks as Markdown, every string made safe there (:mod:`tcr_accuracy.view.markdown_text`)."""
+    from . import markdown_text as md
 
     def cell(value) -> str:
-        return md("; ".join(value) if isinstance(value, list) else value)
+        return md.cell("; ".join(value) if isinstance(value, list) else value)
 
     out = []
     for block in blocks:
         kind = block[0]
         if kind == "h1":
-            out += [f"# {block[1]}", ""]
+            out += [f"# {md.line(block[1])}", ""]
         elif kind == "h2":
-            out += [f"## {block[1]}", ""]
+            out += [f"## {md.line(block[1])}", ""]
         elif kind == "p":
             out += [_inline_md(block[1]), ""]
         elif kind == "facts":
-            out += [f"- **{row[i]}**: {cell(row[i + 1])}" for row in block[1] for i in range(0, len(row), 2)
-                    if row[i]]
+            out += [f"- **{md.line(row[i])}**: " + md.line("; ".join(row[i + 1]) if isinstance(row[i + 1], list)
+                                                           else row[i + 1])
+                    for row in block[1] for i in range(0, len(row), 2) if row[i]]
             out.append("")
         elif kind == "table":
             _, columns, rows, note, _ = block
-            out += ["| " + " | ".join(map(md, columns)) + " |", "|" + "|".join("---" for _ in columns) + "|"]
+            out += ["| " + " | ".join(map(md.cell, columns)) + " |", "|" + "|".join("---" for _ in columns) + "|"]
             for row in _kept(rows):
-                cells = [f"**{row[1]}**"] + [""] * (len(columns) - 1) if row[0] == "group" else list(row)
-                out.append("| " + " | ".join(map(cell, cells)) + " |")
-            out += ["", note, ""] if note else [""]
+                cells = [f"**{md.cell(row[1])}**"] + [""] * (len(columns) - 1) if row[0] == "group" else \
+                    [cell(c) for c in row]
+                out.append("| " + " | ".join(cells) + " |")
+            out += ["", md.text(note), ""] if note else [""]
         elif kind == "verdict":
             _, status, text = block
-            out += [f"**Result: {status}**" + (f": {_inline_md(text)}" if text else ""), ""]
+            out += [f"**Result: {md.line(status)}**" + (f": {_inline_md(text)}" if text else ""), ""]
         elif kind == "list":
             out += [f"- {_inline_md(item)}" for item in block[1]] + [""]
         elif kind == "links":
-            out += ["Files: " + "; ".join(f"[{label}]({href})" for label, href in block[1]) + ".", ""]
+            out += ["Files: " + "; ".join(f"[{md.label(label)}]({md.href(href)})" for label, href in block[1]) + ".",
+                    ""]
         elif kind == "signatures":
             names = block[1]
-            out += ["| " + " | ".join(role for role, _ in names) + " |", "|" + "|".join("---" for _ in names) + "|",
-                    "| " + " | ".join((f"{md(name)}: " if name else "") + "name, signature, date"
+            out += ["| " + " | ".join(md.cell(role) for role, _ in names) + " |",
+                    "|" + "|".join("---" for _ in names) + "|",
+                    "| " + " | ".join((f"{md.cell(name)}: " if name else "") + "name, signature, date"
                                       for _, name in names) + " |", ""]
     return "\n".join(out)

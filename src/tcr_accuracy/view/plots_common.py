@@ -4,15 +4,16 @@ they read at a glance, and whole PNG files.
 Readable at a glance means: tick labels that never run into each other, legends beside the
 data rather than over it, text of at least :data:`MIN_FONT_PT`, and a saved image cropped to
 its content (no wide white margins). :func:`figure` and :func:`save_figure` do the layout
-part for every plot; ``tests/test_plot_readability.py`` checks the result on each kind of plot.
+part for every plot, which returns its PNG as a :class:`PlotFile` for the caller to write;
+``tests/test_plot_readability.py`` checks the result on each kind of plot.
 """
 
 from __future__ import annotations
 
 import io
+from dataclasses import dataclass
 from pathlib import Path
 
-from ..atomic import write_bytes_atomically
 
 #: The smallest text a figure uses [pt]: tick labels, legends, panel titles.
 MIN_FONT_PT = 7.5
@@ -129,15 +130,23 @@ def _cropped_png(fig, dpi: int, pad_px: int = 8) -> bytes:
     return out.getvalue()
 
 
-def save_figure(fig, path, *, dpi: int = 110) -> Path:
-    """Write a figure as a PNG file, whole or not at all, and close it; returns the path.
+@dataclass(frozen=True)
+class PlotFile:
+    """A drawn plot: its PNG image and the file it is meant for. Nothing is written: the
+    caller writes ``png`` to ``path`` (the command line through its one output writer) or
+    puts it in a report."""
 
-    The folder is created when missing. Crowded tick labels are thinned first, and the image
-    is cropped to what is drawn.
+    path: Path
+    png: bytes
+
+
+def save_figure(fig, path, *, dpi: int = 110) -> PlotFile:
+    """A figure as a :class:`PlotFile` for ``path`` (the figure is closed).
+
+    Crowded tick labels are thinned first, and the image is cropped to what is drawn.
     """
-    path = Path(path)
     try:
         _thin_ticks(fig)
-        return write_bytes_atomically(path, _cropped_png(fig, dpi))  # creates the folder
+        return PlotFile(Path(path), _cropped_png(fig, dpi))
     finally:
         pyplot().close(fig)

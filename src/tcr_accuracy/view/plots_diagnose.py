@@ -1,7 +1,7 @@
 """Plots of a diagnosis (matplotlib, Agg backend): PNG files for the report.
 
-Edge layer: reads a :class:`~tcr_accuracy.diagnosis.diagnose.Diagnosis`, writes images. Every
-figure is saved to a temporary name and renamed, so no half-written file is left.
+Edge layer: reads a :class:`~tcr_accuracy.diagnosis.diagnose.Diagnosis`, draws images; each
+plot is returned as a :class:`~tcr_accuracy.view.plots_common.PlotFile` for the caller to write.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .plots_common import figure, legend_beside, pyplot, save_figure, shared_legend
+from .plots_common import PlotFile, figure, legend_beside, pyplot, save_figure, shared_legend
 
 
 def _binned_means(values, residual, n_bins=8):
@@ -27,7 +27,7 @@ def _binned_means(values, residual, n_bins=8):
     return np.array(centres), np.array(means)
 
 
-def plot_steps(diagnosis, path: Path) -> Path:
+def plot_steps(diagnosis, path: Path) -> PlotFile:
     """The ladder as horizontal bars, one step per row from the top: the effect names read
     level however many steps there are (a real robot's ladder has seven or more)."""
     return plot_ladder([s.effect for s in diagnosis.steps], [s.heldout.rms * 1e3 for s in diagnosis.steps],
@@ -35,7 +35,7 @@ def plot_steps(diagnosis, path: Path) -> Path:
 
 
 def plot_ladder(effects, rms_mm, mean_mm, noise_floor_mm, path: Path, limit_mm: float | None = None,
-                title: str = "How far the gap shrinks (k-fold held-out)") -> Path:
+                title: str = "How far the gap shrinks (k-fold held-out)") -> PlotFile:
     """The ladder of a diagnosis: held-out RMS and mean [mm] after each step (``effects``, the
     first being frames), on a log axis, with the noise floor and, when given, a limit [mm]."""
     labels = [e if i == 0 else f"+{e}" for i, e in enumerate(effects)]
@@ -56,7 +56,7 @@ def plot_ladder(effects, rms_mm, mean_mm, noise_floor_mm, path: Path, limit_mm: 
     return save_figure(fig, path)
 
 
-def plot_axes(diagnosis, path: Path) -> Path:
+def plot_axes(diagnosis, path: Path) -> PlotFile:
     """Histograms per axis: the residual after frames (top row) and the final held-out one
     (bottom row), each on its own scale: the final residual is often a hundred times
     narrower, and on a shared axis it would be a sliver."""
@@ -84,7 +84,7 @@ def plot_axes(diagnosis, path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def _versus(diagnosis, values, names, units, path: Path, title: str) -> Path:
+def _versus(diagnosis, values, names, units, path: Path, title: str) -> PlotFile:
     n = values.shape[1]
     cols = min(3, n)
     rows = int(np.ceil(n / cols))
@@ -110,7 +110,7 @@ def _versus(diagnosis, values, names, units, path: Path, title: str) -> Path:
     return save_figure(fig, path)
 
 
-def plot_joints(diagnosis, robot, path: Path) -> Path:
+def plot_joints(diagnosis, robot, path: Path) -> PlotFile:
     values = diagnosis.q * robot.display_scale
     return _versus(diagnosis, values, robot.joint_names, robot.display_units, path,
                    "Residual after frames against each joint (|e| grey, binned mean per axis)")
@@ -134,7 +134,7 @@ def joints_with_gravity_torque(torque, rel_tol: float = 1e-6) -> np.ndarray:
     return np.flatnonzero(peak > rel_tol * np.max(peak))
 
 
-def plot_gravity(diagnosis, robot, path: Path) -> Path:
+def plot_gravity(diagnosis, robot, path: Path) -> PlotFile:
     units = ["Nm" if k == "revolute" else "N" for k in robot.joint_kinds]
     keep = joints_with_gravity_torque(diagnosis.gravity_torque)
     left_out = [n for j, n in enumerate(robot.joint_names) if j not in set(keep.tolist())]
@@ -151,7 +151,7 @@ def plot_gravity(diagnosis, robot, path: Path) -> Path:
                    [units[j] for j in keep], path, title)
 
 
-def plot_semivariograms(diagnosis, robot, path: Path) -> Path:
+def plot_semivariograms(diagnosis, robot, path: Path) -> PlotFile:
     semis = diagnosis.semivariograms
     n = len(semis)
     cols = min(3, n)
@@ -175,7 +175,7 @@ def plot_semivariograms(diagnosis, robot, path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def plot_regions(diagnosis, path: Path) -> Path:
+def plot_regions(diagnosis, path: Path) -> PlotFile:
     """Workspace octants, radius and height bins, and the context columns that were measured.
 
     Named categories (octants, joints) are horizontal bars, their names written level at a
@@ -228,7 +228,7 @@ def plot_regions(diagnosis, path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def plot_joint_functions(diagnosis, effect: str, path: Path) -> Path:
+def plot_joint_functions(diagnosis, effect: str, path: Path) -> PlotFile:
     """Each joint's fitted function of its own angle (a cyclic error) over the measured range,
     with its 95 % band, one panel per joint, in microradians against degrees."""
     joints = diagnosis.joint_function_bands[effect]
@@ -256,7 +256,7 @@ def plot_joint_functions(diagnosis, effect: str, path: Path) -> Path:
 
 
 def write_plots(diagnosis, robot, directory: Path) -> dict:
-    """All figures into directory; returns {label: Path}."""
+    """All figures, each for a file in ``directory``; returns {label: PlotFile} (nothing is written)."""
     directory = Path(directory)
     functions = {f"{effect} per joint": plot_joint_functions(diagnosis, effect, directory / f"{effect}_joints.png")
                  for effect in getattr(diagnosis, "joint_function_bands", {})}

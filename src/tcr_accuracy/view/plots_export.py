@@ -2,17 +2,15 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from .as_built_summary import KINDS, accuracy_records
-from .plots_common import figure, save_figure
+from .plots_common import PlotFile, figure, save_figure
 
 
-def write_accuracy_plot(accuracy, path) -> Path:
+def accuracy_plot(accuracy, path) -> PlotFile:
     """Horizontal bars of each form's mean TCP position error [mm] (the max as a whisker), one bar per
-    kind of data (held-out, k-fold held-out, measured poses); written to ``path`` (PNG)."""
+    kind of data (held-out, k-fold held-out, measured poses), as the PNG meant for ``path``."""
     records = accuracy_records(accuracy)
     forms = list(dict.fromkeys(r["form"] for r in records))
     kinds = [(k, label) for k, label in KINDS if any(r["on"] == k for r in records)]

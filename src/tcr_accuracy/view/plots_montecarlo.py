@@ -1,8 +1,8 @@
 """Plots of a Monte Carlo run: the TCP error cloud and its projection densities.
 
 An edge module (matplotlib, Agg backend): draws a :class:`~tcr_accuracy.analysis.montecarlo.
-MonteCarloResult` like the seed's Fig. 6 and Fig. 12, in mm, and writes PNG files
-atomically (through :func:`~tcr_accuracy.view.plots_common.save_figure`).
+MonteCarloResult` like the seed's Fig. 6 and Fig. 12, in mm, as PNG images the caller writes
+(:class:`~tcr_accuracy.view.plots_common.PlotFile`).
 """
 
 from __future__ import annotations
@@ -12,12 +12,12 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis.montecarlo import MonteCarloResult
-from .plots_common import figure, pyplot, save_figure
+from .plots_common import PlotFile, figure, pyplot, save_figure
 
 _PROJECTIONS = (("xy", 0, 1), ("xz", 0, 2), ("yz", 1, 2))
 
 
-def plot_cloud_3d(result: MonteCarloResult, path, title: str = "", max_points: int = 5000) -> Path:
+def plot_cloud_3d(result: MonteCarloResult, path, title: str = "", max_points: int = 5000) -> PlotFile:
     """3-D scatter of the TCP position errors [mm] (at most max_points of the kept cloud).
 
     Equal scales on the three axes (an ellipsoid looks like one), reaching the 99.9 %
@@ -60,7 +60,7 @@ def _heat_map_range(values_x, values_y, max_ratio: float = 3.0):
     return tuple((float(c - w / 2), float(c + w / 2)) for c, w in zip(centre, wanted))
 
 
-def plot_projection_densities(result: MonteCarloResult, path, title: str = "", bins: int = 60) -> Path:
+def plot_projection_densities(result: MonteCarloResult, path, title: str = "", bins: int = 60) -> PlotFile:
     """Three panels: the density of the position errors projected on the xy, xz and yz planes.
 
     Each heat map fills its axes and is drawn to scale (1 mm is as long on both axes), so an
@@ -83,12 +83,12 @@ def plot_projection_densities(result: MonteCarloResult, path, title: str = "", b
     return save_figure(fig, path)
 
 
-def write_montecarlo_plots(result: MonteCarloResult, folder, label: str = "") -> list[str]:
-    """cloud_3d.png and projection_density.png in folder; returns the paths."""
+def write_montecarlo_plots(result: MonteCarloResult, folder, label: str = "") -> list[PlotFile]:
+    """cloud_3d.png and projection_density.png for ``folder`` (nothing is written)."""
     folder = Path(folder)
     prefix = f"{label} " if label else ""
     return [
-        str(plot_cloud_3d(result, folder / "cloud_3d.png", title=f"{prefix}TCP position error cloud")),
-        str(plot_projection_densities(result, folder / "projection_density.png",
-                                      title=f"{prefix}projection densities of the TCP position error")),
+        plot_cloud_3d(result, folder / "cloud_3d.png", title=f"{prefix}TCP position error cloud"),
+        plot_projection_densities(result, folder / "projection_density.png",
+                                  title=f"{prefix}projection densities of the TCP position error"),
     ]

@@ -9,20 +9,20 @@
 * :func:`plot_compensation` -- the predicted error at the targets before and after
   compensation (``compensate``).
 
-Every figure is written through a temporary file and a rename.
+Every figure is returned as a :class:`~tcr_accuracy.view.plots_common.PlotFile` (PNG bytes and
+the file it is meant for); the caller writes it.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 
-from .plots_common import figure, legend_beside, save_figure, whole_numbers
+from .plots_common import PlotFile, figure, legend_beside, save_figure, whole_numbers
 from ..analysis.semivariogram import empirical_semivariogram, fit_gaussian_variogram, per_joint_semivariograms
 
 
-def plot_similarity(scenarios: dict, path) -> Path:
+def plot_similarity(scenarios: dict, path) -> PlotFile:
     """scenarios: label -> (PairDistances, SimilarityResult); writes a PNG to path."""
     fig, axes = figure(len(scenarios), 2, size=(9, 2.8 * len(scenarios)))
     for row, (label, (dist, res)) in enumerate(scenarios.items()):
@@ -37,7 +37,7 @@ def plot_similarity(scenarios: dict, path) -> Path:
 
 
 def plot_semivariograms(q: np.ndarray, errors: np.ndarray, path, n_bins: int = 20,
-                        joint_names=None) -> Path:
+                        joint_names=None) -> PlotFile:
     """q (n, n_joints) [SI], errors (n, 3) [m]; 4 panels: overall, then per joint for x, y, z."""
     overall = empirical_semivariogram(q, errors, n_bins=n_bins)
     per_joint = per_joint_semivariograms(q, errors, n_bins=n_bins)
@@ -66,7 +66,7 @@ def plot_semivariograms(q: np.ndarray, errors: np.ndarray, path, n_bins: int = 2
 
 
 def plot_predicted_errors(errors: np.ndarray, path, std: np.ndarray | None = None,
-                          measured: np.ndarray | None = None) -> Path:
+                          measured: np.ndarray | None = None) -> PlotFile:
     """The predicted error per query pose, a histogram of its magnitude and, for measured
     queries, the held-out miss per pose.
 
@@ -144,7 +144,7 @@ def plt_marker(marker: str, color) -> object:
     return Line2D([], [], ls="none", marker=marker, color=color, mfc="none")
 
 
-def plot_compensation(before: np.ndarray, after: np.ndarray, path, heldout_miss: np.ndarray | None = None) -> Path:
+def plot_compensation(before: np.ndarray, after: np.ndarray, path, heldout_miss: np.ndarray | None = None) -> PlotFile:
     """Histograms on a log axis [mm] of the error at the targets before and after compensation.
 
     Parameters

@@ -15,18 +15,19 @@ from pathlib import Path
 import numpy as np
 
 from .calibration_report import kind_of
-from .plots_common import figure, legend_beside, save_figure, shared_legend
+from .plots_common import PlotFile, figure, legend_beside, save_figure, shared_legend
 from .plots_diagnose import plot_ladder
 from .result_tables import iso_condition_label
 
 
 def write_result_plots(documents, folder: Path, limits_mm: dict | None = None) -> list:
-    """Every plot of the JSON results ``documents`` ((source, dict), ...) into ``folder``.
+    """Every plot of the JSON results ``documents`` ((source, dict), ...), for files in ``folder``.
 
     Returns
     -------
-    list of (Path, str)
-        Each PNG with its caption, in the order of the documents.
+    list of (PlotFile, str)
+        Each plot (:class:`~tcr_accuracy.view.plots_common.PlotFile`, meant for a file in ``folder``;
+        nothing is written) with its caption, in the order of the documents.
     """
     limits_mm = limits_mm or {}
     folder = Path(folder)
@@ -54,7 +55,7 @@ def write_result_plots(documents, folder: Path, limits_mm: dict | None = None) -
     return out
 
 
-def plot_families(families, path: Path) -> Path:
+def plot_families(families, path: Path) -> PlotFile:
     """Each family's share of the gap [mm] (how much the held-out RMS rises without it) with its
     95 % interval, the largest on top."""
     fig, axes = figure(1, 1, size=(7, 1.3 + 0.45 * len(families)))
@@ -73,7 +74,7 @@ def plot_families(families, path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def plot_iso_poses(iso, path: Path, limits_mm: dict | None = None) -> Path:
+def plot_iso_poses(iso, path: Path, limits_mm: dict | None = None) -> PlotFile:
     """Per pose: AP_P as measured, AP_P predicted after compensation (when the result has it) and
     RP_l [mm]; one panel per test condition; the limits on AP and RP as lines."""
     limits_mm = limits_mm or {}
@@ -113,7 +114,7 @@ def plot_iso_poses(iso, path: Path, limits_mm: dict | None = None) -> Path:
     return save_figure(fig, path)
 
 
-def plot_changes(cmp, path: Path) -> Path:
+def plot_changes(cmp, path: Path) -> PlotFile:
     """Each robot parameter's change between the campaigns in standard errors (z), the threshold
     of significance as lines; the significant ones in red."""
     changes = [c for c in cmp["changes"] if c.get("z") is not None]

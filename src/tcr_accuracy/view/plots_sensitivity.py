@@ -1,7 +1,7 @@
 """Plots of sweeps, Sobol indices and trajectory error bands (matplotlib, Agg backend).
 
-An edge module: it draws results computed elsewhere and writes PNG files atomically
-(temporary file in the same folder, then rename). Lengths in mm, angles in deg.
+An edge module: it draws results computed elsewhere as PNG images the caller writes
+(:class:`~tcr_accuracy.view.plots_common.PlotFile`). Lengths in mm, angles in deg.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .plots_common import figure, legend_beside, save_figure
+from .plots_common import PlotFile, figure, legend_beside, save_figure
 from ..analysis.sensitivity import OUTPUTS, SweepResult
 from ..analysis.sobol import SobolIndices
 from ..analysis.trajectory import TrajectoryErrorBands
@@ -31,7 +31,7 @@ def _scale(unit_or_output: str) -> float:
     return 180.0 / np.pi
 
 
-def plot_sweep(result: SweepResult, outputs, title: str, xlabel: str, path: str | Path) -> Path:
+def plot_sweep(result: SweepResult, outputs, title: str, xlabel: str, path: str | Path) -> PlotFile:
     """One panel per output, one curve per source: TCP error against the swept value."""
     fig, axes = figure(2, 2, size=(12, 7.5))
     xs = result.values * _scale(result.unit)
@@ -50,7 +50,7 @@ def plot_sweep(result: SweepResult, outputs, title: str, xlabel: str, path: str 
     return save_figure(fig, path)
 
 
-def plot_sobol(indices: SobolIndices, path: str | Path, outputs=POSITION_OUTPUTS, top: int = 12) -> Path:
+def plot_sobol(indices: SobolIndices, path: str | Path, outputs=POSITION_OUTPUTS, top: int = 12) -> PlotFile:
     """Bars of S1 and ST (with confidence intervals) for the most influential inputs."""
     shown = [o for o in outputs if o in indices.outputs]
     fig, axes = figure(len(shown), 1, size=(11, 2.9 * len(shown) + 0.8))
@@ -72,7 +72,7 @@ def plot_sobol(indices: SobolIndices, path: str | Path, outputs=POSITION_OUTPUTS
     return save_figure(fig, path)
 
 
-def plot_trajectory_bands(bands: TrajectoryErrorBands, path: str | Path, title: str = "") -> Path:
+def plot_trajectory_bands(bands: TrajectoryErrorBands, path: str | Path, title: str = "") -> PlotFile:
     """dx, dy, dz against time: Monte Carlo mean, quantile band, +-2 first-order std."""
     t = bands.trajectory.time
     lo, hi = bands.quantiles
@@ -94,7 +94,7 @@ def plot_trajectory_bands(bands: TrajectoryErrorBands, path: str | Path, title: 
 
 
 def plot_trajectory_contributions(bands: TrajectoryErrorBands, path: str | Path, title: str = "",
-                                  top: int = 6) -> Path:
+                                  top: int = 6) -> PlotFile:
     """First-order std of dx, dy, dz caused by each of the ``top`` largest sources, against time."""
     t = bands.trajectory.time
     peak = bands.contributions.max(axis=(0, 2))

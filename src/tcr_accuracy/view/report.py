@@ -5,19 +5,19 @@ Build it, then write it::
     report = Report("Monte Carlo accuracy", command=["tcr-accuracy", "montecarlo", "--seed", "0"])
     report.add_text("2000 samples of the seed's Table 2 errors at the working pose.")
     report.add_table("TCP position error", ["axis", "mean", "std"], rows, units=["", "mm", "mm"])
-    report.add_figure(fig, "Histogram of |dP|")          # a matplotlib figure or a PNG file
+    report.add_figure(fig, "Histogram of |dP|")          # a matplotlib figure or PNG bytes
     report.add_scene(scene.static_html(), "TCP cloud")   # a viewer.Scene's static page
-    report.write("out")                                  # out/index.html, out/report.md, PNGs
+    files = report.files()      # {"figure-1.png": b"...", ..., "report.md": ..., "index.html": ...}
 
 A report can open with a first page (:meth:`Report.set_first_page`, e.g. the calibration
 report of :mod:`tcr_accuracy.view.calibration_report`): it prints alone on page 1, the
-items follow under "Technical detail". With ``print_pdf`` set, ``write`` also prints the page
+items follow under "Technical detail". With ``print_pdf`` set, ``files`` also prints the page
 to ``report.pdf`` through headless Chromium (:mod:`tcr_accuracy.view.pdf`) when there is one;
 ``pdf_problem`` then says why there is none.
 
-``write`` puts every file in place through a temporary file and a rename, and writes
-``index.html`` last, so a crash or Ctrl-C never leaves a half-written file, and the
-index never names a file that is not there. The page has no external resources: it
+``files`` returns what the report folder holds, by file name, ``index.html`` last; the caller
+writes them (the command line through its one output writer,
+:func:`tcr_accuracy.cli.output.write_report`). The page has no external resources: it
 opens from disk with no network.
 
 Values in tables are shown as given: convert to display units (mm, deg) before adding
@@ -38,7 +38,6 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from .. import __version__
-from ..atomic import read_output, stage_folder, unstaged, write_bytes_atomically
 from ..exceptions import InputError
 from .html_text import breakable_html
 
@@ -160,8 +159,8 @@ class Report:
         self._n_figures = 0
         self._n_scenes = 0
         self.first_page: tuple[str, str] | None = None  # (HTML fragment, Markdown)
-        self.print_pdf = False  # write() also prints report.pdf (when Chromium is there)
-        self.pdf_problem = ""  # after write(): why no PDF was printed, if one was asked for
+        self.print_pdf = False  # files() also prints report.pdf (when Chromium is there)
+        self.pdf_problem = ""  # after files(): why no PDF was printed, if one was asked for
 
     #: File name of the printed report in the report folder.
     PDF_NAME = "report.pdf"
@@ -222,7 +221,7 @@ class Report:
         self.items.append(_Links(str(heading), tuple((str(label), str(href)) for label, href in links)))
 
     def add_figure(self, figure, caption: str, *, dpi: int = 110) -> str:
-        """A plot: a matplotlib ``Figure`` (saved as PNG now) or the path of a PNG file.
+        """A plot: a matplotlib ``Figure`` (saved as PNG now) or the bytes of a PNG image.
 
         Returns the file name the PNG gets in the report folder.
         """
@@ -231,13 +230,9 @@ class Report:
             figure.savefig(buffer, format="png", dpi=dpi, bbox_inches="tight")
             png = buffer.getvalue()
         else:
-            path = Path(figure)
-            try:
-                png = read_output(path)  # a plot of this run may still be staged
-            except OSError as exc:
-                raise InputError(f"{path}: cannot read figure ({exc.strerror})") from None
+            png = bytes(figure)
             if not png.startswith(b"\x89PNG\r\n\x1a\n"):
-                raise InputError(f"{path}: not a PNG file")
+                raise InputError(f"figure {caption!r}: not a PNG image")
         self._n_figures += 1
         filename = f"figure-{self._n_figures}.png"
         self.items.append(_Figure(filename, png, str(caption)))
@@ -312,81 +307,73 @@ class Report:
         return _PAGE.format(title=esc(self.title), css=_CSS, body="\n".join(body))
 
     def markdown(self, *, pdf: str | None = None) -> str:
-        """The same content as Markdown (tables as pipe tables)."""
-
-        def md(text: str) -> str:
-            return text.replace("|", "\\|")
+        """The same content as Markdown (tables as pipe tables); every string from outside made
+        safe there (:mod:`tcr_accuracy.view.markdown_text`: no raw HTML, no fence closed early)."""
+        from . import markdown_text as md
 
         out = []
         if self.first_page is not None:
-            out += [self.first_page[1].rstrip("\n"), "", "---", "", f"# Technical detail: {self.title}", ""]
+            out += [self.first_page[1].rstrip("\n"), "", "---", "", f"# Technical detail: {md.line(self.title)}", ""]
         else:
-            out += [f"# {self.title}", ""]
-        out += [f"Written {self.created} by tcr-accuracy {__version__}."
-                + (f" Printed: [{pdf}]({pdf})." if pdf else ""), ""]
+            out += [f"# {md.line(self.title)}", ""]
+        out += [f"Written {md.line(self.created)} by tcr-accuracy {__version__}."
+                + (f" Printed: [{md.label(pdf)}]({md.href(pdf)})." if pdf else ""), ""]
         for item in self.items:
             if isinstance(item, _Text):
                 if item.heading:
-                    out += [f"## {item.heading}", ""]
-                out += [item.text.strip(), ""]
+                    out += [f"## {md.line(item.heading)}", ""]
+                out += [md.text(item.text.strip()), ""]
             elif isinstance(item, _Preformatted):
                 if item.heading:
-                    out += [f"## {item.heading}", ""]
-                out += ["```", item.text, "```", ""]
+                    out += [f"## {md.line(item.heading)}", ""]
+                out += [*md.fenced(item.text), ""]
             elif isinstance(item, _Table):
-                out += [f"## {item.title}", "",
-                        "| " + " | ".join(md(c) for c in item.columns) + " |",
+                out += [f"## {md.line(item.title)}", "",
+                        "| " + " | ".join(md.cell(c) for c in item.columns) + " |",
                         "|" + "|".join("---" for _ in item.columns) + "|"]
-                out += ["| " + " | ".join(md(v) for v in row) + " |" for row in item.rows]
+                out += ["| " + " | ".join(md.cell(v) for v in row) + " |" for row in item.rows]
                 out.append("")
                 if item.note:
-                    out += [item.note, ""]
+                    out += [md.text(item.note), ""]
             elif isinstance(item, _Links):
-                out += [f"## {item.heading}", ""] + [f"- [{label}]({href})" for label, href in item.links] + [""]
+                out += [f"## {md.line(item.heading)}", ""] + [f"- [{md.label(label)}]({md.href(href)})"
+                                                              for label, href in item.links] + [""]
             elif isinstance(item, _Figure):
-                out += [f"![{item.caption}]({item.filename})", "", f"*{item.caption}*", ""]
+                out += [f"![{md.label(item.caption)}]({md.href(item.filename)})", "", f"*{md.line(item.caption)}*", ""]
             elif isinstance(item, _Scene):
-                out += [f"[{item.caption} (3D, opens in a browser)]({item.filename})", ""]
-        out += ["## How this report was made", "", "```", self.command, "```", "",
+                out += [f"[{md.label(item.caption)} (3D, opens in a browser)]({md.href(item.filename)})", ""]
+        out += ["## How this report was made", "", *md.fenced(self.command), "",
                 "| software | version |", "|---|---|"]
-        out += [f"| {k} | {v} |" for k, v in versions().items()]
+        out += [f"| {md.cell(k)} | {md.cell(v)} |" for k, v in versions().items()]
         return "\n".join(out) + "\n"
 
-    def write(self, out_dir) -> Path:
-        """Write ``out_dir/index.html``, ``out_dir/report.md``, PNGs and scene pages.
-
-        Every file goes through a temporary file and a rename; ``index.html`` comes last.
-        Other files in ``out_dir`` are kept. Inside a staged run (the command line) the
-        folder is declared written whole (:func:`~tcr_accuracy.atomic.stage_folder`): the
-        report's files replace the old ones in one swap of the folder, never a mix of old and
-        new. Returns the path of ``index.html``.
-        """
-        out_dir = Path(out_dir)  # created, if missing, with the files
-        if out_dir.exists() and not out_dir.is_dir():
-            raise InputError(f"{out_dir}: not a folder")
-        stage_folder(out_dir)
+    def files(self) -> dict[str, bytes]:
+        """What the report folder holds, by file name: the PNGs, the scene pages, ``report.pdf``
+        (with ``print_pdf``, when Chromium printed it), ``report.md`` and ``index.html``, last,
+        so that a writer going in order never leaves an index naming a file not yet there."""
         pdf = self._printed() if self.print_pdf else None
         pdf_name = self.PDF_NAME if pdf is not None else None
+        files: dict[str, bytes] = {}
         for item in self.items:
             if isinstance(item, _Figure):
-                write_bytes_atomically(out_dir / item.filename, item.png)
+                files[item.filename] = item.png
             elif isinstance(item, _Scene):
-                write_bytes_atomically(out_dir / item.filename, item.page.encode("utf-8"))
+                files[item.filename] = item.page.encode("utf-8")
         if pdf is not None:
-            write_bytes_atomically(out_dir / self.PDF_NAME, pdf)
-        write_bytes_atomically(out_dir / "report.md", self.markdown(pdf=pdf_name).encode("utf-8"))
-        index = out_dir / "index.html"
-        write_bytes_atomically(index, self.html(pdf=pdf_name).encode("utf-8"))
-        return index
+            files[self.PDF_NAME] = pdf
+        files["report.md"] = self.markdown(pdf=pdf_name).encode("utf-8")
+        files["index.html"] = self.html(pdf=pdf_name).encode("utf-8")
+        return files
 
     def _printed(self) -> bytes | None:
-        """The page printed to PDF by Chromium from a temporary copy of the folder (the real one
-        is written at the end of the run), or None with ``pdf_problem`` saying why."""
+        """The page printed to PDF by Chromium from a copy of it in a temporary folder (Chromium
+        reads files, and the report folder is written by the caller afterwards), or None with
+        ``pdf_problem`` saying why."""
         import tempfile
 
         from .pdf import print_to_pdf
 
-        with tempfile.TemporaryDirectory(prefix="tcr-print-") as tmp, unstaged():
+        with tempfile.TemporaryDirectory(prefix="tcr-print-") as tmp:
             folder = Path(tmp)
             for item in self.items:  # the 3D views are not printed (see the print CSS)
                 if isinstance(item, _Figure):

@@ -210,6 +210,8 @@ def _confined_visualizer_class(checked: dict, painted: bool):
     import base64
 
     import meshcat.geometry as mg
+
+    from ..input_files import SIZE_LIMITS, read_input_bytes
     from pinocchio.visualize import MeshcatVisualizer
     from pinocchio.visualize.meshcat_visualizer import DaeMeshGeometry
 
@@ -219,9 +221,10 @@ def _confined_visualizer_class(checked: dict, painted: bool):
         def __init__(self, path: Path, references: list[tuple[str, Path]]):  # noqa: D107
             mg.ReferenceSceneElement.__init__(self)  # Pinocchio's own __init__ reads the images itself
             self.path, self.material, self.intrinsic_transform = None, None, mg.tf.identity_matrix()
-            self.dae_raw = path.read_text(encoding="utf-8", errors="replace")
+            self.dae_raw = read_input_bytes(path, "mesh", limit=SIZE_LIMITS["mesh"]).decode("utf-8", "replace")
             self.img_resources = {
-                str(Path(name)): "data:image/png;base64," + base64.b64encode(file.read_bytes()).decode("ascii")
+                str(Path(name)): "data:image/png;base64," + base64.b64encode(
+                    read_input_bytes(file, "mesh image", limit=SIZE_LIMITS["mesh"])).decode("ascii")
                 for name, file in references if file.is_file()}
 
     class ConfinedMeshcatVisualizer(MeshcatVisualizer):

@@ -1,14 +1,14 @@
 """3D views in meshcat: a scene of robots, TCP point clouds, error segments and a legend.
 
-Build a :class:`Scene`, add what should be seen, then either write one self-contained
-HTML file that opens in any browser with no server (:meth:`Scene.write_static_html`)
-or serve it live on localhost (:meth:`Scene.serve`)::
+Build a :class:`Scene`, add what should be seen, then either take one self-contained
+HTML page that opens in any browser with no server (:meth:`Scene.static_html`, for the caller
+to write) or serve it live on localhost (:meth:`Scene.serve`)::
 
     scene = Scene("tool-changer at the working pose")
     scene.add_robot(robot, q, "nominal")
     scene.add_robot(error_model.perturbed_robot(x), q, "as_built", color=(0.9, 0.2, 0.2), opacity=0.35)
     scene.add_point_cloud(tcp_points_m, error_mm, "tcp_cloud", "|dP| [mm]")
-    scene.write_static_html("view.html")
+    Path("view.html").write_text(scene.static_html(), encoding="utf-8")
 
 This module owns what a view holds and how it is framed: robots, point clouds coloured
 by a value, magnified error segments, trajectories, frames, the camera and ground grid,
@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -563,14 +562,6 @@ class Scene:
         """One self-contained HTML page (meshcat's viewer, the scene, the legend); no server needed."""
         self._finish()
         return static_page(self._window, self.title, self._legend(), self._fit())
-
-    def write_static_html(self, path) -> Path:
-        """Write :meth:`static_html` to path atomically (temporary file + rename)."""
-        from ..atomic import write_text_atomically
-
-        path = Path(path)
-        write_text_atomically(path, self.static_html())
-        return path
 
     def serve(self, open_browser: bool = False) -> LiveView:
         """Serve the scene live on 127.0.0.1 (a meshcat server subprocess).

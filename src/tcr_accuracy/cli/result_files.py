@@ -1,0 +1,390 @@
+"""The JSON results the commands write, validated once on read.
+
+``diagnose --json``, ``iso9283 evaluate --json`` and ``compare --json`` write results that
+``report``, ``compare``, ``iso9283 evaluate --model`` and ``export`` read back. Each is read here
+by :func:`read_result`, through the one opener (:func:`tcr_accuracy.input_files.read_json_file`:
+regular file, size, depth, no NaN) and then against a schema of its kind (JSON Schema, checked
+by the ``jsonschema`` library): the keys the readers use, their types, shapes (a 4 x 4 transform,
+[low, high] intervals), and ranges (counts >= 1, folds >= 2, lengths and standard errors >= 0 and
+below 1 km, effect names from the vocabulary, each effect's options as the effect takes them:
+:mod:`tcr_accuracy.effects.option_schema`, which bounds the options that size a model).
+Where the robot is loaded, :func:`check_physics` then holds every parameter to its effect's
+:meth:`~tcr_accuracy.effects.base.Effect.physical_range` (the diagnosis fits inside it, so a value
+outside is a forged or foreign file) and to the effect's parameter names for that robot.
+
+A file that fails is one :class:`~tcr_accuracy.exceptions.InputError` line naming the file, the
+key (``$.parameter_std.joint_offsets['joint_offsets.j2']``) and what is wrong; never a
+``KeyError`` later, never ``nan`` or ``None`` printed on the customer's page.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..exceptions import InputError
+from ..input_files import read_json_file
+
+#: The longest length a result may hold [mm]: 1 km (as the CLI's options).
+MAX_MM = 1e6
+#: The most measurements, readings or poses a result may count.
+MAX_COUNT = 10**9
+
+_TEXT = {"type": "string", "maxLength": 100_000}
+_NAME = {"type": "string", "minLength": 1, "maxLength": 1000}
+_NUMBER = {"type": "number"}
+_MM = {"type": "number", "minimum": 0, "maximum": MAX_MM}
+_SIGNED_MM = {"type": "number", "minimum": -MAX_MM, "maximum": MAX_MM}
+_MM_OR_NULL = {"anyOf": [_MM, {"type": "null"}]}
+_NOISE = {"type": "number", "minimum": 1e-6, "maximum": 1e3}
+_NUMBER_OR_NULL = {"anyOf": [_NUMBER, {"type": "null"}]}
+_COUNT = {"type": "integer", "minimum": 1, "maximum": MAX_COUNT}
+_TEXTS = {"type": "array", "items": _TEXT, "maxItems": 100_000}
+_INTERVAL = {"type": "array", "items": _NUMBER_OR_NULL, "minItems": 2, "maxItems": 2}
+_MM_INTERVAL = {"type": "array", "items": _SIGNED_MM, "minItems": 2, "maxItems": 2}
+_TRANSFORM = {"type": "array", "minItems": 4, "maxItems": 4,
+              "items": {"type": "array", "minItems": 4, "maxItems": 4, "items": _NUMBER}}
+
+
+def _by_effect(value: dict, names) -> dict:
+    """An object keyed by effect names (``names``: the vocabulary) with values of schema ``value``."""
+    return {"type": "object", "propertyNames": {"enum": list(names)}, "additionalProperties": value}
+
+
+def _by_parameter(value: dict) -> dict:
+    return {"type": "object", "propertyNames": {"maxLength": 200}, "additionalProperties": value,
+            "maxProperties": 1_000_000}
+
+
+def _options_schema(names) -> dict:
+    from ..effects.option_schema import options_schema
+
+    return {"type": "object", "propertyNames": {"enum": list(names)},
+            "properties": {e: options_schema(e) for e in names}}
+
+
+def _diagnosis_schema(names) -> dict:
+    step = {"type": "object",
+            "required": ["effect", "n_parameters", "train_rms_mm", "heldout_mean_mm", "heldout_rms_mm", "heldout_max_mm"],
+            "properties": {"effect": {"enum": list(names)}, "effects": {"type": "array", "items": {"enum": list(names)}},
+                           "n_parameters": {"type": "integer", "minimum": 0, "maximum": MAX_COUNT},
+                           "train_rms_mm": _MM, "heldout_rms_mm": _MM, "heldout_mean_mm": _MM, "heldout_max_mm": _MM,
+                           "gain_heldout_rms_mm": {"anyOf": [_SIGNED_MM, {"type": "null"}]},
+                           "gain_interval_mm": {"anyOf": [{"type": "null"}, _MM_INTERVAL]},
+                           "z_vs_previous": _NUMBER_OR_NULL}}
+    # an effect tried alone with frames: its figures; one not tried: why
+    candidate = {"type": "object", "required": ["tried"],
+                 "properties": {"tried": {"type": "boolean"}, "why": _TEXT, "heldout_rms_mm_with_frames": _MM,
+                                "gain_mm": _SIGNED_MM, "z": {"type": "number", "minimum": -1e6, "maximum": 1e6},
+                                "n_parameters": {"type": "integer", "minimum": 0, "maximum": MAX_COUNT}},
+                 "if": {"properties": {"tried": {"const": True}}},
+                 "then": {"required": ["heldout_rms_mm_with_frames", "gain_mm", "z", "n_parameters"]}}
+    return {
+        "type": "object",
+        "required": ["robot", "parameters"],  # each reader adds the keys it uses (FIT_KEYS, PAGE_KEYS, MODEL_KEYS)
+        "properties": {
+            "robot": _NAME, "robot_source": _NAME, "tool_frame": _NAME, "measurements": _TEXT,
+            "n_measurements": {"type": "integer", "minimum": 3, "maximum": MAX_COUNT},
+            "folds": {"type": "integer", "minimum": 2, "maximum": 1000},
+            # a noise floor of 0 is no instrument (the page divides by it): at least 1 nm, as --noise-mm
+            "noise_floor_mm": _NOISE, "tracker_noise_mm": {"anyOf": [_NOISE, {"type": "null"}]},
+            "final_heldout_rms_mm": _MM,
+            "final_over_noise": _NUMBER_OR_NULL,
+            "gap": {"type": "object", "properties": {"mean_mm": _MM, "rms_mm": _MM, "max_mm": _MM, "count": _COUNT}},
+            "noise": {"type": "object", "properties": {"per_axis_mm": _MM_OR_NULL, "source": _TEXT,
+                                                       "independent": {"type": "boolean"}, "detail": _TEXT}},
+            "steps": {"type": "array", "minItems": 1, "maxItems": 10_000, "items": step},
+            "selected_effects": {"type": "array", "uniqueItems": True, "items": {"enum": list(names)}},
+            "primary_effect": {"anyOf": [{"type": "null"}, {"enum": list(names)}]},
+            "parameters": _by_effect(_by_parameter(_NUMBER), names),
+            "parameter_std": _by_effect(_by_parameter({"anyOf": [{"type": "number", "minimum": 0},
+                                                                 {"type": "null"}]}), names),
+            "parameter_interval_95": _by_effect(_by_parameter(_INTERVAL), names),
+            "parameter_units": _by_effect(_by_parameter({"type": "string", "maxLength": 50}), names),
+            "physical": _by_effect({"type": "object", "properties": {
+                "plausible": {"type": "boolean"}, "range": _by_parameter(_INTERVAL),
+                "fit_range": _by_parameter(_INTERVAL),
+                "pinned": {"type": "array", "maxItems": 1_000_000, "items": {
+                    "type": "object", "required": ["parameter", "bound"],
+                    "properties": {"parameter": _NAME, "bound": {"enum": ["lower", "upper"]}}}},
+                "reason": _TEXT}}, names),
+            "effect_parameters": _by_effect(_by_parameter(_NUMBER), names),
+            "effect_options": _options_schema(names),
+            "tracker_transform": _TRANSFORM,
+            "sessions": {"type": "array", "maxItems": 100_000},
+            "notes": _TEXTS, "ambiguous": {"type": "array", "items": {"type": "object"}},
+            "outside_physics": {"type": "array", "items": {"type": "object"}},
+            "structure_remains": {"type": "boolean"}, "structure_verdict": _TEXT,
+            "structure": {"type": "object", "properties": {"reason": _TEXT}},
+            "extra_scatter": {"type": "object", "properties": {"tested": {"type": "boolean"},
+                                                               "detected": {"type": "boolean"}}},
+            "selection_frequency": _by_effect({"type": "number", "minimum": 0, "maximum": 1}, names),
+            "selection": {"type": "object", "properties": {"n_replays": {"type": "integer", "minimum": 0,
+                                                                         "maximum": MAX_COUNT}}},
+            "candidates": _by_effect(candidate, names),
+            "as_built_urdf": _TEXT, "as_built_effects": _TEXT,
+            "frames_measured": {"type": "array", "items": _NAME, "maxItems": 1000},
+            **_findings_schema(names),
+        },
+    }
+
+
+def _findings_schema(names) -> dict:
+    """What the report's first page reads of a diagnosis' findings: the mechanism each chosen effect
+    stands for and its check, the families and their shares, the primary family and group, the
+    order-of-measurement confounds, the instrument's specification, the temperatures measured."""
+    effect = {"enum": list(names)}
+    mechanism = {"type": "object", "required": ["effect", "family", "mechanism", "physical"],
+                 "properties": {"effect": effect, "family": _NAME, "mechanism": _TEXT, "physical": {"type": "boolean"},
+                                "check": _TEXT}}
+    family = {"type": "object", "required": ["family", "effects", "share_mm", "interval_mm"],
+              "properties": {"family": _NAME, "effects": {"type": "array", "items": effect, "maxItems": 1000},
+                             "share_mm": _SIGNED_MM, "interval_mm": _MM_INTERVAL, "what": _TEXT}}
+    mpe = {"type": "array", "items": {"type": "number", "minimum": 0, "maximum": 1e9}, "minItems": 2, "maxItems": 2}
+    temperature = {"type": "number", "minimum": -1e4, "maximum": 1e4}
+    return {
+        "mechanisms": {"type": "array", "items": mechanism, "maxItems": 1000},
+        "families": {"type": "array", "items": family, "maxItems": 1000},
+        "primary_family": {"anyOf": [{"type": "null"}, _NAME]},
+        "primary_group": {"type": "array", "items": effect, "maxItems": 1000},
+        "confounding": {"type": "array", "items": {"type": "object", "required": ["why"],
+                                                   "properties": {"why": _TEXT}}},
+        "instrument": {"anyOf": [{"type": "null"}, {"type": "object", "required": ["transverse_mpe_um", "radial_mpe_um"],
+                                                    "properties": {"name": _TEXT, "transverse_mpe_um": mpe,
+                                                                   "radial_mpe_um": mpe}}]},
+        "where": {"type": "object", "properties": {
+            "joints": {"type": "object", "additionalProperties": {
+                "type": "object", "properties": {"unit": {"enum": ["m", "rad"]}}}},
+            "temperature_c": {"type": "object", "properties": {"bins": {"type": "array", "maxItems": 10_000, "items": {
+                "type": "object", "required": ["low", "high"], "properties": {"low": temperature,
+                                                                               "high": temperature}}}}}}},
+    }
+
+
+def _iso_figures(required: bool) -> dict:
+    pose = {"type": "object", "required": ["pose_id", "n", "ap_mm", "ap_x_mm", "ap_y_mm", "ap_z_mm", "rp_mm"],
+            "properties": {"pose_id": {"type": "integer", "minimum": -(2**31), "maximum": 2**31 - 1}, "n": _COUNT,
+                           "ap_mm": _MM, "rp_mm": _MM_OR_NULL, "ap_x_mm": _SIGNED_MM, "ap_y_mm": _SIGNED_MM,
+                           "ap_z_mm": _SIGNED_MM, "l_mean_mm": _MM, "s_l_mm": _MM_OR_NULL, "pose": _NAME}}
+    return {
+        "type": "object",
+        "required": ["poses", "summary", "n_readings", "frame"] if required else ["poses", "summary"],
+        "properties": {
+            "n_readings": _COUNT, "frame": _NAME, "frame_fit": _TEXT, "measurements": _TEXT,
+            "robot": _NAME, "robot_source": _NAME, "tool_frame": _NAME, "model": _TEXT, "kind": _TEXT,
+            "poses": {"type": "array", "minItems": 1, "maxItems": 100_000, "items": pose},
+            "summary": {"type": "object", "required": ["ap_max_mm", "rp_max_mm"],
+                        "properties": {"ap_max_mm": _MM, "rp_max_mm": _MM_OR_NULL}},
+            "distances": {"type": "array", "items": {"type": "object", "properties": {
+                "n": _COUNT, "ad_mm": _SIGNED_MM, "rd_mm": _MM, "commanded_mm": _MM, "mean_mm": _MM}}},
+            "directional": {"type": "array", "items": {"type": "object", "properties": {"vap_mm": _MM}}},
+            "notes": _TEXTS,
+            "condition": {"type": "object", "properties": {"load_pct": _PERCENT, "speed_pct": _PERCENT}},
+        },
+    }
+
+
+#: A test condition's share of the rated load or speed [%].
+_PERCENT = {"anyOf": [{"type": "null"}, {"type": "number", "minimum": 0, "maximum": 1000}]}
+
+
+def _iso_schema() -> dict:
+    schema = _iso_figures(True)
+    schema["properties"]["compensated"] = _iso_figures(False)
+    block = _iso_figures(True)  # each test condition's figures, as measured and compensated
+    block["properties"]["compensated"] = _iso_figures(False)
+    schema["properties"]["conditions"] = {"type": "array", "minItems": 1, "maxItems": 1000, "items": block}
+    return schema
+
+
+def _comparison_schema(names) -> dict:
+    # a parameter's value and change in SI (m, rad, ...): within what any effect's physical range allows
+    value = {"type": "number", "minimum": -1e6, "maximum": 1e6}
+    change = {"type": "object", "required": ["parameter", "unit", "old", "new", "change", "std_error", "z",
+                                             "significant"],
+              "properties": {"parameter": _NAME, "effect": {"enum": list(names)}, "unit": {"type": "string",
+                                                                                          "maxLength": 50},
+                             "old": value, "new": value, "change": value,
+                             "std_error": {"anyOf": [{"type": "number", "minimum": 0, "maximum": 1e6},
+                                                     {"type": "null"}]},
+                             "z": {"anyOf": [{"type": "number", "minimum": 0, "maximum": 1e9}, {"type": "null"}]},
+                             "significant": {"type": "boolean"}}}
+    tcp = {"type": "object", "required": ["mean_mm", "rms_mm", "max_mm"],
+           "properties": {"mean_mm": _MM, "rms_mm": _MM, "max_mm": _MM}}
+    return {
+        "type": "object",
+        "required": ["changes", "tcp_effect", "z_threshold", "old", "new", "robot"],
+        "properties": {
+            "robot": _NAME, "robot_source": _NAME, "tool_frame": _NAME, "old": _TEXT, "new": _TEXT,
+            "z_threshold": {"type": "number", "exclusiveMinimum": 0, "maximum": 1000},
+            "significant": {"type": "array", "items": _NAME},
+            "changes": {"type": "array", "items": change}, "setup_changes": {"type": "array", "items": change},
+            "one_fit_only": {"type": "array", "items": {"type": "object"}},
+            "tcp_effect": {"type": "object", "required": ["n_poses", "all_changes", "significant_changes"],
+                           "properties": {"n_poses": _COUNT, "all_changes": tcp, "significant_changes": tcp}},
+            "notes": _TEXTS, "poses": _TEXT,
+        },
+    }
+
+
+def schema_of(kind: str) -> dict:
+    """The JSON Schema of a result of ``kind`` ('diagnosis', 'iso9283', 'comparison')."""
+    from ..effects import vocabulary
+
+    names = sorted(set(vocabulary()) | {"frames"})
+    return {"diagnosis": _diagnosis_schema, "iso9283": lambda n: _iso_schema(),
+            "comparison": _comparison_schema}[kind](names)
+
+
+#: What a diagnosis must hold to be compared: each parameter's standard error and unit.
+FIT_KEYS = ("parameter_std", "parameter_units")
+#: What a diagnosis must hold for the report's first page.
+PAGE_KEYS = ("n_measurements", "folds", "steps", "selected_effects", "noise_floor_mm", "candidates", *FIT_KEYS)
+#: What a diagnosis must hold to be exported (``diagnose --json`` writes them; a Python
+#: ``Diagnosis.to_dict()`` without the robot has not got them).
+MODEL_KEYS = ("robot_source", "tool_frame", "effect_parameters", "tracker_transform")
+#: The keys each kind must hold (a diagnosis: :data:`PAGE_KEYS` too where a report reads it).
+REQUIRED = {"diagnosis": PAGE_KEYS, "iso9283": (), "comparison": ()}
+
+
+def validate_result(doc, kind: str, source, required=()) -> dict:
+    """``doc`` checked against the schema of ``kind`` (with the keys ``required`` besides those of
+    every such result) and for the cross-references a schema cannot say (every parameter with a
+    standard error and a unit, named after its effect; a rigid tracker transform); returns it.
+    InputError naming ``source`` and the key at fault."""
+    import jsonschema
+
+    schema = schema_of(kind)
+    schema["required"] = [*schema["required"], *required]
+    validator = jsonschema.Draft202012Validator(schema)
+    error = jsonschema.exceptions.best_match(validator.iter_errors(doc))
+    if error is not None:
+        where = error.json_path if error.json_path != "$" else "the top level"
+        article = "an" if kind[0] in "aeiou" else "a"
+        raise InputError(f"{source}: {where}: {_said(error)}; not {article} {kind} result as tcr-accuracy writes it")
+    if kind == "diagnosis":
+        _check_diagnosis_references(doc, source)
+    return doc
+
+
+def _said(error) -> str:
+    """jsonschema's message, one line, its quoted value cut short (and written as JSON writes it)."""
+    import json
+
+    if error.validator == "required" and isinstance(error.instance, dict):
+        missing = [k for k in error.validator_value if k not in error.instance]
+        return (f"key {missing[0]!r} is missing" if len(missing) == 1 else
+                f"keys {', '.join(map(repr, missing))} are missing")
+    if error.validator == "type":
+        shown = json.dumps(error.instance)[:80]
+        wanted = error.validator_value if isinstance(error.validator_value, list) else [error.validator_value]
+        text = f"{shown} is not of type {' or '.join(map(repr, wanted))}"
+    else:
+        text = " ".join(str(error.message).split())
+    return text if len(text) <= 300 else text[:297] + "..."
+
+
+def _check_diagnosis_references(doc: dict, source) -> None:
+    for effect, values in doc["parameters"].items():
+        for name in values:
+            if not name.startswith(f"{effect}."):
+                raise InputError(f"{source}: $.parameters.{effect}: parameter {name!r} is not one of {effect}'s")
+            for key in (k for k in FIT_KEYS if k in doc):
+                if name not in (doc[key].get(effect) or {}):
+                    raise InputError(f"{source}: $.{key}.{effect}: no entry for {name}; every fitted parameter has "
+                                     "a standard error and a unit in a diagnosis")
+    for key in ("effect_parameters", "parameter_interval_95"):
+        for effect, values in (doc.get(key) or {}).items():
+            bad = next((n for n in values if not n.startswith(f"{effect}.")), None)
+            if bad is not None:
+                raise InputError(f"{source}: $.{key}.{effect}: parameter {bad!r} is not one of {effect}'s")
+    for effect, info in (doc.get("physical") or {}).items():
+        bad = next((p["parameter"] for p in info.get("pinned", []) if p["parameter"] not in doc["parameters"].get(
+            effect, {})), None)
+        if bad is not None:
+            raise InputError(f"{source}: $.physical.{effect}.pinned: {bad!r} is not a fitted parameter of {effect}")
+    if "tracker_transform" in doc:
+        _check_rigid(doc["tracker_transform"], f"{source}: $.tracker_transform")
+
+
+def _check_rigid(matrix, where: str) -> None:
+    """A 4 x 4 homogeneous rigid transform: orthonormal rotation of determinant +1, last row 0 0 0 1,
+    translation within 1 km."""
+    import numpy as np
+
+    m = np.asarray(matrix, dtype=float)
+    r = m[:3, :3]
+    if np.abs(r).max() > 1.0 + 1e-6 or np.abs(m[:3, 3]).max() > MAX_MM * 1e-3 or \
+            not np.allclose(m[3], [0, 0, 0, 1], atol=1e-9) or not np.allclose(r.T @ r, np.eye(3), atol=1e-6) or \
+            np.linalg.det(r) <= 0:
+        raise InputError(f"{where}: not a rigid transform (an orthonormal rotation, a translation within 1 km and "
+                         "a last row 0 0 0 1)")
+
+
+def read_result(path, kind: str | None = None, *, hint: str = "", required=()) -> tuple[str, dict]:
+    """(kind, validated document) of the JSON result ``path``; ``kind``: the one expected (any
+    of the three when None); ``required``: keys the caller needs besides (:data:`MODEL_KEYS`).
+    InputError naming the file and key at fault."""
+    from ..view.calibration_report import kind_of
+
+    doc = read_json_file(path, f"{kind or 'JSON'} result", hint=hint)
+    found = kind_of(doc, str(path)) if kind is None else kind
+    if kind is not None and not isinstance(doc, dict):
+        raise InputError(f"{path}: not a {kind} result (a JSON object was expected)")
+    return found, validate_result(doc, found, path, (*REQUIRED[found], *required) if kind is None else required)
+
+
+def _within(value: float, low: float, high: float, unit: str, where: str) -> None:
+    """InputError when ``value`` lies outside [low, high] (with rounding's slack)."""
+    slack = 1e-9 * max(1.0, *(abs(b) for b in (low, high) if math.isfinite(b)))
+    if not low - slack <= value <= high + slack:
+        raise InputError(f"{where}: {value:g} {unit} is outside the range [{low:g}, {high:g}] {unit} a diagnosis "
+                         "fits within (the effect's physics and the mechanisms it can stand for)")
+
+
+def _bound(value, infinite: float) -> float:
+    """A range bound as the JSON writes it (null: unbounded), rounded to 9 significant digits."""
+    return infinite if value is None or not math.isfinite(value) else float(f"{value:.9g}")
+
+
+def check_physics(doc: dict, robot, source) -> None:
+    """Every parameter of a diagnosis (``parameters`` and ``effect_parameters``) a parameter of its
+    effect on ``robot``, within the effect's fit range (:meth:`~tcr_accuracy.effects.base.Effect.fit_range`:
+    its physics and the mechanisms it can stand for; a fit never leaves it), the ranges the JSON
+    states its own; every option one the effect takes. ``frames`` (the setup: the tracker's frame,
+    each measured frame's offset) is left to the schema. InputError naming the key."""
+    from ..effects import make_effect
+
+    options = doc.get("effect_options") or {}
+    several = len(doc.get("frames_measured") or []) > 1  # one chain per measured frame; ``robot`` is the first's
+    for key in ("parameters", "effect_parameters"):
+        for effect, values in (doc.get(key) or {}).items():
+            if effect == "frames":  # the setup's (tracker frame, each measured frame's offset): named per campaign,
+                continue            # unbounded; the schema holds them to finite numbers
+            try:
+                model = make_effect(effect, robot, **(options.get(effect) or {}))
+            except (TypeError, ValueError) as exc:
+                raise InputError(f"{source}: $.effect_options.{effect}: {exc}") from None
+            names = model.parameter_names()
+            physical = model.physical_range()
+            low, high = model.fit_range()
+            for name, value in values.items():
+                if name not in names:
+                    if several:  # a joint of another measured frame's chain: its range is that chain's
+                        continue
+                    raise InputError(f"{source}: $.{key}.{effect}: {name} is not a parameter of {effect} on "
+                                     f"{robot.name} (a diagnosis of another robot, or with other options)")
+                k = names.index(name)
+                _within(value, low[k], high[k], model.parameter_units()[k], f"{source}: $.{key}.{effect}['{name}']")
+                if key != "parameters":
+                    continue
+                interval = (doc.get("parameter_interval_95") or {}).get(effect, {}).get(name)
+                for bound in (b for b in (interval or []) if b is not None):  # value +- 1.96 std, cut to the range
+                    _within(bound, low[k], high[k], model.parameter_units()[k],
+                            f"{source}: $.parameter_interval_95.{effect}['{name}']")
+                stated = (doc.get("physical") or {}).get(effect) or {}
+                for what, (lo, hi) in (("range", (physical[0][k], physical[1][k])), ("fit_range", (low[k], high[k]))):
+                    said = (stated.get(what) or {}).get(name)
+                    if said is not None and (_bound(said[0], -math.inf) != _bound(lo, -math.inf)
+                                             or _bound(said[1], math.inf) != _bound(hi, math.inf)):
+                        raise InputError(f"{source}: $.physical.{effect}.{what}['{name}']: {said} is not {effect}'s "
+                                         f"{what.replace('_', ' ')} [{lo:g}, {hi:g}] on {robot.name}")
