@@ -206,20 +206,24 @@ def test_22_32_warnings_and_status_lines_are_held_until_the_run_succeeds(m60, tm
 # ---------------------------------------------------------------------------------------
 # What a stopped run leaves behind (12: 4; 22: 27)
 # ---------------------------------------------------------------------------------------
-def test_12_04_sigterm_mid_run_leaves_nothing(tmp_path, capsys, monkeypatch, fake_signals):
+@pytest.mark.parametrize("name", ["SIGTERM", "SIGHUP"])  # a kill; the terminal closed
+def test_12_04_22_27_a_stop_signal_mid_run_is_an_interrupt_that_leaves_nothing(name, tmp_path, capsys, monkeypatch,
+                                                                             fake_signals):
     from tcr_accuracy.analysis import simulate
 
     real = simulate.truth_text
+    signum = getattr(fake_signals, name)
 
-    def terminated(truth, path):  # the CSV is written (staged) when the kill comes
-        fake_signals.send(fake_signals.SIGTERM)
+    def stopped(truth, path):  # the CSV is written (staged) when the signal comes
+        fake_signals.send(signum)
         return real(truth, path)
 
-    monkeypatch.setattr(simulate, "truth_text", terminated)
+    monkeypatch.setattr(simulate, "truth_text", stopped)
     code, out, err = run(["simulate", "--random", "--n", "20", "--out", tmp_path / "st.csv",
                           "--truth", tmp_path / "t.yaml"], capsys)
-    assert fake_signals.sent == [fake_signals.SIGTERM]
+    assert fake_signals.sent == [signum]
     assert code == 130
+    assert_one_line(err, "interrupted")
     assert list(tmp_path.rglob("*")) == []  # no CSV, truth or temporary file
     assert fake_signals.handlers == {fake_signals.SIGINT: signal.default_int_handler,  # the defaults back
                                      fake_signals.SIGTERM: fake_signals.SIG_DFL,
@@ -288,25 +292,6 @@ def test_22_27_a_signal_during_the_renames_ends_the_run_with_exit_0(tmp_path, ca
     assert "interrupted" not in err
     assert json.loads((tmp_path / "p.json").read_text())["robot"] == "tool_changer"
     assert [p.name for p in tmp_path.iterdir()] == ["p.json"]
-
-
-def test_22_27_sighup_mid_run_is_an_interrupt_that_leaves_nothing(tmp_path, capsys, monkeypatch, fake_signals):
-    from tcr_accuracy.analysis import simulate
-
-    real = simulate.truth_text
-
-    def hung_up(truth, path):  # the terminal closes while the CSV is staged
-        fake_signals.send(fake_signals.SIGHUP)
-        return real(truth, path)
-
-    monkeypatch.setattr(simulate, "truth_text", hung_up)
-    code, out, err = run(["simulate", "--random", "--n", "20", "--out", tmp_path / "st.csv",
-                          "--truth", tmp_path / "t.yaml"], capsys)
-    assert fake_signals.sent == [fake_signals.SIGHUP]
-    assert code == 130
-    assert_one_line(err, "interrupted")
-    assert list(tmp_path.rglob("*")) == []
-    assert fake_signals.getsignal(fake_signals.SIGHUP) == fake_signals.SIG_DFL
 
 
 #: A child process that stops itself with a real signal mid-run and during the renames (the
