@@ -293,7 +293,7 @@ def _run_predict(args) -> int:
     robot, out = _start(args, "Error prediction")
     q_train, model = _fit(args, robot)
     check_csv_memory(args, args.query, "--query", 3 * 64 * 8.0)
-    q, measured, context = read_joint_csv(args.query, robot, need_positions=False, repeats=True)
+    q, measured, context, lines = read_joint_csv(args.query, robot, need_positions=False, repeats=True, rows=True)
     scale = robot.display_scale
     pred, std = _predict(args, model, q, context)
     norm = np.linalg.norm(pred, axis=1)
@@ -377,7 +377,7 @@ def _run_predict(args) -> int:
                                            + ("; the held-out miss, measured - predicted error, per pose"
                                               if measured is not None else "")})
     if out.scene_wanted:
-        out.set_scene(*_predict_scene(robot, q, pred, robot_norm, args, model, measured))
+        out.set_scene(*_predict_scene(robot, q, pred, robot_norm, args, model, lines, measured))
     header = _joint_columns(robot) + ["ex_mm", "ey_mm", "ez_mm", "e_norm_mm"]
     blocks = [q * scale, pred * 1e3, norm[:, None] * 1e3]
     if std is not None:
@@ -407,10 +407,11 @@ def _print(robot, args, q_train, *lines: str) -> None:
         print(f"  {line}")
 
 
-def _predict_scene(robot, q, pred, norm, args, model, measured=None):
+def _predict_scene(robot, q, pred, norm, args, model, lines, measured=None):
     """In the robot's base frame: the query TCPs of the model (nominal + fitted TCP offset) coloured by
     the predicted |e|, segments to the predicted real TCP, the nominal (URDF) TCPs, the measured query
-    points when there are some (the training data's tracker frame applied) and the tracker's frame."""
+    points when there are some (the training data's tracker frame applied) and the tracker's frame; the
+    robot at the query of median |e| (``lines``: each query's line in its file), its point marked."""
     import numpy as np
 
     from ..model.kinematics import tcp_poses
@@ -423,15 +424,19 @@ def _predict_scene(robot, q, pred, norm, args, model, measured=None):
     magnify = segment_magnification(float(np.linalg.norm(beyond, axis=1).max()), extent)
     scene = Scene(f"{robot.name}: error predicted by {args.method}", frame="data")
     shown = _median_index(norm)
-    scene.add_robot(robot, q[shown], name="nominal robot", opacity=0.5)  # the TCP points sit in the tool
-    scene.add_point_cloud(model_tcp, norm * 1e3, name="query TCP", label="predicted TCP error |e| [mm]",
-                          size_m=1.6 * point_size(extent))
-    scene.add_error_segments(model_tcp, nominal + pred, magnify=magnify, name="predicted error",
-                             start_label="model TCP at the query joints (nominal + fitted TCP offset)",
-                             end_label="predicted real TCP")
+    row = int(lines[shown])
+    scene.add_robot(robot, q[shown], name=f"nominal robot at query row {row} (median |e|)",
+                    opacity=0.5)  # the TCP points sit in the tool
+    scene.add_point_cloud(model_tcp, norm * 1e3, name="query TCP",
+                          label="model TCP at the query joints (nominal + fitted TCP offset), coloured by the "
+                                "predicted TCP error |e| [mm]", size_m=1.6 * point_size(extent))
+    scene.add_marker(model_tcp[shown], "marked pose", f"the query point of row {row}, the pose the robot is "
+                                                      "drawn at", radius_m=4.0 * point_size(extent))
+    scene.add_error_segments(model_tcp, nominal + pred, magnify=magnify, name="predicted error", start_color=None,
+                             start_label="model TCP at the query joints", end_label="predicted real TCP")
     _draw_measurement_frame(scene, robot, q, model, measured, extent)
     scene.add_note(f"{len(q)} query poses, {args.method} fitted to {args.train}; robot base frame; robot at query "
-                   f"row {shown + 2} (median |e|); segments magnified x {magnify:g} (the TCP offset at true size)")
+                   f"row {row} (median |e|); segments magnified x {magnify:g} (the TCP offset at true size)")
     return scene, (f"Query TCP points (base frame) coloured by the predicted |e|; segments to the predicted real "
                    f"TCP, magnified x {magnify:g}")
 
@@ -560,7 +565,7 @@ def _run_compensate(args) -> int:
                                           "figure)")})
     if out.scene_wanted:
         out.set_scene(*_compensate_scene(robot, q, q_comp, target, before_tcp, after_tcp, before, args, model,
-                                         measured))
+                                         measured, lines[solved]))
     header = _joint_columns(robot) + _joint_columns(robot, "d") + ["predicted_miss_mm", "target_row"]
     _write_csv(args, "compensated joint values", header,
                           np.hstack([q_comp * scale, dq, after[:, None] * 1e3, lines[solved][:, None]]))
@@ -589,22 +594,31 @@ def _run_compensate(args) -> int:
     return out.finish(payload, lambda: _print(robot, args, q_train, *lines))
 
 
-def _compensate_scene(robot, q, q_comp, target, before_tcp, after_tcp, before, args, model, measured):
+#: The colour of the targets in the compensation's view (RGB in 0..1): not the measured points' blue.
+TARGET_COLOR = (0.45, 0.25, 0.70)
+
+
+def _compensate_scene(robot, q, q_comp, target, before_tcp, after_tcp, before, args, model, measured, lines):
     """In the robot's base frame: the targets (the measured point of the model), the predicted real
     TCP before and after compensation, the nominal TCPs, measured targets and the tracker's frame."""
-    from ..view.viewer import COLORS, Scene, data_extent, segment_magnification
+    from ..view.viewer import COLORS, Scene, data_extent, point_size, segment_magnification
 
     extent = data_extent(target)
     magnify = segment_magnification(float(before.max()), extent)
     scene = Scene(f"{robot.name}: compensation with {args.method}", frame="data")
     shown = _median_index(before)
-    scene.add_robot(robot, q_comp[shown], name="compensated command", opacity=0.5)
-    scene.add_error_segments(target, before_tcp, magnify=magnify, name="before",
-                             start_label="target TCP", end_label="predicted real TCP, uncompensated command")
-    scene.add_error_segments(target, after_tcp, magnify=magnify, name="after",
+    row = int(lines[shown])  # the target's line in its file
+    scene.add_robot(robot, q_comp[shown], name=f"robot at the compensated command of target row {row}",
+                    opacity=0.5)
+    drawn = scene.add_error_segments(target, before_tcp, magnify=magnify, name="before", start_color=TARGET_COLOR,
+                                     start_label="target TCP",
+                                     end_label="predicted real TCP, uncompensated command")
+    scene.add_error_segments(target[drawn], after_tcp[drawn], magnify=magnify, name="after", max_drawn=None,
                              start_label="target TCP", end_label="predicted real TCP, compensated command",
                              start_color=None, end_color=COLORS["trajectory"])  # the targets are drawn once
+    scene.add_marker(target[shown], "marked pose", f"the target of row {row}, the pose the robot is drawn at",
+                     radius_m=4.0 * point_size(extent))
     _draw_measurement_frame(scene, robot, q, model, measured, extent)
-    scene.add_note(f"{len(q)} targets of {args.targets}; robot base frame; robot at target row {shown + 2} (median "
+    scene.add_note(f"{len(q)} targets of {args.targets}; robot base frame; robot at target row {row} (median "
                    f"error before); segments magnified x {magnify:g}")
     return scene, f"Targets and the predicted real TCP before and after compensation, magnified x {magnify:g}"

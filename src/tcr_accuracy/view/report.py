@@ -39,6 +39,8 @@ from pathlib import Path
 
 from .. import __version__
 from ..exceptions import InputError
+from .html_text import breakable_html
+from .report_style import CSS, FIT_FIRST_PAGE_SCRIPT, PAGE_TEMPLATE
 
 #: Distributions whose versions every report lists (when installed).
 VERSION_PACKAGES = ("pin", "numpy", "scipy", "meshcat", "matplotlib", "scikit-learn", "SALib", "dask")
@@ -129,17 +131,9 @@ def _cell(value, float_format: str) -> str:
 #: smaller type with narrower cell padding, so that it fits the page's width on screen and on A4.
 WIDE_TABLE_COLUMNS = 9
 
-#: A word longer than this [characters] (a path, a long name) may break anywhere in a table cell,
-#: so that the table fits the page; shorter ones and numbers stay whole.
-LONG_WORD = 24
-
-
 def _td(value: str) -> str:
-    """A table cell; a long word in it may break anywhere (see the CSS), numbers and short words never."""
-    text = html.escape(value)
-    if any(len(word) > LONG_WORD for word in value.split()):
-        return f'<td><span class="long">{text}</span></td>'
-    return f"<td>{text}</td>"
+    """A table cell; a long word in it breaks after its separators (:func:`breakable_html`)."""
+    return f"<td>{breakable_html(value)}</td>"
 
 
 class Report:
@@ -309,7 +303,9 @@ class Report:
         rows = "".join(f"<tr><td>{esc(k)}</td><td>{esc(v)}</td></tr>" for k, v in versions().items())
         body.append(f'<table class="versions"><thead><tr><th>software</th><th>version</th></tr></thead>'
                     f"<tbody>{rows}</tbody></table>")
-        return _PAGE.format(title=esc(self.title), css=_CSS, body="\n".join(body))
+        if self.first_page is not None:
+            body.append(FIT_FIRST_PAGE_SCRIPT)
+        return PAGE_TEMPLATE.format(title=esc(self.title), css=CSS, body="\n".join(body))
 
     def markdown(self, *, pdf: str | None = None) -> str:
         """The same content as Markdown (tables as pipe tables); every string from outside made
@@ -387,86 +383,3 @@ class Report:
             page.write_text(self.html(pdf=self.PDF_NAME), encoding="utf-8")
             pdf, self.pdf_problem = print_to_pdf(page)
         return pdf
-
-
-_CSS = """
-body { font-family: system-ui, -apple-system, "Segoe UI", Roboto, sans-serif; color: #1d1d1f;
-  max-width: 1100px; margin: 24px auto; padding: 0 18px; line-height: 1.45; }
-h1 { font-size: 1.6em; margin-bottom: 0.2em; }
-h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ddd; padding-bottom: 0.2em; }
-.meta, .note, figcaption { color: #555; font-size: 0.9em; }
-/* nothing wider than the page: tables shrink to it and break long words (paths, parameter
-   names) anywhere, printed text wraps its long lines */
-table { border-collapse: collapse; margin: 0.6em 0; font-variant-numeric: tabular-nums; max-width: 100%; }
-th, td { border: 1px solid #ccc; padding: 4px 10px; text-align: right; overflow-wrap: break-word; }
-span.long, .first-page table.facts td { overflow-wrap: anywhere; }
-th { background: #f0f2f5; }
-td:first-child, th:first-child { text-align: left; }
-tbody tr:nth-child(even) { background: #fafafa; }
-figure { margin: 1em 0; }
-img { max-width: 100%; box-sizing: border-box; border: 1px solid #e3e3e3; }
-iframe { width: 100%; box-sizing: border-box; border: 1px solid #ccc; }
-pre { max-width: 100%; box-sizing: border-box; white-space: pre-wrap; overflow-wrap: anywhere; }
-pre.command { background: #f5f5f5; padding: 8px 10px; }
-pre.printed { background: #f7f7f7; border: 1px solid #e3e3e3; padding: 8px 10px;
-  font-size: 0.82em; line-height: 1.3; }
-code { overflow-wrap: anywhere; }
-.print-only { display: none; }
-a { overflow-wrap: anywhere; }
-
-/* the calibration report's first page */
-.first-page { border: 1px solid #d0d4da; padding: 4px 22px 16px; margin-bottom: 2em; }
-.first-page h1 { margin-top: 0.5em; }
-.first-page h2 { font-size: 1.05em; margin-top: 1.1em; }
-.first-page table { width: 100%; }
-.first-page table.facts th { width: 16%; text-align: left; vertical-align: top; }
-.first-page table.facts td { text-align: left; }
-.first-page td.text, .first-page th.text { text-align: left; }
-.first-page ul { margin: 0.3em 0; padding-left: 1.3em; }
-.first-page .command { font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: 0.9em;
-  background: #f5f5f5; padding: 1px 4px; overflow-wrap: anywhere; }
-.table.wide table { font-size: 0.8em; }
-.table.wide th, .table.wide td { padding: 3px 5px; }
-table.signatures { margin-top: 1em; }
-table.signatures th { width: 50%; text-align: left; }
-table.signatures td { height: 3.2em; text-align: left; vertical-align: bottom; color: #888; font-size: 0.85em; }
-
-@page { size: A4; margin: 11mm 12mm 12mm; }
-@media print {
-  body { max-width: none; margin: 0; padding: 0; font-size: 9pt; line-height: 1.3; }
-  .first-page { border: none; padding: 0; margin: 0; break-after: page; page-break-after: always;
-    font-size: 8.5pt; line-height: 1.25; }
-  .first-page h1 { font-size: 14pt; margin: 0 0 0.1em; }
-  .first-page h2 { font-size: 10pt; margin: 0.7em 0 0.2em; }
-  .first-page p, .first-page ul { margin: 0.25em 0; }
-  .first-page table { margin: 0.3em 0; }
-  .first-page th, .first-page td { padding: 1px 5px; }
-  .first-page p.note { font-size: 7.5pt; }
-  table.signatures td { height: 3em; }
-  th, td { padding: 2px 6px; }
-  .table.wide table { font-size: 7pt; }
-  .table.wide th, .table.wide td { padding: 1px 3px; }
-  table, figure, pre.command, .table, ul { break-inside: avoid; page-break-inside: avoid; }
-  h1, h2, h3 { break-after: avoid; page-break-after: avoid; }
-  pre.printed { font-size: 7pt; }
-  img { max-height: 200mm; }
-  figure.scene iframe, figure.scene figcaption { display: none; }
-  .print-only { display: block; }
-  a { color: inherit; text-decoration: none; }
-  tbody tr:nth-child(even) { background: none; }
-}
-"""
-
-_PAGE = """<!DOCTYPE html>
-<html lang="en">
-<head>
-<meta charset="utf-8">
-<meta name="viewport" content="width=device-width, initial-scale=1">
-<title>{title}</title>
-<style>{css}</style>
-</head>
-<body>
-{body}
-</body>
-</html>
-"""
