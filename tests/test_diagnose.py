@@ -18,7 +18,6 @@ from tcr_accuracy.diagnosis.diagnose import diagnose
 from tcr_accuracy.effects import predict_positions
 from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.model.kinematics import tcp_poses
-from tcr_accuracy.cli.writers import write_measurements
 from tcr_accuracy.model.robot import load_robot
 from tcr_accuracy.analysis.simulate import simulate_measurements
 from tcr_accuracy.io.measurements import parse_measurements
@@ -35,6 +34,22 @@ def _simulate(robot, effects, n, seed, context=None):
     scenario = {"effects": effects, "noise_mm": NOISE * 1e3,
                 "context": context or {"payload_kg": 150, "payload_fraction": 0.5, "directions": "random"}}
     return simulate_measurements(robot, scenario, n, np.random.default_rng(seed))
+
+
+def _geometry_measurements(robot, q, rng, *, placement_mm, placement_deg, offset_deg=0.0, tcp_mm=(0.8, -0.5, 1.2),
+                           displacement=None, context=None):
+    """CSV text of ``robot`` at commanded q with hidden geometry, on Pinocchio alone
+    (tests/hidden_robot.py): joint placement errors, encoder offsets (prismatic: 0.2 x in mm), the TCP
+    ``tcp_mm`` off, the tracker 1.6 m away turned 35 deg, 0.02 mm noise per axis; ``displacement``
+    (N, 3) [m] added to the TCP in the base frame."""
+    offsets, placements = geometric_errors(robot, rng, offset_deg=offset_deg, offset_mm=0.2 * offset_deg,
+                                           placement_mm=placement_mm, placement_deg=placement_deg)
+    tcp = robot.tool_frame
+    hidden = HiddenRobot(robot, placements, {tcp: np.asarray(tcp_mm) * MM})
+    positions = hidden.positions(q + offsets, [tcp])[tcp] + (0.0 if displacement is None else displacement)
+    tracker = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, math.radians(35.0)), np.array([1.25, -0.83, -0.41]))
+    measured = noisy(rng, in_tracker(tracker, positions), NOISE)
+    return measurement_csv(robot, q, {tcp: measured}, context or {}, per_frame=False)
 
 
 COMPLIANCE_SI = {"j2": 0.012 * DEG / 1e3, "j3": 0.02 * DEG / 1e3, "j5": 0.03 * DEG / 1e3,  # rad/Nm
@@ -117,11 +132,16 @@ def test_identifiability_names_duplicated_parameters(compliance_case, tool_chang
 
 
 def test_out_of_vocabulary_effect_leaves_structure(tool_changer):
-    effects = {"frames": FRAMES, "geometry": {"spread_mm": 0.1, "spread_mrad": 0.1},
-               "unmodelled": {"amplitude_mm": 0.6}}
-    mset, _ = _simulate(tool_changer, effects, 200, seed=5)
-    result = diagnose(tool_changer, mset, folds=3, random_state=2, tracker_noise=NOISE,
-                      effects=["joint_offsets", "geometry", "compliance", "transmission"])
+    """A smooth TCP displacement of about 0.6 mm that mixes several joints in the base frame: no
+    effect of the vocabulary given expresses it."""
+    rng = np.random.default_rng(5)
+    q = random_poses(tool_changer, 200, rng)
+    field = 0.6 * MM * np.column_stack([np.sin(q[:, 0] + 2 * q[:, 1]), np.cos(q[:, 2] - q[:, 4]),
+                                        np.sin(2 * q[:, 4] + q[:, 1])])
+    text = _geometry_measurements(tool_changer, q, rng, placement_mm=0.1, placement_deg=0.1e-3 / DEG,
+                                  displacement=field)
+    result = diagnose(tool_changer, parse_measurements(text, tool_changer), folds=3, random_state=2,
+                      tracker_noise=NOISE, effects=["joint_offsets", "geometry", "compliance", "transmission"])
     assert result.steps[-1].heldout.rms > 2 * result.noise_floor
     assert result.structure_remains
 
@@ -139,13 +159,15 @@ def test_clearance_shows_as_scatter_without_structure(tool_changer):
 
 
 def test_geometry_only_as_built_urdf_reproduces_the_robot(tmp_path, ur5):
-    """Export and reload: the as-built URDF plus the tracker frame predict the measurements."""
-    effects = {"frames": {"spread_mm": {"base": 20.0, "tool": 1.0}, "spread_mrad": {"base": 5.0}},
-               "geometry": {"spread_mm": 0.3, "spread_mrad": 0.3},
-               "joint_offsets": {"spread_deg": 0.05}}
-    mset, _ = _simulate(ur5, effects, 150, seed=8, context={"directions": "none"})
+    """Export and reload: the as-built URDF plus the tracker frame predict the measurements (hidden
+    geometry, encoder offsets and TCP offset written on Pinocchio alone)."""
+    rng = np.random.default_rng(8)
+    q = random_poses(ur5, 150, rng)
+    text = _geometry_measurements(ur5, q, rng, placement_mm=0.3, placement_deg=0.3e-3 / DEG, offset_deg=0.05,
+                                  tcp_mm=(0.6, -0.9, 0.4))
+    mset = parse_measurements(text, ur5)
     csv = tmp_path / "meas.csv"
-    write_measurements(csv, ur5, mset)
+    csv.write_text(text)
     urdf = tmp_path / "asbuilt.urdf"
     out = tmp_path / "out.json"
     proc = subprocess.run([sys.executable, "-m", "tcr_accuracy", "diagnose", str(csv), "--robot", "ur5",
@@ -197,12 +219,13 @@ def test_too_few_measurements_is_an_input_error(tool_changer):
 
 def test_an_effect_left_with_no_parameter_does_not_stop_the_diagnosis(tool_changer):
     """At one constant temperature off the reference, thermal growth is a fixed geometric
-    error: once geometry is in the model it keeps no parameter of its own."""
+    error: once geometry is in the model it keeps no parameter of its own (the hidden robot:
+    geometry only, on Pinocchio alone, measured at 31 degC)."""
     rng = np.random.default_rng(11)
-    scenario = {"effects": {"frames": {"base_mm": {"dx": 15}}, "geometry": {"spread_mm": 0.3, "spread_mrad": 0.3}},
-                "context": {"temperature_c": 31.0, "temperature_spread_c": 0.0, "directions": "none",
-                            "payload_fraction": 0.0}}
-    mset, _ = simulate_measurements(tool_changer, scenario, 120, rng, noise_m=2e-5)
+    q = random_poses(tool_changer, 120, rng)
+    text = _geometry_measurements(tool_changer, q, rng, placement_mm=0.3, placement_deg=0.3e-3 / DEG,
+                                  context={"temperature_c": np.full(120, 31.0)})
+    mset = parse_measurements(text, tool_changer)
     assert np.all(mset.temperature_c == 31.0)
     result = diagnose(tool_changer, mset, effects=["geometry", "thermal", "joint_offsets"], folds=3,
                       tracker_noise=2e-5)
