@@ -202,6 +202,12 @@ def geometric_errors(robot: RobotModel, rng: np.random.Generator, *, offset_deg:
     return offsets, placements
 
 
+def fixed_tracker() -> pin.SE3:
+    """``trackerMbase`` of the tests that fix it: 1.6 m from the robot (1.25, -0.83, -0.41 m),
+    turned 35 deg about the vertical."""
+    return pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, math.radians(35.0)), np.array([1.25, -0.83, -0.41]))
+
+
 def in_tracker(frame: pin.SE3, positions: np.ndarray) -> np.ndarray:
     """(N, 3) base-frame positions [m] as the tracker sees them: R p + t."""
     return positions @ frame.rotation.T + frame.translation

@@ -11,7 +11,6 @@ import subprocess
 import sys
 
 import numpy as np
-import pinocchio as pin
 import pytest
 
 from tcr_accuracy.analysis.simulate import simulate_measurements
@@ -29,7 +28,8 @@ from tcr_accuracy.model.kinematics import tcp_poses
 from tcr_accuracy.io.measurements import parse_measurements
 
 from conftest import REPO
-from hidden_robot import DEG, HiddenRobot, geometric_errors, in_tracker, measurement_csv, noisy, random_poses
+from hidden_robot import DEG, HiddenRobot, fixed_tracker, geometric_errors, in_tracker, measurement_csv, noisy, \
+    random_poses
 
 NOISE = 2e-5
 FRAMES = {"base_mm": {"dx": 1250.0, "dy": -830.0, "dz": -410.0}, "base_deg": {"rz": 35.0},
@@ -51,7 +51,7 @@ def _encoder_scale_case(robot, n, seed):
     hidden = HiddenRobot(robot, placements, {tcp: np.array([0.8, -0.5, 1.2]) * 1e-3})
     real = q.copy()
     real[:, [1, 2, 4]] *= 1.0 + scales
-    tracker = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, math.radians(35.0)), np.array([1.25, -0.83, -0.41]))
+    tracker = fixed_tracker()
     measured = noisy(rng, in_tracker(tracker, hidden.positions(real, [tcp])[tcp]), NOISE)
     return parse_measurements(measurement_csv(robot, q, {tcp: measured}, {}, per_frame=False), robot)
 
@@ -202,7 +202,7 @@ def test_a_3_mm_sag_with_gravity_at_the_deflected_pose_is_compliance_and_nothing
     sagged = hidden.positions(q + deflection, [tcp])[tcp]
     second_order = sagged - hidden.positions(q + first, [tcp])[tcp]
     assert 0.25 * 0.0346e-3 < math.sqrt(np.mean(np.sum(second_order**2, axis=1))) < 0.0346e-3
-    tracker = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, math.radians(35.0)), np.array([1.25, -0.83, -0.41]))
+    tracker = fixed_tracker()
     measured = noisy(rng, in_tracker(tracker, sagged), NOISE)
     mset = parse_measurements(measurement_csv(ur5, q, {tcp: measured}, {"payload_kg": np.full(300, 5.0)},
                                               per_frame=False), ur5)

@@ -1,17 +1,17 @@
 """diagnose against hidden simulated truths it never sees.
 
-The compliance case is written on Pinocchio alone (tests/hidden_robot.py), the others come from
-``simulate`` (effects applied to the Pinocchio model, tracker noise added); the diagnosis gets the measurement set only (or the CSV file for
-the CLI) and is judged on what the scenario hid.
+The hidden robots are written on Pinocchio alone (tests/hidden_robot.py: joint placement errors,
+encoder offsets, compliance as -C g(q), a TCP offset, the tracker's frame); the clearance case
+and the too-few-rows check come from ``simulate`` (effects applied to the Pinocchio model, tracker
+noise added). The diagnosis gets the measurement set only (or the CSV file for the CLI) and is
+judged on what the hidden robot holds.
 """
 
 import json
-import math
 import subprocess
 import sys
 
 import numpy as np
-import pinocchio as pin
 import pytest
 
 from tcr_accuracy.diagnosis.diagnose import diagnose
@@ -23,7 +23,8 @@ from tcr_accuracy.analysis.simulate import simulate_measurements
 from tcr_accuracy.io.measurements import parse_measurements
 
 from conftest import REPO
-from hidden_robot import DEG, MM, HiddenRobot, geometric_errors, in_tracker, measurement_csv, noisy, random_poses
+from hidden_robot import DEG, MM, HiddenRobot, fixed_tracker, geometric_errors, in_tracker, measurement_csv, \
+    noisy, random_poses
 
 FRAMES = {"base_mm": {"dx": 1250.0, "dy": -830.0, "dz": -410.0}, "base_deg": {"rz": 35.0},
           "tool_mm": {"dx": 0.8, "dy": -0.5, "dz": 1.2}}
@@ -47,7 +48,7 @@ def _geometry_measurements(robot, q, rng, *, placement_mm, placement_deg, offset
     tcp = robot.tool_frame
     hidden = HiddenRobot(robot, placements, {tcp: np.asarray(tcp_mm) * MM})
     positions = hidden.positions(q + offsets, [tcp])[tcp] + (0.0 if displacement is None else displacement)
-    tracker = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, math.radians(35.0)), np.array([1.25, -0.83, -0.41]))
+    tracker = fixed_tracker()
     measured = noisy(rng, in_tracker(tracker, positions), NOISE)
     return measurement_csv(robot, q, {tcp: measured}, context or {}, per_frame=False)
 
@@ -73,7 +74,7 @@ def _compliance_measurements(robot, n, seed):
     dq = np.zeros_like(q)
     for _ in range(4):  # the sag changes the torque by a thousandth: a few steps converge
         dq = -compliance * hidden.holding_torque(q + dq, payload)
-    tracker = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, math.radians(35.0)), np.array([1.25, -0.83, -0.41]))
+    tracker = fixed_tracker()
     measured = noisy(rng, in_tracker(tracker, hidden.positions(q + dq, [tcp])[tcp]), NOISE)
     text = measurement_csv(robot, q, {tcp: measured}, {"payload_kg": payload}, per_frame=False)
     return parse_measurements(text, robot)
