@@ -1,5 +1,6 @@
 """Shared fixtures: models are built in-process (no network, no files outside the repo)."""
 
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -119,13 +120,91 @@ def write_measurement_csv(path, robot, q, positions=None):
 
 
 @pytest.fixture(scope="session")
-def small_campaign(tmp_path_factory):
-    """(measurement CSV, diagnosis JSON) of 24 simulated poses of the tool-changer (seed 2) and
-    their diagnosis with joint offsets: what the hostile-input tests read, copy and forge."""
-    from tcr_accuracy.cli import main
+def measurements(tmp_path_factory):
+    """A measurement CSV of 24 simulated poses of the tool-changer (seed 2): what the
+    hostile-input tests read, copy and forge."""
+    path = tmp_path_factory.mktemp("small_campaign") / "m.csv"
+    assert main(["simulate", "--n", "24", "--random", "--seed", "2", "--out", str(path), "--quiet"]) == 0
+    return path
 
-    folder = tmp_path_factory.mktemp("small_campaign")
-    csv, diagnosis = folder / "m.csv", folder / "d.json"
-    assert main(["simulate", "--n", "24", "--random", "--seed", "2", "--out", str(csv), "--quiet"]) == 0
-    assert main(["diagnose", str(csv), "--effects", "joint_offsets", "--quiet", "--json", str(diagnosis)]) == 0
-    return csv, diagnosis
+
+@pytest.fixture(scope="session")
+def small_campaign(measurements):
+    """(measurement CSV, diagnosis JSON): :func:`measurements` and its diagnosis with joint offsets."""
+    diagnosis = measurements.with_name("d.json")
+    assert main(["diagnose", str(measurements), "--effects", "joint_offsets", "--quiet", "--json",
+                 str(diagnosis)]) == 0
+    return measurements, diagnosis
+
+
+@pytest.fixture(scope="session")
+def m60(tmp_path_factory):
+    """``simulate --scenario examples/scenario_compliance.yaml --n 60 --seed 2``: 60 poses of the
+    tool-changer that agree with its joints, for the hostile-input tests to forge."""
+    path = tmp_path_factory.mktemp("m60") / "m60.csv"
+    assert main(["simulate", "--scenario", str(REPO / "examples" / "scenario_compliance.yaml"), "--n", "60",
+                 "--seed", "2", "--out", str(path), "--quiet"]) == 0
+    return path
+
+
+# ---------------------------------------------------------------------------------------
+# Signals without signalling pytest
+# ---------------------------------------------------------------------------------------
+class SignalDeath(BaseException):
+    """What the stand-in raises where a real signal would have killed the process (its
+    default action): it fails the test instead of ending pytest."""
+
+
+class FakeSignals:
+    """Python's ``signal`` module as ``tcr_accuracy.cli.signals`` uses it, with no real signal:
+    the handlers live in a dict, and :meth:`send` runs the one installed for a signal at once, in
+    the calling thread, as Python runs a handler for a signal a process sends itself (at the next
+    bytecode of the main thread). A signal whose handler is the default one raises
+    :class:`SignalDeath`, as the process would have died; SIGINT starts with Python's handler
+    (KeyboardInterrupt)."""
+
+    SIG_DFL, SIG_IGN = signal.SIG_DFL, signal.SIG_IGN
+
+    def __init__(self):
+        self.handlers = {signal.SIGINT: signal.default_int_handler}  # as Python starts: Ctrl-C raises
+        self.sent = []  # by the test (kill from outside)
+        self.raised = []  # by the code under test (signal.raise_signal)
+        for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+            setattr(self, name, getattr(signal, name))
+
+    def signal(self, signum, handler):
+        previous = self.handlers.get(signum, self.SIG_DFL)
+        self.handlers[signum] = handler
+        return previous
+
+    def getsignal(self, signum):
+        return self.handlers.get(signum, self.SIG_DFL)
+
+    def send(self, signum):
+        """Deliver ``signum`` to this (pretend) process now, as another process would."""
+        self.sent.append(signum)
+        self._deliver(signum)
+
+    def raise_signal(self, signum):
+        """``signal.raise_signal``: the process sends ``signum`` to itself."""
+        self.raised.append(signum)
+        self._deliver(signum)
+
+    def _deliver(self, signum):
+        handler = self.getsignal(signum)
+        if handler in (self.SIG_DFL, None):
+            raise SignalDeath(f"signal {signal.Signals(signum).name} with its default action: the process dies")
+        if handler != self.SIG_IGN:
+            handler(signum, None)
+
+
+@pytest.fixture
+def fake_signals(monkeypatch):
+    """A :class:`FakeSignals` standing in for the ``signal`` module the command line's signal
+    helper (``tcr_accuracy.cli.signals``) installs its handlers with; send signals with
+    ``fake_signals.send(fake_signals.SIGTERM)``."""
+    from tcr_accuracy.cli import signals
+
+    fake = FakeSignals()
+    monkeypatch.setattr(signals, "signal", fake)
+    return fake

@@ -247,7 +247,7 @@ def test_cli_plan_poses_writes_poses_within_limits_and_refuses_bad_k(tmp_path, t
     out = tmp_path / "plan.csv"
     cmd = [sys.executable, "-m", "tcr_accuracy", "plan-poses", str(csv), "-k", "12", "--out", str(out),
            "--effects", "encoder_scale,transmission", "--n-candidates", "400", "--json", str(tmp_path / "p.json")]
-    run = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
+    run = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO, timeout=600)
     assert run.returncode == 0, run.stderr
     lines = [ln for ln in out.read_text().splitlines() if not ln.startswith("#")]
     assert lines[0].split(",")[:2] == ["j1_deg", "j2_deg"]
@@ -259,7 +259,7 @@ def test_cli_plan_poses_writes_poses_within_limits_and_refuses_bad_k(tmp_path, t
     payload = json.loads((tmp_path / "p.json").read_text())
     assert payload["effects"] == ["frames", "encoder_scale", "transmission"]
     bad = subprocess.run(cmd[:5] + ["-k", "0", "--out", str(tmp_path / "x.csv")], capture_output=True, text=True,
-                         cwd=REPO)
+                         cwd=REPO, timeout=300)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "-k" in bad.stderr
     assert not (tmp_path / "x.csv").exists()
 

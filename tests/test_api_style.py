@@ -4,6 +4,7 @@ of randomness, SI attributes, short reprs, and the printed summary reachable fro
 The diagnosis is run once on a small simulated data set (two effects, 60 rows) and shared.
 """
 
+import math
 import re
 import subprocess
 import sys
@@ -268,3 +269,35 @@ def test_python_summary_prints_the_gap_an_independent_frame_fit_finds(tool_chang
     fit = least_squares(residual, np.zeros(9), x_scale=[1, 1, 1, 0.01, 0.01, 0.01, 0.01, 0.01, 0.01])
     by_hand_rms = np.sqrt(np.mean(np.sum(fit.fun.reshape(-1, 3) ** 2, axis=1)))
     assert printed_rms_mm == pytest.approx(by_hand_rms * 1e3, abs=1e-4)  # printed to 4 decimals in mm
+
+
+def test_python_summary_prints_the_diagnosis_figures_in_mm(tool_changer, measured):
+    """The step table and the closing line of tcr.diagnosis_summary are the Diagnosis' SI figures
+    converted here by hand (m -> mm: x 1000, printed to 4 decimals); the noise floor is the closed
+    form for the tracker noise given (2e-5 m per axis: sqrt(3) x 2e-5 m RMS in 3-D), and each
+    step's gain is the previous step's held-out RMS minus its own."""
+    d = tcr.diagnose(tool_changer, measured, folds=3, random_state=0, effects=EFFECTS, tracker_noise=2e-5)
+    lines = tcr.diagnosis_summary(d).splitlines()
+    rows = {}
+    for line in lines:
+        m = re.match(r"\s+\+?(\w+)\s+(\d+)\s+([0-9.]+)\s+([0-9.]+)\s+([0-9.]+)\s+([0-9.]+)(\s+[+-][0-9.]+)?", line)
+        if m and m.group(1) in [s.effect for s in d.steps]:
+            rows[m.group(1)] = m.groups()[1:]
+    assert list(rows) == [s.effect for s in d.steps] and len(rows) >= 2  # frames, then the chosen effects
+    previous_rms = None
+    for step in d.steps:
+        params, train, mean, rms, worst, gain = rows[step.effect]
+        assert int(params) == step.n_parameters
+        printed = [float(train), float(mean), float(rms), float(worst)]
+        expected = [1000.0 * v for v in (step.train_rms, step.heldout.mean, step.heldout.rms, step.heldout.max)]
+        np.testing.assert_allclose(printed, expected, atol=5.1e-5)
+        if previous_rms is None:
+            assert gain is None
+        else:
+            assert float(gain) == pytest.approx(1000.0 * (previous_rms - step.heldout.rms), abs=1.1e-4)
+        previous_rms = step.heldout.rms
+    closing = next(line for line in lines if "final held-out RMS" in line)
+    floor_mm = math.sqrt(3) * 2e-5 * 1000.0
+    final_mm = 1000.0 * d.steps[-1].heldout.rms
+    assert f"final held-out RMS {final_mm:.4f} mm = {final_mm / floor_mm:.2f} x the noise floor " \
+           f"{floor_mm:.4f} mm (tracker 0.0200 mm per axis)" in closing, closing

@@ -246,7 +246,8 @@ def test_b_a_failed_commit_of_a_new_folder_leaves_nothing(tmp_path, monkeypatch)
     assert list(tmp_path.iterdir()) == []  # nor the parents made for it
 
 
-def test_b_sigterm_while_the_new_folder_is_prepared_leaves_the_old_one(tmp_path, capsys, monkeypatch):
+def test_b_sigterm_while_the_new_folder_is_prepared_leaves_the_old_one(tmp_path, capsys, monkeypatch,
+                                                                      fake_signals):
     out = tmp_path / "r"
     assert run([*_MC, "--out", out], capsys)[0] == 0
     (out / "notes.txt").write_text("mine")
@@ -254,15 +255,12 @@ def test_b_sigterm_while_the_new_folder_is_prepared_leaves_the_old_one(tmp_path,
     real = folder_swap._carry
 
     def terminated(old, new, device):  # the CLI turns SIGTERM into an interrupt
-        os.kill(os.getpid(), signal.SIGTERM)
+        fake_signals.send(fake_signals.SIGTERM)  # were its handler gone: SignalDeath fails the test
         return real(old, new, device)
 
     monkeypatch.setattr(folder_swap, "_carry", terminated)
-    previous = signal.signal(signal.SIGTERM, lambda *a: None)  # were the CLI's handler gone: no death
-    try:
-        code, _, err = run([*_MC, "--seed", "5", "--out", out], capsys)
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+    code, _, err = run([*_MC, "--seed", "5", "--out", out], capsys)
+    assert fake_signals.sent == [fake_signals.SIGTERM]
     assert code == 130, err
     assert snapshot(out) == before
     assert temporary_leftovers(tmp_path) == []

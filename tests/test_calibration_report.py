@@ -5,8 +5,8 @@ plots, and its width in Chromium, on screen and in print.
 The figures on the first page are compared with the commands' JSON, converted to display units
 here by hand (m -> mm, rad -> deg, ...), not through the report's code; the pass/fail verdict
 with the limits compared here by hand. The PDF is read with pypdf (the test extra): Chromium
-compresses its page streams. Needs Chromium as tests/test_browser.py does: without it these
-tests FAIL, they do not skip.
+compresses its page streams. Needs Chromium as tests/test_browser.py does, and pypdf: without
+either these tests FAIL, they do not skip.
 """
 
 import json
@@ -20,11 +20,10 @@ import subprocess
 from html.parser import HTMLParser
 from pathlib import Path
 
+import pypdf  # the test extra (pip install '.[test]'): without it this file fails to import, it does not skip
 import pytest
 
 from conftest import REPO, run_command
-
-pypdf = pytest.importorskip("pypdf", reason="pypdf is in the test extra: pip install '.[test]'")
 
 EPOCH = "1700000000"  # SOURCE_DATE_EPOCH of every run here: 2023-11-14 22:13:20 UTC
 DATE = "2023-11-14"

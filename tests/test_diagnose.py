@@ -204,7 +204,7 @@ def test_cli_bad_csv_exits_2_with_one_line(tmp_path):
     bad.write_text("j1_deg,j2_deg,j3_deg,j4_mm,j5_deg,j6_deg,x_mm,y_mm,z_mm\n"
                    "1,2,3,4,5,6,100,200,300\n1,2,abc,4,5,6,100,200,300\n")
     proc = subprocess.run([sys.executable, "-m", "tcr_accuracy", "diagnose", str(bad), "--quiet"],
-                          capture_output=True, text=True, cwd=REPO,
+                          capture_output=True, text=True, cwd=REPO, timeout=300,
                           env={"PYTHONPATH": str(REPO / "src"), "PATH": "/usr/bin:/bin"})
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()

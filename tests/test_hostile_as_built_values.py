@@ -17,7 +17,7 @@ import tcr_accuracy as tcr
 from tcr_accuracy.cli import main
 from tcr_accuracy.exceptions import InputError
 
-from test_hostile_input import assert_one_line, run
+from hostile import assert_one_line, run
 
 
 @pytest.fixture(scope="module")

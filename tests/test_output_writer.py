@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from test_hostile_input import assert_one_line, run
+from hostile import assert_one_line, run
 from tcr_accuracy.cli import build_parser
 from tcr_accuracy.cli.output_paths import OUTPUT_TYPES, OutputPaths, check_followable
 from tcr_accuracy.cli.staging import staged_outputs, write_text

@@ -244,7 +244,8 @@ def test_scripts_with_a_shebang_can_be_run_directly():
     assert {p.name for p in with_shebang} >= {"blind_benchmark.py", "seed2_benchmark.py", "test.sh"}
     not_executable = [p.name for p in with_shebang if not os.access(p, os.X_OK)]
     assert not not_executable, f"no run bit: {not_executable}"
-    listed = subprocess.run(["git", "ls-files", "-s", "scripts"], cwd=REPO, capture_output=True, text=True)
+    listed = subprocess.run(["git", "ls-files", "-s", "scripts"], cwd=REPO, capture_output=True, text=True,
+                            timeout=60)
     if listed.returncode == 0 and listed.stdout:  # in a git checkout: the mode git stores is what a clone gets
         modes = {Path(line.split("\t")[1]).name: line.split()[0] for line in listed.stdout.splitlines()}
         wrong = [p.name for p in with_shebang if modes.get(p.name, "100755") != "100755"]

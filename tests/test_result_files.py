@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from test_hostile_input import assert_one_line, run
+from hostile import assert_one_line, run
 from tcr_accuracy.cli import main
 from tcr_accuracy.cli.result_files import (FIT_KEYS, MODEL_KEYS, PAGE_KEYS, check_physics, read_result,
                                            validate_result)

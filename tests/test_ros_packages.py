@@ -16,8 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from test_hostile_input import assert_one_line, run
-from test_hostile_input_2 import collada_triangle, embedded_blobs
+from hostile import assert_one_line, collada_triangle, embedded_blobs, run
 from tcr_accuracy.analysis.collision import collision_checker
 from tcr_accuracy.model.robot import MissingMeshWarning, load_robot
 from tcr_accuracy.model.ros_packages import MAX_SEARCH_DEPTH

@@ -308,16 +308,66 @@ def test_cli_sensitivity_json(tmp_path):
     assert dx[0]["name"] == "j1 drive" and dx[0]["linear_S1"] == pytest.approx(0.987, abs=0.005)
 
 
-def test_sweep_and_sobol_plots_are_drawn_as_png_images(tool_changer, tmp_path):
+def _drawn_png(png: bytes):
+    """The decoded image (height x width x RGBA, 0..1) of a PNG, by matplotlib's reader."""
+    import io
+
+    import matplotlib.image
+
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    return matplotlib.image.imread(io.BytesIO(png), format="png")
+
+
+def _assert_a_drawn_plot(png: bytes, size_in: tuple, dpi: int = 110):
+    """Image of the figure size at ``dpi`` (cropped to what is drawn: at most that, at least
+    80 % of it), neither blank nor a filled block: 2-50 % of its pixels not white, some of them
+    coloured (curves, bars), and dozens of distinct colours (anti-aliased lines and text)."""
+    rgb = _drawn_png(png)[..., :3]
+    height, width = rgb.shape[:2]
+    assert 0.8 * size_in[1] * dpi <= height <= size_in[1] * dpi + 2, rgb.shape
+    assert 0.8 * size_in[0] * dpi <= width <= size_in[0] * dpi + 2, rgb.shape
+    ink = (rgb < 0.95).any(axis=2).mean()
+    assert 0.02 <= ink <= 0.5, ink
+    coloured = (rgb.max(axis=2) - rgb.min(axis=2) > 0.3).mean()
+    assert coloured > 0.005, coloured
+    assert len(np.unique(np.round(rgb * 255).astype(np.uint8).reshape(-1, 3), axis=0)) >= 50
+
+
+def test_sweep_and_sobol_plots_are_drawn_as_png_images(tool_changer, tmp_path, monkeypatch):
+    from tcr_accuracy.view import plots_sensitivity
     from tcr_accuracy.view.plots_sensitivity import POSITION_OUTPUTS, plot_sobol, plot_sweep
 
+    figures = []  # what each figure holds, read before it is saved and closed
+    real_save = plots_sensitivity.save_figure
+
+    def save_figure(fig, path, **kw):
+        figures.append([(ax.get_xlabel(), ax.get_ylabel(), [(line.get_xdata(), line.get_ydata()) for line in ax.lines],
+                         [bar.get_height() for bar in ax.patches]) for ax in fig.axes if ax.get_ylabel()])
+        return real_save(fig, path, **kw)
+
+    monkeypatch.setattr(plots_sensitivity, "save_figure", save_figure)
     q = tool_changer.working_pose
     sweep = seed_sweeps(tool_changer, q)["joint_angle"]
     idx = sobol_indices(seed_budget(tool_changer, "table2"), q, n_base=64, outputs=("dx", "dy", "dz", "norm"),
                         num_resamples=10)
     files = [plot_sweep(sweep, POSITION_OUTPUTS, "t", "joint angle error [deg]", tmp_path / "out" / "sweep.png"),
              plot_sobol(idx, tmp_path / "out" / "sobol.png")]
-    for f in files:
-        assert f.png[:8] == b"\x89PNG\r\n\x1a\n" and len(f.png) > 10_000
     assert [f.path.name for f in files] == ["sweep.png", "sobol.png"]
     assert not (tmp_path / "out").exists()  # drawn, not written: the caller writes them
+    _assert_a_drawn_plot(files[0].png, (12, 7.5))  # the sizes the two plots ask for, in inches
+    _assert_a_drawn_plot(files[1].png, (11, 2.9 * 4 + 0.8))
+
+    sweep_axes, sobol_axes = figures
+    assert [ax[:2] for ax in sweep_axes] == [("joint angle error [deg]", label)
+                                             for label in ("dx [mm]", "dy [mm]", "dz [mm]", "|dP| [mm]")]
+    for (_, _, lines, _), name in zip(sweep_axes, POSITION_OUTPUTS):  # one curve per joint, in mm over deg
+        assert len(lines) == len(sweep.source_names)
+        for (x, y), m in zip(lines, sweep.output(name)):
+            np.testing.assert_allclose(x, np.degrees(sweep.values))
+            np.testing.assert_allclose(y, m * 1000.0)
+    for (_, label, _, bars), k in zip(sobol_axes, range(4)):  # S1 then ST bars, largest ST first
+        assert label == f"Sobol index of {POSITION_OUTPUTS[k]}"
+        n = min(12, len(idx.source_names))
+        order = np.argsort(-idx.total_order[k], kind="stable")[:n]
+        np.testing.assert_allclose(bars[n:], idx.total_order[k, order])
+        np.testing.assert_allclose(bars[:n], idx.first_order[k, order])

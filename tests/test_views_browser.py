@@ -168,6 +168,7 @@ def simulated(tmp_path_factory):
     return folder
 
 
+@pytest.mark.slow  # 30-50 s on a loaded machine (Chromium)
 def test_diagnosis_view_frames_robot_and_points_marks_its_pose_and_thins_the_lines(chromium, tmp_path, simulated,
                                                                                   capsys):
     from tcr_accuracy.cli import main
@@ -205,6 +206,7 @@ def test_diagnosis_view_frames_robot_and_points_marks_its_pose_and_thins_the_lin
     assert drawn.max() * 1e3 == pytest.approx(data["gap"]["max_mm"], rel=2e-3)  # the largest among them
 
 
+@pytest.mark.slow  # 30-50 s on a loaded machine (Chromium)
 def test_predict_view_frames_the_robot_marks_its_query_and_shows_distinct_colours(chromium, tmp_path, simulated,
                                                                                   capsys):
     from tcr_accuracy.cli import main
@@ -226,6 +228,7 @@ def test_predict_view_frames_the_robot_marks_its_query_and_shows_distinct_colour
     assert miss < 4e-3
 
 
+@pytest.mark.slow  # 30-50 s on a loaded machine (Chromium)
 def test_compensate_view_frames_the_robot_and_marks_the_target_it_is_drawn_for(chromium, tmp_path, simulated,
                                                                                capsys):
     from tcr_accuracy.cli import main
@@ -246,6 +249,7 @@ def test_compensate_view_frames_the_robot_and_marks_the_target_it_is_drawn_for(c
     assert miss < 4e-3
 
 
+@pytest.mark.slow  # 30-50 s on a loaded machine (Chromium)
 def test_montecarlo_view_colours_by_the_samples_its_table_counts(chromium, tmp_path, capsys):
     from tcr_accuracy.cli import main
     from tcr_accuracy.model.robot import load_robot
