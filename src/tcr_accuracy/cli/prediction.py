@@ -182,7 +182,7 @@ def _fit(args, robot):
     except InputError as exc:
         hint = "; or choose a --method that needs fewer poses (gp, kriging)" if args.method.startswith(
             "diagnosis") and "too few" in str(exc) else ""
-        raise InputError(f"{args.train}: {exc}{hint}") from None
+        raise InputError(f"{args.train}: {exc}{hint}", parameter=exc.parameter, value=exc.value) from None
     _progress(args, f"fitted in {time.perf_counter() - started:.1f} s")
     return q, model
 
