@@ -1,3 +1,4 @@
+#!/usr/bin/env python3
 """Scale of ``diagnose`` and ``predict``: seconds and peak memory at 10,000 and 100,000 poses, side by
 side with a previous version of the code in the same run.
 

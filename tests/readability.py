@@ -38,9 +38,10 @@ def _plot_modules():
     import tcr_accuracy.view.plots_diagnose as d
     import tcr_accuracy.view.plots_montecarlo as m
     import tcr_accuracy.view.plots_prediction as p
+    import tcr_accuracy.view.plots_results as r
     import tcr_accuracy.view.plots_sensitivity as s
 
-    return (d, m, p, s)
+    return (d, m, p, r, s)
 
 
 def _renderer(fig):

@@ -326,13 +326,14 @@ def _check_view_frame(chromium, tmp_path, view, data, as_built, q, raw_tracker, 
     np.testing.assert_allclose(scene["matrix:tracker frame"], np.linalg.inv(np.array(data["tracker_transform"])),
                                atol=1e-5)
     dom = _dom(chromium, tmp_path, view)
-    factor = float(re.search(r"nominal model only \(segments magnified x ([0-9.e+]+)\)|"
-                             r"TCP offset only \(segments magnified x ([0-9.e+]+)\)", dom).group(2))
+    factor = float(re.search(r"TCP offset only \(segments magnified x ([0-9.e+]+)[;)]", dom).group(1))
     starts = scene["gap/segments"][0::2]  # the measured cloud marks the starts: no points of their own
     drawn = np.linalg.norm(scene["gap/end"] - starts, axis=1) / factor
-    np.testing.assert_allclose(starts, measured, atol=1e-6)
+    # every line starts at a measured point; with more than 250 of them, an even spread of 250 has lines
+    nearest = np.linalg.norm(starts[:, None, :] - measured[None, :, :], axis=2).min(axis=1)
+    assert nearest.max() < 1e-6 and len(starts) == min(len(measured), 250)
     assert "gap/start" not in scene
-    assert drawn.max() * 1e3 == pytest.approx(data["gap"]["max_mm"], rel=2e-3)
+    assert drawn.max() * 1e3 == pytest.approx(data["gap"]["max_mm"], rel=2e-3)  # the largest among them
     grid = scene["ground_grid"]
     shown = np.concatenate([measured, model_tcp, scene["matrix:tracker frame"][None, :3, 3]])
     low, high = shown.min(axis=0) - 1.0, shown.max(axis=0) + 1.0

@@ -216,6 +216,10 @@ _CASES = {
     ("export", "--measurements"): ["export", "D", "--to", "DIR", "--measurements", "@"],
     ("export", "--check"): ["export", "D", "--to", "DIR", "--check", "@"],
     ("iso9283 evaluate", "--path"): ["iso9283", "evaluate", "M", "--path", "@"],
+    ("report", "--campaign"): ["report", "D", "--out", "DIR", "--campaign", "@.yaml"],
+    ("diagnose", "--campaign"): ["diagnose", "M", "--out", "DIR", "--campaign", "@.yaml"],
+    ("compare", "--campaign"): ["compare", "D", "D2", "--out", "DIR", "--campaign", "@.yaml"],
+    ("iso9283 evaluate", "--campaign"): ["iso9283", "evaluate", "M", "--out", "DIR", "--campaign", "@.yaml"],
 }
 
 

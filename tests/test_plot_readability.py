@@ -19,8 +19,13 @@ JOINTS = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_j
 
 @pytest.fixture
 def figures(monkeypatch):
+    from matplotlib import pyplot
+
+    close = pyplot.close  # the capture keeps them open to be measured; closed here after the test
     with check.capture_figures(monkeypatch) as kept:
         yield kept
+    for fig in kept:
+        close(fig)
 
 
 def assert_readable(fig, **kwargs):
@@ -228,3 +233,40 @@ def test_sweep_sobol_and_trajectory_plots_are_readable(figures, tmp_path):
     assert len(figures) == 4
     for fig in figures:
         assert_readable(fig)
+
+
+# ---------------------------------------------------------------------------------------
+# The calibration report's plots, drawn from JSON results
+# ---------------------------------------------------------------------------------------
+def _iso_block(rng, load, compensated=True):
+    poses = [{"pose": f"P{k}", "pose_id": k, "n": 30, "ap_mm": float(rng.uniform(0.05, 0.9)),
+              "rp_mm": float(rng.uniform(0.02, 0.1))} for k in range(1, 6)]
+    block = {"condition": {"load_pct": load, "speed_pct": 100.0}, "poses": poses}
+    if compensated:
+        block["compensated"] = {"poses": [{**p, "ap_mm": p["ap_mm"] / 5} for p in poses]}
+    return block
+
+
+@pytest.mark.parametrize("kind", ["families", "iso_one_condition", "iso_four_conditions", "changes"])
+def test_report_plots_from_json_are_readable(kind, figures, tmp_path):
+    from tcr_accuracy.view import plots_results
+
+    rng = np.random.default_rng(4)
+    families = [{"family": "gravity", "effects": ["compliance", "lateral_compliance"], "share_mm": 1.19,
+                 "interval_mm": [0.69, 1.23]},
+                {"family": "geometric", "effects": ["joint_offsets", "geometry"], "share_mm": 0.36,
+                 "interval_mm": [0.23, 0.39]}]
+    changes = [{"parameter": f"geometry.{j}.d{a}", "z": float(rng.uniform(0, 6)), "change": float(rng.normal()),
+                "significant": False} for j in JOINTS for a in "xyz"]
+    blocks = [_iso_block(rng, load) for load in (100.0, 100.0, 100.0, 10.0)]
+    draw = {"families": lambda: plots_results.plot_families(families, tmp_path / "p.png"),
+            "iso_one_condition": lambda: plots_results.plot_iso_poses({**blocks[0], "measurements": "iso.csv"},
+                                                                      tmp_path / "p.png", {"ap": 0.25}),
+            "iso_four_conditions": lambda: plots_results.plot_iso_poses(
+                {**blocks[0], "conditions": blocks, "measurements": "iso.csv"}, tmp_path / "p.png",
+                {"ap": 0.25, "rp": 0.05}),
+            "changes": lambda: plots_results.plot_changes({"changes": changes, "z_threshold": 3.0, "old": "d100.json"},
+                                                          tmp_path / "p.png")}
+    draw[kind]()
+    (fig,) = figures
+    assert_readable(fig)

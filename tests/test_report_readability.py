@@ -55,18 +55,55 @@ def test_point_size_and_magnification_follow_the_data_extent():
     assert segment_magnification(4.3e-3, 5.0) * 4.3e-3 <= 0.75
 
 
-def test_a_data_view_frames_the_data_not_the_robot(tool_changer):
-    points = np.array([[1.0, 1.0, 0.5], [1.2, 1.1, 0.6], [1.1, 0.9, 0.7]])
+def test_a_data_view_frames_the_data_and_the_robot_not_far_frames_or_outliers(tool_changer):
+    """frame="data": the data (a grid's outer layer whole) and the robot drawn among it, without a
+    tracker triad 10 m away or one point 50 m out; frame="all": everything."""
+    from conftest import pinocchio_kinematics
+
+    axis = np.linspace(0.6, 1.4, 6)
+    grid = np.array([[x, y, z] for x in axis for y in axis for z in np.linspace(0.2, 1.0, 6)])
+    data = np.vstack([grid, [[50.0, 0.0, 0.0]]])
+    data_, tcp = pinocchio_kinematics(tool_changer, tool_changer.working_pose)
+    robot_points = np.array([data_.oMi[j].translation for j in range(tool_changer.model.njoints)] + [tcp.translation])
+    far = np.eye(4)
+    far[:3, 3] = [10.0, 10.0, 0.0]
     for frame in ("all", "data"):
         scene = Scene("t", frame=frame)
         scene.add_robot(tool_changer, tool_changer.working_pose)
-        scene.add_points(points, "data")
-        target, camera = scene._view_target()
-        centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
-        if frame == "data":
-            assert target == pytest.approx(centre)
-            # the camera stands off by about the data's size, not the robot's
-            assert np.linalg.norm(camera - target) < 1.0
-        else:
-            assert np.linalg.norm(target - centre) > 0.2
-            assert np.linalg.norm(camera - target) > 2.0
+        scene.add_points(data, "data")
+        scene.add_frame(far, "tracker")
+        lo, hi = scene.framed_bounds()
+        inside = lambda p: np.all((p >= lo - 1e-9) & (p <= hi + 1e-9), axis=-1)  # noqa: E731
+        assert inside(grid).all() and inside(robot_points).all()
+        assert inside(far[:3, 3]) == (frame == "all") and inside(data[-1]) == (frame == "all")
+
+
+def test_an_even_spread_of_points_keeps_the_one_asked_for_and_leaves_no_region_empty():
+    from tcr_accuracy.view.view_scales import spread_subset
+
+    axis = np.arange(10) * 0.05  # a 10 x 10 x 10 grid, 5 cm apart
+    grid = np.array([[x, y, z] for x in axis for y in axis for z in axis])
+    chosen = spread_subset(grid, 125, keep=[0, 999])
+    assert len(chosen) <= 125 and {0, 999} <= set(chosen.tolist())
+    assert len(np.unique(chosen)) == len(chosen)
+    nearest = np.linalg.norm(grid[:, None] - grid[chosen][None], axis=2).min(axis=1)
+    assert nearest.max() <= 2 * 0.05 * np.sqrt(3) + 1e-9  # every point within two grid diagonals of one drawn
+    assert spread_subset(grid[:50], 125).tolist() == list(range(50))  # fewer than k: all of them
+
+
+def test_the_view_redraws_the_monte_carlo_run_s_own_samples(tool_changer):
+    """The error vectors drawn again for the view give the TCP errors the run recorded for its first
+    samples (through the run's chunks and seeds), across chunk boundaries."""
+    from tcr_accuracy.analysis.montecarlo import drawn_error_vectors, run_monte_carlo
+    from tcr_accuracy.model.errors import seed_budget
+    from conftest import pinocchio_kinematics
+
+    budget = seed_budget(tool_changer, "table2")
+    q = tool_changer.working_pose
+    run = run_monte_carlo(budget, q, 900, 7, chunk=400)
+    x = drawn_error_vectors(budget, 900, 7, chunk=400, count=850)
+    assert x.shape == (850, budget.error_model.size)
+    _, nominal = pinocchio_kinematics(tool_changer, q)
+    for i in (0, 399, 400, 849):  # each sample's as-built robot through Pinocchio
+        _, tcp = pinocchio_kinematics(budget.error_model.perturbed_robot(x[i]), q)
+        np.testing.assert_allclose(tcp.translation - nominal.translation, run.cloud[i], atol=1e-9)

@@ -444,6 +444,45 @@ def run_monte_carlo(budget: ErrorBudget | Sampler, q: np.ndarray, n_samples: int
     )
 
 
+def drawn_error_vectors(sampler, n_samples: int, random_state=None, *, chunk: int = CHUNK,
+                        count: int | None = None) -> np.ndarray:
+    """The error vectors :func:`run_monte_carlo` draws for its first ``count`` samples.
+
+    The run's random stream is fixed by (random_state, n_samples, chunk): chunk ``k`` draws from
+    ``SeedSequence(random_state).spawn(n_chunks)[k]`` through :func:`sample_rows`. Drawn again
+    here, so that a view or a plot shows the very samples the run's statistics count.
+
+    Parameters
+    ----------
+    sampler : ErrorBudget or Sampler
+    n_samples : int
+        The run's number of samples.
+    random_state, chunk
+        As given to :func:`run_monte_carlo`.
+    count : int, default=None
+        How many of the first samples (default: all ``n_samples``).
+
+    Returns
+    -------
+    ndarray of shape (count, n_params)
+        Error vectors in the layout of ``sampler.error_model``.
+    """
+    count = int(n_samples if count is None else min(count, n_samples))
+    sizes = chunk_plan(n_samples, chunk)
+    seeds = root_seed_sequence(random_state).spawn(len(sizes))
+    n_params = sampler.error_model.size
+    out, done = np.zeros((count, n_params)), 0
+    for size, seed in zip(sizes, seeds):
+        if done >= count:
+            break
+        rows = sample_rows(sampler, size, np.random.default_rng(seed))
+        take = min(size, count - done)
+        for k, row in enumerate(rows):
+            out[done:done + take, k] = row[:take] if isinstance(row, np.ndarray) else row
+        done += take
+    return out
+
+
 class _Merger:
     """Folds chunk summaries in chunk order (the order fixes the floating-point sums)."""
 

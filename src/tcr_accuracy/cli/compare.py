@@ -10,6 +10,7 @@ from __future__ import annotations
 from .common import (MAX_COUNT, MAX_MM, add_robot_arguments, check_csv_memory, check_memory, effect_names, integer,
                      number, sample_bytes, seed_value, status)
 from .output import RunOutput, add_output_arguments
+from .report import add_campaign_arguments, read_campaign_arguments
 
 
 def add_parsers(sub) -> None:
@@ -40,6 +41,7 @@ def add_parsers(sub) -> None:
     csv.add_argument("--noise-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
                      help="the instrument's noise, std per axis [mm] (default: estimated)")
     add_output_arguments(p, plots=False)
+    add_campaign_arguments(p)
     p.set_defaults(run=_run_compare)
 
 
@@ -51,6 +53,7 @@ def _run_compare(args) -> int:
     from ..exceptions import InputError
     from ..model.robot import load_robot
 
+    read_campaign_arguments(args)
     docs = [_read_json(path) for path in (args.old, args.new)]  # each validated (cli.result_files)
     given = [d for d in docs if d is not None]
     tool = args.tool
@@ -98,6 +101,11 @@ def _run_compare(args) -> int:
     if out.report is not None:
         _calibration_page(out.report, args, robot, payload, docs[1])
     _report(out, result, poses)
+    if out.report is not None:
+        from ..view.plots_results import plot_changes
+
+        out.add_plots(lambda folder: [plot_changes(payload, folder / "changes.png")],
+                      {"changes.png": "Change of each robot parameter between the campaigns in standard errors"})
     return out.finish(payload, lambda: print(format_summary(result, poses)))
 
 
@@ -112,7 +120,7 @@ def _calibration_page(report, args, robot, payload: dict, new: dict) -> None:
         files.append(("comparison JSON", args.json))
     campaign = Campaign(RobotFacts.of_robot(robot, payload["robot_source"]),
                         [(str(args.new), new), ("comparison", payload)])
-    add_calibration_page(report, args.out, campaign, files)
+    add_calibration_page(report, args, campaign, files)
 
 
 def _read_json(path: str):

@@ -14,6 +14,7 @@ from pathlib import Path
 from .common import (add_robot_arguments, as_built_file, check_csv_memory, effect_names, effects_side_file, integer,
                      noise_mm_value, number, seed_value, status)
 from .output import RunOutput, add_output_arguments
+from .report import add_campaign_arguments, read_campaign_arguments
 from ..view.diagnosis_summary import answer_lines, format_summary, primary_effect_text as _primary_text, \
     strongest_links as _strongest, structure_verdict_text as _verdict_text
 
@@ -58,6 +59,7 @@ def add_parsers(sub) -> None:
                    help="write the calibration URDF (geometry refitted to the full model, tool0 unchanged) to "
                         "FILE and the whole model (for tcr_accuracy.load_as_built) to FILE with suffix .effects.yaml")
     add_output_arguments(p, view=True)
+    add_campaign_arguments(p)
     p.set_defaults(run=_run_diagnose)
 
 
@@ -102,6 +104,7 @@ def _run_diagnose(args) -> int:
     from ..model.robot import load_robot
 
     effects = effect_names(args.effects)
+    read_campaign_arguments(args)
     min_rows = max(3 * args.folds, 12)
     files = list(args.measurements)
     if len(set(map(str, files))) < len(files):
@@ -193,7 +196,7 @@ def _calibration_page(report, args, robot, payload: dict, written: list) -> None
         written = [("diagnosis JSON (every figure of the report)", args.json), *written]
     source = args.json if args.json not in (None, "-") else "diagnosis"
     campaign = Campaign(RobotFacts.of_robot(robot, payload["robot_source"]), [(str(source), payload)])
-    add_calibration_page(report, args.out, campaign, written)
+    add_calibration_page(report, args, campaign, written)
 
 
 def _session_labels(files) -> list[str]:
@@ -328,11 +331,13 @@ def _instrument(args):
 
 
 def _report_tables(out, robot, d, source: str) -> None:
+    from ..units import display_value
+
     mm = 1e3
     out.add_text(f"{d.n_measurements} measurements of {robot.name} from {source}, {d.folds}-fold "
                  "cross-validation. Every held-out figure comes from measurements not used for that fit.",
                  heading="Data")
-    out.add_text("\n".join(answer_lines(d)), heading="Answer")
+    out.add_text("\n\n".join(line.strip() for line in answer_lines(d)), heading="Answer")
     if d.families:
         out.add_table("Families of effects", ["family", "chosen effects", "share", "share 95 % interval"],
                       [(f["family"], ", ".join(f["effects"]), f["share_mm"],
@@ -385,17 +390,27 @@ def _report_tables(out, robot, d, source: str) -> None:
     for e, table in d.parameter_table.items():
         units = d.parameter_units.get(e, {})
         for name, value in table["values"].items():
+            unit = units.get(name, "")
+            shown = display_value(0.0, unit)[1]
+
+            def v(x, fmt):
+                return fmt.format(display_value(x, unit)[0])
+
             low, high = table["interval"][name]
             lo, hi = table["range"][name]
             pinned = any(p["parameter"] == name for p in table["pinned"])
             fit_lo, fit_hi = table["fit_range"][name]
-            rows.append((name, f"{value:+.4g}", f"{table['std'][name]:.2g}", f"{low:+.4g} to {high:+.4g}",
-                         units.get(name, ""), f"{lo:.3g} to {hi:.3g}",
-                         f"{fit_lo:.3g} to {fit_hi:.3g}" + (" (held on its bound)" if pinned else "")))
+            def span(a, b):
+                return "unbounded" if math.isinf(a) and math.isinf(b) else f"{v(a, '{:.3g}')} to {v(b, '{:.3g}')}"
+
+            rows.append((name, v(value, "{:+.4g}"), v(table["std"][name], "{:.2g}"),
+                         f"{v(low, '{:+.4g}')} to {v(high, '{:+.4g}')}", shown, span(lo, hi),
+                         span(fit_lo, fit_hi) + (" (held on its bound)" if pinned else "")))
     if rows:
         out.add_table("Fitted parameters", ["parameter", "value", "standard error", "95 % interval", "unit",
                                             "physical range", "fit range"], rows,
-                      note="standard errors from the fit's Jacobian and residual (the noise, not model error); "
+                      note="display units (SI in the JSON and the effects YAML); "
+                           "standard errors from the fit's Jacobian and residual (the noise, not model error); "
                            "physical range: what each effect's own physics allows; fit range: what the fit was held "
                            "to (every mechanism the effect can stand for): " + "; ".join(
                                f"{e}: {why}" for e, why in d.physics.items() if why))
@@ -460,14 +475,16 @@ def _scene(robot, d, measurements):
     scene.add_point_cloud(measured, gap * 1e3, name="measured", size_m=point_size(extent),
                           label="measured points (tracker frame fitted, base frame), coloured by the gap after the "
                                 "tracker frame |dP| [mm]")
-    scene.add_points(tcp_poses(robot, d.q).position, "nominal TCP", COLORS["nominal_tcp"],
-                     size_m=0.5 * point_size(extent), label="nominal TCP (URDF) at the measured joints")
-    scene.add_error_segments(measured, nominal_model, magnify=magnify, name="gap", start_color=None,
-                             size_m=0.6 * point_size(extent), start_label="measured point",
-                             end_label="model with the tracker frame and TCP offset only")
+    scene.add_marker(measured[shown], "marked pose", f"the measured point of row {row}, the pose the robots are "
+                                                     "drawn at", radius_m=2.5 * point_size(extent))
+    drawn = scene.add_error_segments(measured, nominal_model, magnify=magnify, name="gap", start_color=None,
+                                     size_m=0.6 * point_size(extent), start_label="measured point",
+                                     end_label="model with the tracker frame and TCP offset only")
+    scene.add_points(tcp_poses(robot, d.q[drawn]).position, "nominal TCP", COLORS["nominal_tcp"],
+                     size_m=0.5 * point_size(extent), label="nominal TCP (URDF) at the measured joints"
+                     + (f" (of the {len(drawn)} with a line)" if len(drawn) < len(d.q) else ""))
     scene.add_frame(base_M_tracker, "tracker frame", length_m=frame_axis_length(measured),
                     label="tracker frame (fitted)")
-    scene.frame_central(np.vstack([measured, tcp_poses(robot, q_show).position]))
     scene.add_note(f"{d.n_measurements} measurements" + (f" of {d.frames_measured[0]}" if len(d.frames_measured) > 1
                                                         else "")
                    + f"; base frame of the robot; segments magnified x {magnify:g}, the as-built ghost's "

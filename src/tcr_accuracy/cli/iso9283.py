@@ -14,6 +14,7 @@ from .common import (DEFAULT_MEMORY_GB, EXIT_OK, MAX_MM, Parser, add_quiet_argum
                      check_csv_memory, emit_json, integer, number, output_file, sample_bytes, seed_value, status)
 from .iso9283_inputs import condition, plan_inputs, read_model
 from .output import add_output_arguments
+from .report import add_campaign_arguments, read_campaign_arguments
 
 
 def add_parsers(sub) -> None:
@@ -104,6 +105,7 @@ def add_parsers(sub) -> None:
     evaluate.add_argument("--planes", type=integer(low=3, high=100_000), default=100, metavar="M",
                           help="--path: normal planes along each path (default 100)")
     add_output_arguments(evaluate, plots=False)
+    add_campaign_arguments(evaluate)
     evaluate.set_defaults(run=_run_evaluate)
     for parser in (plan, evaluate):  # as main() adds them to every command, also after the step
         parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
@@ -209,6 +211,7 @@ def _run_evaluate(args) -> int:
     import warnings
 
     from ..exceptions import InputError
+    from ..io.campaign import CampaignFacts
     from ..io.measurements import MeasurementWarning, read_measurements
     from ..iso9283.evaluate import compensated_readings, evaluate_conditions, register_from
     from ..model.robot import load_robot
@@ -221,7 +224,11 @@ def _run_evaluate(args) -> int:
     if args.path:
         from .iso9283_path import run_path_evaluate
 
+        if read_campaign_arguments(args) != CampaignFacts():
+            raise InputError("--campaign and its flags fill the pose test's calibration report; a path test's "
+                             "report (--path) has no such page")
         return run_path_evaluate(args)
+    read_campaign_arguments(args)
     robot = load_robot(args.robot, args.tool)
     check_csv_memory(args, args.measurements, "MEAS.csv", sample_bytes(robot))
     model = read_model(robot, args.model) if args.model else None
@@ -263,13 +270,21 @@ def _run_evaluate(args) -> int:
     if out.report is not None:
         _calibration_page(out.report, args, robot, payload)
     out.add_preformatted(text, "ISO 9283 figures")
+    if out.report is not None:
+        from ..view.plots_results import plot_iso_poses
+
+        out.add_plots(lambda folder: [plot_iso_poses(payload, folder / "iso_poses.png", args.campaign_facts.limits_mm)],
+                      {"iso_poses.png": "ISO 9283 pose accuracy AP_P and repeatability RP_l per pose and test "
+                                        "condition" + (", as measured and predicted after compensation"
+                                                       if model is not None else "")})
     return out.finish(payload, lambda: print(text))
 
 
 def _calibration_page(report, args, robot, payload: dict) -> None:
     """The report opens with the calibration report's first page (with the diagnosis of --model, if given),
     then the per-pose tables."""
-    from ..view.calibration_report import Campaign, RobotFacts, add_iso_tables, kind_or_none as kind_or_none
+    from ..view.calibration_report import Campaign, RobotFacts, kind_or_none as kind_or_none
+    from ..view.result_tables import add_iso_tables
     from .report import add_calibration_page
     from .result_files import PAGE_KEYS, read_result, validate_result
 
@@ -280,7 +295,7 @@ def _calibration_page(report, args, robot, payload: dict) -> None:
         if kind_or_none(model) == "diagnosis":  # on the page: with what the page reads
             documents.insert(0, (str(args.model), validate_result(model, "diagnosis", args.model, PAGE_KEYS)))
         files.append(("diagnosis JSON (--model)", args.model))
-    add_calibration_page(report, args.out, Campaign(RobotFacts.of_robot(robot, payload["robot_source"]), documents),
+    add_calibration_page(report, args, Campaign(RobotFacts.of_robot(robot, payload["robot_source"]), documents),
                          files)
     add_iso_tables(report, str(args.measurements), payload)
 

@@ -57,7 +57,8 @@ def add_parsers(sub) -> None:
     add_output_arguments(p, view=True, json_help="write JSON (keys in README, 'Monte Carlo') to FILE, or to "
                                                  "stdout without FILE")
     p.add_argument("--view-samples", type=integer(low=1, high=MAX_COUNT), default=2000, metavar="N",
-                   help="samples drawn for the 3D view's TCP error cloud (default 2000)")
+                   help="how many of the samples the 3D view's TCP error cloud shows (the first N of the run's; "
+                        "default 2000)")
     cluster = p.add_mutually_exclusive_group()
     cluster.add_argument("--dask", default=None, metavar="ADDRESS",
                          help="run the chunks on the Dask scheduler at ADDRESS (e.g. tcp://host:8786)")
@@ -192,21 +193,27 @@ def _run_montecarlo(args) -> int:
                    "projection_density.png": "Projection densities of the TCP position error on the xy, xz "
                                              "and yz planes"})
     if out.scene_wanted:
-        out.set_scene(*_scene(robot, q, sampler, args))
+        out.set_scene(*_scene(robot, q, sampler, args, result, chunk))
     return out.finish(payload, lambda: _print_report(robot, q, sampler, args, result, payload))
 
 
-def _scene(robot, q, sampler, args):
-    """The robot at q with a TCP error cloud of --view-samples fresh draws, coloured by |dP|."""
-    import numpy as np
-
+def _scene(robot, q, sampler, args, result, chunk):
+    """The robot at q with the TCP error cloud of the run's own first --view-samples samples (drawn
+    again from the run's random stream), coloured by |dP| on the scale of all the samples the
+    table counts, and the nominal TCP marked."""
+    from ..analysis.montecarlo import drawn_error_vectors
     from ..view.viewer import Scene
 
     scene = Scene(f"{robot.name}: Monte Carlo of {sampler.name}")
     scene.add_robot(robot, q, "nominal")
-    x = sampler.sample(args.view_samples, np.random.default_rng([args.seed, 2]))
-    magnify = scene.add_tcp_error_cloud(robot, q, x, sampler.error_model)
-    scene.add_note(f"{args.view_samples} samples of {sampler.name} (seed {args.seed}, drawn for this view); "
+    x = drawn_error_vectors(sampler, args.samples, args.seed, chunk=chunk, count=args.view_samples)
+    norm = result.column("norm")
+    low, high = result.stats.minimum[norm] * 1e3, result.stats.maximum[norm] * 1e3
+    magnify = scene.add_tcp_error_cloud(robot, q, x, sampler.error_model, vmin_mm=low, vmax_mm=high)
+    scene.add_marker(result.nominal_position, "marked pose", "the nominal TCP at the pose the robot is drawn at",
+                     radius_m=0.05)
+    scene.add_note(f"the first {len(x)} of the {result.n_samples} samples of the table (seed {args.seed}); colour "
+                   f"scale: the least to the largest |dP| of all {result.n_samples}, {low:.4g} to {high:.4g} mm; "
                    f"errors magnified x {magnify:g} about the nominal TCP")
     return scene, f"TCP error cloud at the pose, |dP| magnified x {magnify:g}"
 

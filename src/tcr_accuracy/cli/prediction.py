@@ -255,7 +255,7 @@ def _run_predict(args) -> int:
     robot, out = _start(args, "Error prediction")
     q_train, model = _fit(args, robot)
     check_csv_memory(args, args.query, "--query", 3 * 64 * 8.0)
-    q, measured, context = read_joint_csv(args.query, robot, need_positions=False, repeats=True)
+    q, measured, context, lines = read_joint_csv(args.query, robot, need_positions=False, repeats=True, rows=True)
     scale = robot.display_scale
     prediction = predict_errors(model, q, context=context, measured=measured, label=f"method {args.method}")
     pred, std, kind, held = prediction.predicted_error, prediction.std, prediction.uncertainty, prediction.held_out
@@ -331,7 +331,7 @@ def _run_predict(args) -> int:
         from ..view.prediction_scenes import prediction_scene
 
         out.set_scene(*prediction_scene(robot, q, prediction, model, method=args.method, train=args.train,
-                                        measured=measured))
+                                        rows=lines, measured=measured))
     header = _joint_columns(robot) + ["ex_mm", "ey_mm", "ez_mm", "e_norm_mm"]
     blocks = [q * scale, pred * 1e3, norm[:, None] * 1e3]
     if std is not None:
@@ -453,7 +453,7 @@ def _run_compensate(args) -> int:
         from ..view.prediction_scenes import compensation_scene
 
         out.set_scene(*compensation_scene(robot, done, model, method=args.method, targets=args.targets,
-                                          measured=measured))
+                                          rows=lines[solved], measured=measured))
     header = _joint_columns(robot) + _joint_columns(robot, "d") + ["predicted_miss_mm", "target_row"]
     _write_csv(args, "compensated joint values", header,
                           np.hstack([q_comp * scale, dq, after[:, None] * 1e3, lines[solved][:, None]]))

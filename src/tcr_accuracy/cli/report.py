@@ -29,16 +29,84 @@ def add_parsers(sub) -> None:
                    help="JSON results: diagnose --json (the last one is the calibration shown), iso9283 evaluate "
                         "--json, compare --json")
     p.add_argument("--out", required=True, type=output_folder, metavar="DIR", help="the report folder")
-    p.add_argument("--title", default=None, help="the report's title (default: 'Calibration report: ROBOT')")
+    add_campaign_arguments(p)
     add_quiet_argument(p)
     p.set_defaults(run=_run_report)
 
 
+def add_campaign_arguments(parser) -> None:
+    """``--campaign FILE`` and the flags that fill or override it: what the first page identifies
+    (customer, robot serial, instrument certificate, operator, title) and the limits it judges by."""
+    group = parser.add_argument_group(
+        "the calibration report's first page (with --out; see README, 'The report')")
+    group.add_argument("--campaign", default=None, metavar="FILE",
+                       help="a campaign file (YAML or TOML): title, customer, robot model and serial, instrument "
+                            "name, serial and certificate, temperature range, date, operator, limits_mm, names "
+                            "to sign; the flags below override it")
+    group.add_argument("--title", default=None, help="the report's title (default: 'Calibration report: ROBOT')")
+    group.add_argument("--customer", default=None, metavar="TEXT", help="the customer")
+    group.add_argument("--serial", default=None, metavar="TEXT", help="the robot's serial number")
+    group.add_argument("--operator", default=None, metavar="TEXT", help="who measured the robot")
+    group.add_argument("--certificate", default=None, metavar="TEXT",
+                       help="the instrument's calibration certificate (number, date)")
+    group.add_argument("--limit-mm", action="append", default=None, type=limit_argument, metavar="[FIGURE=]MM",
+                       help="a limit the result is judged against [mm], repeatable: FIGURE is one of "
+                            f"{', '.join(LIMIT_NAMES)} (default max: the calibrated TCP position error's held-out "
+                            "max); e.g. --limit-mm 0.3 --limit-mm ap=0.25")
+    parser.set_defaults(campaign_facts=None)
+
+
+#: The figures --limit-mm names (the keys of the campaign file's limits_mm).
+LIMIT_NAMES = ("max", "rms", "mean", "ap", "rp")
+
+
+def limit_argument(text: str) -> tuple[str, float]:
+    """argparse type of ``--limit-mm``: ``0.3`` (the held-out max) or ``FIGURE=MM``."""
+    import argparse
+
+    from ..exceptions import InputError
+    from ..io.campaign import limit_mm
+    from ..units import parse_number
+
+    figure, _, value = text.rpartition("=")
+    figure = figure.strip() or "max"
+    if figure not in LIMIT_NAMES:
+        raise argparse.ArgumentTypeError(f"{text}: want FIGURE=MM with FIGURE one of {', '.join(LIMIT_NAMES)}")
+    try:
+        return figure, limit_mm(parse_number(value), "")
+    except (ValueError, InputError):
+        raise argparse.ArgumentTypeError(f"{text}: want a limit in mm, a number > 0 (FIGURE=MM or MM)") from None
+
+
+#: The flags of add_campaign_arguments, as (dest, field of CampaignFacts).
+_CAMPAIGN_FLAGS = (("title", "title"), ("customer", "customer"), ("serial", "robot_serial"),
+                   ("operator", "operator"), ("certificate", "certificate"))
+
+
+def read_campaign_arguments(args):
+    """The campaign facts of ``--campaign`` and the flags (read once, before any work; kept as
+    ``args.campaign_facts``). A flag without ``--out`` is refused: there is no page to show it."""
+    from ..exceptions import InputError
+    from ..io.campaign import CampaignFacts, read_campaign
+
+    given = [f"--{dest.replace('_', '-')}" for dest in ("campaign", *(d for d, _ in _CAMPAIGN_FLAGS), "limit_mm")
+             if getattr(args, dest, None) is not None]
+    if given and getattr(args, "out", None) is None:
+        raise InputError(f"{given[0]}: fills the report's first page; give --out DIR for the report")
+    facts = read_campaign(args.campaign) if args.campaign else CampaignFacts()
+    facts = facts.updated(**{field: getattr(args, dest) for dest, field in _CAMPAIGN_FLAGS},
+                          limits_mm=dict(args.limit_mm) if args.limit_mm else None)
+    args.campaign_facts = facts
+    return facts
+
+
 def _run_report(args) -> int:
     from ..exceptions import InputError
-    from ..view.calibration_report import Campaign, RobotFacts, add_technical_tables, kind_of
+    from ..view.calibration_report import Campaign, RobotFacts, kind_of
+    from ..view.result_tables import add_technical_tables
     from ..view.report import Report
 
+    facts = read_campaign_arguments(args)
     files = list(args.results)
     seen: dict = {}
     for path in files:  # one file through two paths (a link, ./x) is still one result
@@ -54,24 +122,35 @@ def _run_report(args) -> int:
             named = ", ".join(f"{path} ({doc.get(key, 'not recorded')})" for path, doc in documents)
             raise InputError(f"RESULT.json: results of different {what} ({named}): one report is of one robot and TCP")
     robot = _robot_facts(RobotFacts.from_documents(documents), documents)
-    title = args.title or f"Calibration report: {robot.name}"
+    title = facts.title or f"Calibration report: {robot.name}"
     report = Report(title, command=getattr(args, "argv", None))
     links = [(f"{kind_of(doc, path)} JSON", path) for path, doc in documents]
     for path, doc in documents:
-        for key, label, suffix in (("as_built_urdf", "as-built URDF", ".urdf"),
-                                   ("as_built_effects", "effects YAML", ".effects.yaml")):
+        for key, label, suffix in (("as_built_urdf", "calibration URDF", ".urdf"),
+                                   ("as_built_effects", "the whole model", ".effects.yaml")):
             found = _find(doc[key], path, suffix) if isinstance(doc.get(key), str) else None
             if found is not None:
                 links.append((label, str(found)))
     campaign = Campaign(robot, documents)
-    add_calibration_page(report, args.out, campaign, links)
+    add_calibration_page(report, args, campaign, links)
     add_technical_tables(report, campaign)
+    _add_result_plots(report, campaign)
     from .writers import write_report
 
     index = write_report(report, args.out)
     status(args, f"report written to {index}")
     pdf_status(args, report)
+    print(f"Result: {' '.join(verdict_line(campaign))}")
     return EXIT_OK
+
+
+def verdict_line(campaign) -> tuple[str, str]:
+    """(status, why) of the campaign's results against its limits: the first page's pass/fail line."""
+    from ..view.accuracy_verdict import accuracy_figures, verdict
+
+    diagnoses, isos = campaign.of_kind("diagnosis"), campaign.of_kind("iso9283")
+    status_, why = verdict(accuracy_figures(diagnoses[-1][1] if diagnoses else None, isos), campaign.facts.limits_mm)
+    return f"{status_}:", why
 
 
 def _identity(path: str):
@@ -130,21 +209,34 @@ def _find(path: str, result: str, suffix: str) -> Path | None:
     return None
 
 
-def add_calibration_page(report, out_dir, campaign, files) -> None:
+def _add_result_plots(report, campaign) -> None:
+    """The plots of the results, drawn from their JSON (after the tables)."""
+    from ..view.plots_results import write_result_plots
+
+    for plot, caption in write_result_plots(campaign.documents, Path("plots"), campaign.facts.limits_mm):
+        report.add_figure(plot.png, caption)
+
+
+def add_calibration_page(report, args, campaign, files) -> None:
     """Open ``report`` with the calibration report's first page and have it printed to PDF.
 
     Parameters
     ----------
     report : tcr_accuracy.view.report.Report
-    out_dir : path
-        The report folder: ``files`` are linked relative to it.
+    args : argparse.Namespace
+        The command's: ``args.out`` is the report folder (``files`` are linked relative to it),
+        ``args.campaign_facts`` (or the flags of :func:`add_campaign_arguments`) what the page
+        identifies and the limits it judges by.
     campaign : tcr_accuracy.view.calibration_report.Campaign
     files : list of (label, path)
         Files written with the report or read by it (paths as the user gave them).
     """
     from ..view.calibration_report import first_page
 
-    base = Path(out_dir).resolve()
+    facts = args.campaign_facts if getattr(args, "campaign_facts", None) is not None else \
+        read_campaign_arguments(args)
+    campaign.facts = facts
+    base = Path(args.out).resolve()
     campaign.files = [(label if Path(path).name in label else f"{label} ({Path(path).name})",
                        Path(os.path.relpath(Path(path).resolve(), base)).as_posix()) for label, path in files]
     report.set_first_page(*first_page(campaign, report.created))

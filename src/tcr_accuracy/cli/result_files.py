@@ -121,11 +121,42 @@ def _diagnosis_schema(names) -> dict:
             "selection": {"type": "object", "properties": {"n_replays": {"type": "integer", "minimum": 0,
                                                                          "maximum": MAX_COUNT}}},
             "candidates": _by_effect(candidate, names),
-            "where": {"type": "object", "properties": {"joints": {"type": "object", "additionalProperties": {
-                "type": "object", "properties": {"unit": {"enum": ["m", "rad"]}}}}}},
             "as_built_urdf": _TEXT, "as_built_effects": _TEXT,
             "frames_measured": {"type": "array", "items": _NAME, "maxItems": 1000},
+            **_findings_schema(names),
         },
+    }
+
+
+def _findings_schema(names) -> dict:
+    """What the report's first page reads of a diagnosis' findings: the mechanism each chosen effect
+    stands for and its check, the families and their shares, the primary family and group, the
+    order-of-measurement confounds, the instrument's specification, the temperatures measured."""
+    effect = {"enum": list(names)}
+    mechanism = {"type": "object", "required": ["effect", "family", "mechanism", "physical"],
+                 "properties": {"effect": effect, "family": _NAME, "mechanism": _TEXT, "physical": {"type": "boolean"},
+                                "check": _TEXT}}
+    family = {"type": "object", "required": ["family", "effects", "share_mm", "interval_mm"],
+              "properties": {"family": _NAME, "effects": {"type": "array", "items": effect, "maxItems": 1000},
+                             "share_mm": _SIGNED_MM, "interval_mm": _MM_INTERVAL, "what": _TEXT}}
+    mpe = {"type": "array", "items": {"type": "number", "minimum": 0, "maximum": 1e9}, "minItems": 2, "maxItems": 2}
+    temperature = {"type": "number", "minimum": -1e4, "maximum": 1e4}
+    return {
+        "mechanisms": {"type": "array", "items": mechanism, "maxItems": 1000},
+        "families": {"type": "array", "items": family, "maxItems": 1000},
+        "primary_family": {"anyOf": [{"type": "null"}, _NAME]},
+        "primary_group": {"type": "array", "items": effect, "maxItems": 1000},
+        "confounding": {"type": "array", "items": {"type": "object", "required": ["why"],
+                                                   "properties": {"why": _TEXT}}},
+        "instrument": {"anyOf": [{"type": "null"}, {"type": "object", "required": ["transverse_mpe_um", "radial_mpe_um"],
+                                                    "properties": {"name": _TEXT, "transverse_mpe_um": mpe,
+                                                                   "radial_mpe_um": mpe}}]},
+        "where": {"type": "object", "properties": {
+            "joints": {"type": "object", "additionalProperties": {
+                "type": "object", "properties": {"unit": {"enum": ["m", "rad"]}}}},
+            "temperature_c": {"type": "object", "properties": {"bins": {"type": "array", "maxItems": 10_000, "items": {
+                "type": "object", "required": ["low", "high"], "properties": {"low": temperature,
+                                                                               "high": temperature}}}}}}},
     }
 
 
@@ -133,7 +164,7 @@ def _iso_figures(required: bool) -> dict:
     pose = {"type": "object", "required": ["pose_id", "n", "ap_mm", "ap_x_mm", "ap_y_mm", "ap_z_mm", "rp_mm"],
             "properties": {"pose_id": {"type": "integer", "minimum": -(2**31), "maximum": 2**31 - 1}, "n": _COUNT,
                            "ap_mm": _MM, "rp_mm": _MM_OR_NULL, "ap_x_mm": _SIGNED_MM, "ap_y_mm": _SIGNED_MM,
-                           "ap_z_mm": _SIGNED_MM, "l_mean_mm": _MM, "s_l_mm": _MM_OR_NULL}}
+                           "ap_z_mm": _SIGNED_MM, "l_mean_mm": _MM, "s_l_mm": _MM_OR_NULL, "pose": _NAME}}
     return {
         "type": "object",
         "required": ["poses", "summary", "n_readings", "frame"] if required else ["poses", "summary"],
@@ -147,13 +178,21 @@ def _iso_figures(required: bool) -> dict:
                 "n": _COUNT, "ad_mm": _SIGNED_MM, "rd_mm": _MM, "commanded_mm": _MM, "mean_mm": _MM}}},
             "directional": {"type": "array", "items": {"type": "object", "properties": {"vap_mm": _MM}}},
             "notes": _TEXTS,
+            "condition": {"type": "object", "properties": {"load_pct": _PERCENT, "speed_pct": _PERCENT}},
         },
     }
+
+
+#: A test condition's share of the rated load or speed [%].
+_PERCENT = {"anyOf": [{"type": "null"}, {"type": "number", "minimum": 0, "maximum": 1000}]}
 
 
 def _iso_schema() -> dict:
     schema = _iso_figures(True)
     schema["properties"]["compensated"] = _iso_figures(False)
+    block = _iso_figures(True)  # each test condition's figures, as measured and compensated
+    block["properties"]["compensated"] = _iso_figures(False)
+    schema["properties"]["conditions"] = {"type": "array", "minItems": 1, "maxItems": 1000, "items": block}
     return schema
 
 

@@ -252,25 +252,7 @@ def parameter_lines(d, per_effect: int = 4) -> list[str]:
 def answer_lines(d) -> list[str]:
     """The answer first: the family and, where the data resolve it, the effect that causes the
     largest share of the gap, and what mechanism each chosen effect's sign and size fit."""
-    out = []
-    families = {f["family"]: f for f in d.families}
-    if d.primary_family:
-        f = families[d.primary_family]
-        low, high = f["interval_mm"]
-        head = (f"the gap is mostly {d.primary_family} ({f['what']}): without it the held-out RMS rises by "
-                f"{f['share_mm']:.4g} mm [95 %: {low:.4g} to {high:.4g}]")
-        if d.primary_effect:
-            head += f"; within it, {d.primary_effect}"
-        elif len(d.primary_group) > 1:
-            head += f"; the data do not tell apart {', '.join(d.primary_group)}"
-        out.append("Answer: " + head)
-    elif d.primary_effect:
-        out.append(f"Answer: {d.primary_effect} causes the largest share of the gap")
-    elif d.families:
-        out.append("Answer: the held-out rows do not rank the families apart: " + ", ".join(
-            f"{f['family']} +{f['share_mm']:.4g} mm" for f in d.families[:3]))
-    else:
-        out.append("Answer: nothing beyond the tracker frame and the TCP offset (frames) is resolved")
+    out = ["Answer: " + family_answer(d.families, d.primary_family, d.primary_effect, d.primary_group)]
     for c in d.stages.attribute.confounding:
         out.append(f"  mind the order of measurement: {c.to_dict()['why']}; tcr-accuracy plan-poses writes an order "
                    "that separates them")
@@ -282,6 +264,29 @@ def answer_lines(d) -> list[str]:
         if m["check"]:
             out.append(f"    check: {m['check']}")
     return out
+
+
+def family_answer(families, primary_family, primary_effect, primary_group) -> str:
+    """Which family of effects causes most of the gap and, where the data resolve it, which effect
+    within it: one sentence from a diagnosis' ``families`` (dicts as in its JSON), primary family,
+    primary effect and the group that stands in for it."""
+    by_name = {f["family"]: f for f in families}
+    if primary_family in by_name:
+        f = by_name[primary_family]
+        low, high = f["interval_mm"]
+        head = (f"the gap is mostly {primary_family} ({f.get('what', '')}): without it the held-out RMS rises by "
+                f"{f['share_mm']:.4g} mm [95 %: {low:.4g} to {high:.4g}]")
+        if primary_effect:
+            head += f"; within it, {primary_effect}"
+        elif len(primary_group) > 1:
+            head += f"; the data do not tell apart {', '.join(primary_group)}"
+        return head
+    if primary_effect:
+        return f"{primary_effect} causes the largest share of the gap"
+    if families:
+        return "the held-out rows do not rank the families apart: " + ", ".join(
+            f"{f['family']} +{f['share_mm']:.4g} mm" for f in families[:3])
+    return "nothing beyond the tracker frame and the TCP offset (frames) is resolved"
 
 
 def primary_effect_text(d) -> str:

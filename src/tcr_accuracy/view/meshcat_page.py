@@ -9,7 +9,10 @@ starts meshcat's server bridge bound to 127.0.0.1 only (:mod:`tcr_accuracy.view.
 meshcat's own ``meshcat-server`` listens on all interfaces) and replays the tree into it.
 
 meshcat draws no text, so legends (colour bars, magnification factors) are HTML
-overlays (:func:`legend_html`) in the page this module writes around meshcat's viewer.
+(:func:`legend_html`) in a column beside the canvas (:data:`LEGEND_WIDTH_PX`), never over the
+scene, in the page this module writes around meshcat's viewer. The page moves the camera along
+its line of sight so that the sphere the scene frames fits the canvas it gets, whatever the
+window's shape (``fit``).
 It also holds the two colour forms the view speaks (:func:`meshcat_color` for meshcat
 materials, :func:`css_color` for the legend) and the import of meshcat with its install
 hint. What the scene holds is :class:`tcr_accuracy.view.viewer.Scene`'s business.
@@ -147,19 +150,25 @@ def legend_html(title: str, color_bars, entries, notes) -> str:
     return '<div id="tcr-legend">' + "".join(parts) + "</div>"
 
 
-def _page(title: str, legend: str, scene_script: str, meshcat_script: str) -> str:
-    """The HTML page: meshcat's viewer filling the window, the legend over it, then the script
-    that loads the scene (``scene_script``) into the viewer that ``meshcat_script`` defines."""
+#: Width of the legend's column left of the canvas [CSS px].
+LEGEND_WIDTH_PX = 330
+
+
+def _page(title: str, legend: str, scene_script: str, meshcat_script: str, fit: dict | None = None) -> str:
+    """The HTML page: the legend's column, meshcat's viewer filling the rest of the window, then the
+    script that loads the scene (``scene_script``) into the viewer that ``meshcat_script`` defines
+    and, with ``fit`` (``points_m``, what the view must hold, about the view's centre in three.js's
+    axes; ``margin``, ``fov_deg``), puts the camera at the nearest distance that holds them on the canvas."""
     return _PAGE.format(
         title=html.escape(title),
-        css=_CSS,
+        css=_CSS.replace("LEGEND_WIDTH", str(LEGEND_WIDTH_PX)),
         legend=legend,
         meshcat_script=meshcat_script,
-        scene_script=scene_script,
+        scene_script=scene_script + (_FIT_CAMERA.replace("FIT", json.dumps(fit)) if fit else ""),
     )
 
 
-def static_page(window: RecordingWindow, title: str, legend: str) -> str:
+def static_page(window: RecordingWindow, title: str, legend: str, fit: dict | None = None) -> str:
     """One self-contained HTML page (meshcat's viewer, the recorded scene, the legend); no server needed."""
     from meshcat.servers.zmqserver import VIEWER_ROOT
 
@@ -168,12 +177,13 @@ def static_page(window: RecordingWindow, title: str, legend: str) -> str:
     scene_script = _STATIC_LOADER.format(commands=json.dumps(commands))
     # "</script" inside the inlined bundle would end the script element early
     main_js = main_js.replace("</script", "<\\/script")
-    return _page(title, legend, scene_script, f"<script>{main_js}</script>")
+    return _page(title, legend, scene_script, f"<script>{main_js}</script>", fit)
 
 
-def serve_page(window: RecordingWindow, title: str, legend: str, open_browser: bool = False) -> "LiveView":
+def serve_page(window: RecordingWindow, title: str, legend: str, open_browser: bool = False,
+               fit: dict | None = None) -> "LiveView":
     """Serve the recorded scene live on 127.0.0.1 (a meshcat server subprocess) as a :class:`LiveView`."""
-    live = LiveView.start(_page(title, legend, _LIVE_LOADER, '<script src="static/main.min.js"></script>'))
+    live = LiveView.start(_page(title, legend, _LIVE_LOADER, '<script src="static/main.min.js"></script>', fit))
     live.replay(window)
     if open_browser:
         import webbrowser
@@ -284,10 +294,11 @@ def _walk_with_paths(tree, walk):
 # Page template
 # ---------------------------------------------------------------------------------------
 _CSS = """
-body { margin: 0; font-family: system-ui, -apple-system, "Segoe UI", sans-serif; }
-#meshcat-pane { width: 100vw; height: 100vh; overflow: hidden; }
-#tcr-legend { position: absolute; left: 10px; top: 10px; max-width: 330px; padding: 8px 10px;
-  background: rgba(255, 255, 255, 0.88); border: 1px solid #bbb; border-radius: 4px;
+body { margin: 0; font-family: system-ui, -apple-system, "Segoe UI", sans-serif; overflow: hidden; }
+/* the legend in its own column left of the canvas: it never covers the scene */
+#meshcat-pane { position: absolute; left: LEGEND_WIDTHpx; right: 0; top: 0; height: 100vh; overflow: hidden; }
+#tcr-legend { position: absolute; left: 0; top: 0; width: LEGEND_WIDTHpx; height: 100vh; box-sizing: border-box;
+  overflow-y: auto; padding: 8px 10px; background: #fbfbfc; border-right: 1px solid #bbb;
   font-size: 13px; color: #222; line-height: 1.35; }
 .tcr-title { font-weight: 600; margin-bottom: 4px; }
 .tcr-bar { margin: 4px 0 6px 0; }
@@ -332,4 +343,40 @@ document.body.setAttribute("data-tcr-scene", "loaded");
 """
 
 _LIVE_LOADER = """try { viewer.connect(); } catch (e) { console.info("no meshcat server: ", e); }
+"""
+
+# The camera looks at the scene's centre (the origin, the scene shifted) from the direction the scene
+# set; here it moves along that line to the nearest distance at which every point the view must
+# hold lies within the canvas's field of view (vertical: meshcat's; horizontal: from the canvas's
+# aspect), each with the margin: a point c at depth d - c.u (u: the unit vector to the camera)
+# needs |c.right| <= tan(h/2) (d - c.u) / margin and |c.up| <= tan(v/2) (d - c.u) / margin.
+# A live view receives its camera later: the fit runs again once the scene has arrived.
+_FIT_CAMERA = """
+(function () {
+  var fit = FIT;
+  function fitCamera() {
+    var pane = document.getElementById("meshcat-pane"), camera = viewer.camera, p = camera.position;
+    var length = p.length();
+    if (!(length > 0)) { return; }
+    var aspect = pane.offsetWidth / Math.max(window.innerHeight, 1);
+    var tanV = Math.tan(fit.fov_deg * Math.PI / 360), tanH = tanV * aspect;
+    var u = [p.x / length, p.y / length, p.z / length];
+    var r = [-u[2], 0, u[0]], rn = Math.hypot(r[0], r[2]) || 1;  // right = u x (0, 1, 0), y up
+    r = [r[0] / rn, 0, r[2] / rn];
+    var up = [u[1] * r[2] - u[2] * r[1], u[2] * r[0] - u[0] * r[2], u[0] * r[1] - u[1] * r[0]];
+    var distance = 0;
+    fit.points_m.forEach(function (c) {
+      var along = c[0] * u[0] + c[1] * u[1] + c[2] * u[2];
+      var side = Math.abs(c[0] * r[0] + c[1] * r[1] + c[2] * r[2]);
+      var high = Math.abs(c[0] * up[0] + c[1] * up[1] + c[2] * up[2]);
+      distance = Math.max(distance, along + fit.margin * side / tanH, along + fit.margin * high / tanV);
+    });
+    if (distance > 0) { p.multiplyScalar(distance / length); }
+    viewer.set_3d_pane_size();
+    viewer.set_dirty();
+  }
+  fitCamera();
+  window.addEventListener("resize", fitCamera);
+  if (viewer.connection !== undefined) { setTimeout(fitCamera, 1500); }
+})();
 """

@@ -30,20 +30,28 @@ def _binned_means(values, residual, n_bins=8):
 def plot_steps(diagnosis, path: Path) -> PlotFile:
     """The ladder as horizontal bars, one step per row from the top: the effect names read
     level however many steps there are (a real robot's ladder has seven or more)."""
-    labels = [s.effect if i == 0 else f"+{s.effect}" for i, s in enumerate(diagnosis.steps)]
+    return plot_ladder([s.effect for s in diagnosis.steps], [s.heldout.rms * 1e3 for s in diagnosis.steps],
+                       [s.heldout.mean * 1e3 for s in diagnosis.steps], diagnosis.noise_floor * 1e3, path)
+
+
+def plot_ladder(effects, rms_mm, mean_mm, noise_floor_mm, path: Path, limit_mm: float | None = None,
+                title: str = "How far the gap shrinks (k-fold held-out)") -> PlotFile:
+    """The ladder of a diagnosis: held-out RMS and mean [mm] after each step (``effects``, the
+    first being frames), on a log axis, with the noise floor and, when given, a limit [mm]."""
+    labels = [e if i == 0 else f"+{e}" for i, e in enumerate(effects)]
     fig, axes = figure(1, 1, size=(8, 1.4 + 0.42 * len(labels)))
     ax = axes[0, 0]
-    rms = [s.heldout.rms * 1e3 for s in diagnosis.steps]
-    mean = [s.heldout.mean * 1e3 for s in diagnosis.steps]
     y = np.arange(len(labels))
-    ax.barh(y - 0.2, rms, 0.4, label="held-out RMS")
-    ax.barh(y + 0.2, mean, 0.4, label="held-out mean")
-    ax.axvline(diagnosis.noise_floor * 1e3, color="k", ls="--", lw=1, label="noise floor")
+    ax.barh(y - 0.2, rms_mm, 0.4, label="held-out RMS")
+    ax.barh(y + 0.2, mean_mm, 0.4, label="held-out mean")
+    ax.axvline(noise_floor_mm, color="k", ls="--", lw=1, label="noise floor")
+    if limit_mm is not None:
+        ax.axvline(limit_mm, color="C3", ls="-", lw=1.2, label=f"limit {limit_mm:g} mm")
     ax.set_yticks(y, labels)
     ax.invert_yaxis()  # the ladder reads from the top
     ax.set_xlabel("TCP position error [mm]")
     ax.set_xscale("log")
-    ax.set_title("How far the gap shrinks (k-fold held-out)")
+    ax.set_title(title)
     legend_beside(ax)
     return save_figure(fig, path)
 

@@ -22,9 +22,9 @@ def _median_index(values) -> int:
     return int(np.argmin(np.abs(values - np.median(values))))
 
 
-def prediction_scene(robot, q, prediction, model, *, method: str, train: str, measured=None):
+def prediction_scene(robot, q, prediction, model, *, method: str, train: str, rows, measured=None):
     """The query TCPs of the model (nominal + fitted TCP offset) coloured by the predicted |e|,
-    segments to the predicted real TCP.
+    segments to the predicted real TCP; the robot at the query of median |e|, its point marked.
 
     Parameters
     ----------
@@ -37,6 +37,8 @@ def prediction_scene(robot, q, prediction, model, *, method: str, train: str, me
         The fitted model (its tracker frame and TCP offset).
     method, train : str
         The predictor's name and its training file, for the note.
+    rows : array-like of shape (N,)
+        Each query's line in its file, for the labels.
     measured : ndarray of shape (N, 3), optional
         Measured query positions in the tracker frame [m].
     """
@@ -49,20 +51,28 @@ def prediction_scene(robot, q, prediction, model, *, method: str, train: str, me
     magnify = segment_magnification(float(np.linalg.norm(beyond, axis=1).max()), extent)
     scene = Scene(f"{robot.name}: error predicted by {method}", frame="data")
     shown = _median_index(norm)
-    scene.add_robot(robot, q[shown], name="nominal robot", opacity=0.5)  # the TCP points sit in the tool
-    scene.add_point_cloud(model_tcp, norm * 1e3, name="query TCP", label="predicted TCP error |e| [mm]",
-                          size_m=1.6 * point_size(extent))
-    scene.add_error_segments(model_tcp, nominal + pred, magnify=magnify, name="predicted error",
-                             start_label="model TCP at the query joints (nominal + fitted TCP offset)",
-                             end_label="predicted real TCP")
+    row = int(rows[shown])
+    scene.add_robot(robot, q[shown], name=f"nominal robot at query row {row} (median |e|)",
+                    opacity=0.5)  # the TCP points sit in the tool
+    scene.add_point_cloud(model_tcp, norm * 1e3, name="query TCP",
+                          label="model TCP at the query joints (nominal + fitted TCP offset), coloured by the "
+                                "predicted TCP error |e| [mm]", size_m=1.6 * point_size(extent))
+    scene.add_marker(model_tcp[shown], "marked pose", f"the query point of row {row}, the pose the robot is "
+                                                      "drawn at", radius_m=4.0 * point_size(extent))
+    scene.add_error_segments(model_tcp, nominal + pred, magnify=magnify, name="predicted error", start_color=None,
+                             start_label="model TCP at the query joints", end_label="predicted real TCP")
     _draw_measurement_frame(scene, robot, q, model, measured, extent)
     scene.add_note(f"{len(q)} query poses, {method} fitted to {train}; robot base frame; robot at query "
-                   f"row {shown + 2} (median |e|); segments magnified x {magnify:g} (the TCP offset at true size)")
+                   f"row {row} (median |e|); segments magnified x {magnify:g} (the TCP offset at true size)")
     return scene, (f"Query TCP points (base frame) coloured by the predicted |e|; segments to the predicted real "
                    f"TCP, magnified x {magnify:g}")
 
 
-def compensation_scene(robot, done, model, *, method: str, targets: str, measured=None):
+#: The colour of the targets in the compensation's view (RGB in 0..1): not the measured points' blue.
+TARGET_COLOR = (0.45, 0.25, 0.70)
+
+
+def compensation_scene(robot, done, model, *, method: str, targets: str, rows, measured=None):
     """The targets (the measured point of the model), the predicted real TCP before and after
     compensation.
 
@@ -74,6 +84,8 @@ def compensation_scene(robot, done, model, *, method: str, targets: str, measure
     model : MeasuredErrorModel
     method, targets : str
         The predictor's name and the targets' file, for the note.
+    rows : array-like of shape (S,)
+        Each solved target's line in its file, for the labels.
     measured : ndarray of shape (S, 3), optional
         The solved targets' measured positions in the tracker frame [m].
     """
@@ -82,14 +94,20 @@ def compensation_scene(robot, done, model, *, method: str, targets: str, measure
     magnify = segment_magnification(float(before.max()), extent)
     scene = Scene(f"{robot.name}: compensation with {method}", frame="data")
     shown = _median_index(before)
-    scene.add_robot(robot, done.q_compensated[shown], name="compensated command", opacity=0.5)
-    scene.add_error_segments(done.target, done.predicted_before, magnify=magnify, name="before",
-                             start_label="target TCP", end_label="predicted real TCP, uncompensated command")
-    scene.add_error_segments(done.target, done.predicted_after, magnify=magnify, name="after",
-                             start_label="target TCP", end_label="predicted real TCP, compensated command",
+    row = int(rows[shown])  # the target's line in its file
+    scene.add_robot(robot, done.q_compensated[shown], name=f"robot at the compensated command of target row {row}",
+                    opacity=0.5)
+    drawn = scene.add_error_segments(done.target, done.predicted_before, magnify=magnify, name="before",
+                                     start_color=TARGET_COLOR, start_label="target TCP",
+                                     end_label="predicted real TCP, uncompensated command")
+    scene.add_error_segments(done.target[drawn], done.predicted_after[drawn], magnify=magnify, name="after",
+                             max_drawn=None, start_label="target TCP",
+                             end_label="predicted real TCP, compensated command",
                              start_color=None, end_color=COLORS["trajectory"])  # the targets are drawn once
+    scene.add_marker(done.target[shown], "marked pose", f"the target of row {row}, the pose the robot is drawn at",
+                     radius_m=4.0 * point_size(extent))
     _draw_measurement_frame(scene, robot, done.q, model, measured, extent)
-    scene.add_note(f"{len(done.q)} targets of {targets}; robot base frame; robot at target row {shown + 2} (median "
+    scene.add_note(f"{len(done.q)} targets of {targets}; robot base frame; robot at target row {row} (median "
                    f"error before); segments magnified x {magnify:g}")
     return scene, f"Targets and the predicted real TCP before and after compensation, magnified x {magnify:g}"
 

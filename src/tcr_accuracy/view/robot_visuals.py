@@ -67,8 +67,9 @@ def draw_robot(vis, robot: RobotModel, q: np.ndarray, node: str, color=None, opa
 
     Returns
     -------
-    points : ndarray of shape (n_pinocchio_joints + 1, 3)
-        The joint origins (Pinocchio's, the universe first) and the TCP [m], to frame the view.
+    points : ndarray of shape (n, 3)
+        The joint origins (Pinocchio's, the universe first), the TCP and the corners of each
+        body's bounding box [m], to frame the view.
     skeleton : str or None
         Why the kinematic skeleton was drawn (the URDF has no visuals, or meshes are
         missing), for the legend; None when it was not.
@@ -97,7 +98,26 @@ def draw_robot(vis, robot: RobotModel, q: np.ndarray, node: str, color=None, opa
     if missing:  # the bodies found, and the skeleton where the others would be
         return _draw_skeleton(vis, robot, q, node, color, opacity), _missing_links(missing)
     origins, tool = _joint_origins(robot, q)
-    return np.vstack([origins, tool[None]]), None
+    return np.vstack([origins, tool[None], _body_corners(robot, geometry, q)]), None
+
+
+def _body_corners(robot: RobotModel, geometry, q: np.ndarray) -> np.ndarray:
+    """(8 n_bodies, 3) corners of each drawn body's bounding box (coal's local AABB of its shape,
+    placed by Pinocchio) [m]: what the view must hold to show the whole robot."""
+    import pinocchio as pin
+
+    data, geometry_data = robot.model.createData(), geometry.createData()
+    pin.forwardKinematics(robot.model, data, robot.to_pinocchio_q(q))
+    pin.updateGeometryPlacements(robot.model, data, geometry, geometry_data)
+    corners = []
+    for k, obj in enumerate(geometry.geometryObjects):
+        shape = obj.geometry
+        shape.computeLocalAABB()
+        low, high = np.asarray(shape.aabb_local.min_), np.asarray(shape.aabb_local.max_)
+        box = np.array([[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1]) for z in (low[2], high[2])])
+        placement = geometry_data.oMg[k]
+        corners.append(box @ placement.rotation.T + placement.translation)
+    return np.vstack(corners) if corners else np.zeros((0, 3))
 
 
 def _missing_links(missing) -> str:

@@ -21,6 +21,10 @@ text).
 
 Units: positions in metres (SI) as everywhere inside the package; the values that
 colour a point cloud are shown as given, with the unit in their label.
+
+One concept, the scene with its legend, and so one class above 500 lines: its sizes and factors
+live in :mod:`tcr_accuracy.view.view_scales`, where the camera stands in
+:mod:`tcr_accuracy.view.view_framing`, the page in :mod:`tcr_accuracy.view.meshcat_page`.
 """
 
 from __future__ import annotations
@@ -31,10 +35,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..exceptions import InputError
+from ..model.robot import RobotModel
 from .meshcat_page import (LiveView, RecordingWindow, import_meshcat, legend_html, meshcat_color, serve_page,
                            static_page)
-from ..model.robot import RobotModel
 from .robot_visuals import draw_robot
+from .view_framing import CAMERA_FOV_DEG, VIEW_MARGIN, camera_placement, framed_box, page_fit  # noqa: F401
+from .view_scales import (auto_magnification, data_extent, frame_axis_length, ghost_magnification,  # noqa: F401
+                          grid_extent, point_size, rotate_vectors, segment_magnification, spread_subset,
+                          transform_points)
 
 #: Default colours (RGB in 0..1) for things the scene draws.
 COLORS = {
@@ -48,6 +56,18 @@ COLORS = {
 
 #: The ground grid's colour (RGB in 0..1).
 GRID_COLOR = (0.60, 0.60, 0.60)
+
+#: The ring that marks the measured point of the pose the robot is drawn at (RGB in 0..1).
+MARKER_COLOR = (0.85, 0.0, 0.75)
+
+#: Colours a legend entry takes when the one asked for is another entry's already: one colour
+#: per entry (matplotlib's tab10, RGB in 0..1).
+SPARE_COLORS = ((0.55, 0.34, 0.29), (0.09, 0.75, 0.81), (0.74, 0.74, 0.13), (0.89, 0.47, 0.76),
+                (0.58, 0.40, 0.74), (0.17, 0.63, 0.17), (0.84, 0.15, 0.16), (0.12, 0.47, 0.71))
+
+#: At most this many error segments are drawn (an even spread of them, the largest included):
+#: a thousand segments fill the view and hide the robot.
+MAX_SEGMENTS = 250
 
 
 def _as_points(points, what: str) -> np.ndarray:
@@ -103,6 +123,10 @@ class _Bounds:
 class Scene:
     """A meshcat scene under construction (see the module docstring).
 
+    The page fits the camera, when it opens, to the canvas it gets beside the legend: the robots'
+    bodies and the outline of the data in view (:data:`CAMERA_FOV_DEG`, :data:`VIEW_MARGIN`).
+    Each legend entry has a colour of its own (:data:`SPARE_COLORS` when one is taken).
+
     Parameters
     ----------
     title : str
@@ -111,8 +135,9 @@ class Scene:
         Show a ground grid (z = 0 plane, squares of 5 cm to 1 m fitted to what is drawn: :func:`grid_extent`).
     frame : {"all", "data"}
         What the camera frames: everything drawn, or the data (point clouds, points, error
-        segments, trajectories) so that they fill the view when they are what the view is
-        about; the robots may then reach out of it.
+        segments, trajectories; without far outliers: :func:`framed_box`) and the robots
+        drawn among them, so that far frames (a tracker's triad metres away) or a few far-out
+        points do not shrink them to a speck.
     """
 
     def __init__(self, title: str = "tcr-accuracy", *, grid: bool = True, frame: str = "all"):
@@ -126,8 +151,12 @@ class Scene:
         self.legend: list[LegendEntry] = []
         self.notes: list[str] = []
         self._bounds = _Bounds()
-        self._data_bounds = _Bounds()  # points, clouds, segments, trajectories: the data
+        self._robot_bounds = _Bounds()  # the framed robots' bodies
+        self._robot_points: list[np.ndarray] = []  # their joints and the corners of their bodies' boxes
+        self._other_points: list[np.ndarray] = []  # markers, frames: in the view when it frames all
+        self._data: list[np.ndarray] = []  # points, clouds, segments, trajectories: the data
         self._frame = frame
+        self.fit_radius_m: float | None = None  # the sphere the camera holds, once finished
         self._camera: tuple[np.ndarray, np.ndarray] | None = None
         self._grid = grid
         self._finished = False
@@ -150,7 +179,8 @@ class Scene:
         name : str
             Node name in the meshcat tree (also the legend text).
         color : RGB triple in 0..1, optional
-            Paint every body in this colour (default: the URDF's materials).
+            Paint every body in this colour (default: the URDF's materials); another one when a
+            legend entry has it already.
         opacity : float
             1 opaque; below 1 a transparent "ghost".
         include_base : bool
@@ -163,9 +193,13 @@ class Scene:
         q = robot.check_joint_values(np.asarray(q, dtype=float), source=f"{name}: q")
         if not 0.0 < opacity <= 1.0:
             raise InputError(f"{name}: opacity {opacity} is outside (0, 1]")
+        color = None if color is None else self._own_color(color)
         points, skeleton = draw_robot(self.vis, robot, q, _node(name), color, opacity, include_base=include_base)
+        points = points[np.all(np.isfinite(points), axis=1)]
         if framed:
             self._bounds.add(points)
+            self._robot_bounds.add(points)
+            self._robot_points.append(points)
         what = f" (skeleton: {skeleton})" if skeleton else ""
         suffix = f", {round(opacity * 100)} % opaque" if opacity < 1.0 else ""
         self.legend.append(LegendEntry(f"robot: {name}{what}{suffix}", tuple(color) if color is not None else None))
@@ -199,7 +233,8 @@ class Scene:
         center_label : str
             What the centre is, for the legend ("the nominal TCP").
         size_m : float, optional
-            Point size [m] (default: 1/60 of the cloud's drawn extent, at least 2 mm).
+            Point size [m] (default: 1/60 of the cloud's drawn extent, smaller as the cube root
+            of the count beyond 500 points so that thousands do not merge into a blot; at least 2 mm).
         """
         import matplotlib
 
@@ -220,11 +255,10 @@ class Scene:
             raise InputError(f"colormap {cmap!r} is not a matplotlib colormap") from None
         rgb = colormap(np.clip((values - lo) / (hi - lo), 0.0, 1.0))[:, :3]
         if size_m is None:
-            size_m = max(data_extent(points) / 60.0, 0.002)
+            size_m = max(data_extent(points) / 60.0 / max(1.0, (len(points) / 500.0) ** (1 / 3)), 0.002)
         self.vis[_node(name)].set_object(
             self._mg.PointCloud(points.T.astype(np.float32), rgb.T.astype(np.float32), size=size_m))
-        self._bounds.add(points)
-        self._data_bounds.add(points)
+        self._add_data(points)
         bar = ColorBar(label, lo, hi, tuple(tuple(float(c) for c in colormap(t)[:3])
                                            for t in np.linspace(0.0, 1.0, 11)))
         self.color_bars.append(bar)
@@ -244,7 +278,8 @@ class Scene:
         return center + magnify * (points - center)
 
     def add_tcp_error_cloud(self, robot: RobotModel, q, x, error_model=None, *, name: str = "tcp_cloud",
-                            magnify: float | None = None, ghost: bool = True) -> float:
+                            magnify: float | None = None, ghost: bool = True, vmin_mm: float | None = None,
+                            vmax_mm: float | None = None) -> float:
         """The TCP positions of as-built robots at joint values q, coloured by |dP| [mm].
 
         Parameters
@@ -258,12 +293,16 @@ class Scene:
         error_model : ErrorModel, optional
             Layout of x (built from the robot when omitted).
         magnify : float, optional
-            Magnification of the cloud about the nominal TCP (default:
-            :func:`auto_magnification` of the largest error).
+            Magnification of the cloud about the nominal TCP (default: :func:`auto_magnification`
+            drawing the largest error at most 0.8 m long and 40 % of the robot's drawn size, so
+            the cloud does not hide the robot).
         ghost : bool
             Also draw, transparent, the as-built robot of the sample with the largest |dP|,
             its error vector scaled by the same factor (so its TCP sits, to first order,
             on that sample's magnified point).
+        vmin_mm, vmax_mm : float, optional
+            The colour bar's range [mm] (default: that of the samples drawn), e.g. the least and
+            largest |dP| of a whole Monte Carlo run of which ``x`` are the first samples.
 
         Returns
         -------
@@ -281,9 +320,12 @@ class Scene:
         error = pose_error(nominal, actual)
         worst = int(np.argmax(error.position_norm))
         if magnify is None:
-            magnify = auto_magnification(float(error.position_norm[worst]))
+            size = float(np.max(self._robot_bounds.hi - self._robot_bounds.lo)) if not self._robot_bounds.empty \
+                else 2.0
+            magnify = auto_magnification(float(error.position_norm[worst]), drawn_m=min(0.8, 0.4 * size))
         self.add_point_cloud(actual.position, error.position_norm * 1000.0, name, "TCP error |dP| [mm]",
-                             center_m=nominal.position[0], magnify=magnify, center_label="the nominal TCP")
+                             center_m=nominal.position[0], magnify=magnify, center_label="the nominal TCP",
+                             vmin=vmin_mm, vmax=vmax_mm)
         self.add_points(nominal.position, f"{name}_nominal", COLORS["nominal_tcp"], size_m=0.02,
                         label="nominal TCP")
         if ghost:
@@ -292,25 +334,61 @@ class Scene:
             self.add_robot(as_built, q, f"{name}_worst_as_built", color=COLORS["as_built"], opacity=0.35,
                            include_base=base_error, framed=False)
             self.legend[-1] = LegendEntry(
-                f"as-built robot of the worst sample (|dP| = {error.position_norm[worst] * 1000:.3g} mm), "
-                f"errors x {magnify:g}", COLORS["as_built"])
+                f"as-built robot of the worst sample drawn (|dP| = {error.position_norm[worst] * 1000:.3g} mm), "
+                f"errors x {magnify:g}", self.legend[-1].color)
         return magnify
 
     def add_points(self, points_m, name: str, color=(0.1, 0.35, 0.95), size_m: float = 0.01,
                    label: str | None = None) -> None:
-        """Points in one colour (e.g. measured TCP positions), (N, 3) [m]."""
+        """Points in one colour (e.g. measured TCP positions), (N, 3) [m]; another colour when
+        ``color`` is another legend entry's already."""
         points = _as_points(points_m, name)
+        color = self._own_color(color)
         rgb = np.tile(np.asarray(color, dtype=np.float32)[:3, None], (1, len(points)))
         self.vis[_node(name)].set_object(
             self._mg.PointCloud(points.T.astype(np.float32), rgb, size=size_m))
-        self._bounds.add(points)
-        self._data_bounds.add(points)
+        self._add_data(points)
         self.legend.append(LegendEntry(label or name, tuple(color)))
+
+    def add_marker(self, point_m, name: str, label: str, *, radius_m: float, color=MARKER_COLOR) -> None:
+        """A ring (three circles about the axes, ``radius_m`` [m]) around one point (3,) [m]: the
+        measured point of the pose the robot is drawn at, so that it is found among the others."""
+        centre = _as_points(point_m, name)[0]
+        if not (math.isfinite(radius_m) and radius_m > 0):
+            raise InputError(f"{name}: marker radius {radius_m} must be a positive number")
+        color = self._own_color(color)
+        angle = np.linspace(0.0, 2.0 * np.pi, 49)
+        circle = np.stack([np.cos(angle), np.sin(angle), np.zeros_like(angle)], axis=1) * radius_m
+        rings = [circle, circle[:, [2, 0, 1]], circle[:, [1, 2, 0]]]  # about z, x and y
+        pairs = np.concatenate([np.stack([r[:-1], r[1:]], axis=1).reshape(-1, 3) for r in rings]) + centre
+        self.vis[_node(name)]["ring"].set_object(self._mg.LineSegments(
+            self._mg.PointsGeometry(pairs.T.astype(np.float32)),
+            self._mg.LineBasicMaterial(color=meshcat_color(color), linewidth=2)))
+        self._bounds.add(pairs)
+        self._other_points.append(pairs)
+        self.legend.append(LegendEntry(label, tuple(color)))
+
+    def _own_color(self, color) -> tuple:
+        """``color``, or the first of :data:`SPARE_COLORS` no legend entry has when it is taken."""
+        def key(c):
+            return tuple(int(round(255 * float(v))) for v in c[:3])
+
+        taken = {key(e.color) for e in self.legend if e.color is not None}
+        if key(color) not in taken:
+            return tuple(float(v) for v in color[:3])
+        spare = next((c for c in SPARE_COLORS if key(c) not in taken), None)
+        if spare is None:
+            raise InputError(f"colour {tuple(color)}: every spare colour of the legend is taken")
+        return spare
+
+    def _add_data(self, points: np.ndarray) -> None:
+        self._bounds.add(points)
+        self._data.append(points)
 
     def add_error_segments(self, start_m, end_m, magnify: float = 1.0, name: str = "errors", *,
                            start_label: str = "measured", end_label: str = "predicted",
                            start_color=COLORS["measured"], end_color=COLORS["predicted"],
-                           size_m: float | None = None) -> None:
+                           size_m: float | None = None, max_drawn: int | None = MAX_SEGMENTS) -> np.ndarray:
         """Pairs of points joined by segments, the gap magnified.
 
         Parameters
@@ -326,6 +404,15 @@ class Scene:
         size_m : float, optional
             Size of the points at both ends [m] (default: :func:`point_size` of the start
             points' extent).
+        max_drawn : int or None, default=MAX_SEGMENTS
+            Draw the segments (and their end points) of at most this many pairs, spread evenly
+            over the start points with the largest error among them (:func:`spread_subset`);
+            the legend says how many. None: all.
+
+        Returns
+        -------
+        ndarray of int
+            The indices of the pairs drawn.
         """
         start = _as_points(start_m, f"{name}: start")
         end = _as_points(end_m, f"{name}: end")
@@ -333,31 +420,37 @@ class Scene:
             raise InputError(f"{name}: {len(start)} start points but {len(end)} end points")
         if not (math.isfinite(magnify) and magnify > 0):
             raise InputError(f"{name}: magnification {magnify} must be a positive number")
-        drawn_end = start + magnify * (end - start)
         if size_m is None:
             size_m = point_size(data_extent(start))
+        n_pairs = len(start)
+        drawn = np.arange(n_pairs) if max_drawn is None else spread_subset(
+            start, int(max_drawn), keep=[int(np.argmax(np.linalg.norm(end - start, axis=1)))] if n_pairs else [])
+        start, end = start[drawn], end[drawn]
+        drawn_end = start + magnify * (end - start)
         segments = np.empty((2 * len(start), 3))
         segments[0::2], segments[1::2] = start, drawn_end
         mg = self._mg
         node = self.vis[_node(name)]
-        node["segments"].set_object(mg.LineSegments(
-            mg.PointsGeometry(segments.T.astype(np.float32)),
-            mg.LineBasicMaterial(color=meshcat_color(COLORS["segment"]))))
-        for key, pts, rgb in (("start", start, start_color), ("end", drawn_end, end_color)):
+        for key, pts, rgb, label in (("start", start, start_color, start_label),
+                                     ("end", drawn_end, end_color, end_label)):
             if rgb is None:
                 continue
+            rgb = self._own_color(rgb)  # every colour drawn gets a legend line of its own
             colors = np.tile(np.asarray(rgb, dtype=np.float32)[:3, None], (1, len(pts)))
             node[key].set_object(mg.PointCloud(pts.T.astype(np.float32), colors, size=size_m))
+            self.legend.append(LegendEntry(label, rgb))
+        segment_color = self._own_color(COLORS["segment"])
+        node["segments"].set_object(mg.LineSegments(
+            mg.PointsGeometry(segments.T.astype(np.float32)),
+            mg.LineBasicMaterial(color=meshcat_color(segment_color))))
         for pts in (start, drawn_end):
-            self._bounds.add(pts)
-            self._data_bounds.add(pts)
-        # every colour drawn gets a legend line, the segments' own included
-        for label, rgb in ((start_label, start_color), (end_label, end_color)):
-            if rgb is not None:
-                self.legend.append(LegendEntry(label, tuple(rgb)))
-        self.legend.append(LegendEntry(
-            f"line to the {end_label}" + (f" (segments magnified x {magnify:g})" if magnify != 1.0 else ""),
-            COLORS["segment"]))
+            self._add_data(pts)
+        said = ([f"segments magnified x {magnify:g}"] if magnify != 1.0 else []) + (
+            [f"drawn for {len(drawn)} of the {n_pairs}, spread evenly, the largest among them"]
+            if len(drawn) < n_pairs else [])
+        self.legend.append(LegendEntry(f"line to the {end_label}" + (f" ({'; '.join(said)})" if said else ""),
+                                       segment_color))
+        return drawn
 
     def add_trajectory(self, points_m, name: str = "trajectory", color=COLORS["trajectory"]) -> None:
         """A polyline through (N, 3) points [m], in order."""
@@ -368,8 +461,7 @@ class Scene:
         self.vis[_node(name)].set_object(mg.Line(
             mg.PointsGeometry(points.T.astype(np.float32)),
             mg.LineBasicMaterial(color=meshcat_color(color), linewidth=2)))
-        self._bounds.add(points)
-        self._data_bounds.add(points)
+        self._add_data(points)
         self.legend.append(LegendEntry(name, tuple(color)))
 
     def add_frame(self, placement, name: str, length_m: float = 0.15, label: str | None = None) -> None:
@@ -383,6 +475,7 @@ class Scene:
         node.set_object(self._mg.triad(length_m))
         node.set_transform(matrix)
         self._bounds.add(matrix[None, :3, 3])
+        self._other_points.append(matrix[None, :3, 3])
         origin = ", ".join(f"{v:.0f}" for v in matrix[:3, 3] * 1e3)
         self.legend.append(LegendEntry(f"{label or name}: triad x/y/z = red/green/blue, {length_m * 1e3:.0f} mm "
                                        f"long, origin ({origin}) mm in the base frame"))
@@ -397,16 +490,6 @@ class Scene:
         position = np.asarray(position_m, dtype=float).reshape(3)
         self._camera = (target, position)
 
-    def frame_central(self, points_m, share: float = 0.8) -> None:
-        """Point the camera at the central ``share`` of the points (N, 3) [m] (per-axis quantiles):
-        a few far-out measurements then do not shrink the robot to a speck among them."""
-        points = _as_points(points_m, "frame_central")
-        lo, hi = np.quantile(points, [(1 - share) / 2, (1 + share) / 2], axis=0)
-        target = 0.5 * (lo + hi)
-        radius = max(0.5 * float(np.linalg.norm(hi - lo)), 0.05)
-        direction = np.array([1.0, -0.55, 0.45])
-        self.set_camera(target, target + 1.55 * radius * direction / np.linalg.norm(direction))
-
     def recorded_commands(self) -> list[dict]:
         """The meshcat commands of the scene as dicts (``type``, ``path``, ...), in replay order."""
         import umsgpack
@@ -414,22 +497,23 @@ class Scene:
         return [umsgpack.unpackb(c) for c in self._window.packed_commands()]
 
     # -- output ----------------------------------------------------------------------
+    def framed_bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(lower, upper) corners (3,) [m] of what the camera frames (see ``frame``), or None when
+        nothing is drawn."""
+        if self._frame == "data" and self._data:
+            return framed_box(np.concatenate(self._data), self._robot_bounds.lo, self._robot_bounds.hi)
+        return None if self._bounds.empty else (self._bounds.lo, self._bounds.hi)
+
     def _view_target(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """(target, camera position) [m]: the one set, or one framing everything drawn."""
+        """(target, camera position) [m]: the one set, or :func:`camera_placement` of what the view
+        frames (the page moves the camera along the same line for the canvas it gets: :meth:`_fit`)."""
         if self._camera is not None:
             return self._camera
-        data = self._frame == "data" and not self._data_bounds.empty
-        bounds = self._data_bounds if data else self._bounds
-        if bounds.empty:
+        bounds = self.framed_bounds()
+        if bounds is None:
             return None
-        lo, hi = bounds.lo, bounds.hi
-        target = 0.5 * (lo + hi)
-        radius = max(0.5 * float(np.linalg.norm(hi - lo)), 0.05 if data else 0.3)
-        direction = np.array([1.0, -0.55, 0.45])
-        # meshcat's camera sees 75 deg vertically: a sphere of the radius fills the view at
-        # 1.3 radii; the data get a little margin, the whole scene more
-        distance = (1.55 if data else 2.2) * radius
-        return target, target + distance * direction / np.linalg.norm(direction)
+        target, position, self.fit_radius_m = camera_placement(*bounds)
+        return target, position
 
     def _finish(self) -> None:
         """Camera, ground grid and base axes, set once before output.
@@ -452,14 +536,15 @@ class Scene:
         self.vis["/Axes"].set_property("visible", False)
         if self._grid:
             lo, hi, step = grid_extent(self._bounds.lo, self._bounds.hi, target)
+            grid_color = self._own_color(GRID_COLOR)
             self.legend.append(LegendEntry(f"ground grid: the base's z = 0 plane, {step * 1e3:.0f} mm squares",
-                                           GRID_COLOR))
+                                           grid_color))
             xs, ys = np.arange(lo[0], hi[0] + 1e-9, step), np.arange(lo[1], hi[1] + 1e-9, step)
             lines = [((x, ys[0], 0.0), (x, ys[-1], 0.0)) for x in xs]
             lines += [((xs[0], y, 0.0), (xs[-1], y, 0.0)) for y in ys]
             self.vis["ground_grid"].set_object(mg.LineSegments(
                 mg.PointsGeometry(np.array(lines, dtype=np.float32).reshape(-1, 3).T),
-                mg.LineBasicMaterial(color=meshcat_color(GRID_COLOR))))
+                mg.LineBasicMaterial(color=meshcat_color(grid_color))))
         self.vis["base_axes"].set_object(mg.triad(self._axes_length()))
         self.legend.append(LegendEntry(f"robot base frame: triad x/y/z = red/green/blue, "
                                        f"{self._axes_length() * 1e3:.0f} mm long"))
@@ -476,7 +561,7 @@ class Scene:
     def static_html(self) -> str:
         """One self-contained HTML page (meshcat's viewer, the scene, the legend); no server needed."""
         self._finish()
-        return static_page(self._window, self.title, self._legend())
+        return static_page(self._window, self.title, self._legend(), self._fit())
 
     def serve(self, open_browser: bool = False) -> LiveView:
         """Serve the scene live on 127.0.0.1 (a meshcat server subprocess).
@@ -486,82 +571,19 @@ class Scene:
         calls are not sent to a live view: build the scene first.
         """
         self._finish()
-        return serve_page(self._window, self.title, self._legend(), open_browser)
+        return serve_page(self._window, self.title, self._legend(), open_browser, self._fit())
 
     def _legend(self) -> str:
         return legend_html(self.title, self.color_bars, self.legend, self.notes)
 
-
-def grid_extent(lo_m, hi_m, target_m) -> tuple[np.ndarray, np.ndarray, float]:
-    """The ground grid around what a view frames: (lower corner (3,), upper corner (3,) [m],
-    square side [m]). The side is 0.05, 0.1, 0.25, 0.5 or 1 m, the one giving at most 24
-    squares along the longer side, and the grid reaches two squares beyond the bounds."""
-    lo = np.minimum(np.asarray(lo_m, dtype=float), target_m)
-    hi = np.maximum(np.asarray(hi_m, dtype=float), target_m)
-    size = float(np.max((hi - lo)[:2]))
-    step = next((s for s in (0.05, 0.1, 0.25, 0.5) if size / s <= 24), 1.0)
-    return np.floor(lo / step - 2) * step, np.ceil(hi / step + 2) * step, step
-
-
-def transform_points(matrix, points_m) -> np.ndarray:
-    """Points (N, 3) [m] mapped by a (4, 4) homogeneous transform ``aMb`` (b -> a)."""
-    matrix = np.asarray(matrix, dtype=float)
-    return np.asarray(points_m, dtype=float) @ matrix[:3, :3].T + matrix[:3, 3]
-
-
-def rotate_vectors(matrix, vectors_m) -> np.ndarray:
-    """Displacements (N, 3) [m] turned by the rotation of a (4, 4) transform (no translation)."""
-    return np.asarray(vectors_m, dtype=float) @ np.asarray(matrix, dtype=float)[:3, :3].T
-
-
-def frame_axis_length(points_m) -> float:
-    """A triad length [m] that reads next to points of this extent: a sixth of it, 5 cm to 0.5 m."""
-    return float(np.clip(data_extent(points_m) / 6.0, 0.05, 0.5))
-
-
-def ghost_magnification(robot: RobotModel, q, error_model, x, largest: float, drawn_m: float = 0.15) -> float:
-    """The factor for an as-built ghost with error vector x (n_params,) at joint values q:
-    at most ``largest`` (the view's factor) and small enough that the ghost's TCP moves at
-    most about ``drawn_m`` [m] (its rotation counted at 1 m), so a ghost never leaves the view."""
-    from ..model.kinematics import pose_error, tcp_poses
-
-    x = np.asarray(x, dtype=float)
-    if not np.any(x):
-        return 1.0
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    error = pose_error(tcp_poses(robot, q), tcp_poses(robot, q, x[None], error_model))
-    moved = float(error.position_norm[0] + np.linalg.norm(np.asarray(error.rotation_vector)[0]))
-    return max(1.0, min(float(largest), auto_magnification(moved, drawn_m=drawn_m)))
-
-
-def data_extent(points_m) -> float:
-    """The largest side of the bounding box of (N, 3) points [m] (0 for fewer than two)."""
-    points = np.asarray(points_m, dtype=float).reshape(-1, 3)
-    return float(np.max(np.ptp(points, axis=0))) if len(points) > 1 else 0.0
-
-
-def point_size(extent_m: float) -> float:
-    """A point size [m] that reads at a glance when the view frames data of this extent
-    (1/70 of it, between 3 mm and 8 cm)."""
-    return float(np.clip(extent_m / 70.0, 0.003, 0.08))
-
-
-def segment_magnification(largest_error_m: float, extent_m: float) -> float:
-    """A round factor that draws the largest error segment about 15 % of the data's extent
-    long (at least 5 cm), so the segments read against the spread of the points."""
-    return auto_magnification(largest_error_m, drawn_m=max(0.15 * extent_m, 0.05))
-
-
-def auto_magnification(largest_error_m: float, drawn_m: float = 0.8) -> float:
-    """A round factor (1, 2 or 5 times a power of ten, at least 1) that draws the largest
-    error at most about ``drawn_m`` long."""
-    if not (largest_error_m > 0 and math.isfinite(largest_error_m)):
-        return 1.0
-    raw = drawn_m / largest_error_m
-    if raw <= 1.0:
-        return 1.0
-    decade = 10.0 ** math.floor(math.log10(raw))
-    return max(m * decade for m in (1.0, 2.0, 5.0) if m * decade <= raw)
+    def _fit(self) -> dict | None:
+        """What the page needs to fit the camera to its canvas (:func:`page_fit`); None when the
+        camera was set by hand."""
+        if self.fit_radius_m is None or self._camera is not None:
+            return None
+        lo, hi = self.framed_bounds()
+        data = np.concatenate(self._data) if self._data else np.zeros((0, 3))
+        return page_fit(lo, hi, data, self._robot_points + (self._other_points if self._frame == "all" else []))
 
 
 def _node(name: str) -> str:

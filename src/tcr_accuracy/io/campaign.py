@@ -1,0 +1,168 @@
+"""The campaign file: who and what a calibration report identifies, and the limits it is judged by.
+
+A small YAML (or TOML) file given to ``tcr-accuracy report --campaign FILE`` and to the
+``--out`` reports of ``diagnose``, ``iso9283 evaluate`` and ``compare``. Every key is optional;
+what is not given reads "not stated" on the report's first page::
+
+    title: Calibration of the cutter changer, TBM S-1234
+    customer: Example Tunnelling Ltd., Hamburg
+    robot:
+      model: UR5                  # default: the robot's name in the results
+      serial: 2018-301234
+    instrument:
+      name: API Radian laser tracker
+      serial: R20-1234
+      certificate: DAkkS D-K-15183-01-00, 2026-03-02
+    temperature_c: [19.5, 21.0]   # lowest and highest during the measurements [degC]
+    date: 2026-11-20              # when the robot was measured (default: the report's date)
+    operator: J. Smith
+    limits_mm:                    # the figures the result is judged against [mm]
+      max: 0.30                   # TCP position error after calibration, held-out max
+      rms: 0.10                   # ... held-out RMS
+      mean: 0.08                  # ... held-out mean
+      ap: 0.25                    # ISO 9283 pose accuracy AP_P, the largest pose
+      rp: 0.05                    # ISO 9283 repeatability RP_l, the largest pose
+    prepared_by: J. Smith         # names printed in the signature block
+    checked_by: A. Jones
+
+A key not listed here, a limit that is not a positive number of millimetres, or a temperature
+range that is not two numbers, low then high, is one line naming the file and the key.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..exceptions import InputError
+from .budget_file import read_table
+
+#: The figures a limit may be stated for (the key under ``limits_mm``) and what each is.
+LIMIT_FIGURES = {
+    "mean": "TCP position error after calibration, held-out mean",
+    "rms": "TCP position error after calibration, held-out RMS",
+    "max": "TCP position error after calibration, held-out max",
+    "ap": "ISO 9283 pose accuracy AP_P, the largest pose",
+    "rp": "ISO 9283 repeatability RP_l, the largest pose",
+}
+
+#: The keys of the file: top-level text keys, and the keys of its two small tables.
+TEXT_KEYS = ("title", "customer", "date", "operator", "prepared_by", "checked_by")
+ROBOT_KEYS = ("model", "serial")
+INSTRUMENT_KEYS = ("name", "serial", "certificate")
+KEYS = (*TEXT_KEYS, "robot", "instrument", "temperature_c", "limits_mm")
+
+#: The longest text a key may hold [characters] (a line of the first page, not a document).
+MAX_TEXT = 300
+#: Temperatures a campaign may state [degC].
+TEMPERATURE_RANGE_C = (-60.0, 150.0)
+#: The largest limit [mm] (beyond it a limit judges nothing).
+MAX_LIMIT_MM = 1e4
+
+
+@dataclass(frozen=True)
+class CampaignFacts:
+    """What the campaign file (and the flags beside it) say; empty strings where nothing is stated.
+
+    Attributes
+    ----------
+    limits_mm : dict of str to float
+        Limit [mm] per figure of :data:`LIMIT_FIGURES`.
+    temperature_c : tuple of (float, float) or None
+        Lowest and highest temperature during the measurements [degC].
+    """
+
+    title: str = ""
+    customer: str = ""
+    robot_model: str = ""
+    robot_serial: str = ""
+    instrument_name: str = ""
+    instrument_serial: str = ""
+    certificate: str = ""
+    temperature_c: tuple | None = None
+    date: str = ""
+    operator: str = ""
+    prepared_by: str = ""
+    checked_by: str = ""
+    limits_mm: dict = field(default_factory=dict)
+
+    def updated(self, **given) -> "CampaignFacts":
+        """These facts with those of ``given`` that are not None (flags over the file);
+        ``limits_mm`` is merged figure by figure."""
+        given = {k: v for k, v in given.items() if v is not None}
+        if "limits_mm" in given:
+            given["limits_mm"] = {**self.limits_mm, **given["limits_mm"]}
+        return dataclasses.replace(self, **given)
+
+
+def read_campaign(path) -> CampaignFacts:
+    """The campaign file at ``path`` (YAML or TOML, see the module docstring).
+
+    Raises
+    ------
+    InputError
+        One line naming the file and the key at fault.
+    """
+    source = str(path)
+    doc = read_table(Path(path))
+    unknown = [k for k in doc if k not in KEYS]
+    if unknown:
+        raise InputError(f"{source}: unknown key {unknown[0]!r} (keys: {', '.join(KEYS)})")
+    robot = _table(doc, "robot", ROBOT_KEYS, source)
+    instrument = _table(doc, "instrument", INSTRUMENT_KEYS, source)
+    limits = _table(doc, "limits_mm", tuple(LIMIT_FIGURES), source)
+    return CampaignFacts(
+        **{k: _text(doc.get(k), k, source) for k in TEXT_KEYS},
+        robot_model=_text(robot.get("model"), "robot.model", source),
+        robot_serial=_text(robot.get("serial"), "robot.serial", source),
+        instrument_name=_text(instrument.get("name"), "instrument.name", source),
+        instrument_serial=_text(instrument.get("serial"), "instrument.serial", source),
+        certificate=_text(instrument.get("certificate"), "instrument.certificate", source),
+        temperature_c=temperature_range(doc.get("temperature_c"), f"{source}: temperature_c"),
+        limits_mm={k: limit_mm(v, f"{source}: limits_mm.{k}") for k, v in limits.items()},
+    )
+
+
+def _table(doc: dict, key: str, keys: tuple, source: str) -> dict:
+    value = doc.get(key, {})
+    if not isinstance(value, dict):
+        raise InputError(f"{source}: {key}: expected a table with the keys {', '.join(keys)}")
+    unknown = [k for k in value if k not in keys]
+    if unknown:
+        raise InputError(f"{source}: unknown key {key}.{unknown[0]} (keys of {key}: {', '.join(keys)})")
+    return value
+
+
+def _text(value, key: str, source: str) -> str:
+    """A text value; a number or a date (YAML reads ``2026-11-20`` as one) as written."""
+    if value is None:
+        return ""
+    if isinstance(value, (dict, list)):
+        raise InputError(f"{source}: {key}: expected text, got a {'table' if isinstance(value, dict) else 'list'}")
+    text = " ".join(str(value).split())
+    if len(text) > MAX_TEXT:
+        raise InputError(f"{source}: {key}: {len(text)} characters; at most {MAX_TEXT} fit a line of the report")
+    return text
+
+
+def limit_mm(value, where: str) -> float:
+    """A limit [mm]: a positive finite number up to :data:`MAX_LIMIT_MM`; InputError naming ``where``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+            or not 0 < value <= MAX_LIMIT_MM:
+        raise InputError(f"{where}: {value!r}: want a limit in mm, a number > 0 and <= {MAX_LIMIT_MM:g}")
+    return float(value)
+
+
+def temperature_range(value, where: str) -> tuple | None:
+    """``[low, high]`` [degC] as a tuple, or None; InputError naming ``where``."""
+    if value is None:
+        return None
+    low, high = TEMPERATURE_RANGE_C
+    if not isinstance(value, (list, tuple)) or len(value) != 2 or any(
+            isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) for v in value):
+        raise InputError(f"{where}: {value!r}: want two numbers [degC], the lowest and the highest, e.g. [19.5, 21]")
+    if not (low <= value[0] <= value[1] <= high):
+        raise InputError(f"{where}: {list(value)}: want low <= high, both within {low:g} to {high:g} degC")
+    return float(value[0]), float(value[1])
