@@ -108,10 +108,8 @@ def compensate_targets(model, q_targets, *, threshold: float = 1e-6, max_iter: i
 
     Examples
     --------
-    >>> import tcr_accuracy as tcr
-    >>> robot = tcr.load_robot("ur5")
-    >>> model = tcr.MeasuredErrorModel(robot=robot, estimator=tcr.make_predictor("gp", robot, random_state=0))
-    >>> model.fit(train.q, train.position, context=train.context)  # doctest: +SKIP
+    With ``model`` fitted as in :func:`~tcr_accuracy.prediction.error_prediction.predict_errors`:
+
     >>> done = tcr.compensate_targets(model, targets.q, threshold=1e-6)  # doctest: +SKIP
     >>> done.error_before.mean(), done.miss_after.max()  # doctest: +SKIP
     (0.00049, 9.4e-07)
