@@ -98,8 +98,7 @@ def held_out_error(model, q, measured, *, context=None, predicted=None, std=None
         ``residual = R^T (measured - t) - FK(q) - predicted error`` [m], base frame.
     """
     q = np.asarray(q, dtype=float)
-    measured_error = model.registration_.to_base(measured) - tcp_poses(model.robot, q).position
-    residual = (model.heldout_residual(q, measured, context=context) if predicted is None
-                else measured_error - predicted)
+    measured_error = model.registration_.to_base(np.asarray(measured, dtype=float)) - tcp_poses(model.robot, q).position
+    residual = measured_error - (model.predict_error(q, context=context) if predicted is None else predicted)
     return HeldOutError(residual=residual, measured_error=measured_error,
                         std=None if std is None else np.asarray(std, dtype=float))
