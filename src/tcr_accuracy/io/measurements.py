@@ -37,7 +37,6 @@ from __future__ import annotations
 import csv
 import io
 import math
-from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -46,19 +45,18 @@ from ..model.context import REFERENCE_TEMPERATURE_C, MeasurementContext
 from ..exceptions import InputError
 from ..input_files import SIZE_LIMITS, read_input_text
 from .measurement_checks import MeasurementWarning, check_duplicates, check_position_units, warn_outside_limits
+from .measurement_set import (ANNOTATION_COLUMNS, CONTEXT_COLUMNS, LABEL_COLUMNS, QUATERNION_COLUMNS,
+                              TEXT_ANNOTATIONS, MeasurementSet, join_sessions)
+# the CSV's writer, named here too for the callers that read and write it
+from .measurement_text import format_measurements, measurement_columns
 from ..model.robot import RobotModel
 from ..units import JOINT_COLUMN_UNITS as _JOINT_UNITS
-from ..units import JOINT_DISPLAY
 from ..units import POSITION_UNITS as _POSITION_UNITS
 from ..units import REVOLUTE, parse_number
 
 #: Largest |quaternion norm - 1| accepted before normalising.
 QUATERNION_TOLERANCE = 1e-3
 
-QUATERNION_COLUMNS = ("qw", "qx", "qy", "qz")
-CONTEXT_COLUMNS = ("payload_kg", "temperature_c", "time_s")
-#: columns whose cells are labels, not numbers
-LABEL_COLUMNS = ("session",)
 #: The largest magnitudes a measurement CSV's values may have, as the settings files' are bounded:
 #: beyond them a value is a typo (1e300 overflowed the analyses into a silent 'frames only').
 MAX_JOINT_SI = 1e4          # [rad] or [m]: the URDF's own bound on angles and lengths
@@ -76,11 +74,6 @@ def _check_range(source, rows, column: str, values_si, bound: float, si_unit: st
         r = bad[0]
         raise InputError(f"{source}: row {rows[r]}, column {column}: {values_si[r] * to_shown:g} {shown_unit} is "
                          f"beyond the {bound * to_shown:g} {shown_unit} a measurement may have")
-#: Labels a pose or path test adds to a row (ISO 9283, ``iso9283 plan``): accepted, carried, not used by a fit.
-ANNOTATION_COLUMNS = ("pose_id", "cycle", "approach", "load_pct", "speed_pct", "target_x_mm", "target_y_mm",
-                      "target_z_mm", "path", "speed_mm_s", "s_mm")
-#: The annotations that are names, not numbers (``P1``, ``S01.P1``, ``+x``, ``line``): kept as text.
-TEXT_ANNOTATIONS = ("pose_id", "cycle", "approach", "path")
 #: A label written as a whole number within this magnitude is that integer's digits ("1.0" -> "1").
 _EXACT_INTEGER = 2.0 ** 53
 
@@ -126,128 +119,6 @@ def canonical_label(cell: str) -> str:
     if value == int(value) and abs(value) < _EXACT_INTEGER:
         return str(int(value))
     return cell
-
-
-# ---------------------------------------------------------------------------------------
-# Containers
-# ---------------------------------------------------------------------------------------
-@dataclass
-class MeasurementSet:
-    """Measurements of one robot, SI units.
-
-    Attributes
-    ----------
-    joint_names : list of str
-        Joint order of ``q`` (the robot's).
-    q : ndarray of shape (N, n_joints)
-        Commanded joint values [rad, m].
-    position : ndarray of shape (N, 3)
-        Measured TCP position in the measurement (tracker) frame [m].
-    quaternion : ndarray of shape (N, 4) or None
-        Measured TCP orientation (w, x, y, z), unit norm; None when not measured.
-    payload_kg : ndarray of shape (N,) or None
-        Payload [kg]; None when the file has no ``payload_kg`` column.
-    temperature_c : ndarray of shape (N,) or None
-        Temperature [degC]; None when the file has no ``temperature_c`` column.
-    direction : ndarray of shape (N, n_joints) or None
-        Approach directions +1/-1, 0 for joints without a ``<joint>_dir`` column;
-        None when the file has no direction column at all.
-    outside_q : ndarray of shape (N, n_outside) or None
-        Values [rad, m] of the robot's joints that do not move the TCP
-        (``robot.outside_joint_names``: another arm, a head), for the gravity torques;
-        None when the file has none of their columns and no mimic rule sets them.
-    annotations : dict of str to ndarray of shape (N,), or None
-        The file's :data:`ANNOTATION_COLUMNS` by column name: the :data:`TEXT_ANNOTATIONS`
-        as names (object arrays of str, a whole number as its digits: see
-        :func:`canonical_label`), the others as numbers (the name carries the unit:
-        ``target_x_mm``); None when it has none.
-    source : str
-        Where the rows came from (file path or a label).
-    rows : ndarray of shape (N,)
-        Row (line) number of each measurement in the source file.
-    session : ndarray of shape (N,) of str, or None
-        Session label of each row (one tracker frame each); None: one session.
-    time_s : ndarray of shape (N,) or None
-        Time of each measurement [s]; None when the file has no ``time_s`` column.
-    """
-
-    joint_names: list[str]
-    q: np.ndarray
-    position: np.ndarray
-    quaternion: np.ndarray | None = None
-    payload_kg: np.ndarray | None = None
-    temperature_c: np.ndarray | None = None
-    direction: np.ndarray | None = None
-    source: str = "<memory>"
-    rows: np.ndarray | None = None
-    outside_q: np.ndarray | None = None
-    session: np.ndarray | None = None
-    time_s: np.ndarray | None = None
-    annotations: dict | None = None
-
-    def __post_init__(self) -> None:
-        self.q = np.atleast_2d(np.asarray(self.q, dtype=float))
-        self.position = np.atleast_2d(np.asarray(self.position, dtype=float))
-        if self.rows is None:
-            self.rows = np.arange(2, 2 + self.q.shape[0])
-
-    def __len__(self) -> int:
-        return self.q.shape[0]
-
-    def __repr__(self) -> str:
-        measured = [k for k in ("quaternion", "payload_kg", "temperature_c", "direction", "outside_q", "time_s")
-                    if getattr(self, k) is not None]
-        sessions = f", {len(self.session_labels)} sessions" if self.session is not None else ""
-        source = self.source if len(self.source) <= 60 else self.source[:57] + "..."
-        return (f"MeasurementSet({len(self)} rows x {self.q.shape[1]} joints, source={source!r}"
-                f"{sessions}, context columns: {', '.join(measured) or 'none'})")
-
-    @property
-    def context(self) -> MeasurementContext:
-        """The per-row context (payload, temperature, approach directions, other joints, session),
-        with defaults where a column is absent: no payload, the reference temperature, no direction."""
-        return self.make_context()
-
-    def make_context(self, reference_temperature_c: float = REFERENCE_TEMPERATURE_C,
-                     rng: np.random.Generator | None = None) -> MeasurementContext:
-        """The per-row context with another reference temperature [degC] where the file has none,
-        or a generator for the effects that draw random numbers (``rng``)."""
-        n, nj = self.q.shape
-        return MeasurementContext(
-            payload_kg=self.payload_kg.copy() if self.payload_kg is not None else np.zeros(n),
-            temperature_c=(self.temperature_c.copy() if self.temperature_c is not None
-                           else np.full(n, float(reference_temperature_c))),
-            direction=self.direction.copy() if self.direction is not None else np.zeros((n, nj)),
-            rng=rng,
-            outside_q=None if self.outside_q is None else self.outside_q.copy(),
-            session=self.session_index(),
-            time_s=None if self.time_s is None else np.asarray(self.time_s, dtype=float).copy(),
-        )
-
-    @property
-    def session_labels(self) -> list[str]:
-        """The sessions' labels in order of first appearance ([] without a session column)."""
-        return [] if self.session is None else list(dict.fromkeys(self.session.tolist()))
-
-    def session_index(self) -> np.ndarray | None:
-        """(N,) int: each row's session, numbered in order of first appearance (None: one session)."""
-        if self.session is None:
-            return None
-        number = {label: k for k, label in enumerate(self.session_labels)}
-        return np.array([number[label] for label in self.session.tolist()], dtype=int)
-
-    def subset(self, rows) -> "MeasurementSet":
-        """The measurements of some rows (index array or boolean mask), e.g. a fold."""
-        def pick(a):
-            return None if a is None else a[rows]
-
-        return replace(self, q=self.q[rows], position=self.position[rows],
-                       quaternion=pick(self.quaternion), payload_kg=pick(self.payload_kg),
-                       temperature_c=pick(self.temperature_c), direction=pick(self.direction),
-                       rows=self.rows[rows], outside_q=pick(self.outside_q), session=pick(self.session),
-                       time_s=pick(self.time_s),
-                       annotations=None if self.annotations is None else
-                       {k: v[rows] for k, v in self.annotations.items()})
 
 
 # ---------------------------------------------------------------------------------------
@@ -570,116 +441,6 @@ def _resolve_columns(header, robot, source, line_no, require_position, logical):
     directions = [(j, f"{name}_dir") for j, name in enumerate(robot.joint_names) if f"{name}_dir" in seen]
     return {"joints": joints, "outside": outside, "position": position, "quaternion": bool(quats),
             "directions": directions}
-
-
-# ---------------------------------------------------------------------------------------
-# Writing
-# ---------------------------------------------------------------------------------------
-def measurement_columns(robot: RobotModel, mset: MeasurementSet, unit: str = "mm") -> list[str]:
-    """Header of the CSV :func:`format_measurements` writes."""
-    if unit not in ("mm", "m"):
-        raise InputError(f"unit {unit!r}: use 'mm' (deg, mm columns) or 'm' (rad, m columns)")
-    joint_unit = {REVOLUTE: "deg" if unit == "mm" else "rad", "prismatic": unit}
-    cols = [f"{n}_{joint_unit[k]}" for n, k in zip(robot.joint_names, robot.joint_kinds)]
-    if mset.outside_q is not None:
-        cols += [f"{n}_{joint_unit[k]}" for n, k in zip(robot.outside_joint_names, robot.outside_joint_kinds)]
-    cols += [f"{a}_{unit}" for a in "xyz"]
-    if mset.quaternion is not None:
-        cols += list(QUATERNION_COLUMNS)
-    if mset.payload_kg is not None:
-        cols.append("payload_kg")
-    if mset.temperature_c is not None:
-        cols.append("temperature_c")
-    if mset.direction is not None:
-        cols += [f"{n}_dir" for j, n in enumerate(robot.joint_names) if np.any(mset.direction[:, j] != 0)]
-    return cols + _annotation_columns(mset)
-
-
-def _annotation_columns(mset: MeasurementSet) -> list[str]:
-    return [c for c in ANNOTATION_COLUMNS if mset.annotations and c in mset.annotations]
-
-
-def format_measurements(robot: RobotModel, mset: MeasurementSet, unit: str = "mm",
-                        comment: str | None = None) -> str:
-    """CSV text of a measurement set, joints in deg/mm (unit "mm") or rad/m (unit "m")."""
-    cols = measurement_columns(robot, mset, unit)
-    if list(mset.joint_names) != list(robot.joint_names):
-        raise InputError(f"measurement set joints {mset.joint_names} are not the robot's {robot.joint_names}")
-    factor = 1e3 if unit == "mm" else 1.0
-    joint_scale = robot.display_scale if unit == "mm" else np.ones(robot.n_joints)
-    blocks = [mset.q * joint_scale]
-    if mset.outside_q is not None:
-        outside_scale = (np.array([JOINT_DISPLAY[k][1] for k in robot.outside_joint_kinds]) if unit == "mm"
-                         else np.ones(len(robot.outside_joint_names)))
-        blocks.append(mset.outside_q * outside_scale)
-    blocks.append(mset.position * factor)
-    if mset.quaternion is not None:
-        blocks.append(mset.quaternion)
-    if mset.payload_kg is not None:
-        blocks.append(mset.payload_kg[:, None])
-    if mset.temperature_c is not None:
-        blocks.append(mset.temperature_c[:, None])
-    if mset.direction is not None:
-        used = [j for j in range(robot.n_joints) if np.any(mset.direction[:, j] != 0)]
-        blocks.append(mset.direction[:, used])
-    labels = _annotation_columns(mset)
-    numbers = [c for c in labels if c not in TEXT_ANNOTATIONS]
-    table = np.concatenate(blocks + [np.stack([np.asarray(mset.annotations[c], dtype=float) for c in numbers], axis=1)]
-                           if numbers else blocks, axis=1)
-    if not np.all(np.isfinite(table)):
-        raise InputError("measurement set has non-finite values; nothing written")
-    names = [[_label_cell(mset.annotations[c][k]) if c in TEXT_ANNOTATIONS else None for c in labels]
-             for k in range(len(table))]
-    out = io.StringIO()
-    if comment:
-        for line in comment.splitlines():
-            out.write(f"# {line}\n")
-    out.write(",".join(cols) + "\n")
-    n_values = len(cols) - len(labels) - sum(c.endswith("_dir") for c in cols)
-    n_dirs = len(cols) - len(labels)
-    for row, text in zip(table, names):
-        cells = [format(v, ".12g") for v in row[:n_values]]
-        cells += [f"{int(v):+d}" for v in row[n_values:n_dirs]]
-        given = iter(format(v, ".12g") for v in row[n_dirs:])
-        cells += [next(given) if name is None else name for name in text]
-        out.write(",".join(cells) + "\n")
-    return out.getvalue()
-
-
-def _label_cell(value) -> str:
-    """A text annotation as a CSV cell (quoted when it holds a comma or a quote)."""
-    text = str(value)
-    return f'"{text.replace(chr(34), chr(34) * 2)}"' if ("," in text or '"' in text) else text
-
-
-def join_sessions(sets: list[MeasurementSet], labels: list[str]) -> MeasurementSet:
-    """Several measurement sets of one robot as one, each its own session (its label, or
-    ``<label>:<session>`` where a set has a session column already); columns one set has and
-    another lacks take their defaults (no payload, the reference temperature, no direction)."""
-    if len(sets) == 1:
-        return sets[0]
-    session = np.concatenate([np.array([f"{label}:{v}" for v in s.session], dtype=object) if s.session is not None
-                              else np.full(len(s), label, dtype=object) for s, label in zip(sets, labels)])
-
-    def joined(attr, fill):
-        values = [getattr(s, attr) for s in sets]
-        if all(v is None for v in values):
-            return None
-        return np.concatenate([v if v is not None else fill(s) for v, s in zip(values, sets)])
-
-    nj = sets[0].q.shape[1]
-    return MeasurementSet(
-        joint_names=list(sets[0].joint_names), q=np.concatenate([s.q for s in sets]),
-        position=np.concatenate([s.position for s in sets]),
-        quaternion=joined("quaternion", lambda s: np.tile([1.0, 0.0, 0.0, 0.0], (len(s), 1))),
-        payload_kg=joined("payload_kg", lambda s: np.zeros(len(s))),
-        temperature_c=joined("temperature_c", lambda s: np.full(len(s), REFERENCE_TEMPERATURE_C)),
-        direction=joined("direction", lambda s: np.zeros((len(s), nj))),
-        source=", ".join(s.source for s in sets), rows=np.concatenate([s.rows for s in sets]),
-        outside_q=joined("outside_q", lambda s: np.zeros((len(s), next(
-            o.outside_q.shape[1] for o in sets if o.outside_q is not None)))),
-        session=session, time_s=joined("time_s", lambda s: np.full(len(s), np.nan)),
-    )
 
 
 __all__ = [
