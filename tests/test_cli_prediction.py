@@ -94,11 +94,23 @@ def test_predict_scores_itself_on_measured_queries_in_a_tracker_frame(ur5, track
     np.testing.assert_allclose(np.array(payload["tracker_frame"]["translation_mm"]), hidden.translation * 1e3,
                                atol=5.0)
     assert payload["predicted_error_max_mm"] < 30.0 and np.abs(hidden.translation).max() > 1.0
-    assert held["mean_mm"] < 0.1
     assert f"held-out error against the 40 measured query positions: mean {held['mean_mm']:.4f} mm" in out
-    # the GP's standard deviation, in the CSV and the JSON
+    # against the hidden truth the command never sees: the predicted tracker readings are the
+    # noise-free ones to 17 um RMS (30 um at worst; measured), and the held-out miss is the tracker
+    # noise drawn in the fixture (31 um RMS) to that accuracy
+    truth = tracked["true_tracker_positions"](q)
+    prediction_error = _tracker_prediction(ur5, payload, predicted, q) - truth
+    prediction_rms = np.sqrt(np.mean(np.sum(prediction_error ** 2, axis=1))) * 1e3
+    assert prediction_rms < 0.035
+    noise = np.linalg.norm(measured - truth, axis=1) * 1e3
+    assert np.abs(miss - noise).max() < 0.05 and noise.mean() > 0.025
+    assert held["rms_mm"] == pytest.approx(np.sqrt(np.mean(noise ** 2) + prediction_rms ** 2), abs=0.01)
+    # the GP's standard deviation covers the true prediction error (base-frame axes); it is cautious
+    # here (all 120 axis errors within 2 std, RMS 0.46 std; measured)
     std = csv[:, header.index("ex_std_mm"):header.index("ez_std_mm") + 1]
-    np.testing.assert_allclose(std, payload["predicted_std_mm"], rtol=1e-8)
+    rotation = np.array(payload["tracker_frame"]["rotation_matrix"])
+    z = (prediction_error @ rotation) * 1e3 / std
+    assert np.mean(np.abs(z) <= 2.0) >= 0.9 and np.sqrt(np.mean(z ** 2)) < 1.5
     assert payload["uncertainty"] == "Gaussian process predictive standard deviation"
     assert 0.8 <= held["within_2std"] <= 1.0
 

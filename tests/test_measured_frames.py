@@ -94,7 +94,7 @@ def test_reading_one_frame_of_several():
     # the robot's TCP (what --tool names) is one of the measured frames: that one is read
     assert np.array_equal(parse_measurements(text, robot, check_units=False).position, right.position)
     elsewhere = robot_from_urdf_text(TWO_ARMS, "right1", name="two_arms")
-    with pytest.raises(InputError, match="measures several frames .*--tool FRAME"):
+    with pytest.raises(InputError, match="measures several frames .*tool=FRAME"):
         parse_measurements(text, elsewhere, check_units=False)
     with pytest.raises(InputError, match="no columns hand.x_mm"):
         parse_measurements(text, robot, frame="hand", check_units=False)

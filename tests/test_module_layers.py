@@ -9,6 +9,7 @@ import hidden in a function counts as much as one at the top.
 import ast
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -192,3 +193,54 @@ def test_nothing_below_the_edges_prints_plots_or_parses_arguments():
                     if module.split(".")[0] in PLOTTING + ("argparse",):
                         found.append(f"{where} imports {module}")
     assert not found, found
+
+
+#: A command-line flag as it is typed: two dashes, a lower-case letter (``<!-- -->`` of XML is none).
+FLAG = re.compile(r"(?<![\w-])--[a-z][a-z0-9-]*")
+
+#: Modules below the edges allowed to name a flag in a string, with the reason (none today: a
+#: library message names the Python parameter, the command line words it as its flag).
+FLAG_ALLOWED: dict[str, str] = {}
+
+
+def _docstrings(tree) -> set[int]:
+    """ids of the docstring constants of a module, its classes and functions."""
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and node.body:
+            first = node.body[0]
+            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) \
+                    and isinstance(first.value.value, str):
+                found.add(id(first.value))
+    return found
+
+
+def test_nothing_below_the_edges_names_a_command_line_flag():
+    """A library error, warning or result text names the Python parameter (``folds=1``), never the
+    flag (``--folds 1``): a Python user has no flags, and the command line words the parameter as
+    its own (:mod:`tcr_accuracy.cli.flag_names`). Every string constant below view/ and cli/ is read
+    (f-string parts included), docstrings aside: they may say which flag a parameter comes from."""
+    found = []
+    for name, path, tree in _library_modules():
+        if name in FLAG_ALLOWED:
+            continue
+        docstrings = _docstrings(tree)
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings:
+                flags = FLAG.findall(node.value)
+                if flags:
+                    found.append(f"{path.relative_to(PACKAGE.parent)}:{node.lineno} {', '.join(flags)}")
+    assert not found, found
+    assert set(FLAG_ALLOWED) <= set(GRAPH)  # an allowance for a module that is gone is stale
+
+
+def test_the_flag_rule_sees_flags_in_messages_and_not_in_docstrings():
+    """The rule above on a module written here: it must flag the message, not the docstring."""
+    tree = ast.parse('"""Module: set by --folds."""\n'
+                     'def f(folds):\n    """folds: --folds on the command line."""\n'
+                     '    raise ValueError(f"--folds {folds}: need at least 2")\n')
+    docstrings = _docstrings(tree)
+    hits = [FLAG.findall(n.value) for n in ast.walk(tree)
+            if isinstance(n, ast.Constant) and isinstance(n.value, str) and id(n) not in docstrings]
+    assert [h for h in hits if h] == [["--folds"]]
+    assert FLAG.findall("<!-- generated -->; a-b--c; x--y") == []

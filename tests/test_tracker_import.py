@@ -8,7 +8,7 @@ import pytest
 
 from tcr_accuracy.cli import main
 from tcr_accuracy.io.measurements import read_measurements
-from tcr_accuracy.io.tracker_import import import_tracker, parse_map
+from tcr_accuracy.io.tracker_import import import_tracker
 from tcr_accuracy.model.robot import load_robot
 
 from conftest import REPO
@@ -85,7 +85,7 @@ def test_units_decimal_commas_and_a_column_map(tmp_path):
     path = tmp_path / "faro.txt"
     path.write_text("FARO CAM2 export\nName\tMeas X\tMeas Y\tMeas Z\n"
                     "p1\t10,5 in\t1,0 in\t-2,25 in\n")
-    result = import_tracker(path, parse_map(["x_mm=Meas X", "y_mm=Meas Y", "z_m=Meas Z"]))
+    result = import_tracker(path, {"x_mm": "Meas X", "y_mm": "Meas Y", "z_m": "Meas Z"})
     assert result.columns == ["x_mm", "y_mm", "z_m"]
     assert [float(v) for v in result.rows[0]] == pytest.approx([266.7, 25.4, -0.05715])  # inch = 25.4 mm
 

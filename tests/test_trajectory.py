@@ -103,8 +103,9 @@ def test_tool_change_motion_phases(tool_changer):
 
 
 def test_tool_change_motion_needs_the_tool_changer(ur5):
-    with pytest.raises(InputError, match="--file"):
+    with pytest.raises(InputError, match="robot ur5 has other joints: give its trajectory$") as caught:
         tool_change_motion(ur5)
+    assert (caught.value.parameter, caught.value.value) == ("robot", "ur5")  # the command line adds: with --file
 
 
 # ---------------------------------------------------------------------------------------

@@ -13,8 +13,11 @@ class InputError(TcrError, ValueError):
     """Bad input from the user: a file, a row, a column or an argument at fault.
 
     The message names what is wrong and, where it can, how to fix it. ``parameter`` and
-    ``value``, where given, are the library parameter at fault and the value it had: the command
-    line words them as its flag (a library names no flag).
+    ``value``, where given, are the library parameter at fault and the value it had. A library
+    names no command-line flag: a message names a parameter in keyword form (``folds=1: need at
+    least 2``, a hint ``give tool=FRAME``, ``tracker_map["x_mm"]="HEADER"``) or, opening the
+    message, by name (``effects: unknown ...``), and the command line words it as the flag that
+    sets it (:mod:`tcr_accuracy.cli.flag_names`).
     """
 
     def __init__(self, message: str = "", *, parameter: str | None = None, value=None):
@@ -31,7 +34,7 @@ class FixedFrameError(InputError):
     """
 
     def __init__(self, message: str, frame: str, position):
-        super().__init__(message)
+        super().__init__(message, parameter="tool", value=frame)
         self.frame = frame
         self.position = position
 

@@ -14,6 +14,7 @@ Base layer: scikit-learn is imported when a check runs.
 from __future__ import annotations
 
 import functools
+import re
 
 from .exceptions import InputError
 
@@ -34,11 +35,16 @@ def validate_hyperparameters(estimator) -> None:
     Raises
     ------
     InputError
-        (also scikit-learn's ``InvalidParameterError``) naming the parameter, the estimator and the value.
+        (also scikit-learn's ``InvalidParameterError``) naming the parameter, the estimator and the value;
+        ``parameter`` and ``value`` carry them.
     """
     from sklearn.utils._param_validation import InvalidParameterError
 
     try:
         estimator._validate_params()
     except InvalidParameterError as exc:
-        raise _error_class()(" ".join(str(exc).split())) from None
+        message = " ".join(str(exc).split())
+        # scikit-learn words it "The 'folds' parameter of GapDiagnosis must be ...": the name is in the text only
+        named = re.match(r"The '(\w+)' parameter of ", message)
+        name = named[1] if named else None
+        raise _error_class()(message, parameter=name, value=getattr(estimator, name, None) if name else None) from None

@@ -166,7 +166,7 @@ def simulate_measurements(robot: RobotModel, scenario: Scenario | dict, n: int, 
         scenario = scenario_from_dict(scenario)
     if q is None:
         if n < 1:
-            raise InputError(f"--n {n}: need at least one measurement")
+            raise InputError(f"n={n}: need at least one measurement", parameter="n", value=n)
         q = sample_poses(robot, n, rng, box, pose_filter=pose_filter)
     q = np.atleast_2d(np.asarray(q, dtype=float))
     n = q.shape[0]

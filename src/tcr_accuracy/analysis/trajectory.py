@@ -180,9 +180,10 @@ def tool_change_motion(robot: RobotModel, n_steps: int = 121, approach_s: float 
     kinds = robot.joint_kinds
     if kinds.count(PRISMATIC) != 1 or len(kinds) != 6:
         raise InputError(f"the built-in tool-change motion is for the tool-changer (5R + 1P); robot "
-                         f"{robot.name} has other joints: give its trajectory with --file")
+                         f"{robot.name} has other joints: give its trajectory", parameter="robot",
+                         value=robot.name)
     if n_steps < 2:
-        raise InputError(f"trajectory steps {n_steps}: need at least 2")
+        raise InputError(f"n_steps={n_steps}: need at least 2", parameter="n_steps", value=n_steps)
     start = STOWED_POSE if stowed is None else np.asarray(stowed, dtype=float)
     goal = robot.working_pose
     telescope = kinds.index(PRISMATIC)

@@ -24,13 +24,13 @@ REQUIRED = ("effect_parameters", "robot_source", "tool_frame", "tracker_transfor
 
 def parse_diagnosis_json(text: str, source: str) -> dict:
     """The JSON object of a ``diagnose --json`` result with the keys export needs."""
-    data = parse_json(text, source, "give the JSON that 'diagnose --json FILE' wrote")
+    data = parse_json(text, source, "give the JSON that tcr-accuracy diagnose wrote")
     if not isinstance(data, dict):
         raise InputError(f"{source}: not a diagnosis (a JSON object was expected)")
     for key in REQUIRED:
         if key not in data:
-            raise InputError(f"{source}: key {key!r} is missing; write the JSON with 'tcr-accuracy diagnose "
-                             "MEASUREMENTS.csv --json FILE' of this version")
+            raise InputError(f"{source}: key {key!r} is missing; write the JSON with tcr-accuracy diagnose of "
+                             "this version")
     return data
 
 

@@ -63,11 +63,16 @@ COMMANDS = [pose, demo, montecarlo, sensitivity, tolerance, trajectory, simulate
 #: the 3D view), and the user needs to read it once, named after their own argument.
 _shown_limit_warnings: set[str] = set()
 
+#: ``{dest: flag}`` of the command running (:func:`tcr_accuracy.cli.flag_names.command_flags`):
+#: warnings name library parameters, the user reads them as flags.
+_flags: dict[str, str] = {}
+
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
     from ..model.robot import JointLimitWarning, MissingMeshWarning
+    from .flag_names import in_flags
 
-    text = str(message)
+    text = in_flags(str(message), _flags, getattr(category, "parameter", None))
     if issubclass(category, (JointLimitWarning, MissingMeshWarning)):
         # without the source ("--q: ", "q: ", "nominal: q: "); a robot loaded twice warns of its meshes once
         key = text[text.find("joint "):] if issubclass(category, JointLimitWarning) else text
@@ -92,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
     memory left) one line naming the command, the exception's type and message, and 1.
     With ``--debug`` the traceback is printed before that line.
     """
-    global _depth
+    global _depth, _flags
 
     argv = list(sys.argv[1:] if argv is None else argv)
     # read before parsing too, so that a failure while building the parser is traced as well
@@ -101,14 +106,18 @@ def main(argv: list[str] | None = None) -> int:
     if _depth == 0:
         _shown_limit_warnings.clear()
     _depth += 1
+    outer_flags = _flags  # demo's steps run through main: each speaks of its own flags
     try:
         return _main(argv, debug, command)
     finally:
         _depth -= 1
+        _flags = outer_flags
 
 
 def _main(argv: list[str], debug: bool, command: str | None) -> int:
+    global _flags
     from ..exceptions import AnalysisError, InputError
+    from .flag_names import command_flags, in_flags
 
     name = f"tcr-accuracy {command}" if command else "tcr-accuracy"
     stage = None
@@ -118,6 +127,7 @@ def _main(argv: list[str], debug: bool, command: str | None) -> int:
             args = parser.parse_args(argv)
         except SystemExit as exc:  # --help, --version, or a usage error already said in one line
             return exc.code if isinstance(exc.code, int) else EXIT_INPUT
+        _flags = command_flags(parser, args)
         from .output_paths import outputs_of_command
 
         outputs = outputs_of_command(parser, args)  # and no output over an input or another output
@@ -139,12 +149,12 @@ def _main(argv: list[str], debug: bool, command: str | None) -> int:
             warnings.simplefilter("default", UserWarning)
             warnings.showwarning = _show_warning
             return args.run(args)
-    except InputError as exc:
-        _report(f"{name}: error: {exc}", debug)
+    except InputError as exc:  # a library's message names its parameters: the user reads the flags
+        _report(f"{name}: error: {in_flags(str(exc), _flags, exc.parameter)}", debug)
         return EXIT_INPUT
     except AnalysisError as exc:
         _show_held_warnings(stage)
-        _report(f"{name}: analysis failed: {exc}", debug)
+        _report(f"{name}: analysis failed: {in_flags(str(exc), _flags)}", debug)
         return EXIT_ANALYSIS
     except KeyboardInterrupt:
         if stage is not None and stage.committed:  # stopped once every file was in place: done

@@ -243,7 +243,14 @@ def sampler_from_args(robot, preset: str | None, config: str | None):
         from ..model.clearance import ClearanceModel
 
         return ClearanceModel.from_robot(robot)
-    return seed_budget(robot, preset)
+    from ..exceptions import InputError
+
+    try:
+        return seed_budget(robot, preset)
+    except InputError as exc:  # a preset that does not fit the robot: the budget file is the other way
+        if exc.parameter != "preset" or exc.value not in PRESETS:
+            raise
+        raise InputError(f"{exc} or a --config file", parameter=exc.parameter, value=exc.value) from None
 
 
 def error_sampler(robot, args) -> tuple[object, str]:

@@ -165,7 +165,8 @@ def _load_named(load_robot, source, tool):
     try:
         return load_robot(source, tool)
     except InputError as exc:
-        raise InputError(f"{exc} (give --robot and --tool as in the diagnosis)") from None
+        raise InputError(f"{exc} (give --robot and --tool as in the diagnosis)", parameter=exc.parameter,
+                         value=exc.value) from None
 
 
 def _diagnose_csv(args, path: str, robot) -> dict:

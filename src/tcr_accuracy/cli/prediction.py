@@ -182,7 +182,7 @@ def _fit(args, robot):
     except InputError as exc:
         hint = "; or choose a --method that needs fewer poses (gp, kriging)" if args.method.startswith(
             "diagnosis") and "too few" in str(exc) else ""
-        raise InputError(f"{args.train}: {exc}{hint}") from None
+        raise InputError(f"{args.train}: {exc}{hint}", parameter=exc.parameter, value=exc.value) from None
     _progress(args, f"fitted in {time.perf_counter() - started:.1f} s")
     return q, model
 
@@ -194,45 +194,6 @@ def _progress(args, message: str) -> None:
 
     if not getattr(args, "quiet", False) and sys.stderr.isatty():
         sys.stderr.write(message + "\n")
-
-
-def _predict(args, model, q, context=None, *, robot_only: bool = False):
-    """Predicted base-frame errors (N, 3) [m] and their std (N, 3) or None, checked finite; with
-    ``robot_only``, only what the robot adds beyond the measured point (its TCP offset left out)."""
-    import numpy as np
-
-    from ..exceptions import AnalysisError
-
-    predict = model.predict_robot_error if robot_only else model.predict_error
-    pred, std = predict(q, return_std=True, context=context)
-    pred = np.asarray(pred, dtype=float).reshape(-1, 3)
-    if not np.all(np.isfinite(pred)) or (std is not None and not np.all(np.isfinite(std))):
-        raise AnalysisError(f"method {args.method} predicted non-finite errors")
-    return pred, (None if std is None else np.asarray(std, dtype=float).reshape(-1, 3))
-
-
-def _heldout(model, q, measured, context=None, predicted=None):
-    """Held-out miss at measured poses: (residual (N, 3) [m], measured error (N, 3) [m], summary dict [mm]).
-    ``predicted``: the model's errors at q when already computed (a local model predicts slowly)."""
-    import numpy as np
-
-    from ..model.kinematics import tcp_poses
-
-    measured_error = model.registration_.to_base(measured) - tcp_poses(model.robot, q).position
-    residual = (model.heldout_residual(q, measured, context=context) if predicted is None
-                else measured_error - predicted)
-    norm = np.linalg.norm(residual, axis=1)
-    summary = {"mean_mm": float(norm.mean() * 1e3), "rms_mm": float(np.sqrt(np.mean(norm**2)) * 1e3),
-               "max_mm": float(norm.max() * 1e3), "count": int(norm.size)}
-    return residual, measured_error, summary
-
-
-def _coverage(residual, std) -> dict:
-    """How well the predicted std covers the held-out miss: share of axis values within 2 std, RMS of miss/std."""
-    import numpy as np
-
-    z = residual / np.maximum(std, 1e-300)
-    return {"within_2std": float(np.mean(np.abs(z) <= 2.0)), "z_rms": float(np.sqrt(np.mean(z**2)))}
 
 
 def _frame_rows(model, args):
@@ -273,11 +234,13 @@ def _joint_columns(robot, prefix: str = "") -> list[str]:
     return [f"{prefix}{n}_{u}" for n, u in zip(robot.joint_names, robot.display_units)]
 
 
-def _median_index(values) -> int:
-    """Index of the value nearest the median: the pose the 3D view shows the robot at."""
-    import numpy as np
-
-    return int(np.argmin(np.abs(values - np.median(values))))
+def _held_out_summary(held) -> dict:
+    """The JSON's ``heldout`` of a :class:`~tcr_accuracy.prediction.held_out.HeldOutError` [mm]: mean, RMS and
+    max of the miss, the count and, with a standard deviation, how well it covers the miss."""
+    summary = {"mean_mm": held.mean * 1e3, "rms_mm": held.rms * 1e3, "max_mm": held.max * 1e3, "count": held.count}
+    if held.std is not None:
+        summary.update(within_2std=held.within_2std, z_rms=held.z_rms)
+    return summary
 
 
 # ---------------------------------------------------------------------------------------
@@ -286,8 +249,7 @@ def _median_index(values) -> int:
 def _run_predict(args) -> int:
     import numpy as np
 
-    from ..model.kinematics import tcp_poses
-    from ..prediction.composed import uncertainty_kind
+    from ..prediction.error_prediction import predict_errors
     from ..view.plots_prediction import plot_predicted_errors
 
     robot, out = _start(args, "Error prediction")
@@ -295,24 +257,13 @@ def _run_predict(args) -> int:
     check_csv_memory(args, args.query, "--query", 3 * 64 * 8.0)
     q, measured, context, lines = read_joint_csv(args.query, robot, need_positions=False, repeats=True, rows=True)
     scale = robot.display_scale
-    pred, std = _predict(args, model, q, context)
+    prediction = predict_errors(model, q, context=context, measured=measured, label=f"method {args.method}")
+    pred, std, kind, held = prediction.predicted_error, prediction.std, prediction.uncertainty, prediction.held_out
     norm = np.linalg.norm(pred, axis=1)
-    # the error is where the measured point goes beyond where the nominal robot with the fitted
-    # TCP offset puts it; the offset itself (a reflector 150 mm off the flange) is no error
-    offset = model.registration_.tcp_positions(robot, q) - tcp_poses(robot, q).position
-    robot_error = pred - offset
+    robot_error = prediction.robot_error
     robot_norm = np.linalg.norm(robot_error, axis=1)
-    kind = uncertainty_kind(model) if std is not None else None
-    stats = {
-        "mean": (robot_norm.mean(), *np.abs(robot_error).mean(axis=0)),
-        "RMS": (np.sqrt(np.mean(robot_norm ** 2)), *np.sqrt(np.mean(robot_error ** 2, axis=0))),
-        "max": (robot_norm.max(), *np.abs(robot_error).max(axis=0)),
-    }
-    heldout = residual = measured_error = None
-    if measured is not None:
-        residual, measured_error, heldout = _heldout(model, q, measured, context, predicted=pred)
-        if std is not None:
-            heldout.update(_coverage(residual, std))
+    stats = prediction.robot_error_statistics()
+    heldout = None if held is None else _held_out_summary(held)
     payload = {
         "robot": robot.name, "method": args.method, "frame": args.frame,
         "n_train": int(q_train.shape[0]), "n_query": int(q.shape[0]),
@@ -328,8 +279,8 @@ def _run_predict(args) -> int:
         "predicted_std_mm": None if std is None else (std * 1e3).tolist(),
         "heldout": heldout,
     }
-    if measured is not None:
-        payload["measured_errors_mm"] = (measured_error * 1e3).tolist()
+    if held is not None:
+        payload["measured_errors_mm"] = (held.measured_error * 1e3).tolist()
     _fit_table(out, robot, args, q_train, "query poses", int(q.shape[0]))
     out.add_table("Tracker frame", ["setting", "value"], _frame_rows(model, args),
                   note="p_tracker = R p_base + t, fitted with the TCP offset on the training data "
@@ -361,14 +312,14 @@ def _run_predict(args) -> int:
         if std is not None:
             row.append(" / ".join(f"{v:.4g}" for v in std[i] * 1e3))
         if measured is not None:
-            row.append(float(np.linalg.norm(residual[i]) * 1e3))
+            row.append(float(np.linalg.norm(held.residual[i]) * 1e3))
         per_pose.append(row)
     out.add_table("Predicted error per query pose", columns, per_pose, units=units,
                   note="error beyond the fitted TCP offset (the CSV's ex_mm ... are real minus nominal TCP, "
                        "the offset included)" + ("" if shown == len(q) else f"; first {shown} of {len(q)} (all in --csv)"))
     out.add_plots(lambda folder: [plot_predicted_errors(
                       robot_error, Path(folder) / "predicted_errors.png", std=std,
-                      measured=None if measured is None else measured_error - offset)],
+                      measured=None if held is None else held.measured_error - prediction.tcp_offset_error)],
                   {"predicted_errors.png": "Predicted error at each query pose beyond the fitted TCP offset "
                                            "(components and magnitude"
                                            + (", +-2 standard deviations" if std is not None else "")
@@ -377,7 +328,10 @@ def _run_predict(args) -> int:
                                            + ("; the held-out miss, measured - predicted error, per pose"
                                               if measured is not None else "")})
     if out.scene_wanted:
-        out.set_scene(*_predict_scene(robot, q, pred, robot_norm, args, model, lines, measured))
+        from ..view.prediction_scenes import prediction_scene
+
+        out.set_scene(*prediction_scene(robot, q, prediction, model, method=args.method, train=args.train,
+                                        rows=lines, measured=measured))
     header = _joint_columns(robot) + ["ex_mm", "ey_mm", "ez_mm", "e_norm_mm"]
     blocks = [q * scale, pred * 1e3, norm[:, None] * 1e3]
     if std is not None:
@@ -385,7 +339,7 @@ def _run_predict(args) -> int:
         blocks.append(std * 1e3)
     if measured is not None:
         header += ["measured_ex_mm", "measured_ey_mm", "measured_ez_mm", "heldout_miss_mm"]
-        blocks += [measured_error * 1e3, np.linalg.norm(residual, axis=1)[:, None] * 1e3]
+        blocks += [held.measured_error * 1e3, np.linalg.norm(held.residual, axis=1)[:, None] * 1e3]
     _write_csv(args, "predictions", header, np.hstack(blocks))
     lines = [_frame_line(model, args),
              (f"predicted |error| at {q.shape[0]} query poses: mean {robot_norm.mean() * 1e3:.4f} mm, "
@@ -407,66 +361,14 @@ def _print(robot, args, q_train, *lines: str) -> None:
         print(f"  {line}")
 
 
-def _predict_scene(robot, q, pred, norm, args, model, lines, measured=None):
-    """In the robot's base frame: the query TCPs of the model (nominal + fitted TCP offset) coloured by
-    the predicted |e|, segments to the predicted real TCP, the nominal (URDF) TCPs, the measured query
-    points when there are some (the training data's tracker frame applied) and the tracker's frame; the
-    robot at the query of median |e| (``lines``: each query's line in its file), its point marked."""
-    import numpy as np
-
-    from ..model.kinematics import tcp_poses
-    from ..view.viewer import COLORS, Scene, data_extent, point_size, segment_magnification
-
-    nominal = tcp_poses(robot, q).position
-    model_tcp = model.registration_.tcp_positions(robot, q)  # the measured frame: nominal + TCP offset
-    beyond = nominal + pred - model_tcp  # what the robot adds to the measured frame's offset
-    extent = data_extent(nominal)
-    magnify = segment_magnification(float(np.linalg.norm(beyond, axis=1).max()), extent)
-    scene = Scene(f"{robot.name}: error predicted by {args.method}", frame="data")
-    shown = _median_index(norm)
-    row = int(lines[shown])
-    scene.add_robot(robot, q[shown], name=f"nominal robot at query row {row} (median |e|)",
-                    opacity=0.5)  # the TCP points sit in the tool
-    scene.add_point_cloud(model_tcp, norm * 1e3, name="query TCP",
-                          label="model TCP at the query joints (nominal + fitted TCP offset), coloured by the "
-                                "predicted TCP error |e| [mm]", size_m=1.6 * point_size(extent))
-    scene.add_marker(model_tcp[shown], "marked pose", f"the query point of row {row}, the pose the robot is "
-                                                      "drawn at", radius_m=4.0 * point_size(extent))
-    scene.add_error_segments(model_tcp, nominal + pred, magnify=magnify, name="predicted error", start_color=None,
-                             start_label="model TCP at the query joints", end_label="predicted real TCP")
-    _draw_measurement_frame(scene, robot, q, model, measured, extent)
-    scene.add_note(f"{len(q)} query poses, {args.method} fitted to {args.train}; robot base frame; robot at query "
-                   f"row {row} (median |e|); segments magnified x {magnify:g} (the TCP offset at true size)")
-    return scene, (f"Query TCP points (base frame) coloured by the predicted |e|; segments to the predicted real "
-                   f"TCP, magnified x {magnify:g}")
-
-
-def _draw_measurement_frame(scene, robot, q, model, measured, extent) -> None:
-    """The nominal (URDF) TCPs at q, the measured points mapped into the base frame, the tracker triad."""
-    import numpy as np
-
-    from ..model.kinematics import tcp_poses
-    from ..view.viewer import COLORS, frame_axis_length, point_size
-
-    nominal = tcp_poses(robot, q).position
-    scene.add_points(nominal, "nominal TCP", COLORS["nominal_tcp"], size_m=0.7 * point_size(extent),
-                     label="nominal TCP (URDF)")
-    if measured is not None:
-        scene.add_points(model.registration_.to_base(measured), "measured", COLORS["measured"],
-                         size_m=point_size(extent), label="measured (tracker frame fitted, base frame)")
-    scene.add_frame(np.linalg.inv(model.registration_.matrix), "tracker frame", length_m=frame_axis_length(nominal),
-                    label="tracker frame (fitted)")
-
-
 # ---------------------------------------------------------------------------------------
 # compensate
 # ---------------------------------------------------------------------------------------
 def _run_compensate(args) -> int:
     import numpy as np
 
-    from ..prediction.compensation import compensate_joints
     from ..exceptions import InputError
-    from ..model.kinematics import tcp_poses
+    from ..prediction.target_compensation import compensate_targets
     from ..view.plots_prediction import plot_compensation
 
     robot, out = _start(args, "Joint compensation")
@@ -475,13 +377,10 @@ def _run_compensate(args) -> int:
     q_all, measured_all, context_all, lines = read_joint_csv(args.targets, robot, need_positions=False, rows=True,
                                                       repeats=True)
     units, scale = robot.display_units, robot.display_scale
-    # the measured point (TCP offset from the fit) is what goes to the target; the method's
-    # estimator predicts what the robot adds beyond it (base frame)
-    frame_robot, predictor = model.frame_robot_, model.estimator_
-    result = compensate_joints(frame_robot, predictor, q_all, threshold=args.threshold_mm * 1e-3,
-                               max_iter=args.max_iter, context=context_all)
+    done = compensate_targets(model, q_all, threshold=args.threshold_mm * 1e-3, max_iter=args.max_iter,
+                              context=context_all, measured=measured_all, label=f"method {args.method}")
+    result, solved = done.result, done.solved
     lines = np.asarray(lines)
-    solved = np.flatnonzero(result.converged)
     unsolved = [{"row": int(lines[i]), "reason": str(result.reason[i]), "detail": str(result.detail[i]),
                  "predicted_miss_mm": float(result.predicted_miss[i] * 1e3)}
                 for i in np.flatnonzero(~result.converged)]
@@ -489,28 +388,15 @@ def _run_compensate(args) -> int:
         raise InputError(f"{args.targets}: none of the {len(q_all)} targets can be compensated ("
                          + "; ".join(f"row {u['row']}: {u['reason']}, {u['detail']}" for u in unsolved[:3])
                          + (" ..." if len(unsolved) > 3 else "") + ")")
-    q, measured = q_all[solved], None if measured_all is None else measured_all[solved]
-    context = None if context_all is None else context_all.subset(solved)
-    q_comp, target = result.q[solved], result.target[solved]
-    dq = (q_comp - q) * scale
-    # the real measured point the uncompensated command is predicted to reach, and the compensated one
-    # (base frame: target is the measured point of the model at the target joints)
-    before_tcp = target + _predict(args, model, q, context, robot_only=True)[0]
-    after_tcp = tcp_poses(frame_robot, q_comp).position + _predict(args, model, q_comp, context, robot_only=True)[0]
-    before = np.linalg.norm(before_tcp - target, axis=1)
-    after = result.predicted_miss[solved]
-    iterations = result.iterations[solved]
+    q, q_comp, measured = done.q, done.q_compensated, None if measured_all is None else measured_all[solved]
+    dq = done.correction * scale
+    before, after, iterations = done.error_before, done.miss_after, done.iterations
     cycles, counts = np.unique(iterations, return_counts=True)
     heldout = heldout_miss = None
-    if measured is not None:
-        # the targets were measured at their uncompensated commands: how well the predicted
-        # error there matches the measured one is what compensation can hope to remove
-        residual, _, heldout = _heldout(model, q, measured, context)
-        heldout_miss = np.linalg.norm(residual, axis=1)
-        # measured against the target: the measured point of the model (its TCP offset included)
-        measured_before = np.linalg.norm(model.registration_.to_base(measured) - target, axis=1)
-        heldout["measured_error_before_mean_mm"] = float(measured_before.mean() * 1e3)
-        heldout["measured_error_before_max_mm"] = float(measured_before.max() * 1e3)
+    if done.held_out is not None:
+        heldout, heldout_miss = _held_out_summary(done.held_out), done.held_out.miss
+        heldout["measured_error_before_mean_mm"] = float(done.measured_before.mean() * 1e3)
+        heldout["measured_error_before_max_mm"] = float(done.measured_before.max() * 1e3)
     payload = {
         "robot": robot.name, "method": args.method, "frame": args.frame, "n_train": int(q_train.shape[0]),
         "n_targets": int(q.shape[0]), "tracker_frame": model.registration_.to_dict(), "heldout": heldout,
@@ -564,8 +450,10 @@ def _run_compensate(args) -> int:
                                           "; after: the model's own miss (measure some targets for a realistic "
                                           "figure)")})
     if out.scene_wanted:
-        out.set_scene(*_compensate_scene(robot, q, q_comp, target, before_tcp, after_tcp, before, args, model,
-                                         measured, lines[solved]))
+        from ..view.prediction_scenes import compensation_scene
+
+        out.set_scene(*compensation_scene(robot, done, model, method=args.method, targets=args.targets,
+                                          rows=lines[solved], measured=measured))
     header = _joint_columns(robot) + _joint_columns(robot, "d") + ["predicted_miss_mm", "target_row"]
     _write_csv(args, "compensated joint values", header,
                           np.hstack([q_comp * scale, dq, after[:, None] * 1e3, lines[solved][:, None]]))
@@ -592,33 +480,3 @@ def _run_compensate(args) -> int:
     lines.append(f"the model's own miss after compensation (its prediction, not a measurement): mean "
                  f"{after.mean() * 1e3:.2g} mm, max {after.max() * 1e3:.2g} mm")
     return out.finish(payload, lambda: _print(robot, args, q_train, *lines))
-
-
-#: The colour of the targets in the compensation's view (RGB in 0..1): not the measured points' blue.
-TARGET_COLOR = (0.45, 0.25, 0.70)
-
-
-def _compensate_scene(robot, q, q_comp, target, before_tcp, after_tcp, before, args, model, measured, lines):
-    """In the robot's base frame: the targets (the measured point of the model), the predicted real
-    TCP before and after compensation, the nominal TCPs, measured targets and the tracker's frame."""
-    from ..view.viewer import COLORS, Scene, data_extent, point_size, segment_magnification
-
-    extent = data_extent(target)
-    magnify = segment_magnification(float(before.max()), extent)
-    scene = Scene(f"{robot.name}: compensation with {args.method}", frame="data")
-    shown = _median_index(before)
-    row = int(lines[shown])  # the target's line in its file
-    scene.add_robot(robot, q_comp[shown], name=f"robot at the compensated command of target row {row}",
-                    opacity=0.5)
-    drawn = scene.add_error_segments(target, before_tcp, magnify=magnify, name="before", start_color=TARGET_COLOR,
-                                     start_label="target TCP",
-                                     end_label="predicted real TCP, uncompensated command")
-    scene.add_error_segments(target[drawn], after_tcp[drawn], magnify=magnify, name="after", max_drawn=None,
-                             start_label="target TCP", end_label="predicted real TCP, compensated command",
-                             start_color=None, end_color=COLORS["trajectory"])  # the targets are drawn once
-    scene.add_marker(target[shown], "marked pose", f"the target of row {row}, the pose the robot is drawn at",
-                     radius_m=4.0 * point_size(extent))
-    _draw_measurement_frame(scene, robot, q, model, measured, extent)
-    scene.add_note(f"{len(q)} targets of {args.targets}; robot base frame; robot at target row {row} (median "
-                   f"error before); segments magnified x {magnify:g}")
-    return scene, f"Targets and the predicted real TCP before and after compensation, magnified x {magnify:g}"

@@ -46,7 +46,7 @@ def _run_import(args) -> int:
     from .staging import write_text
     from ..exceptions import InputError
     from ..io.measurements import parse_measurements
-    from ..io.tracker_import import import_tracker, parse_map
+    from ..io.tracker_import import import_tracker
     from ..model.robot import load_robot
 
     for path in (args.tracker, args.joints):  # before either is read
@@ -67,7 +67,7 @@ def _run_import(args) -> int:
     try:
         parse_measurements(text, robot, source=str(out), min_rows=1)
     except InputError as exc:
-        raise InputError(f"{exc} (in the imported rows)") from None
+        raise InputError(f"{exc} (in the imported rows)", parameter=exc.parameter, value=exc.value) from None
     write_text(out, text)
     print(f"{len(result.rows)} of {result.n_tracker_rows} tracker points from {args.tracker}{joined} "
           f"-> {out} ({robot.name}: {', '.join(result.columns)})")
@@ -78,3 +78,24 @@ def _run_import(args) -> int:
             print(f"  {args.tracker} row {u.line}: time {u.time}, nearest joint-log sample {u.nearest_s:.3f} s away")
     status(args, f"measurements written to {out}")
     return EXIT_OK
+
+
+def parse_map(items, option: str = "--map") -> dict[str, str]:
+    """``['x_mm=Point X', ...]`` (``--map``, ``--log-map``) -> {target: source}; one-line errors naming
+    the option."""
+    from ..exceptions import InputError
+
+    out: dict[str, str] = {}
+    for item in items or []:
+        target, sep, source = item.partition("=")
+        target, source = target.strip(), source.strip().strip('"').strip("'")
+        if not sep or not target or not source:
+            raise InputError(f"{option} {item!r}: expected TARGET=SOURCE, e.g. x_mm=\"Point X\"")
+        if target in out:
+            raise InputError(f"{option} {item!r}: {target} is mapped twice")
+        twice = next((t for t, s in out.items() if s == source), None)
+        if twice is not None:
+            raise InputError(f"{option} {item!r}: column {source!r} is already mapped to {twice}; "
+                             "one column fills one target")
+        out[target] = source
+    return out

@@ -34,6 +34,7 @@ def add_parsers(sub) -> None:
 def _run_trajectory(args) -> int:
     import numpy as np
 
+    from ..exceptions import InputError
     from ..model.robot import load_robot
     from ..analysis.trajectory import read_trajectory_csv, tool_change_motion, trajectory_error_bands
 
@@ -44,7 +45,12 @@ def _run_trajectory(args) -> int:
         traj = read_trajectory_csv(args.file, robot)
     else:
         check_memory(args, f"--steps {args.steps}", args.steps * 8.0 * 64)
-        traj = tool_change_motion(robot, n_steps=args.steps)
+        try:
+            traj = tool_change_motion(robot, n_steps=args.steps)
+        except InputError as exc:
+            if exc.parameter != "robot":
+                raise
+            raise InputError(f"{exc} with --file", parameter="robot", value=exc.value) from None
     # every sample's TCP error at every step is kept for the bands (6 numbers each)
     check_memory(args, f"--samples {args.samples} along {len(traj)} steps",
                  args.samples * (sample_bytes(robot) + 8.0 * 6 * len(traj)))

@@ -139,11 +139,7 @@ def _run_view(args) -> int:
     scene.add_robot(robot, q, "nominal")
     if args.error_preset is not None:
         check_memory(args, f"--samples {args.samples}", args.samples * sample_bytes(robot))
-        try:
-            budget = seed_budget(robot, args.error_preset)
-        except InputError as exc:  # the preset's message names montecarlo's option; here it is another
-            raise InputError(str(exc).replace("--preset", "--error-preset").replace(" or a --config file", "")) \
-                from None
+        budget = seed_budget(robot, args.error_preset)
         x = budget.sample(args.samples, np.random.default_rng(args.seed))
         magnify = scene.add_tcp_error_cloud(robot, q, x, budget.error_model, magnify=args.magnify)
         scene.add_note(f"{args.samples} samples of the seed's {args.error_preset} errors, seed {args.seed}; "

@@ -59,7 +59,7 @@ class FittedModel:
         missing = [k for k in REQUIRED_KEYS if not isinstance(doc, dict) or k not in doc]
         if missing:
             raise InputError(f"{source}: not a diagnosis (no {', '.join(missing)}); write one with "
-                             "tcr-accuracy diagnose MEASUREMENTS.csv --json FILE")
+                             "tcr-accuracy diagnose")
         parameters, std, units = {}, {}, {}
         try:
             for effect, values in doc["parameters"].items():
@@ -191,7 +191,7 @@ def check_same_robot(robot: RobotModel, old: FittedModel, new: FittedModel) -> N
                          "compare two diagnoses of the same robot")
     if old.robot != robot.name:
         raise InputError(f"{old.source} and {new.source} are diagnoses of {old.robot}, not of {robot.name}: "
-                         f"give --robot as in the diagnosis")
+                         "give robot= as in the diagnosis", parameter="robot", value=robot.name)
     a, b = old.flat(), new.flat()
     for name in a.keys() & b.keys():
         if a[name][3] != b[name][3]:
@@ -242,7 +242,8 @@ def _effects(robot: RobotModel, parameters: dict, options: dict) -> tuple[list, 
         unknown = [n for n in values if n not in names]
         if unknown:
             raise InputError(f"parameter {unknown[0]} is not one of {robot.name}'s {name} parameters (tool frame "
-                             f"{robot.tool_frame!r}): give the --robot and --tool the diagnosis used")
+                             f"{robot.tool_frame!r}): give the robot= and tool= the diagnosis used", parameter="robot",
+                             value=robot.name)
         vectors.append(np.array([0.0 if n.startswith(TRACKER_PREFIX) else values.get(n, 0.0) for n in names]))
         effects.append(effect)
         all_names += names

@@ -276,7 +276,7 @@ class GapDiagnosis(BaseEstimator):
         else:
             frames = [MeasuredFrame(robot, _measurement_set(measurements), robot.tool_frame)]
         if self.folds < 2:
-            raise InputError(f"--folds {self.folds}: need at least 2")
+            raise InputError(f"folds={self.folds}: need at least 2", parameter="folds", value=self.folds)
         n = len(frames[0].measurements)
         for f in frames:
             q = f.measurements.q
@@ -292,8 +292,8 @@ class GapDiagnosis(BaseEstimator):
         if self.effects is not None:
             unknown = [e for e in self.effects if e not in words]
             if unknown:
-                raise InputError(f"--effects: unknown effect(s) {', '.join(unknown)} "
-                                 f"(vocabulary: {', '.join(words)})")
+                raise InputError(f"effects: unknown effect(s) {', '.join(unknown)} "
+                                 f"(vocabulary: {', '.join(words)})", parameter="effects", value=self.effects)
         return frames
 
     # -- the pipeline ------------------------------------------------------------------

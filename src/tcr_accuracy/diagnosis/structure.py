@@ -286,7 +286,7 @@ def scatter_beyond_noise(noise, final, stochastic) -> dict:
     noise comes from outside that residual (given, or repeated poses); else why not tested."""
     if not noise.independent:
         return {"tested": False, "detected": False,
-                "why": "the noise was estimated from this residual; give the instrument's (--noise-mm) or "
+                "why": "the noise was estimated from this residual; give the instrument's noise or "
                        "measure repeated poses to test for scatter beyond it",
                 "estimated_noise_per_axis_mm": noise.per_axis * 1e3}
     scatter = scatter_test(stacked(final["train_residual"]), final["n_parameters"], noise.per_axis)

@@ -116,7 +116,7 @@ def instrument_from(name: str | None = None, mpe=None, radial_mpe=None) -> Instr
     if name is not None:
         key = name.strip().lower()
         if key not in INSTRUMENTS:
-            raise InputError(f"instrument {name!r}: unknown (known: {', '.join(INSTRUMENTS)}; or give its MPE)",
+            raise InputError(f"instrument={name!r}: unknown (known: {', '.join(INSTRUMENTS)}; or give its MPE)",
                              parameter="instrument", value=name)
         return INSTRUMENTS[key]
     if mpe is None:

@@ -247,10 +247,11 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
             frame = robot.tool_frame
         if frame is None and len(frames) > 1:
             raise InputError(f"{source}: measures several frames ({', '.join(frames)}); choose the one to read "
-                             f"with --tool FRAME (only diagnose reads them together)")
+                             f"with tool=FRAME (only diagnose reads them together)", parameter="tool")
         if frame is None:
             raise InputError(f"{source}: columns {frames[0]}.x_mm ...: measures frame {frames[0]}, not the robot's "
-                             f"TCP frame {robot.tool_frame}; give --tool {frames[0]}")
+                             f"TCP frame {robot.tool_frame}; give tool={frames[0]}", parameter="tool",
+                             value=robot.tool_frame)
         if frame not in frames:
             raise InputError(f"{source}: no columns {frame}.x_mm ... (frames measured: {', '.join(frames)})")
     logical = [h if _frame_of(h) is None else (h.rpartition(".")[2] if _frame_of(h) == frame else "")

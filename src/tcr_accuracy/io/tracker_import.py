@@ -255,24 +255,6 @@ def parse_time(table: Table, row: int, col: int) -> tuple[float, str]:
 # ---------------------------------------------------------------------------------------
 # Column maps
 # ---------------------------------------------------------------------------------------
-def parse_map(items, option: str = "--map") -> dict[str, str]:
-    """``['x_mm=Point X', ...]`` -> {target: source}; one-line errors naming the option."""
-    out: dict[str, str] = {}
-    for item in items or []:
-        target, sep, source = item.partition("=")
-        target, source = target.strip(), source.strip().strip('"').strip("'")
-        if not sep or not target or not source:
-            raise InputError(f"{option} {item!r}: expected TARGET=SOURCE, e.g. x_mm=\"Point X\"")
-        if target in out:
-            raise InputError(f"{option} {item!r}: {target} is mapped twice")
-        twice = next((t for t, s in out.items() if s == source), None)
-        if twice is not None:
-            raise InputError(f"{option} {item!r}: column {source!r} is already mapped to {twice}; "
-                             "one column fills one target")
-        out[target] = source
-    return out
-
-
 def target_unit(target: str) -> str | None:
     """'x_mm' -> 'mm', 'j2_deg' -> 'deg', 'time_s' -> None (times are parsed on their own)."""
     if target == TIME:
@@ -311,11 +293,12 @@ def _auto_log_map(header: list[str]) -> dict[str, str]:
 
 
 def _columns(table: Table, mapping: dict[str, str], what: str) -> list[tuple[str, int]]:
+    """(target, column index) of each entry of ``mapping``; ``what``: the map's parameter name."""
     out = []
     for target, source in mapping.items():
         if source not in table.header:
-            raise InputError(f"{table.path}: {what}: no column {source!r} for {target} (the header has: "
-                             f"{', '.join(repr(h) for h in table.header)})")
+            raise InputError(f"{table.path}: {what}[\"{target}\"]={source!r}: no such column (the header has: "
+                             f"{', '.join(repr(h) for h in table.header)})", parameter=what, value=mapping)
         out.append((target, table.header.index(source)))
     return out
 
@@ -385,7 +368,8 @@ def import_tracker(tracker_path, tracker_map: dict[str, str] | None = None, log_
         tracker points that found no log sample within the tolerance.
     """
     if not (math.isfinite(tolerance_s) and tolerance_s >= 0):
-        raise InputError(f"--tolerance-ms {tolerance_s * 1e3:g}: must be a number >= 0")
+        raise InputError(f"tolerance_s={tolerance_s:g}: must be a number >= 0", parameter="tolerance_s",
+                         value=tolerance_s)
     wanted = list(tracker_map.values()) if tracker_map else None
     tracker = read_table(tracker_path, wanted, header_test=lambda cells: all(_axis_columns(cells, a) for a in AXES))
     mapping = dict(tracker_map or {})
@@ -396,18 +380,20 @@ def import_tracker(tracker_path, tracker_map: dict[str, str] | None = None, log_
             hits = _axis_columns(tracker.header, axis)
             if key is None and len(hits) > 1:
                 raise InputError(f"{tracker.path}: columns {', '.join(repr(h) for h in hits)} could each be the "
-                                 f"{axis} position: name one with --map {axis}_mm=\"HEADER\"")
+                                 f"{axis} position: name one with tracker_map[\"{axis}_mm\"]=\"HEADER\"",
+                                 parameter="tracker_map", value=tracker_map)
             if key is None:
                 raise InputError(f"{tracker.path}: no column for the {axis} position: name it with "
-                                 f"--map {axis}_mm=\"HEADER\" (the header has: "
-                                 f"{', '.join(repr(h) for h in tracker.header)})")
+                                 f"tracker_map[\"{axis}_mm\"]=\"HEADER\" (the header has: "
+                                 f"{', '.join(repr(h) for h in tracker.header)})", parameter="tracker_map",
+                                 value=tracker_map)
             mapping[key] = auto[key]
     if log_path is not None and TIME not in mapping:
         if TIME not in auto:
             raise InputError(f"{tracker.path}: no timestamp column to join the joint log on: name it with "
-                             f"--map time_s=\"HEADER\"")
+                             f"tracker_map[\"time_s\"]=\"HEADER\"", parameter="tracker_map", value=tracker_map)
         mapping[TIME] = auto[TIME]
-    tracker_cols = [(t, c) for t, c in _columns(tracker, mapping, "--map") if t != TIME]
+    tracker_cols = [(t, c) for t, c in _columns(tracker, mapping, "tracker_map") if t != TIME]
     columns = [t for t, _ in tracker_cols]
     result = ImportResult(columns=[], n_tracker_rows=len(tracker.rows), tracker=tracker)
 
@@ -427,14 +413,15 @@ def import_tracker(tracker_path, tracker_map: dict[str, str] | None = None, log_
     if TIME not in log_mapping:
         auto_log = _auto_log_map(log.header)
         if TIME not in auto_log:
-            raise InputError(f"{log.path}: no timestamp column: name it with --log-map time_s=\"HEADER\"")
+            raise InputError(f"{log.path}: no timestamp column: name it with log_map[\"time_s\"]=\"HEADER\"",
+                             parameter="log_map", value=log_map)
         log_mapping[TIME] = auto_log[TIME]
     if not [t for t in log_mapping if t != TIME]:
         log_mapping.update({k: v for k, v in _auto_log_map(log.header).items() if k != TIME})
-    log_cols = [(t, c) for t, c in _columns(log, log_mapping, "--log-map") if t != TIME]
+    log_cols = [(t, c) for t, c in _columns(log, log_mapping, "log_map") if t != TIME]
     if not log_cols:
         raise InputError(f"{log.path}: no joint columns: name them like the measurement CSV (j1_deg, ...) "
-                         "or map them with --log-map j1_deg=\"HEADER\"")
+                         "or map them with log_map[\"j1_deg\"]=\"HEADER\"", parameter="log_map", value=log_map)
     both = set(columns) & {t for t, _ in log_cols}
     if both:
         raise InputError(f"{', '.join(sorted(both))}: given by both the tracker file and the joint log")

@@ -423,10 +423,10 @@ def diagnosis_model(robot: RobotModel, payload: dict, source: str) -> tuple[list
     they belong to that session's instrument). InputError naming what does not fit the robot."""
     parameters = payload.get("parameters") if isinstance(payload, dict) else None
     if not isinstance(parameters, dict):
-        raise InputError(f"{source}: no 'parameters' object; give the JSON that 'tcr-accuracy diagnose --json' "
-                         "writes")
+        raise InputError(f"{source}: no 'parameters' object; give the JSON that tcr-accuracy diagnose writes")
     if payload.get("robot") not in (None, robot.name):
-        raise InputError(f"{source}: a diagnosis of {payload.get('robot')}, not of {robot.name}; give --robot")
+        raise InputError(f"{source}: a diagnosis of {payload.get('robot')}, not of {robot.name}; give robot=",
+                         parameter="robot", value=robot.name)
     options = payload.get("effect_options") or {}
     if not isinstance(options, dict):
         raise InputError(f"{source}: effect_options: must map effect names to {{option: value}}")

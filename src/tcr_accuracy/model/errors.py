@@ -452,9 +452,9 @@ def seed_budget(robot: RobotModel, preset: str) -> ErrorBudget:
     elif preset == "table2":
         if list(kinds) != TABLE2_JOINT_KINDS:
             raise InputError(
-                f"--preset table2: the seed's Table 2 lists the tool-changer's joints (5R + 1P); "
+                f"preset=table2: the seed's Table 2 lists the tool-changer's joints (5R + 1P); "
                 f"robot {robot.name} has {len(kinds)} joints ({', '.join(k[0].upper() for k in kinds)}); "
-                "use --preset table1 or a --config file"
+                "use preset=table1", parameter="preset", value=preset
             )
         for j, name in enumerate(robot.joint_names):
             direction = link_length_direction(robot, j, error_model)
@@ -464,5 +464,5 @@ def seed_budget(robot: RobotModel, preset: str) -> ErrorBudget:
         for j in range(robot.n_joints):
             sources.append(drive_source(robot, j, error_model, SEED_TABLE2["drive"][j]))
     else:
-        raise InputError(f"--preset {preset}: unknown preset (known: table1, table2)")
+        raise InputError(f"preset={preset}: unknown preset (known: table1, table2)", parameter="preset", value=preset)
     return ErrorBudget(error_model, sources, name=preset)

@@ -307,7 +307,7 @@ class RobotModel:
         """Whether a chain joint follows another chain joint by a ``<mimic>`` rule."""
         return any(rule.joint in self.joint_names for name, rule in self.mimic.items() if name in self.joint_names)
 
-    def check_joint_values(self, q: np.ndarray, *, source: str = "--q") -> np.ndarray:
+    def check_joint_values(self, q: np.ndarray, *, source: str = "q") -> np.ndarray:
         """Validate joint values (n_joints,) [SI]: count and finiteness raise, limits warn."""
         q = np.asarray(q, dtype=float)
         if q.shape != (self.n_joints,):
@@ -454,6 +454,9 @@ class JointLimitWarning(UserWarning):
 class MissingMeshWarning(UserWarning):
     """A mesh the URDF names is found nowhere (kinematics runs; views draw a skeleton)."""
 
+    #: The parameter of :func:`load_robot` that provides it (the command line words it as its flag).
+    parameter = "package_dirs"
+
 
 def urdf_robot_name(text: str) -> str | None:
     """The ``name`` of a URDF's ``<robot>`` element, or None when the text does not say.
@@ -577,12 +580,12 @@ def load_robot(source: str | Path | None = None, tool: str | None = None, *,
         label = f"{name} ({urdf_path})"
     elif Path(source).exists():
         what = "a folder" if Path(source).is_dir() else "not a regular file (a device or a pipe)"
-        raise InputError(f"--robot {source}: {what}; give a URDF file or a known robot name "
-                         f"({BUILTIN_NAME}, {', '.join(EXAMPLE_ROBOTS)})")
+        raise InputError(f"source={source}: {what}; give a URDF file or a known robot name "
+                         f"({BUILTIN_NAME}, {', '.join(EXAMPLE_ROBOTS)})", parameter="source", value=source)
     else:
         raise InputError(
-            f"--robot {source}: no such file, and not a known robot name "
-            f"(known: {BUILTIN_NAME}, {', '.join(EXAMPLE_ROBOTS)})"
+            f"source={source}: no such file, and not a known robot name "
+            f"(known: {BUILTIN_NAME}, {', '.join(EXAMPLE_ROBOTS)})", parameter="source", value=source
         )
     robot = robot_from_urdf_text(
         text, tool, name=name, source=label, urdf_path=urdf_path,
@@ -630,11 +633,11 @@ def robot_from_urdf_text(
     if model.njoints <= 1:
         data = full.createData()
         pin.framesForwardKinematics(full, data, pin.neutral(full))
-        raise FixedFrameError(f"--tool {tool}: no joint moves this frame in {source}", tool,
+        raise FixedFrameError(f"tool={tool}: no joint moves this frame in {source}", tool,
                               data.oMf[frame_id].translation.copy())
     if model.njoints - 1 > MAX_CHAIN_JOINTS:
-        raise InputError(f"--tool {tool}: {model.njoints - 1} joints move this frame in {source}, more than the "
-                         f"{MAX_CHAIN_JOINTS} of a serial chain tcr-accuracy models")
+        raise InputError(f"tool={tool}: {model.njoints - 1} joints move this frame in {source}, more than the "
+                         f"{MAX_CHAIN_JOINTS} of a serial chain tcr-accuracy models", parameter="tool", value=tool)
     for j in range(1, model.njoints):
         joint_kind(model.joints[j], f"{source}: joint {one_line(model.names[j])}")  # raises for unsupported kinds
     tool_frame_id = next(i for i, f in enumerate(model.frames) if f.name == tool and f.type == frame.type)

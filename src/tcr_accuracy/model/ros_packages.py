@@ -253,7 +253,7 @@ def missing_mesh_message(source: str, missing: list[MeshPlace], packages: dict) 
         why = "not beside the URDF"
     links_shown = ", ".join(links[:5]) + (" ..." if len(links) > 5 else "")
     return one_line(f"{source}: {len(names)} mesh file{_s(names)} missing ({shown}): {why}; give the package's "
-                    "folder with --package-dir DIR or in ROS_PACKAGE_PATH; 3D views draw "
+                    "folder with package_dirs=DIR or in ROS_PACKAGE_PATH; 3D views draw "
                     f"link{_s(links)} {links_shown} as a skeleton and collision checks leave "
                     f"{'them' if len(links) > 1 else 'it'} out", 800)
 

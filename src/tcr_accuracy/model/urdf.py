@@ -347,7 +347,8 @@ def find_frame(model: pin.Model, name: str, source: str = "the model") -> int:
     matches = [i for i, f in enumerate(model.frames) if f.name == name]
     if not matches:
         names = sorted({f.name for f in model.frames if f.name != "universe"})
-        raise InputError(f"--tool {one_line(name, 80)}: no such frame in {source} (frames: {listed(names)})")
+        raise InputError(f"tool={one_line(name, 80)}: no such frame in {source} (frames: {listed(names)})",
+                         parameter="tool", value=name)
     return min(matches, key=lambda i: _FRAME_PREFERENCE.index(model.frames[i].type)
                if model.frames[i].type in _FRAME_PREFERENCE else len(_FRAME_PREFERENCE))
 
@@ -394,5 +395,6 @@ def single_leaf_link(root: ElementTree.Element, source: str) -> str:
                if joint.find("parent") is not None}
     leaves = [link for link in links if link not in parents]
     if len(leaves) != 1:
-        raise InputError(f"{source}: give the TCP frame with --tool (leaf links: {listed(leaves) or 'none'})")
+        raise InputError(f"{source}: give the TCP frame with tool= (leaf links: {listed(leaves) or 'none'})",
+                         parameter="tool")
     return leaves[0]

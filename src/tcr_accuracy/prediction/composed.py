@@ -304,7 +304,7 @@ class MeasuredErrorModel(BaseEstimator):
         ndarray of shape (m, 3)
             In the base frame [m]: ``to_base(y) - FK(X) - predict_error(X)``.
         """
+        from .held_out import held_out_error
+
         check_is_fitted(self, "error_model_")
-        X = validate_data(self, X, reset=False)
-        measured = self.registration_.to_base(np.asarray(y, dtype=float)) - tcp_poses(self.robot, X).position
-        return measured - self.predict_error(X, context=context)
+        return held_out_error(self, validate_data(self, X, reset=False), y, context=context).residual

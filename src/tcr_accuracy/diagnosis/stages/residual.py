@@ -141,7 +141,7 @@ def analyse_residual(registered: RegisteredMeasurements, candidate_set: Candidat
     final_train = _first_frame(final["train_residual"])
     structure = detector.test(final_train, rng)
     if tracker_noise is not None:
-        noise = NoiseEstimate(float(tracker_noise), "given", True, "the instrument's figure (--noise-mm)")
+        noise = NoiseEstimate(float(tracker_noise), "given", True, "the instrument's figure, as given")
     elif candidate_set.instrument_noise is not None:
         noise = candidate_set.instrument_noise
         if noise.source == "instrument specification":  # the data's own figure beside the specification's
