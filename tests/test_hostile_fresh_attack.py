@@ -1,0 +1,75 @@
+"""Reproductions of a fresh hostile-input attack on the command line (issue 29, "Done when":
+a fresh attack of the same breadth, newest surface first). Each test aims at decoys in
+``tmp_path`` and runs the installed command in a subprocess with a timeout: a bad input ends in
+exit code 2 and ONE line on stderr naming the file and the key, row or argument at fault, no
+traceback, and no file left beside the decoys.
+"""
+
+import os
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+TIMEOUT = 300
+
+
+def run_cli(args, cwd):
+    """(exit code, stdout, stderr) of ``python -m tcr_accuracy ARGS`` in ``cwd``."""
+    proc = subprocess.run([sys.executable, "-m", "tcr_accuracy", *map(str, args)], cwd=cwd, capture_output=True,
+                          text=True, timeout=TIMEOUT, env=dict(os.environ))
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+def listing(folder) -> set:
+    return {str(p.relative_to(folder)) for p in folder.rglob("*")}
+
+
+def assert_refused(folder, args, *named):
+    """Run ``args`` in ``folder``: exit 2, one stderr line naming each of ``named``, nothing new."""
+    before = listing(folder)
+    code, _, err = run_cli(args, folder)
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert code == 2, (code, err)
+    assert "Traceback" not in err and len(lines) == 1, err
+    for text in named:
+        assert text in lines[0], (text, lines[0])
+    assert listing(folder) == before, sorted(listing(folder) - before)
+    return lines[0]
+
+
+@pytest.fixture
+def campaign_folder(tmp_path, small_campaign):
+    """tmp_path with a copy of the small campaign's diagnosis JSON (d.json) and measurements (m.csv)."""
+    csv, diagnosis = small_campaign
+    shutil.copy(csv, tmp_path / "m.csv")
+    shutil.copy(diagnosis, tmp_path / "d.json")
+    return tmp_path
+
+
+# ---------------------------------------------------------------------------------------
+# The campaign file (report --campaign): what YAML tags make of a text value
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("line, named", [
+    ("title: !!binary aGVsbG8=\n", "title: expected text, got a bytes"),  # printed b'hello' on the first page
+    ("customer: !!set {a, b}\n", "customer: expected text, got a set"),  # printed {'a', 'b'}
+    ('operator: "J. Smith\\u0000"\n', "operator: holds the control character U+0000"),  # a NUL in the HTML
+    ('title: "\\u202eevil"\n', "title: holds the control character U+202E"),  # text shown reversed
+    ("date: 2026-13-45\n", "date: 2026-13-45 is not a day of the calendar"),  # printed as the day measured
+])
+def test_campaign_text_values_are_text(campaign_folder, line, named):
+    (campaign_folder / "c.yaml").write_text(line)
+    assert_refused(campaign_folder, ["report", "d.json", "--out", "rep", "--campaign", "c.yaml", "--quiet"],
+                   "c.yaml", named)
+
+
+def test_campaign_plain_text_still_read(campaign_folder):
+    """What a campaign file holds in the README's example still reads (the refusals above are narrow)."""
+    from tcr_accuracy.io.campaign import read_campaign
+
+    (campaign_folder / "c.yaml").write_text("title: Caf\u00e9 \u200c S-1234\ndate: 2024-02-29\noperator: 12\n"
+                                            "robot:\n  serial: 2018-301234\n")
+    facts = read_campaign(campaign_folder / "c.yaml")
+    assert (facts.title, facts.date, facts.operator, facts.robot_serial) == \
+        ("Caf\u00e9 \u200c S-1234", "2024-02-29", "12", "2018-301234")
