@@ -73,3 +73,21 @@ def test_campaign_plain_text_still_read(campaign_folder):
     facts = read_campaign(campaign_folder / "c.yaml")
     assert (facts.title, facts.date, facts.operator, facts.robot_serial) == \
         ("Caf\u00e9 \u200c S-1234", "2024-02-29", "12", "2018-301234")
+
+
+# ---------------------------------------------------------------------------------------
+# export: measurements that are not the ones the diagnosis was fitted to
+# ---------------------------------------------------------------------------------------
+def test_export_refuses_measurements_of_another_fit(campaign_folder):
+    """The diagnosis says it was fitted to 24 rows; export refitted the URDF to a 12-row file and
+    printed its error as 'on the measured poses' without a word."""
+    rows = (campaign_folder / "m.csv").read_text().splitlines()
+    (campaign_folder / "half.csv").write_text("\n".join(rows[:13]) + "\n")  # the header and 12 of the 24 rows
+    assert_refused(campaign_folder, ["export", "d.json", "--to", "out", "--measurements", "half.csv", "--quiet"],
+                   "half.csv", "12 measurement rows", "fitted to 24")
+
+
+def test_export_with_the_fitted_measurements_still_runs(campaign_folder):
+    code, out, err = run_cli(["export", "d.json", "--to", "out", "--measurements", "m.csv", "--quiet"], campaign_folder)
+    assert code == 0, err
+    assert (campaign_folder / "out" / "as_built.urdf").is_file()
