@@ -91,3 +91,52 @@ def test_export_with_the_fitted_measurements_still_runs(campaign_folder):
     code, out, err = run_cli(["export", "d.json", "--to", "out", "--measurements", "m.csv", "--quiet"], campaign_folder)
     assert code == 0, err
     assert (campaign_folder / "out" / "as_built.urdf").is_file()
+
+
+# ---------------------------------------------------------------------------------------
+# Output names the system refuses, and '-' where a folder is named
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("option, value", [
+    ("--to", "x" * 300),  # one name beyond the 255 bytes of a file name: "unexpected error: OSError"
+    ("--to", "a/" * 3000),  # a path beyond the system's 4096 bytes
+    ("--to", "-"),  # left out of the outputs as stdout is: "unexpected error: RuntimeError"
+], ids=["name-300-bytes", "path-6000-bytes", "dash"])
+def test_export_output_folder_names(campaign_folder, option, value):
+    assert_refused(campaign_folder, ["export", "d.json", option, value, "--quiet"], f"argument {option}")
+
+
+def test_long_output_file_name(campaign_folder):
+    assert_refused(campaign_folder, ["diagnose", "m.csv", "--effects", "joint_offsets", "--json", "y" * 300 + ".json",
+                                     "--quiet"], "argument --json", "refuses this name")
+
+
+def test_a_folder_named_dash_is_written_as_dot_slash_dash(campaign_folder):
+    code, _, err = run_cli(["export", "d.json", "--to", "./-", "--quiet"], campaign_folder)
+    assert code == 0, err
+    assert (campaign_folder / "-" / "as_built.urdf").is_file()
+
+
+# ---------------------------------------------------------------------------------------
+# diagnose --instrument-mpe beyond any instrument
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("a_um, b_um_per_m, named", [
+    ("1e300", "1e300", "--instrument-mpe 1e300"),  # "unexpected error: LinAlgError: Eigenvalues did not converge"
+    ("1e-300", "0", "instrument_mpe"),  # "unexpected error: LinAlgError: Singular matrix"
+    ("0", "5000", "instrument_mpe"),  # 5 mm per metre: the weights of no instrument
+])
+def test_instrument_mpe_beyond_any_instrument(campaign_folder, a_um, b_um_per_m, named):
+    assert_refused(campaign_folder, ["diagnose", "m.csv", "--effects", "joint_offsets", "--instrument-mpe", a_um,
+                                     b_um_per_m, "--quiet"], named)
+
+
+def test_instrument_mpe_bounds_in_the_library():
+    """The library refuses what the command line does (InputError, not a LinAlgError later)."""
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.frames.instrument import instrument_from
+
+    with pytest.raises(InputError, match="instrument_mpe"):
+        instrument_from(mpe=(1e300, 0.0))
+    with pytest.raises(InputError, match="instrument_radial_mpe"):
+        instrument_from(mpe=(15e-6, 6e-6), radial_mpe=(0.0, 1e-300))
+    laser_tracker = instrument_from(mpe=(15e-6, 6e-6))  # API Radian's: a + b x distance, as given
+    assert laser_tracker.transverse == (15e-6, 6e-6)

@@ -49,11 +49,11 @@ def add_parsers(sub) -> None:
                    help="the measuring instrument, by name (leica-at9xx, leica-at500, api-radian, leica-ts60): every "
                         "point weighed by its own noise from the maker's MPE along and across the beam at its "
                         "distance, and the noise floor from it where the data's redundancy gives none")
-    p.add_argument("--instrument-mpe", nargs=2, type=number(low=0, unit="um, um/m"), default=None,
+    p.add_argument("--instrument-mpe", nargs=2, type=number(low=0, high=1e4, unit="um, um/m"), default=None,
                    metavar=("A_UM", "B_UM_PER_M"),
                    help="the instrument's MPE across the beam, A [um] + B [um/m] x distance (and along it unless "
                         "--instrument-radial-mpe); positions in the instrument's own frame, it at the origin")
-    p.add_argument("--instrument-radial-mpe", nargs=2, type=number(low=0, unit="um, um/m"), default=None,
+    p.add_argument("--instrument-radial-mpe", nargs=2, type=number(low=0, high=1e4, unit="um, um/m"), default=None,
                    metavar=("A_UM", "B_UM_PER_M"), help="the instrument's MPE along the beam, where it differs")
     p.add_argument("--as-built-urdf", default=None, type=as_built_file, metavar="FILE",
                    help="write the calibration URDF (geometry refitted to the full model, tool0 unchanged) to "
