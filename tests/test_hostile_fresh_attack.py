@@ -140,3 +140,19 @@ def test_instrument_mpe_bounds_in_the_library():
         instrument_from(mpe=(15e-6, 6e-6), radial_mpe=(0.0, 1e-300))
     laser_tracker = instrument_from(mpe=(15e-6, 6e-6))  # API Radian's: a + b x distance, as given
     assert laser_tracker.transverse == (15e-6, 6e-6)
+
+
+# ---------------------------------------------------------------------------------------
+# diagnose: one measurement file given twice, as two spellings or as a copy
+# ---------------------------------------------------------------------------------------
+def test_diagnose_same_file_twice_spelt_differently(campaign_folder):
+    """m.csv and ./m.csv: 'unexpected error: ZeroDivisionError' (every pose its own exact repeat,
+    noise floor 0)."""
+    assert_refused(campaign_folder, ["diagnose", "m.csv", "./m.csv", "--effects", "joint_offsets", "--quiet"],
+                   "./m.csv is given twice")
+
+
+def test_diagnose_copied_measurements_are_not_repeats(campaign_folder):
+    shutil.copy(campaign_folder / "m.csv", campaign_folder / "copy.csv")
+    assert_refused(campaign_folder, ["diagnose", "m.csv", "copy.csv", "--effects", "joint_offsets", "--quiet"],
+                   "repeated poses agree to the last digit")

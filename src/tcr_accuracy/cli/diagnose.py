@@ -8,6 +8,7 @@ URDF with the whole model beside it (the export's builder and model format, :mod
 from __future__ import annotations
 
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -107,8 +108,15 @@ def _run_diagnose(args) -> int:
     read_campaign_arguments(args)
     min_rows = max(3 * args.folds, 12)
     files = list(args.measurements)
-    if len(set(map(str, files))) < len(files):
-        raise InputError(f"MEASUREMENTS.csv: {next(f for f in files if files.count(f) > 1)} is given twice")
+    seen = {}
+    for path in files:  # one file however spelt (./m.csv, a link): its poses would be their own repeats
+        try:
+            key = (os.stat(path).st_dev, os.stat(path).st_ino)
+        except OSError:
+            key = str(path)
+        if key in seen:
+            raise InputError(f"MEASUREMENTS.csv: {path} is given twice (as {seen[key]} too)")
+        seen[key] = path
     # the diagnosis holds each measurement's Jacobians over the whole effect vocabulary and
     # the error maps of the pose-dependent effects
     for path in files:
