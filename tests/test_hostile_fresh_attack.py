@@ -5,6 +5,7 @@ exit code 2 and ONE line on stderr naming the file and the key, row or argument 
 traceback, and no file left beside the decoys.
 """
 
+import json
 import os
 import shutil
 import subprocess
@@ -156,3 +157,22 @@ def test_diagnose_copied_measurements_are_not_repeats(campaign_folder):
     shutil.copy(campaign_folder / "m.csv", campaign_folder / "copy.csv")
     assert_refused(campaign_folder, ["diagnose", "m.csv", "copy.csv", "--effects", "joint_offsets", "--quiet"],
                    "repeated poses agree to the last digit")
+
+
+# ---------------------------------------------------------------------------------------
+# report: control characters in a result's text
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("text, code", [("m\u0000.csv", "U+0000"), ("\u202em.csv", "U+202E")])
+def test_report_refuses_control_characters_in_a_result(campaign_folder, text, code):
+    """A NUL in a diagnosis' file name went into index.html and report.md as it was."""
+    doc = json.loads((campaign_folder / "d.json").read_text())
+    doc["measurements"] = text
+    (campaign_folder / "d.json").write_text(json.dumps(doc))
+    assert_refused(campaign_folder, ["report", "d.json", "--out", "rep", "--quiet"], "d.json", "$.measurements",
+                   f"control character {code}")
+
+
+def test_report_of_a_result_as_written_still_runs(campaign_folder):
+    code, _, err = run_cli(["report", "d.json", "--out", "rep", "--quiet"], campaign_folder)
+    assert code == 0, err
+    assert (campaign_folder / "rep" / "index.html").is_file() and (campaign_folder / "rep" / "report.md").is_file()

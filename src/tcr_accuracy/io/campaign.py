@@ -35,11 +35,11 @@ import dataclasses
 import datetime
 import math
 import re
-import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..exceptions import InputError
+from ..input_files import control_character
 from .budget_file import read_table
 
 #: The figures a limit may be stated for (the key under ``limits_mm``) and what each is.
@@ -59,8 +59,6 @@ KEYS = (*TEXT_KEYS, "robot", "instrument", "temperature_c", "limits_mm")
 
 #: The longest text a key may hold [characters] (a line of the first page, not a document).
 MAX_TEXT = 300
-#: Characters that reorder the text shown around them (a name could be made to read otherwise).
-BIDI_CONTROLS = frozenset("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
 #: Temperatures a campaign may state [degC].
 TEMPERATURE_RANGE_C = (-60.0, 150.0)
 #: The largest limit [mm] (beyond it a limit judges nothing).
@@ -152,7 +150,7 @@ def _text(value, key: str, source: str) -> str:
         kind = {dict: "table", list: "list"}.get(type(value), type(value).__name__)
         raise InputError(f"{source}: {key}: expected text, got a {kind} ({value!r:.40})")
     text = " ".join(str(value).split())
-    control = next((c for c in text if unicodedata.category(c) in ("Cc", "Cs", "Co", "Cn") or c in BIDI_CONTROLS), None)
+    control = control_character(text)
     if control is not None:
         raise InputError(f"{source}: {key}: holds the control character U+{ord(control):04X}; write plain text")
     if len(text) > MAX_TEXT:
