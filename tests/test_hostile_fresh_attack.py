@@ -176,3 +176,15 @@ def test_report_of_a_result_as_written_still_runs(campaign_folder):
     code, _, err = run_cli(["report", "d.json", "--out", "rep", "--quiet"], campaign_folder)
     assert code == 0, err
     assert (campaign_folder / "rep" / "index.html").is_file() and (campaign_folder / "rep" / "report.md").is_file()
+
+
+def test_report_refuses_an_iso_result_without_its_robot(campaign_folder):
+    """An ISO 9283 result with its 'robot' key removed passed the one-robot check of the report
+    (the figures of any robot shown under this one's name)."""
+    iso = {"measurements": "iso.csv", "robot_source": "ur10", "tool_frame": "tool", "n_readings": 15, "frame": "fit",
+           "poses": [{"pose_id": 1, "n": 3, "ap_mm": 0.1, "ap_x_mm": 0.1, "ap_y_mm": 0.0, "ap_z_mm": 0.0,
+                      "rp_mm": 0.02}],
+           "summary": {"ap_max_mm": 0.1, "rp_max_mm": 0.02}}
+    (campaign_folder / "iso.json").write_text(json.dumps(iso))
+    assert_refused(campaign_folder, ["report", "d.json", "iso.json", "--out", "rep", "--quiet"], "iso.json",
+                   "'robot' is missing")

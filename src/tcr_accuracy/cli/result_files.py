@@ -243,7 +243,7 @@ PAGE_KEYS = ("n_measurements", "folds", "steps", "selected_effects", "noise_floo
 #: ``Diagnosis.to_dict()`` without the robot has not got them).
 MODEL_KEYS = ("robot_source", "tool_frame", "effect_parameters", "tracker_transform")
 #: The keys each kind must hold (a diagnosis: :data:`PAGE_KEYS` too where a report reads it).
-REQUIRED = {"diagnosis": PAGE_KEYS, "iso9283": (), "comparison": ()}
+REQUIRED = {"diagnosis": PAGE_KEYS, "iso9283": ("robot",), "comparison": ()}  # robot: the one-robot check
 
 
 def validate_result(doc, kind: str, source, required=()) -> dict:
