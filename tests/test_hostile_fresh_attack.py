@@ -188,3 +188,40 @@ def test_report_refuses_an_iso_result_without_its_robot(campaign_folder):
     (campaign_folder / "iso.json").write_text(json.dumps(iso))
     assert_refused(campaign_folder, ["report", "d.json", "iso.json", "--out", "rep", "--quiet"], "iso.json",
                    "'robot' is missing")
+
+
+# ---------------------------------------------------------------------------------------
+# CSV: a cell over the csv module's field limit (131072 characters)
+# ---------------------------------------------------------------------------------------
+BIG_CELL = "1" * 200_000
+
+
+def _with_big_cell(rows: list, row: int) -> str:
+    """The lines ``rows`` with the first cell of line ``row`` (0: the header) replaced by BIG_CELL."""
+    lines = list(rows)
+    lines[row] = BIG_CELL + lines[row][lines[row].index(","):]
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("command", [
+    ["diagnose", "big.csv", "--effects", "joint_offsets"],
+    ["iso9283", "evaluate", "big.csv"],
+    ["predict", "--train", "m.csv", "--query", "big.csv", "--method", "idw-joint"],
+    ["export", "d.json", "--to", "out", "--targets", "big.csv"],
+], ids=["diagnose", "iso9283", "predict-query", "export-targets"])
+def test_csv_cell_over_the_field_limit(campaign_folder, command):
+    """'unexpected error: Error: field larger than field limit (131072)' in every CSV reader."""
+    rows = (campaign_folder / "m.csv").read_text().splitlines()
+    (campaign_folder / "big.csv").write_text(_with_big_cell(rows, 5))
+    assert_refused(campaign_folder, [*command, "--quiet"], "big.csv: row 6", "field limit")
+
+
+def test_tracker_export_cell_over_the_field_limit(tmp_path):
+    (tmp_path / "t.txt").write_text("Point ID;Time;X [mm];Y [mm];Z [mm]\nP1;10:15:00,000;1,0;2,0;3,0\n"
+                                    f"P2;10:15:04,000;{BIG_CELL};2,0;3,0\n")
+    assert_refused(tmp_path, ["import", "t.txt", "--out", "o.csv", "--quiet"], "t.txt: row 3", "field limit")
+
+
+def test_trajectory_cell_over_the_field_limit(tmp_path):
+    (tmp_path / "tr.csv").write_text(f"j1_deg,j2_deg\n{BIG_CELL},0\n")
+    assert_refused(tmp_path, ["trajectory", "--file", "tr.csv", "--quiet"], "tr.csv", "field limit")

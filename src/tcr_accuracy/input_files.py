@@ -427,3 +427,20 @@ def control_character(text: str, allowed: str = "") -> str | None:
     override), other than those in ``allowed``; None when there is none."""
     return next((c for c in text if c not in allowed and (unicodedata.category(c) in ("Cc", "Cs", "Co", "Cn")
                                                            or c in BIDI_CONTROLS)), None)
+
+
+def csv_cells(line: str, source, row: int, delimiter: str = ",") -> list[str]:
+    """The cells of one line of delimited text (the csv module's quoting rules).
+
+    Raises
+    ------
+    InputError
+        Naming ``source`` and ``row`` where the csv module refuses the line (a cell over its
+        field limit of 131072 characters ended as "unexpected error: Error" before).
+    """
+    import csv
+
+    try:
+        return next(csv.reader([line], delimiter=delimiter), [])
+    except csv.Error as exc:
+        raise InputError(f"{source}: row {row}: not delimited text the reader takes ({exc})") from None
