@@ -31,6 +31,7 @@ import math
 import os
 import re
 import stat
+import unicodedata
 from contextlib import contextmanager
 from contextvars import ContextVar
 from pathlib import Path
@@ -414,3 +415,32 @@ def _short(value, limit: int = 300) -> str:
     """``value`` as one line of at most ``limit`` characters."""
     text = " ".join(str(value).split())
     return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+#: Characters that reorder the text shown around them (a name could be made to read otherwise).
+BIDI_CONTROLS = frozenset("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
+
+
+def control_character(text: str, allowed: str = "") -> str | None:
+    """The first character of ``text`` that a page or a table should not print as it is (a
+    control character, a surrogate, a private or unassigned code point, a bidirectional
+    override), other than those in ``allowed``; None when there is none."""
+    return next((c for c in text if c not in allowed and (unicodedata.category(c) in ("Cc", "Cs", "Co", "Cn")
+                                                           or c in BIDI_CONTROLS)), None)
+
+
+def csv_cells(line: str, source, row: int, delimiter: str = ",") -> list[str]:
+    """The cells of one line of delimited text (the csv module's quoting rules).
+
+    Raises
+    ------
+    InputError
+        Naming ``source`` and ``row`` where the csv module refuses the line (a cell over its
+        field limit of 131072 characters ended as "unexpected error: Error" before).
+    """
+    import csv
+
+    try:
+        return next(csv.reader([line], delimiter=delimiter), [])
+    except csv.Error as exc:
+        raise InputError(f"{source}: row {row}: not delimited text the reader takes ({exc})") from None

@@ -103,7 +103,10 @@ def read_trajectory_csv(path: str | Path, robot: RobotModel) -> JointTrajectory:
     from ..input_files import SIZE_LIMITS, read_input_text
 
     text = read_input_text(path, "trajectory file", limit=SIZE_LIMITS["table"])
-    rows = [r for r in csv.reader(text.splitlines())]
+    try:
+        rows = [r for r in csv.reader(text.splitlines())]
+    except csv.Error as exc:  # a cell over the csv module's field limit
+        raise InputError(f"{path}: not delimited text the reader takes ({exc})") from None
     numbered = [(i + 1, r) for i, r in enumerate(rows) if any(cell.strip() for cell in r)]
     if not numbered:
         raise InputError(f"{path}: the trajectory file is empty")

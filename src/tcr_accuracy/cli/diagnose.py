@@ -8,6 +8,7 @@ URDF with the whole model beside it (the export's builder and model format, :mod
 from __future__ import annotations
 
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -49,11 +50,11 @@ def add_parsers(sub) -> None:
                    help="the measuring instrument, by name (leica-at9xx, leica-at500, api-radian, leica-ts60): every "
                         "point weighed by its own noise from the maker's MPE along and across the beam at its "
                         "distance, and the noise floor from it where the data's redundancy gives none")
-    p.add_argument("--instrument-mpe", nargs=2, type=number(low=0, unit="um, um/m"), default=None,
+    p.add_argument("--instrument-mpe", nargs=2, type=number(low=0, high=1e4, unit="um, um/m"), default=None,
                    metavar=("A_UM", "B_UM_PER_M"),
                    help="the instrument's MPE across the beam, A [um] + B [um/m] x distance (and along it unless "
                         "--instrument-radial-mpe); positions in the instrument's own frame, it at the origin")
-    p.add_argument("--instrument-radial-mpe", nargs=2, type=number(low=0, unit="um, um/m"), default=None,
+    p.add_argument("--instrument-radial-mpe", nargs=2, type=number(low=0, high=1e4, unit="um, um/m"), default=None,
                    metavar=("A_UM", "B_UM_PER_M"), help="the instrument's MPE along the beam, where it differs")
     p.add_argument("--as-built-urdf", default=None, type=as_built_file, metavar="FILE",
                    help="write the calibration URDF (geometry refitted to the full model, tool0 unchanged) to "
@@ -107,8 +108,15 @@ def _run_diagnose(args) -> int:
     read_campaign_arguments(args)
     min_rows = max(3 * args.folds, 12)
     files = list(args.measurements)
-    if len(set(map(str, files))) < len(files):
-        raise InputError(f"MEASUREMENTS.csv: {next(f for f in files if files.count(f) > 1)} is given twice")
+    seen = {}
+    for path in files:  # one file however spelt (./m.csv, a link): its poses would be their own repeats
+        try:
+            key = (os.stat(path).st_dev, os.stat(path).st_ino)
+        except OSError:
+            key = str(path)
+        if key in seen:
+            raise InputError(f"MEASUREMENTS.csv: {path} is given twice (as {seen[key]} too)")
+        seen[key] = path
     # the diagnosis holds each measurement's Jacobians over the whole effect vocabulary and
     # the error maps of the pose-dependent effects
     for path in files:

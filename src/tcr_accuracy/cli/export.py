@@ -132,7 +132,7 @@ def read_calibration_measurements(args, data: dict, robot):
     from ..asbuilt.accuracy import MeasuredPoses
     from ..asbuilt.diagnosis_file import measurement_files
     from ..exceptions import InputError
-    from ..io.measurements import join_sessions
+    from ..io.measurements import join_sessions, measured_frames
     from .common import check_csv_memory
     from .diagnose import _session_labels
 
@@ -153,6 +153,13 @@ def read_calibration_measurements(args, data: dict, robot):
         check_csv_memory(args, path, "exporting", EXPORT_ROW_BYTES)
     sets = [_read(path, robot, 3) for path in files]
     joined = sets[0] if len(sets) == 1 else join_sessions(sets, _session_labels(files))
+    fitted = data.get("n_measurements")
+    single_point = not any(measured_frames(path) for path in files)  # rows of several points count otherwise
+    if single_point and isinstance(fitted, int) and len(joined) != fitted:
+        # another campaign's files (or a part of them) would refit the URDF to poses the
+        # diagnosis never saw and print their error as "on the measured poses"
+        raise InputError(f"{', '.join(files)}: {len(joined)} measurement rows, but {args.diagnosis} was fitted to "
+                         f"{fitted} (n_measurements); give the files it was fitted to with --measurements CSV ...")
     return MeasuredPoses.of(joined, ", ".join(Path(f).name for f in files))
 
 

@@ -263,10 +263,17 @@ def _same(a: str, b: str) -> bool:
 # ---------------------------------------------------------------------------------------
 def output_file_problem(path) -> str | None:
     """Why ``path`` could not be written at the end of a run (it is a folder, its folder is
-    missing or not writable, it is a special file we may not write), or None. ``-`` passes."""
+    missing or not writable, it is a special file we may not write, the system refuses the
+    name itself: too long, a loop of links), or None. ``-`` passes."""
     if path is None or str(path) == "-":
         return None
-    path = Path(path)
+    try:
+        return _file_problem(Path(path))
+    except OSError as exc:  # ENAMETOOLONG, ELOOP, ...: the name cannot be a file at all
+        return f"the system refuses this name ({exc.strerror})"
+
+
+def _file_problem(path: Path) -> str | None:
     if path.is_dir():
         return "is a folder; give a file name"
     if is_special_file(path):
@@ -288,7 +295,15 @@ def output_folder_problem(path) -> str | None:
         return None
     if not str(path).strip():
         return "an empty folder name; give a folder (. for the current one)"
-    path = Path(path)
+    if str(path) == "-":  # not stdout here, and left out of the outputs a run may write (as stdout is)
+        return "'-' names standard output, not a folder; for a folder of that name give ./-"
+    try:
+        return _folder_problem(Path(path))
+    except OSError as exc:  # ENAMETOOLONG, ELOOP, ...: the name cannot be a folder at all
+        return f"the system refuses this name ({exc.strerror})"
+
+
+def _folder_problem(path: Path) -> str | None:
     if path.exists() and not path.is_dir():
         return "exists and is not a folder"
     existing = Path(os.path.realpath(path))

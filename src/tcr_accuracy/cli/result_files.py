@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 
 from ..exceptions import InputError
-from ..input_files import read_json_file
+from ..input_files import control_character, read_json_file
 
 #: The longest length a result may hold [mm]: 1 km (as the CLI's options).
 MAX_MM = 1e6
@@ -243,7 +243,7 @@ PAGE_KEYS = ("n_measurements", "folds", "steps", "selected_effects", "noise_floo
 #: ``Diagnosis.to_dict()`` without the robot has not got them).
 MODEL_KEYS = ("robot_source", "tool_frame", "effect_parameters", "tracker_transform")
 #: The keys each kind must hold (a diagnosis: :data:`PAGE_KEYS` too where a report reads it).
-REQUIRED = {"diagnosis": PAGE_KEYS, "iso9283": (), "comparison": ()}
+REQUIRED = {"diagnosis": PAGE_KEYS, "iso9283": ("robot",), "comparison": ()}  # robot: the one-robot check
 
 
 def validate_result(doc, kind: str, source, required=()) -> dict:
@@ -261,9 +261,27 @@ def validate_result(doc, kind: str, source, required=()) -> dict:
         where = error.json_path if error.json_path != "$" else "the top level"
         article = "an" if kind[0] in "aeiou" else "a"
         raise InputError(f"{source}: {where}: {_said(error)}; not {article} {kind} result as tcr-accuracy writes it")
+    _check_text(doc, source, "$")
     if kind == "diagnosis":
         _check_diagnosis_references(doc, source)
     return doc
+
+
+def _check_text(value, source, where: str) -> None:
+    """No control or bidirectional-override character in a key or text of a result (a NUL went
+    into the report's HTML and Markdown as it was); line breaks and tabs pass."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            _check_text(key, source, f"{where} (a key)")
+            _check_text(item, source, f"{where}.{key}")
+    elif isinstance(value, list):
+        for i, item in enumerate(value):
+            _check_text(item, source, f"{where}[{i}]")
+    elif isinstance(value, str):
+        bad = control_character(value, allowed="\n\t\r")
+        if bad is not None:
+            raise InputError(f"{source}: {where[:200]}: holds the control character U+{ord(bad):04X}; not a result as "
+                             "tcr-accuracy writes it")
 
 
 def _said(error) -> str:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import numpy as np
 
+from ..exceptions import InputError
 from ..frames.noise import NoiseEstimate
 from ..model.robot import RobotModel
 from ..analysis.semivariogram import (
@@ -174,6 +175,9 @@ def noise_from_repeats(q: np.ndarray, position: np.ndarray, context_columns: np.
         points = position[inverse == g]
         sq += float(np.sum((points - points.mean(axis=0)) ** 2))
     sigma = math.sqrt(sq / dof)
+    if sigma == 0.0:  # no instrument reads a pose twice to the last digit: a noise floor of 0 divides later
+        raise InputError(f"the {repeated.size} readings of {groups} repeated poses agree to the last digit: copies "
+                         "of one measurement (the same data given twice?), not repeats")
     return NoiseEstimate(sigma, "repeated poses", True,
                          f"pooled scatter of {repeated.size} readings of {groups} repeated poses ({dof} dof)")
 

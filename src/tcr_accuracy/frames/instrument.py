@@ -102,6 +102,12 @@ INSTRUMENTS = {
 }
 
 
+#: The largest MPE an instrument may be given: a [m], b [m/m] (a total station's is about 1e-3 m + 1.5e-6 m/m).
+MPE_MAX = (1e-2, 1e-3)
+#: The smallest a + b [m, m/m together]: 1e-9, as the least instrument noise a run takes (--noise-mm 1e-6).
+MPE_MIN_M = 1e-9
+
+
 def instrument_from(name: str | None = None, mpe=None, radial_mpe=None) -> Instrument | None:
     """An instrument by name (:data:`INSTRUMENTS`), or from its MPE.
 
@@ -127,6 +133,11 @@ def instrument_from(name: str | None = None, mpe=None, radial_mpe=None) -> Instr
         values = np.asarray(pair, dtype=float)
         if values.shape != (2,) or not np.all(np.isfinite(values)) or np.any(values < 0) or values.sum() <= 0:
             raise InputError(f"{label} {list(pair)}: need two numbers a >= 0 [m] and b >= 0 [m/m], not both 0",
+                             parameter=label, value=pair)
+        # 1e300 m made the weighted fit's eigenvalues fail to converge, 1e-300 m its matrix singular
+        if values[0] > MPE_MAX[0] or values[1] > MPE_MAX[1] or values.sum() < MPE_MIN_M:
+            raise InputError(f"{label} {list(pair)}: want a <= {MPE_MAX[0]:g} m and b <= {MPE_MAX[1]:g} m/m, "
+                             f"a + b >= {MPE_MIN_M:g} (no measuring instrument lies outside)",
                              parameter=label, value=pair)
     transverse = tuple(float(v) for v in mpe)
     radial = transverse if radial_mpe is None else tuple(float(v) for v in radial_mpe)

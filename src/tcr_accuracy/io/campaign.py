@@ -32,11 +32,14 @@ range that is not two numbers, low then high, is one line naming the file and th
 from __future__ import annotations
 
 import dataclasses
+import datetime
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..exceptions import InputError
+from ..input_files import control_character
 from .budget_file import read_table
 
 #: The figures a limit may be stated for (the key under ``limits_mm``) and what each is.
@@ -114,7 +117,8 @@ def read_campaign(path) -> CampaignFacts:
     instrument = _table(doc, "instrument", INSTRUMENT_KEYS, source)
     limits = _table(doc, "limits_mm", tuple(LIMIT_FIGURES), source)
     return CampaignFacts(
-        **{k: _text(doc.get(k), k, source) for k in TEXT_KEYS},
+        **{k: _text(doc.get(k), k, source) for k in TEXT_KEYS if k != "date"},
+        date=_date(doc.get("date"), source),
         robot_model=_text(robot.get("model"), "robot.model", source),
         robot_serial=_text(robot.get("serial"), "robot.serial", source),
         instrument_name=_text(instrument.get("name"), "instrument.name", source),
@@ -136,14 +140,33 @@ def _table(doc: dict, key: str, keys: tuple, source: str) -> dict:
 
 
 def _text(value, key: str, source: str) -> str:
-    """A text value; a number or a date (YAML reads ``2026-11-20`` as one) as written."""
+    """A text value; a number or a date (YAML reads ``2026-11-20`` as one) as written. Anything
+    else a YAML tag can make (``!!binary`` bytes, a ``!!set``, ``yes`` read as true) would print
+    as Python's spelling of it on the first page, and a control character would go into the page
+    as it is: both refused."""
     if value is None:
         return ""
-    if isinstance(value, (dict, list)):
-        raise InputError(f"{source}: {key}: expected text, got a {'table' if isinstance(value, dict) else 'list'}")
+    if isinstance(value, bool) or not isinstance(value, (str, int, float, datetime.date, datetime.time)):
+        kind = {dict: "table", list: "list"}.get(type(value), type(value).__name__)
+        raise InputError(f"{source}: {key}: expected text, got a {kind} ({value!r:.40})")
     text = " ".join(str(value).split())
+    control = control_character(text)
+    if control is not None:
+        raise InputError(f"{source}: {key}: holds the control character U+{ord(control):04X}; write plain text")
     if len(text) > MAX_TEXT:
         raise InputError(f"{source}: {key}: {len(text)} characters; at most {MAX_TEXT} fit a line of the report")
+    return text
+
+
+def _date(value, source: str) -> str:
+    """The date as text; one written as a calendar date (``YYYY-MM-DD``, which YAML reads as a
+    date only when it is one) must be a day of the calendar, not ``2026-13-45`` printed as given."""
+    text = _text(value, "date", source)
+    if re.fullmatch(r"\d{4}-\d{1,2}-\d{1,2}", text):
+        try:
+            datetime.date(*map(int, text.split("-")))
+        except ValueError as err:
+            raise InputError(f"{source}: date: {text} is not a day of the calendar ({err})") from None
     return text
 
 

@@ -34,8 +34,6 @@ Everything read is converted to SI at once; :class:`MeasurementSet` holds SI onl
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from pathlib import Path
 
@@ -43,7 +41,7 @@ import numpy as np
 
 from ..model.context import REFERENCE_TEMPERATURE_C, MeasurementContext
 from ..exceptions import InputError
-from ..input_files import SIZE_LIMITS, read_input_text
+from ..input_files import SIZE_LIMITS, csv_cells, read_input_text
 from .measurement_checks import MeasurementWarning, check_duplicates, check_position_units, warn_outside_limits
 from .measurement_set import (ANNOTATION_COLUMNS, CONTEXT_COLUMNS, LABEL_COLUMNS, QUATERNION_COLUMNS,
                               TEXT_ANNOTATIONS, MeasurementSet, join_sessions)
@@ -221,7 +219,7 @@ def _header(text: str, source: str) -> tuple[list[tuple[int, str]], list[str], i
     if ";" in header_text and "," not in header_text:
         raise InputError(f"{source}: row {header_line}: columns are separated by ';'; "
                          "a measurement CSV uses commas (and '.' for decimals)")
-    return lines, [h.strip() for h in next(csv.reader(io.StringIO(header_text)))], header_line
+    return lines, [h.strip() for h in csv_cells(header_text, source, header_line)], header_line
 
 
 def measured_frames(path: str | Path) -> list[str]:
@@ -266,7 +264,7 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
     labels = {name: [] for name in label_columns.values()}
     codes = {name: {} for name in label_columns.values()}
     for k, (line_no, line) in enumerate(lines[1:]):
-        cells = next(csv.reader(io.StringIO(line)))
+        cells = csv_cells(line, source, line_no)
         if len(cells) != n_cols:
             raise InputError(f"{source}: row {line_no}: {len(cells)} cells, the header has {n_cols} columns")
         for c, cell in enumerate(cells):

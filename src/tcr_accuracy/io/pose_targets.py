@@ -15,14 +15,13 @@ Every message names the file, row and column at fault.
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..exceptions import InputError
+from ..input_files import csv_cells
 from ..model.context import MeasurementContext
 from ..model.robot import RobotModel
 from ..units import JOINT_COLUMN_UNITS, POSITION_UNITS, parse_number
@@ -56,7 +55,7 @@ def is_cartesian(path, robot: RobotModel) -> bool:
     lines = _lines(path)
     if not lines:
         raise InputError(f"{path}: empty targets file (no header row)")
-    header = {h.strip() for h in next(csv.reader(io.StringIO(lines[0][1])))}
+    header = {h.strip() for h in csv_cells(lines[0][1], path, lines[0][0])}
     joints = {f"{n}_{u}" for n, k in zip(robot.joint_names, robot.joint_kinds) for u in JOINT_COLUMN_UNITS[k]}
     return any(f"x_{unit}" in header for unit in POSITION_UNITS) and not header & joints
 
@@ -65,7 +64,7 @@ def read_pose_targets(path, robot: RobotModel) -> PoseTargets:
     """The Cartesian targets of a CSV file (see the module docstring)."""
     lines = _lines(path)
     header_line, header_text = lines[0]
-    header = [h.strip() for h in next(csv.reader(io.StringIO(header_text)))]
+    header = [h.strip() for h in csv_cells(header_text, path, header_line)]
     unit = next((u for u in POSITION_UNITS if f"x_{u}" in header), None)
     position_columns = [f"{a}_{unit}" for a in "xyz"]
     for c in position_columns:
@@ -90,7 +89,7 @@ def read_pose_targets(path, robot: RobotModel) -> PoseTargets:
                              f"z_{unit}, qw..qz, seed_<joint>_<unit>, payload_kg)")
     values, rows = [], []
     for line_no, line in lines[1:]:
-        cells = [c.strip() for c in next(csv.reader(io.StringIO(line)))]
+        cells = [c.strip() for c in csv_cells(line, path, line_no)]
         if len(cells) != len(header):
             raise InputError(f"{path}: row {line_no}: {len(cells)} cells, the header has {len(header)} columns")
         row = []

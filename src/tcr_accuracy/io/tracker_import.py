@@ -96,10 +96,10 @@ class ImportResult:
 # ---------------------------------------------------------------------------------------
 # Reading delimited text
 # ---------------------------------------------------------------------------------------
-def _split(line: str, delimiter: str) -> list[str]:
-    import csv
+def _split(line: str, delimiter: str, source, row: int) -> list[str]:
+    from ..input_files import csv_cells
 
-    return [cell.strip() for cell in next(csv.reader([line], delimiter=delimiter))]
+    return [cell.strip() for cell in csv_cells(line, source, row, delimiter)]
 
 
 def _normal(name: str) -> str:
@@ -155,7 +155,7 @@ def read_table(path, wanted: list[str] | None = None, *, header_test=None) -> Ta
         if not line.strip() or line.lstrip().startswith("#"):
             continue
         delimiter = ";" if ";" in line else "\t" if "\t" in line else ","
-        cells = _split(line, delimiter)
+        cells = _split(line, delimiter, path, i + 1)
         found = all(w in cells for w in wanted) if wanted else bool(header_test and header_test(cells))
         if not found:
             continue
@@ -163,7 +163,7 @@ def read_table(path, wanted: list[str] | None = None, *, header_test=None) -> Ta
         for k in range(i + 1, len(lines)):
             if not lines[k].strip() or lines[k].lstrip().startswith("#"):
                 continue
-            row = _split(lines[k], delimiter)
+            row = _split(lines[k], delimiter, path, k + 1)
             if len(row) != len(cells):
                 if not rows:  # a metadata line that names the columns ("Columns: X;Y;Z"): the header is below
                     misfit = True

@@ -20,14 +20,13 @@ are converted to SI at once. A whole number written as a label is its digits (``
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..exceptions import InputError
+from ..input_files import csv_cells
 from ..units import POSITION_UNITS
 from .measurements import (MAX_POSITION_M, MAX_TIME_S, QUATERNION_COLUMNS, _check_range, _header, label_cell,
                            number_cell, read_user_text)
@@ -109,7 +108,7 @@ def read_tracker_stream(path: str | Path) -> TrackerStream:
     labels = {name: [] for name in STREAM_LABELS if name in header}
     rows = np.empty(len(lines) - 1, dtype=int)
     for k, (line_no, line) in enumerate(lines[1:]):
-        cells = next(csv.reader(io.StringIO(line)))
+        cells = csv_cells(line, source, line_no)
         if len(cells) != len(header):
             raise InputError(f"{source}: row {line_no}: {len(cells)} cells, the header has {len(header)} columns")
         for c in numeric:
