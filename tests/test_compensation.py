@@ -239,13 +239,14 @@ def _hidden_error_beyond_the_offset(real, robot, q, offset, q_real=None):
     return (real.true_positions(q if q_real is None else q_real) - point) * 1e3
 
 
-#: the kriging of `measured` predicts the stand-in's hidden error (up to 0.49 mm) to 0.041 mm at
-#: worst, 0.02 mm on the mean (measured): the tolerances of the report and CSV checks below
-KRIGING_MM = 0.06
+#: the kriging of `measured` predicts the hidden robot's error (up to 5.9 mm, 0.6 mm beyond the fitted
+#: offset) to 0.072 mm at worst on the CSV and 0.078 mm on the report's rows (measured): the tolerance
+#: of the report and CSV checks below, about 1.15 x that
+KRIGING_MM = 0.09
 
 
 def test_cli_predict_report_and_csv_figures_are_the_hidden_error(measured, tool_changer, capsys):
-    """Every figure of the CSV and the report against the stand-in robot's hidden error (the
+    """Every figure of the CSV and the report against the hidden robot's error (the
     command never sees it), to the kriging's accuracy; the CSV and the JSON carry the same numbers."""
     d = measured["dir"] / "predict_outputs"
     d.mkdir()
@@ -264,7 +265,7 @@ def test_cli_predict_report_and_csv_figures_are_the_hidden_error(measured, tool_
     offset = np.array(data["tracker_frame"]["tool_offset_mm"]) * 1e-3
     beyond = _hidden_error_beyond_the_offset(measured["real"], tool_changer, q, offset)
     norm = np.linalg.norm(beyond, axis=1)
-    assert np.linalg.norm(offset) > 2e-3 and norm.max() < 0.6
+    assert np.linalg.norm(offset) > 2e-3 and norm.max() < 0.7
     tables = _report_tables(d / "report" / "index.html")
     stats = {r[0]: [float(v) for v in r[1:]] for r in tables["Predicted error at the query poses"][1:]}
     assert stats["mean"][0] == pytest.approx(norm.mean(), abs=KRIGING_MM / 2)
@@ -293,7 +294,7 @@ def test_cli_predict_report_and_csv_figures_are_the_hidden_error(measured, tool_
 
 
 def test_cli_compensate_report_before_and_after_are_the_hidden_robots(measured, tool_changer, capsys):
-    """The report's before row against the stand-in's hidden error, its after row against the hidden
+    """The report's before row against the hidden robot's error, its after row against the hidden
     robot at the compensated commands (to the kriging's accuracy) and the --threshold-mm asked for."""
     d = measured["dir"] / "compensate_outputs"
     code, out, err = run(["compensate", "--train", measured["train"], "--targets", measured["query"], "--frame", "base",
@@ -316,7 +317,7 @@ def test_cli_compensate_report_before_and_after_are_the_hidden_robots(measured, 
     q_comp = np.array(data["compensated_joints"]) / tool_changer.display_scale
     after = np.linalg.norm(_hidden_error_beyond_the_offset(measured["real"], tool_changer, measured["q_query"], offset,
                                                            q_real=q_comp), axis=1)
-    assert after.max() < KRIGING_MM < before.mean() / 3
+    assert after.max() < KRIGING_MM and after.mean() < before.mean() / 3
     cycles = {int(r[0]): int(r[1]) for r in tables["Convergence"][1:]}
     assert sum(cycles.values()) == 8 and min(cycles) >= 1 and data["n_converged"] == 8
     assert (d.with_name("comp_plots") / "compensation.png").read_bytes().startswith(b"\x89PNG")
