@@ -55,7 +55,8 @@ def compressed(bases: dict) -> dict:
         stacked[:r.shape[0]] = r
         column = 0
         for e, width in zip(names, widths):
-            stacked[r.shape[0]:, column:column + width] = (bases[e].g[start:stop] * bases[e].scales).reshape(rows, width)
+            chunk = bases[e].g[start:stop] * bases[e].scales
+            stacked[r.shape[0]:, column:column + width] = chunk.reshape(rows, width)
             column += width
         r = linalg.qr(stacked, mode="r", overwrite_a=True, check_finite=False)[0][:min(stacked.shape)].copy()
     out, start = {}, 0
