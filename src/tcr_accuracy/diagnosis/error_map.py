@@ -88,16 +88,20 @@ class ErrorMap:
 
     def errors(self, theta: np.ndarray, rows=None) -> np.ndarray:
         """Error vectors (len(rows) or N, p_em) at parameters theta (k,)."""
+        rows = None if rows is None else np.asarray(rows)
         n = self.n_poses if rows is None else len(rows)
         out = np.empty((n, self.size))
         out[:] = self.fixed @ theta
         if self.per_pose is not None:
             out[:, self.pose_entries] += _rows(self.per_pose @ theta[self.pose_columns], rows)
         if self.drive is not None and self.drive_joint is not None:
-            values = _rows(self.drive, rows) * theta[self.drive_columns]
             joint = np.zeros((len(self.drive_joint), self.n_drive))
             joint[np.arange(len(self.drive_joint)), self.drive_joint] = 1.0
-            out[:, self.drive_slice] += values @ joint
+            weights = theta[self.drive_columns]
+            for start in range(0, n, self.CHUNK):  # the (N, k_drive) products a chunk of poses at a time
+                part = slice(start, start + self.CHUNK)
+                values = (self.drive[part] if rows is None else self.drive[rows[part]]) * weights
+                out[part, self.drive_slice] += values @ joint
         elif self.drive is not None:
             out[:, self.drive_slice] += _rows(self.drive @ theta[self.drive_columns], rows)
         return out

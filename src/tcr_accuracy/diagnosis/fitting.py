@@ -470,7 +470,7 @@ class FitEngine:
                     # the held-out rows at the fold's fit: the exact residual at the full fit moved by
                     # the Jacobian (the fold's fit is within a step of it; second order is below noise)
                     oof[p][test] = res[test] if jac is None else res[test] + self._unweighted(
-                        p, test, jac[test] @ (phi_k - phi))
+                        p, test, _moved(jac, test, phi_k - phi))
             repeats.append(oof)
         oof = repeats[0] if repeats else [np.zeros((self.n_rows, p.rows_per_pose)) for p in self.parts]
         heldout_repeats = [self._positions(o) for o in repeats]
@@ -565,6 +565,16 @@ def _flat(per_part: list[np.ndarray]) -> np.ndarray:
 
 def _rows(rows, n: int) -> np.ndarray:
     return np.arange(n) if rows is None else rows
+
+
+def _moved(jac: np.ndarray, rows: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """jac[rows] @ step, (len(rows), r), a chunk of rows at a time (jac[rows] whole was a copy of a
+    fifth of the Jacobian per fold)."""
+    out = np.empty((len(rows), jac.shape[1]))
+    for start in range(0, len(rows), Sensitivity.CHUNK):
+        part = slice(start, start + Sensitivity.CHUNK)
+        out[part] = jac[rows[part]] @ step
+    return out
 
 
 def _gram(jacs: list[np.ndarray], rows) -> np.ndarray:
