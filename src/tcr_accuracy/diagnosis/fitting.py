@@ -580,8 +580,14 @@ def _moved(jac: np.ndarray, rows: np.ndarray, step: np.ndarray) -> np.ndarray:
 def _gram(jacs: list[np.ndarray], rows) -> np.ndarray:
     """J^T J over the given rows (None: all) of the parts' Jacobians (N, r, k)."""
     k = jacs[0].shape[2]
-    blocks = [(j if rows is None else j[rows]).reshape(-1, k) for j in jacs]
-    return sum(b.T @ b for b in blocks)
+    if rows is None:
+        return sum(j.reshape(-1, k).T @ j.reshape(-1, k) for j in jacs)
+    total = np.zeros((k, k))
+    for j in jacs:  # a fold's rows a chunk at a time: j[rows] whole was a copy of a fifth of the Jacobian
+        for start in range(0, len(rows), Sensitivity.CHUNK):
+            block = j[rows[start:start + Sensitivity.CHUNK]].reshape(-1, k)
+            total += block.T @ block
+    return total
 
 
 def _gradient(jacs: list[np.ndarray], residual: list[np.ndarray], rows, n: int) -> np.ndarray:
