@@ -2,8 +2,9 @@
 """The second seed's experiment on simulated data: predict the remaining TCP error in
 joint space and compensate it, next to what a user would otherwise pick.
 
-A simulated real robot (hidden geometric errors, gravity compliance under a heavy
-payload, a 0.02 mm laser tracker; tcr_accuracy.analysis.stand_in) is measured at 160 poses
+A simulated real robot (hidden geometric errors, joint offsets, gravity compliance under a
+heavy payload, a 0.02 mm laser tracker; the effect library through
+tcr_accuracy.analysis.simulate, the physics the diagnosis fits) is measured at 160 poses
 picked by the seed's task-workspace sampling (dense Cartesian targets, IK, per-joint
 stratified pick) and at 80 random test poses with varied orientation. Every method is
 fitted to the 160 and scored on the 80 (|predicted - measured error|, as the seed
@@ -43,7 +44,6 @@ from tcr_accuracy.prediction.compensation import compensate_joints
 from tcr_accuracy.model.kinematics import tcp_poses
 from tcr_accuracy.prediction.composed import MeasuredErrorModel
 from tcr_accuracy.prediction.methods import METHODS, make_predictor
-from tcr_accuracy.analysis.stand_in import make_stand_in_robot
 from tcr_accuracy.model.robot import load_robot
 from tcr_accuracy.analysis.sampling import TaskWorkspace, inverse_kinematics, sample_task_workspace
 from tcr_accuracy.analysis.scenario import truth_as_scenario
@@ -66,7 +66,7 @@ SETUPS = {
 
 
 class SimulatedRobot:
-    """The same interface as stand_in.StandInRobot, on tcr_accuracy.analysis.simulate's effect library:
+    """The real robot behind the measurements, on tcr_accuracy.analysis.simulate's effect library:
     geometry 0.2 mm / 0.2 mrad, joint offsets 1 mrad, gravity compliance scaled to 3 mm RMS
     at the TCP under the payload over q_scale, tracker noise 0.02 mm. The hidden parameters
     are drawn once and replayed for every measurement (truth_as_scenario)."""
@@ -123,8 +123,8 @@ def similarity_study(robot, real, q_ref, workspace, mode, rng, n=50):
     return out
 
 
-def run(robot_name: str, seed: int, plots: Path | None, quiet: bool, truth: str = "standin",
-        frame: str = "fit", methods_run=METHODS) -> dict:
+def run(robot_name: str, seed: int, plots: Path | None, quiet: bool, frame: str = "fit",
+        methods_run=METHODS) -> dict:
     rng = np.random.default_rng(seed)
     robot = load_robot(robot_name)
     q_ref, half_box, half_angle_deg, payload, mode = SETUPS[robot.name]
@@ -133,10 +133,7 @@ def run(robot_name: str, seed: int, plots: Path | None, quiet: bool, truth: str 
     t0 = time.perf_counter()
     sample = sample_task_workspace(robot, workspace, 160, rng, n_dense=2000, q_init=q_ref, orientation=mode)
     t_sampling = time.perf_counter() - t0
-    if truth == "simulate":
-        real = SimulatedRobot(robot, sample.dense_q, rng, payload)
-    else:
-        real = make_stand_in_robot(robot, rng, payload_kg=payload, drive_std_rad=1e-3, deflection_rad=2e-3)
+    real = SimulatedRobot(robot, sample.dense_q, rng, payload)
     positions, rotations = workspace.sample(200, rng)
     ik = inverse_kinematics(robot, positions, rotations, q_ref, orientation=mode)
     q_test = ik.q[ik.success][:80]
@@ -199,7 +196,7 @@ def run(robot_name: str, seed: int, plots: Path | None, quiet: bool, truth: str 
                                          joint_names=robot.joint_names)])
 
     return {
-        "robot": robot.name, "truth": truth, "frame": frame, "payload_kg": payload, "noise_mm": real.noise_m * 1e3,
+        "robot": robot.name, "truth": "simulate", "frame": frame, "payload_kg": payload, "noise_mm": real.noise_m * 1e3,
         "noise_mean_norm_mm": float(real.noise_m * 1e3 * np.sqrt(8 / np.pi)),
         "n_train": int(len(q_train)), "n_test": int(len(q_test)),
         "sampling": {"dense_targets": sample.n_dense, "ik_failed": sample.n_failed, "seconds": t_sampling},
@@ -263,9 +260,6 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", metavar="FILE")
     parser.add_argument("--plots", metavar="DIR", type=Path)
-    parser.add_argument("--truth", choices=("standin", "simulate"), default="standin",
-                        help="hidden truth: analysis.stand_in's stand-in (geometry + gravity compliance) or "
-                             "tcr_accuracy.analysis.simulate's effect library (geometry, joint offsets, compliance)")
     parser.add_argument("--frame", choices=("fit", "base"), default="fit",
                         help="fit: register the tracker frame on the training data, as predict does (default); "
                              "base: the simulated tracker's frame is the base frame")
@@ -274,7 +268,7 @@ def main(argv=None) -> int:
     parser.add_argument("--quiet", action="store_true")
     args = parser.parse_args(argv)
     with threadpool_limits(1):
-        results = [run(name, args.seed, args.plots, args.quiet, args.truth, args.frame, tuple(args.methods))
+        results = [run(name, args.seed, args.plots, args.quiet, args.frame, tuple(args.methods))
                    for name in args.robot]
     print_report(results)
     if args.json:

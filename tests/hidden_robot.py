@@ -202,6 +202,12 @@ def geometric_errors(robot: RobotModel, rng: np.random.Generator, *, offset_deg:
     return offsets, placements
 
 
+def fixed_tracker() -> pin.SE3:
+    """``trackerMbase`` of the tests that fix it: 1.6 m from the robot (1.25, -0.83, -0.41 m),
+    turned 35 deg about the vertical."""
+    return pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, math.radians(35.0)), np.array([1.25, -0.83, -0.41]))
+
+
 def in_tracker(frame: pin.SE3, positions: np.ndarray) -> np.ndarray:
     """(N, 3) base-frame positions [m] as the tracker sees them: R p + t."""
     return positions @ frame.rotation.T + frame.translation
@@ -338,3 +344,88 @@ def reference_heldout(scenario: Scenario, joints: tuple = (), folds: int = 6, se
         fitted = reference_fit(scenario, joints, np.setdiff1d(everything, test))
         held.append(errors(fitted(test), test))
     return train, rms(np.concatenate(held))
+
+
+# ---------------------------------------------------------------------------------------
+# A robot with a tracker, for prediction and compensation: geometry, encoder offsets, compliance
+# ---------------------------------------------------------------------------------------
+@dataclass
+class TrackedRobot:
+    """A real robot for the prediction and compensation tests, on Pinocchio alone.
+
+    The TCP the tracker sees at commanded q is the hidden robot's (joint placement errors, a
+    TCP offset) at ``q + offsets + dq(q)``, plus isotropic noise of std ``noise_m`` [m] per
+    axis, in the robot's base frame. ``dq = -compliance * g(q)``: each joint gives way to
+    gravity (``g`` the holding torque of :meth:`HiddenRobot.holding_torque`, the payload a
+    point mass at the TCP), the sign of a real elastic joint. Stiffness is the robot's: it
+    stays when the payload changes (:meth:`with_payload`).
+
+    Attributes
+    ----------
+    hidden : HiddenRobot
+    offsets : ndarray of shape (n_joints,)
+        Encoder offsets [rad, m].
+    compliance : ndarray of shape (n_joints,)
+        [rad/(N m), m/N].
+    payload_kg, noise_m : float
+    rng : numpy.random.Generator
+        The tracker's noise stream.
+    """
+
+    hidden: HiddenRobot
+    offsets: np.ndarray
+    compliance: np.ndarray
+    payload_kg: float
+    noise_m: float
+    rng: np.random.Generator
+
+    @property
+    def robot(self) -> RobotModel:
+        return self.hidden.robot
+
+    def with_payload(self, payload_kg: float) -> "TrackedRobot":
+        return TrackedRobot(self.hidden, self.offsets, self.compliance, payload_kg, self.noise_m, self.rng)
+
+    def joint_deflection(self, q: np.ndarray) -> np.ndarray:
+        """(N, n_joints) gravity deflection at commanded q [rad, m]."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        if not np.any(self.compliance):
+            return np.zeros_like(q)
+        return -self.compliance * self.hidden.holding_torque(q, self.payload_kg)
+
+    def true_positions(self, q: np.ndarray) -> np.ndarray:
+        """(N, 3) noise-free TCP positions in the base frame [m]."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        tcp = self.robot.tool_frame
+        return self.hidden.positions(q + self.offsets + self.joint_deflection(q), [tcp])[tcp]
+
+    def true_errors(self, q: np.ndarray) -> np.ndarray:
+        """(N, 3) real minus nominal TCP position, noise-free [m] (the nominal by Pinocchio too)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        tcp = self.robot.tool_frame
+        return self.true_positions(q) - hidden_free(self.robot).positions(q, [tcp])[tcp]
+
+    def measure(self, q: np.ndarray) -> np.ndarray:
+        """(N, 3) TCP positions as the tracker reports them [m]."""
+        return noisy(self.rng, self.true_positions(q), self.noise_m)
+
+
+def draw_tracked_robot(robot: RobotModel, rng: np.random.Generator, *, payload_kg: float = 150.0,
+                       placement_mm: float = 0.2, placement_deg: float = 0.2e-3 / DEG,
+                       offset_deg: float = 0.5e-3 / DEG, deflection_rad: float = 1e-3,
+                       noise_m: float = 2e-5) -> TrackedRobot:
+    """A random :class:`TrackedRobot` of plausible size: placement errors of ``placement_mm`` /
+    ``placement_deg`` on every joint, encoder offsets of ``offset_deg`` (prismatic: 0.2 x that in
+    mm), a TCP offset of ``placement_mm`` per axis, and joint compliances that turn a loaded joint
+    by about ``deflection_rad`` (x U(0.5, 1.5); prismatic: 0.1 x that in m) under its RMS holding
+    torque over random poses with the payload."""
+    offsets, placements = geometric_errors(robot, rng, offset_deg=offset_deg, offset_mm=0.2 * offset_deg * DEG / MM,
+                                           placement_mm=placement_mm, placement_deg=placement_deg)
+    tcp_offset = rng.normal(0.0, placement_mm * MM, 3)
+    hidden = HiddenRobot(robot, placements, {robot.tool_frame: tcp_offset})
+    g = hidden.holding_torque(random_poses(robot, 64, rng), payload_kg)
+    spread = np.sqrt(np.mean(g**2, axis=0))
+    revolute = np.array([k == "revolute" for k in robot.joint_kinds])
+    scale = np.where(revolute, deflection_rad, 0.1 * deflection_rad) * rng.uniform(0.5, 1.5, robot.n_joints)
+    compliance = np.where(spread > 1e-6 * max(spread.max(), 1e-12), scale / np.maximum(spread, 1e-300), 0.0)
+    return TrackedRobot(hidden, offsets, compliance, payload_kg, noise_m, rng)

@@ -1,8 +1,10 @@
 """diagnose against hidden simulated truths it never sees.
 
-The measurements come from ``simulate`` (effects applied to the Pinocchio model,
-tracker noise added); the diagnosis gets the measurement set only (or the CSV file for
-the CLI) and is judged on what the scenario hid.
+The hidden robots are written on Pinocchio alone (tests/hidden_robot.py: joint placement errors,
+encoder offsets, compliance as -C g(q), a TCP offset, the tracker's frame); the clearance case
+and the too-few-rows check come from ``simulate`` (effects applied to the Pinocchio model, tracker
+noise added). The diagnosis gets the measurement set only (or the CSV file for the CLI) and is
+judged on what the hidden robot holds.
 """
 
 import json
@@ -16,11 +18,13 @@ from tcr_accuracy.diagnosis.diagnose import diagnose
 from tcr_accuracy.effects import predict_positions
 from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.model.kinematics import tcp_poses
-from tcr_accuracy.cli.writers import write_measurements
 from tcr_accuracy.model.robot import load_robot
 from tcr_accuracy.analysis.simulate import simulate_measurements
+from tcr_accuracy.io.measurements import parse_measurements
 
 from conftest import REPO
+from hidden_robot import DEG, MM, HiddenRobot, fixed_tracker, geometric_errors, in_tracker, measurement_csv, \
+    noisy, random_poses
 
 FRAMES = {"base_mm": {"dx": 1250.0, "dy": -830.0, "dz": -410.0}, "base_deg": {"rz": 35.0},
           "tool_mm": {"dx": 0.8, "dy": -0.5, "dz": 1.2}}
@@ -33,19 +37,56 @@ def _simulate(robot, effects, n, seed, context=None):
     return simulate_measurements(robot, scenario, n, np.random.default_rng(seed))
 
 
+def _geometry_measurements(robot, q, rng, *, placement_mm, placement_deg, offset_deg=0.0, tcp_mm=(0.8, -0.5, 1.2),
+                           displacement=None, context=None):
+    """CSV text of ``robot`` at commanded q with hidden geometry, on Pinocchio alone
+    (tests/hidden_robot.py): joint placement errors, encoder offsets (prismatic: 0.2 x in mm), the TCP
+    ``tcp_mm`` off, the tracker 1.6 m away turned 35 deg, 0.02 mm noise per axis; ``displacement``
+    (N, 3) [m] added to the TCP in the base frame."""
+    offsets, placements = geometric_errors(robot, rng, offset_deg=offset_deg, offset_mm=0.2 * offset_deg,
+                                           placement_mm=placement_mm, placement_deg=placement_deg)
+    tcp = robot.tool_frame
+    hidden = HiddenRobot(robot, placements, {tcp: np.asarray(tcp_mm) * MM})
+    positions = hidden.positions(q + offsets, [tcp])[tcp] + (0.0 if displacement is None else displacement)
+    tracker = fixed_tracker()
+    measured = noisy(rng, in_tracker(tracker, positions), NOISE)
+    return measurement_csv(robot, q, {tcp: measured}, context or {}, per_frame=False)
+
+
+COMPLIANCE_SI = {"j2": 0.012 * DEG / 1e3, "j3": 0.02 * DEG / 1e3, "j5": 0.03 * DEG / 1e3,  # rad/Nm
+                 "j4": 0.05 * MM / 1e3}  # m/N
+
+
+def _compliance_measurements(robot, n, seed):
+    """The hidden truth of the compliance case on Pinocchio alone (tests/hidden_robot.py, no
+    effect class): joints j2-j5 give way to gravity, ``dq = -C g(q + dq)`` (g from
+    pin.computeGeneralizedGravity, solved by fixed-point steps) with the 150 kg cutter at the TCP
+    in about half the poses; joint placement errors of 0.05 mm / 0.05 mrad, the TCP 0.8 / -0.5 /
+    1.2 mm off, the tracker 1.6 m away turned 35 deg, 0.02 mm noise per axis."""
+    rng = np.random.default_rng(seed)
+    q = random_poses(robot, n, rng)
+    payload = np.where(rng.random(n) < 0.5, 150.0, 0.0)
+    _, placements = geometric_errors(robot, rng, offset_deg=0.0, offset_mm=0.0, placement_mm=0.05,
+                                     placement_deg=0.05e-3 / DEG)
+    tcp = robot.tool_frame
+    hidden = HiddenRobot(robot, placements, {tcp: np.array([0.8, -0.5, 1.2]) * MM})
+    compliance = np.array([COMPLIANCE_SI.get(j, 0.0) for j in robot.joint_names])
+    dq = np.zeros_like(q)
+    for _ in range(4):  # the sag changes the torque by a thousandth: a few steps converge
+        dq = -compliance * hidden.holding_torque(q + dq, payload)
+    tracker = fixed_tracker()
+    measured = noisy(rng, in_tracker(tracker, hidden.positions(q + dq, [tcp])[tcp]), NOISE)
+    text = measurement_csv(robot, q, {tcp: measured}, {"payload_kg": payload}, per_frame=False)
+    return parse_measurements(text, robot)
+
+
 @pytest.fixture(scope="module")
 def compliance_case(tool_changer):
-    effects = {
-        "frames": FRAMES,
-        "geometry": {"spread_mm": 0.05, "spread_mrad": 0.05},
-        "compliance": {"compliance_deg_per_knm": {"j2": 0.012, "j3": 0.02, "j5": 0.03},
-                       "compliance_mm_per_kn": {"j4": 0.05}},
-    }
-    mset, truth = _simulate(tool_changer, effects, 260, seed=11)
+    mset = _compliance_measurements(tool_changer, 260, seed=11)
     train = mset.subset(np.arange(200))
     test = mset.subset(np.arange(200, 260))
     result = diagnose(tool_changer, train, folds=3, random_state=1, tracker_noise=NOISE)
-    return result, truth, test
+    return result, COMPLIANCE_SI, test
 
 
 def test_compliance_dominant_is_named_and_the_gap_shrinks_to_the_noise(compliance_case, tool_changer):
@@ -60,11 +101,9 @@ def test_compliance_dominant_is_named_and_the_gap_shrinks_to_the_noise(complianc
     rms = np.sqrt(np.mean(np.sum((predicted - test.position) ** 2, axis=1)))
     assert rms < 1.5 * result.noise_floor
     # and recovers the hidden compliances of the two heavily loaded joints within 10 %
-    hidden = truth["effects"]["compliance"]["parameters"]
     fitted = result.parameters["compliance"]
     for joint in ("j2", "j3"):
-        name = f"compliance.{joint}"
-        assert fitted[name] == pytest.approx(hidden[name], rel=0.1)
+        assert fitted[f"compliance.{joint}"] == pytest.approx(truth[joint], rel=0.1)
     assert not result.structure_remains
 
 
@@ -94,11 +133,16 @@ def test_identifiability_names_duplicated_parameters(compliance_case, tool_chang
 
 
 def test_out_of_vocabulary_effect_leaves_structure(tool_changer):
-    effects = {"frames": FRAMES, "geometry": {"spread_mm": 0.1, "spread_mrad": 0.1},
-               "unmodelled": {"amplitude_mm": 0.6}}
-    mset, _ = _simulate(tool_changer, effects, 200, seed=5)
-    result = diagnose(tool_changer, mset, folds=3, random_state=2, tracker_noise=NOISE,
-                      effects=["joint_offsets", "geometry", "compliance", "transmission"])
+    """A smooth TCP displacement of about 0.6 mm that mixes several joints in the base frame: no
+    effect of the vocabulary given expresses it."""
+    rng = np.random.default_rng(5)
+    q = random_poses(tool_changer, 200, rng)
+    field = 0.6 * MM * np.column_stack([np.sin(q[:, 0] + 2 * q[:, 1]), np.cos(q[:, 2] - q[:, 4]),
+                                        np.sin(2 * q[:, 4] + q[:, 1])])
+    text = _geometry_measurements(tool_changer, q, rng, placement_mm=0.1, placement_deg=0.1e-3 / DEG,
+                                  displacement=field)
+    result = diagnose(tool_changer, parse_measurements(text, tool_changer), folds=3, random_state=2,
+                      tracker_noise=NOISE, effects=["joint_offsets", "geometry", "compliance", "transmission"])
     assert result.steps[-1].heldout.rms > 2 * result.noise_floor
     assert result.structure_remains
 
@@ -116,13 +160,15 @@ def test_clearance_shows_as_scatter_without_structure(tool_changer):
 
 
 def test_geometry_only_as_built_urdf_reproduces_the_robot(tmp_path, ur5):
-    """Export and reload: the as-built URDF plus the tracker frame predict the measurements."""
-    effects = {"frames": {"spread_mm": {"base": 20.0, "tool": 1.0}, "spread_mrad": {"base": 5.0}},
-               "geometry": {"spread_mm": 0.3, "spread_mrad": 0.3},
-               "joint_offsets": {"spread_deg": 0.05}}
-    mset, _ = _simulate(ur5, effects, 150, seed=8, context={"directions": "none"})
+    """Export and reload: the as-built URDF plus the tracker frame predict the measurements (hidden
+    geometry, encoder offsets and TCP offset written on Pinocchio alone)."""
+    rng = np.random.default_rng(8)
+    q = random_poses(ur5, 150, rng)
+    text = _geometry_measurements(ur5, q, rng, placement_mm=0.3, placement_deg=0.3e-3 / DEG, offset_deg=0.05,
+                                  tcp_mm=(0.6, -0.9, 0.4))
+    mset = parse_measurements(text, ur5)
     csv = tmp_path / "meas.csv"
-    write_measurements(csv, ur5, mset)
+    csv.write_text(text)
     urdf = tmp_path / "asbuilt.urdf"
     out = tmp_path / "out.json"
     proc = subprocess.run([sys.executable, "-m", "tcr_accuracy", "diagnose", str(csv), "--robot", "ur5",
@@ -174,12 +220,13 @@ def test_too_few_measurements_is_an_input_error(tool_changer):
 
 def test_an_effect_left_with_no_parameter_does_not_stop_the_diagnosis(tool_changer):
     """At one constant temperature off the reference, thermal growth is a fixed geometric
-    error: once geometry is in the model it keeps no parameter of its own."""
+    error: once geometry is in the model it keeps no parameter of its own (the hidden robot:
+    geometry only, on Pinocchio alone, measured at 31 degC)."""
     rng = np.random.default_rng(11)
-    scenario = {"effects": {"frames": {"base_mm": {"dx": 15}}, "geometry": {"spread_mm": 0.3, "spread_mrad": 0.3}},
-                "context": {"temperature_c": 31.0, "temperature_spread_c": 0.0, "directions": "none",
-                            "payload_fraction": 0.0}}
-    mset, _ = simulate_measurements(tool_changer, scenario, 120, rng, noise_m=2e-5)
+    q = random_poses(tool_changer, 120, rng)
+    text = _geometry_measurements(tool_changer, q, rng, placement_mm=0.3, placement_deg=0.3e-3 / DEG,
+                                  context={"temperature_c": np.full(120, 31.0)})
+    mset = parse_measurements(text, tool_changer)
     assert np.all(mset.temperature_c == 31.0)
     result = diagnose(tool_changer, mset, effects=["geometry", "thermal", "joint_offsets"], folds=3,
                       tracker_noise=2e-5)

@@ -18,6 +18,10 @@ from tcr_accuracy.effects import (
 )
 from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.analysis.simulate import dominant_candidates, outside_vocabulary, simulate_measurements
+from tcr_accuracy.io.measurements import parse_measurements
+
+from hidden_robot import DEG, HiddenRobot, geometric_errors, hidden_free, in_tracker, measurement_csv, noisy, \
+    random_poses, tracker_frame
 
 
 class ElbowDroop(LinearEffect):
@@ -74,23 +78,43 @@ def test_the_vocabulary_is_read_from_the_classes():
         assert cls.summary, f"{name} has no summary for reports"
 
 
+def _droop_truth(robot, amplitude_rad, n, seed):
+    """The hidden truth of the droop test on Pinocchio alone (tests/hidden_robot.py, no effect
+    class): joint 3 at ``q3 + amplitude * cos(q1 - q2)``, joint placement errors of 0.05 mm /
+    0.05 mrad, the tracker 2.5 m away, 0.02 mm noise per axis. Returns the measurement CSV text."""
+    rng = np.random.default_rng(seed)
+    q = random_poses(robot, n, rng)
+    _, placements = geometric_errors(robot, rng, offset_deg=0.0, offset_mm=0.0, placement_mm=0.05,
+                                     placement_deg=0.05e-3 / DEG)
+    real = q.copy()
+    real[:, 2] += amplitude_rad * np.cos(q[:, 0] - q[:, 1])
+    tcp = robot.tool_frame
+    positions = HiddenRobot(robot, placements).positions(real, [tcp])[tcp]
+    measured = noisy(rng, in_tracker(tracker_frame(rng, 2.5), positions), 2e-5)
+    return measurement_csv(robot, q, {tcp: measured}, {}, per_frame=False)
+
+
 def test_a_new_effect_is_simulated_and_diagnosed_without_touching_anything_else(tool_changer):
     assert "elbow_droop" not in vocabulary()
+    amplitude = math.radians(0.25)
+    q = random_poses(tool_changer, 20, np.random.default_rng(4))
     with plugged_in(ElbowDroop):
         assert "elbow_droop" in vocabulary() and "elbow_droop" in dominant_candidates()
-        # the hidden truth: 0.25 deg of droop, next to the usual tracker frame and geometry
-        scenario = {"effects": {"frames": {"base_mm": {"dx": 20, "dy": -15}, "base_mrad": {"rz": 4}},
-                                "geometry": {"spread_mm": 0.05, "spread_mrad": 0.05},
-                                "elbow_droop": {"amplitude_deg": 0.25}},
-                    "context": {"directions": "none"}}
-        mset, truth = simulate_measurements(tool_changer, scenario, 200, np.random.default_rng(3))
-        assert truth["effects"]["elbow_droop"]["parameters"]["elbow_droop.amplitude"] == pytest.approx(
-            math.radians(0.25))
-        result = diagnose(tool_changer, mset, effects=["geometry", "joint_offsets", "elbow_droop"], folds=4)
+        # simulated: the droop alone moves the TCP as Pinocchio does with joint 3 turned by hand
+        scenario = {"effects": {"elbow_droop": {"amplitude_deg": 0.25}}, "context": {"directions": "none"}}
+        mset, truth = simulate_measurements(tool_changer, scenario, 0, np.random.default_rng(3), noise_m=0.0, q=q)
+        assert truth["effects"]["elbow_droop"]["parameters"]["elbow_droop.amplitude"] == pytest.approx(amplitude)
+        turned = q.copy()
+        turned[:, 2] += amplitude * np.cos(q[:, 0] - q[:, 1])
+        by_hand = hidden_free(tool_changer).positions(turned, [tool_changer.tool_frame])[tool_changer.tool_frame]
+        np.testing.assert_allclose(mset.position, by_hand, atol=1e-9)
+        # diagnosed: on data written without the effect classes, next to a tracker frame and geometry
+        data = parse_measurements(_droop_truth(tool_changer, amplitude, 200, seed=3), tool_changer)
+        result = diagnose(tool_changer, data, effects=["geometry", "joint_offsets", "elbow_droop"], folds=4)
     assert "elbow_droop" not in vocabulary()  # unplugged again
     assert result.primary_effect == "elbow_droop"
     fitted = result.parameters["elbow_droop"]["elbow_droop.amplitude"]
-    assert fitted == pytest.approx(math.radians(0.25), rel=0.05)
+    assert fitted == pytest.approx(amplitude, rel=0.05)
     assert result.steps[-1].heldout.rms < 2.0 * result.noise_floor
 
 

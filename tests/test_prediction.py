@@ -16,16 +16,17 @@ from tcr_accuracy.prediction.gaussian_process import JointGaussianProcess, make_
 from tcr_accuracy.prediction.kriging import JointKriging
 from tcr_accuracy.prediction.local_gp import LocalGaussianProcess
 from tcr_accuracy.prediction.methods import METHODS, make_predictor
-from tcr_accuracy.analysis.stand_in import make_stand_in_robot
 from tcr_accuracy.analysis.similarity import pair_distances, spatial_similarity
+from hidden_robot import draw_tracked_robot
 
 UR5_REF = np.array([0.3, -1.2, 1.5, -1.9, -1.57, 0.4])
 
 
 @pytest.fixture(scope="module")
 def hidden_geometry(ur5):
-    """A UR5 with hidden geometric errors only (no payload, no compliance, no noise)."""
-    real = make_stand_in_robot(ur5, np.random.default_rng(7), payload_kg=0.0, noise_m=0.0)
+    """A UR5 with hidden geometric errors only (no payload, no compliance, no noise), on Pinocchio
+    alone (tests/hidden_robot.py)."""
+    real = draw_tracked_robot(ur5, np.random.default_rng(7), payload_kg=0.0, noise_m=0.0)
     real.compliance[:] = 0.0
     rng = np.random.default_rng(8)
     q_train = UR5_REF + rng.uniform(-0.3, 0.3, (120, 6))
@@ -110,17 +111,31 @@ def test_predictors_beat_the_mean_on_a_hidden_geometric_error_field(hidden_geome
         assert _rms(model.predict(q_test) - e_test) < baseline / factor, type(model).__name__
 
 
+# RMS prediction miss over the RMS hidden error at the 60 unseen poses of hidden_geometry (noise-free
+# geometry), measured 2026-11-26: kriging 4.2e-3, kriging-pf 3.9e-3, gp and local-gp 1.0e-3, idw-joint
+# 0.25, idw-cartesian 0.22, mlp-cartesian 0.046, calibration 4.7e-7, calibration+gp and
+# calibration+local-gp 1.1e-8, diagnosis 5.4e-4, diagnosis+gp 6.5e-6. Each bound is 2-5 x that
+# (more for the iterative fits, whose stopping points move with the library versions).
+RELATIVE_MISS = {"kriging": 0.02, "kriging-pf": 0.02, "gp": 5e-3, "local-gp": 5e-3, "idw-joint": 0.5,
+                 "idw-cartesian": 0.5, "mlp-cartesian": 0.15, "calibration": 1e-5, "calibration+gp": 1e-6,
+                 "calibration+local-gp": 1e-6, "diagnosis": 3e-3, "diagnosis+gp": 5e-5}
+
+
+def test_every_method_has_its_measured_accuracy():
+    assert set(RELATIVE_MISS) == set(METHODS)
+
+
 @pytest.mark.parametrize("method", METHODS)
 def test_every_method_name_builds_an_estimator_that_predicts_the_hidden_error(method, hidden_geometry):
     """The names the commands offer (--method reads METHODS) each build an estimator that fits
-    the hidden error field and predicts it at unseen poses better than no correction."""
+    the hidden error field and predicts it at unseen poses to the accuracy it reaches there."""
     robot, real, q_train, e_train, q_test, e_test = hidden_geometry
     model = make_predictor(method, robot, random_state=0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)  # noise-free data; the MLP's iteration cap
         predicted = model.fit(q_train, e_train).predict(q_test)
     assert predicted.shape == e_test.shape
-    assert _rms(predicted - e_test) < 0.5 * _rms(e_test)
+    assert _rms(predicted - e_test) < RELATIVE_MISS[method] * _rms(e_test)
 
 
 def test_an_unknown_method_name_lists_the_known_ones(ur5):
@@ -131,12 +146,12 @@ def test_an_unknown_method_name_lists_the_known_ones(ur5):
 def test_calibration_recovers_the_hidden_error_and_reports_identifiable_parameters(hidden_geometry):
     robot, real, q_train, e_train, q_test, e_test = hidden_geometry
     model = GeometricCalibration(robot=robot).fit(q_train, e_train)
-    assert 20 <= len(model.identifiable_) < real.error_model.size  # position data cannot see everything
+    assert 20 <= len(model.identifiable_) < 7 * 6 + 12  # of 54 parameters: position data cannot see everything
     assert _rms(model.predict(q_test) - e_test) < 1e-7
 
 
 def test_residual_corrected_adds_a_model_of_what_calibration_leaves(ur5):
-    real = make_stand_in_robot(ur5, np.random.default_rng(9), payload_kg=5.0, noise_m=0.0)
+    real = draw_tracked_robot(ur5, np.random.default_rng(9), payload_kg=5.0, noise_m=0.0)
     rng = np.random.default_rng(10)
     q_train = UR5_REF + rng.uniform(-0.3, 0.3, (100, 6))
     q_test = UR5_REF + rng.uniform(-0.25, 0.25, (40, 6))
