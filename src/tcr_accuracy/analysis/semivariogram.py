@@ -93,11 +93,19 @@ def empirical_semivariogram(q: np.ndarray, errors: np.ndarray, n_bins: int = 20,
         i = rng.integers(0, n, max_pairs)
         k = rng.integers(0, n - 1, max_pairs)
         k += k >= i  # a pose other than i, uniformly
-        distance = np.sqrt(np.sum((q[i] - q[k]) ** 2, axis=1))
+        # in place: the pairs' differences are (max_pairs, n_joints), 96 MB each at 2 x 10^6 pairs
+        difference = q[i]
+        difference -= q[k]
+        np.square(difference, out=difference)
+        distance = np.sqrt(np.sum(difference, axis=1))
+        del difference
     else:
         distance = pdist(q)
         i, k = np.triu_indices(n, 1)
-    squared = 0.5 * (errors[i] - errors[k]) ** 2
+    squared = errors[i]
+    squared -= errors[k]
+    np.square(squared, out=squared)
+    squared *= 0.5
     edges = np.linspace(distance.min(), distance.max(), n_bins + 1)
     which = np.clip(np.searchsorted(edges, distance, side="right") - 1, 0, n_bins - 1)
     counts = np.bincount(which, minlength=n_bins)

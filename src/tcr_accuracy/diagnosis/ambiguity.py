@@ -153,7 +153,11 @@ def stand_in_shapes(engine: FitEngine, current: list, pool, rng: np.random.Gener
     temperature are left out (their leftover is not a function of the joint values)."""
     final_cols = engine.columns(ordered(current))
     basis, g, idx = final_cols.per_part[0]
-    model = g[:, :3, :].reshape(-1, g.shape[2]) * final_cols.scale[idx] if g.shape[2] else None
+    model = None
+    if g.shape[2]:  # the gathered columns times their scales, filled without the gathered copy
+        model = np.zeros(g.shape)
+        g.scaled_into(model, np.arange(g.shape[2]), final_cols.scale[idx])
+        model = model[:, :3, :].reshape(-1, g.shape[2])
     shapes = {}
     # the structure test looks for what the joint values predict: an effect driven by the
     # approach direction or the temperature leaves a pattern it is not built to see (the

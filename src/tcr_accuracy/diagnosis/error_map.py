@@ -8,8 +8,10 @@ is the same for every pose (link geometry, frames) or lives in the n_joints driv
 the three parts apart:
 
 * ``fixed`` (p_em, k): the part that is the same for every pose;
-* ``per_pose`` (N, p_em, k_pose) for the columns ``pose_columns`` whose error-vector entries
-  change with the pose (lateral compliance, thermal growth);
+* ``per_pose`` (N, e, k_pose) for the columns ``pose_columns`` whose error-vector entries
+  change with the pose (lateral compliance, thermal growth), over the e entries ``pose_entries``
+  of the error vector they move (a few of its p_em: stored whole it was 95 MB at 10^4 poses for
+  the vocabulary's three such effects, 12 MB over their entries);
 * ``drive`` (N, n_joints, k_drive) for the columns ``drive_columns``: joint-side offsets,
   placed in the error model's drive slice; where each of them moves one joint only (every
   per-joint effect: offsets, compliance, gear errors, a cyclic series of 300 terms), stored as
@@ -22,15 +24,20 @@ import numpy as np
 
 
 class ErrorMap:
-    """x(theta) = fixed @ theta + per_pose @ theta[pose_columns] + drive @ theta[drive_columns]
+    """x(theta) = fixed @ theta + per_pose @ theta[pose_columns] (into pose_entries) + drive @ theta[drive_columns]
     (the last into the drive slice), per pose."""
+
+    #: poses at a time where a product over all poses would be a large temporary
+    CHUNK = 2048
 
     def __init__(self, n_poses: int, size: int, drive_slice: slice, fixed: np.ndarray,
                  per_pose: np.ndarray | None = None, pose_columns=(), drive: np.ndarray | None = None,
-                 drive_columns=(), drive_joint=None):
+                 drive_columns=(), drive_joint=None, pose_entries=None):
         self.n_poses, self.size, self.drive_slice = n_poses, size, drive_slice
         self.fixed = fixed
         self.per_pose, self.pose_columns = per_pose, np.asarray(pose_columns, dtype=int)
+        #: (e,) the error-vector entries ``per_pose`` moves (its second axis); None: all p_em of them
+        self.pose_entries = np.arange(size) if pose_entries is None else np.asarray(pose_entries, dtype=int)
         self.drive, self.drive_columns = drive, np.asarray(drive_columns, dtype=int)
         #: (k_drive,) the joint each drive column moves, when ``drive`` is (N, k_drive); else None
         self.drive_joint = None if drive_joint is None else np.asarray(drive_joint, dtype=int)
@@ -53,14 +60,16 @@ class ErrorMap:
         """From an effect's parameter Jacobian: x (p_em, k) or (N, p_em, k) or None, dq (N,
         n_joints, k) or None. Columns that are zero in a part are not stored in it."""
         fixed = np.zeros((size, k))
-        per_pose, pose_columns = None, []
+        per_pose, pose_columns, pose_entries = None, [], None
         if x is not None and x.ndim == 2:
             fixed += x
         elif x is not None:
             moving = np.any(x != x[:1], axis=(0, 1))  # columns that differ between poses
             fixed += x[0] * ~moving
             pose_columns = np.flatnonzero(moving)
-            per_pose = np.ascontiguousarray(x[:, :, pose_columns]) if pose_columns.size else None
+            if pose_columns.size:
+                pose_entries = np.flatnonzero(np.any(x[:, :, pose_columns] != 0, axis=(0, 2)))
+                per_pose = np.ascontiguousarray(x[:, pose_entries][:, :, pose_columns])
         drive, drive_columns, drive_joint = None, [], None
         if dq is not None:
             moved = np.any(dq != 0, axis=0)  # (n_joints, k): which joints each column moves
@@ -70,7 +79,8 @@ class ErrorMap:
                 drive = np.ascontiguousarray(dq[:, drive_joint, drive_columns])
             elif drive_columns.size:
                 drive = np.ascontiguousarray(dq[:, :, drive_columns])
-        return cls(n_poses, size, drive_slice, fixed, per_pose, pose_columns, drive, drive_columns, drive_joint)
+        return cls(n_poses, size, drive_slice, fixed, per_pose, pose_columns, drive, drive_columns, drive_joint,
+                   pose_entries)
 
     @property
     def n_columns(self) -> int:
@@ -78,16 +88,20 @@ class ErrorMap:
 
     def errors(self, theta: np.ndarray, rows=None) -> np.ndarray:
         """Error vectors (len(rows) or N, p_em) at parameters theta (k,)."""
+        rows = None if rows is None else np.asarray(rows)
         n = self.n_poses if rows is None else len(rows)
         out = np.empty((n, self.size))
         out[:] = self.fixed @ theta
         if self.per_pose is not None:
-            out += _rows(self.per_pose @ theta[self.pose_columns], rows)
+            out[:, self.pose_entries] += _rows(self.per_pose @ theta[self.pose_columns], rows)
         if self.drive is not None and self.drive_joint is not None:
-            values = _rows(self.drive, rows) * theta[self.drive_columns]
             joint = np.zeros((len(self.drive_joint), self.n_drive))
             joint[np.arange(len(self.drive_joint)), self.drive_joint] = 1.0
-            out[:, self.drive_slice] += values @ joint
+            weights = theta[self.drive_columns]
+            for start in range(0, n, self.CHUNK):  # the (N, k_drive) products a chunk of poses at a time
+                part = slice(start, start + self.CHUNK)
+                values = (self.drive[part] if rows is None else self.drive[rows[part]]) * weights
+                out[part, self.drive_slice] += values @ joint
         elif self.drive is not None:
             out[:, self.drive_slice] += _rows(self.drive @ theta[self.drive_columns], rows)
         return out
@@ -96,9 +110,14 @@ class ErrorMap:
         """The TCP sensitivity (N, r, k) for error Jacobians jac_x (N, r, p_em)."""
         g = jac_x @ self.fixed
         if self.per_pose is not None:
-            g[:, :, self.pose_columns] += jac_x @ self.per_pose  # batched over poses
+            g[:, :, self.pose_columns] += jac_x[:, :, self.pose_entries] @ self.per_pose  # batched over poses
         if self.drive is not None and self.drive_joint is not None:
-            g[:, :, self.drive_columns] += jac_x[:, :, self.drive_slice][:, :, self.drive_joint] * self.drive[:, None, :]
+            # a chunk of poses at a time: whole, the gathered Jacobian columns and their product were two
+            # more (N, r, k) arrays, 80 MB each for a cyclic series of 336 terms at 10^4 poses
+            for start in range(0, g.shape[0], self.CHUNK):
+                rows = slice(start, start + self.CHUNK)
+                g[rows, :, self.drive_columns] += (jac_x[rows][:, :, self.drive_slice][:, :, self.drive_joint]
+                                                   * self.drive[rows, None, :])
         elif self.drive is not None:
             g[:, :, self.drive_columns] += jac_x[:, :, self.drive_slice] @ self.drive
         return g
@@ -109,10 +128,12 @@ class ErrorMap:
         pose_pos, pose_new = _positions(self.pose_columns, columns)
         drive_pos, drive_new = _positions(self.drive_columns, columns)
         compact = self.drive_joint is not None
-        drive = None if not drive_pos.size else (self.drive[:, drive_pos] if compact else self.drive[:, :, drive_pos])
+        drive = None if not drive_pos.size else (_columns(self.drive, drive_pos) if compact else
+                                                 self.drive[:, :, drive_pos])
         return ErrorMap(self.n_poses, self.size, self.drive_slice, self.fixed[:, columns],
-                        self.per_pose[:, :, pose_pos] if pose_pos.size else None, pose_new,
-                        drive, drive_new, self.drive_joint[drive_pos] if compact and drive_pos.size else None)
+                        _columns(self.per_pose, pose_pos) if pose_pos.size else None, pose_new,
+                        drive, drive_new, self.drive_joint[drive_pos] if compact and drive_pos.size else None,
+                        self.pose_entries)
 
     @classmethod
     def concatenate(cls, maps: list["ErrorMap"]) -> "ErrorMap":
@@ -120,17 +141,40 @@ class ErrorMap:
         first = maps[0]
         offsets = np.cumsum([0] + [m.n_columns for m in maps])
         fixed = np.concatenate([m.fixed for m in maps], axis=1)
-        pose = [(m.per_pose, m.pose_columns + o) for m, o in zip(maps, offsets) if m.per_pose is not None]
+        pose = [(m.per_pose, m.pose_columns + o, m.pose_entries) for m, o in zip(maps, offsets)
+                if m.per_pose is not None]
+        entries = np.unique(np.concatenate([e for _, _, e in pose])) if pose else None
+        if len(pose) > 1:  # the entries any of them moves, each map's zero in the others'
+            pose = [(_embedded(p, e, entries), c, entries) for p, c, e in pose]
         driven = [m for m in maps if m.drive is not None]
         compact = bool(driven) and all(m.drive_joint is not None for m in driven)
         drive = [(m.drive if compact else m.dense_drive(), m.drive_columns + o)
                  for m, o in zip(maps, offsets) if m.drive is not None]
         return cls(first.n_poses, first.size, first.drive_slice, fixed,
-                   np.concatenate([p for p, _ in pose], axis=2) if pose else None,
-                   np.concatenate([c for _, c in pose]) if pose else (),
-                   np.concatenate([d for d, _ in drive], axis=1 if compact else 2) if drive else None,
+                   _joined([p for p, _, _ in pose], axis=2) if pose else None,
+                   np.concatenate([c for _, c, _ in pose]) if pose else (),
+                   _joined([d for d, _ in drive], axis=1 if compact else 2) if drive else None,
                    np.concatenate([c for _, c in drive]) if drive else (),
-                   np.concatenate([m.drive_joint for m in driven]) if compact else None)
+                   np.concatenate([m.drive_joint for m in driven]) if compact else None, entries)
+
+
+def _columns(values: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """values[..., positions]; the array itself (no copy) when that is all of it in order."""
+    if positions.size == values.shape[-1] and np.array_equal(positions, np.arange(positions.size)):
+        return values
+    return values[..., positions]
+
+
+def _joined(arrays: list, axis: int) -> np.ndarray:
+    """np.concatenate, without the copy of a single array."""
+    return arrays[0] if len(arrays) == 1 else np.concatenate(arrays, axis=axis)
+
+
+def _embedded(values: np.ndarray, entries: np.ndarray, into: np.ndarray) -> np.ndarray:
+    """(N, e, k) values over error entries ``entries`` spread over the entries ``into`` (a superset), zero elsewhere."""
+    out = np.zeros((values.shape[0], into.size, values.shape[2]))
+    out[:, np.searchsorted(into, entries)] = values
+    return out
 
 
 def _rows(values: np.ndarray, rows) -> np.ndarray:
