@@ -65,6 +65,9 @@ def test_top_level_names_load_and_are_listed():
         robot=r, rank_tol=float("nan")), "The 'rank_tol' parameter of GeometricCalibration"),
     (lambda r: tcr_accuracy.GapDiagnosis(robot=r, tracker_noise=-2e-5), "The 'tracker_noise' parameter of GapDiagnosis"),
     (lambda r: tcr_accuracy.GapDiagnosis(robot=r, selection_z=-3.0), "The 'selection_z' parameter of GapDiagnosis"),
+    # no replay, no frequency (it divided by zero deep in the attribution before)
+    (lambda r: tcr_accuracy.GapDiagnosis(robot=r, stability_replays=0),
+     r"The 'stability_replays' parameter of GapDiagnosis must be an int in the range \[1, 100000\]"),
 ])
 def test_29_10_a_hyperparameter_outside_its_range_is_refused_when_fit_starts(make, said, tool_changer):
     from sklearn.utils._param_validation import InvalidParameterError

@@ -187,7 +187,8 @@ class GapDiagnosis(BaseEstimator):
     orientation_weight : float, default=None
         [m/rad] weight of measured orientation; None: the measured points' RMS spread.
     stability_replays : int, default=50
-        Bootstrap replays of the selection that give each effect's selection frequency.
+        Bootstrap replays of the selection that give each effect's selection frequency (at least 1:
+        a frequency needs a replay).
     fold_repeats : int or None, default=None
         Fold assignments of the repeated k-fold cross-validation: every held-out figure and
         test is over all of them, so that the answer does not hang on one split of the rows.
@@ -233,7 +234,7 @@ class GapDiagnosis(BaseEstimator):
         "min_relative_gain": [Interval(Real, 0, 1, closed="left")],
         "rank_tol": [Interval(Real, 0, 1, closed="neither")],
         "orientation_weight": [None, Interval(Real, 0, 1e3, closed="neither")],
-        "stability_replays": [Interval(Integral, 0, 100_000, closed="both")],
+        "stability_replays": [Interval(Integral, 1, 100_000, closed="both")],
         "fold_repeats": [None, Interval(Integral, 1, 1000, closed="both")],
     }
 
