@@ -4,7 +4,7 @@ and identifiability's R factor by a tall-skinny QR (R^T R = A^T A)."""
 
 import numpy as np
 
-from tcr_accuracy.diagnosis import fitting, identifiability
+from tcr_accuracy.diagnosis import fit_columns, identifiability
 from tcr_accuracy.diagnosis.error_map import ErrorMap
 from tcr_accuracy.diagnosis.identifiability import SensitivityColumns, compressed
 
@@ -65,11 +65,11 @@ def test_error_map_over_its_moving_entries_equals_the_dense_map(monkeypatch):
 
 
 def test_jacobian_filled_by_chunks_equals_gathered_columns_times_scales(monkeypatch):
-    monkeypatch.setattr(fitting.Sensitivity, "CHUNK", 7)
+    monkeypatch.setattr(fit_columns.Sensitivity, "CHUNK", 7)
     rng = np.random.default_rng(4)
     g1, g2 = rng.standard_normal((N, 3, 5)), rng.standard_normal((N, 3, 4))
     cols1, cols2 = np.array([4, 0, 2]), np.array([1, 3])
-    s = fitting.Sensitivity([(g1, cols1), (g2, cols2)])
+    s = fit_columns.Sensitivity([(g1, cols1), (g2, cols2)])
     gathered = np.concatenate([g1[:, :, cols1], g2[:, :, cols2]], axis=2)
     np.testing.assert_array_equal(s[:, :3, :], gathered)
     scale = rng.random(5) + 0.5

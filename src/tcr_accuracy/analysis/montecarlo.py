@@ -23,6 +23,9 @@ means are below 3e-4 mm, so such a combination could reach at most 4.6e-4 mm), n
 |dP| minus its mean (Table 3's tails are nearly symmetric, -3.5 / +4.2 std, where a
 centred norm gives about -1.9 / +5.3). We report ``dp`` as the signed radial error,
 which has the seed row's sign behaviour and is defined independently of the frame.
+
+One concept, the chunked Monte Carlo run and its merged statistics (the chunk loop, the Dask path
+and the reliability read from the same summaries), and so one module above 500 lines.
 """
 
 from __future__ import annotations

@@ -3,6 +3,9 @@
 Edge layer: reads the CSV, runs :func:`tcr_accuracy.diagnosis.diagnose.diagnose`, prints the
 summary (mm, labelled), writes JSON, the Markdown/HTML report with plots, and the calibration
 URDF with the whole model beside it (the export's builder and model format, :mod:`tcr_accuracy.asbuilt`).
+
+One concept, the ``diagnose`` command (its flags, the run and what it writes), and so one module at
+the 500-line bound.
 """
 
 from __future__ import annotations

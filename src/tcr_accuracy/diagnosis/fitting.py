@@ -17,12 +17,15 @@ Residual rows per measured frame: the three position components [m], and with me
 orientation three rotation-vector components [rad] multiplied by the part's
 ``orientation_weight`` [m/rad] (an angle counts as the position error it makes at that
 distance).
+
+One concept, the fit engine (one class: fit, fold scores and the cyclic penalty share its state), and so
+one module above 500 lines; the columns and their chunked products are in
+:mod:`tcr_accuracy.diagnosis.fit_columns`.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -33,6 +36,7 @@ from .bases import Part, ordered
 from .error_map import ErrorMap
 from .identifiability import compressed, identifiability
 from .least_squares import DampedSolver, cholesky_solve
+from .fit_columns import Columns, Sensitivity, gradient_vector, gram_matrix, moved_rows
 from .paired import row_squares
 
 
@@ -235,7 +239,7 @@ class FitEngine:
             self.n_fits += 1
             return phi, residual
         jacs = self._jacobians(cols) if jacobians is None else jacobians
-        return self._minimise(cols, jacs, rows, _gram(jacs, rows) if gram is None else gram, phi, residual)
+        return self._minimise(cols, jacs, rows, gram_matrix(jacs, rows) if gram is None else gram, phi, residual)
 
     def _minimise(self, cols: "Columns", jacs: list, rows, gram: np.ndarray, phi: np.ndarray,
                   residual: list[np.ndarray], penalty: float = 0.0):
@@ -268,7 +272,7 @@ class FitEngine:
         # first an undamped step: the model is nearly linear, so it usually lands on the optimum
         damping, growth = 0.0, 2.0
         for _ in range(self.MAX_EVALUATIONS):
-            step, predicted = damped.step(_gradient(jacs, self._weighted(residual, rows), rows, self.n_rows)
+            step, predicted = damped.step(gradient_vector(jacs, self._weighted(residual, rows), rows, self.n_rows)
                                           + weights * phi, damping, cols.lower - phi, cols.upper - phi)
             if predicted <= self.COST_TOLERANCE * cost:
                 break  # the linear model cannot lower the cost any further
@@ -349,7 +353,7 @@ class FitEngine:
                 return float(grid[len(grid) // 2])
             key = id(folds)
             if key not in gradients_of:
-                gradients_of[key] = [_gradient(jacs, self._weighted([r[test] for r in residual], test), test,
+                gradients_of[key] = [gradient_vector(jacs, self._weighted([r[test] for r in residual], test), test,
                                                self.n_rows)
                                      for _, test in folds]
             gradients = gradients_of[key]
@@ -444,8 +448,8 @@ class FitEngine:
             [np.zeros(k), mapped(list(self._last), list(self._last.values()))]
         phi, train = self._best_start(cols, starts, every)
         jacs = self._jacobians(cols) if k else []
-        gram = _gram(jacs, None) if jacs else None
-        fold_grams = [[_gram(jacs, test) for _, test in folds] for folds in self.repeats] if k else []
+        gram = gram_matrix(jacs, None) if jacs else None
+        fold_grams = [[gram_matrix(jacs, test) for _, test in folds] for folds in self.repeats] if k else []
         penalties = self._penalties(cols, jacs, fold_grams, train, phi) if k and cols.penalty.any() else None
         if k:
             phi, train = self._minimise(cols, jacs, None, gram, phi, train,
@@ -453,7 +457,7 @@ class FitEngine:
         else:
             self.n_fits += 1
         self._last.update(zip(cols.names, phi))
-        total_gradient = _gradient(jacs, self._weighted(train, None), None, self.n_rows) if k else None
+        total_gradient = gradient_vector(jacs, self._weighted(train, None), None, self.n_rows) if k else None
         repeats, fold_phi = [], []
         for r, folds in enumerate(self.repeats):
             oof = [np.empty((self.n_rows, p.rows_per_pose)) for p in self.parts]
@@ -461,7 +465,7 @@ class FitEngine:
                 phi_k = phi
                 if k:  # one step from the full fit, on the normal equations less the held-out rows
                     lam = penalties["folds"][r][f] if penalties else 0.0
-                    held_gradient = _gradient(jacs, self._weighted([res[test] for res in train], test), test,
+                    held_gradient = gradient_vector(jacs, self._weighted([res[test] for res in train], test), test,
                                               self.n_rows)
                     phi_k = self._fold_step(cols, gram - fold_grams[r][f], phi, total_gradient - held_gradient, lam)
                 if r == 0:
@@ -470,7 +474,7 @@ class FitEngine:
                     # the held-out rows at the fold's fit: the exact residual at the full fit moved by
                     # the Jacobian (the fold's fit is within a step of it; second order is below noise)
                     oof[p][test] = res[test] if jac is None else res[test] + self._unweighted(
-                        p, test, _moved(jac, test, phi_k - phi))
+                        p, test, moved_rows(jac, test, phi_k - phi))
             repeats.append(oof)
         oof = repeats[0] if repeats else [np.zeros((self.n_rows, p.rows_per_pose)) for p in self.parts]
         heldout_repeats = [self._positions(o) for o in repeats]
@@ -510,95 +514,9 @@ class FitEngine:
         return rot[0] if len(rot) == 1 else np.concatenate(rot)
 
 
-class Sensitivity:
-    """A model's TCP sensitivity (N, r, k) on one part, left in its effects' own arrays: the kept
-    columns of each effect's ``g`` side by side, gathered only where they are used. A model of the
-    whole vocabulary with the cyclic effect is (10^4, 3, ~400) floats, 100 MB; gathered, then scaled
-    into the Jacobian, it was held three times over at the diagnosis' peak."""
-
-    #: poses gathered at once (a few MB of temporaries at a few hundred columns)
-    CHUNK = 2048
-
-    def __init__(self, sources: list):
-        self.sources = sources  # [(g (N, r, P_e) of one effect, the kept columns of it (k_e,))]
-        first = sources[0][0] if sources else None
-        k = sum(c.size for _, c in sources)
-        self.shape = (first.shape[0], first.shape[1], k) if first is not None else (0, 0, 0)
-
-    def scaled_into(self, block: np.ndarray, idx: np.ndarray, scale: np.ndarray) -> None:
-        """block[:, :, idx] = the gathered columns times scale (k,), a chunk of poses at a time."""
-        offset = 0
-        for g, cols in self.sources:
-            where, factor = idx[offset:offset + cols.size], scale[offset:offset + cols.size]
-            offset += cols.size
-            for start in range(0, g.shape[0], self.CHUNK):
-                stop = start + self.CHUNK
-                block[start:stop, :, where] = g[start:stop][:, :, cols] * factor
-
-    def __getitem__(self, key) -> np.ndarray:
-        """The gathered array (N, r, k), indexed (what a caller reading the columns needs)."""
-        if not self.sources:
-            return np.zeros(self.shape)[key]
-        return np.concatenate([g[:, :, cols] for g, cols in self.sources], axis=2)[key]
-
-
-@dataclass(frozen=True)
-class Columns:
-    """The kept parameters of a model: union names and scales, per part (basis, g, index),
-    and the bounds of the scaled parameters phi = theta / scale (the fit range)."""
-
-    names: list
-    scale: np.ndarray
-    per_part: list
-    lower: np.ndarray
-    upper: np.ndarray
-    penalty: np.ndarray  # (k,) smoothness-penalty weights (0: not penalised), times lambda in a fit
-
-    def clip(self, phi: np.ndarray) -> np.ndarray:
-        """phi moved into the bounds."""
-        return np.clip(phi, self.lower, self.upper)
-
-
 def _flat(per_part: list[np.ndarray]) -> np.ndarray:
     return np.concatenate([r.ravel() for r in per_part])
 
 
 def _rows(rows, n: int) -> np.ndarray:
     return np.arange(n) if rows is None else rows
-
-
-def _moved(jac: np.ndarray, rows: np.ndarray, step: np.ndarray) -> np.ndarray:
-    """jac[rows] @ step, (len(rows), r), a chunk of rows at a time (jac[rows] whole was a copy of a
-    fifth of the Jacobian per fold)."""
-    out = np.empty((len(rows), jac.shape[1]))
-    for start in range(0, len(rows), Sensitivity.CHUNK):
-        part = slice(start, start + Sensitivity.CHUNK)
-        out[part] = jac[rows[part]] @ step
-    return out
-
-
-def _gram(jacs: list[np.ndarray], rows) -> np.ndarray:
-    """J^T J over the given rows (None: all) of the parts' Jacobians (N, r, k)."""
-    k = jacs[0].shape[2]
-    if rows is None:
-        return sum(j.reshape(-1, k).T @ j.reshape(-1, k) for j in jacs)
-    total = np.zeros((k, k))
-    for j in jacs:  # a fold's rows a chunk at a time: j[rows] whole was a copy of a fifth of the Jacobian
-        for start in range(0, len(rows), Sensitivity.CHUNK):
-            block = j[rows[start:start + Sensitivity.CHUNK]].reshape(-1, k)
-            total += block.T @ block
-    return total
-
-
-def _gradient(jacs: list[np.ndarray], residual: list[np.ndarray], rows, n: int) -> np.ndarray:
-    """J^T r for residuals on the given rows (None: all): zero-padded to all rows, so the
-    Jacobians' rows are never copied."""
-    k = jacs[0].shape[2]
-    total = np.zeros(k)
-    for j, r in zip(jacs, residual):
-        if rows is not None:
-            padded = np.zeros((n, r.shape[1]))
-            padded[rows] = r
-            r = padded
-        total += j.reshape(-1, k).T @ r.ravel()
-    return total

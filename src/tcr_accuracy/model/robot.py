@@ -18,6 +18,9 @@ Conventions, stated once:
 * A URDF ``<mimic>`` joint stays an ordinary joint of the model (so its offset can
   be fitted like any other); where its value is not given, it follows its rule
   ``q = multiplier * q_source + offset`` (:attr:`RobotModel.mimic`).
+
+One concept, the robot (:class:`RobotModel` and the loading that builds it: URDF, example-robot-data
+or the built-in tool-changer, chain and mimic rules), and so one module above 500 lines.
 """
 
 from __future__ import annotations
