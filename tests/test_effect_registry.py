@@ -1,4 +1,4 @@
-"""The effect classes are the only registry: a new effect plugs in without touching anything else."""
+"""The registered effect classes are the vocabulary: a new effect plugs in by registering its class, without touching anything else."""
 
 import math
 
@@ -13,7 +13,7 @@ from tcr_accuracy.effects import (
     effect_classes,
     make_effect,
     plugged_in,
-    unregister,
+    register,
     vocabulary,
 )
 from tcr_accuracy.exceptions import InputError
@@ -59,8 +59,22 @@ class ElbowDroop(LinearEffect):
         return {"amplitude_deg": float(rng.uniform(0.2, 0.4))}
 
 
-# defining the class registered it; the tests below plug it in only where they need it
-unregister("elbow_droop")
+def test_an_effect_joins_the_vocabulary_only_when_registered_and_never_under_a_taken_name():
+    """Defining a class registers nothing (the package lists its effects); registering a second
+    class under a built-in's name is refused; an abstract class or one without a name of its own is no effect."""
+    assert "elbow_droop" not in vocabulary()
+    with plugged_in(ElbowDroop):
+        assert "elbow_droop" in vocabulary() and effect_class("elbow_droop") is ElbowDroop
+    assert "elbow_droop" not in vocabulary()
+
+    class Impostor(ElbowDroop):
+        name = "compliance"
+
+    with pytest.raises(TypeError, match="effect name 'compliance' is taken by"):
+        register(Impostor)
+    with pytest.raises(TypeError, match="not a concrete Effect class"):
+        register(LinearEffect)
+    assert effect_class("compliance") is not Impostor
 
 
 def test_the_vocabulary_is_read_from_the_classes():

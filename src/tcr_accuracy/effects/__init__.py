@@ -1,10 +1,11 @@
 """The effect library: one module per effect that can open a gap between model and robot.
 
-Every module of this package that defines an :class:`Effect` subclass with a ``name``
-plugs it in: importing the package imports them all, and the classes are the registry
+Each effect is one class in one module of this package, registered below by name (:func:`register`,
+in the explicit list :data:`BUILT_IN`); the registered classes are the vocabulary
 (:func:`effect_classes`, :func:`vocabulary`, :func:`make_effect`). ``diagnose``,
 ``simulate``, the CLI and the reports read names, order, context needs, sign
-constraints and display from the classes, so a new effect is one new file here.
+constraints and display from the classes, so a new effect is one new file here and one
+line in :data:`BUILT_IN`.
 
 Vocabulary (in :func:`vocabulary` order): ``frames``, ``joint_offsets``, ``geometry``,
 ``compliance``, ``backlash``, ``thermal``, ``transmission``, ``encoder_scale``,
@@ -18,9 +19,6 @@ parameters.
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
-
 from .base import (
     Effect,
     EffectJacobian,
@@ -33,6 +31,7 @@ from .base import (
     make_effect,
     plugged_in,
     reference_poses,
+    register,
     unregister,
     vocabulary,
 )
@@ -45,15 +44,31 @@ from .compose import (
     total_perturbation,
 )
 
-_INFRASTRUCTURE = {"base", "compose"}
+from .backlash import Backlash
+from .clearance import Clearance
+from .compliance import Compliance
+from .cyclic import CyclicError
+from .drift import Drift
+from .encoder_scale import EncoderScale
+from .frames import Frames
+from .geometry import Geometry
+from .joint_offsets import JointOffsets
+from .lateral_compliance import LateralCompliance
+from .link_bending import LinkBending
+from .thermal import Thermal
+from .transmission import Transmission
+from .unmodelled import Unmodelled
 
-for _module in pkgutil.iter_modules(__path__):
-    if _module.name not in _INFRASTRUCTURE and not _module.name.startswith("_"):
-        importlib.import_module(f"{__name__}.{_module.name}")
+#: The effects the package brings, registered once here (their order in the vocabulary is each
+#: class's ``order``, not this list's).
+BUILT_IN = (Frames, JointOffsets, Geometry, Compliance, LateralCompliance, LinkBending, Backlash, Thermal,
+            EncoderScale, Transmission, CyclicError, Clearance, Drift, Unmodelled)
+for _cls in BUILT_IN:
+    register(_cls)
 
 __all__ = [
-    "Effect", "EffectJacobian", "EffectOutput", "ErrorVectorEffect", "LinearEffect", "PerJointEffect", "effect_class",
+    "BUILT_IN", "Effect", "EffectJacobian", "EffectOutput", "ErrorVectorEffect", "LinearEffect", "PerJointEffect", "effect_class",
     "effect_classes", "make_effect", "parameter_names", "plugged_in", "predict_poses", "predict_positions",
-    "prediction_jacobian", "reference_poses", "split_parameters", "total_perturbation", "unregister",
+    "prediction_jacobian", "reference_poses", "register", "split_parameters", "total_perturbation", "unregister",
     "vocabulary",
 ]

@@ -1,8 +1,9 @@
 """The interface every effect shares, and the registry that is nothing but the classes.
 
 An effect is one class, in one module of this package, deriving from :class:`Effect`
-(or :class:`LinearEffect`). Defining the class registers it: ``diagnose``, ``simulate``,
-the CLI and the reports read everything they need from the class itself:
+(or :class:`LinearEffect`), registered by name with :func:`register` (the package lists the built-in
+ones in :mod:`tcr_accuracy.effects`): ``diagnose``, ``simulate``, the CLI and the reports read
+everything they need from the class itself:
 
 ==========================  ===========================================================
 class attribute             meaning
@@ -91,7 +92,7 @@ class EffectJacobian:
     x: np.ndarray | None = None
 
 
-#: name -> class, filled by Effect.__init_subclass__ (the classes are the registry).
+#: name -> class, filled by :func:`register` (the registered classes are the vocabulary).
 _REGISTRY: dict[str, type["Effect"]] = {}
 
 
@@ -124,15 +125,6 @@ class Effect(abc.ABC):
     #: the family of mechanisms it belongs to (``geometric``, ``gravity``, ``direction``, ``periodic``,
     #: ``scale``, ``thermal``, ``time``; ``setup`` for the tracker frame)
     family: ClassVar[str] = ""
-
-    def __init_subclass__(cls, **kwargs) -> None:
-        super().__init_subclass__(**kwargs)
-        if "name" not in cls.__dict__ or inspect.isabstract(cls):
-            return
-        known = _REGISTRY.get(cls.name)
-        if known is not None and known.__qualname__ != cls.__qualname__:
-            raise TypeError(f"effect name {cls.name!r} is taken by {known.__module__}.{known.__qualname__}")
-        _REGISTRY[cls.name] = cls
 
     def __init__(self, robot: RobotModel) -> None:
         self.robot = robot
@@ -411,6 +403,34 @@ def make_effect(name: str, robot: RobotModel, **options) -> Effect:
     return cls(robot, **options)
 
 
+def register(cls: type[Effect]) -> type[Effect]:
+    """Add an effect class to the vocabulary under its ``name`` (usable as a class decorator).
+
+    Parameters
+    ----------
+    cls : type
+        A concrete :class:`Effect` subclass with its own ``name``.
+
+    Returns
+    -------
+    type
+        ``cls``, registered.
+
+    Raises
+    ------
+    TypeError
+        Where ``cls`` is abstract or names no effect of its own, or its name is taken by another class.
+    """
+    if not (isinstance(cls, type) and issubclass(cls, Effect)) or "name" not in cls.__dict__ \
+            or inspect.isabstract(cls):
+        raise TypeError(f"{cls!r} is not a concrete Effect class with a name of its own")
+    known = _REGISTRY.get(cls.name)
+    if known is not None and known is not cls:
+        raise TypeError(f"effect name {cls.name!r} is taken by {known.__module__}.{known.__qualname__}")
+    _REGISTRY[cls.name] = cls
+    return cls
+
+
 def unregister(name: str) -> None:
     """Remove an effect class from the registry (tests that plug in a toy effect)."""
     _REGISTRY.pop(name, None)
@@ -418,8 +438,8 @@ def unregister(name: str) -> None:
 
 @contextmanager
 def plugged_in(cls: type[Effect]):
-    """Keep ``cls`` registered inside the block only (it registered itself when defined)."""
-    _REGISTRY[cls.name] = cls
+    """Keep ``cls`` registered inside the block only (a test's own effect)."""
+    register(cls)
     try:
         yield cls
     finally:
