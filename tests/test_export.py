@@ -249,11 +249,17 @@ def test_the_compensation_filter_lands_the_targets_within_the_noise_floor(campai
     # Cartesian targets: the same points, the seed the same joints
     seeds = ",".join(f"seed_{n}_deg" for n in robot.joint_names)
     rows = [",".join(f"{v:.12g}" for v in (*p * 1e3, *np.degrees(q))) for p, q in zip(target, q_target)]
+    far = np.array([10.0, 0.0, 0.5])  # [m] out of reach: its row keeps the point asked for, with its reason
+    rows.append(",".join(f"{v:.12g}" for v in (*far * 1e3, *np.degrees(q_target[0]))))
     (tmp_path / "points.csv").write_text("x_mm,y_mm,z_mm," + seeds + "\n" + "\n".join(rows) + "\n")
     _quiet(["export", str(folder / "full.json"), "--to", str(tmp_path / "out"), "--targets",
             str(tmp_path / "points.csv")])
     cartesian = np.genfromtxt(tmp_path / "out" / "compensation.csv", delimiter=",", names=True, dtype=None,
                               encoding="utf-8")
+    assert list(cartesian["status"][:-1]) == ["ok"] * len(target) and cartesian["status"][-1] == "no inverse kinematics"
+    asked = np.stack([cartesian[f"target_{a}_mm"] for a in "xyz"], axis=1) * 1e-3
+    np.testing.assert_allclose(asked, np.vstack([target, far]), atol=1e-9)
+    cartesian = cartesian[:-1]
     q_cmd = np.radians(np.stack([cartesian[f"command_{n}_deg"] for n in robot.joint_names], axis=1))
     assert np.linalg.norm(model.tcp_poses(q_cmd).position - target, axis=1).max() < floor
     sent = np.stack([cartesian[f"command_{a}_mm"] for a in "xyz"], axis=1) * 1e-3

@@ -118,16 +118,18 @@ def filter_pose_targets(model: AsBuiltModel, positions, rotations=None, *, q_see
     orientation = "exact" if rotations is not None and controller.n_joints >= 6 else "best_effort"
     ik = inverse_kinematics(controller, positions, rotations, q_seed, orientation=orientation)
     status = np.where(ik.success, "ok", "no inverse kinematics").astype(object)
-    return _filtered(model, ik.q, context, threshold, status, cartesian=True)
+    return _filtered(model, ik.q, context, threshold, status, cartesian=True, requested=positions)
 
 
-def _filtered(model, q_target, context, threshold, status, cartesian: bool) -> FilteredTargets:
+def _filtered(model, q_target, context, threshold, status, cartesian: bool, requested=None) -> FilteredTargets:
+    """The commands for ``q_target``; the targets are ``requested`` (Cartesian targets, also where the
+    IK did not reach them) or the controller's TCP at ``q_target`` (joint targets)."""
     controller = model.measured_point_robot()
     n = len(q_target)
     if q_target.ndim != 2 or q_target.shape[1] != controller.n_joints or not np.all(np.isfinite(q_target)):
         raise InputError(f"compensation filter: targets must be finite joint values (N, {controller.n_joints})")
     context = model.state_context(context, n)
-    target = tcp_poses(controller, q_target).position
+    target = tcp_poses(controller, q_target).position if requested is None else requested.copy()
     command = q_target.copy()
     solved = status == "ok"
     rows = np.flatnonzero(solved)
