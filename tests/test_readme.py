@@ -138,12 +138,15 @@ EXECUTED = [b for b in BLOCKS if b.kind in ("runs", "output", "console")]
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory) -> dict[int, Run]:
-    """Every executed block, by the README line of its marker (two at a time)."""
+def runs(tmp_path_factory) -> dict:
+    """Every executed block, by the README line of its marker, and the docs' command blocks, by
+    (file name, line): two at a time in one pool, the docs' long block first."""
     base = tmp_path_factory.mktemp("readme")
     with ThreadPoolExecutor(max_workers=2) as pool:
-        futures = {b.line: pool.submit(_execute, b, base / f"line{b.line}") for b in EXECUTED}
-        return {line: future.result() for line, future in futures.items()}
+        futures = {(doc.name, b.line): pool.submit(_execute, b, base / f"{doc.stem}-line{b.line}")
+                   for doc, b in DOC_BLOCKS}
+        futures.update({b.line: pool.submit(_execute, b, base / f"line{b.line}") for b in EXECUTED})
+        return {key: future.result() for key, future in futures.items()}
 
 
 def _contains_in_order(expected: list[str], printed: list[str]) -> bool:
@@ -187,8 +190,8 @@ def test_docs_have_their_regeneration_commands_marked():
 
 @pytest.mark.slow
 @pytest.mark.parametrize("doc,block", DOC_BLOCKS, ids=lambda v: v.name if isinstance(v, Path) else f"line{v.line}")
-def test_docs_commands_run_as_written(doc, block, tmp_path):
-    run = _execute(block, tmp_path / "docs")
+def test_docs_commands_run_as_written(doc, block, runs):
+    run = runs[(doc.name, block.line)]
     assert run.returncode == 0, f"docs/{doc.name}:{block.line}: the block exits {run.returncode}:\n{run.stderr[-3000:]}"
 
 
