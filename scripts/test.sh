@@ -10,4 +10,5 @@ if ! command -v chromium >/dev/null 2>&1 || ! command -v chromedriver >/dev/null
     $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium chromium-driver
 fi
 python3 -m pip install ".[test]"
-python3 -m pytest "$@"
+# one pytest worker per core (pytest-xdist): the suite is CPU-bound and its tests independent
+python3 -m pytest -n auto "$@"
