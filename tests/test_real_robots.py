@@ -66,3 +66,36 @@ def test_ur5_reaches_the_tracker_and_predicts_the_random_poses():
     random = tcr.read_measurements(UR5 / "ur5_random_20.csv", robot)
     miss = np.linalg.norm(d.predict(robot, random.q, random.context) - random.position, axis=1)
     assert miss.mean() * 1e3 <= 0.07
+
+
+def _half(path: Path, tmp_path: Path, which: int) -> Path:
+    """Every other measurement row of a CSV (comment lines dropped), as real_checks.py splits it."""
+    lines = [line for line in path.read_text().splitlines(keepends=True) if not line.startswith("#")]
+    half = tmp_path / f"half{which}.csv"
+    half.write_text(lines[0] + "".join(lines[1:][which::2]))
+    return half
+
+
+@pytest.mark.slow
+@_needs(JUSTIN)
+def test_justin_halves_name_what_the_whole_file_names(tmp_path):
+    """Each half of Justin's 500 poses names gravity and, within it, joint compliance, as the whole
+    file does; and the family shares do not depend on which of two effects the data cannot tell
+    apart was chosen (encoder scale or transmission on the 250 odd poses): measured with the other
+    beside it, gravity's and geometric's shares are the same whichever is called the chosen one."""
+    from tcr_accuracy.diagnosis.stages.attribute import family_shares
+
+    robot = tcr.load_robot(str(JUSTIN / "justin.urdf"), "right_marker")
+    for which in (0, 1):
+        fitted = GapDiagnosis(robot=robot, random_state=0).fit(
+            tcr.read_measurements(_half(JUSTIN / "justin_right_hand.csv", tmp_path, which), robot))
+        d = fitted.result_
+        assert (d.primary_family, d.primary_effect) == ("gravity", "compliance"), which
+        core = ["frames", "joint_offsets", "geometry", "compliance", "lateral_compliance"]
+        one = {f.family: f.share for f in family_shares(fitted.engine_, core + ["encoder_scale"],
+                                                         {"encoder_scale": ("transmission",)})}
+        other = {f.family: f.share for f in family_shares(fitted.engine_, core + ["transmission"],
+                                                           {"transmission": ("encoder_scale",)})}
+        for family in ("gravity", "geometric"):
+            assert one[family] == pytest.approx(other[family], abs=1e-9)
+        assert one["gravity"] > one["geometric"]

@@ -138,7 +138,8 @@ def _findings_schema(names) -> dict:
                                 "check": _TEXT}}
     family = {"type": "object", "required": ["family", "effects", "share_mm", "interval_mm"],
               "properties": {"family": _NAME, "effects": {"type": "array", "items": effect, "maxItems": 1000},
-                             "share_mm": _SIGNED_MM, "interval_mm": _MM_INTERVAL, "what": _TEXT}}
+                             "share_mm": _SIGNED_MM, "interval_mm": _MM_INTERVAL, "what": _TEXT,
+                             "stand_ins": {"type": "array", "items": effect, "maxItems": 1000}}}
     mpe = {"type": "array", "items": {"type": "number", "minimum": 0, "maximum": 1e9}, "minItems": 2, "maxItems": 2}
     temperature = {"type": "number", "minimum": -1e4, "maximum": 1e4}
     return {

@@ -145,10 +145,12 @@ def format_summary(robot, d, source: str) -> str:
             out.append(f"     {{{', '.join(group['effects'])}}}: {members}")
     out.append(f"   primary effect: {primary_effect_text(d)}")
     if d.families:
-        out.append("   families (held-out RMS without all their members, the others held to their parameters):")
+        out.append("   families (held-out RMS without all their members, the others held to their parameters; measured with "
+                   "the effects the data cannot tell from the chosen ones in the model, each leaving with its family):")
         for f in d.families:
             low, high = f["interval_mm"]
-            out.append(f"     {f['family']:10s} {{{', '.join(f['effects'])}}}: +{f['share_mm']:.4f} mm "
+            beside = f" (stand-ins beside it: {', '.join(f['stand_ins'])})" if f.get("stand_ins") else ""
+            out.append(f"     {f['family']:10s} {{{', '.join(f['effects'])}}}{beside}: +{f['share_mm']:.4f} mm "
                        f"[{low:+.4f}, {high:+.4f}]")
     selection = d.selection
     if selection.get("frequency"):

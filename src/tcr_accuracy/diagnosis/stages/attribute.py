@@ -34,12 +34,15 @@ class FamilyShare:
     effects : tuple of str
         Its chosen members.
     share : float
-        How much the held-out RMS rises without the whole family, the other effects held to
-        their parameters [m].
+        How much the held-out RMS rises without the whole family (and what stands in for its
+        members), the other effects held to their parameters [m].
     interval : (float, float)
         The share's 95 % interval [m].
     heldout_without : ErrorStats
         Held-out errors without the family.
+    stand_ins : tuple of str
+        Unchosen effects the data cannot tell from its members, in the model beside them while the
+        shares are measured and removed with the family.
     """
 
     family: str
@@ -47,11 +50,13 @@ class FamilyShare:
     share: float
     interval: tuple
     heldout_without: ErrorStats
+    stand_ins: tuple = ()
 
     def to_dict(self) -> dict:
         return {"family": self.family, "effects": list(self.effects), "share_mm": self.share * 1e3,
                 "interval_mm": [self.interval[0] * 1e3, self.interval[1] * 1e3],
-                "heldout_rms_without_mm": self.heldout_without.rms * 1e3, "what": FAMILIES.get(self.family, "")}
+                "heldout_rms_without_mm": self.heldout_without.rms * 1e3, "what": FAMILIES.get(self.family, ""),
+                "stand_ins": list(self.stand_ins)}
 
 
 @dataclass(frozen=True)
@@ -120,8 +125,9 @@ def attribute_effects(registered: RegisteredMeasurements, candidate_set: Candida
     mechanisms = tuple(_with_confounding(m, confounding) for m in fitted_mechanisms(engine, current))
     unexplained = [m.effect for m in mechanisms if not m.physical]
     confounded = [m.effect for m in mechanisms if m.confounded]
-    families = family_shares(engine, current)
-    top_families = _tied_families(engine, current, [f.family for f in families], selection_z)
+    stand_ins = stand_ins_of(selection.groups)
+    families = family_shares(engine, current, stand_ins)
+    top_families = _tied_families(engine, current, families, selection_z)
     primary_family = top_families[0] if len(top_families) == 1 else None
     # within the primary family (or among every chosen effect when no family stands out): the member
     # with the largest own share and those the held-out rows do not rank below it
@@ -215,34 +221,57 @@ def _without(engine: FitEngine, current, dropped) -> dict:
     return engine.evaluate(rest, keep={s: keep[s] for s in rest})
 
 
-def family_shares(engine: FitEngine, current) -> list[FamilyShare]:
-    """Every family with a chosen member and its own share: how much the held-out RMS rises
-    without all its members (the other effects held to their parameters), largest first."""
-    final = engine.evaluate(ordered(current))
-    final_rms = ErrorStats.heldout(final).rms
+def stand_ins_of(groups: dict) -> dict:
+    """Chosen effect -> the unchosen effects that stand in for it (the swap alternatives the
+    held-out rows do not rank below it)."""
+    return {chosen: tuple(dict.fromkeys(e for row in rows[1:] for e in row["effects"] if e != chosen))
+            for chosen, rows in groups.items()}
+
+
+def _family_members(engine: FitEngine, current, stand_ins: dict) -> dict:
+    """family -> (chosen members, their stand-ins), in the vocabulary's order."""
     members: dict = {}
     for e in ordered(current):
         if e != "frames":
             members.setdefault(_family(engine, e), []).append(e)
+    return {family: (tuple(effects), tuple(dict.fromkeys(
+        s for e in effects for s in stand_ins.get(e, ()) if s not in current)))
+        for family, effects in members.items()}
+
+
+def family_shares(engine: FitEngine, current, stand_ins: dict | None = None) -> list[FamilyShare]:
+    """Every family with a chosen member and its own share: how much the held-out RMS rises
+    without all its members (the other effects held to their parameters), largest first.
+
+    The shares are measured in the chosen model joined by the stand-ins (``stand_ins``: chosen
+    effect -> the unchosen effects the data cannot tell from it), and a family leaves with its
+    members' stand-ins: which of two effects the data cannot tell apart was chosen (an encoder
+    scale or a transmission error on 250 poses, say) must not decide how the rest of the gap is
+    shared between the other families, since each takes a different part of them."""
+    members = _family_members(engine, current, stand_ins or {})
+    joined = ordered(set(current) | {s for _, extra in members.values() for s in extra})
+    final = engine.evaluate(joined)
+    final_rms = ErrorStats.heldout(final).rms
     out = []
-    for family, effects in members.items():
-        without = _without(engine, current, effects)
+    for family, (effects, extra) in members.items():
+        without = _without(engine, joined, effects + extra)
         held = ErrorStats.heldout(without)
         _, low, high = difference_interval(without["heldout_squares"], final["heldout_squares"])
-        out.append(FamilyShare(family, tuple(effects), held.rms - final_rms, (low, high), held))
+        out.append(FamilyShare(family, effects, held.rms - final_rms, (low, high), held, extra))
     out.sort(key=lambda f: -f.share)
     return out
 
 
-def _tied_families(engine: FitEngine, current, ranked_families, selection_z: float) -> list:
+def _tied_families(engine: FitEngine, current, families: list, selection_z: float) -> list:
     """The first family and those whose removal the held-out rows do not rank below its removal
-    (paired z on the rows without each)."""
-    if not ranked_families:
+    (paired z on the rows without each, in the model the shares were measured in)."""
+    if not families:
         return []
-    members = {f: [e for e in current if e != "frames" and _family(engine, e) == f] for f in ranked_families}
-    top = _without(engine, current, members[ranked_families[0]])["heldout_squares"]
-    return [ranked_families[0]] + [f for f in ranked_families[1:]
-                                   if paired_z(top, _without(engine, current, members[f])["heldout_squares"])
+    joined = ordered(set(current) | {s for f in families for s in f.stand_ins})
+    removed = {f.family: f.effects + f.stand_ins for f in families}
+    top = _without(engine, joined, removed[families[0].family])["heldout_squares"]
+    return [families[0].family] + [f.family for f in families[1:]
+                                   if paired_z(top, _without(engine, joined, removed[f.family])["heldout_squares"])
                                    < selection_z]
 
 
