@@ -145,8 +145,8 @@ def format_summary(robot, d, source: str) -> str:
             out.append(f"     {{{', '.join(group['effects'])}}}: {members}")
     out.append(f"   primary effect: {primary_effect_text(d)}")
     if d.families:
-        out.append("   families (held-out RMS without all their members, the others held to their parameters; measured with "
-                   "the effects the data cannot tell from the chosen ones in the model, each leaving with its family):")
+        out.append("   families (held-out RMS without all their members and their stand-ins, the others held to their "
+                   "parameters):")
         for f in d.families:
             low, high = f["interval_mm"]
             beside = f" (stand-ins beside it: {', '.join(f['stand_ins'])})" if f.get("stand_ins") else ""
