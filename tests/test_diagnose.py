@@ -1,9 +1,9 @@
 """diagnose against hidden simulated truths it never sees.
 
 The hidden robots are written on Pinocchio alone (tests/hidden_robot.py: joint placement errors,
-encoder offsets, compliance as -C g(q), a TCP offset, the tracker's frame); the clearance case
-and the too-few-rows check come from ``simulate`` (effects applied to the Pinocchio model, tracker
-noise added). The diagnosis gets the measurement set only (or the CSV file for the CLI) and is
+encoder offsets, compliance as -C g(q), joint play drawn anew at each pose, a TCP offset, the
+tracker's frame), never through the effect classes the diagnosis fits. The diagnosis gets the
+measurement set only (or the CSV file for the CLI) and is
 judged on what the hidden robot holds.
 """
 
@@ -19,22 +19,13 @@ from tcr_accuracy.effects import predict_positions
 from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.model.kinematics import tcp_poses
 from tcr_accuracy.model.robot import load_robot
-from tcr_accuracy.analysis.simulate import simulate_measurements
 from tcr_accuracy.io.measurements import parse_measurements
 
 from conftest import REPO
 from hidden_robot import DEG, MM, HiddenRobot, fixed_tracker, geometric_errors, in_tracker, measurement_csv, \
     noisy, random_poses
 
-FRAMES = {"base_mm": {"dx": 1250.0, "dy": -830.0, "dz": -410.0}, "base_deg": {"rz": 35.0},
-          "tool_mm": {"dx": 0.8, "dy": -0.5, "dz": 1.2}}
 NOISE = 2e-5
-
-
-def _simulate(robot, effects, n, seed, context=None):
-    scenario = {"effects": effects, "noise_mm": NOISE * 1e3,
-                "context": context or {"payload_kg": 150, "payload_fraction": 0.5, "directions": "random"}}
-    return simulate_measurements(robot, scenario, n, np.random.default_rng(seed))
 
 
 def _geometry_measurements(robot, q, rng, *, placement_mm, placement_deg, offset_deg=0.0, tcp_mm=(0.8, -0.5, 1.2),
@@ -148,9 +139,23 @@ def test_out_of_vocabulary_effect_leaves_structure(tool_changer):
 
 
 def test_clearance_shows_as_scatter_without_structure(tool_changer):
-    effects = {"frames": FRAMES, "geometry": {"spread_mm": 0.1, "spread_mrad": 0.1},
-               "clearance": {"axial_mm": 0.03, "radial_mm": 0.03, "tilt_mrad": 0.03}}
-    mset, _ = _simulate(tool_changer, effects, 200, seed=6)
+    """Joint play on Pinocchio alone (tests/hidden_robot.py, no effect class): at every pose each
+    joint's placement sits off by its own random screw (0.03 mm along and across the axis,
+    0.03 mrad tilt) on top of fixed placement errors of 0.1 mm / 0.1 mrad: a scatter beyond the
+    tracker's 0.02 mm that follows no joint, read as clearance, not as structure."""
+    rng = np.random.default_rng(6)
+    q = random_poses(tool_changer, 200, rng)
+    _, placements = geometric_errors(tool_changer, rng, offset_deg=0.0, offset_mm=0.0, placement_mm=0.1,
+                                     placement_deg=0.1e-3 / DEG)
+    tcp = tool_changer.tool_frame
+    positions = np.empty((len(q), 3))
+    for i in range(len(q)):  # the play drawn anew at each pose
+        played = {name: xi + np.concatenate([rng.normal(0.0, 0.03 * MM, 3), rng.normal(0.0, 0.03e-3, 3)])
+                  for name, xi in placements.items()}
+        positions[i] = HiddenRobot(tool_changer, played, {tcp: np.array([0.8, -0.5, 1.2]) * MM}).positions(
+            q[i:i + 1], [tcp])[tcp][0]
+    measured = noisy(rng, in_tracker(fixed_tracker(), positions), NOISE)
+    mset = parse_measurements(measurement_csv(tool_changer, q, {tcp: measured}, {}, per_frame=False), tool_changer)
     result = diagnose(tool_changer, mset, folds=3, random_state=3, tracker_noise=NOISE,
                       effects=["joint_offsets", "geometry", "clearance"])
     assert result.scatter["detected"]
@@ -213,7 +218,9 @@ def test_cli_bad_csv_exits_2_with_one_line(tmp_path):
 
 
 def test_too_few_measurements_is_an_input_error(tool_changer):
-    mset, _ = _simulate(tool_changer, {"frames": FRAMES}, 8, seed=1)
+    q = random_poses(tool_changer, 8, np.random.default_rng(1))
+    text = _geometry_measurements(tool_changer, q, np.random.default_rng(1), placement_mm=0.0, placement_deg=0.0)
+    mset = parse_measurements(text, tool_changer)
     with pytest.raises(InputError, match="too few"):
         diagnose(tool_changer, mset, folds=5)
 
