@@ -122,8 +122,8 @@ def test_a_folder_named_dash_is_written_as_dot_slash_dash(campaign_folder):
 # ---------------------------------------------------------------------------------------
 @pytest.mark.parametrize("a_um, b_um_per_m, named", [
     ("1e300", "1e300", "--instrument-mpe 1e300"),  # "unexpected error: LinAlgError: Eigenvalues did not converge"
-    ("1e-300", "0", "instrument_mpe"),  # "unexpected error: LinAlgError: Singular matrix"
-    ("0", "5000", "instrument_mpe"),  # 5 mm per metre: the weights of no instrument
+    ("1e-300", "0", "--instrument-mpe 1e-300 0: want A <= 10000 um"),  # "LinAlgError: Singular matrix"
+    ("0", "5000", "--instrument-mpe 0 5000: want A <= 10000 um and B <= 1000 um/m"),  # 5 mm/m: no instrument's
 ])
 def test_instrument_mpe_beyond_any_instrument(campaign_folder, a_um, b_um_per_m, named):
     assert_refused(campaign_folder, ["diagnose", "m.csv", "--effects", "joint_offsets", "--instrument-mpe", a_um,
@@ -156,7 +156,7 @@ def test_diagnose_same_file_twice_spelt_differently(campaign_folder):
 def test_diagnose_copied_measurements_are_not_repeats(campaign_folder):
     shutil.copy(campaign_folder / "m.csv", campaign_folder / "copy.csv")
     assert_refused(campaign_folder, ["diagnose", "m.csv", "copy.csv", "--effects", "joint_offsets", "--quiet"],
-                   "repeated poses agree to the last digit")
+                   "m.csv row ", " and copy.csv row ", "repeated poses agree to the last digit")
 
 
 # ---------------------------------------------------------------------------------------

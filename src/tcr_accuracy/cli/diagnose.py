@@ -174,6 +174,10 @@ def _run_diagnose(args) -> int:
                           instrument=_instrument(args),
                           references=[(f, p, m.position, m.time_s) for f, p, m in references],
                           progress=bar.set_postfix_str)
+    except InputError as error:
+        if error.parameter != "measurements" or not isinstance(error.value, tuple):
+            raise
+        raise InputError(f"{_rows_named(measurements, error.value, files, labels)}: {error}") from None
     finally:
         bar.close()
     payload = jsonable({"measurements": ", ".join(map(str, files)), "measurement_files": list(map(str, files)),
@@ -325,6 +329,17 @@ PLOT_CAPTIONS = {
 }
 
 
+def _rows_named(measurements, indices, files, labels) -> str:
+    """Rows of the joined measurement set named as the user knows them: file and line."""
+    path_of = dict(zip(labels, map(str, files)))
+    session = measurements.session
+
+    def file_of(i):
+        return str(files[0]) if session is None else path_of.get(str(session[i]).split(":")[0], str(session[i]))
+
+    return " and ".join(f"{file_of(i)} row {int(measurements.rows[i])}" for i in indices)
+
+
 def _instrument(args):
     """The instrument --instrument or --instrument-mpe names (SI), or None."""
     from ..exceptions import InputError
@@ -335,10 +350,21 @@ def _instrument(args):
     if args.instrument_radial_mpe is not None and args.instrument_mpe is None:
         raise InputError("--instrument-radial-mpe: give --instrument-mpe too (the MPE across the beam)")
 
+    from ..frames.instrument import MPE_MAX, MPE_MIN_M
+
     def si(pair):
         return None if pair is None else (pair[0] * 1e-6, pair[1] * 1e-6)
 
-    return instrument_from(args.instrument, si(args.instrument_mpe), si(args.instrument_radial_mpe))
+    try:
+        return instrument_from(args.instrument, si(args.instrument_mpe), si(args.instrument_radial_mpe))
+    except InputError as error:  # worded in the flag's units (um, um/m), not the library's SI
+        given = {"instrument_mpe": args.instrument_mpe, "instrument_radial_mpe": args.instrument_radial_mpe}
+        if error.parameter not in given:
+            raise
+        a, b = given[error.parameter]
+        raise InputError(f"--{error.parameter.replace('_', '-')} {a:g} {b:g}: want A <= {MPE_MAX[0] * 1e6:g} um and "
+                         f"B <= {MPE_MAX[1] * 1e6:g} um/m, A + B >= {MPE_MIN_M * 1e6:g} um (no measuring instrument "
+                         "lies outside)") from None
 
 
 def _report_tables(out, robot, d, source: str) -> None:

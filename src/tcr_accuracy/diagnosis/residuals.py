@@ -176,8 +176,10 @@ def noise_from_repeats(q: np.ndarray, position: np.ndarray, context_columns: np.
         sq += float(np.sum((points - points.mean(axis=0)) ** 2))
     sigma = math.sqrt(sq / dof)
     if sigma == 0.0:  # no instrument reads a pose twice to the last digit: a noise floor of 0 divides later
+        first = np.flatnonzero(inverse == np.flatnonzero(counts > 1)[0])[:2]
         raise InputError(f"the {repeated.size} readings of {groups} repeated poses agree to the last digit: copies "
-                         "of one measurement (the same data given twice?), not repeats")
+                         "of one measurement (the same data given twice?), not repeats",
+                         parameter="measurements", value=tuple(int(i) for i in first))
     return NoiseEstimate(sigma, "repeated poses", True,
                          f"pooled scatter of {repeated.size} readings of {groups} repeated poses ({dof} dof)")
 
