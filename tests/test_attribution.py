@@ -103,11 +103,13 @@ def test_a_joint_swept_in_measurement_order_is_not_read_as_encoder_scale(tmp_pat
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("data_seed", [0, 1])
+@pytest.mark.parametrize("data_seed", [0, 1, 5])
 def test_few_single_joint_sweeps_give_the_same_geometric_answer_for_every_fold_seed(tmp_path, data_seed):
     """(e) 36 poses of single-joint sweeps with three reflectors and geometric errors only (the
     noise from the reflectors' distances): joint offsets and geometry are selected, family
-    geometric, the same answer for --seed 0-3, within 1.3 x the noise floor."""
+    geometric, the same answer for --seed 0-3, within 1.3 x the noise floor. (Data seed 5 once
+    took compliance, 8 times worse in held-out RMS, as a stand-in for joint offsets on two fold
+    seeds of four: the swap test read the paired mean's z alone.)"""
     scenario = BUILDERS["e_sweeps_three_reflectors"](data_seed)
     answers = set()
     for seed in range(4):

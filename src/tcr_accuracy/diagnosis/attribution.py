@@ -17,7 +17,7 @@ import numpy as np
 
 from ..effects.compose import fixed_point_motion
 from .bases import ordered
-from .paired import paired_z
+from .paired import entry_z
 from ..model.errors import ErrorModel
 from ..model.kinematics import tcp_poses
 
@@ -57,8 +57,8 @@ def fixed_point_check(part, bases, full_parameters, noise_floor) -> tuple[float,
 def tied_own_shares(engine, model: list, leave_one_out: list, selection_z: float) -> list:
     """Of the effects in ``leave_one_out`` (rows of the final ``model`` without each), the one with
     the largest own share (held-out error without it, the others held to their own parameters)
-    and every other whose own share it does not beat by a paired z of ``selection_z`` on the
-    same held-out rows: a geometry error and a compliance error that each leave 2 mm are not
+    and every other whose own share it does not beat on the same held-out rows by the selection's
+    test (:func:`~.paired.entry_z` of ``selection_z``): a geometry error and a compliance error that each leave 2 mm are not
     ranked by 0.01 mm between them."""
     if not leave_one_out:
         return []
@@ -71,4 +71,4 @@ def tied_own_shares(engine, model: list, leave_one_out: list, selection_z: float
 
     top = ranked[0]["dropped"]
     return [top] + [row["dropped"] for row in ranked[1:]
-                    if paired_z(without(top), without(row["dropped"])) < selection_z]
+                    if entry_z(without(top), without(row["dropped"])) < selection_z]

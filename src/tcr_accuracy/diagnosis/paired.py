@@ -42,6 +42,14 @@ def signed_rank_z(before: np.ndarray, after: np.ndarray) -> float:
     return float((ranks[d > 0].sum() - n * (n + 1) / 4.0) / math.sqrt(variance)) if variance > 0 else 0.0
 
 
+def entry_z(before: np.ndarray, after: np.ndarray) -> float:
+    """How clearly a model's per-row held-out squared errors fall below another's: the larger of the
+    paired mean's z and Wilcoxon's signed-rank z. The mean's z is what many rows give; the ranks'
+    what few rows give when a handful of them carry most of the error (36 poses of single-joint
+    sweeps): either passing the selection threshold is evidence."""
+    return max(paired_z(before, after), signed_rank_z(before, after))
+
+
 def row_squares(residual: np.ndarray) -> np.ndarray:
     """(N,) squared position error of each row, the parts of a row added up; a (N,) array is
     taken as such squares already (a fit's ``heldout_squares``)."""

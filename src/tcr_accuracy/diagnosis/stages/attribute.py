@@ -16,7 +16,7 @@ from ..attribution import contributions, fixed_point_check, tied_own_shares
 from ..confounding import confounded_variables
 from ..fitting import FitEngine
 from ..bases import ordered
-from ..paired import paired_z
+from ..paired import entry_z, paired_z
 from ..records import ErrorStats, Step
 from ..uncertainty import difference_interval, selection_frequency
 from .candidates import CandidateSet
@@ -264,14 +264,15 @@ def family_shares(engine: FitEngine, current, stand_ins: dict | None = None) -> 
 
 def _tied_families(engine: FitEngine, current, families: list, selection_z: float) -> list:
     """The first family and those whose removal the held-out rows do not rank below its removal
-    (paired z on the rows without each, in the model the shares were measured in)."""
+    (the selection's test, :func:`~..paired.entry_z`, on the rows without each, in the model the
+    shares were measured in)."""
     if not families:
         return []
     joined = ordered(set(current) | {s for f in families for s in f.stand_ins})
     removed = {f.family: f.effects + f.stand_ins for f in families}
     top = _without(engine, joined, removed[families[0].family])["heldout_squares"]
     return [families[0].family] + [f.family for f in families[1:]
-                                   if paired_z(top, _without(engine, joined, removed[f.family])["heldout_squares"])
+                                   if entry_z(top, _without(engine, joined, removed[f.family])["heldout_squares"])
                                    < selection_z]
 
 

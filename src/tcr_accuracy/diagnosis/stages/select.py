@@ -12,7 +12,7 @@ import numpy as np
 from ..ambiguity import ambiguity_report, settle_swaps, swap_alternatives, within_reach
 from ..fitting import FitEngine
 from ..bases import ordered
-from ..paired import paired_z, signed_rank_z
+from ..paired import entry_z, paired_z
 from ..records import ErrorStats, Step
 from ..uncertainty import difference_interval, implausibility
 from ..bases import position_jacobians
@@ -262,14 +262,6 @@ def _plausible_best(engine: FitEngine, trials: dict) -> str:
             < 1.0]
     order = {e: k for k, e in enumerate(ordered(list(trials)))}  # the vocabulary's: the more basic cause first
     return min(near, key=lambda e: (implausibility(trials[e], engine.bases, e) > 1.0, order[e], rms[e]))
-
-
-def entry_z(before: np.ndarray, after: np.ndarray) -> float:
-    """How clearly a model's per-row held-out squared errors fall below another's: the larger of the
-    paired mean's z and Wilcoxon's signed-rank z. The mean's z is what many rows give; the ranks'
-    what few rows give when a handful of them carry most of the error (36 poses of single-joint
-    sweeps): either passing the selection threshold is evidence."""
-    return max(paired_z(before, after), signed_rank_z(before, after))
 
 
 def _backward(engine: FitEngine, current: list, say, selection_z: float, reference: np.ndarray | None = None):
