@@ -321,3 +321,20 @@ def test_discriminating_design_tracks_the_rival_refit_as_least_squares_does(tool
         return float(np.sum((jj @ np.linalg.lstsq(jj, dd.ravel(), rcond=None)[0] - dd.ravel()) ** 2))
 
     assert unabsorbed(planned) > 1.3 * unabsorbed(random_q)
+
+
+def test_a_stand_in_with_a_companion_puts_both_effects_in_the_primary_group():
+    """A stand-in made of two effects (``lateral_compliance+joint_offsets``, the swap test's
+    companion form) enters the primary group as its two effects, each a name of the vocabulary
+    (the combined name once reached the family lookup and stopped the diagnosis with a KeyError)."""
+    from tcr_accuracy.diagnosis.stages.attribute import group_members
+    from tcr_accuracy.effects import vocabulary
+
+    groups = {"compliance": [{"effect": "compliance", "effects": ["compliance"]},
+                             {"effect": "lateral_compliance+joint_offsets",
+                              "effects": ["lateral_compliance", "joint_offsets"]},
+                             {"effect": "joint_offsets", "effects": ["joint_offsets"]}]}
+    members = group_members(groups, "compliance")
+    assert members == ["compliance", "lateral_compliance", "joint_offsets"]
+    assert set(members) <= set(vocabulary())
+    assert group_members(groups, "geometry") == ["geometry"] and group_members(groups, None) == []

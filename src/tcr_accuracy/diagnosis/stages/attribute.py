@@ -136,7 +136,7 @@ def attribute_effects(registered: RegisteredMeasurements, candidate_set: Candida
         members = [e for e in members if _family(engine, e) == primary_family]
     tied = tied_own_shares(engine, current, [r for r in loo if r["dropped"] in members], selection_z)
     primary = tied[0] if tied else None
-    primary_group = [r["effect"] for r in selection.groups.get(primary, [])] or ([primary] if primary else [])
+    primary_group = group_members(selection.groups, primary)
     primary_group += [e for e in tied[1:] if e not in primary_group]
     if primary is not None and any(_family(engine, e) != primary_family for e in primary_group) and \
             primary_family is not None:
@@ -219,6 +219,14 @@ def _without(engine: FitEngine, current, dropped) -> dict:
     keep = engine.identify(tuple(ordered(current)))[0]
     rest = ordered([s for s in current if s not in dropped])
     return engine.evaluate(rest, keep={s: keep[s] for s in rest})
+
+
+def group_members(groups: dict, chosen: str | None) -> list:
+    """The chosen effect and every effect of what stands in for it, one name each (a stand-in with
+    a companion, ``lateral_compliance+joint_offsets``, gives both its effects); [] for None."""
+    if chosen is None:
+        return []
+    return list(dict.fromkeys([chosen] + [e for row in groups.get(chosen, []) for e in row["effects"]]))
 
 
 def stand_ins_of(groups: dict) -> dict:
