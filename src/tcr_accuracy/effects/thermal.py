@@ -14,7 +14,7 @@ from .simulation_rules import SimulationRules
 
 @dataclass(frozen=True)
 class ThermalFitPolicy(FitPolicy):
-    """Thermal is fitted only where the rows carry a temperature, growing from their mean."""
+    """Thermal is fitted growing from the rows' mean temperature (``requires_context``: only where they carry one)."""
 
     def options_for_data(self, robot, q, context) -> dict:
         """Links grow from the data's mean temperature: at one temperature a uniform scale of
