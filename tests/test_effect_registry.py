@@ -1,14 +1,19 @@
 """The registered effect classes are the vocabulary: a new effect plugs in by registering its class, without touching anything else."""
 
+import dataclasses
 import math
+import re
 
 import numpy as np
 import pytest
 
 from tcr_accuracy.diagnosis.diagnose import diagnose
 from tcr_accuracy.effects import (
+    Effect,
     EffectJacobian,
+    FitPolicy,
     LinearEffect,
+    SimulationRules,
     effect_class,
     effect_classes,
     make_effect,
@@ -16,12 +21,21 @@ from tcr_accuracy.effects import (
     register,
     vocabulary,
 )
+from tcr_accuracy.effects import base as effect_base, fit_policy, simulation_rules
 from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.analysis.simulate import dominant_candidates, outside_vocabulary, simulate_measurements
 from tcr_accuracy.io.measurements import parse_measurements
 
 from hidden_robot import DEG, HiddenRobot, geometric_errors, hidden_free, in_tracker, measurement_csv, noisy, \
     random_poses, tracker_frame
+
+
+@dataclasses.dataclass(frozen=True)
+class ElbowDroopDraws(SimulationRules):
+    """A dominant droop of 0.2-0.4 deg."""
+
+    def dominant_spec(self, effect, rng):
+        return {"amplitude_deg": float(rng.uniform(0.2, 0.4))}
 
 
 class ElbowDroop(LinearEffect):
@@ -32,9 +46,9 @@ class ElbowDroop(LinearEffect):
     """
 
     name = "elbow_droop"
-    order = 65.0
     summary = "toy: elbow turned by cos(q1 - q2)"
-    dominant_candidate = 6
+    fit_policy = FitPolicy(order=65.0)
+    simulation = ElbowDroopDraws(dominant_place=6)
 
     def __init__(self, robot, *, joint: int = 2) -> None:
         super().__init__(robot)
@@ -54,9 +68,6 @@ class ElbowDroop(LinearEffect):
         ddq = np.zeros((q.shape[0], self.robot.n_joints, 1))
         ddq[:, self.joint, 0] = np.cos(q[:, 0] - q[:, 1])
         return EffectJacobian(dq=ddq)
-
-    def dominant_spec(self, rng):
-        return {"amplitude_deg": float(rng.uniform(0.2, 0.4))}
 
 
 def test_an_effect_joins_the_vocabulary_only_when_registered_and_never_under_a_taken_name():
@@ -80,16 +91,87 @@ def test_an_effect_joins_the_vocabulary_only_when_registered_and_never_under_a_t
 def test_the_vocabulary_is_read_from_the_classes():
     classes = effect_classes()
     assert tuple(classes) == vocabulary()
-    orders = [c.order for c in classes.values()]
+    orders = [c.fit_policy.order for c in classes.values()]
     assert orders == sorted(orders)
     assert vocabulary()[0] == "frames"  # frames first: every other effect is fitted on top of it
     assert {n for n, c in classes.items() if c.geometric} == {"frames", "joint_offsets", "geometry"}
     assert {n for n, c in classes.items() if c.stochastic} == {"clearance"}
-    assert {n for n, c in classes.items() if c.requires_context} == {"thermal"}
+    assert {n for n, c in classes.items() if c.fit_policy.requires_context} == {"thermal"}
+    assert {n for n, c in classes.items() if c.fit_policy.last_resort} == {"cyclic"}
     assert set(outside_vocabulary()) == {"unmodelled", "link_bending"}
     assert not set(outside_vocabulary()) & set(vocabulary())
     for name, cls in effect_classes(vocabulary_only=False).items():
         assert cls.summary, f"{name} has no summary for reports"
+
+
+# The names the old Effect base carried for fitting and drawing, written out here (not read from
+# the code under test): none may come back onto an effect class.
+OLD_POLICY_NAMES = ("order", "in_vocabulary", "last_resort", "requires_context", "options_for_data",
+                    "penalty_weights", "analytic_jacobian")
+OLD_DRAW_NAMES = ("dominant_candidate", "dominant_spec", "finish_dominant", "beyond_physics")
+
+
+def test_every_effect_keeps_its_policy_and_its_draws_beside_its_physics():
+    """Each registered effect has one FitPolicy and one SimulationRules object; the Effect base and
+    the effect classes carry none of the old policy or drawing names; the draw order of the
+    dominant effects is the one the blind benchmark's seeds were drawn with."""
+    classes = effect_classes(vocabulary_only=False)
+    assert len(classes) == 14
+    for name, cls in classes.items():
+        assert isinstance(cls.fit_policy, FitPolicy), name
+        assert isinstance(cls.simulation, SimulationRules), name
+        for klass in cls.__mro__:
+            declared = set(vars(klass)) & set(OLD_POLICY_NAMES + OLD_DRAW_NAMES)
+            assert declared <= ({"analytic_jacobian"} if klass is Effect else set()), (name, klass, declared)
+    assert dominant_candidates() == ("compliance", "backlash", "thermal", "transmission", "encoder_scale")
+    assert [n for n, c in classes.items() if not c.fit_policy.in_vocabulary] == ["unmodelled", "link_bending"]
+
+
+def _table_rows(module) -> list[str]:
+    """The first column of the ``====`` tables of a module's docstring (the names it documents)."""
+    rows, inside = [], 0
+    for line in module.__doc__.splitlines():
+        if line.startswith("===="):
+            inside += 1
+        elif inside % 3 == 2 and line.startswith("``"):
+            rows.append(re.match(r"``(\w+)``", line).group(1))
+    return rows
+
+
+def test_the_three_tables_name_what_their_homes_hold():
+    """The docstring tables of base, fit_policy and simulation_rules list exactly the physics
+    attributes of Effect, the fields and hooks of FitPolicy and those of SimulationRules."""
+    hooks = lambda cls: {n for n, v in vars(cls).items() if callable(v) and not n.startswith("_")}  # noqa: E731
+    assert sorted(_table_rows(fit_policy)) == sorted({f.name for f in dataclasses.fields(FitPolicy)} | hooks(FitPolicy))
+    assert sorted(_table_rows(simulation_rules)) == sorted({f.name for f in dataclasses.fields(SimulationRules)}
+                                                           | hooks(SimulationRules))
+    physics = set(Effect.__annotations__) - {"fit_policy", "simulation"}
+    assert sorted(_table_rows(effect_base)) == sorted(physics)
+
+
+@pytest.mark.parametrize("old_way, words", [
+    ({"order": 65.0}, r"declares 'order' on the class; it belongs in its fit_policy"),
+    ({"last_resort": True}, r"declares 'last_resort' on the class; it belongs in its fit_policy"),
+    ({"options_for_data": classmethod(lambda cls, robot, q, context: {})}, r"'options_for_data'.*fit_policy"),
+    ({"dominant_candidate": 6}, r"'dominant_candidate' on the class; it belongs in its simulation"),
+    ({"beyond_physics": lambda self, params, rng: -params}, r"'beyond_physics' on the class; .* simulation"),
+    ({"analytic_jacobian": False}, r"'analytic_jacobian'; it is read from whether the class writes its own"),
+    ({"fit_policy": {"order": 65.0}}, r"fit_policy must be a FitPolicy instance"),
+    ({"simulation": ElbowDroopDraws}, r"simulation must be a SimulationRules instance"),
+])
+def test_register_refuses_policy_or_draws_declared_the_old_way(old_way, words):
+    """An effect class that mixes a policy value or a drawing hook into its physics (as every
+    effect did before fit_policy and simulation had their homes), or whose homes hold something
+    else, is refused with one line naming the effect and where the attribute belongs; so is a
+    subclass of such a class. Nothing is registered."""
+    mixed = type("MixedDroop", (ElbowDroop,), {"name": "mixed_droop", **old_way})
+    with pytest.raises(TypeError, match=r"effect 'mixed_droop' \(.*MixedDroop\): .*" + words):
+        register(mixed)
+    heir = type("HeirDroop", (mixed,), {"name": "heir_droop"})
+    with pytest.raises(TypeError, match=r"effect 'heir_droop'.*MixedDroop declares|effect 'heir_droop'.*must be"):
+        register(heir)
+    assert "mixed_droop" not in effect_classes(vocabulary_only=False)
+    assert "heir_droop" not in effect_classes(vocabulary_only=False)
 
 
 def _droop_truth(robot, amplitude_rad, n, seed):

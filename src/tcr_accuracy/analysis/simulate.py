@@ -40,12 +40,13 @@ DEFAULT_ORIENTATION_NOISE_RAD = 5e-5
 
 def outside_vocabulary() -> tuple[str, ...]:
     """Effects simulate can hide although no diagnosis can name them."""
-    return tuple(n for n, c in effect_classes(vocabulary_only=False).items() if not c.in_vocabulary)
+    return tuple(n for n, c in effect_classes(vocabulary_only=False).items() if not c.fit_policy.in_vocabulary)
 
 
 def dominant_candidates() -> tuple[str, ...]:
-    """Effects random_scenario may make dominant, in their draw order (``dominant_candidate``)."""
-    ranked = [(c.dominant_candidate, n) for n, c in effect_classes().items() if c.dominant_candidate is not None]
+    """Effects random_scenario may make dominant, in their draw order (``simulation.dominant_place``)."""
+    ranked = [(c.simulation.dominant_place, n) for n, c in effect_classes().items()
+              if c.simulation.dominant_place is not None]
     return tuple(n for _, n in sorted(ranked))
 
 
@@ -191,7 +192,7 @@ def simulate_measurements(robot: RobotModel, scenario: Scenario | dict, n: int, 
                 raise InputError(f"{scenario.source}: effects.{name}: zero TCP displacement, cannot scale "
                                  "to tcp_rms_mm")
             params = params * (tcp_rms / rms)  # every effect is linear in its parameters
-        hidden.append(HiddenEffect(effect, params, effect.in_vocabulary))
+        hidden.append(HiddenEffect(effect, params, effect.fit_policy.in_vocabulary))
     poses = predict_poses(robot, [h.effect for h in hidden], [h.params for h in hidden], q, context)
     position = poses.position + noise * rng.standard_normal((n, 3))
     quaternion = None
@@ -279,7 +280,7 @@ def random_scenario(robot: RobotModel, random_state=None, dominant: list[str] | 
     beyond_physics : float, default=0.0
         Chance that a dominant effect is drawn as the other mechanism with its signature, a sign
         or size its own physics does not have (joints against gravity, ahead of their motion, a
-        length scale of an instrument, degrees of gear harmonics: ``Effect.beyond_physics``).
+        length scale of an instrument, degrees of gear harmonics: ``SimulationRules.beyond_physics``).
 
     Returns
     -------
@@ -303,7 +304,8 @@ def random_scenario(robot: RobotModel, random_state=None, dominant: list[str] | 
         "joint_offsets": {"spread_deg": u(0.01, 0.05), "spread_mm": u(0.01, 0.05)},
     }
     for name in dominant:
-        specs[name] = effect_class(name)(robot).dominant_spec(rng)
+        effect = effect_class(name)(robot)
+        specs[name] = effect.simulation.dominant_spec(effect, rng)
     if clearance:
         specs["clearance"] = {"axial_mm": 0.005, "radial_mm": 0.005, "tilt_mrad": 0.005}
     context = {"payload_fraction": 0.5, "temperature_spread_c": 10.0, "directions": "random"}
@@ -316,9 +318,9 @@ def random_scenario(robot: RobotModel, random_state=None, dominant: list[str] | 
     for name, spec in specs.items():
         effect, params, tcp_rms = resolve_effect(robot, name, spec, rng, "random_scenario", lenient=True)
         if name in dominant:
-            params = effect.finish_dominant(params, rng)
+            params = effect.simulation.finish_dominant(effect, params, rng)
             if beyond_physics > 0 and rng.uniform() < beyond_physics:
-                other = effect.beyond_physics(params, rng)
+                other = effect.simulation.beyond_physics(effect, params, rng)
                 if other is not None:
                     params = other
                     beyond.append(name)

@@ -76,7 +76,7 @@ class EffectBasis:
         self.units = list(effect.parameter_units())
         self.lower, self.upper = (np.asarray(b, dtype=float) for b in effect.physical_range())
         self.fit_lower, self.fit_upper = (np.asarray(b, dtype=float) for b in effect.fit_range())
-        weights = effect.penalty_weights()
+        weights = effect.fit_policy.penalty_weights(effect)
         self.penalty = np.zeros(len(self.names)) if weights is None else np.asarray(weights, dtype=float)
         n, k = part.q.shape[0], len(self.names)
         maps = effect.parameter_jacobian(np.zeros(k), part.q, part.context)

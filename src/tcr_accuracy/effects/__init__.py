@@ -3,9 +3,11 @@
 Each effect is one class in one module of this package, registered below by name (:func:`register`,
 in the explicit list :data:`BUILT_IN`); the registered classes are the vocabulary
 (:func:`effect_classes`, :func:`vocabulary`, :func:`make_effect`). ``diagnose``,
-``simulate``, the CLI and the reports read names, order, context needs, sign
-constraints and display from the classes, so a new effect is one new file here and one
-line in :data:`BUILT_IN`.
+``simulate``, the CLI and the reports read names, context needs, sign constraints and
+display from the classes, the diagnosis' order and options from each class's
+:class:`FitPolicy` (:mod:`.fit_policy`) and simulate's draws from its :class:`SimulationRules`
+(:mod:`.simulation_rules`), so a new effect is one new file here and one line in
+:data:`BUILT_IN`.
 
 Vocabulary (in :func:`vocabulary` order): ``frames``, ``joint_offsets``, ``geometry``,
 ``compliance``, ``backlash``, ``thermal``, ``transmission``, ``encoder_scale``,
@@ -35,6 +37,8 @@ from .base import (
     unregister,
     vocabulary,
 )
+from .fit_policy import FitPolicy
+from .simulation_rules import SimulationRules
 from .compose import (
     parameter_names,
     predict_poses,
@@ -60,15 +64,15 @@ from .transmission import Transmission
 from .unmodelled import Unmodelled
 
 #: The effects the package brings, registered once here (their order in the vocabulary is each
-#: class's ``order``, not this list's).
+#: class's ``fit_policy.order``, not this list's).
 BUILT_IN = (Frames, JointOffsets, Geometry, Compliance, LateralCompliance, LinkBending, Backlash, Thermal,
             EncoderScale, Transmission, CyclicError, Clearance, Drift, Unmodelled)
 for _cls in BUILT_IN:
     register(_cls)
 
 __all__ = [
-    "BUILT_IN", "Effect", "EffectJacobian", "EffectOutput", "ErrorVectorEffect", "LinearEffect", "PerJointEffect", "effect_class",
-    "effect_classes", "make_effect", "parameter_names", "plugged_in", "predict_poses", "predict_positions",
+    "BUILT_IN", "Effect", "EffectJacobian", "EffectOutput", "ErrorVectorEffect", "FitPolicy", "LinearEffect",
+    "PerJointEffect", "SimulationRules", "effect_class", "effect_classes", "make_effect", "parameter_names", "plugged_in", "predict_poses", "predict_positions",
     "prediction_jacobian", "reference_poses", "register", "split_parameters", "total_perturbation", "unregister",
     "vocabulary",
 ]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -10,6 +11,25 @@ from ..model.context import context_column
 from ..model.gravity import gravity_torque
 from ..units import REVOLUTE
 from .base import PerJointEffect, joint_unit, per_joint_kind
+from .fit_policy import FitPolicy
+from .simulation_rules import SimulationRules
+
+
+@dataclass(frozen=True)
+class BacklashDraws(SimulationRules):
+    """A dominant backlash: one band width per joint, 0.01-0.05 deg (or mm); beyond physics, joints
+    that end ahead of their motion."""
+
+    def dominant_spec(self, effect, rng):
+        return {"backlash_deg": float(rng.uniform(0.01, 0.05)), "backlash_mm": float(rng.uniform(0.01, 0.05))}
+
+    def finish_dominant(self, effect, params, rng):
+        # one band width per joint, drawn in the range, not a single value
+        per_unit = np.where(np.array(effect.parameter_units()) == "rad", math.pi / 180.0, 1e-3)
+        return per_unit * rng.uniform(0.01, 0.05, size=effect.n_params)
+
+    def beyond_physics(self, effect, params, rng):
+        return -np.asarray(params, dtype=float) * rng.uniform(1.0, 1.5)  # ahead: lost-motion compensation too high
 
 
 class Backlash(PerJointEffect):
@@ -24,14 +44,14 @@ class Backlash(PerJointEffect):
     """
 
     name = "backlash"
-    order = 40.0
     summary = "dead band per joint, on the side of gravity or of the approach"
     context_columns = ("payload_kg", "<joint>_dir")
     non_negative = True
-    dominant_candidate = 2
     family = "direction"
     physics = ("a dead band is a width (positive) and stays below 0.5 deg (0.5 mm) in any gearbox that still "
                "holds a load")
+    fit_policy = FitPolicy(order=40.0)
+    simulation = BacklashDraws(dominant_place=2)
 
     def __init__(self, robot, *, link_mass_factors=None) -> None:
         super().__init__(robot)
@@ -78,14 +98,3 @@ class Backlash(PerJointEffect):
 
     def signal(self, q, context):
         return 0.5 * self.side(q, context)
-
-    def beyond_physics(self, params, rng):
-        return -np.asarray(params, dtype=float) * rng.uniform(1.0, 1.5)  # ahead: lost-motion compensation too high
-
-    def dominant_spec(self, rng):
-        return {"backlash_deg": float(rng.uniform(0.01, 0.05)), "backlash_mm": float(rng.uniform(0.01, 0.05))}
-
-    def finish_dominant(self, params, rng):
-        # one band width per joint, drawn in the range, not a single value
-        per_unit = np.where(np.array(self.parameter_units()) == "rad", math.pi / 180.0, 1e-3)
-        return per_unit * rng.uniform(0.01, 0.05, size=self.n_params)

@@ -3,40 +3,42 @@
 An effect is one class, in one module of this package, deriving from :class:`Effect`
 (or :class:`LinearEffect`), registered by name with :func:`register` (the package lists the built-in
 ones in :mod:`tcr_accuracy.effects`): ``diagnose``, ``simulate``, the CLI and the reports read
-everything they need from the class itself:
+everything they need from the class itself. The class holds the effect's physics, what the
+effect is, and beside it two attributes of their own:
+
+* ``fit_policy``, a :class:`~tcr_accuracy.effects.fit_policy.FitPolicy`: how the diagnosis
+  treats it (its place in the vocabulary, last resort, the options it builds it with for the
+  data, a smoothness penalty);
+* ``simulation``, a :class:`~tcr_accuracy.effects.simulation_rules.SimulationRules`: how
+  ``simulate`` and the blind benchmark draw it as a hidden truth.
+
+:func:`register` refuses a class that declares a policy value or a drawing hook on the class
+itself: each concern has one home.
 
 ==========================  ===========================================================
-class attribute             meaning
+physics (class attribute)   meaning
 ==========================  ===========================================================
 ``name``                    the vocabulary word (``compliance``); parameters are ``<name>.*``
-``order``                   position in the vocabulary: identifiability takes effects in
-                            this order (what an earlier effect explains, a later one cannot)
 ``summary``                 one line for reports and ``--help``
+``physics``                 one line: why the parameters lie where :meth:`Effect.physical_range`
+                            says (the diagnosis fits inside that range and reports it)
+``family``                  the family of mechanisms (:data:`~tcr_accuracy.effects.mechanisms.FAMILIES`):
+                            the level a diagnosis names when the members cannot be told apart
 ``geometric``               its fitted parameters are pure geometry (go into an as-built URDF)
 ``context_columns``         CSV context it reads (``payload_kg``, ``temperature_c``,
                             ``<joint>_dir``)
-``requires_context``        meaningless without those columns (not tried when absent)
-``non_negative``            its parameters are magnitudes (simulate draws |value|)
-``stochastic``              random scatter, not a bias (tested, never fitted)
-``dominant_candidate``      ``random_scenario`` may make it the dominant hidden effect (then
-                            :meth:`Effect.dominant_spec` says how it is drawn): its place in
-                            the draw (1, 2, ...; fixed so that a seed keeps drawing the
-                            same scenarios when effects are added), or None
-``in_vocabulary``           False for effects only ``simulate`` can hide (a diagnosis must
-                            admit what it cannot name)
-``physics``                 one line: why the parameters lie where :meth:`Effect.physical_range`
-                            says (the diagnosis fits inside that range and reports it)
-``last_resort``             a flexible effect the diagnosis tries only once the others leave
-                            structure in joint space (it could otherwise stand in for them)
-``family``                  the family of mechanisms (:data:`~tcr_accuracy.effects.mechanisms.FAMILIES`):
-                            the level a diagnosis names when the members cannot be told apart
+``non_negative``            its parameters are magnitudes (a width, a compliance): the
+                            default physical range starts at zero, simulate draws |value|
+``stochastic``              random scatter, not a bias: predictions of the mean pose leave it
+                            out, a diagnosis tests it and never fits it
 ==========================  ===========================================================
 
 Three ranges per parameter: :meth:`Effect.parameter_scales` (its typical size),
 :meth:`Effect.physical_range` (what the effect's own physics allows) and :meth:`Effect.fit_range`
-(what keeps a fit sane: the diagnosis keeps any signature the data want inside it). What a fitted
-value means is read from :meth:`Effect.mechanisms`: the effect's own physics and the other causes
-with the same signature, each with the values it explains.
+(the union of the ranges of every mechanism with the effect's signature: the diagnosis keeps
+any signature the data want inside it). What a fitted value means is read from
+:meth:`Effect.mechanisms`: the effect's own physics and the other causes with the same
+signature, each with the values it explains.
 
 Options are explicit keyword-only arguments of the class's ``__init__`` (a misspelt
 option fails); :attr:`Effect.options` lists those that differ from their defaults.
@@ -45,7 +47,8 @@ What an effect does: ``perturb(params, q, context)`` gives joint-side offsets ``
 (N, n_joints) and/or error vectors ``x`` (N, n_error_params) of
 :class:`~tcr_accuracy.model.errors.ErrorModel`, i.e. it acts on the Pinocchio model's joint
 values and joint placements, never on output positions; ``parameter_jacobian`` gives
-their derivatives in the parameters (exact for linear effects).
+their derivatives in the parameters (exact for linear effects; :attr:`Effect.analytic_jacobian`
+says whether the class writes its own).
 """
 
 from __future__ import annotations
@@ -63,6 +66,8 @@ from ..model.errors import ErrorModel
 from ..exceptions import InputError
 from ..model.robot import RobotModel
 from ..units import REVOLUTE
+from .fit_policy import FitPolicy
+from .simulation_rules import SimulationRules
 
 
 @dataclass(frozen=True)
@@ -95,6 +100,16 @@ class EffectJacobian:
 #: name -> class, filled by :func:`register` (the registered classes are the vocabulary).
 _REGISTRY: dict[str, type["Effect"]] = {}
 
+#: Names an effect class once declared on itself, and the attribute that holds each now:
+#: :func:`register` refuses a class declaring one, so physics, fitting policy and simulation
+#: rules stay apart.
+MOVED_OFF_THE_CLASS = {
+    **{n: "fit_policy" for n in ("order", "in_vocabulary", "last_resort", "requires_context",
+                                 "options_for_data", "penalty_weights")},
+    "dominant_candidate": "simulation (its dominant_place)",
+    **{n: "simulation" for n in ("dominant_spec", "finish_dominant", "beyond_physics")},
+}
+
 
 class Effect(abc.ABC):
     """One effect: its parameters and how it perturbs the model.
@@ -107,24 +122,20 @@ class Effect(abc.ABC):
     """
 
     name: ClassVar[str]
-    order: ClassVar[float] = 100.0
     summary: ClassVar[str] = ""
-    geometric: ClassVar[bool] = False
-    context_columns: ClassVar[tuple[str, ...]] = ()
-    requires_context: ClassVar[bool] = False
-    non_negative: ClassVar[bool] = False
-    stochastic: ClassVar[bool] = False
-    dominant_candidate: ClassVar[int | None] = None
-    in_vocabulary: ClassVar[bool] = True
-    #: False when parameter_jacobian falls back to finite differences.
-    analytic_jacobian: ClassVar[bool] = True
     #: why the parameters lie in :meth:`physical_range` (reports print it next to the range)
     physics: ClassVar[str] = ""
-    #: tried by the diagnosis only where the other effects leave structure in joint space
-    last_resort: ClassVar[bool] = False
     #: the family of mechanisms it belongs to (``geometric``, ``gravity``, ``direction``, ``periodic``,
     #: ``scale``, ``thermal``, ``time``; ``setup`` for the tracker frame)
     family: ClassVar[str] = ""
+    geometric: ClassVar[bool] = False
+    context_columns: ClassVar[tuple[str, ...]] = ()
+    non_negative: ClassVar[bool] = False
+    stochastic: ClassVar[bool] = False
+    #: how the diagnosis treats it (:mod:`~tcr_accuracy.effects.fit_policy`)
+    fit_policy: ClassVar[FitPolicy] = FitPolicy()
+    #: how simulate draws it as a hidden truth (:mod:`~tcr_accuracy.effects.simulation_rules`)
+    simulation: ClassVar[SimulationRules] = SimulationRules()
 
     def __init__(self, robot: RobotModel) -> None:
         self.robot = robot
@@ -165,6 +176,12 @@ class Effect(abc.ABC):
     def n_params(self) -> int:
         return len(self.parameter_names())
 
+    @property
+    def analytic_jacobian(self) -> bool:
+        """False when :meth:`parameter_jacobian` is the base class's finite differences of
+        :meth:`perturb` (read from the class, never declared: it cannot go stale)."""
+        return type(self).parameter_jacobian is not Effect.parameter_jacobian
+
     def physical_range(self) -> tuple[np.ndarray, np.ndarray]:
         """(lower, upper) of each parameter on a real robot [SI]: the diagnosis fits inside it.
 
@@ -179,7 +196,9 @@ class Effect(abc.ABC):
         it, whatever the sign, so that a signature the data show is kept even where it belongs
         to another mechanism than the effect's own (:meth:`mechanisms` says which). It is the
         union of the mechanisms' ranges: a value held on its bound is one the data push beyond
-        every known mechanism.
+        every known mechanism. Physics, not fitting policy: it is where the known causes of the
+        effect's signature lie (an effect's wider mechanisms take their bounds from it), whoever
+        reads it.
 
         Default: ten times the largest finite bound of :meth:`physical_range`, either sign.
         """
@@ -195,22 +214,6 @@ class Effect(abc.ABC):
 
         lower, upper = self.physical_range()
         return (Mechanism(self.name, self.summary, "", lower, upper),)
-
-    @classmethod
-    def options_for_data(cls, robot: RobotModel, q: np.ndarray, context: MeasurementContext) -> dict:
-        """Options the diagnosis builds the effect with for measurements at joints q (N, n)
-        with their context (default none): how many terms a flexible effect may have, or
-        from which temperature links grow, is a question of the data."""
-        return {}
-
-    def penalty_weights(self) -> np.ndarray | None:
-        """(k,) weights of a smoothness penalty on the parameters, or None (no penalty).
-
-        The fit adds ``lambda * sum(w * (theta / scale)^2)`` to its cost, with lambda chosen
-        by held-out error inside the training rows: for effects with many parameters whose
-        higher terms the data may not support (a Fourier series' roughness, ``cyclic``).
-        """
-        return None
 
     def zeros(self) -> np.ndarray:
         return np.zeros(self.n_params)
@@ -230,24 +233,6 @@ class Effect(abc.ABC):
         if em is None:
             em = self.__dict__["_error_model"] = ErrorModel(self.robot)
         return em
-
-    # -- how simulate draws it -----------------------------------------------------------
-    def dominant_spec(self, rng: np.random.Generator) -> dict:
-        """Scenario settings (as in a scenario YAML) of a realistic dominant draw.
-
-        Only for ``dominant_candidate`` effects; ``random_scenario`` calls it.
-        """
-        raise NotImplementedError(f"effect {self.name} is not a dominant candidate")
-
-    def finish_dominant(self, params: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Last touch on the parameters resolved from :meth:`dominant_spec` (default: as they are)."""
-        return params
-
-    def beyond_physics(self, params: np.ndarray, rng: np.random.Generator) -> np.ndarray | None:
-        """A dominant draw turned into the other mechanism with the same signature (a sign or a
-        size the effect's own physics does not have: a controller's compensation, the
-        instrument), for ``random_scenario``; None when the effect has no such draw."""
-        return None
 
     # -- what it does --------------------------------------------------------------------
     @abc.abstractmethod
@@ -349,9 +334,9 @@ def per_joint_kind(robot: RobotModel, revolute: float, prismatic: float) -> np.n
 # The registry: read-only views of the classes
 # ---------------------------------------------------------------------------------------
 def effect_classes(*, vocabulary_only: bool = True) -> dict[str, type[Effect]]:
-    """Registered effect classes by name, in vocabulary order (``order``, then name)."""
-    classes = sorted(_REGISTRY.values(), key=lambda c: (c.order, c.name))
-    return {c.name: c for c in classes if c.in_vocabulary or not vocabulary_only}
+    """Registered effect classes by name, in vocabulary order (``fit_policy.order``, then name)."""
+    classes = sorted(_REGISTRY.values(), key=lambda c: (c.fit_policy.order, c.name))
+    return {c.name: c for c in classes if c.fit_policy.in_vocabulary or not vocabulary_only}
 
 
 def vocabulary() -> tuple[str, ...]:
@@ -370,8 +355,8 @@ def effect_class(name: str, *, vocabulary_only: bool = False, source: str = "eff
     classes = effect_classes(vocabulary_only=vocabulary_only)
     if name in classes:
         return classes[name]
-    inside = [n for n, c in classes.items() if c.in_vocabulary]
-    outside = [n for n, c in classes.items() if not c.in_vocabulary]
+    inside = [n for n, c in classes.items() if c.fit_policy.in_vocabulary]
+    outside = [n for n, c in classes.items() if not c.fit_policy.in_vocabulary]
     hint = f"; outside the vocabulary (simulate only): {', '.join(outside)}" if outside else ""
     raise InputError(f"{source}: unknown effect {name!r}; effects: {', '.join(inside)}{hint}")
 
@@ -419,16 +404,38 @@ def register(cls: type[Effect]) -> type[Effect]:
     Raises
     ------
     TypeError
-        Where ``cls`` is abstract or names no effect of its own, or its name is taken by another class.
+        Where ``cls`` is abstract or names no effect of its own, or its name is taken by another class;
+        where its ``fit_policy`` is no :class:`~tcr_accuracy.effects.fit_policy.FitPolicy` or its
+        ``simulation`` no :class:`~tcr_accuracy.effects.simulation_rules.SimulationRules`; where it
+        (or a class it derives from) declares a policy value or a drawing hook on the class itself
+        (:data:`MOVED_OFF_THE_CLASS`), or ``analytic_jacobian``, which is read from its code.
     """
     if not (isinstance(cls, type) and issubclass(cls, Effect)) or "name" not in cls.__dict__ \
             or inspect.isabstract(cls):
         raise TypeError(f"{cls!r} is not a concrete Effect class with a name of its own")
+    _check_homes(cls)
     known = _REGISTRY.get(cls.name)
     if known is not None and known is not cls:
         raise TypeError(f"effect name {cls.name!r} is taken by {known.__module__}.{known.__qualname__}")
     _REGISTRY[cls.name] = cls
     return cls
+
+
+def _check_homes(cls: type[Effect]) -> None:
+    """TypeError unless the class keeps its fitting policy and simulation rules in their own attributes."""
+    where = f"effect {cls.name!r} ({cls.__module__}.{cls.__qualname__})"
+    for klass in (k for k in cls.__mro__ if k not in (Effect, abc.ABC, object)):
+        for attribute in klass.__dict__:
+            if attribute in MOVED_OFF_THE_CLASS:
+                raise TypeError(f"{where}: {klass.__qualname__} declares {attribute!r} on the class; it belongs in "
+                                f"its {MOVED_OFF_THE_CLASS[attribute]} attribute")
+            if attribute == "analytic_jacobian":
+                raise TypeError(f"{where}: {klass.__qualname__} declares 'analytic_jacobian'; it is read from "
+                                "whether the class writes its own parameter_jacobian")
+    if not isinstance(cls.fit_policy, FitPolicy):
+        raise TypeError(f"{where}: fit_policy must be a FitPolicy instance, got {cls.fit_policy!r}")
+    if not isinstance(cls.simulation, SimulationRules):
+        raise TypeError(f"{where}: simulation must be a SimulationRules instance, got {cls.simulation!r}")
 
 
 def unregister(name: str) -> None:

@@ -8,6 +8,7 @@ from ..model.clearance import ClearanceModel
 from ..exceptions import InputError
 from ..units import REVOLUTE
 from .base import Effect, EffectOutput
+from .fit_policy import FitPolicy
 
 
 class Clearance(Effect):
@@ -25,12 +26,11 @@ class Clearance(Effect):
     """
 
     name = "clearance"
-    order = 90.0
     summary = "random joint play (scatter, not bias)"
     non_negative = True
     stochastic = True
     family = "scatter"
-    analytic_jacobian = False
+    fit_policy = FitPolicy(order=90.0)
 
     def __init__(self, robot, *, joints=None, rng=None) -> None:
         super().__init__(robot)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -10,6 +11,23 @@ from ..model.context import context_column
 from ..model.gravity import gravity_torque
 from ..units import REVOLUTE
 from .base import PerJointEffect, loaded_joint_scales, reference_poses
+from .fit_policy import FitPolicy
+from .simulation_rules import SimulationRules
+
+
+@dataclass(frozen=True)
+class ComplianceDraws(SimulationRules):
+    """A dominant compliance: each joint turned by a similar angle under its typical torque, then
+    scaled to a TCP RMS of 0.5-3 mm; beyond physics, against gravity."""
+
+    def dominant_spec(self, effect, rng):
+        # each joint turned by a similar angle under its typical torque, then scaled
+        pattern = effect.parameter_scales() * np.exp(0.5 * rng.standard_normal(effect.robot.n_joints))
+        return {"parameters": {f"compliance.{j}": float(c) for j, c in zip(effect.robot.joint_names, pattern)},
+                "tcp_rms_mm": rng.uniform(0.5, 3.0), "options": {"link_mass_spread": 0.05}}
+
+    def beyond_physics(self, effect, params, rng):
+        return -np.asarray(params, dtype=float)  # against gravity: a gravity compensation that over-corrects
 
 
 class Compliance(PerJointEffect):
@@ -25,14 +43,14 @@ class Compliance(PerJointEffect):
     """
 
     name = "compliance"
-    order = 30.0
     summary = "joint elasticity about each axis under gravity and payload"
     context_columns = ("payload_kg",)
     non_negative = True
-    dominant_candidate = 1
     family = "gravity"
     physics = ("a joint gives way to gravity (positive), by less than 2 deg (10 mm) under its typical gravity load "
                "(200 x the typical compliance): a softer joint would be felt by hand")
+    fit_policy = FitPolicy(order=30.0)
+    simulation = ComplianceDraws(dominant_place=1)
 
     def __init__(self, robot, *, link_mass_factors=None) -> None:
         super().__init__(robot)
@@ -76,12 +94,3 @@ class Compliance(PerJointEffect):
         payload = context_column(context, "payload_kg", q.shape[0], 0.0)
         outside = None if context is None else context.outside_q
         return gravity_torque(self.robot, q, payload, self.link_mass_factors, outside)
-
-    def beyond_physics(self, params, rng):
-        return -np.asarray(params, dtype=float)  # against gravity: a gravity compensation that over-corrects
-
-    def dominant_spec(self, rng):
-        # each joint turned by a similar angle under its typical torque, then scaled
-        pattern = self.parameter_scales() * np.exp(0.5 * rng.standard_normal(self.robot.n_joints))
-        return {"parameters": {f"compliance.{j}": float(c) for j, c in zip(self.robot.joint_names, pattern)},
-                "tcp_rms_mm": rng.uniform(0.5, 3.0), "options": {"link_mass_spread": 0.05}}

@@ -2,10 +2,30 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..units import REVOLUTE
 from .base import EffectJacobian, LinearEffect
+from .fit_policy import FitPolicy
+
+
+@dataclass(frozen=True)
+class CyclicFitPolicy(FitPolicy):
+    """The cyclic series is fitted with as many orders as the data hold, under a roughness penalty."""
+
+    def options_for_data(self, robot, q, context) -> dict:
+        """The highest order the diagnosis fits: 30 cycles per revolution, fewer when the
+        measurements are few (at least 2 poses per parameter over the revolute joints: every
+        other joint's motion is noise to one joint's function)."""
+        revolute = sum(k == REVOLUTE for k in robot.joint_kinds)
+        return {"max_order": int(max(CyclicError.FIRST_ORDER, min(30, 2 + len(q) // (4 * max(revolute, 1)))))}
+
+    def penalty_weights(self, effect) -> np.ndarray:
+        """(k,) roughness weight of each parameter, (n / 3)^4: the fit's penalty is
+        lambda * sum(w * (theta / scale)^2)."""
+        return np.array([(n / effect.FIRST_ORDER) ** 4 for _, _, n, _ in effect._terms()], dtype=float)
 
 
 class CyclicError(LinearEffect):
@@ -23,33 +43,24 @@ class CyclicError(LinearEffect):
     The series is regularised by its roughness: the fit adds ``lambda * sum_n n^4 (a_n^2 +
     b_n^2)`` (the integral of the squared second derivative of dq over a revolution, up to
     a constant), with lambda chosen by held-out error inside the training rows
-    (:meth:`penalty_weights`; :class:`~tcr_accuracy.diagnosis.fitting.FitEngine`), so the
+    (:meth:`CyclicFitPolicy.penalty_weights`; :class:`~tcr_accuracy.diagnosis.fitting.FitEngine`), so the
     data choose how many orders they support. Parameters ``cyclic.<joint>.a<n>``,
     ``cyclic.<joint>.b<n>`` [rad]. Prismatic joints have none. ``max_order``: the highest
     order (default 30 cycles per revolution).
     """
 
     name = "cyclic"
-    order = 65.0
     summary = "cyclic joint errors of high order (gear tooth mesh, encoder), smoothness-penalised"
     physics = ("strain-wave gear and encoder cyclic errors are a few hundred microradians in all; one harmonic "
                "above 1 mrad (3.4 arc-min) is a damaged gear, not a cyclic error")
-    last_resort = True
     family = "periodic"
+    fit_policy = CyclicFitPolicy(order=65.0, last_resort=True)
     #: the lowest order: orders 1 and 2 are transmission's
     FIRST_ORDER = 3
 
     def __init__(self, robot, *, max_order: int = 30) -> None:
         super().__init__(robot)
         self.max_order = max_order
-
-    @classmethod
-    def options_for_data(cls, robot, q, context) -> dict:
-        """The highest order the diagnosis fits: 30 cycles per revolution, fewer when the
-        measurements are few (at least 2 poses per parameter over the revolute joints: every
-        other joint's motion is noise to one joint's function)."""
-        revolute = sum(k == REVOLUTE for k in robot.joint_kinds)
-        return {"max_order": int(max(cls.FIRST_ORDER, min(30, 2 + len(q) // (4 * max(revolute, 1)))))}
 
     def _terms(self):
         orders = range(self.FIRST_ORDER, int(self.max_order) + 1)
@@ -81,11 +92,6 @@ class CyclicError(LinearEffect):
                           "interpolation", "compare with the gear maker's transmission error curve", lower, upper),
                 Mechanism("damaged_gear", "a cyclic error above 1 mrad per harmonic: a damaged gear or a loose "
                           "encoder", "inspect the gear and the encoder's mounting", wide_lower, wide_upper, False))
-    def penalty_weights(self) -> np.ndarray:
-        """(k,) roughness weight of each parameter, (n / 3)^4: the fit's penalty is
-        lambda * sum(w * (theta / scale)^2)."""
-        return np.array([(n / self.FIRST_ORDER) ** 4 for _, _, n, _ in self._terms()], dtype=float)
-
     def parameter_jacobian(self, params, q, context):
         q = np.atleast_2d(np.asarray(q, dtype=float))
         terms = self._terms()

@@ -3,11 +3,29 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..units import REVOLUTE
 from .base import EffectJacobian, LinearEffect, joint_unit, per_joint_kind
+from .fit_policy import FitPolicy
+
+
+@dataclass(frozen=True)
+class DriftFitPolicy(FitPolicy):
+    """Drift is fitted along the time axis the rows carry, over the campaign's span in it."""
+
+    def options_for_data(self, robot, q, context) -> dict:
+        """The time axis the rows carry (``time_s`` where it varies, else the measurement order)
+        and the campaign's start and span in it."""
+        time = None if context is None else context.time_s
+        if time is not None and np.all(np.isfinite(time)) and np.ptp(time) > 0:
+            return {"time_axis": "time_s", "start": float(np.min(time)), "span": float(np.ptp(time))}
+        order = None if context is None else context.order
+        if order is not None and np.ptp(order) > 0:
+            return {"time_axis": "order", "start": float(np.min(order)), "span": float(np.ptp(order))}
+        return {}
 
 
 class Drift(LinearEffect):
@@ -24,16 +42,17 @@ class Drift(LinearEffect):
     ``span``: where u = 0 and
     how long the campaign lasted in that axis' unit (s or rows); ``time_constant``: the warm-up's
     tau as a share of the campaign (default 0.25). The diagnosis sets them from the data
-    (:meth:`options_for_data`), and keeps them for any prediction.
+    (:meth:`DriftFitPolicy.options_for_data`), and keeps them for any prediction.
     """
 
     name = "drift"
-    order = 52.0  # before encoder_scale: a joint swept in measurement order is a drift until shown otherwise
     summary = "encoder zeros and the base drifting over the campaign (warm-up, a moving base)"
     context_columns = ("time_s",)
     family = "time"
     physics = ("a robot warming up moves its encoder zeros by hundredths of a degree and its base by tenths of a "
                "millimetre: more than 0.2 deg or 0.5 mm over a campaign is a joint or a base that slipped")
+    # before encoder_scale: a joint swept in measurement order is a drift until shown otherwise
+    fit_policy = DriftFitPolicy(order=52.0)
 
     def __init__(self, robot, *, time_axis: str = "order", start: float = 0.0, span: float = 1.0,
                  time_constant: float = 0.25) -> None:
@@ -42,18 +61,6 @@ class Drift(LinearEffect):
         self.start = start
         self.span = span
         self.time_constant = time_constant
-
-    @classmethod
-    def options_for_data(cls, robot, q, context) -> dict:
-        """The time axis the rows carry (``time_s`` where it varies, else the measurement order)
-        and the campaign's start and span in it."""
-        time = None if context is None else context.time_s
-        if time is not None and np.all(np.isfinite(time)) and np.ptp(time) > 0:
-            return {"time_axis": "time_s", "start": float(np.min(time)), "span": float(np.ptp(time))}
-        order = None if context is None else context.order
-        if order is not None and np.ptp(order) > 0:
-            return {"time_axis": "order", "start": float(np.min(order)), "span": float(np.ptp(order))}
-        return {}
 
     def parameter_names(self):
         joints = [f"drift.{j}.{shape}" for j in self.robot.joint_names for shape in ("linear", "warmup")]

@@ -2,20 +2,39 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .base import PerJointEffect
+from .fit_policy import FitPolicy
+from .simulation_rules import SimulationRules
+
+
+@dataclass(frozen=True)
+class EncoderScaleDraws(SimulationRules):
+    """A dominant scale error: 100-500 ppm per joint, either sign; beyond physics, a gear ratio wrong
+    in the configuration (30-60 times that)."""
+
+    def dominant_spec(self, effect, rng):
+        return {"spread_ppm": float(rng.uniform(100.0, 500.0))}
+
+    def finish_dominant(self, effect, params, rng):
+        return rng.choice([-1.0, 1.0], effect.n_params) * rng.uniform(1e-4, 5e-4, size=effect.n_params)
+
+    def beyond_physics(self, effect, params, rng):
+        return np.asarray(params, dtype=float) * rng.uniform(30.0, 60.0)  # a gear ratio wrong in the configuration
 
 
 class EncoderScale(PerJointEffect):
     """Gear ratio (scale) error: ``dq_j = s_j q_j``. Parameters ``encoder_scale.<joint>`` [1]."""
 
     name = "encoder_scale"
-    order = 55.0
     summary = "gear ratio (scale) error per joint"
-    dominant_candidate = 5
     family = "scale"
     physics = "a gear ratio the controller has wrong by more than 1 % would be seen as a joint that misses its end stops"
+    fit_policy = FitPolicy(order=55.0)
+    simulation = EncoderScaleDraws(dominant_place=5)
 
     def parameter_units(self):
         return ["1"] * self.n_params
@@ -42,12 +61,3 @@ class EncoderScale(PerJointEffect):
 
     def signal(self, q, context):
         return q
-
-    def beyond_physics(self, params, rng):
-        return np.asarray(params, dtype=float) * rng.uniform(30.0, 60.0)  # a gear ratio wrong in the configuration
-
-    def dominant_spec(self, rng):
-        return {"spread_ppm": float(rng.uniform(100.0, 500.0))}
-
-    def finish_dominant(self, params, rng):
-        return rng.choice([-1.0, 1.0], self.n_params) * rng.uniform(1e-4, 5e-4, size=self.n_params)

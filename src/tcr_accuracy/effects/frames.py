@@ -6,6 +6,7 @@ import numpy as np
 
 from ..model.errors import PLACEMENT_COMPONENTS
 from .base import EffectJacobian, ErrorVectorEffect
+from .fit_policy import FitPolicy
 
 
 class Frames(ErrorVectorEffect):
@@ -23,11 +24,11 @@ class Frames(ErrorVectorEffect):
     """
 
     name = "frames"
-    order = 0.0
     summary = "tracker frame and TCP offset"
     geometric = True
     family = "setup"
     physics = "the tracker's frame and where the reflector sits on the tool belong to the setup, not the robot: unbounded"
+    fit_policy = FitPolicy(order=0.0)
 
     def __init__(self, robot, *, tool_rotation: bool = False, sessions=None) -> None:
         super().__init__(robot)

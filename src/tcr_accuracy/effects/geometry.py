@@ -7,6 +7,7 @@ import numpy as np
 from ..model.errors import PLACEMENT_COMPONENTS
 from ..exceptions import InputError
 from .base import ErrorVectorEffect
+from .fit_policy import FitPolicy
 
 
 class Geometry(ErrorVectorEffect):
@@ -22,12 +23,12 @@ class Geometry(ErrorVectorEffect):
     """
 
     name = "geometry"
-    order = 20.0
     summary = "error screws on the joint placements"
     geometric = True
     family = "geometric"
     physics = ("link machining and assembly: a placement off by more than 20 mm or 3 deg is a URDF that describes "
                "another robot")
+    fit_policy = FitPolicy(order=20.0)
 
     def __init__(self, robot, *, components=None) -> None:
         super().__init__(robot)

@@ -8,18 +8,19 @@ import numpy as np
 
 from ..units import REVOLUTE
 from .base import PerJointEffect, joint_unit, per_joint_kind
+from .fit_policy import FitPolicy
 
 
 class JointOffsets(PerJointEffect):
     """Encoder zero offsets: ``dq_j = offset_j`` [rad or m]. Parameters ``joint_offsets.<joint>``."""
 
     name = "joint_offsets"
-    order = 10.0
     summary = "encoder zero offsets"
     geometric = True
     family = "geometric"
     physics = ("an encoder zero off by more than 10 deg (20 mm on a prismatic joint) is a joint mastered on the "
                "wrong mark, not a calibration error")
+    fit_policy = FitPolicy(order=10.0)
 
     def parameter_units(self):
         return [joint_unit(k) for k in self.robot.joint_kinds]

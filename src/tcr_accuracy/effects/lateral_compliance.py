@@ -10,6 +10,7 @@ from ..model.context import MeasurementContext, context_column
 from ..model.gravity import gravity_wrench
 from ..units import REVOLUTE
 from .base import EffectJacobian, LinearEffect, loaded_joint_scales, reference_poses
+from .fit_policy import FitPolicy
 
 
 class LateralCompliance(LinearEffect):
@@ -34,13 +35,13 @@ class LateralCompliance(LinearEffect):
     """
 
     name = "lateral_compliance"
-    order = 35.0
     summary = "joint tilt across each axis under the gravity wrench it carries"
     context_columns = ("payload_kg",)
     non_negative = True
     family = "gravity"
     physics = ("a bearing tilts the way the gravity moment pushes it (positive), by less than 2 deg under its "
                "typical moment (200 x the typical compliance)")
+    fit_policy = FitPolicy(order=35.0)
 
     def __init__(self, robot, *, link_mass_factors=None) -> None:
         super().__init__(robot)

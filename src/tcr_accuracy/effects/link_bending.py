@@ -6,6 +6,7 @@ import numpy as np
 import pinocchio as pin
 
 from .base import Effect, EffectOutput
+from .fit_policy import FitPolicy
 from .unmodelled import longest_link
 
 
@@ -20,11 +21,9 @@ class LinkBending(Effect):
     """
 
     name = "link_bending"
-    order = 210.0
     summary = "the longest link sagging as a beam (simulate only)"
-    in_vocabulary = False
     family = "gravity"
-    analytic_jacobian = False  # finite differences of perturb (base class)
+    fit_policy = FitPolicy(order=210.0, in_vocabulary=False)
 
     def parameter_names(self):
         return ["link_bending.tip"]

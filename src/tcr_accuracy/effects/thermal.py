@@ -2,10 +2,39 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..model.context import REFERENCE_TEMPERATURE_C, context_column
 from .base import EffectJacobian, LinearEffect
+from .fit_policy import FitPolicy
+from .simulation_rules import SimulationRules
+
+
+@dataclass(frozen=True)
+class ThermalFitPolicy(FitPolicy):
+    """Thermal is fitted growing from the rows' mean temperature (``requires_context``: only where they carry one)."""
+
+    def options_for_data(self, robot, q, context) -> dict:
+        """Links grow from the data's mean temperature: at one temperature a uniform scale of
+        the links is a geometry question (geometry comes first in the vocabulary), so what
+        thermal can claim is how the length changes with the temperature, across the rows
+        (between sessions at different temperatures above all)."""
+        temperature = np.asarray(context.temperature_c, dtype=float)
+        return {"reference_temperature_c": float(np.round(temperature.mean(), 6))}
+
+
+@dataclass(frozen=True)
+class ThermalDraws(SimulationRules):
+    """A dominant thermal growth: alpha of 1.0e-5 to 2.4e-5 per K (steel to aluminium); beyond
+    physics, an instrument's scale (5-10 times that)."""
+
+    def dominant_spec(self, effect, rng):
+        return {"alpha_per_k": float(rng.uniform(1.0e-5, 2.4e-5))}
+
+    def beyond_physics(self, effect, params, rng):
+        return np.asarray(params, dtype=float) * rng.uniform(5.0, 10.0)  # the instrument's scale, not a metal
 
 
 class Thermal(LinearEffect):
@@ -23,14 +52,13 @@ class Thermal(LinearEffect):
     """
 
     name = "thermal"
-    order = 50.0
     summary = "links growing with temperature"
     context_columns = ("temperature_c",)
-    requires_context = True
-    dominant_candidate = 3
     family = "thermal"  # (not non_negative: the base may move either way; alpha's own lower bound is 0)
     physics = ("links expand with temperature, between invar (1.2e-6/K) and aluminium (2.3e-5/K): 0 to 2.5e-5 "
                "per K")
+    fit_policy = ThermalFitPolicy(order=50.0, requires_context=True)
+    simulation = ThermalDraws(dominant_place=3)
 
     def __init__(self, robot, *, per_link: bool = False,
                  reference_temperature_c: float = REFERENCE_TEMPERATURE_C) -> None:
@@ -68,15 +96,6 @@ class Thermal(LinearEffect):
     def physical_range(self):
         # links between invar and aluminium; the base moved by up to 2.5 m of steel stand or floor
         return self._per_kind(0.0, -3e-5), self._per_kind(2.5e-5, 3e-5)
-
-    @classmethod
-    def options_for_data(cls, robot, q, context) -> dict:
-        """Links grow from the data's mean temperature: at one temperature a uniform scale of
-        the links is a geometry question (geometry comes first in the vocabulary), so what
-        thermal can claim is how the length changes with the temperature, across the rows
-        (between sessions at different temperatures above all)."""
-        temperature = np.asarray(context.temperature_c, dtype=float)
-        return {"reference_temperature_c": float(np.round(temperature.mean(), 6))}
 
     def fit_range(self):
         # an instrument's scale error with temperature: a weather station off by a few kelvin or a
@@ -125,9 +144,3 @@ class Thermal(LinearEffect):
         for a in range(3):  # the base translated in its own frame, per kelvin
             directions[em.base_slice.start + a, len(self._alphas()) + a] = 1.0
         return EffectJacobian(x=d_t[:, None, None] * directions[None])
-
-    def beyond_physics(self, params, rng):
-        return np.asarray(params, dtype=float) * rng.uniform(5.0, 10.0)  # the instrument's scale, not a metal
-
-    def dominant_spec(self, rng):
-        return {"alpha_per_k": float(rng.uniform(1.0e-5, 2.4e-5))}

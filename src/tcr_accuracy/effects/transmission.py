@@ -3,11 +3,26 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..units import REVOLUTE
 from .base import EffectJacobian, LinearEffect
+from .fit_policy import FitPolicy
+from .simulation_rules import SimulationRules
+
+
+@dataclass(frozen=True)
+class TransmissionDraws(SimulationRules):
+    """A dominant gear error: harmonics spread by 0.005-0.02 deg; beyond physics, an eccentric
+    encoder (30-80 times that: degrees)."""
+
+    def dominant_spec(self, effect, rng):
+        return {"spread_deg": float(rng.uniform(0.005, 0.02))}
+
+    def beyond_physics(self, effect, params, rng):
+        return np.asarray(params, dtype=float) * rng.uniform(30.0, 80.0)  # an eccentric encoder: degrees
 
 
 class Transmission(LinearEffect):
@@ -19,12 +34,12 @@ class Transmission(LinearEffect):
     """
 
     name = "transmission"
-    order = 60.0
     summary = "periodic gear error (harmonics of each joint angle)"
-    dominant_candidate = 4
     family = "periodic"
     physics = ("cyclic gear and encoder errors are arc-minutes; more than 0.25 deg (15 arc-min) per harmonic is a "
                "damaged gear or a loose encoder, not a periodic error")
+    fit_policy = FitPolicy(order=60.0)
+    simulation = TransmissionDraws(dominant_place=4)
 
     def __init__(self, robot, *, harmonics=(1, 2)) -> None:
         super().__init__(robot)
@@ -69,9 +84,3 @@ class Transmission(LinearEffect):
         for k, (j, _, h, trig) in enumerate(terms):
             ddq[:, j, k] = np.sin(h * q[:, j]) if trig == "a" else np.cos(h * q[:, j])
         return EffectJacobian(dq=ddq)
-
-    def beyond_physics(self, params, rng):
-        return np.asarray(params, dtype=float) * rng.uniform(30.0, 80.0)  # an eccentric encoder: degrees
-
-    def dominant_spec(self, rng):
-        return {"spread_deg": float(rng.uniform(0.005, 0.02))}

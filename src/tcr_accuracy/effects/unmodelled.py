@@ -1,7 +1,7 @@
 """``unmodelled`` (simulate only): a distortion no effect of the vocabulary expresses.
 
 Hidden by ``simulate`` to check that a diagnosis reports structure it cannot explain
-instead of claiming a fit; ``diagnose`` never tries it (``in_vocabulary = False``).
+instead of claiming a fit; ``diagnose`` never tries it (``FitPolicy(in_vocabulary=False)``).
 """
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ import numpy as np
 
 from ..model.robot import RobotModel
 from .base import Effect, EffectOutput
+from .fit_policy import FitPolicy
 
 
 def longest_link(robot: RobotModel) -> int:
@@ -31,10 +32,8 @@ class Unmodelled(Effect):
     """
 
     name = "unmodelled"
-    order = 200.0
     summary = "a smooth distortion of one link driven by three joints (simulate only)"
-    in_vocabulary = False
-    analytic_jacobian = False  # finite differences of perturb (base class)
+    fit_policy = FitPolicy(order=200.0, in_vocabulary=False)
 
     def parameter_names(self):
         return ["unmodelled.amplitude"]

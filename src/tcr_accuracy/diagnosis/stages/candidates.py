@@ -128,7 +128,7 @@ def build_bases(parts: list[Part], names, measured, notes: list, session_labels=
             rejected.append(untried(name, "stochastic: tested as extra scatter, not fitted"))
             continue
         missing = [c for c in cls.context_columns if c in CONTEXT_FIELDS and CONTEXT_FIELDS[c] not in measured]
-        if missing and cls.requires_context:
+        if missing and cls.fit_policy.requires_context:
             rejected.append(untried(name, f"needs the {', '.join(missing)} column"))
             continue
         try:
@@ -137,7 +137,7 @@ def build_bases(parts: list[Part], names, measured, notes: list, session_labels=
                 options = {"tool_rotation": True} if name == "frames" and part.target_rotation is not None else {}
                 if name == "frames" and len(session_labels) > 1:
                     options["sessions"] = tuple(session_labels)
-                options.update(cls.options_for_data(part.robot, part.q, part.context))
+                options.update(cls.fit_policy.options_for_data(part.robot, part.q, part.context))
                 effect = make_effect(name, part.robot, **options)
                 labels = _part_names(effect, part, len(parts))
                 em = ErrorModel(part.robot)
@@ -204,7 +204,7 @@ def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, r
     n = registered.n_rows
     notes: list = []
     # an effect of last resort is built only if it is tried (its maps are the largest: tens of MB per 10^4 poses)
-    late_names = [e for e in names if effect_class(e).last_resort]
+    late_names = [e for e in names if effect_class(e).fit_policy.last_resort]
     bases, rejected, stochastic = build_bases(parts, [e for e in names if e not in late_names],
                                               registered.measured_context, notes, registered.session_labels)
     if "frames" not in bases:
