@@ -94,3 +94,91 @@ def test_tall_skinny_r_has_the_gram_matrix_of_the_scaled_columns(monkeypatch):
     assert np.allclose(np.tril(r, -1), 0.0)
     assert all(out[e].n_poses == N for e in out)
 
+
+
+def test_chained_jacobian_products_equal_the_dense_jacobian(monkeypatch):
+    """J^T J, J^T r and J s taken a chunk of poses at a time from the effects' columns equal the
+    products of the dense J = W G S written out here (whitened position rows, a part whose columns
+    land in a larger model, a fold's rows)."""
+    monkeypatch.setattr(fit_columns.Sensitivity, "CHUNK", 7)
+    rng = np.random.default_rng(6)
+    g1, g2 = rng.standard_normal((N, 6, 5)), rng.standard_normal((N, 6, 4))
+    cols1, cols2 = np.array([4, 0, 2]), np.array([1, 3])
+    idx = np.array([5, 0, 2, 1, 4])  # the part's 5 columns among the model's 6 (column 3: another part's)
+    scale = rng.random(6) + 0.5
+    whitening = rng.standard_normal((N, 3, 3)) + 3.0 * np.eye(3)
+    gathered = np.concatenate([g1[:, :, cols1], g2[:, :, cols2]], axis=2)
+    dense = np.zeros((N, 6, 6))
+    dense[:, :, idx] = gathered * scale[idx]
+    dense[:, :3] = np.einsum("nij,njk->nik", whitening, dense[:, :3])
+    jac = fit_columns.ChainedJacobian(fit_columns.Sensitivity([(g1, cols1), (g2, cols2)]), idx, scale, whitening)
+    rows = np.sort(rng.choice(N, 23, replace=False))
+    for r in (None, rows):
+        d = dense if r is None else dense[r]
+        flat = d.reshape(-1, 6)
+        gram = fit_columns.gram_matrix([jac], r)
+        np.testing.assert_allclose(gram, flat.T @ flat, rtol=1e-12, atol=1e-12 * np.abs(flat.T @ flat).max())
+        residual = rng.standard_normal((d.shape[0], 6))
+        gradient = fit_columns.gradient_vector([jac], [residual], r, N)
+        expected = flat.T @ residual.ravel()
+        np.testing.assert_allclose(gradient, expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
+    step = rng.standard_normal(6)
+    np.testing.assert_allclose(fit_columns.moved_rows(jac, rows, step), dense[rows] @ step, rtol=1e-12, atol=1e-13)
+
+
+def test_compact_cyclic_jacobian_is_the_derivative_of_the_series_written_out():
+    """The cyclic effect's compact Jacobian (values, joint) expanded to (N, n_joints, k) equals the
+    central differences of the Fourier series dq_j = sum_n a_n sin(n q_j) + b_n cos(n q_j) written
+    out here, its perturb equals that series, and the error map built from the compact form is the
+    one built from the dense Jacobian."""
+    from tcr_accuracy.effects import make_effect
+    from tcr_accuracy.model.robot import load_robot
+
+    robot = load_robot("ur10")
+    effect = make_effect("cyclic", robot, max_order=7)
+    rng = np.random.default_rng(7)
+    q = rng.uniform(-3.0, 3.0, (40, robot.n_joints))
+    theta = rng.standard_normal(effect.n_params) * 1e-4
+
+    def series(theta):  # (N, n_joints) [rad], from the parameter names alone
+        dq = np.zeros(q.shape)
+        for value, name in zip(theta, effect.parameter_names()):
+            _, joint, term = name.split(".")
+            j, n = robot.joint_names.index(joint), int(term[1:])
+            dq[:, j] += value * (np.sin(n * q[:, j]) if term[0] == "a" else np.cos(n * q[:, j]))
+        return dq
+
+    values, joint = effect.joint_columns(q)
+    expanded = np.zeros((len(q), robot.n_joints, effect.n_params))
+    expanded[:, joint, np.arange(effect.n_params)] = values
+    h = 1e-6
+    numeric = np.stack([(series(theta + h * e) - series(theta - h * e)) / (2 * h)
+                        for e in np.eye(effect.n_params)], axis=2)
+    np.testing.assert_allclose(expanded, numeric, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(effect.parameter_jacobian(theta, q, None).dq, numeric, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(effect.perturb(theta, q, None).dq, series(theta), rtol=1e-13, atol=1e-18)
+    compact = ErrorMap.of_joint_columns(len(q), 20, slice(2, 2 + robot.n_joints), values, joint)
+    dense = ErrorMap.of(len(q), 20, slice(2, 2 + robot.n_joints), None, expanded, effect.n_params)
+    np.testing.assert_array_equal(compact.drive, dense.drive)
+    np.testing.assert_array_equal(compact.drive_joint, dense.drive_joint)
+    np.testing.assert_array_equal(compact.drive_columns, dense.drive_columns)
+    np.testing.assert_array_equal(compact.errors(theta), dense.errors(theta))
+
+
+def test_least_squares_residual_by_chunks_equals_numpys_lstsq(monkeypatch):
+    """The leftover of motion patterns off a model's columns, by a tall-skinny QR a chunk of poses at
+    a time, equals numpy's least squares on the whole (3N x k) matrix written out here."""
+    from tcr_accuracy.diagnosis import ambiguity
+
+    monkeypatch.setattr(ambiguity, "QR_CHUNK", 6)  # 50 poses in 9 steps
+    rng = np.random.default_rng(8)
+    g = rng.standard_normal((N, 6, 7))  # orientation rows too: only the position rows are fitted
+    cols, scale = np.array([6, 1, 3, 0]), rng.random(4) + 0.5
+    model = fit_columns.ChainedJacobian(fit_columns.Sensitivity([(g, cols)]), np.arange(4), scale)
+    vectors = rng.standard_normal((N, 3, 2))
+    dense = (g[:, :3, cols] * scale).reshape(-1, 4)
+    for i in range(2):
+        v = vectors[:, :, i].reshape(-1)
+        expected = v - dense @ np.linalg.lstsq(dense, v, rcond=None)[0]
+        got = ambiguity._least_squares_residual(model, vectors)[:, :, i].reshape(-1)
+        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12 * np.abs(v).max())

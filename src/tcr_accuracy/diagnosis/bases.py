@@ -79,8 +79,12 @@ class EffectBasis:
         weights = effect.penalty_weights()
         self.penalty = np.zeros(len(self.names)) if weights is None else np.asarray(weights, dtype=float)
         n, k = part.q.shape[0], len(self.names)
-        maps = effect.parameter_jacobian(np.zeros(k), part.q, part.context)
-        self.basis = ErrorMap.of(n, em.size, em.drive_slice, maps.x, maps.dq, k)
+        if hasattr(effect, "joint_columns"):  # one joint per column: never the dense (N, n_joints, k) Jacobian
+            values, joint = effect.joint_columns(part.q)
+            self.basis = ErrorMap.of_joint_columns(n, em.size, em.drive_slice, values, joint)
+        else:
+            maps = effect.parameter_jacobian(np.zeros(k), part.q, part.context)
+            self.basis = ErrorMap.of(n, em.size, em.drive_slice, maps.x, maps.dq, k)
         self.relinearise(jac_x)
         self.nonlinearity = 0.0
         if type(effect).perturb is LinearEffect.perturb:

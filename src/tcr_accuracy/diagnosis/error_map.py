@@ -82,6 +82,20 @@ class ErrorMap:
         return cls(n_poses, size, drive_slice, fixed, per_pose, pose_columns, drive, drive_columns, drive_joint,
                    pose_entries)
 
+    @classmethod
+    def of_joint_columns(cls, n_poses: int, size: int, drive_slice: slice, values: np.ndarray,
+                         joint: np.ndarray) -> "ErrorMap":
+        """From a parameter Jacobian whose every column moves one joint (an effect's compact
+        ``joint_columns``): values (N, k) of d(dq_joint)/d(theta), joint (k,). The map
+        :meth:`of` builds from the same Jacobian made dense (N, n_joints, k), without that array."""
+        k = values.shape[1]
+        drive_columns = np.flatnonzero(np.any(values != 0, axis=0))
+        drive = None
+        if drive_columns.size:
+            drive = values if drive_columns.size == k else np.ascontiguousarray(values[:, drive_columns])
+        return cls(n_poses, size, drive_slice, np.zeros((size, k)), None, [], drive, drive_columns,
+                   np.asarray(joint, dtype=int)[drive_columns] if drive_columns.size else None)
+
     @property
     def n_columns(self) -> int:
         return self.fixed.shape[1]
