@@ -182,3 +182,32 @@ def test_least_squares_residual_by_chunks_equals_numpys_lstsq(monkeypatch):
         expected = v - dense @ np.linalg.lstsq(dense, v, rcond=None)[0]
         got = ambiguity._least_squares_residual(model, vectors)[:, :, i].reshape(-1)
         np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12 * np.abs(v).max())
+
+
+def test_factored_sensitivity_equals_the_dense_product(monkeypatch):
+    """A per-joint map's sensitivity held as its factors gives the dense (N, r, k) product's rows, its
+    own J^T r, and the column RMS, against the products written out here."""
+    from tcr_accuracy.diagnosis.error_map import JointColumnsSensitivity, column_rms
+
+    monkeypatch.setattr(ErrorMap, "CHUNK", 16)
+    rng = np.random.default_rng(9)
+    k, joints = 9, DRIVE.stop - DRIVE.start
+    values, joint = rng.standard_normal((N, k)), rng.integers(0, joints, k)
+    values[:, 4] = 0.0  # a column no pose moves: not stored, zero in g
+    jac_x = rng.standard_normal((N, 3, P_EM))
+    dense = np.zeros((N, 3, k))
+    for c in range(k):
+        dense[:, :, c] = jac_x[:, :, DRIVE.start + joint[c]] * values[:, c, None]
+    g = ErrorMap.of_joint_columns(N, P_EM, DRIVE, values, joint).joint_sensitivity(jac_x)
+    assert isinstance(g, JointColumnsSensitivity)
+    rows = np.array([40, 2, 17, 33])
+    np.testing.assert_allclose(np.asarray(g), dense, rtol=1e-15, atol=0)
+    np.testing.assert_allclose(g[rows], dense[rows], rtol=1e-15, atol=0)
+    np.testing.assert_allclose(g[5:30, :2], dense[5:30, :2], rtol=1e-15, atol=0)
+    residual = rng.standard_normal((N, 3))
+    expected = np.einsum("nrk,nr->k", dense, residual)
+    np.testing.assert_allclose(g.transposed_times(residual, None), expected, rtol=1e-12, atol=1e-12)
+    expected = np.einsum("nrk,nr->k", dense[rows], residual[rows])
+    np.testing.assert_allclose(g.transposed_times(residual[rows], rows), expected, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(column_rms(g, slice(0, 2)), np.sqrt(np.mean(np.sum(dense[:, :2] ** 2, axis=1), axis=0)),
+                               rtol=1e-12)

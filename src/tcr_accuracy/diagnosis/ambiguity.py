@@ -163,9 +163,10 @@ def stand_in_shapes(engine: FitEngine, current: list, pool, rng: np.random.Gener
     motions = {}
     for u in [e for e in joint_driven if e not in current and e in engine.bases]:
         b = engine.bases[u]
-        g_u = b.per_part[0].g[:, :3, :]  # (N, 3, k) per unit of the union parameters' local columns
+        g_u = b.per_part[0].g  # (N, r, k) per unit of the union parameters' local columns
         draw = rng.standard_normal(g_u.shape[2]) * b.scales[b.index[0]]
-        motions[u] = g_u @ draw
+        motions[u] = np.concatenate([g_u[start:start + QR_CHUNK][:, :3, :] @ draw
+                                     for start in range(0, g_u.shape[0], QR_CHUNK)])
     if g.shape[2] and motions:
         model = ChainedJacobian(g, np.arange(g.shape[2]), final_cols.scale[idx])
         left = _least_squares_residual(model, np.stack(list(motions.values()), axis=2))

@@ -79,7 +79,9 @@ class EffectBasis:
         weights = effect.penalty_weights()
         self.penalty = np.zeros(len(self.names)) if weights is None else np.asarray(weights, dtype=float)
         n, k = part.q.shape[0], len(self.names)
-        if hasattr(effect, "joint_columns"):  # one joint per column: never the dense (N, n_joints, k) Jacobian
+        #: whether g is held as its factors (every column moves one joint: a cyclic series)
+        self.factored = hasattr(effect, "joint_columns")
+        if self.factored:  # never the dense (N, n_joints, k) Jacobian
             values, joint = effect.joint_columns(part.q)
             self.basis = ErrorMap.of_joint_columns(n, em.size, em.drive_slice, values, joint)
         else:
@@ -101,8 +103,9 @@ class EffectBasis:
         self.nonlinearity = float(np.abs(total - self.basis.errors(probe)).max() / size)
 
     def relinearise(self, jac_x: np.ndarray) -> None:
-        """TCP sensitivity (N, r, P) for error Jacobians jac_x (N, r, p_em)."""
-        self.g = self.basis.sensitivity(jac_x)
+        """TCP sensitivity (N, r, P) for error Jacobians jac_x (N, r, p_em) (its factors, a
+        :class:`~tcr_accuracy.diagnosis.error_map.JointColumnsSensitivity`, for a per-joint series)."""
+        self.g = self.basis.joint_sensitivity(jac_x) if self.factored else self.basis.sensitivity(jac_x)
 
 
 class UnionBasis:

@@ -105,6 +105,9 @@ class ChainedJacobian:
         for g, cols in self.sensitivity.sources:
             where = self.idx[offset:offset + cols.size]
             offset += cols.size
+            if hasattr(g, "transposed_times"):  # held as factors: the product from them
+                total[where] += g.transposed_times(residual, rows)[cols] * self.scale[where]
+                continue
             product = np.zeros(g.shape[2])
             for start in range(0, residual.shape[0], Sensitivity.CHUNK):
                 at = slice(start, start + Sensitivity.CHUNK)
