@@ -74,11 +74,10 @@ def test_jacobian_filled_by_chunks_equals_gathered_columns_times_scales(monkeypa
     np.testing.assert_array_equal(s[:, :3, :], gathered)
     scale = rng.random(5) + 0.5
     idx = np.array([2, 0, 4, 1, 3])  # where each gathered column lands
-    block = np.zeros((N, 3, 5))
-    s.scaled_into(block, idx, scale[idx])
     expected = np.zeros((N, 3, 5))
     expected[:, :, idx] = gathered * scale[idx]
-    np.testing.assert_array_equal(block, expected)
+    jac = fit_columns.ChainedJacobian(s, idx, scale)
+    np.testing.assert_array_equal(np.concatenate([jac.block(c) for c in jac.chunks(None)]), expected)
 
 
 def test_tall_skinny_r_has_the_gram_matrix_of_the_scaled_columns(monkeypatch):
@@ -211,3 +210,28 @@ def test_factored_sensitivity_equals_the_dense_product(monkeypatch):
     np.testing.assert_allclose(g.transposed_times(residual[rows], rows), expected, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(column_rms(g, slice(0, 2)), np.sqrt(np.mean(np.sum(dense[:, :2] ** 2, axis=1), axis=0)),
                                rtol=1e-12)
+
+
+def test_error_jacobians_by_chunks_of_poses_equal_the_whole(monkeypatch):
+    """position_jacobians a chunk of poses at a time gives the very floats of error_jacobians over all
+    poses at once: no error vector, one for every pose (given per pose), one per pose."""
+    import warnings
+
+    from tcr_accuracy.diagnosis import bases
+    from tcr_accuracy.model.jacobians import error_jacobians
+    from tcr_accuracy.model.robot import load_robot
+
+    monkeypatch.setattr(bases, "JACOBIAN_CHUNK", 16)
+    robot = load_robot("ur10")
+    rng = np.random.default_rng(10)
+    q = rng.uniform(-3.0, 3.0, (N, robot.n_joints))
+    p = error_jacobians(robot, q[:1])[1].shape[2]
+    per_pose = rng.standard_normal((N, p)) * 1e-4
+    for x in (None, np.tile(per_pose[0], (N, 1)), per_pose):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            whole = error_jacobians(robot, q, x)[1]
+        np.testing.assert_array_equal(bases.position_jacobians(robot, q, x), whole[:, :3])
+        weighted = whole.copy()
+        weighted[:, 3:] *= 0.3
+        np.testing.assert_array_equal(bases.position_jacobians(robot, q, x, 0.3), weighted)

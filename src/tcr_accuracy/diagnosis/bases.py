@@ -165,14 +165,30 @@ class UnionBasis:
         return self.per_part[0].basis
 
 
+#: poses whose error Jacobians are taken at once (their temporaries, a few placement-chain arrays of
+#: (N, n_joints, 6, 6), were 1 GB at 10^5 poses taken whole)
+JACOBIAN_CHUNK = 8192
+
+
 def position_jacobians(robot: RobotModel, q: np.ndarray, x: np.ndarray | None = None,
                        orientation_weight: float | None = None) -> np.ndarray:
-    """Error Jacobians (N, r, p_em) at error vector x: position rows, plus weighted rotation rows."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", JointLimitWarning)
-        _, jx = error_jacobians(robot, q, x)
-    if orientation_weight is None:
-        return np.ascontiguousarray(jx[:, :3])
-    jx = jx.copy()
-    jx[:, 3:] *= orientation_weight
-    return np.ascontiguousarray(jx)
+    """Error Jacobians (N, r, p_em) at error vector x (p_em,) or per pose (N, p_em): position rows,
+    plus weighted rotation rows; a chunk of poses at a time."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    if x is not None and np.ndim(x) == 2:
+        xs = np.asarray(x, dtype=float)
+        if not np.any(xs != xs[0]):  # one error vector for every pose: the one error_jacobians would take
+            x = xs.mean(axis=0)
+    out = None
+    for start in range(0, q.shape[0], JACOBIAN_CHUNK):
+        rows = slice(start, start + JACOBIAN_CHUNK)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", JointLimitWarning)
+            _, jx = error_jacobians(robot, q[rows], x if x is None or np.ndim(x) == 1 else x[rows])
+        r = 3 if orientation_weight is None else 6
+        if out is None:
+            out = np.empty((q.shape[0], r, jx.shape[2]))
+        out[rows] = jx[:, :r]
+        if orientation_weight is not None:
+            out[rows, 3:] *= orientation_weight
+    return out

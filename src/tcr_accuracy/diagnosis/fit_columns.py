@@ -25,16 +25,6 @@ class Sensitivity:
         k = sum(c.size for _, c in sources)
         self.shape = (first.shape[0], first.shape[1], k) if first is not None else (0, 0, 0)
 
-    def scaled_into(self, block: np.ndarray, idx: np.ndarray, scale: np.ndarray) -> None:
-        """block[:, :, idx] = the gathered columns times scale (k,), a chunk of poses at a time."""
-        offset = 0
-        for g, cols in self.sources:
-            where, factor = idx[offset:offset + cols.size], scale[offset:offset + cols.size]
-            offset += cols.size
-            for start in range(0, g.shape[0], self.CHUNK):
-                stop = start + self.CHUNK
-                block[start:stop, :, where] = g[start:stop][:, :, cols] * factor
-
     def __getitem__(self, key) -> np.ndarray:
         """The gathered array (N, r, k), indexed (what a caller reading the columns needs)."""
         if not self.sources:
