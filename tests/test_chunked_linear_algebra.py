@@ -235,3 +235,27 @@ def test_error_jacobians_by_chunks_of_poses_equal_the_whole(monkeypatch):
         weighted = whole.copy()
         weighted[:, 3:] *= 0.3
         np.testing.assert_array_equal(bases.position_jacobians(robot, q, x, 0.3), weighted)
+
+
+def test_maps_side_by_side_keep_their_drive_columns_apart(monkeypatch):
+    """Per-joint maps concatenated hold their drive values as blocks (never joined whole) and give the
+    error vectors and sensitivity of the dense maps written out here; a part of their columns too."""
+    from tcr_accuracy.diagnosis.error_map import ColumnBlocks
+
+    monkeypatch.setattr(ErrorMap, "CHUNK", 16)
+    rng = np.random.default_rng(11)
+    effects = [_effect(rng, 6), _effect(rng, 4)]
+    maps = [ErrorMap.of(N, P_EM, DRIVE, None, dq, dq.shape[2]) for _, dq in effects]
+    joined = ErrorMap.concatenate(maps)
+    assert isinstance(joined.drive, ColumnBlocks)
+    dense = np.zeros((N, P_EM, 10))
+    dense[:, DRIVE] = np.concatenate([dq for _, dq in effects], axis=2)
+    theta = rng.standard_normal(dense.shape[2])
+    rows = np.array([49, 3, 17])
+    np.testing.assert_allclose(joined.errors(theta), np.einsum("npk,k->np", dense, theta), atol=1e-12)
+    np.testing.assert_allclose(joined.errors(theta, rows), np.einsum("npk,k->np", dense[rows], theta), atol=1e-12)
+    jac_x = rng.standard_normal((N, 3, P_EM))
+    np.testing.assert_allclose(joined.sensitivity(jac_x), np.einsum("nrp,npk->nrk", jac_x, dense), atol=1e-12)
+    cols = [7, 0, 2, 5]
+    np.testing.assert_allclose(joined.take(cols).errors(theta[:4]),
+                               np.einsum("npk,k->np", dense[:, :, cols], theta[:4]), atol=1e-12)
