@@ -76,8 +76,11 @@ def test_jacobian_filled_by_chunks_equals_gathered_columns_times_scales(monkeypa
     idx = np.array([2, 0, 4, 1, 3])  # where each gathered column lands
     expected = np.zeros((N, 3, 5))
     expected[:, :, idx] = gathered * scale[idx]
-    jac = fit_columns.ChainedJacobian(s, idx, scale)
-    np.testing.assert_array_equal(np.concatenate([jac.block(c) for c in jac.chunks(None)]), expected)
+    for idx in (idx, np.arange(5)):  # scattered columns, and a run of them (written in place)
+        expected = np.zeros((N, 3, 5))
+        expected[:, :, idx] = gathered * scale[idx]
+        jac = fit_columns.ChainedJacobian(s, idx, scale)
+        np.testing.assert_array_equal(np.concatenate([jac.block(c) for c in jac.chunks(None)]), expected)
 
 
 def test_tall_skinny_r_has_the_gram_matrix_of_the_scaled_columns(monkeypatch):
@@ -210,6 +213,8 @@ def test_factored_sensitivity_equals_the_dense_product(monkeypatch):
     np.testing.assert_allclose(g.transposed_times(residual[rows], rows), expected, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(column_rms(g, slice(0, 2)), np.sqrt(np.mean(np.sum(dense[:, :2] ** 2, axis=1), axis=0)),
                                rtol=1e-12)
+    every = ErrorMap.of_joint_columns(N, P_EM, DRIVE, values[:, [0, 1, 2, 3, 5]], joint[[0, 1, 2, 3, 5]])
+    np.testing.assert_allclose(every.joint_sensitivity(jac_x)[rows], dense[rows][:, :, [0, 1, 2, 3, 5]], rtol=1e-15)
 
 
 def test_error_jacobians_by_chunks_of_poses_equal_the_whole(monkeypatch):

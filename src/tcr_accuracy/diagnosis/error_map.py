@@ -204,8 +204,12 @@ class JointColumnsSensitivity:
     def rows(self, rows) -> np.ndarray:
         """g[rows] (len(rows), r, k) for a slice or an index array."""
         jac_q, values = self.jac_q[rows], self.values[rows]
+        product = jac_q[:, :, self.joint]
+        product *= values[:, None, :]
+        if self.columns.size == self.shape[2]:  # every column moves its joint (columns are increasing)
+            return product
         out = np.zeros((jac_q.shape[0], self.shape[1], self.shape[2]))
-        out[:, :, self.columns] = jac_q[:, :, self.joint] * values[:, None, :]
+        out[:, :, self.columns] = product
         return out
 
     def __getitem__(self, key):

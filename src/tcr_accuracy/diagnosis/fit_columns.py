@@ -72,7 +72,13 @@ class ChainedJacobian:
         for g, cols in self.sensitivity.sources:
             where = self.idx[offset:offset + cols.size]
             offset += cols.size
-            out[:, :, where] = g[rows][:, :, cols] * self.scale[where]
+            part = g[rows]
+            if not _is_range(cols, part.shape[2]):
+                part = part[:, :, cols]
+            if where.size and _is_range(where - where[0], where.size):  # a run of columns: written in place
+                np.multiply(part, self.scale[where], out=out[:, :, where[0]:where[0] + where.size])
+            else:
+                out[:, :, where] = part * self.scale[where]
         if self.whitening is not None:  # weighted as the residual rows are
             out[:, :3] = np.einsum("nij,njk->nik", self.whitening[rows], out[:, :3])
         return out
@@ -112,6 +118,11 @@ class ChainedJacobian:
             at = slice(start, start + Sensitivity.CHUNK)
             out[at] = self.block(rows[at]) @ step
         return out
+
+
+def _is_range(index: np.ndarray, n: int) -> bool:
+    """Whether index is 0, 1, .., n - 1."""
+    return index.size == n and bool(np.array_equal(index, np.arange(n)))
 
 
 def moved_rows(jac: ChainedJacobian, rows: np.ndarray, step: np.ndarray) -> np.ndarray:
