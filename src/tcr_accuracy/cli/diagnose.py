@@ -94,10 +94,14 @@ def _frame_robot(args, frame: str):
         raise InputError(f"{args.measurements[0]}: column {frame}.x_mm: {str(exc).partition(': ')[2]}") from None
 
 
-#: Memory [bytes] the diagnosis plans per measurement (see check_csv_memory in _run_diagnose):
-#: measured 3.15 GB peak for 100,000 poses of the tool-changer and 0.66 GB for 10,000
-#: (scripts/bench_scale.py), about 30 kB a pose beyond the 0.2 GB the libraries take.
-DIAGNOSE_ROW_BYTES = 32_000
+#: Memory [bytes] the diagnosis plans per measurement, and beyond the measurements (the libraries'
+#: 0.2 GB and the arrays whose size does not grow with the poses), see check_csv_memory in
+#: _run_diagnose: scripts/bench_scale.py measured 0.70 GB peak for 10,000 poses of the UR10 with
+#: cyclic errors over the whole vocabulary and 2.27 GB for 100,000 (2026-11-27), planned as 0.70 and
+#: 2.50 GB (with the 12 bytes per byte of CSV text). Before the streamed Jacobians the plan was 32 kB
+#: a pose and no fixed part: 3.4 GB planned at 100,000 poses for 4.82 GB measured.
+DIAGNOSE_ROW_BYTES = 18_000
+DIAGNOSE_FIXED_BYTES = 0.5e9
 
 
 def _run_diagnose(args) -> int:
@@ -123,7 +127,7 @@ def _run_diagnose(args) -> int:
     # the diagnosis holds each measurement's Jacobians over the whole effect vocabulary and
     # the error maps of the pose-dependent effects
     for path in files:
-        check_csv_memory(args, path, "diagnosing", DIAGNOSE_ROW_BYTES)
+        check_csv_memory(args, path, "diagnosing", DIAGNOSE_ROW_BYTES, lambda rows: DIAGNOSE_FIXED_BYTES)
     frames = measured_frames(files[0])
     for path in files[1:]:
         if measured_frames(path) != frames:

@@ -23,10 +23,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy import linalg
 
 from ..effects import effect_class
 from .fitting import FitEngine
 from .bases import ordered
+from .fit_columns import ChainedJacobian
+from .identifiability import QR_CHUNK
 from .paired import entry_z, paired_z, row_squares
 from .records import ErrorStats
 from .uncertainty import implausibility
@@ -154,27 +157,44 @@ def stand_in_shapes(engine: FitEngine, current: list, pool, rng: np.random.Gener
     For the structure test's power probe; effects driven by the approach direction or the
     temperature are left out (their leftover is not a function of the joint values)."""
     final_cols = engine.columns(ordered(current))
-    basis, g, idx = final_cols.per_part[0]
-    model = None
-    if g.shape[2]:  # the gathered columns times their scales, filled without the gathered copy
-        model = np.zeros(g.shape)
-        g.scaled_into(model, np.arange(g.shape[2]), final_cols.scale[idx])
-        model = model[:, :3, :].reshape(-1, g.shape[2])
-    shapes = {}
+    _, g, idx = final_cols.per_part[0]
     # the structure test looks for what the joint values predict: an effect driven by the
     # approach direction or the temperature leaves a pattern it is not built to see (the
     # "where" breakdown by direction and temperature is), so it is no yardstick of its power
     joint_driven = [e for e in pool if not set(effect_class(e).context_columns) & {"<joint>_dir", "temperature_c"}]
+    motions = {}
     for u in [e for e in joint_driven if e not in current and e in engine.bases]:
         b = engine.bases[u]
-        g_u = b.per_part[0].g[:, :3, :]  # (N, 3, k) per unit of the union parameters' local columns
+        g_u = b.per_part[0].g  # (N, r, k) per unit of the union parameters' local columns
         draw = rng.standard_normal(g_u.shape[2]) * b.scales[b.index[0]]
-        motion = (g_u @ draw).reshape(-1)
-        if model is not None:
-            motion = motion - model @ np.linalg.lstsq(model, motion, rcond=None)[0]
-        if np.any(motion):
-            shapes[u] = motion.reshape(-1, 3)
-    return shapes
+        motions[u] = np.concatenate([g_u[start:start + QR_CHUNK][:, :3, :] @ draw
+                                     for start in range(0, g_u.shape[0], QR_CHUNK)])
+    if g.shape[2] and motions:
+        model = ChainedJacobian(g, np.arange(g.shape[2]), final_cols.scale[idx])
+        left = _least_squares_residual(model, np.stack(list(motions.values()), axis=2))
+        motions = {u: left[:, :, i] for i, u in enumerate(motions)}
+    return {u: motion for u, motion in motions.items() if np.any(motion)}
+
+
+def _least_squares_residual(model: ChainedJacobian, vectors: np.ndarray) -> np.ndarray:
+    """vectors (N, 3, m) less their least-squares fit by the model's columns on the position rows
+    (each vector its own fit): the model (3N x k) is never held whole (it was, and LAPACK's copy of
+    it, 2 x 108 MB at 10^4 poses with the cyclic effect). One tall-skinny QR of [model | vectors],
+    a chunk of poses at a time, gives R = [[R11, R12], [0, R22]]; the coefficients solve R11 x = R12."""
+    k, m = model.shape[2], vectors.shape[2]
+    r = np.zeros((0, k + m))
+    for start in range(0, vectors.shape[0], QR_CHUNK):
+        rows = slice(start, start + QR_CHUNK)
+        block = model.block(rows)[:, :3, :]
+        chunk = np.concatenate([block.reshape(-1, k), vectors[rows].reshape(-1, m)], axis=1)
+        stacked = np.concatenate([r, chunk], axis=0)
+        r = linalg.qr(stacked, mode="r", overwrite_a=True, check_finite=False)[0][:min(stacked.shape)]
+    coefficients = np.linalg.lstsq(r[:k, :k], r[:k, k:], rcond=None)[0]
+    out = vectors.copy()
+    for start in range(0, vectors.shape[0], QR_CHUNK):
+        rows = slice(start, start + QR_CHUNK)
+        out[rows] -= model.block(rows)[:, :3, :] @ coefficients
+    return out
 
 
 def rival_models(estimator) -> list:

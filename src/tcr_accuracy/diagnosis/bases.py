@@ -79,8 +79,14 @@ class EffectBasis:
         weights = effect.fit_policy.penalty_weights(effect)
         self.penalty = np.zeros(len(self.names)) if weights is None else np.asarray(weights, dtype=float)
         n, k = part.q.shape[0], len(self.names)
-        maps = effect.parameter_jacobian(np.zeros(k), part.q, part.context)
-        self.basis = ErrorMap.of(n, em.size, em.drive_slice, maps.x, maps.dq, k)
+        #: whether g is held as its factors (every column moves one joint: a cyclic series)
+        self.factored = hasattr(effect, "joint_columns")
+        if self.factored:  # never the dense (N, n_joints, k) Jacobian
+            values, joint = effect.joint_columns(part.q)
+            self.basis = ErrorMap.of_joint_columns(n, em.size, em.drive_slice, values, joint)
+        else:
+            maps = effect.parameter_jacobian(np.zeros(k), part.q, part.context)
+            self.basis = ErrorMap.of(n, em.size, em.drive_slice, maps.x, maps.dq, k)
         self.relinearise(jac_x)
         self.nonlinearity = 0.0
         if type(effect).perturb is LinearEffect.perturb:
@@ -97,8 +103,9 @@ class EffectBasis:
         self.nonlinearity = float(np.abs(total - self.basis.errors(probe)).max() / size)
 
     def relinearise(self, jac_x: np.ndarray) -> None:
-        """TCP sensitivity (N, r, P) for error Jacobians jac_x (N, r, p_em)."""
-        self.g = self.basis.sensitivity(jac_x)
+        """TCP sensitivity (N, r, P) for error Jacobians jac_x (N, r, p_em) (its factors, a
+        :class:`~tcr_accuracy.diagnosis.error_map.JointColumnsSensitivity`, for a per-joint series)."""
+        self.g = self.basis.joint_sensitivity(jac_x) if self.factored else self.basis.sensitivity(jac_x)
 
 
 class UnionBasis:
@@ -158,14 +165,30 @@ class UnionBasis:
         return self.per_part[0].basis
 
 
+#: poses whose error Jacobians are taken at once (their temporaries, a few placement-chain arrays of
+#: (N, n_joints, 6, 6), were 1 GB at 10^5 poses taken whole)
+JACOBIAN_CHUNK = 8192
+
+
 def position_jacobians(robot: RobotModel, q: np.ndarray, x: np.ndarray | None = None,
                        orientation_weight: float | None = None) -> np.ndarray:
-    """Error Jacobians (N, r, p_em) at error vector x: position rows, plus weighted rotation rows."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", JointLimitWarning)
-        _, jx = error_jacobians(robot, q, x)
-    if orientation_weight is None:
-        return np.ascontiguousarray(jx[:, :3])
-    jx = jx.copy()
-    jx[:, 3:] *= orientation_weight
-    return np.ascontiguousarray(jx)
+    """Error Jacobians (N, r, p_em) at error vector x (p_em,) or per pose (N, p_em): position rows,
+    plus weighted rotation rows; a chunk of poses at a time."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    if x is not None and np.ndim(x) == 2:
+        xs = np.asarray(x, dtype=float)
+        if not np.any(xs != xs[0]):  # one error vector for every pose: the one error_jacobians would take
+            x = xs.mean(axis=0)
+    out = None
+    for start in range(0, q.shape[0], JACOBIAN_CHUNK):
+        rows = slice(start, start + JACOBIAN_CHUNK)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", JointLimitWarning)
+            _, jx = error_jacobians(robot, q[rows], x if x is None or np.ndim(x) == 1 else x[rows])
+        r = 3 if orientation_weight is None else 6
+        if out is None:
+            out = np.empty((q.shape[0], r, jx.shape[2]))
+        out[rows] = jx[:, :r]
+        if orientation_weight is not None:
+            out[rows, 3:] *= orientation_weight
+    return out

@@ -51,7 +51,7 @@ class ErrorMap:
         if self.drive is None or self.drive_joint is None:
             return self.drive
         dense = np.zeros((self.drive.shape[0], self.n_drive, self.drive.shape[1]))
-        dense[:, self.drive_joint, np.arange(self.drive.shape[1])] = self.drive
+        dense[:, self.drive_joint, np.arange(self.drive.shape[1])] = np.asarray(self.drive)
         return dense
 
     @classmethod
@@ -81,6 +81,20 @@ class ErrorMap:
                 drive = np.ascontiguousarray(dq[:, :, drive_columns])
         return cls(n_poses, size, drive_slice, fixed, per_pose, pose_columns, drive, drive_columns, drive_joint,
                    pose_entries)
+
+    @classmethod
+    def of_joint_columns(cls, n_poses: int, size: int, drive_slice: slice, values: np.ndarray,
+                         joint: np.ndarray) -> "ErrorMap":
+        """From a parameter Jacobian whose every column moves one joint (an effect's compact
+        ``joint_columns``): values (N, k) of d(dq_joint)/d(theta), joint (k,). The map
+        :meth:`of` builds from the same Jacobian made dense (N, n_joints, k), without that array."""
+        k = values.shape[1]
+        drive_columns = np.flatnonzero(np.any(values != 0, axis=0))
+        drive = None
+        if drive_columns.size:
+            drive = values if drive_columns.size == k else np.ascontiguousarray(values[:, drive_columns])
+        return cls(n_poses, size, drive_slice, np.zeros((size, k)), None, [], drive, drive_columns,
+                   np.asarray(joint, dtype=int)[drive_columns] if drive_columns.size else None)
 
     @property
     def n_columns(self) -> int:
@@ -117,10 +131,20 @@ class ErrorMap:
             for start in range(0, g.shape[0], self.CHUNK):
                 rows = slice(start, start + self.CHUNK)
                 g[rows, :, self.drive_columns] += (jac_x[rows][:, :, self.drive_slice][:, :, self.drive_joint]
-                                                   * self.drive[rows, None, :])
+                                                   * self.drive[rows][:, None, :])
         elif self.drive is not None:
             g[:, :, self.drive_columns] += jac_x[:, :, self.drive_slice] @ self.drive
         return g
+
+    def joint_sensitivity(self, jac_x: np.ndarray):
+        """The TCP sensitivity as :meth:`sensitivity`, left as its two factors
+        (:class:`JointColumnsSensitivity`) when every column moves one joint and nothing else (a
+        cyclic series: its (N, r, k) product was 806 MB at 10^5 poses, the factors n_joints x
+        r + k floats a pose); else the dense array."""
+        if self.drive is None or self.drive_joint is None or self.per_pose is not None or np.any(self.fixed):
+            return self.sensitivity(jac_x)
+        return JointColumnsSensitivity(np.ascontiguousarray(jac_x[:, :, self.drive_slice]), self.drive,
+                                       self.drive_joint, self.drive_columns, self.n_columns)
 
     def take(self, columns) -> "ErrorMap":
         """The map of some of its columns, in the given order."""
@@ -128,8 +152,11 @@ class ErrorMap:
         pose_pos, pose_new = _positions(self.pose_columns, columns)
         drive_pos, drive_new = _positions(self.drive_columns, columns)
         compact = self.drive_joint is not None
-        drive = None if not drive_pos.size else (_columns(self.drive, drive_pos) if compact else
-                                                 self.drive[:, :, drive_pos])
+        stored = self.drive
+        if isinstance(stored, ColumnBlocks) and not np.array_equal(drive_pos, np.arange(stored.shape[1])):
+            stored = np.asarray(stored)  # some of the columns: a copy of those
+        drive = None if not drive_pos.size else (_columns(stored, drive_pos) if compact else
+                                                 stored[:, :, drive_pos])
         return ErrorMap(self.n_poses, self.size, self.drive_slice, self.fixed[:, columns],
                         _columns(self.per_pose, pose_pos) if pose_pos.size else None, pose_new,
                         drive, drive_new, self.drive_joint[drive_pos] if compact and drive_pos.size else None,
@@ -153,9 +180,88 @@ class ErrorMap:
         return cls(first.n_poses, first.size, first.drive_slice, fixed,
                    _joined([p for p, _, _ in pose], axis=2) if pose else None,
                    np.concatenate([c for _, c, _ in pose]) if pose else (),
-                   _joined([d for d, _ in drive], axis=1 if compact else 2) if drive else None,
+                   (ColumnBlocks([d for d, _ in drive]) if compact else _joined([d for d, _ in drive], axis=2))
+                   if drive else None,
                    np.concatenate([c for _, c in drive]) if drive else (),
                    np.concatenate([m.drive_joint for m in driven]) if compact else None, entries)
+
+
+class JointColumnsSensitivity:
+    """A TCP sensitivity (N, r, k) whose every column moves one joint, held as its two factors:
+    g[n, :, c] = jac_q[n, :, joint[c]] * values[n, c] (the joints' columns of the error Jacobian times
+    each parameter's joint offset per unit). Rows are made on demand (``g[rows]``, ``g[rows, ...]``:
+    the same floats as the dense product), and the products the fit takes are formed from the
+    factors (:meth:`transposed_times`). ``np.asarray`` of it is the whole dense array."""
+
+    ndim = 3
+    dtype = np.dtype(float)
+
+    def __init__(self, jac_q: np.ndarray, values: np.ndarray, joint: np.ndarray, columns: np.ndarray, k: int):
+        """jac_q (N, r, n_joints), values (N, k_drive), joint (k_drive,), columns (k_drive,) of the k."""
+        self.jac_q, self.values, self.joint, self.columns = jac_q, values, joint, columns
+        self.shape = (jac_q.shape[0], jac_q.shape[1], k)
+
+    def rows(self, rows) -> np.ndarray:
+        """g[rows] (len(rows), r, k) for a slice or an index array."""
+        jac_q, values = self.jac_q[rows], self.values[rows]
+        product = jac_q[:, :, self.joint]
+        product *= values[:, None, :]
+        if self.columns.size == self.shape[2]:  # every column moves its joint (columns are increasing)
+            return product
+        out = np.zeros((jac_q.shape[0], self.shape[1], self.shape[2]))
+        out[:, :, self.columns] = product
+        return out
+
+    def __getitem__(self, key):
+        if not isinstance(key, tuple):
+            key = (key,)
+        if isinstance(key[0], (int, np.integer)):
+            return self.rows([key[0]])[0][key[1:]]
+        return self.rows(key[0])[(slice(None),) + key[1:]]
+
+    def __array__(self, dtype=None, copy=None):
+        out = self.rows(slice(None))
+        return out if dtype is None else out.astype(dtype)
+
+    def transposed_times(self, residual: np.ndarray, rows) -> np.ndarray:
+        """g[rows]^T residual (k,) for residual (len(rows) or N, r): sum_n values[n, c] u[n, joint[c]]
+        with u = jac_q^T residual per pose, a chunk of poses at a time."""
+        total = np.zeros(self.shape[2])
+        for start in range(0, residual.shape[0], ErrorMap.CHUNK):
+            at = slice(start, start + ErrorMap.CHUNK)
+            where = at if rows is None else rows[at]
+            u = np.einsum("nij,ni->nj", self.jac_q[where], residual[at])
+            total[self.columns] += np.einsum("nc,nc->c", self.values[where], u[:, self.joint])
+        return total
+
+
+class ColumnBlocks:
+    """Arrays (N, k_i) side by side, read as one (N, sum k_i) a chunk of rows at a time and never
+    joined whole: the compact drive columns of a model's effects (joined, a model with the cyclic effect
+    copied its 336 columns: 300 MB at 10^5 poses per model evaluated). ``blocks[rows]`` is the joined
+    rows (the same floats as the joined array's)."""
+
+    ndim = 2
+
+    def __init__(self, blocks: list):
+        self.blocks = [b for block in blocks for b in (block.blocks if isinstance(block, ColumnBlocks) else [block])]
+        self.shape = (self.blocks[0].shape[0], sum(b.shape[1] for b in self.blocks))
+
+    def __getitem__(self, rows) -> np.ndarray:
+        return _joined([b[rows] for b in self.blocks], axis=1)
+
+    def __array__(self, dtype=None, copy=None):
+        out = _joined(self.blocks, axis=1)
+        return out if dtype is None else out.astype(dtype)
+
+
+def column_rms(g, components: slice = slice(None)) -> np.ndarray:
+    """(k,) RMS over the poses of each column's norm over the given components of g (N, r, k): the TCP motion
+    of each parameter per unit; a chunk of poses at a time (g may be a :class:`JointColumnsSensitivity`)."""
+    total = np.zeros(g.shape[2])
+    for start in range(0, g.shape[0], ErrorMap.CHUNK):
+        total += np.sum(g[start:start + ErrorMap.CHUNK][:, components, :] ** 2, axis=(0, 1))
+    return np.sqrt(total / max(g.shape[0], 1))
 
 
 def _columns(values: np.ndarray, positions: np.ndarray) -> np.ndarray:

@@ -36,7 +36,7 @@ from .bases import Part, ordered
 from .error_map import ErrorMap
 from .identifiability import compressed, identifiability
 from .least_squares import DampedSolver, cholesky_solve
-from .fit_columns import Columns, Sensitivity, gradient_vector, gram_matrix, moved_rows
+from .fit_columns import ChainedJacobian, Columns, Sensitivity, gradient_vector, gram_matrix, moved_rows
 from .paired import row_squares
 
 
@@ -215,17 +215,11 @@ class FitEngine:
         return [self._pose_residual(p, rows, basis.errors(theta[idx], rows))
                 for p, (basis, _, idx) in enumerate(cols.per_part)]
 
-    def _jacobians(self, cols: "Columns") -> list[np.ndarray]:
-        """Per part, the chained Jacobian (N, r, k) of the residual in phi, over all rows."""
-        k = cols.scale.size
-        out = []
-        for part, (_, g, idx) in zip(self.parts, cols.per_part):
-            block = np.zeros((g.shape[0], g.shape[1], k))
-            g.scaled_into(block, idx, cols.scale[idx])
-            if part.whitening is not None:  # weighted as the residual rows are
-                block[:, :3] = np.einsum("nij,njk->nik", part.whitening, block[:, :3])
-            out.append(block)
-        return out
+    def _jacobians(self, cols: "Columns") -> list[ChainedJacobian]:
+        """Per part, the chained Jacobian (N, r, k) of the residual in phi, over all rows (held as
+        its effects' columns: :class:`~tcr_accuracy.diagnosis.fit_columns.ChainedJacobian`)."""
+        return [ChainedJacobian(g, idx, cols.scale, part.whitening)
+                for part, (_, g, idx) in zip(self.parts, cols.per_part)]
 
     def fit(self, cols: "Columns", rows, start=None, jacobians=None, gram=None):
         """Scaled parameters phi minimising the residual on rows, and the residual per part.
@@ -448,8 +442,12 @@ class FitEngine:
             [np.zeros(k), mapped(list(self._last), list(self._last.values()))]
         phi, train = self._best_start(cols, starts, every)
         jacs = self._jacobians(cols) if k else []
-        gram = gram_matrix(jacs, None) if jacs else None
         fold_grams = [[gram_matrix(jacs, test) for _, test in folds] for folds in self.repeats] if k else []
+        gram = None
+        if k:  # the first assignment's held-out rows cover every row once: the full Gram matrix is their sum
+            held = np.sort(np.concatenate([test for _, test in self.folds])) if self.folds else None
+            gram = sum(fold_grams[0]) if held is not None and np.array_equal(held, every) else \
+                gram_matrix(jacs, None)
         penalties = self._penalties(cols, jacs, fold_grams, train, phi) if k and cols.penalty.any() else None
         if k:
             phi, train = self._minimise(cols, jacs, None, gram, phi, train,

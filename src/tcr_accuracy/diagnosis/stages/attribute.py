@@ -14,6 +14,7 @@ import numpy as np
 from ...effects.mechanisms import FAMILIES, MechanismReading, read_mechanism
 from ..attribution import contributions, fixed_point_check, tied_own_shares
 from ..confounding import confounded_variables
+from ..error_map import column_rms
 from ..fitting import FitEngine
 from ..bases import ordered
 from ..paired import entry_z, paired_z
@@ -207,8 +208,7 @@ def fitted_mechanisms(engine: FitEngine, current) -> list[MechanismReading]:
         offset += kept.size
         effect = basis.per_part[0].effect
         index = basis.index[0]
-        g = basis.per_part[0].g[:, :3, :]  # (N, 3, k): TCP position motion per unit of each parameter
-        motion = np.sqrt(np.mean(np.sum(g**2, axis=1), axis=0))
+        motion = column_rms(basis.per_part[0].g, slice(0, 3))  # TCP position motion per unit of each parameter
         out.append(read_mechanism(effect, values[index], spread[index], [basis.names[i] for i in index], motion,
                                   pinned[index]))
     return out
