@@ -174,7 +174,7 @@ def test_29_02_iso9283_evaluate_json_and_out_on_one_path_leaves_no_tmp(campaign,
     assert list(tmp_path.iterdir()) == []
 
 
-def _refused_over_its_input(argv, given: Path, capsys) -> None:
+def assert_refused_over_its_input(argv, given: Path, capsys) -> None:
     """``argv`` writes into ``given``'s folder at ``given``'s name: refused, the input and its folder as they were."""
     before, entries = given.read_bytes(), sorted(p.name for p in given.parent.iterdir())
     code, out, err = run(argv, capsys)
@@ -189,11 +189,11 @@ def test_29_02_export_over_its_own_diagnosis_or_targets(campaign, tmp_path, caps
     folder.mkdir()
     given = folder / "as_built.yaml"
     given.write_bytes(diagnosis.read_bytes())
-    _refused_over_its_input(["export", given, "--to", folder], given, capsys)
+    assert_refused_over_its_input(["export", given, "--to", folder], given, capsys)
     given.unlink()
     targets = folder / "compensation.csv"
     targets.write_text("j1_deg,j2_deg,j3_deg,j4_mm,j5_deg,j6_deg\n10,20,30,100,10,0\n")
-    _refused_over_its_input(["export", diagnosis, "--to", folder, "--targets", targets], targets, capsys)
+    assert_refused_over_its_input(["export", diagnosis, "--to", folder, "--targets", targets], targets, capsys)
 
 
 def test_29_02_report_over_its_own_result_even_through_a_hard_link(campaign, tmp_path, capsys):
@@ -202,7 +202,7 @@ def test_29_02_report_over_its_own_result_even_through_a_hard_link(campaign, tmp
     folder.mkdir()
     given = folder / "index.html"
     given.write_bytes(diagnosis.read_bytes())
-    _refused_over_its_input(["report", given, "--out", folder], given, capsys)
+    assert_refused_over_its_input(["report", given, "--out", folder], given, capsys)
     elsewhere = tmp_path / "result.json"
     os.link(given, elsewhere)  # the same file under another name: still the input
     code, out, err = run(["report", elsewhere, "--out", folder], capsys)

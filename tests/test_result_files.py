@@ -63,7 +63,7 @@ def _readers(path, diagnosis, tmp_path):
             "iso9283 --model": ["iso9283", "evaluate", measured, "--model", path]}
 
 
-def _every_reader_refuses(path, diagnosis, tmp_path, capsys, *fragments):
+def assert_every_reader_refuses(path, diagnosis, tmp_path, capsys, *fragments):
     for reader, argv in _readers(path, diagnosis, tmp_path).items():
         code, out, err = run(argv, capsys)
         assert code == 2, (reader, err)
@@ -92,7 +92,7 @@ def test_29_06_a_forged_key_is_one_line_in_every_reader(path, value, said, diagn
     for key in path[:-1]:
         node = node[key]
     node[path[-1]] = value
-    _every_reader_refuses(_write(tmp_path, doc), diagnosis, tmp_path, capsys, said)
+    assert_every_reader_refuses(_write(tmp_path, doc), diagnosis, tmp_path, capsys, said)
 
 
 # ---------------------------------------------------------------------------------------
