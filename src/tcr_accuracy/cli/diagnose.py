@@ -347,14 +347,12 @@ def _rows_named(measurements, indices, files, labels) -> str:
 def _instrument(args):
     """The instrument --instrument or --instrument-mpe names (SI), or None."""
     from ..exceptions import InputError
-    from ..frames.instrument import instrument_from
+    from ..frames.instrument import MPE_MAX, MPE_MIN_M, instrument_from
 
     if args.instrument is not None and args.instrument_mpe is not None:
         raise InputError("--instrument and --instrument-mpe: give one of them")
     if args.instrument_radial_mpe is not None and args.instrument_mpe is None:
         raise InputError("--instrument-radial-mpe: give --instrument-mpe too (the MPE across the beam)")
-
-    from ..frames.instrument import MPE_MAX, MPE_MIN_M
 
     def si(pair):
         return None if pair is None else (pair[0] * 1e-6, pair[1] * 1e-6)

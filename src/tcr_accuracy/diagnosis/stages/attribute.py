@@ -247,6 +247,11 @@ def _family_members(engine: FitEngine, current, stand_ins: dict) -> dict:
         for family, effects in members.items()}
 
 
+def _joined(current, stand_ins: list) -> list:
+    """The model the family shares are measured in: the chosen effects and every stand-in."""
+    return ordered(set(current) | {s for extra in stand_ins for s in extra})
+
+
 def family_shares(engine: FitEngine, current, stand_ins: dict | None = None) -> list[FamilyShare]:
     """Every family with a chosen member and its own share: how much the held-out RMS rises
     without all its members (the other effects held to their parameters), largest first.
@@ -257,7 +262,7 @@ def family_shares(engine: FitEngine, current, stand_ins: dict | None = None) -> 
     scale or a transmission error on 250 poses, say) must not decide how the rest of the gap is
     shared between the other families, since each takes a different part of them."""
     members = _family_members(engine, current, stand_ins or {})
-    joined = ordered(set(current) | {s for _, extra in members.values() for s in extra})
+    joined = _joined(current, [extra for _, extra in members.values()])
     final = engine.evaluate(joined)
     final_rms = ErrorStats.heldout(final).rms
     out = []
@@ -276,7 +281,7 @@ def _tied_families(engine: FitEngine, current, families: list, selection_z: floa
     shares were measured in)."""
     if not families:
         return []
-    joined = ordered(set(current) | {s for f in families for s in f.stand_ins})
+    joined = _joined(current, [f.stand_ins for f in families])
     removed = {f.family: f.effects + f.stand_ins for f in families}
     top = _without(engine, joined, removed[families[0].family])["heldout_squares"]
     return [families[0].family] + [f.family for f in families[1:]
