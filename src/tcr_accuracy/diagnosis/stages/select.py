@@ -166,7 +166,7 @@ def select_effects(registered: RegisteredMeasurements, candidate_set: CandidateS
                                                   rng)["remains"]:
         late_bases, late_rejected, _ = build_bases(list(registered.parts), late_names, registered.measured_context,
                                                    notes, registered.session_labels)
-        relinearise(late_bases, candidate_set.linearised)
+        relinearise(late_bases, candidate_set.linearised())
         engine.add_bases(late_bases)
         candidates.update({c.effect: c for c in late_rejected})
         for name in ordered(late_bases):
@@ -327,7 +327,7 @@ def _relinearise_at_fit(engine: FitEngine, current, registered: RegisteredMeasur
                      f"robot: training RMS {np.sqrt(before / final['n_observations']) * 1e3:.4g} -> "
                      f"{np.sqrt(after / final['n_observations']) * 1e3:.4g} mm per coordinate")
         return True
-    relinearise(engine.bases, candidate_set.linearised)  # no better: back to the frames-only linearisation
+    relinearise(engine.bases, candidate_set.linearised())  # no better: back to the frames-only linearisation
     engine.reset()
     return False
 
