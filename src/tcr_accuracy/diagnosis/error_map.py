@@ -76,7 +76,7 @@ class ErrorMap:
     def of_entries(cls, n_poses: int, size: int, drive_slice: slice, x: np.ndarray | None, dq: np.ndarray | None,
                    entries, k: int) -> "ErrorMap":
         """The map :meth:`of` builds, from a parameter Jacobian whose per-pose error-vector part is given as
-        its nonzero entries (:class:`~tcr_accuracy.effects.base.PoseEntries`, an effect's
+        its nonzero entries (:class:`~tcr_accuracy.effects.pose_entries.PoseEntries`, an effect's
         ``sparse_parameter_jacobian``), without the dense (N, p_em, k) array: x (p_em, k) or None, the part
         the same for every pose; dq as for :meth:`of`."""
         values, entry, column = entries.values, entries.entry, entries.column

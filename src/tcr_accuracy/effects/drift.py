@@ -8,7 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..units import REVOLUTE
-from .base import EffectJacobian, LinearEffect, PoseEntries, joint_unit, per_joint_kind
+from .base import EffectJacobian, LinearEffect, joint_unit, per_joint_kind
+from .pose_entries import PoseEntries
 from .fit_policy import FitPolicy
 
 
@@ -121,7 +122,7 @@ class Drift(LinearEffect):
 
     def sparse_parameter_jacobian(self, params, q, context) -> tuple[EffectJacobian, PoseEntries]:
         """:meth:`parameter_jacobian` with its error-vector part as its nonzero entries
-        (:class:`~tcr_accuracy.effects.base.PoseEntries`): each base parameter moves one entry, the
+        (:class:`~tcr_accuracy.effects.pose_entries.PoseEntries`): each base parameter moves one entry, the
         base translation applied on the left of the chain as frames' base twist."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         n, nj = q.shape

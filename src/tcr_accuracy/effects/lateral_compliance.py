@@ -9,7 +9,8 @@ import numpy as np
 from ..model.context import MeasurementContext, context_column
 from ..model.gravity import gravity_wrench
 from ..units import REVOLUTE
-from .base import EffectJacobian, LinearEffect, PoseEntries, loaded_joint_scales, reference_poses
+from .base import EffectJacobian, LinearEffect, loaded_joint_scales, reference_poses
+from .pose_entries import PoseEntries
 from .fit_policy import FitPolicy
 
 
@@ -113,7 +114,7 @@ class LateralCompliance(LinearEffect):
         return EffectJacobian(x=entries.dense(self.error_model.size, self.n_params))
 
     def sparse_parameter_jacobian(self, params, q, context) -> tuple[EffectJacobian, PoseEntries]:
-        """:meth:`parameter_jacobian` as its nonzero entries (:class:`~tcr_accuracy.effects.base.PoseEntries`):
+        """:meth:`parameter_jacobian` as its nonzero entries (:class:`~tcr_accuracy.effects.pose_entries.PoseEntries`):
         each parameter tilts one joint, so it moves that joint's rotation entries (and its translation
         ones for a prismatic joint) and no others."""
         q = np.atleast_2d(np.asarray(q, dtype=float))

@@ -7,7 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model.context import REFERENCE_TEMPERATURE_C, context_column
-from .base import EffectJacobian, LinearEffect, PoseEntries
+from .base import EffectJacobian, LinearEffect
+from .pose_entries import PoseEntries
 from .fit_policy import FitPolicy
 from .simulation_rules import SimulationRules
 
@@ -150,7 +151,7 @@ class Thermal(LinearEffect):
         return directions
 
     def sparse_parameter_jacobian(self, params, q, context) -> tuple[EffectJacobian, PoseEntries]:
-        """:meth:`parameter_jacobian` as its nonzero entries (:class:`~tcr_accuracy.effects.base.PoseEntries`):
+        """:meth:`parameter_jacobian` as its nonzero entries (:class:`~tcr_accuracy.effects.pose_entries.PoseEntries`):
         each parameter grows a few entries of the error vector in proportion to the temperature."""
         q = np.atleast_2d(q)
         t_ref = float(self.reference_temperature_c)
