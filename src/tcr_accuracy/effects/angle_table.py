@@ -36,8 +36,8 @@ class AngleTableFitPolicy(FitPolicy):
         q = np.atleast_2d(np.asarray(q, dtype=float))
         revolute = sum(k == REVOLUTE for k in robot.joint_kinds)
         intervals = int(min(32, max(8, CONSTRAINED - DEGREE + len(q) // (8 * max(revolute, 1)))))
-        return {"intervals": intervals, "lower": tuple(float(v) for v in q.min(axis=0)),
-                "upper": tuple(float(v) for v in q.max(axis=0))}
+        return {"intervals": intervals, "lower": [float(v) for v in q.min(axis=0)],
+                "upper": [float(v) for v in q.max(axis=0)]}
 
     def penalty_weights(self, effect) -> np.ndarray:
         """(k,) roughness weight of each parameter: the mean squared curvature of its mode (unit
@@ -79,8 +79,8 @@ def joint_table(lower: float, upper: float, intervals: int) -> JointTable:
     and, within that space, to the eigenvectors of the roughness (mean squared second derivative)
     relative to the mean square (Demmler-Reinsch): each parameter is one mode of unit RMS and
     its penalty is one number, so the fit's diagonal penalty is the exact roughness penalty.
-    The modes are fixed by (lower, upper, intervals) alone, each with its largest coefficient
-    positive, so a file's options rebuild the same table.
+    The modes are fixed by (lower, upper, intervals) alone, each with its first coefficient
+    positive (from the lower end), so a file's options rebuild the same table.
     """
     from scipy.interpolate import BSpline
     from scipy.linalg import eigh
@@ -103,8 +103,10 @@ def joint_table(lower: float, upper: float, intervals: int) -> JointTable:
     mass = (basis @ null).T @ (basis @ null) / GRID
     eigenvalues, vectors = eigh(roughness, mass)  # vectors^T mass vectors = 1: unit-RMS modes
     modes = null @ vectors
-    largest = np.argmax(np.abs(modes), axis=0)
-    modes = modes * np.sign(modes[largest, np.arange(modes.shape[1])])
+    # each mode's sign: its first coefficient from the lower end that is not negligible is positive (its
+    # largest would tie between the two ends of a symmetric mode, and a rounding would flip it)
+    first = np.argmax(np.abs(modes) > 1e-3 * np.abs(modes).max(axis=0), axis=0)
+    modes = modes * np.sign(modes[first, np.arange(modes.shape[1])])
     return JointTable(knots, modes, np.maximum(eigenvalues, 0.0) / 81.0)
 
 
@@ -141,7 +143,7 @@ class AngleTable(LinearEffect):
     #: poses at a time in :meth:`perturb`
     CHUNK = 4096
 
-    def __init__(self, robot, *, intervals: int = 16, lower: tuple | None = None, upper: tuple | None = None) -> None:
+    def __init__(self, robot, *, intervals: int = 16, lower: list | None = None, upper: list | None = None) -> None:
         super().__init__(robot)
         if intervals < CONSTRAINED - DEGREE + 1:
             raise ValueError(f"angle_table needs at least {CONSTRAINED - DEGREE + 1} knot intervals, got {intervals}")
@@ -150,8 +152,9 @@ class AngleTable(LinearEffect):
         for given, name in ((lower, "lower"), (upper, "upper")):
             if given is not None and len(given) != robot.n_joints:
                 raise ValueError(f"angle_table {name}: {len(given)} values for {robot.n_joints} joints")
-        self.lower = None if lower is None else tuple(float(v) for v in lower)
-        self.upper = None if upper is None else tuple(float(v) for v in upper)
+        # lists, as a result file holds them
+        self.lower = None if lower is None else [float(v) for v in lower]
+        self.upper = None if upper is None else [float(v) for v in upper]
         self._span = (np.asarray(self.lower if lower is not None else low, dtype=float),
                       np.asarray(self.upper if upper is not None else high, dtype=float))
 
