@@ -72,14 +72,18 @@ def campaign():
 
 @pytest.mark.slow
 def test_errors_of_the_absolute_angle_are_named_angle_table_and_beat_cyclic(campaign):
-    with_table, cyclic_only = campaign["with"], campaign["without"]
+    with_table, without = campaign["with"], campaign["without"]
+    cyclic = without.candidates["cyclic"]  # the Fourier series tried on the same data, on top of what was chosen
+    assert cyclic["tried"]
     print(f"held-out RMS [mm]: with angle_table {with_table.steps[-1].heldout.rms * 1e3:.4f} "
-          f"({with_table.selected_effects}), cyclic alone {cyclic_only.steps[-1].heldout.rms * 1e3:.4f} "
-          f"({cyclic_only.selected_effects}), noise floor {with_table.noise_floor * 1e3:.4f}")
+          f"({with_table.selected_effects}); without it {without.steps[-1].heldout.rms * 1e3:.4f} "
+          f"({without.selected_effects}), cyclic added {cyclic['heldout_rms_mm_with_frames']:.4f}; "
+          f"noise floor {with_table.noise_floor * 1e3:.4f}")
     assert "angle_table" in with_table.selected_effects
     assert with_table.steps[-1].heldout.rms <= 1.5 * with_table.noise_floor
     # a Fourier series of q mod 2 pi cannot hold an error that differs at q and q + 2 pi
-    assert with_table.steps[-1].heldout.rms < 0.7 * cyclic_only.steps[-1].heldout.rms
+    best_without = min(without.steps[-1].heldout.rms * 1e3, cyclic["heldout_rms_mm_with_frames"])
+    assert with_table.steps[-1].heldout.rms * 1e3 < 0.7 * best_without
 
 
 @pytest.mark.slow
@@ -101,7 +105,7 @@ def test_the_fitted_table_holds_nothing_of_offsets_scale_or_transmission(campaig
 
         for column in forbidden.T:
             cosine = inner(table, column) / np.sqrt(inner(table, table) * inner(column, column))
-            assert abs(cosine) < 2e-3, (joint, cosine)
+            assert abs(cosine) < 1e-4, (joint, cosine)
         # the truth's part off those six functions (least squares here) is what the table should hold
         true = truth(j, angles)
         rest = true - forbidden @ np.linalg.lstsq(forbidden, true, rcond=None)[0]

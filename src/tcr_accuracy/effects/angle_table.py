@@ -18,8 +18,8 @@ DEGREE = 3
 #: The functions the table must not contain (another effect's): joint_offsets (1), encoder_scale (q),
 #: transmission's first and second harmonics
 CONSTRAINED = 6
-#: Points of the grid the constraint and the penalty are evaluated on, per joint
-GRID = 2001
+#: Gauss-Legendre points per knot interval the constraint and the penalty are integrated on
+GAUSS_POINTS = 8
 #: Narrowest travel a table spans [rad] (a joint the data barely move still gets a well-posed table)
 MIN_SPAN = 0.2
 
@@ -91,16 +91,22 @@ def joint_table(lower: float, upper: float, intervals: int) -> JointTable:
         lower, upper = middle - MIN_SPAN / 2, middle + MIN_SPAN / 2
     inner = np.linspace(lower, upper, intervals + 1)
     knots = np.concatenate([np.full(DEGREE, lower), inner, np.full(DEGREE, upper)])
-    grid = np.linspace(lower, upper, GRID)
+    # Gauss-Legendre points in every knot interval: the integrals over the travel below are exact for the
+    # splines' piecewise polynomials (and within rounding for the harmonics)
+    nodes, weights = np.polynomial.legendre.leggauss(GAUSS_POINTS)
+    half = np.diff(inner)[:, None] / 2
+    grid = ((inner[:-1, None] + inner[1:, None]) / 2 + half * nodes).ravel()
+    root = np.sqrt((half * weights).ravel() / (upper - lower))  # square roots of the weights of a mean
     basis = BSpline.design_matrix(grid, knots, DEGREE).toarray()  # (G, nb)
     forbidden = np.stack([np.ones_like(grid), grid, np.sin(grid), np.cos(grid), np.sin(2 * grid),
                           np.cos(2 * grid)], axis=1)
-    span = np.linalg.svd(forbidden, full_matrices=False)[0]  # (G, 6) orthonormal over the grid
+    span = np.linalg.svd(root[:, None] * forbidden, full_matrices=False)[0]  # (G, 6) orthonormal in the mean
     # coefficient vectors whose function has no component along those six: the null space of (6, nb)
-    null = np.linalg.svd(span.T @ basis)[2][CONSTRAINED:].T  # (nb, nb - 6)
-    curvature = BSpline(knots, null, DEGREE).derivative(2)(grid)  # (G, nb - 6)
-    roughness = curvature.T @ curvature / GRID
-    mass = (basis @ null).T @ (basis @ null) / GRID
+    null = np.linalg.svd(span.T @ (root[:, None] * basis))[2][CONSTRAINED:].T  # (nb, nb - 6)
+    curvature = root[:, None] * BSpline(knots, null, DEGREE).derivative(2)(grid)  # (G, nb - 6)
+    roughness = curvature.T @ curvature
+    values = root[:, None] * (basis @ null)
+    mass = values.T @ values
     eigenvalues, vectors = eigh(roughness, mass)  # vectors^T mass vectors = 1: unit-RMS modes
     modes = null @ vectors
     # each mode's sign: its first coefficient from the lower end that is not negligible is positive (its
