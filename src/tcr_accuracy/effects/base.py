@@ -125,8 +125,9 @@ class Effect(abc.ABC):
     summary: ClassVar[str] = ""
     #: why the parameters lie in :meth:`physical_range` (reports print it next to the range)
     physics: ClassVar[str] = ""
-    #: the family of mechanisms it belongs to (``geometric``, ``gravity``, ``direction``, ``periodic``,
-    #: ``scale``, ``thermal``, ``time``; ``setup`` for the tracker frame)
+    #: the family of mechanisms it belongs to (``geometric``, ``gravity``, ``direction``, ``periodic`` (a
+    #: joint's own angle: ``transmission``, ``cyclic``, ``angle_table``), ``scale``, ``thermal``, ``time``;
+    #: ``setup`` for the tracker frame)
     family: ClassVar[str] = ""
     geometric: ClassVar[bool] = False
     context_columns: ClassVar[tuple[str, ...]] = ()
