@@ -31,8 +31,9 @@ class AngleTableFitPolicy(FitPolicy):
 
     def options_for_data(self, robot, q, context) -> dict:
         """Each joint's measured travel (``lower``, ``upper`` [rad]) and the knot intervals: at
-        least 8 poses per parameter over the revolute joints (half cyclic's density: a table's
-        modes are smoother than its harmonics), 8 to 32 intervals (5 to 29 parameters per joint)."""
+        least 8 poses per parameter over the revolute joints (a quarter of cyclic's density: the
+        smooth errors a table is for need fewer knots, and every fold pays for its columns), 8 to 32
+        intervals (5 to 29 parameters per joint)."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         revolute = sum(k == REVOLUTE for k in robot.joint_kinds)
         intervals = int(min(32, max(8, CONSTRAINED - DEGREE + len(q) // (8 * max(revolute, 1)))))
