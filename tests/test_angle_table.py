@@ -3,16 +3,15 @@ encoder): a UR10 whose joints each carry a smooth bump and a wind-up curve of a 
 microradians that differ at q and q + 2 pi, plus small geometry errors, 0.02 mm of tracker noise
 and a reflector 0.38 m off the flange.
 
-The truth is written out here on Pinocchio directly (joint placements perturbed by ``pin.exp6``,
-the joints' errors added to the commanded angles, the reflector placed by ``oMf.act``): the
-diagnosis sees only the positions. What the fitted table must be orthogonal to is integrated here
-with numpy's trapezoid rule, not read from the effect.
+The truth is written out on Pinocchio directly (the joints' errors added to the commanded angles
+here, joint placements perturbed by ``pin.exp6`` and the reflector placed by ``oMf.act`` in the
+cyclic test's ``reflector_positions``): the diagnosis sees only the positions. What the fitted
+table must be orthogonal to is integrated here with numpy's trapezoid rule, not read from the effect.
 """
 
 import json
 
 import numpy as np
-import pinocchio as pin
 import pytest
 
 import tcr_accuracy as tcr
@@ -22,10 +21,9 @@ from tcr_accuracy.effects import make_effect, vocabulary
 from tcr_accuracy.io.measurements import MeasurementSet
 from tcr_accuracy.model.robot import load_robot
 
-from test_cyclic import _cyclic_ur10, NOISE as CYCLIC_NOISE
+from test_cyclic import _cyclic_ur10, reflector_positions, NOISE as CYCLIC_NOISE
 from test_export import _quiet
 
-REFLECTOR = np.array([0.2, -0.15, 0.25])  # [m] in the flange frame
 NOISE = 2e-5  # [m] per axis
 N_TRAIN, N_CHECK = 1200, 200
 
@@ -45,15 +43,7 @@ def _absolute_angle_ur10(seed: int = 3):
                                + 0.8 * np.tanh((angle + centre[j]) / 1.2))
 
     real = q + np.stack([truth(j, q[:, j]) for j in range(6)], axis=1)
-    model = robot.model.copy()
-    for j in range(1, model.njoints):
-        model.jointPlacements[j] = model.jointPlacements[j] * pin.exp6(rng.normal(0.0, 2e-4, 6))
-    data = model.createData()
-    frame = model.getFrameId(robot.tool_frame)
-    position = np.empty((len(q), 3))
-    for i, row in enumerate(real):
-        pin.framesForwardKinematics(model, data, robot.to_pinocchio_q(row))
-        position[i] = data.oMf[frame].act(REFLECTOR)
+    position = reflector_positions(robot, real, rng)
     noisy = position[:N_TRAIN] + NOISE * rng.standard_normal((N_TRAIN, 3))
     train = MeasurementSet(joint_names=list(robot.joint_names), q=q[:N_TRAIN], position=noisy)
     return robot, train, q[N_TRAIN:], position[N_TRAIN:], truth

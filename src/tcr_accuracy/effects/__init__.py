@@ -26,6 +26,7 @@ from .base import (
     EffectJacobian,
     EffectOutput,
     ErrorVectorEffect,
+    JointColumnsEffect,
     LinearEffect,
     PerJointEffect,
     effect_class,
@@ -72,8 +73,8 @@ for _cls in BUILT_IN:
     register(_cls)
 
 __all__ = [
-    "BUILT_IN", "Effect", "EffectJacobian", "EffectOutput", "ErrorVectorEffect", "FitPolicy", "LinearEffect",
-    "PerJointEffect", "SimulationRules", "effect_class", "effect_classes", "make_effect", "parameter_names", "plugged_in", "predict_poses", "predict_positions",
-    "prediction_jacobian", "reference_poses", "register", "split_parameters", "total_perturbation", "unregister",
-    "vocabulary",
+    "BUILT_IN", "Effect", "EffectJacobian", "EffectOutput", "ErrorVectorEffect", "FitPolicy", "JointColumnsEffect",
+    "LinearEffect", "PerJointEffect", "SimulationRules", "effect_class", "effect_classes", "make_effect",
+    "parameter_names", "plugged_in", "predict_poses", "predict_positions", "prediction_jacobian", "reference_poses",
+    "register", "split_parameters", "total_perturbation", "unregister", "vocabulary",
 ]

@@ -10,7 +10,7 @@ from functools import cached_property
 import numpy as np
 
 from ..units import REVOLUTE
-from .base import EffectJacobian, EffectOutput, LinearEffect
+from .base import JointColumnsEffect
 from .fit_policy import FitPolicy
 
 #: Spline degree (cubic: a continuous curvature, what the roughness penalty measures)
@@ -117,7 +117,7 @@ def joint_table(lower: float, upper: float, intervals: int) -> JointTable:
     return JointTable(knots, modes, np.maximum(eigenvalues, 0.0) / 81.0)
 
 
-class AngleTable(LinearEffect):
+class AngleTable(JointColumnsEffect):
     """Each revolute joint's angle error as a smooth table of its absolute angle: a cubic B-spline
     over the travel the data cover (not periodic), ``dq_j = sum_i theta_ji f_ji(q_j)``.
 
@@ -147,8 +147,6 @@ class AngleTable(LinearEffect):
     # after cyclic: where a Fourier series and a table explain the data alike, the periodic gear error is the
     # more basic cause
     fit_policy = AngleTableFitPolicy(order=66.0, last_resort=True)
-    #: poses at a time in :meth:`perturb`
-    CHUNK = 4096
 
     def __init__(self, robot, *, intervals: int = 16, lower: list | None = None, upper: list | None = None) -> None:
         super().__init__(robot)
@@ -232,26 +230,6 @@ class AngleTable(LinearEffect):
         for i, j in enumerate(self.revolute):
             values[:, i * m:(i + 1) * m] = self.table(j).values(q[:, j])
         return values, np.repeat(np.asarray(self.revolute, dtype=int), m)
-
-    def parameter_jacobian(self, params, q, context):
-        q = np.atleast_2d(np.asarray(q, dtype=float))
-        values, joint = self.joint_columns(q)
-        ddq = np.zeros((q.shape[0], self.robot.n_joints, joint.size))
-        ddq[:, joint, np.arange(joint.size)] = values
-        return EffectJacobian(dq=ddq)
-
-    def perturb(self, params, q, context) -> EffectOutput:
-        """Each joint's table error dq (N, n_joints) [rad] at commanded joints q (N, n), a chunk
-        of poses at a time (never the dense Jacobian)."""
-        params = self.check_params(params)
-        q = np.atleast_2d(np.asarray(q, dtype=float))
-        dq = np.zeros((q.shape[0], self.robot.n_joints))
-        m = self.modes_per_joint
-        for start in range(0, q.shape[0], self.CHUNK):
-            for i, j in enumerate(self.revolute):
-                dq[start:start + self.CHUNK, j] = self.table(j).values(q[start:start + self.CHUNK, j]) \
-                    @ params[i * m:(i + 1) * m]
-        return EffectOutput(dq=dq)
 
     def joint_function(self, params, joint: str, angles: np.ndarray) -> np.ndarray:
         """(M,) the fitted table error [rad] of one joint at angles (M,) [rad]."""
