@@ -157,11 +157,17 @@ class AngleTable(JointColumnsEffect):
         for given, name in ((lower, "lower"), (upper, "upper")):
             if given is not None and len(given) != robot.n_joints:
                 raise ValueError(f"angle_table {name}: {len(given)} values for {robot.n_joints} joints")
+            for k, value in enumerate(given or ()):
+                if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                    raise ValueError(f"angle_table {name}[{k}]: {value!r} is not a number [rad]")
         # lists, as a result file holds them
         self.lower = None if lower is None else [float(v) for v in lower]
         self.upper = None if upper is None else [float(v) for v in upper]
         self._span = (np.asarray(self.lower if lower is not None else low, dtype=float),
                       np.asarray(self.upper if upper is not None else high, dtype=float))
+        inverted = [robot.joint_names[j] for j in np.flatnonzero(self._span[1] < self._span[0])]
+        if inverted:
+            raise ValueError(f"angle_table: travel of {', '.join(inverted)} ends below where it starts")
 
     @cached_property
     def revolute(self) -> tuple[int, ...]:
