@@ -69,7 +69,7 @@ def _context(n, n_joints, payload=0.0, temperature=20.0, direction=None):
 
 def test_vocabulary_order_and_interface(tool_changer):
     assert list(EFFECTS) == ["frames", "joint_offsets", "geometry", "compliance", "lateral_compliance", "backlash",
-                             "thermal", "drift", "encoder_scale", "transmission", "cyclic", "clearance"]
+                             "thermal", "drift", "encoder_scale", "transmission", "cyclic", "angle_table", "clearance"]
     for name, cls in EFFECTS.items():
         effect = cls(tool_changer)
         assert isinstance(effect, Effect) and effect.name == name

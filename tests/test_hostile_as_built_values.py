@@ -104,6 +104,23 @@ def test_an_integer_option_is_bounded(exported, tmp_path):
             tcr.load_as_built(path)
 
 
+def test_a_joint_angle_table_needs_a_travel_per_joint_that_runs_forward(exported, tmp_path):
+    import yaml
+
+    doc = yaml.safe_load((exported / "out" / "as_built.yaml").read_text())
+    doc["effects"]["angle_table"] = {}
+    n = tcr.load_as_built(exported / "out" / "as_built.yaml").robot.n_joints
+    for options, reason in (({"lower": [0.0, 1.0], "upper": [1.0, 2.0]}, f"2 values for {n} joints"),
+                            ({"lower": [1.0] * n, "upper": [0.0] * n}, "ends below where it starts"),
+                            ({"lower": ["a"] * n}, "lower[0]: 'a' is not a number"), ({"upper": [True] * n}, "upper[0]: True"),
+                            ({"intervals": 2}, "at least 4 knot intervals")):
+        doc["options"]["angle_table"] = options
+        path = tmp_path / "as_built.yaml"
+        path.write_text(yaml.safe_dump(doc, sort_keys=False))
+        with pytest.raises(InputError, match=re.escape(reason)):
+            tcr.load_as_built(path)
+
+
 #: (what, a change to the diagnosis JSON, the key named)
 JSON_CASES = [
     ("true", lambda d: d["effect_parameters"]["joint_offsets"].update({"joint_offsets.j2": True}),

@@ -1,6 +1,7 @@
 """Measurement CSV: round trips, and every bad file stopped with file, row and column named."""
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -137,6 +138,18 @@ def test_exact_copies_are_errors_and_repeated_poses_warn(tool_changer, tmp_path)
     repeat = rows + [list(rows[1][:6]) + [rows[1][6] + 0.01, rows[1][7], rows[1][8]]]
     with pytest.warns(MeasurementWarning, match="row 8 has the same joint values and context as row 3"):
         read_measurements(_write_rows(tmp_path / "rep.csv", header, repeat), tool_changer)
+
+
+def test_a_time_column_that_never_changes_warns_and_a_varying_one_does_not(tool_changer, tmp_path):
+    header, rows = _good_rows(tool_changer)
+    constant = _write_rows(tmp_path / "constant.csv", header + ["time_s"], [r + [100.0] for r in rows])
+    with pytest.warns(MeasurementWarning, match=r"column time_s: all 6 rows \(from row 2\) carry the same time 100 s"):
+        mset = read_measurements(constant, tool_changer)
+    assert np.all(mset.time_s == 100.0)
+    varying = _write_rows(tmp_path / "varying.csv", header + ["time_s"], [r + [30.0 * k] for k, r in enumerate(rows)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", MeasurementWarning)
+        assert np.ptp(read_measurements(varying, tool_changer).time_s) == 150.0
 
 
 def test_too_few_rows(tool_changer, tmp_path):

@@ -330,6 +330,8 @@ PLOT_CAPTIONS = {
                    "payload, temperature and approach direction",
     "semivariograms.png": "Per-joint semivariograms of the residual (along which joints it varies)",
     "cyclic_joints.png": "Cyclic joint errors: each joint's fitted error against its own angle, with its 95 % band",
+    "angle_table_joints.png": "Joint-angle tables: each joint's fitted error against its absolute angle over the measured "
+                              "travel, with its 95 % band",
 }
 
 

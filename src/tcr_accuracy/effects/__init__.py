@@ -10,8 +10,8 @@ display from the classes, the diagnosis' order and options from each class's
 :data:`BUILT_IN`.
 
 Vocabulary (in :func:`vocabulary` order): ``frames``, ``joint_offsets``, ``geometry``,
-``compliance``, ``backlash``, ``thermal``, ``transmission``, ``encoder_scale``,
-``clearance``; simulate can also hide ``unmodelled`` and ``link_bending``, which no
+``compliance``, ``backlash``, ``thermal``, ``transmission``, ``encoder_scale``, ``cyclic``,
+``angle_table``, ``clearance``; simulate can also hide ``unmodelled`` and ``link_bending``, which no
 diagnosis can name.
 
 The robot the effects describe is ``tcp_poses(robot, q + sum(dq), sum(x))``
@@ -26,6 +26,7 @@ from .base import (
     EffectJacobian,
     EffectOutput,
     ErrorVectorEffect,
+    JointColumnsEffect,
     LinearEffect,
     PerJointEffect,
     effect_class,
@@ -48,6 +49,7 @@ from .compose import (
     total_perturbation,
 )
 
+from .angle_table import AngleTable
 from .backlash import Backlash
 from .clearance import Clearance
 from .compliance import Compliance
@@ -66,13 +68,13 @@ from .unmodelled import Unmodelled
 #: The effects the package brings, registered once here (their order in the vocabulary is each
 #: class's ``fit_policy.order``, not this list's).
 BUILT_IN = (Frames, JointOffsets, Geometry, Compliance, LateralCompliance, LinkBending, Backlash, Thermal,
-            EncoderScale, Transmission, CyclicError, Clearance, Drift, Unmodelled)
+            EncoderScale, Transmission, CyclicError, AngleTable, Clearance, Drift, Unmodelled)
 for _cls in BUILT_IN:
     register(_cls)
 
 __all__ = [
-    "BUILT_IN", "Effect", "EffectJacobian", "EffectOutput", "ErrorVectorEffect", "FitPolicy", "LinearEffect",
-    "PerJointEffect", "SimulationRules", "effect_class", "effect_classes", "make_effect", "parameter_names", "plugged_in", "predict_poses", "predict_positions",
-    "prediction_jacobian", "reference_poses", "register", "split_parameters", "total_perturbation", "unregister",
-    "vocabulary",
+    "BUILT_IN", "Effect", "EffectJacobian", "EffectOutput", "ErrorVectorEffect", "FitPolicy", "JointColumnsEffect",
+    "LinearEffect", "PerJointEffect", "SimulationRules", "effect_class", "effect_classes", "make_effect",
+    "parameter_names", "plugged_in", "predict_poses", "predict_positions", "prediction_jacobian", "reference_poses",
+    "register", "split_parameters", "total_perturbation", "unregister", "vocabulary",
 ]

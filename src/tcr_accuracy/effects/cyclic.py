@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..units import REVOLUTE
-from .base import EffectJacobian, EffectOutput, LinearEffect
+from .base import JointColumnsEffect
 from .fit_policy import FitPolicy
 
 
@@ -28,7 +28,7 @@ class CyclicFitPolicy(FitPolicy):
         return np.array([(n / effect.FIRST_ORDER) ** 4 for _, _, n, _ in effect._terms()], dtype=float)
 
 
-class CyclicError(LinearEffect):
+class CyclicError(JointColumnsEffect):
     """Cyclic error of each revolute joint, many times per revolution, as a Fourier series of
     its own angle: ``dq_j = sum_n a_n sin(n q_j) + b_n cos(n q_j)`` for n = 3 .. ``max_order``.
 
@@ -109,28 +109,6 @@ class CyclicError(LinearEffect):
         for k, (j, _, n, trig) in enumerate(terms):
             values[:, k] = np.sin(n * q[:, j]) if trig == "a" else np.cos(n * q[:, j])
         return values, np.array([j for j, _, _, _ in terms], dtype=int)
-
-    def parameter_jacobian(self, params, q, context):
-        q = np.atleast_2d(np.asarray(q, dtype=float))
-        values, joint = self.joint_columns(q)
-        ddq = np.zeros((q.shape[0], self.robot.n_joints, joint.size))
-        ddq[:, joint, np.arange(joint.size)] = values
-        return EffectJacobian(dq=ddq)
-
-    #: poses at a time in :meth:`perturb` (its (N, k) values are 27 MB at 10^4 poses, 10x that at 10^5)
-    CHUNK = 4096
-
-    def perturb(self, params, q, context) -> EffectOutput:
-        """Each joint's cyclic error dq (N, n_joints) [rad] at commanded joints q (N, n): the
-        compact Jacobian times the parameters, a chunk of poses at a time (never the dense one)."""
-        params = self.check_params(params)
-        q = np.atleast_2d(np.asarray(q, dtype=float))
-        dq = np.zeros((q.shape[0], self.robot.n_joints))
-        for start in range(0, q.shape[0], self.CHUNK):
-            values, joint = self.joint_columns(q[start:start + self.CHUNK])
-            for j in np.unique(joint):
-                dq[start:start + self.CHUNK, j] = values[:, joint == j] @ params[joint == j]
-        return EffectOutput(dq=dq)
 
     def joint_function(self, params, joint: str, angles: np.ndarray) -> np.ndarray:
         """(M,) the fitted cyclic error [rad] of one joint at angles (M,) [rad]."""

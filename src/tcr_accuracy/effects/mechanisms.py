@@ -2,7 +2,7 @@
 
 An effect's fitted term is a *signature*: a joint deflection that follows the gravity torque, an
 offset that follows the approach direction, a length scale that follows the temperature, an error
-periodic in a joint's angle. The diagnosis keeps whatever signature the held-out data want, bounded
+that follows a joint's angle. The diagnosis keeps whatever signature the held-out data want, bounded
 only to keep the fit sane (:meth:`~tcr_accuracy.effects.base.Effect.fit_range`); the *mechanism*
 is then read from the fitted values' sign and size: each effect lists the mechanisms its signature
 can stand for, each with the range of parameter values it explains (:class:`Mechanism`), the
@@ -24,7 +24,8 @@ FAMILIES = {
     "geometric": "the arm's geometry: encoder zeros and link dimensions",
     "gravity": "deflections under the gravity load: joints and bearings that give, links that bend",
     "direction": "errors that follow the direction a joint approaches its pose from",
-    "periodic": "errors periodic in a joint's angle: gears and encoders",
+    "periodic": "errors that follow a joint's own angle, periodic in it or over its whole travel: gears, encoders, "
+                "cables",
     "scale": "errors proportional to a joint's angle: gear ratios",
     "thermal": "lengths that change with temperature",
     "time": "errors that change with time or measurement order: warm-up, a moving base or tracker",

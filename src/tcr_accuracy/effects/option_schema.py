@@ -14,8 +14,14 @@ _LINK_MASS_FACTORS = {"anyOf": [{"type": "null"}, {"type": "array", "maxItems": 
                                                    "items": {"type": "number", "minimum": 0, "maximum": 1e3}}]}
 _NAMES = {"type": "array", "maxItems": 100_000, "items": {"type": "string", "minLength": 1, "maxLength": 1000}}
 
+_ANGLES = {"anyOf": [{"type": "null"}, {"type": "array", "maxItems": 10_000,
+                                        "items": {"type": "number", "minimum": -1e3, "maximum": 1e3}}]}
+
 #: effect -> option -> JSON Schema of its value (options not listed are refused).
 OPTIONS = {
+    # knot intervals per joint (intervals - 3 parameters per revolute joint) and each joint's travel [rad]
+    "angle_table": {"intervals": {"type": "integer", "minimum": 4, "maximum": 200},
+                    "lower": _ANGLES, "upper": _ANGLES},
     "backlash": {"link_mass_factors": _LINK_MASS_FACTORS},
     "clearance": {"joints": {"anyOf": [{"type": "null"}, _NAMES]}},
     "compliance": {"link_mass_factors": _LINK_MASS_FACTORS},

@@ -32,6 +32,17 @@ def warn_outside_limits(robot, q, rows, joint_columns, source):
         )
 
 
+def warn_constant_time(time_s, rows, source):
+    """A ``time_s`` column that never changes carries no time: the diagnosis then orders drift and its
+    time checks by the measurement order, and says so here (a clock not logged is a common export fault)."""
+    if time_s is not None and len(time_s) > 1 and np.ptp(time_s) == 0:
+        warnings.warn(
+            f"{source}: column time_s: all {len(time_s)} rows (from row {rows[0]}) carry the same time "
+            f"{time_s[0]:g} s; drift and the time checks use the measurement order instead",
+            MeasurementWarning, stacklevel=3,
+        )
+
+
 def check_duplicates(mset, values, header, source, context_columns):
     """Exact copies of a row are an error; repeated poses under the same context warn (not in a
     pose test, whose ``pose_id`` column says it repeats its poses on purpose)."""

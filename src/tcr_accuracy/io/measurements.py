@@ -42,7 +42,8 @@ import numpy as np
 from ..model.context import REFERENCE_TEMPERATURE_C, MeasurementContext
 from ..exceptions import InputError
 from ..input_files import SIZE_LIMITS, csv_cells, read_input_text
-from .measurement_checks import MeasurementWarning, check_duplicates, check_position_units, warn_outside_limits
+from .measurement_checks import (MeasurementWarning, check_duplicates, check_position_units, warn_constant_time,
+                                 warn_outside_limits)
 from .measurement_set import (ANNOTATION_COLUMNS, CONTEXT_COLUMNS, LABEL_COLUMNS, QUATERNION_COLUMNS,
                               TEXT_ANNOTATIONS, MeasurementSet, join_sessions)
 # the CSV's writer, named here too for the callers that read and write it
@@ -364,6 +365,8 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
     time_s = column("time_s") if "time_s" in header else None
     if time_s is not None:
         _check_range(source, rows, "time_s", time_s, MAX_TIME_S, "s", 1.0, "s")
+        if not repeats_allowed:  # measurements, whose time the drift reads
+            warn_constant_time(time_s, rows, source)
     session = np.array(labels["session"], dtype=object) if "session" in labels else None
     annotations = {name: np.array(labels[name], dtype=object) if name in TEXT_ANNOTATIONS else column(name)
                    for name in ANNOTATION_COLUMNS if name in header} or None

@@ -1,0 +1,253 @@
+"""``angle_table``: each joint's error as a smooth table of its absolute angle (a cubic spline over
+the travel the data cover), for errors that are not periodic in one revolution."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from ..units import REVOLUTE
+from .base import JointColumnsEffect
+from .fit_policy import FitPolicy
+
+#: Spline degree (cubic: a continuous curvature, what the roughness penalty measures)
+DEGREE = 3
+#: The functions the table must not contain (another effect's): joint_offsets (1), encoder_scale (q),
+#: transmission's first and second harmonics
+CONSTRAINED = 6
+#: Gauss-Legendre points per knot interval the constraint and the penalty are integrated on
+GAUSS_POINTS = 8
+#: Narrowest travel a table spans [rad] (a joint the data barely move still gets a well-posed table)
+MIN_SPAN = 0.2
+
+
+@dataclass(frozen=True)
+class AngleTableFitPolicy(FitPolicy):
+    """The tables span the travel the data cover, with as many knots as the poses support, under
+    a roughness penalty."""
+
+    def options_for_data(self, robot, q, context) -> dict:
+        """Each joint's measured travel (``lower``, ``upper`` [rad]) and the knot intervals: at
+        least 8 poses per parameter over the revolute joints (a quarter of cyclic's density: the
+        smooth errors a table is for need fewer knots, and every fold pays for its columns), 8 to 32
+        intervals (5 to 29 parameters per joint)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        revolute = sum(k == REVOLUTE for k in robot.joint_kinds)
+        intervals = int(min(32, max(8, CONSTRAINED - DEGREE + len(q) // (8 * max(revolute, 1)))))
+        return {"intervals": intervals, "lower": [float(v) for v in q.min(axis=0)],
+                "upper": [float(v) for v in q.max(axis=0)]}
+
+    def penalty_weights(self, effect) -> np.ndarray:
+        """(k,) roughness weight of each parameter: the mean squared curvature of its mode (unit
+        RMS) over 81, the curvature of cyclic's lowest order (sin 3q at unit RMS), so that one
+        lambda penalises both effects' curvature alike: the fit's penalty is
+        lambda * sum(w * (theta / scale)^2)."""
+        return np.concatenate([effect.table(j).weights for j in effect.revolute])
+
+
+@dataclass(frozen=True)
+class JointTable:
+    """One joint's table: knots, the map from parameters to B-spline coefficients, and each
+    parameter's roughness weight.
+
+    Attributes
+    ----------
+    knots : (intervals + 2 * DEGREE + 1,) [rad], clamped at the travel's ends
+    modes : (intervals + DEGREE, m) B-spline coefficients of each parameter's function [rad/rad]
+    weights : (m,) mean squared curvature of each mode over 81 [1]
+    """
+
+    knots: np.ndarray
+    modes: np.ndarray
+    weights: np.ndarray
+
+    def values(self, angles: np.ndarray) -> np.ndarray:
+        """(M, m) each mode's value at angles (M,) [rad]; outside the travel, its value at the nearer end."""
+        from scipy.interpolate import BSpline
+
+        x = np.clip(np.asarray(angles, dtype=float), self.knots[0], self.knots[-1])
+        return np.asarray(BSpline.design_matrix(x, self.knots, DEGREE) @ self.modes)
+
+
+def joint_table(lower: float, upper: float, intervals: int) -> JointTable:
+    """The table of one joint over [lower, upper] [rad] with ``intervals`` equal knot intervals.
+
+    The B-spline coefficients are restricted to the functions orthogonal (over the travel) to
+    1, q, sin q, cos q, sin 2q, cos 2q -- joint_offsets', encoder_scale's and transmission's --
+    and, within that space, to the eigenvectors of the roughness (mean squared second derivative)
+    relative to the mean square (Demmler-Reinsch): each parameter is one mode of unit RMS and
+    its penalty is one number, so the fit's diagonal penalty is the exact roughness penalty.
+    The modes are fixed by (lower, upper, intervals) alone, each with its first coefficient
+    positive (from the lower end), so a file's options rebuild the same table.
+    """
+    from scipy.interpolate import BSpline
+    from scipy.linalg import eigh
+
+    lower, upper = float(lower), float(upper)
+    if upper - lower < MIN_SPAN:
+        middle = 0.5 * (lower + upper)
+        lower, upper = middle - MIN_SPAN / 2, middle + MIN_SPAN / 2
+    inner = np.linspace(lower, upper, intervals + 1)
+    knots = np.concatenate([np.full(DEGREE, lower), inner, np.full(DEGREE, upper)])
+    # Gauss-Legendre points in every knot interval: the integrals over the travel below are exact for the
+    # splines' piecewise polynomials (and within rounding for the harmonics)
+    nodes, weights = np.polynomial.legendre.leggauss(GAUSS_POINTS)
+    half = np.diff(inner)[:, None] / 2
+    grid = ((inner[:-1, None] + inner[1:, None]) / 2 + half * nodes).ravel()
+    root = np.sqrt((half * weights).ravel() / (upper - lower))  # square roots of the weights of a mean
+    basis = BSpline.design_matrix(grid, knots, DEGREE).toarray()  # (G, nb)
+    forbidden = np.stack([np.ones_like(grid), grid, np.sin(grid), np.cos(grid), np.sin(2 * grid),
+                          np.cos(2 * grid)], axis=1)
+    span = np.linalg.svd(root[:, None] * forbidden, full_matrices=False)[0]  # (G, 6) orthonormal in the mean
+    # coefficient vectors whose function has no component along those six: the null space of (6, nb)
+    null = np.linalg.svd(span.T @ (root[:, None] * basis))[2][CONSTRAINED:].T  # (nb, nb - 6)
+    curvature = root[:, None] * BSpline(knots, null, DEGREE).derivative(2)(grid)  # (G, nb - 6)
+    roughness = curvature.T @ curvature
+    values = root[:, None] * (basis @ null)
+    mass = values.T @ values
+    eigenvalues, vectors = eigh(roughness, mass)  # vectors^T mass vectors = 1: unit-RMS modes
+    modes = null @ vectors
+    # each mode's sign: its first coefficient from the lower end that is not negligible is positive (its
+    # largest would tie between the two ends of a symmetric mode, and a rounding would flip it)
+    first = np.argmax(np.abs(modes) > 1e-3 * np.abs(modes).max(axis=0), axis=0)
+    modes = modes * np.sign(modes[first, np.arange(modes.shape[1])])
+    return JointTable(knots, modes, np.maximum(eigenvalues, 0.0) / 81.0)
+
+
+class AngleTable(JointColumnsEffect):
+    """Each revolute joint's angle error as a smooth table of its absolute angle: a cubic B-spline
+    over the travel the data cover (not periodic), ``dq_j = sum_i theta_ji f_ji(q_j)``.
+
+    The physics: a UR joint turns +-360 deg, and some of its errors follow the absolute angle
+    rather than the angle modulo one turn: the cables and hoses through the joint wind up and
+    pull harder the further it turns, a multi-turn encoder (or the gear train behind a
+    single-turn one) repeats its nonlinearity over several turns, not one. Such an error at q and
+    q + 2 pi differs, which no Fourier series of q (``transmission``, ``cyclic``) can hold.
+
+    The table holds only what the other joint-side effects cannot: each mode ``f_ji`` is
+    orthogonal, over the travel, to 1 (``joint_offsets``), q (``encoder_scale``) and the first
+    and second harmonics (``transmission``), and the modes diagonalise the roughness penalty
+    (mean squared curvature; :func:`joint_table`), so the fit's penalty ``lambda * sum w theta^2``
+    is the curvature penalty and lambda is chosen by held-out error as for ``cyclic``. Outside
+    the travel a table holds its value at the nearer end. Parameters ``angle_table.<joint>.m<i>``
+    [rad], the RMS of mode i over the travel, smoothest first. Options: ``intervals`` (knot
+    intervals per joint, ``intervals - 3`` parameters), ``lower``, ``upper`` (each joint's travel
+    [rad]; default its limits, +-pi when it has none): the diagnosis sets them from the data and
+    keeps them for any prediction.
+    """
+
+    name = "angle_table"
+    summary = "joint errors as smooth tables of each joint's absolute angle (cable wind-up, multi-turn encoders)"
+    physics = ("cable forces and encoder nonlinearity over a joint's travel are a few hundred microradians; a mode "
+               "above 1 mrad (3.4 arc-min) is a joint slipping or a cable snagging, not a smooth table")
+    family = "periodic"
+    # after cyclic: where a Fourier series and a table explain the data alike, the periodic gear error is the
+    # more basic cause
+    fit_policy = AngleTableFitPolicy(order=66.0, last_resort=True)
+
+    def __init__(self, robot, *, intervals: int = 16, lower: list | None = None, upper: list | None = None) -> None:
+        super().__init__(robot)
+        if intervals < CONSTRAINED - DEGREE + 1:
+            raise ValueError(f"angle_table needs at least {CONSTRAINED - DEGREE + 1} knot intervals, got {intervals}")
+        self.intervals = int(intervals)
+        low, high = robot.joint_bounds()
+        for given, name in ((lower, "lower"), (upper, "upper")):
+            if given is not None and len(given) != robot.n_joints:
+                raise ValueError(f"angle_table {name}: {len(given)} values for {robot.n_joints} joints")
+            for k, value in enumerate(given or ()):
+                if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                    raise ValueError(f"angle_table {name}[{k}]: {value!r} is not a number [rad]")
+        # lists, as a result file holds them
+        self.lower = None if lower is None else [float(v) for v in lower]
+        self.upper = None if upper is None else [float(v) for v in upper]
+        self._span = (np.asarray(self.lower if lower is not None else low, dtype=float),
+                      np.asarray(self.upper if upper is not None else high, dtype=float))
+        inverted = [robot.joint_names[j] for j in np.flatnonzero(self._span[1] < self._span[0])]
+        if inverted:
+            raise ValueError(f"angle_table: travel of {', '.join(inverted)} ends below where it starts")
+
+    @cached_property
+    def revolute(self) -> tuple[int, ...]:
+        """Indices of the revolute joints (each has a table)."""
+        return tuple(j for j, kind in enumerate(self.robot.joint_kinds) if kind == REVOLUTE)
+
+    @property
+    def modes_per_joint(self) -> int:
+        return self.intervals + DEGREE - CONSTRAINED
+
+    def table(self, j: int) -> JointTable:
+        """The table of joint index j (built once)."""
+        tables = self.__dict__.setdefault("_tables", {})
+        if j not in tables:
+            tables[j] = joint_table(self._span[0][j], self._span[1][j], self.intervals)
+        return tables[j]
+
+    def parameter_names(self):
+        return [f"angle_table.{self.robot.joint_names[j]}.m{i}" for j in self.revolute
+                for i in range(1, self.modes_per_joint + 1)]
+
+    def parameter_units(self):
+        return ["rad"] * self.n_params
+
+    def parameter_scales(self):
+        # 35 urad RMS per mode: cyclic's 50 urad harmonic amplitude at the same RMS, so that one penalty
+        # lambda weighs both effects' curvature alike
+        return np.full(self.n_params, 5e-5 / math.sqrt(2.0))
+
+    def physical_range(self):
+        return np.full(self.n_params, -1e-3), np.full(self.n_params, 1e-3)
+
+    def fit_range(self):
+        return np.full(self.n_params, -1e-2), np.full(self.n_params, 1e-2)
+
+    def mechanisms(self):
+        from .mechanisms import Mechanism
+
+        lower, upper = self.physical_range()
+        wide_lower, wide_upper = self.fit_range()
+        return (Mechanism("cable_windup", "cables and hoses through the joint pulling harder the further it turns "
+                          "from where they hang free", "drive the joint slowly over its travel with the dress pack "
+                          "loosened (or the cables unclipped) and compare the error curve", lower, upper),
+                Mechanism("multiturn_encoder", "an encoder or gear train whose nonlinearity repeats over several "
+                          "turns of the joint, not one", "compare the error at q and q + 360 deg with the encoder "
+                          "maker's multi-turn calibration curve", lower, upper),
+                Mechanism("joint_slip", "a table mode above 1 mrad: a joint slipping on its shaft or a cable "
+                          "snagging", "mark the joint's output against its housing and drive it over its travel",
+                          wide_lower, wide_upper, False))
+
+    def joint_columns(self, q) -> tuple[np.ndarray, np.ndarray]:
+        """The parameter Jacobian in its compact form: each mode moves one joint only.
+
+        Parameters
+        ----------
+        q : (N, n_joints) commanded joints [rad, m]
+
+        Returns
+        -------
+        values : (N, k) d(dq_j)/d(theta_k) of the joint j = ``joint[k]`` [rad/rad]
+        joint : (k,) int, the joint each parameter moves
+        """
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        m = self.modes_per_joint
+        values = np.empty((q.shape[0], m * len(self.revolute)))
+        for i, j in enumerate(self.revolute):
+            values[:, i * m:(i + 1) * m] = self.table(j).values(q[:, j])
+        return values, np.repeat(np.asarray(self.revolute, dtype=int), m)
+
+    def joint_function(self, params, joint: str, angles: np.ndarray) -> np.ndarray:
+        """(M,) the fitted table error [rad] of one joint at angles (M,) [rad]."""
+        params = self.check_params(params)
+        names, basis = self.joint_basis(joint, angles)
+        index = {n: i for i, n in enumerate(self.parameter_names())}
+        return basis @ params[[index[n] for n in names]] if names else np.zeros(np.shape(angles))
+
+    def joint_basis(self, joint: str, angles: np.ndarray) -> tuple[list[str], np.ndarray]:
+        """The parameters of one joint and their basis (M, k_j) at angles (M,) [rad]."""
+        j = self.robot.joint_names.index(joint)
+        if j not in self.revolute:
+            return [], np.zeros((len(angles), 0))
+        names = [f"angle_table.{joint}.m{i}" for i in range(1, self.modes_per_joint + 1)]
+        return names, self.table(j).values(np.asarray(angles, dtype=float))
