@@ -84,6 +84,9 @@ class EffectBasis:
         if self.factored:  # never the dense (N, n_joints, k) Jacobian
             values, joint = effect.joint_columns(part.q)
             self.basis = ErrorMap.of_joint_columns(n, em.size, em.drive_slice, values, joint)
+        elif hasattr(effect, "sparse_parameter_jacobian"):  # never the dense (N, p_em, k) Jacobian
+            maps, entries = effect.sparse_parameter_jacobian(np.zeros(k), part.q, part.context)
+            self.basis = ErrorMap.of_entries(n, em.size, em.drive_slice, maps.x, maps.dq, entries, k)
         else:
             maps = effect.parameter_jacobian(np.zeros(k), part.q, part.context)
             self.basis = ErrorMap.of(n, em.size, em.drive_slice, maps.x, maps.dq, k)

@@ -388,7 +388,7 @@ class GapDiagnosis(BaseEstimator):
                 r = engine.evaluate(ordered(sequence[:k + 1]))
             z = None if previous is None else paired_z(previous["heldout_residual"], r["heldout_residual"])
             steps.append(Step(effect, tuple(ordered(sequence[:k + 1])), r["n_parameters"],
-                              ErrorStats.of(r["train_residual"]).rms, ErrorStats.of(r["heldout_residual"]), z))
+                              r["train_stats"].rms, ErrorStats.of(r["heldout_residual"]), z))
             previous = r
         return steps
 

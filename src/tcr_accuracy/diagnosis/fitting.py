@@ -37,7 +37,9 @@ from .error_map import ErrorMap
 from .identifiability import compressed, identifiability
 from .least_squares import DampedSolver, cholesky_solve
 from .fit_columns import ChainedJacobian, Columns, Sensitivity, gradient_vector, gram_matrix, moved_rows
+from .fit_result import FitResult
 from .paired import row_squares
+from .records import ErrorStats
 
 
 class FitEngine:
@@ -67,6 +69,7 @@ class FitEngine:
         self.rank_tol, self.min_motion = rank_tol, min_motion
         self.n_rows = parts[0].q.shape[0]
         self._full_cache: dict = {}
+        self._materialised = None  # (a cached fit, its remade per-row arrays): the last ones read
         self._keep_cache: dict = {}
         self._compressed = None  # the bases with the poses folded away, for identify
         self._last: dict = {}  # parameter name -> last fitted scaled value (a warm start)
@@ -87,6 +90,7 @@ class FitEngine:
         self._compressed = None
         self._keep_cache.clear()
         self._full_cache.clear()
+        self._materialised = None
 
     def resize(self, factors: dict) -> bool:
         """Judge identifiability at fitted sizes: an effect fitted at f times its typical size
@@ -98,6 +102,7 @@ class FitEngine:
         self.size_factors = factors
         self._keep_cache.clear()
         self._full_cache.clear()
+        self._materialised = None
         return True
 
     # -- identifiability -------------------------------------------------------------
@@ -420,9 +425,13 @@ class FitEngine:
         ``heldout_squares`` ((N,) each row's squared held-out error, its parts added up,
         averaged over the assignments: what the paired tests compare),
         ``train_orientation`` / ``heldout_orientation`` (rotation errors [rad], same shapes,
-        or None), ``cost`` (training sum of squares [m^2]), ``fold_phi`` (each fold's fit, first
-        assignment), ``phi_std`` (standard errors of phi from the Jacobian and the residual),
+        or None), ``train_stats`` / ``heldout_stats`` (:class:`~tcr_accuracy.diagnosis.records.ErrorStats`
+        of the training errors and of the held-out ones pooled over the assignments), ``cost``
+        (training sum of squares [m^2]), ``fold_phi`` (each fold's fit, first assignment),
+        ``fold_steps`` (each fold's fit, every assignment), ``phi_std`` (standard errors of phi from the Jacobian and the residual),
         ``at_bound`` (which parameters sit on their fit range's bound), ``n_observations``.
+        A later call for the same set returns the cached fit, whose per-row residual arrays are made
+        again when read (:class:`~tcr_accuracy.diagnosis.fit_result.FitResult`).
         """
         key = (tuple(effects), None if keep is None else tuple((e, tuple(v)) for e, v in keep.items()))
         if key in self._full_cache:
@@ -456,9 +465,9 @@ class FitEngine:
             self.n_fits += 1
         self._last.update(zip(cols.names, phi))
         total_gradient = gradient_vector(jacs, self._weighted(train, None), None, self.n_rows) if k else None
-        repeats, fold_phi = [], []
+        fold_steps = []  # per assignment, per fold: the fold's fit (phi where nothing is fitted)
         for r, folds in enumerate(self.repeats):
-            oof = [np.empty((self.n_rows, p.rows_per_pose)) for p in self.parts]
+            steps = []
             for f, (_, test) in enumerate(folds):
                 phi_k = phi
                 if k:  # one step from the full fit, on the normal equations less the held-out rows
@@ -466,16 +475,10 @@ class FitEngine:
                     held_gradient = gradient_vector(jacs, self._weighted([res[test] for res in train], test), test,
                                               self.n_rows)
                     phi_k = self._fold_step(cols, gram - fold_grams[r][f], phi, total_gradient - held_gradient, lam)
-                if r == 0:
-                    fold_phi.append(phi_k)
-                for p, (res, jac) in enumerate(zip(train, jacs or [None] * len(train))):
-                    # the held-out rows at the fold's fit: the exact residual at the full fit moved by
-                    # the Jacobian (the fold's fit is within a step of it; second order is below noise)
-                    oof[p][test] = res[test] if jac is None else res[test] + self._unweighted(
-                        p, test, moved_rows(jac, test, phi_k - phi))
-            repeats.append(oof)
-        oof = repeats[0] if repeats else [np.zeros((self.n_rows, p.rows_per_pose)) for p in self.parts]
-        heldout_repeats = [self._positions(o) for o in repeats]
+                steps.append(phi_k)
+            fold_steps.append(steps)
+        arrays = self._residual_arrays(train, jacs, phi, fold_steps)
+        heldout_repeats = arrays["heldout_repeats"]
         squares = np.mean([row_squares(h) for h in heldout_repeats], axis=0) if heldout_repeats else \
             np.zeros(self.n_rows)
         flat = _flat(self._weighted(train, None))
@@ -490,15 +493,46 @@ class FitEngine:
         at_bound = (phi <= cols.lower + span) | (phi >= cols.upper - span)
         result = {"effects": tuple(effects), "phi": phi, "scale": cols.scale,
                   "names": cols.names, "keep": keep, "n_parameters": int(k),
-                  "lower": cols.lower, "upper": cols.upper,
-                  "train_residual": self._positions(train), "heldout_residual": self._positions(oof),
-                  "train_orientation": self._rotations(train), "heldout_orientation": self._rotations(oof),
-                  "heldout_repeats": heldout_repeats, "heldout_squares": squares,
-                  "cost": cost, "fold_phi": fold_phi, "phi_std": phi_std,
-                  "at_bound": at_bound, "n_observations": int(n_obs), "phi_cov": phi_cov,
+                  "lower": cols.lower, "upper": cols.upper, **arrays, "heldout_squares": squares,
+                  "train_stats": ErrorStats.of(arrays["train_residual"]), "heldout_stats": ErrorStats.pooled(
+                      heldout_repeats) if heldout_repeats else None,
+                  "cost": cost, "fold_phi": fold_steps[0] if fold_steps else [], "fold_steps": fold_steps,
+                  "phi_std": phi_std, "at_bound": at_bound, "n_observations": int(n_obs), "phi_cov": phi_cov,
                   "penalty": penalties, "penalty_weights": cols.penalty}
-        self._full_cache[key] = result
+        # cached without its per-row arrays (remade when read: :mod:`.fit_result`); the caller's copy has them
+        self._full_cache[key] = FitResult(result, self._remade)
         return result
+
+    def _residual_arrays(self, train: list[np.ndarray], jacs: list, phi: np.ndarray, fold_steps: list) -> dict:
+        """The per-row arrays of a fit (:data:`~tcr_accuracy.diagnosis.fit_result.RESIDUAL_KEYS`): its
+        training residual per part (the exact one at phi), and each fold assignment's held-out rows at its
+        folds' fits ``fold_steps`` (per assignment, per fold: scaled parameters)."""
+        repeats = []
+        for folds, steps in zip(self.repeats, fold_steps):
+            oof = [np.empty((self.n_rows, p.rows_per_pose)) for p in self.parts]
+            for (_, test), phi_k in zip(folds, steps):
+                for p, (res, jac) in enumerate(zip(train, jacs or [None] * len(train))):
+                    # the held-out rows at the fold's fit: the exact residual at the full fit moved by
+                    # the Jacobian (the fold's fit is within a step of it; second order is below noise)
+                    oof[p][test] = res[test] if jac is None else res[test] + self._unweighted(
+                        p, test, moved_rows(jac, test, phi_k - phi))
+            repeats.append(oof)
+        oof = repeats[0] if repeats else [np.zeros((self.n_rows, p.rows_per_pose)) for p in self.parts]
+        return {"train_residual": self._positions(train), "heldout_residual": self._positions(oof),
+                "train_orientation": self._rotations(train), "heldout_orientation": self._rotations(oof),
+                "heldout_repeats": [self._positions(o) for o in repeats]}
+
+    def _remade(self, result: FitResult) -> dict:
+        """The per-row arrays of a cached fit, made again as :meth:`evaluate` made them (the same
+        columns, Jacobians, parameters and fold steps: the same floats); the last ones are kept."""
+        if self._materialised is not None and self._materialised[0] is result:
+            return self._materialised[1]
+        cols = self.columns(result["effects"], result["keep"])
+        train = self.predict_residual(cols, result["phi"], np.arange(self.n_rows))
+        arrays = self._residual_arrays(train, self._jacobians(cols) if cols.scale.size else [], result["phi"],
+                                       result["fold_steps"])
+        self._materialised = (result, arrays)
+        return arrays
 
     def _positions(self, per_part: list[np.ndarray]) -> np.ndarray:
         pos = [r[:, :3] for r in per_part]

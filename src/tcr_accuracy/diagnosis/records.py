@@ -28,8 +28,14 @@ class ErrorStats:
     @staticmethod
     def heldout(result: dict) -> "ErrorStats":
         """A fit's held-out errors (:meth:`~tcr_accuracy.diagnosis.fitting.FitEngine.evaluate`),
-        pooled over its fold assignments; ``count`` is the number of measured points."""
-        repeats = [stacked(h) for h in result["heldout_repeats"]]
+        pooled over its fold assignments (:meth:`pooled`, taken when it was fitted)."""
+        return result["heldout_stats"]
+
+    @staticmethod
+    def pooled(repeats: list) -> "ErrorStats":
+        """Held-out errors of several fold assignments ((N, 3) or (n_parts, N, 3) each) pooled;
+        ``count`` is the number of measured points."""
+        repeats = [stacked(h) for h in repeats]
         stats = ErrorStats.of(np.concatenate(repeats))
         return ErrorStats(stats.mean, stats.rms, stats.max, repeats[0].shape[0])
 

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..units import REVOLUTE
 from .base import EffectJacobian, LinearEffect, joint_unit, per_joint_kind
+from .pose_entries import PoseEntries
 from .fit_policy import FitPolicy
 
 
@@ -116,15 +117,19 @@ class Drift(LinearEffect):
         return np.stack([u - 0.5, warm - warm_mean], axis=1)
 
     def parameter_jacobian(self, params, q, context):
+        jac, entries = self.sparse_parameter_jacobian(params, q, context)
+        return EffectJacobian(dq=jac.dq, x=entries.dense(self.error_model.size, self.n_params))
+
+    def sparse_parameter_jacobian(self, params, q, context) -> tuple[EffectJacobian, PoseEntries]:
+        """:meth:`parameter_jacobian` with its error-vector part as its nonzero entries
+        (:class:`~tcr_accuracy.effects.pose_entries.PoseEntries`): each base parameter moves one entry, the
+        base translation applied on the left of the chain as frames' base twist."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         n, nj = q.shape
         shape = self.shapes(self.progress(context, n), n)  # (n, 2)
-        k = self.n_params
-        ddq = np.zeros((n, nj, k))
+        ddq = np.zeros((n, nj, self.n_params))
         for j in range(nj):
             ddq[:, j, 2 * j:2 * j + 2] = shape
-        em = self.error_model
-        dx = np.zeros((n, em.size, k))
-        for a in range(3):  # the base translation, applied on the left of the chain as frames' base twist
-            dx[:, em.base_slice.start + a, 2 * nj + 2 * a:2 * nj + 2 * a + 2] = shape
-        return EffectJacobian(dq=ddq, x=dx)
+        start = self.error_model.base_slice.start
+        return EffectJacobian(dq=ddq), PoseEntries.of([(start + a, shape[:, i:i + 1], 2 * nj + 2 * a + i)
+                                                       for a in range(3) for i in range(2)], n)

@@ -10,6 +10,7 @@ from ..model.context import MeasurementContext, context_column
 from ..model.gravity import gravity_wrench
 from ..units import REVOLUTE
 from .base import EffectJacobian, LinearEffect, loaded_joint_scales, reference_poses
+from .pose_entries import PoseEntries
 from .fit_policy import FitPolicy
 
 
@@ -109,14 +110,21 @@ class LateralCompliance(LinearEffect):
                           "with the real ones; check the bearings' preload", -upper, np.zeros_like(upper), False))
 
     def parameter_jacobian(self, params, q, context):
+        _, entries = self.sparse_parameter_jacobian(params, q, context)
+        return EffectJacobian(x=entries.dense(self.error_model.size, self.n_params))
+
+    def sparse_parameter_jacobian(self, params, q, context) -> tuple[EffectJacobian, PoseEntries]:
+        """:meth:`parameter_jacobian` as its nonzero entries (:class:`~tcr_accuracy.effects.pose_entries.PoseEntries`):
+        each parameter tilts one joint, so it moves that joint's rotation entries (and its translation
+        ones for a prismatic joint) and no others."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         moment = self.moments(q, context)
         em = self.error_model
-        dx = np.zeros((q.shape[0], em.size, self.n_params))
+        blocks = []
         for k, (j, _, e) in enumerate(self._axes()):
             start = em.index(f"{self.robot.joint_names[j]}.dx")
             tilt = (moment[:, j] @ e)[:, None] * e  # (N, 3): rotation per unit compliance
-            dx[:, start + 3:start + 6, k] = tilt
             if self.robot.joint_kinds[j] != REVOLUTE:  # tilt about the moving origin
-                dx[:, start:start + 3, k] = np.cross(q[:, j, None] * self.robot.joint_axis(j), tilt)
-        return EffectJacobian(x=dx)
+                blocks.append((start, np.cross(q[:, j, None] * self.robot.joint_axis(j), tilt), k))
+            blocks.append((start + 3, tilt, k))
+        return EffectJacobian(), PoseEntries.of(blocks, q.shape[0])

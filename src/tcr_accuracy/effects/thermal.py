@@ -8,6 +8,7 @@ import numpy as np
 
 from ..model.context import REFERENCE_TEMPERATURE_C, context_column
 from .base import EffectJacobian, LinearEffect
+from .pose_entries import PoseEntries
 from .fit_policy import FitPolicy
 from .simulation_rules import SimulationRules
 
@@ -138,9 +139,23 @@ class Thermal(LinearEffect):
         t_ref = float(self.reference_temperature_c)
         temperature = context_column(context, "temperature_c", q.shape[0], t_ref)
         d_t = temperature - t_ref
+        return EffectJacobian(x=d_t[:, None, None] * self._directions()[None])
+
+    def _directions(self) -> np.ndarray:
+        """(n_error_params, k) d(x)/d(parameter) per kelvin."""
         em = self.error_model
         directions = np.zeros((em.size, self.n_params))
         directions[:, :len(self._alphas())] = self.growth_directions()
         for a in range(3):  # the base translated in its own frame, per kelvin
             directions[em.base_slice.start + a, len(self._alphas()) + a] = 1.0
-        return EffectJacobian(x=d_t[:, None, None] * directions[None])
+        return directions
+
+    def sparse_parameter_jacobian(self, params, q, context) -> tuple[EffectJacobian, PoseEntries]:
+        """:meth:`parameter_jacobian` as its nonzero entries (:class:`~tcr_accuracy.effects.pose_entries.PoseEntries`):
+        each parameter grows a few entries of the error vector in proportion to the temperature."""
+        q = np.atleast_2d(q)
+        t_ref = float(self.reference_temperature_c)
+        d_t = context_column(context, "temperature_c", q.shape[0], t_ref) - t_ref
+        directions = self._directions()
+        return EffectJacobian(), PoseEntries.of([(e, d_t[:, None] * directions[e, c], c)
+                                                 for e, c in zip(*np.nonzero(directions))], q.shape[0])

@@ -343,7 +343,7 @@ def explanation_ladder(engine: FitEngine, selected, first: Step) -> list[Step]:
         r = trials[best]
         current.append(best)
         remaining.remove(best)
-        steps.append(Step(best, tuple(ordered(current)), r["n_parameters"], ErrorStats.of(r["train_residual"]).rms,
+        steps.append(Step(best, tuple(ordered(current)), r["n_parameters"], r["train_stats"].rms,
                           ErrorStats.heldout(r),
                           paired_z(previous["heldout_squares"], r["heldout_squares"]),
                           difference_interval(previous["heldout_squares"], r["heldout_squares"])))

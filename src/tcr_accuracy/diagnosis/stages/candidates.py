@@ -87,8 +87,9 @@ class CandidateSet:
         Effects of last resort: built and tried only when the others leave structure.
     stochastic : tuple of str
         Effects of random scatter (tested as extra scatter, never fitted).
-    linearised : tuple of ndarray
-        Per part, the error Jacobians at the frames-only fit (what late effects are linearised at).
+    linearised_at : tuple of ndarray
+        Per part, the error vector (p_em,) of the frames-only fit, where every effect is linearised
+        (:meth:`linearised` gives the error Jacobians there).
     instrument_noise : NoiseEstimate or None
         The instrument's noise from the data's redundancy (rigid frames, base references,
         repeated poses), None when the data have none (or when it is given).
@@ -104,11 +105,17 @@ class CandidateSet:
     testable: tuple
     late_names: tuple
     stochastic: tuple
-    linearised: tuple
+    linearised_at: tuple
     instrument_noise: NoiseEstimate | None
     identifiability_all: dict
     detector: StructureDetector
     notes: tuple
+
+    def linearised(self) -> list:
+        """Per part, the error Jacobians (N, r, p_em) at the frames-only fit (what late effects are
+        linearised at), taken again when asked for: kept, they were 130 MB at 10^5 poses for a step or
+        two of the selection that read them."""
+        return frames_jacobians(self.engine.parts, self.linearised_at)
 
     @property
     def bases(self) -> dict:
@@ -166,6 +173,12 @@ def relinearise(bases: dict, jacobians) -> None:
         b.restack()
 
 
+def frames_jacobians(parts, x_frames) -> list:
+    """Per part, the error Jacobians (N, r, p_em) at its error vector x_frames[p] (p_em,)."""
+    return [position_jacobians(part.robot, part.q, x, part.orientation_weight if part.target_rotation is not None
+                               else None) for part, x in zip(parts, x_frames)]
+
+
 def identifiable_alone(engine: FitEngine, name: str) -> bool:
     """Whether an effect keeps any identifiable parameter next to frames alone."""
     return engine.identify(("frames", name))[0][name].size > 0
@@ -215,14 +228,12 @@ def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, r
     pre = FitEngine(parts, {"frames": bases["frames"]}, [], rank_tol=0.0)
     frames_cols = pre.columns(["frames"])
     phi, _ = pre.fit(frames_cols, np.arange(n))
-    linearised = []  # per part, the error Jacobians at the frames-only fit
+    linearised_at = []  # per part, the error vector of the frames-only fit
     for p, part in enumerate(parts):
         basis, _, idx = frames_cols.per_part[p]
         # the sessions' base twists differ a little after their own registrations: their mean
-        x_frames = basis.errors(phi[idx] * frames_cols.scale[idx]).mean(axis=0)
-        linearised.append(position_jacobians(part.robot, part.q, x_frames,
-                                             part.orientation_weight if part.target_rotation is not None else None))
-    relinearise(bases, linearised)
+        linearised_at.append(basis.errors(phi[idx] * frames_cols.scale[idx]).mean(axis=0))
+    relinearise(bases, frames_jacobians(parts, linearised_at))
     kfold = RepeatedKFold(n_splits=folds, n_repeats=fold_repeats, random_state=int(rng.integers(2**31 - 1)))
     every = [(np.asarray(a), np.asarray(b)) for a, b in kfold.split(np.arange(n))]
     split = [every[r * folds:(r + 1) * folds] for r in range(fold_repeats)]
@@ -252,7 +263,7 @@ def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, r
             rejected.append(untried(name, NOT_IDENTIFIABLE))
     detector = StructureDetector(registered.measurements.q, rng, kinds=registered.robot.joint_kinds)
     return CandidateSet(engine=engine, untried=tuple(rejected), testable=tuple(testable),
-                        late_names=tuple(late_names), stochastic=tuple(stochastic), linearised=tuple(linearised),
+                        late_names=tuple(late_names), stochastic=tuple(stochastic), linearised_at=tuple(linearised_at),
                         instrument_noise=redundancy, identifiability_all=identifiability_all, detector=detector,
                         notes=tuple(notes))
 

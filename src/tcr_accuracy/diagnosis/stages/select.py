@@ -155,7 +155,7 @@ def select_effects(registered: RegisteredMeasurements, candidate_set: CandidateS
     testable = list(candidate_set.testable)
     notes: list = []
     result = engine.evaluate(["frames"])
-    steps = [Step("frames", ("frames",), result["n_parameters"], ErrorStats.of(result["train_residual"]).rms,
+    steps = [Step("frames", ("frames",), result["n_parameters"], result["train_stats"].rms,
                   ErrorStats.heldout(result), None)]
     current = _forward(engine, testable, steps, candidates, say, selection_z, min_relative_gain)
     # a flexible effect of last resort is tried only where the others leave structure in joint space
@@ -166,7 +166,7 @@ def select_effects(registered: RegisteredMeasurements, candidate_set: CandidateS
                                                   rng)["remains"]:
         late_bases, late_rejected, _ = build_bases(list(registered.parts), late_names, registered.measured_context,
                                                    notes, registered.session_labels)
-        relinearise(late_bases, candidate_set.linearised)
+        relinearise(late_bases, candidate_set.linearised())
         engine.add_bases(late_bases)
         candidates.update({c.effect: c for c in late_rejected})
         for name in ordered(late_bases):
@@ -244,7 +244,7 @@ def _forward(engine: FitEngine, testable, steps: list, candidates: dict, say, se
         current.append(best)
         pool.remove(best)
         steps.append(Step(best, tuple(ordered(current)), r["n_parameters"],
-                          ErrorStats.of(r["train_residual"]).rms, ErrorStats.heldout(r), z))
+                          r["train_stats"].rms, ErrorStats.heldout(r), z))
     return current
 
 
@@ -305,7 +305,7 @@ def _relinearise_at_fit(engine: FitEngine, current, registered: RegisteredMeasur
     (each pose at its own fitted joint values and placements) and the model refitted; the new
     linearisation is kept where it lowers the training error."""
     final = engine.evaluate(ordered(current))
-    if ErrorStats.of(final["train_residual"]).rms <= tolerance * ErrorStats.heldout(final).rms:
+    if final["train_stats"].rms <= tolerance * ErrorStats.heldout(final).rms:
         return False
     theta = final["phi"] * final["scale"]
     cols = engine.columns(ordered(current), final["keep"])
@@ -327,7 +327,7 @@ def _relinearise_at_fit(engine: FitEngine, current, registered: RegisteredMeasur
                      f"robot: training RMS {np.sqrt(before / final['n_observations']) * 1e3:.4g} -> "
                      f"{np.sqrt(after / final['n_observations']) * 1e3:.4g} mm per coordinate")
         return True
-    relinearise(engine.bases, candidate_set.linearised)  # no better: back to the frames-only linearisation
+    relinearise(engine.bases, candidate_set.linearised())  # no better: back to the frames-only linearisation
     engine.reset()
     return False
 
