@@ -21,12 +21,12 @@ parameters.
 
 from __future__ import annotations
 
+from .joint_columns import JointColumnsEffect
 from .base import (
     Effect,
     EffectJacobian,
     EffectOutput,
     ErrorVectorEffect,
-    JointColumnsEffect,
     LinearEffect,
     PerJointEffect,
     effect_class,

@@ -10,7 +10,7 @@ from functools import cached_property
 import numpy as np
 
 from ..units import REVOLUTE
-from .base import JointColumnsEffect
+from .joint_columns import JointColumnsEffect
 from .fit_policy import FitPolicy
 
 #: Spline degree (cubic: a continuous curvature, what the roughness penalty measures)
@@ -196,12 +196,6 @@ class AngleTable(JointColumnsEffect):
         # 35 urad RMS per mode: cyclic's 50 urad harmonic amplitude at the same RMS, so that one penalty
         # lambda weighs both effects' curvature alike
         return np.full(self.n_params, 5e-5 / math.sqrt(2.0))
-
-    def physical_range(self):
-        return np.full(self.n_params, -1e-3), np.full(self.n_params, 1e-3)
-
-    def fit_range(self):
-        return np.full(self.n_params, -1e-2), np.full(self.n_params, 1e-2)
 
     def mechanisms(self):
         from .mechanisms import Mechanism

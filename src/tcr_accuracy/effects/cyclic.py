@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..units import REVOLUTE
-from .base import JointColumnsEffect
+from .joint_columns import JointColumnsEffect
 from .fit_policy import FitPolicy
 
 
@@ -76,13 +76,6 @@ class CyclicError(JointColumnsEffect):
     def parameter_scales(self):
         return np.full(self.n_params, 5e-5)  # 50 urad per harmonic
 
-    def physical_range(self):
-        return np.full(self.n_params, -1e-3), np.full(self.n_params, 1e-3)
-
-
-    def fit_range(self):
-        return np.full(self.n_params, -1e-2), np.full(self.n_params, 1e-2)
-
     def mechanisms(self):
         from .mechanisms import Mechanism
 
@@ -92,6 +85,7 @@ class CyclicError(JointColumnsEffect):
                           "interpolation", "compare with the gear maker's transmission error curve", lower, upper),
                 Mechanism("damaged_gear", "a cyclic error above 1 mrad per harmonic: a damaged gear or a loose "
                           "encoder", "inspect the gear and the encoder's mounting", wide_lower, wide_upper, False))
+
     def joint_columns(self, q) -> tuple[np.ndarray, np.ndarray]:
         """The parameter Jacobian in its compact form: each term moves one joint only, so
         d(dq)/d(theta) is (N, k) values and the joint (k,) each column moves, n_joints times
