@@ -71,6 +71,9 @@ def test_errors_of_the_absolute_angle_are_named_angle_table_and_beat_cyclic(camp
           f"noise floor {with_table.noise_floor * 1e3:.4f}")
     assert "angle_table" in with_table.selected_effects
     assert with_table.steps[-1].heldout.rms <= 1.5 * with_table.noise_floor
+    # the truth is smooth over +-360 deg (a bump 30-60 deg wide and a wind-up): read as such, first
+    reading = next(m for m in with_table.mechanisms if m["effect"] == "angle_table")
+    assert reading["mechanism_keys"][0] == "cable_windup"
     # a Fourier series of q mod 2 pi cannot hold an error that differs at q and q + 2 pi
     best_without = min(without.steps[-1].heldout.rms * 1e3, cyclic["heldout_rms_mm_with_frames"])
     assert with_table.steps[-1].heldout.rms * 1e3 < 0.7 * best_without
@@ -142,3 +145,20 @@ def test_an_exported_table_predicts_the_hidden_truth(campaign, tmp_path):
           f"tables zeroed {np.sqrt(np.mean(plain_miss**2)) * 1e3:.4f}")
     assert np.sqrt(np.mean(miss**2)) < 1.5 * np.sqrt(3) * NOISE
     assert np.sqrt(np.mean(plain_miss**2)) > 3 * np.sqrt(np.mean(miss**2))
+
+
+@pytest.mark.parametrize("travel_deg, key", [(720.0, "cable_windup"), (82.0, "gear_encoder_cyclic")])
+def test_the_smoothest_mode_reads_by_how_often_it_turns_over_within_a_revolution(travel_deg, key):
+    """Over two turns the smoothest function orthogonal to 1, q and the first two harmonics
+    changes sign about twice (half a cycle a turn: a smooth error over the travel); over 82 deg
+    (a UR5 campaign's shoulder) even that one oscillates more than 3 times a turn, where gear
+    and encoder errors live."""
+    from tcr_accuracy.effects.mechanisms import read_mechanism
+
+    robot = load_robot("ur10")
+    half = np.radians(travel_deg) / 2
+    effect = make_effect("angle_table", robot, intervals=32, lower=[-half] * 6, upper=[half] * 6)
+    values = np.zeros(effect.n_params)
+    values[0] = 1e-4  # the first joint's smoothest mode, 100 urad RMS
+    std = np.full(effect.n_params, 1e-6)
+    assert read_mechanism(effect, values, std).keys == (key,)

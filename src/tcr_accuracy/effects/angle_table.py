@@ -20,6 +20,9 @@ DEGREE = 3
 CONSTRAINED = 6
 #: Gauss-Legendre points per knot interval the constraint and the penalty are integrated on
 GAUSS_POINTS = 8
+#: A mode oscillating this many times per revolution or more reads as a cyclic gear or encoder error (cyclic's
+#: first order is 3; transmission holds 1 and 2), a slower one as a smooth error over the travel
+CYCLIC_PER_TURN = 2.5
 #: Narrowest travel a table spans [rad] (a joint the data barely move still gets a well-posed table)
 MIN_SPAN = 0.2
 
@@ -197,17 +200,42 @@ class AngleTable(JointColumnsEffect):
         # lambda weighs both effects' curvature alike
         return np.full(self.n_params, 5e-5 / math.sqrt(2.0))
 
+    def mode_cycles_per_turn(self) -> np.ndarray:
+        """(k,) how many times each parameter's mode oscillates per revolution of its joint: half its
+        sign changes over the travel, over the travel in turns [1/rev]."""
+        cycles = []
+        for j in self.revolute:
+            table = self.table(j)
+            grid = np.linspace(table.knots[0], table.knots[-1], 4001)
+            values = table.values(grid)
+            # sign changes of each mode, ignoring where it only grazes zero
+            signs = np.sign(np.where(np.abs(values) > 1e-6 * np.abs(values).max(axis=0), values, 0.0))
+            changes = np.array([np.count_nonzero(np.diff(col[col != 0]) != 0) for col in signs.T])
+            cycles.append(changes / 2.0 / ((table.knots[-1] - table.knots[0]) / (2 * math.pi)))
+        return np.concatenate(cycles) if cycles else np.zeros(0)
+
     def mechanisms(self):
+        """Read by each mode's shape, not only its size: a mode that oscillates
+        :data:`CYCLIC_PER_TURN` times a revolution or more is a cyclic gear or encoder error (of
+        more orders than the Fourier series reached, or repeating over the travel rather than
+        exactly each turn), a slower one a smooth error over the travel (cables winding up, a
+        multi-turn encoder). Each of the two holds the physical range for its own modes and none
+        for the others'."""
         from .mechanisms import Mechanism
 
         lower, upper = self.physical_range()
         wide_lower, wide_upper = self.fit_range()
-        return (Mechanism("cable_windup", "cables and hoses through the joint pulling harder the further it turns "
-                          "from where they hang free", "drive the joint slowly over its travel with the dress pack "
-                          "loosened (or the cables unclipped) and compare the error curve", lower, upper),
-                Mechanism("multiturn_encoder", "an encoder or gear train whose nonlinearity repeats over several "
-                          "turns of the joint, not one", "compare the error at q and q + 360 deg with the encoder "
-                          "maker's multi-turn calibration curve", lower, upper),
+        fast = self.mode_cycles_per_turn() >= CYCLIC_PER_TURN
+        return (Mechanism("gear_encoder_cyclic", "a cyclic error of the gear or the encoder (tooth mesh, interpolation) "
+                          "at more cycles per turn than the Fourier series reached, or repeating over the travel "
+                          "rather than exactly each turn", "compare the fitted curve's period with the gear's tooth "
+                          "and wave-generator periods and the encoder's line count",
+                          np.where(fast, lower, np.inf), np.where(fast, upper, -np.inf)),
+                Mechanism("cable_windup", "a smooth error over the joint's travel: cables and hoses through the joint "
+                          "pulling harder the further it turns, or an encoder whose nonlinearity repeats over several "
+                          "turns", "drive the joint slowly over its travel with the dress pack loosened (or the cables "
+                          "unclipped) and compare the error curve", np.where(fast, np.inf, lower),
+                          np.where(fast, -np.inf, upper)),
                 Mechanism("joint_slip", "a table mode above 1 mrad: a joint slipping on its shaft or a cable "
                           "snagging", "mark the joint's output against its housing and drive it over its travel",
                           wide_lower, wide_upper, False))
