@@ -143,8 +143,9 @@ class AngleTable(JointColumnsEffect):
     """
 
     name = "angle_table"
-    summary = "joint errors as smooth tables of each joint's absolute angle (cable wind-up, multi-turn encoders)"
-    physics = ("cable forces and encoder nonlinearity over a joint's travel are a few hundred microradians; a mode "
+    summary = ("joint errors as smooth tables of each joint's absolute angle (gear and encoder errors beyond the "
+               "Fourier series' orders, cable wind-up, multi-turn encoders)")
+    physics = ("gear, encoder and cable errors over a joint's travel are a few hundred microradians; a mode "
                "above 1 mrad (3.4 arc-min) is a joint slipping or a cable snagging, not a smooth table")
     family = "periodic"
     # after cyclic: where a Fourier series and a table explain the data alike, the periodic gear error is the
