@@ -415,8 +415,8 @@ def test_report_refuses_what_is_not_a_result_of_ours_in_one_line_and_writes_noth
     (tmp_path / "other.json").write_text('{"robot": "tool_changer", "samples": 3}')
     (tmp_path / "list.json").write_text("[1, 2]")
     (tmp_path / "m.csv").write_text("j1_deg,x_mm\n1,2\n")
-    for name, said in (("other.json", "other.json: not a result of tcr-accuracy diagnose"),
-                       ("list.json", "list.json: not a result of tcr-accuracy diagnose"),
+    for name, said in (("other.json", "other.json: not a diagnosis, ISO 9283 evaluation or comparison result"),
+                       ("list.json", "list.json: not a diagnosis, ISO 9283 evaluation or comparison result"),
                        ("m.csv", "m.csv: not JSON")):
         code, out, err = run_command(["report", str(tmp_path / name), "--out", str(tmp_path / "r")], capsys)
         assert code == 2 and out == ""

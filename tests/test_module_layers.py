@@ -23,7 +23,8 @@ SRC = str(PACKAGE.parent)
 
 #: Layers, bottom first (the README's Architecture section); a module may import from its own
 #: layer and those before it.
-LAYERS = ["base", "model", "io", "effects", "frames", "analysis", "diagnosis", "prediction", "asbuilt", "iso9283", "view",
+LAYERS = ["base", "model", "io", "effects", "frames", "analysis", "diagnosis", "prediction", "asbuilt", "iso9283", "results",
+          "view",
           "cli"]
 BASE = {"tcr_accuracy", "tcr_accuracy.units", "tcr_accuracy.exceptions", "tcr_accuracy.input_files",
         "tcr_accuracy.hyperparameters", "tcr_accuracy.random_state"}

@@ -1,5 +1,5 @@
 """One validation of each result JSON on read (issue 29 items 6, 7, 8): export, report, compare
-and ``iso9283 evaluate --model`` read a diagnosis through :mod:`tcr_accuracy.cli.result_files`;
+and ``iso9283 evaluate --model`` read a diagnosis through :mod:`tcr_accuracy.results.files`;
 a key of the wrong type, a forged value or a foreign file is one line naming the key, exit 2,
 never an unexpected error, never ``None`` or ``nan`` on the customer's page.
 """
@@ -15,7 +15,7 @@ from hypothesis import given, settings, strategies as st
 
 from hostile import assert_one_line, run
 from tcr_accuracy.cli import main
-from tcr_accuracy.cli.result_files import (FIT_KEYS, MODEL_KEYS, PAGE_KEYS, check_physics, read_result,
+from tcr_accuracy.results.files import (FIT_KEYS, MODEL_KEYS, PAGE_KEYS, check_physics, read_result,
                                            validate_result)
 from tcr_accuracy.effects import effect_class, vocabulary
 from tcr_accuracy.effects.option_schema import OPTIONS

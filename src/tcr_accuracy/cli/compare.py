@@ -54,7 +54,7 @@ def _run_compare(args) -> int:
     from ..model.robot import load_robot
 
     read_campaign_arguments(args)
-    docs = [_read_json(path) for path in (args.old, args.new)]  # each validated (cli.result_files)
+    docs = [_read_json(path) for path in (args.old, args.new)]  # each validated (results.files)
     given = [d for d in docs if d is not None]
     tool = args.tool
     if args.robot is None:  # a diagnosis names its robot (and where it was loaded from); a CSV's is the default one
@@ -135,7 +135,7 @@ def _read_json(path: str):
         return None
     if len(text.encode("utf-8")) > SIZE_LIMITS["json"]:
         raise InputError(f"{path}: a JSON result larger than the {SIZE_LIMITS['json'] >> 20} MB a result may have")
-    from .result_files import FIT_KEYS, validate_result
+    from ..results.files import FIT_KEYS, validate_result
 
     return validate_result(parse_json(text, path, "give a diagnose --json result or a measurement CSV"), "diagnosis",
                            path, FIT_KEYS)
@@ -145,7 +145,7 @@ def _check_comparable(docs, paths, robot) -> None:
     """Two diagnoses of one robot and one TCP frame, their parameters within each effect's physical
     range (a forged standard error or value never decides what changed). InputError otherwise."""
     from ..exceptions import InputError
-    from .result_files import check_physics
+    from ..results.files import check_physics
 
     for doc, path in zip(docs, paths):
         if doc is None:  # a CSV, diagnosed here with this robot

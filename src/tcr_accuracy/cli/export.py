@@ -64,7 +64,7 @@ def _run_export(args) -> int:
     from ..view.as_built_summary import accuracy_lines, ur_file_header, urdf_comment
     from ..view.plots_export import accuracy_plot
     from .export_tables import offsets_and_tcp_csv, table_csv
-    from .result_files import MODEL_KEYS, check_physics, read_result
+    from ..results.files import MODEL_KEYS, check_physics, read_result
     from .staging import hold_message, stage_folder, write_bytes, write_text
 
     data = read_result(args.diagnosis, "diagnosis", hint="give the JSON that 'diagnose --json FILE' wrote",

@@ -283,10 +283,11 @@ def _run_evaluate(args) -> int:
 def _calibration_page(report, args, robot, payload: dict) -> None:
     """The report opens with the calibration report's first page (with the diagnosis of --model, if given),
     then the per-pose tables."""
-    from ..view.calibration_report import Campaign, RobotFacts, kind_or_none as kind_or_none
+    from ..results.kinds import kind_or_none
+    from ..view.calibration_report import Campaign, RobotFacts
     from ..view.result_tables import add_iso_tables
     from .report import add_calibration_page
-    from .result_files import PAGE_KEYS, read_result, validate_result
+    from ..results.files import PAGE_KEYS, read_result, validate_result
 
     documents = [(str(args.measurements), payload)]
     files = [("ISO 9283 JSON", args.json)] if args.json not in (None, "-") else []

@@ -44,9 +44,9 @@ def plan_inputs(args):
 
 def read_model(robot, path: str):
     """The effects and parameter vectors of the ``diagnose --json`` result at ``path`` (``--model``),
-    validated on read (:mod:`tcr_accuracy.cli.result_files`) and held to each effect's physics."""
+    validated on read (:mod:`tcr_accuracy.results.files`) and held to each effect's physics."""
     from ..iso9283.evaluate import diagnosis_model
-    from .result_files import check_physics, read_result
+    from ..results.files import check_physics, read_result
 
     payload = read_result(path, "diagnosis", hint="give the JSON that 'diagnose --json FILE' wrote")[1]
     check_physics(payload, robot, path)

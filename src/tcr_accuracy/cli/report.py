@@ -102,7 +102,8 @@ def read_campaign_arguments(args):
 
 def _run_report(args) -> int:
     from ..exceptions import InputError
-    from ..view.calibration_report import Campaign, RobotFacts, kind_of
+    from ..results.kinds import kind_of
+    from ..view.calibration_report import Campaign, RobotFacts
     from ..view.result_tables import add_technical_tables
     from ..view.report import Report
 
@@ -115,7 +116,7 @@ def _run_report(args) -> int:
             also = "" if seen[key] == path else f" (as {seen[key]})"
             raise InputError(f"RESULT.json: {path} is given twice{also}")
         seen[key] = path
-    documents = [(path, _read_result(path)) for path in files]  # each validated (cli.result_files)
+    documents = [(path, _read_result(path)) for path in files]  # each validated (results.files)
     for key, what in (("robot", "robots"), ("tool_frame", "TCP frames")):
         given = {doc[key] for _, doc in documents if key in doc}
         if len(given) > 1:
@@ -163,7 +164,7 @@ def _identity(path: str):
 
 
 def _read_result(path: str):
-    from .result_files import read_result
+    from ..results.files import read_result
 
     return read_result(path, hint="give the --json result of diagnose, iso9283 evaluate or compare")[1]
 
@@ -171,13 +172,14 @@ def _read_result(path: str):
 def _robot_facts(facts, documents):
     """The robot's joints from the robot itself when the results do not record them and it loads;
     where it loads, each diagnosis' parameters are held to their effects' physical ranges
-    (:func:`tcr_accuracy.cli.result_files.check_physics`): a forged value never reaches the page."""
+    (:func:`tcr_accuracy.results.files.check_physics`): a forged value never reaches the page."""
     if facts.source in ("", "not recorded"):
         return facts
     from ..exceptions import InputError
     from ..model.robot import load_robot
-    from ..view.calibration_report import RobotFacts, kind_of
-    from .result_files import check_physics
+    from ..results.kinds import kind_of
+    from ..view.calibration_report import RobotFacts
+    from ..results.files import check_physics
 
     try:
         tool = None if facts.tool_frame == "not recorded" else facts.tool_frame

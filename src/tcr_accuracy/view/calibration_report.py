@@ -30,17 +30,11 @@ from dataclasses import dataclass, field
 
 from ..exceptions import InputError
 from ..io.campaign import CampaignFacts
+from ..results.kinds import kind_of
 from ..units import display_value
 from .accuracy_verdict import accuracy_figures, iso_blocks, verdict
 from .diagnosis_summary import family_answer
 from .page_blocks import PAGE_LINES, Code, Droppable, fit_page, to_html, to_markdown
-
-#: The kinds of JSON result a report reads, and the keys that tell each apart.
-KINDS = {
-    "diagnosis": ("steps", "selected_effects", "parameters", "noise_floor_mm"),
-    "iso9283": ("poses", "summary", "n_readings", "frame"),
-    "comparison": ("changes", "tcp_effect", "z_threshold", "old", "new"),
-}
 
 #: Who signs the report (one column each, with name, signature and date), and the campaign
 #: file's key for the name printed there.
@@ -57,24 +51,6 @@ FIRST_PAGE_CHANGES = 5
 #: two are left out, the last first, until the estimate fits (:func:`fit_page`); what the estimate
 #: misses, the printed page's own measurement scales away (``view.report``: CSS zoom, at least 0.8).
 FIRST_PAGE_LINES = PAGE_LINES
-
-
-def kind_of(doc, source: str) -> str:
-    """Which result ``doc`` is ("diagnosis", "iso9283", "comparison"); InputError naming ``source`` if none."""
-    if isinstance(doc, dict):
-        for kind, keys in KINDS.items():
-            if all(k in doc for k in keys):
-                return kind
-    raise InputError(f"{source}: not a result of tcr-accuracy diagnose, iso9283 evaluate or compare (--json); "
-                     "a calibration report is made of those")
-
-
-def kind_or_none(doc) -> str | None:
-    """Which result ``doc`` is, or None when it is none of :data:`KINDS`."""
-    try:
-        return kind_of(doc, "")
-    except InputError:
-        return None
 
 
 @dataclass(frozen=True)
@@ -111,7 +87,7 @@ class Campaign:
     """The results one report gathers, with their file names, and the files written with them.
 
     documents : list of (source, dict)
-        JSON results, each of a kind of :data:`KINDS`, labelled by their file (or command).
+        JSON results, each of a kind of :data:`tcr_accuracy.results.kinds.KINDS`, labelled by their file (or command).
     files : list of (label, href)
         Links to the files written with the report (relative to the report folder).
     facts : CampaignFacts

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .calibration_report import kind_of
+from ..results.kinds import kind_of
 from .plots_common import PlotFile, figure, legend_beside, save_figure, shared_legend
 from .plots_diagnose import plot_ladder
 from .result_tables import iso_condition_label

@@ -11,7 +11,7 @@ SI stays in the JSON.
 from __future__ import annotations
 
 from ..units import display_value
-from .calibration_report import kind_of
+from ..results.kinds import kind_of
 
 
 def add_technical_tables(report, campaign, kinds=("diagnosis", "iso9283", "comparison")) -> None:

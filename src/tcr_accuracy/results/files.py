@@ -343,7 +343,7 @@ def read_result(path, kind: str | None = None, *, hint: str = "", required=()) -
     """(kind, validated document) of the JSON result ``path``; ``kind``: the one expected (any
     of the three when None); ``required``: keys the caller needs besides (:data:`MODEL_KEYS`).
     InputError naming the file and key at fault."""
-    from ..view.calibration_report import kind_of
+    from .kinds import kind_of
 
     doc = read_json_file(path, f"{kind or 'JSON'} result", hint=hint)
     found = kind_of(doc, str(path)) if kind is None else kind

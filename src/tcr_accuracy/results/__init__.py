@@ -1,0 +1,13 @@
+"""Results as files: the one reader of the JSON results the commands and scripts write.
+
+A diagnosis, an ISO 9283 evaluation, a comparison of two campaigns: each is written to JSON and
+read back through this package, which checks a file whole before anything uses it (its schema,
+its parameters against their effects' physics on the robot). The command line and a Python
+script read alike. It sits above the layers whose results it reads (``diagnosis``, ``iso9283``,
+``asbuilt``) and below ``view``, which draws them.
+"""
+
+from .files import check_physics, read_result, schema_of, validate_result
+from .kinds import KINDS, kind_of, kind_or_none
+
+__all__ = ["KINDS", "check_physics", "kind_of", "kind_or_none", "read_result", "schema_of", "validate_result"]
