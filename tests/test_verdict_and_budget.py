@@ -84,8 +84,9 @@ def campaign(tmp_path_factory):
     train = mset.subset(np.arange(220))
     train = replace(train, position=train.position + rng.normal(0.0, NOISE, train.position.shape))
     check = mset.subset(np.arange(220, 250))
-    write_measurements(folder / "train.csv", robot, train)
-    write_measurements(folder / "check.csv", robot, check)
+    for name, data in (("train.csv", train), ("check.csv", check)):
+        write_measurements(folder / name, robot, data)
+        _drop_column(folder / name, "temperature_c")  # no temperature measured: the stated range is not sampled
     (folder / "campaign.yaml").write_text(CAMPAIGN)
     f = str(folder)
     _run(["diagnose", f"{f}/train.csv", "--robot", "ur5", "--effects", "joint_offsets,geometry,transmission",
@@ -97,6 +98,12 @@ def campaign(tmp_path_factory):
     return {"folder": folder, "robot": robot, "train": train, "check": check, "printed": printed,
             "d": json.loads((folder / "d.json").read_text()),
             "export": json.loads((folder / "exp" / "accuracy.json").read_text())}
+
+
+def _drop_column(path: Path, column: str) -> None:
+    lines = path.read_text().splitlines()
+    k = lines[0].split(",").index(column)
+    path.write_text("\n".join(",".join(v for i, v in enumerate(line.split(",")) if i != k) for line in lines) + "\n")
 
 
 def _report(campaign, name: str, *limits: str) -> tuple[str, Path]:
@@ -230,8 +237,12 @@ def test_the_mpe_is_taken_at_the_distances_from_the_stated_tracker(campaign):
 
 
 def test_the_temperature_line_is_the_expansion_at_the_reach(campaign):
-    """alpha dT R / sqrt 12 with R the farthest measured point from the base, here from the training
-    CSV's points mapped into the base frame with the diagnosis' tracker frame."""
+    """alpha dT R / sqrt 12 over the stated range the measurements (no temperature column) did not
+    sample, R the farthest measured point from the base, here from the training CSV's points mapped
+    into the base frame with the diagnosis' tracker frame; and none where the measurements span the
+    range (their figures hold its effect)."""
+    from tcr_accuracy.results.budgets import figure_budgets
+
     budgets = _budgets(campaign)
     transform = np.array(campaign["d"]["tracker_transform"])
     base = (campaign["train"].position - transform[:3, 3]) @ transform[:3, :3]
@@ -239,6 +250,10 @@ def test_the_temperature_line_is_the_expansion_at_the_reach(campaign):
     expected = 23e-6 * (TEMPERATURE_C[1] - TEMPERATURE_C[0]) * reach / math.sqrt(12)
     got = _line(budgets[("URDF alone", "held-out", "mean")], "temperature").standard_uncertainty
     assert got == pytest.approx(expected, rel=1e-3)
+    d = dict(campaign["d"], where={**campaign["d"]["where"], "temperature_c": {"bins": [
+        {"low": 19.0, "high": 20.0}, {"low": 20.0, "high": 21.5}]}})
+    spanned = figure_budgets(d, [], [], None)[0][1]
+    assert _line(spanned, "temperature").standard_uncertainty == 0.0
 
 
 def test_the_frame_registration_matches_a_monte_carlo_of_the_kabsch_fit(campaign):
@@ -315,7 +330,7 @@ def test_page_1_of_the_pdf_holds_the_budget_the_method_and_page_numbers_and_no_f
     first = pages[0]
     for said in ("Measurement uncertainty", "expanded U (k = 2)", "instrument MPE (B)", "measurement noise (A)",
                  "frame registration (A)", "temperature (B)", "fit (A)", "JCGM 100:2008", "ISO 9283:1998",
-                 "Traceability: API Radian laser tracker, serial R20-1234, calibrated under certificate DAkkS "
+                 "Traceability: API Radian laser tracker, serial R20-1234, certificate DAkkS "
                  "D-K-15183-01-00 of 2026-03-02", "MPE 15 um + 6 um/m", "apply to this robot (serial SIM-5)",
                  "19.5 to 21.0 degC", "0 kg payload", "Prepared by"):
         assert said in first, said

@@ -93,18 +93,30 @@ def _noise(statistic: str, n: int, d) -> Contribution:
 
 
 def _temperature(facts, d, reach: float | None) -> Contribution:
-    span = facts.temperature_c if facts is not None and facts.temperature_c is not None else None
-    if span is None:
-        bins = (((d or {}).get("where") or {}).get("temperature_c") or {}).get("bins") or []
-        span = (bins[0]["low"], bins[-1]["high"]) if bins else None
+    """The robot's expansion over the stated temperature range where the measurements did not sample
+    it: a figure measured across the range holds its effect in its own scatter, and a fitted thermal
+    effect holds it in the model; what is left is the part of the range the measurements did not span."""
+    stated = facts.temperature_c if facts is not None and facts.temperature_c is not None else None
+    bins = (((d or {}).get("where") or {}).get("temperature_c") or {}).get("bins") or []
+    measured = (bins[0]["low"], bins[-1]["high"]) if bins else None
+    span = stated or measured
     if span is None:
         return Contribution("temperature", None, "not evaluated: no temperature range stated (temperature_c in the "
                                                  "campaign file or the measurements)")
+    if "thermal" in ((d or {}).get("selected_effects") or []):
+        return Contribution("temperature", 0.0, f"the fitted thermal effect holds it over {span[0]:.1f} to "
+                                                f"{span[1]:.1f} degC", TYPE_B)
+    unsampled = (span[1] - span[0]) - ((measured[1] - measured[0]) if measured else 0.0)
+    if unsampled <= 0:
+        return Contribution("temperature", 0.0, f"measured across {measured[0]:.1f} to {measured[1]:.1f} degC: the "
+                                                "figures hold its effect in their scatter", TYPE_B)
     if reach is None:
         return Contribution("temperature", None, f"not evaluated: {span[0]:.1f} to {span[1]:.1f} degC stated, the "
                                                  "robot's reach not recorded")
-    u = temperature_uncertainty(span, reach)
-    return Contribution("temperature", u, f"23 ppm/K (aluminium, conservative) x {span[1] - span[0]:.1f} K x reach "
+    u = temperature_uncertainty((0.0, unsampled), reach)
+    said = "not sampled by the measurements (no temperature column)" if measured is None else \
+        f"of the stated range beyond the measured {measured[0]:.1f} to {measured[1]:.1f} degC"
+    return Contribution("temperature", u, f"23 ppm/K (aluminium, conservative) x {unsampled:.1f} K {said} x reach "
                                           f"{reach:.2f} m, / sqrt 12 (rectangular)", TYPE_B)
 
 
@@ -188,7 +200,7 @@ def figure_budgets(d, exports, isos, facts) -> list[tuple[dict, UncertaintyBudge
                 else:
                     registration = Contribution("frame registration", None, "not evaluated: not recorded", TYPE_A)
                 out.append((where, UncertaintyBudget(
-                    f"{record.form}, {statistic} on the {record.n} {record.on} poses", value, "m",
+                    f"{record.form}, {statistic} on {record.n} {record.on} poses", value, "m",
                     (_mpe(statistic, points, mpe, facts), _noise(statistic, record.n, d), registration, temperature,
                      _fit(d, None)))))
     for source, iso in isos:
@@ -199,7 +211,7 @@ def figure_budgets(d, exports, isos, facts) -> list[tuple[dict, UncertaintyBudge
 def _kfold_budget(d, statistic, value, mpe, temperature, facts, points) -> UncertaintyBudget:
     n = d["n_measurements"]
     return UncertaintyBudget(
-        f"full model, {statistic} k-fold held-out over {n} poses", value, "m",
+        f"full model, {statistic} k-fold held-out ({n} poses)", value, "m",
         (_mpe(statistic, points, mpe, facts), _noise(statistic, n, d),
          Contribution("frame registration", 0.0, "fitted with the model: in the fit's line", TYPE_A),
          temperature, _fit(d, d.get("folds"))))
@@ -250,14 +262,14 @@ def _iso_budgets(source, iso, d, mpe, temperature, facts) -> list:
     predicted = any((b.get("compensated") or {}).get("summary") for b in (iso.get("conditions") or [iso]))
     fit = _fit(d, None) if predicted else Contribution("fit", 0.0, "as measured: no model in the figure", TYPE_A)
     out = [({"form": name, "on": "iso", "statistic": "ap"}, UncertaintyBudget(
-        f"ISO 9283 AP_P, pose {ap['pose_id']} of {name} ({n} readings)", ap["ap_mm"] * 1e-3, "m",
+        f"AP_P, pose {ap['pose_id']} of {name} ({n} readings)", ap["ap_mm"] * 1e-3, "m",
         (mpe_line, noise, _iso_registration(iso), temperature, fit)))]
     rp = [p for p in poses if p.get("rp_mm") is not None and int(p["n"]) >= 2]
     if rp:
         worst = max(rp, key=lambda p: p["rp_mm"])
         m = int(worst["n"])
         out.append(({"form": name, "on": "iso", "statistic": "rp"}, UncertaintyBudget(
-            f"ISO 9283 RP_l, pose {worst['pose_id']} of {name} ({m} readings)", worst["rp_mm"] * 1e-3, "m",
+            f"RP_l, pose {worst['pose_id']} of {name} ({m} readings)", worst["rp_mm"] * 1e-3, "m",
             (Contribution("instrument MPE", 0.0, "RP is a scatter: the MPE's systematic part cancels, its random part "
                                                  "is in the readings", TYPE_B),
              Contribution("measurement noise", 3.0 * worst["s_l_mm"] * 1e-3 / math.sqrt(2.0 * (m - 1)),

@@ -15,12 +15,19 @@ from ..asbuilt.export_result import ExportResult
 from ..results.budgets import SOURCES, figure_budgets, instrument_mpe, parameter_budgets
 from ..units import display_value
 from .accuracy_verdict import ON_WORDS, TCP_KEYS, file_name, form_groups, form_name
+from .page_blocks import Droppable
 
 #: The clauses a report's figures follow.
-METHOD = ("Method: TCP position error = |measured point - model| after a rigid fit of the tracker frame; k-fold "
-          "held-out: poses left out of the fit; ISO 9283:1998 clauses 7.2.1 (AP) and 7.2.2 (RP). Uncertainty as "
-          "the GUM (JCGM 100:2008): type A and B (4.2, 4.3; an MPE rectangular, 4.3.7), root sum of squares "
-          "(5.1.2), U = k u_c with k = 2 (6.2.1, about 95 %).")
+METHOD = ("Method: error = |measured point - model| after a rigid tracker-frame fit; k-fold: poses left out of the "
+          "fit; ISO 9283:1998 7.2.1 (AP), 7.2.2 (RP); uncertainty per GUM, JCGM 100:2008 (4.2, 4.3.7, 5.1.2, 6.2.1).")
+
+
+#: How each contribution is obtained, in a few words (the figures it was computed from in the technical detail).
+BRIEF_HOW = {"instrument MPE": "(a + b L) / sqrt 3 at the distance L from the tracker",
+             "measurement noise": "the data's scatter, / sqrt N for a mean",
+             "frame registration": "the fitted frame, first order",
+             "temperature": "expansion over the range at the reach, / sqrt 12",
+             "fit": "sigma sqrt(p / m)"}
 
 
 def exports_of(campaign) -> list[ExportResult]:
@@ -42,15 +49,20 @@ def export_table(export: ExportResult, budgets: dict, limits_mm: dict) -> tuple:
     RMS and max ± U (k = 2), the nominal robot first, the stated limits last."""
     rows = []
     nominal = export.figures("nominal")
-    for r in nominal:
-        rows.append((f"nominal robot, {ON_WORDS.get(r.on, r.on)} ({r.n}, {file_name(r.data)})",
-                     f"{r.mean * 1e3:.4f}", f"{r.rms * 1e3:.4f}", f"{r.max * 1e3:.4f}", "mm"))
+    several = len({r.on for r in export.accuracy}) > 1
+    for r in nominal:  # the measured poses' rows may leave page 1 for room where held-out ones are there
+        row = (f"nominal robot, {ON_WORDS.get(r.on, r.on)} ({r.n}, {file_name(r.data)})",
+               f"{r.mean * 1e3:.4f}", f"{r.rms * 1e3:.4f}", f"{r.max * 1e3:.4f}", "mm")
+        rows.append(Droppable(row, "row", "nominal robot on the measured poses") if r.on == "measured" and several
+                    else row)
     for names, records in form_groups(export):
         first = names[0][0]
         rows.append(("group", form_name(names)))
         for r in records:
             cells = [_pm(getattr(r, s), budgets.get((first, r.on, s))) for s in TCP_KEYS]
-            rows.append((f"{ON_WORDS.get(r.on, r.on)} ({r.n} poses, {file_name(r.data)})", *cells, "mm"))
+            row = (f"{ON_WORDS.get(r.on, r.on)} ({r.n} poses, {file_name(r.data)})", *cells, "mm")
+            rows.append(Droppable(row, "row", f"{first} on the measured poses") if r.on == "measured" and len(
+                records) > 1 and first == "full model" else row)
     if any(k in limits_mm for k in TCP_KEYS):
         rows.append(("stated limit", *(f"{limits_mm[k]:g}" if k in limits_mm else "-" for k in TCP_KEYS), "mm"))
     note = ("± : expanded uncertainty, k = 2 (budget below). Nominal: the nominal robot with the tracker frame and "
@@ -80,23 +92,22 @@ def budget_blocks(campaign, d, exports, isos, budgets: dict) -> list:
     shown = headline_budgets(None, budgets, campaign.facts.limits_mm, exports, d, isos)
     out: list = [("h2", "Measurement uncertainty")]
     if shown:
-        columns = ("contribution (type)", *(b.figure for b in shown))
-        rows, how = [], []
+        columns = ("contribution (type): how", *(b.figure for b in shown))
+        rows = []
         for source in SOURCES:
             lines = [next((c for c in b.contributions if c.source == source), None) for b in shown]
             first = next((c for c in lines if c is not None), None)
             if first is None:
                 continue
-            rows.append((f"{source} ({first.evaluation})", *("-" if c is None or c.standard_uncertainty is None else
-                                                              f"{c.standard_uncertainty * 1e3:.4f}" for c in lines)))
-            how.append(f"{source}: {first.how}")
-        rows.append(("combined u_c (root sum of squares)", *(f"{b.combined * 1e3:.4f}" for b in shown)))
-        rows.append(("expanded U (k = 2)", *(f"{b.expanded * 1e3:.4f}" for b in shown)))
+            rows.append((f"{source} ({first.evaluation}): {BRIEF_HOW[source]}",
+                         *("-" if c is None or c.standard_uncertainty is None else f"{c.standard_uncertainty * 1e3:.4f}"
+                           for c in lines)))
+        rows.append(("expanded U (k = 2) = 2 x root sum of squares", *(f"{b.expanded * 1e3:.4f}" for b in shown)))
         left = sorted({s for b in shown for s in b.not_evaluated})
-        note = ("Standard uncertainties [mm]; type A: from the data's scatter, B: from a specification or stated "
-                "range; '-': not evaluated" + (f" (left out of U: {', '.join(left)})" if left else "")
-                + ". How, for the first figure: " + "; ".join(how) + ". Every figure's and parameter's budget in the "
-                "technical detail.")
+        note = ("Standard uncertainties [mm]; A: from the data's scatter, B: from a specification or stated range; "
+                "'-': not evaluated" + (f" (left out of U: {', '.join(left)})" if left else "")
+                + ". Every figure's and parameter's budget, and what each line was computed from, in the technical "
+                "detail.")
         out.append(("table", columns, rows, note, "budget"))
     out.append(("p", METHOD + " " + traceability(campaign, d) + " " + conditions(campaign, d), "note"))
     return out
@@ -107,9 +118,8 @@ def traceability(campaign, d) -> str:
     mpe = instrument_mpe(f, d)
     name = f.instrument_name or ((d or {}).get("instrument") or {}).get("name") or "the instrument"
     said = (f"Traceability: {name}" + (f", serial {f.instrument_serial}" if f.instrument_serial else "")
-            + (f", calibrated under certificate {f.certificate}" if f.certificate else
-               ": no calibration certificate stated (instrument.certificate in the campaign file)")
-            + (f"; {mpe[2]}." if mpe else "; no MPE stated, so the instrument's own error is not in the budget."))
+            + (f", certificate {f.certificate}" if f.certificate else ", no calibration certificate stated")
+            + (f"; {mpe[2]}." if mpe else "; no MPE stated: the instrument's own error is not in the budget."))
     return said
 
 
@@ -121,8 +131,7 @@ def conditions(campaign, d) -> str:
     payload = f"{f.payload_kg:g} kg payload" if f.payload_kg is not None else "the payload carried while measured " \
                                                                               "(not stated)"
     poses = f", over the {d['n_measurements']} measured poses' workspace" if d is not None else ""
-    return (f"The results apply to this robot{serial} in these conditions: {temperature}, {payload}{poses}; they "
-            "are not a statement about other robots of the type.")
+    return f"The results apply to this robot{serial} in these conditions: {temperature}, {payload}{poses}."
 
 
 def add_budget_tables(report, campaign) -> None:
