@@ -71,7 +71,7 @@ def export_table(export: ExportResult, budgets: dict, limits_mm: dict) -> tuple:
     return ("table", ("TCP position error", "mean", "RMS", "max", "unit"), rows, note, "accuracy")
 
 
-def headline_budgets(verdict_forms, budgets: dict, limits_mm: dict, exports, d, isos) -> list:
+def headline_budgets(budgets: dict, limits_mm: dict, exports, d) -> list:
     """The budgets page 1 lists in full: per judged form the figure that decides its verdict (the
     largest against its limit; without a limit the mean on the best poses there are), per ISO test its AP."""
     chosen = []
@@ -89,7 +89,7 @@ def headline_budgets(verdict_forms, budgets: dict, limits_mm: dict, exports, d, 
 
 def budget_blocks(campaign, d, exports, isos, budgets: dict) -> list:
     """Page 1's measurement uncertainty: the budget table, and the method, traceability and conditions."""
-    shown = headline_budgets(None, budgets, campaign.facts.limits_mm, exports, d, isos)
+    shown = headline_budgets(budgets, campaign.facts.limits_mm, exports, d)
     out: list = [("h2", "Measurement uncertainty")]
     if shown:
         columns = ("contribution (type): how", *(b.figure for b in shown))
