@@ -5,7 +5,7 @@ back through the one reader (:func:`tcr_accuracy.results.files.read_result`) by 
 judges each form the customer receives against the campaign's limits:
 
 * ``accuracy``: per form (full model, URDF alone, UR calibration file, DH tables, nominal) its
-  TCP position error's mean, RMS and max on the measured poses, on held-out poses (``--check``) and,
+  TCP position error's mean, RMS and max on the measured poses, on held-out poses (a check set) and,
   for the full model, the diagnosis' k-fold held-out figure (:class:`~tcr_accuracy.asbuilt.accuracy.FormAccuracy`);
 * ``point_sets``: the measured and held-out points' moments and box in the tracker frame
   (:class:`~tcr_accuracy.frames.uncertainty_budget.PointSet`), what the uncertainty budget needs

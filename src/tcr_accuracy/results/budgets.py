@@ -7,7 +7,7 @@ largest AP_P and RP_l), an :class:`~tcr_accuracy.frames.uncertainty_budget.Uncer
 :mod:`tcr_accuracy.frames.uncertainty_budget`):
 
 * **instrument MPE** (type B): ``a + b L`` from the campaign file (``instrument.mpe_um``) or the
-  diagnosis' ``--instrument``; L the distance of the measured points from the instrument, which
+  diagnosis' instrument; L the distance of the measured points from the instrument, which
   stands at the origin of the measurements' frame (the tracker frame) unless the campaign file
   places it (``instrument.position_mm``); read as rectangular (``MPE / sqrt 3``) and, a systematic
   error of the instrument not averaging out over the poses, taken at the poses' RMS distance for a
@@ -43,7 +43,7 @@ RIGID_PARAMETERS = 6
 
 def instrument_mpe(facts, d) -> tuple | None:
     """(a [m], b [m/m], what it is) of the instrument's MPE, the larger of across and along the
-    beam per term: the campaign file's, else the diagnosis' ``--instrument``; None if neither states one."""
+    beam per term: the campaign file's, else the diagnosis' instrument; None if neither states one."""
     if facts is not None and facts.instrument_mpe_um is not None:
         pairs = [facts.instrument_mpe_um] + ([facts.instrument_radial_mpe_um] if facts.instrument_radial_mpe_um else [])
         a, b = (max(p[k] for p in pairs) * 1e-6 for k in (0, 1))
@@ -66,7 +66,7 @@ def instrument_position(facts) -> tuple[np.ndarray, str]:
 def _mpe(statistic: str, points: PointSet | None, mpe, facts) -> Contribution:
     if mpe is None:
         return Contribution("instrument MPE", None, "not evaluated: no MPE stated (instrument.mpe_um in the campaign "
-                                                    "file, or diagnose --instrument)")
+                                                    "file, or the diagnosis' instrument)")
     if points is None:
         return Contribution("instrument MPE", None, f"not evaluated: {mpe[2]}, but the result records no measured "
                                                     "points to take the distance L of")
@@ -86,7 +86,7 @@ def _noise(statistic: str, n: int, d) -> Contribution:
         return Contribution("measurement noise", None, "not evaluated: no noise figure in the results", TYPE_A)
     u = statistic_noise(sigma * 1e-3, n, statistic)
     said = {"repeated poses": "repeated poses", "residual nugget": "the residual's nugget, an upper bound",
-            "rigid frames": "reflectors on one body", "given": "given, --noise-mm",
+            "rigid frames": "reflectors on one body", "given": "given for the instrument",
             "residual": "the final residual, an upper bound"}.get(noise.get("source", ""), noise.get("source", "data"))
     return Contribution("measurement noise", u, f"{sigma * 1e3:.1f} um per axis ({said})"
                                                 + (", one pose's" if statistic == "max" else f" / sqrt {n}"), TYPE_A)
@@ -228,7 +228,7 @@ def _iso_registration(iso) -> Contribution:
     source = iso.get("frame_source") or iso.get("frame") or ""
     rms, n = iso.get("frame_residual_rms_mm"), iso.get("frame_n_points")
     if source in _GIVEN_FRAMES:
-        return Contribution("frame registration", 0.0, "the base frame given (--frame base): nothing fitted", TYPE_B)
+        return Contribution("frame registration", 0.0, "the base frame given: nothing fitted", TYPE_B)
     if rms is None or not n:
         return Contribution("frame registration", None, "not evaluated: the ISO result does not record its frame fit's "
                                                         "residual and points (AP may be off by the frame's error)",
