@@ -187,6 +187,7 @@ def _run_diagnose(args) -> int:
     payload = jsonable({"measurements": ", ".join(map(str, files)), "measurement_files": list(map(str, files)),
                         "robot_source": robot_source(args.robot), "tool_frame": robot.tool_frame,
                         **result.to_dict(robot)})
+    payload["measured_points"] = measured_points(measurements.position)  # the uncertainty budget's distances
     source = ", ".join(map(str, files))
     _report_tables(out, robot, result, source)
     out.add_plots(lambda folder: list(write_plots(result, robot, folder).values()), PLOT_CAPTIONS)
@@ -204,6 +205,17 @@ def _run_diagnose(args) -> int:
     if out.report is not None:
         _calibration_page(out.report, args, robot, payload, written)
     return out.finish(payload, lambda: print(format_summary(robot, result, source)))
+
+
+def measured_points(position):
+    """The measured points' moments and box in the tracker frame (mm): what the report's uncertainty
+    budget needs of them (:class:`tcr_accuracy.frames.uncertainty_budget.PointSet`)."""
+    import numpy as np
+
+    from ..frames.uncertainty_budget import PointSet
+
+    position = np.asarray(position, dtype=float)
+    return PointSet.of(position[np.isfinite(position).all(axis=1)]).to_dict()
 
 
 def _calibration_page(report, args, robot, payload: dict, written: list) -> None:

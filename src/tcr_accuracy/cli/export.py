@@ -60,7 +60,7 @@ def _run_export(args) -> int:
     import sys
 
     from ..asbuilt.diagnosis_file import kfold_figures, model_from_diagnosis
-    from ..asbuilt.export import MODEL_FILE, UR_FILE, URDF_FILE, build_export
+    from ..asbuilt.export import MODEL_FILE, RESULT_FILE, UR_FILE, URDF_FILE, build_export
     from ..view.as_built_summary import accuracy_lines, ur_file_header, urdf_comment
     from ..view.plots_export import accuracy_plot
     from .export_tables import offsets_and_tcp_csv, table_csv
@@ -92,7 +92,9 @@ def _run_export(args) -> int:
         from .export_tables import compensation_csv
 
         files["compensation.csv"] = compensation_csv(filtered[0], model.robot, filtered[1])
-    files["accuracy.json"] = json.dumps({"diagnosis": str(args.diagnosis), **export.to_dict()}, indent=1) + "\n"
+    # the export's result (kind 'export', read back by report): the diagnosis by its file name only
+    result = export.result(Path(args.diagnosis).name, measured, held_out)
+    files[RESULT_FILE] = json.dumps(result.to_dict(), indent=1) + "\n"
     folder = Path(args.to)
     stage_folder(folder)
     for name, text in files.items():

@@ -27,7 +27,7 @@ def add_parsers(sub) -> None:
                     "installed, DIR/report.pdf (A4).")
     p.add_argument("results", metavar="RESULT.json", nargs="+",
                    help="JSON results: diagnose --json (the last one is the calibration shown), iso9283 evaluate "
-                        "--json, compare --json")
+                        "--json, compare --json, and export's DIR/accuracy.json (each delivered form judged)")
     p.add_argument("--out", required=True, type=output_folder, metavar="DIR", help="the report folder")
     add_campaign_arguments(p)
     add_quiet_argument(p)
@@ -105,6 +105,7 @@ def _run_report(args) -> int:
     from ..results.kinds import kind_of
     from ..view.calibration_report import Campaign, RobotFacts
     from ..view.result_tables import add_technical_tables
+    from ..view.uncertainty_words import add_budget_tables
     from ..view.report import Report
 
     facts = read_campaign_arguments(args)
@@ -122,6 +123,7 @@ def _run_report(args) -> int:
         if len(given) > 1:
             named = ", ".join(f"{path} ({doc.get(key, 'not recorded')})" for path, doc in documents)
             raise InputError(f"RESULT.json: results of different {what} ({named}): one report is of one robot and TCP")
+    _check_exports_match(documents)
     robot = _robot_facts(RobotFacts.from_documents(documents), documents)
     title = facts.title or f"Calibration report: {robot.name}"
     report = Report(title, command=getattr(args, "argv", None))
@@ -135,23 +137,39 @@ def _run_report(args) -> int:
     campaign = Campaign(robot, documents)
     add_calibration_page(report, args, campaign, links)
     add_technical_tables(report, campaign)
+    add_budget_tables(report, campaign)
     _add_result_plots(report, campaign)
     from .writers import write_report
 
     index = write_report(report, args.out)
     status(args, f"report written to {index}")
     pdf_status(args, report)
-    print(f"Result: {' '.join(verdict_line(campaign))}")
+    for line in verdict_lines(campaign):
+        print(f"Result: {line}")
     return EXIT_OK
 
 
-def verdict_line(campaign) -> tuple[str, str]:
-    """(status, why) of the campaign's results against its limits: the first page's pass/fail line."""
-    from ..view.accuracy_verdict import accuracy_figures, verdict
+def verdict_lines(campaign) -> list[str]:
+    """The first page's pass/fail lines, one per form judged (``STATUS for FORM: why``)."""
+    from ..view.accuracy_verdict import form_verdicts
+    from ..view.uncertainty_words import exports_of
 
     diagnoses, isos = campaign.of_kind("diagnosis"), campaign.of_kind("iso9283")
-    status_, why = verdict(accuracy_figures(diagnoses[-1][1] if diagnoses else None, isos), campaign.facts.limits_mm)
-    return f"{status_}:", why
+    return [v.line for v in form_verdicts(diagnoses[-1][1] if diagnoses else None, isos, exports_of(campaign),
+                                          campaign.facts.limits_mm)]
+
+
+def _check_exports_match(documents) -> None:
+    """An export result judged beside a diagnosis is that diagnosis' export (by its file name): the
+    forms of another calibration are not this one's."""
+    from ..exceptions import InputError
+    from ..results.kinds import kind_of
+
+    diagnoses = [Path(path).name for path, doc in documents if kind_of(doc, path) == "diagnosis"]
+    for path, doc in documents:
+        if kind_of(doc, path) == "export" and diagnoses and doc["diagnosis"] != diagnoses[-1]:
+            raise InputError(f"RESULT.json: {path} is the export of {doc['diagnosis']}, not of {diagnoses[-1]} (the "
+                             "diagnosis judged): give the export of the same diagnosis")
 
 
 def _identity(path: str):
@@ -166,7 +184,8 @@ def _identity(path: str):
 def _read_result(path: str):
     from ..results.files import read_result
 
-    return read_result(path, hint="give the --json result of diagnose, iso9283 evaluate or compare")[1]
+    return read_result(path, hint="give the --json result of diagnose, iso9283 evaluate or compare, or export's "
+                                  "accuracy.json")[1]
 
 
 def _robot_facts(facts, documents):

@@ -45,6 +45,15 @@ _TRANSFORM = {"type": "array", "minItems": 4, "maxItems": 4,
               "items": {"type": "array", "minItems": 4, "maxItems": 4, "items": _NUMBER}}
 
 
+_VECTOR_MM = {"type": "array", "items": _SIGNED_MM, "minItems": 3, "maxItems": 3}
+#: Measured points summarised (:class:`tcr_accuracy.frames.uncertainty_budget.PointSet`, mm).
+_POINT_SET = {"type": "object", "required": ["n", "mean_mm", "covariance_mm2", "lower_mm", "upper_mm"],
+              "properties": {"n": _COUNT, "mean_mm": _VECTOR_MM, "lower_mm": _VECTOR_MM, "upper_mm": _VECTOR_MM,
+                             "covariance_mm2": {"type": "array", "minItems": 3, "maxItems": 3, "items": {
+                                 "type": "array", "minItems": 3, "maxItems": 3,
+                                 "items": {"type": "number", "minimum": -1e12, "maximum": 1e12}}}}}
+
+
 def _by_effect(value: dict, names) -> dict:
     """An object keyed by effect names (``names``: the vocabulary) with values of schema ``value``."""
     return {"type": "object", "propertyNames": {"enum": list(names)}, "additionalProperties": value}
@@ -123,6 +132,7 @@ def _diagnosis_schema(names) -> dict:
             "candidates": _by_effect(candidate, names),
             "as_built_urdf": _TEXT, "as_built_effects": _TEXT,
             "frames_measured": {"type": "array", "items": _NAME, "maxItems": 1000},
+            "measured_points": _POINT_SET,
             **_findings_schema(names),
         },
     }
@@ -227,13 +237,27 @@ def _comparison_schema(names) -> dict:
     }
 
 
+def _export_schema() -> dict:
+    """export's accuracy.json (:class:`tcr_accuracy.asbuilt.export_result.ExportResult`)."""
+    figure = {"type": "object", "required": ["form", "file", "on", "data", "n", "mean_mm", "rms_mm", "max_mm"],
+              "properties": {"form": _NAME, "file": _TEXT, "on": {"enum": ["measured", "held-out", "k-fold held-out"]},
+                             "data": _TEXT, "n": {"type": "integer", "minimum": 0, "maximum": MAX_COUNT},
+                             "mean_mm": _MM, "rms_mm": _MM, "max_mm": _MM, "frame_rms_mm": _MM_OR_NULL}}
+    return {"type": "object", "required": ["kind", "diagnosis", "robot", "accuracy", "point_sets"],
+            "properties": {"kind": {"const": "export"}, "diagnosis": _TEXT, "robot": _NAME, "robot_source": _NAME,
+                           "tool_frame": _NAME, "measured_frame": _NAME, "reach_mm": _MM_OR_NULL,
+                           "accuracy": {"type": "array", "minItems": 1, "maxItems": 1000, "items": figure},
+                           "point_sets": {"type": "object", "propertyNames": {"enum": ["measured", "held-out"]},
+                                          "additionalProperties": _POINT_SET}}}
+
+
 def schema_of(kind: str) -> dict:
-    """The JSON Schema of a result of ``kind`` ('diagnosis', 'iso9283', 'comparison')."""
+    """The JSON Schema of a result of ``kind`` ('diagnosis', 'iso9283', 'comparison', 'export')."""
     from ..effects import vocabulary
 
     names = sorted(set(vocabulary()) | {"frames"})
     return {"diagnosis": _diagnosis_schema, "iso9283": lambda n: _iso_schema(),
-            "comparison": _comparison_schema}[kind](names)
+            "comparison": _comparison_schema, "export": lambda n: _export_schema()}[kind](names)
 
 
 #: What a diagnosis must hold to be compared: each parameter's standard error and unit.
@@ -244,7 +268,7 @@ PAGE_KEYS = ("n_measurements", "folds", "steps", "selected_effects", "noise_floo
 #: ``Diagnosis.to_dict()`` without the robot has not got them).
 MODEL_KEYS = ("robot_source", "tool_frame", "effect_parameters", "tracker_transform")
 #: The keys each kind must hold (a diagnosis: :data:`PAGE_KEYS` too where a report reads it).
-REQUIRED = {"diagnosis": PAGE_KEYS, "iso9283": ("robot",), "comparison": ()}  # robot: the one-robot check
+REQUIRED = {"diagnosis": PAGE_KEYS, "iso9283": ("robot",), "comparison": (), "export": ()}  # robot: the one-robot check
 
 
 def validate_result(doc, kind: str, source, required=()) -> dict:

@@ -37,7 +37,14 @@ def accuracy_lines(accuracy) -> list[str]:
     data = {r["on"]: r for r in records}
     for kind, label in kinds:
         lines.append(f"  {label}: {data[kind]['data']} ({data[kind]['n']} poses)")
+    if "nominal" in forms:
+        lines.append(f"  nominal: {NOMINAL_WORDS}")
     return lines
+
+
+#: What the nominal line is (prediction.nominal's definition), in the words predict and compensate print too.
+NOMINAL_WORDS = ("the nominal robot, tracker frame and TCP offset fitted to the measured poses (the figure predict "
+                 "and compensate print)")
 
 
 def headline(accuracy) -> str:
