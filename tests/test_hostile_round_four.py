@@ -1,0 +1,266 @@
+"""Reproductions of issue 37's hostile-input attack (round four), items 6-8, 10, 13-17 and its
+minor ones: each failed on the code before its fix. Decoys only, in ``tmp_path``; the command
+line runs in a child process (:func:`hostile.cli_process`): a bad input ends in exit code 2 and
+ONE line on stderr naming the file and key, column or flag at fault, no traceback, nothing
+written; a good one is answered right.
+"""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from hostile import cli_process
+
+
+def listing(folder) -> set:
+    return {str(p.relative_to(folder)) for p in folder.rglob("*")}
+
+
+def refused(folder, argv, *named) -> str:
+    """Run ``argv`` in ``folder``: exit 2, one stderr line holding each of ``named``, nothing written."""
+    before = listing(folder)
+    result = cli_process(argv, cwd=folder)
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert result.returncode == 2, (result.returncode, result.stderr[-2000:])
+    assert "Traceback" not in result.stderr and len(lines) == 1, result.stderr[-2000:]
+    for text in named:
+        assert text in lines[0], (text, lines[0])
+    assert listing(folder) == before, sorted(listing(folder) - before)
+    return lines[0]
+
+
+def answered(folder, argv):
+    """Run ``argv`` in ``folder``: exit 0 and no traceback; the completed process."""
+    result = cli_process(argv, cwd=folder)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert "Traceback" not in result.stderr
+    return result
+
+
+@pytest.fixture
+def campaign(tmp_path, small_campaign):
+    """tmp_path with the small campaign's measurements (m.csv) and diagnosis (d.json)."""
+    csv, diagnosis = small_campaign
+    shutil.copy(csv, tmp_path / "m.csv")
+    shutil.copy(diagnosis, tmp_path / "d.json")
+    return tmp_path
+
+
+# ---------------------------------------------------------------------------------------
+# 6. The report's text flags hold to the campaign file's bounds
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("flag, value, said", [
+    ("--title", "Calibration \u202eevil", "holds the control character U+202E"),  # shown reversed
+    ("--operator", "J. Smith\x1b[31m", "holds the control character U+001B"),  # a terminal escape in the page
+    ("--customer", "x" * 5000, "5000 characters; at most 300"),
+    ("--serial", "S-1\u2066", "holds the control character U+2066"),
+    ("--certificate", "\x07", "holds the control character U+0007"),
+])
+def test_37_06_report_text_flags_are_held_as_the_campaign_file_is(campaign, flag, value, said):
+    refused(campaign, ["report", "d.json", "--out", "rep", flag, value, "--quiet"], f"argument {flag}", said)
+    key = {"--serial": "robot:\n  serial", "--certificate": "instrument:\n  certificate"}.get(flag, flag[2:])
+    (campaign / "c.yaml").write_text(f"{key}: {json.dumps(value)}\n")  # the same text in a campaign file
+    refused(campaign, ["report", "d.json", "--out", "rep", "--campaign", "c.yaml", "--quiet"], "c.yaml", said)
+
+
+def test_37_06_the_flags_of_other_commands_reports_too(campaign):
+    refused(campaign, ["diagnose", "m.csv", "--effects", "joint_offsets", "--out", "rep", "--title", "a\u202eb",
+                       "--quiet"], "argument --title", "U+202E")
+
+
+def test_37_06_plain_flags_still_reach_the_page(campaign):
+    answered(campaign, ["report", "d.json", "--out", "rep", "--title", "Caf\u00e9  S-1234", "--operator", "J. Smith",
+                        "--quiet"])
+    assert "<h1>Caf\u00e9 S-1234</h1>" in (campaign / "rep" / "index.html").read_text(encoding="utf-8")
+
+
+# ---------------------------------------------------------------------------------------
+# 7. report.md shows what came from outside as text, as index.html does
+# ---------------------------------------------------------------------------------------
+HOSTILE_MARKDOWN = ("![x](https://evil.example/pixel.png) [click](javascript:alert(1)) <https://evil.example> "
+                    "www.evil.example a@evil.example *em* ~~s~~ `c` | x")
+
+
+def _gfm():
+    from markdown_it import MarkdownIt
+
+    renderer = MarkdownIt("gfm-like")
+    renderer.linkify.set({"fuzzy_link": False})
+    return renderer
+
+
+def _rendered_links(markdown: str) -> tuple[list, list, str]:
+    """(link targets, image sources, text) of ``markdown`` as GitHub renders it: markdown-it-py's
+    gfm-like preset (an independent CommonMark renderer) with GFM's autolinks (``www.``,
+    ``https://``, e-mail addresses; not a bare ``name.dz``, which GitHub leaves as text)."""
+    import re
+
+    page = _gfm().render(markdown)
+    return re.findall(r'<a href="([^"]*)"', page), re.findall(r'<img src="([^"]*)"', page), page
+
+
+def test_37_07_report_md_is_not_live_markdown(campaign):
+    doc = json.loads((campaign / "d.json").read_text())
+    doc["measurements"] = HOSTILE_MARKDOWN
+    (campaign / "d.json").write_text(json.dumps(doc))
+    (campaign / "c.yaml").write_text(f"title: {json.dumps(HOSTILE_MARKDOWN)}\n")
+    answered(campaign, ["report", "d.json", "--out", "rep", "--campaign", "c.yaml", "--quiet"])
+    links, images, page = _rendered_links((campaign / "rep" / "report.md").read_text(encoding="utf-8"))
+    assert images and all(":" not in src and not src.startswith("/") for src in images), images  # our plots only
+    assert all(":" not in href and not href.startswith("/") for href in links), links  # our files only
+    assert "![x](https://evil.example/pixel.png) [click](javascript:alert(1))" in page  # shown as text
+    assert "&lt;https://evil.example&gt;" in page and "*em* ~~s~~ `c` | x" in page
+
+
+def test_37_07_markdown_text_round_trips_as_text():
+    """Any text, through the escaping and a CommonMark renderer, is the same text again."""
+    import html
+
+    from markdown_it import MarkdownIt
+
+    from tcr_accuracy.view import markdown_text as md
+
+    renderer = MarkdownIt("gfm-like")  # with every bare domain a link too: the strictest reading
+    samples = [HOSTILE_MARKDOWN, "1. item", "- item", "# heading", "===", "---", "2) x", "+ y", "-0.0354 mm",
+               "joint_offsets and _em_ and __b__", "[r]: https://x.example", "a \\* b", "\\", "3.11.2", "> q"]
+    for sample in samples:
+        rendered = renderer.render(md.line(sample))
+        assert rendered.startswith("<p>") and rendered.endswith("</p>\n"), (sample, rendered)
+        assert html.unescape(rendered[3:-5]) == sample, (sample, rendered)
+
+
+# ---------------------------------------------------------------------------------------
+# 8. One limit per figure
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("limits", [["max=0.05", "max=0.2"], ["0.05", "max=0.2"], ["ap=0.1", "ap=0.1"]])
+def test_37_08_a_figure_limited_twice_is_refused(campaign, limits):
+    figure = limits[-1].split("=")[0]
+    argv = ["report", "d.json", "--out", "rep", "--quiet"]
+    for limit in limits:
+        argv += ["--limit-mm", limit]
+    refused(campaign, argv, "--limit-mm", f"{figure} is limited twice")
+
+
+# ---------------------------------------------------------------------------------------
+# 10. Importance sampling: a probability, and the right one
+# ---------------------------------------------------------------------------------------
+def _telescope_budget(robot, distribution: str, **spread):
+    """A budget of one source, the telescopic joint's drive error [m]: it moves the TCP along
+    the joint's axis by exactly its value, so |dP| = |value| (linear, exactly)."""
+    from tcr_accuracy.model.errors import ErrorBudget, ErrorModel, ErrorSource
+
+    em = ErrorModel(robot)
+    direction = np.zeros(em.size)
+    direction[em.index("j4.drive")] = 1.0
+    return ErrorBudget(em, [ErrorSource("j4 drive", "drive", direction, "m", distribution, **spread)])
+
+
+@pytest.mark.parametrize("mean, std, threshold", [
+    (0.0, 2e-5, 1e-4),  # 5 spreads out: 5.7e-7
+    (1.4e-4, 2e-5, 1.5e-4),  # a bias near the tolerance: 0.31
+    (3e-4, 1e-6, 1.5e-4),  # a bias beyond it, 150 spreads: 1 (importance sampling said 0.95 and 8e-156)
+])
+def test_37_10_tail_estimates_against_the_closed_form(tool_changer, mean, std, threshold):
+    """Gaussian input, linear limit state: P(|d| > T) = Phi((-T - mu) / s) + Phi((mu - T) / s)."""
+    from tcr_accuracy.analysis.reliability import first_order, gaussian_exceedance, importance_exceedance
+
+    budget = _telescope_budget(tool_changer, "normal", mean=mean, std=std)
+    q = tool_changer.working_pose
+    exact = stats.norm.cdf((-threshold - mean) / std) + stats.norm.sf((threshold - mean) / std)
+    fo = first_order(budget, q)
+    assert gaussian_exceedance(fo.mean[:3], fo.covariance[:3, :3], threshold) == pytest.approx(exact, rel=1e-6)
+    est = importance_exceedance(budget, q, threshold, 20_000, np.random.default_rng(5))
+    assert 0.0 <= est.ci95[0] <= est.probability <= est.ci95[1] <= 1.0
+    assert abs(est.probability - exact) <= 4 * est.standard_error + 1e-12 * exact, (est, exact)
+    assert est.standard_error <= 0.1 * exact
+
+
+@pytest.mark.parametrize("threshold", [1.2e-4, 1.6e-4])
+@pytest.mark.parametrize("inflation", [None, 3.0])
+def test_37_10_importance_sampling_agrees_with_plain_sampling_on_a_biased_budget(tool_changer, threshold, inflation):
+    """Every drive biased by a uniform error (the kind of budget that gave 1.093): the plain Monte
+    Carlo count and importance sampling agree within their standard errors, with the proposal's
+    own spread or one three times wider (the weights, not the proposal, make the estimate)."""
+    from dataclasses import replace
+
+    from tcr_accuracy.analysis.montecarlo import run_monte_carlo
+    from tcr_accuracy.analysis.reliability import importance_exceedance
+    from tcr_accuracy.model.errors import ErrorBudget, ErrorModel, drive_source
+
+    em = ErrorModel(tool_changer)
+    sources = [replace(drive_source(tool_changer, j, em, 0.0), distribution="uniform", low=2e-5, high=6e-5)
+               for j in range(tool_changer.n_joints)]
+    budget = ErrorBudget(em, sources)
+    q, n = tool_changer.working_pose, 20_000
+    plain = run_monte_carlo(budget, q, n, 3, position_tolerances=(threshold,))
+    p_plain = 1.0 - plain.inside_position[0] / n
+    assert 0.05 < p_plain < 0.95  # both apply
+    est = importance_exceedance(budget, q, threshold, n, np.random.default_rng(3), inflation=inflation)
+    assert 0.0 <= est.probability <= 1.0
+    se = np.hypot(est.standard_error, np.sqrt(p_plain * (1 - p_plain) / n))
+    assert abs(est.probability - p_plain) < 4 * se, (est, p_plain)
+
+
+def test_37_10_first_order_tail_of_a_narrow_far_gaussian_is_the_noncentral_chi_square():
+    """A spread 1 um at 5 mm from the tolerance's centre (the first-order column said 2.3e-96
+    beside Monte Carlo's 1.000): |d|^2 / s^2 is noncentral chi-square (scipy)."""
+    from tcr_accuracy.analysis.reliability import gaussian_exceedance
+
+    for k in (2, 3):
+        mean = np.zeros(k)
+        mean[0] = 5e-3
+        for threshold in (1e-4, 4.99e-3, 5.004e-3):
+            exact = stats.ncx2.sf((threshold / 1e-6) ** 2, k, (5e-3 / 1e-6) ** 2)
+            assert gaussian_exceedance(mean, 1e-12 * np.eye(k), threshold) == pytest.approx(exact, rel=1e-6)
+
+
+# ---------------------------------------------------------------------------------------
+# 15. A diagnosis holding clearance parameters
+# ---------------------------------------------------------------------------------------
+@pytest.fixture
+def with_clearance(campaign):
+    """campaign with dc.json: d.json holding clearance spreads (10 um, 10 um, 10 urad) too."""
+    doc = json.loads((campaign / "d.json").read_text())
+    spreads = {"clearance.axial": 1e-5, "clearance.radial": 1e-5, "clearance.tilt": 1e-5}
+    doc["effect_parameters"]["clearance"] = dict(spreads)
+    doc["parameters"]["clearance"] = dict(spreads)
+    doc["parameter_units"]["clearance"] = {"clearance.axial": "m", "clearance.radial": "m", "clearance.tilt": "rad"}
+    doc["parameter_std"]["clearance"] = {k: 1e-6 for k in spreads}
+    doc["parameter_interval_95"]["clearance"] = {k: [8e-6, 1.2e-5] for k in spreads}
+    (campaign / "dc.json").write_text(json.dumps(doc))
+    return campaign
+
+
+def test_37_15_export_of_a_diagnosis_with_clearance(with_clearance):
+    """Play is scatter, not bias: the as-built model is the mean robot, the same as without it."""
+    answered(with_clearance, ["export", "d.json", "--to", "plain", "--quiet"])
+    answered(with_clearance, ["export", "dc.json", "--to", "play", "--quiet"])
+    plain, play = (json.loads((with_clearance / n / "accuracy.json").read_text()) for n in ("plain", "play"))
+    assert play["accuracy"] == plain["accuracy"]
+    origins = [[line for line in (with_clearance / n / "as_built.urdf").read_text().splitlines() if "<origin" in line]
+               for n in ("plain", "play")]
+    assert origins[0] and origins[0] == origins[1]
+
+
+def _pose_test(campaign) -> str:
+    """iso.csv: 5 poses of m.csv, each measured in 3 cycles (1 um apart); its name."""
+    import csv
+
+    rows = list(csv.DictReader((campaign / "m.csv").read_text().splitlines()))[:5]
+    head = [c for c in rows[0] if c.endswith(("_deg", "_mm")) and c not in ("x_mm", "y_mm", "z_mm")]
+    lines = [",".join(head + ["x_mm", "y_mm", "z_mm", "pose_id", "cycle"])]
+    for cycle in (1, 2, 3):
+        for pose, row in enumerate(rows, start=1):
+            xyz = [f"{float(row[c]) + 1e-3 * cycle:.6f}" for c in ("x_mm", "y_mm", "z_mm")]
+            lines.append(",".join([row[c] for c in head] + xyz + [str(pose), str(cycle)]))
+    (campaign / "iso.csv").write_text("\n".join(lines) + "\n")
+    return "iso.csv"
+
+
+def test_37_15_compare_and_iso_model_with_clearance(with_clearance):
+    result = answered(with_clearance, ["compare", "d.json", "dc.json", "--quiet"])
+    assert "clearance" in result.stdout
+    answered(with_clearance, ["iso9283", "evaluate", _pose_test(with_clearance), "--model", "dc.json", "--quiet"])
