@@ -264,3 +264,144 @@ def test_37_15_compare_and_iso_model_with_clearance(with_clearance):
     result = answered(with_clearance, ["compare", "d.json", "dc.json", "--quiet"])
     assert "clearance" in result.stdout
     answered(with_clearance, ["iso9283", "evaluate", _pose_test(with_clearance), "--model", "dc.json", "--quiet"])
+
+
+# ---------------------------------------------------------------------------------------
+# 13. Effect options of a scenario hold to the bounds of a diagnosis JSON's and an as-built YAML's
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("effect, options, said", [
+    ("cyclic", "{max_order: 1000000}", "effects.cyclic.options.max_order: 1000000 is greater than the maximum of 200"),
+    ("angle_table", "{intervals: 1000}", "effects.angle_table.options.intervals: 1000 is greater than the maximum"),
+    ("transmission", "{harmonics: [1000]}", "effects.transmission.options.harmonics[0]: 1000 is greater"),
+    ("compliance", "{link_mass_factors: [1, 2]}", "effects.compliance.options: link_mass_factors: 2 values for the 6"),
+    ("cyclic", "[3]", "effects.cyclic.options: a mapping"),
+])
+def test_37_13_scenario_effect_options_are_bounded(tmp_path, effect, options, said):
+    """cyclic's max_order 1000000 built 3.5 GB of parameters, then ran out of memory."""
+    (tmp_path / "s.yaml").write_text(f"effects:\n  {effect}:\n    options: {options}\n")
+    refused(tmp_path, ["simulate", "--scenario", "s.yaml", "--n", "5", "--out", "m.csv", "--quiet"], "s.yaml", said)
+
+
+def test_37_13_options_within_the_bounds_still_simulate(tmp_path):
+    (tmp_path / "s.yaml").write_text("effects:\n  cyclic:\n    options: {max_order: 5}\n")
+    answered(tmp_path, ["simulate", "--scenario", "s.yaml", "--n", "5", "--out", "m.csv", "--quiet"])
+    assert len((tmp_path / "m.csv").read_text().splitlines()) == 6
+
+
+#: The keys an as-built model file must start with (docs/as-built-format.md)
+AS_BUILT_HEAD = "format: tcr-accuracy as-built model 2\nrobot_source: tool_changer\ntool_frame: tool\n"
+
+
+def test_37_13_as_built_file_options_hold_to_the_same_bounds(tmp_path):
+    """The as-built YAML took integers up to 1000 (cyclic's max_order 1000: 12,000 parameters); the
+    bound of a diagnosis JSON (200) holds there too, and a wrong count of link mass factors is
+    named with its file and key (it said "link mass factors: need 6 values >= 0")."""
+    from tcr_accuracy import load_as_built
+    from tcr_accuracy.exceptions import InputError
+
+    for options, said in (("cyclic: {max_order: 1000}", "options.cyclic.max_order: 1000 is greater than the maximum"),
+                          ("compliance: {link_mass_factors: [1, 1]}", "link_mass_factors: 2 values for the 6")):
+        effect = options.split(":")[0]
+        (tmp_path / "a.yaml").write_text(f"{AS_BUILT_HEAD}effects:\n  {effect}: {{}}\noptions:\n  {options}\n")
+        with pytest.raises(InputError, match="a.yaml") as caught:
+            load_as_built(tmp_path / "a.yaml")
+        assert said in str(caught.value) and len(str(caught.value).splitlines()) == 1, caught.value
+
+
+# ---------------------------------------------------------------------------------------
+# 14. import: the memory of the cells, and the columns, counted before reading
+# ---------------------------------------------------------------------------------------
+def test_37_14_import_of_a_one_row_file_of_many_cells_is_refused_before_reading(tmp_path):
+    """A 32 MB one-row export of one-character cells (320 MB took 3.6 GB and failed): 0.38 GB for
+    its text, and 16 million cells, each a slot in a list, beyond 0.5 GB."""
+    with open(tmp_path / "t.txt", "w") as f:
+        f.write("X;Y;Z\n1;2;3" + ";1" * 16_000_000 + "\n")
+    refused(tmp_path, ["import", "t.txt", "--out", "o.csv", "--max-memory-gb", "0.5", "--quiet"],
+            "importing t.txt (2 rows, 16000006 cells)", "more than the 0.5 GB allowed")
+
+
+def test_37_14_import_of_a_header_of_too_many_columns(tmp_path):
+    """200,000 columns named like a measurement CSV's passed through one by one, each looked up in
+    the header again: a 2.9 MB file ran for more than 10 minutes."""
+    n = 200_000
+    header = "X;Y;Z;" + ";".join(f"a{i}_mm" for i in range(n))
+    (tmp_path / "t.txt").write_text(header + "\n1;2;3;" + ";".join(["1.5"] * n) + "\n")
+    refused(tmp_path, ["import", "t.txt", "--out", "o.csv", "--quiet"], "t.txt: row 1: 200003 cells",
+            "at most 10000 columns")
+
+
+@pytest.mark.parametrize("name, text, said", [
+    ("r.json", "[" + "{}," * 2_000_000 + "{}]", "its JSON (2000002 objects and lists)"),  # ~25 bytes a byte
+    ("s.yaml", "a: [" + "{}," * 200_000 + "{}]\n", "its YAML"),  # ~330 bytes a byte
+], ids=["json", "yaml"])
+def test_37_14_json_and_yaml_readers_estimate_their_objects(tmp_path, name, text, said):
+    (tmp_path / name).write_text(text)
+    argv = (["report", name, "--out", "rep"] if name.endswith(".json") else
+            ["simulate", "--scenario", name, "--n", "3", "--out", "m.csv"])
+    refused(tmp_path, [*argv, "--max-memory-gb", "0.1", "--quiet"], name, said, "more than the 0.1 GB allowed")
+
+
+# ---------------------------------------------------------------------------------------
+# 16. An integer too large for a number, in any settings file
+# ---------------------------------------------------------------------------------------
+BIG = "1" * 5000
+
+
+@pytest.mark.parametrize("name, text, argv, said", [
+    ("c.yaml", f"limits_mm:\n  max: {BIG}\n", ["report", "d.json", "--out", "rep", "--campaign", "c.yaml"],
+     "c.yaml: limits_mm.max: an integer of 5000 digits"),
+    ("c.toml", f"[limits_mm]\nmax = {BIG}\n", ["report", "d.json", "--out", "rep", "--campaign", "c.toml"],
+     "c.toml: line 2: limits_mm.max: an integer of 5000 digits"),
+    ("c4.yaml", f"limits_mm:\n  max: {'1' * 400}\n", ["report", "d.json", "--out", "rep", "--campaign", "c4.yaml"],
+     "c4.yaml: limits_mm.max: an integer of 400 digits"),  # "OverflowError: int too large to convert to float"
+    ("s.yaml", f"noise_mm: {BIG}\n", ["simulate", "--scenario", "s.yaml", "--n", "3", "--out", "o.csv"],
+     "s.yaml: noise_mm: an integer of 5000 digits"),
+    ("b.toml", f'[groups.drive]\ndistribution = "normal"\nstd_mm = {BIG}\n',
+     ["montecarlo", "--config", "b.toml", "--samples", "10"], "b.toml: line 3: groups.drive.std_mm"),
+    ("b.yaml", f"groups:\n  drive:\n    std_mm: [1, {BIG}]\n",
+     ["montecarlo", "--config", "b.yaml", "--samples", "10"], "b.yaml: groups.drive.std_mm[1]"),
+])
+def test_37_16_huge_integers_are_refused_naming_file_and_key(campaign, name, text, argv, said):
+    (campaign / name).write_text(text)
+    refused(campaign, [*argv, "--quiet"], said, "beyond the range of a number")
+
+
+def test_37_16_load_as_built_and_json_name_the_key(tmp_path):
+    from tcr_accuracy import load_as_built
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.input_files import parse_json
+
+    (tmp_path / "a.yaml").write_text(f"{AS_BUILT_HEAD}effects:\n  joint_offsets: {{joint_offsets.j2: {BIG}}}\n")
+    with pytest.raises(InputError, match=r"a.yaml: effects.joint_offsets.joint_offsets.j2: an integer of 5000"):
+        load_as_built(tmp_path / "a.yaml")
+    with pytest.raises(InputError, match=r"d.json: \$.steps\[1\].n: an integer of 400 digits"):
+        parse_json('{"steps": [{"n": 1}, {"n": %s}]}' % ("9" * 400), "d.json")
+    assert parse_json('{"n": %s}' % ("9" * 300), "d.json")["n"] == int("9" * 300)  # within a float's range
+
+
+# ---------------------------------------------------------------------------------------
+# 17. A robot of prismatic joints only
+# ---------------------------------------------------------------------------------------
+def _gantry(folder) -> str:
+    """An x-y-z gantry of three prismatic joints (10 kg links), its TCP 0.1 m below the last."""
+    from hostile import INERTIAL
+
+    links = "".join(f'<link name="l{i}">{INERTIAL}</link>' for i in (1, 2, 3))
+    joints = "".join(f'<joint name="j{i}" type="prismatic"><parent link="{p}"/><child link="l{i}"/>'
+                     f'<origin xyz="0 0 0.2"/><axis xyz="{a}"/><limit lower="0" upper="1" effort="100" velocity="1"/>'
+                     "</joint>" for i, p, a in ((1, "base", "1 0 0"), (2, "l1", "0 1 0"), (3, "l2", "0 0 1")))
+    (folder / "gantry.urdf").write_text(f'<robot name="gantry"><link name="base"/>{links}{joints}<link name="tool"/>'
+                                        '<joint name="jt" type="fixed"><parent link="l3"/><child link="tool"/>'
+                                        '<origin xyz="0 0 -0.1"/></joint></robot>')
+    return "gantry.urdf"
+
+
+def test_37_17_diagnose_a_robot_of_prismatic_joints_only(tmp_path):
+    """The default effects: 'ValueError: cannot reshape array of size 0' (an effect of revolute
+    joints had no parameter); now it is left untried, saying why, and the rest is diagnosed."""
+    robot = _gantry(tmp_path)
+    answered(tmp_path, ["simulate", "--robot", robot, "--tool", "tool", "--n", "30", "--random", "--seed", "1",
+                        "--out", "g.csv", "--quiet"])
+    result = answered(tmp_path, ["diagnose", "g.csv", "--robot", robot, "--tool", "tool", "--quiet"])
+    assert "transmission has no parameter on gantry: its joints are all prismatic" in result.stdout
+    assert "Answer:" in result.stdout

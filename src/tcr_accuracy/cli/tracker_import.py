@@ -51,7 +51,7 @@ def _run_import(args) -> int:
 
     for path in (args.tracker, args.joints):  # before either is read
         if path is not None:
-            check_csv_memory(args, path, "importing", IMPORT_ROW_BYTES)
+            check_csv_memory(args, path, "importing", IMPORT_ROW_BYTES, hint="use a smaller file")
     robot = load_robot(args.robot, args.tool)
     out = Path(args.out)
     result = import_tracker(args.tracker, parse_map(args.map, "--map"), args.joints,
