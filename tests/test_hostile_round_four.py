@@ -405,3 +405,50 @@ def test_37_17_diagnose_a_robot_of_prismatic_joints_only(tmp_path):
     result = answered(tmp_path, ["diagnose", "g.csv", "--robot", robot, "--tool", "tool", "--quiet"])
     assert "transmission has no parameter on gantry: its joints are all prismatic" in result.stdout
     assert "Answer:" in result.stdout
+
+
+# ---------------------------------------------------------------------------------------
+# Minor ones
+# ---------------------------------------------------------------------------------------
+def test_37_minor_plan_poses_takes_quiet(campaign):
+    """'unrecognized arguments: --quiet' (the README promises it on every command)."""
+    answered(campaign, ["plan-poses", "m.csv", "--effects", "joint_offsets", "-k", "3", "--n-candidates", "50",
+                        "--out", "next.csv", "--quiet"])
+    rows = [line for line in (campaign / "next.csv").read_text().splitlines() if not line.startswith("#")]
+    assert len(rows) == 4  # the header and the 3 poses
+
+
+@pytest.mark.parametrize("argv, said", [
+    (["iso9283", "plan", "--conditions", "-10/50", "--out", "p.csv"], "--conditions '-10/50': want LOAD/SPEED"),
+    (["pose", "--q", "-1e-3", "0", "0", "0", "0", "0", "--quiet"], None),  # a value, not an unknown option
+])
+def test_37_minor_a_value_with_a_minus_sign_is_a_value(tmp_path, argv, said):
+    """'--conditions -10/50' was read as an option ('expected at least one argument')."""
+    if said is None:
+        assert "j1 = -0.001 deg" in answered(tmp_path, argv).stdout
+    else:
+        refused(tmp_path, argv, said)
+
+
+def test_37_minor_messages_name_file_and_key():
+    """'list is not a list' said of a list of 1001 items; it now says what is wrong with it."""
+    from tcr_accuracy.effects.file_values import effect_options
+    from tcr_accuracy.exceptions import InputError
+
+    with pytest.raises(InputError, match=r"^a.yaml: options.transmission.harmonics: 1001 items; at most 1000$"):
+        effect_options("transmission", {"harmonics": [1] * 1001}, "a.yaml: options.transmission")
+
+
+def test_37_minor_export_table_columns_stay_apart_past_100_mm():
+    """Each column as wide as its widest figure: 'mean / RMS / max' of 123.4567 / 234.5678 / 1345.6789
+    mm ran into the next column's."""
+    from tcr_accuracy.view.as_built_summary import accuracy_lines
+
+    records = [{"form": "full model", "file": "as_built.yaml", "on": "k-fold held-out", "mean_mm": 123.4567,
+                "rms_mm": 234.5678, "max_mm": 1345.6789, "data": "d.json", "n": 24},
+               {"form": "full model", "file": "as_built.yaml", "on": "measured", "mean_mm": 101.2, "rms_mm": 222.3,
+                "max_mm": 333.4, "data": "m.csv", "n": 24}]
+    row = accuracy_lines(records)[2]
+    cells = [c for c in row.split("  ") if c.strip()]  # columns are two spaces apart or more
+    assert [c.strip() for c in cells] == ["full model (as_built.yaml)", "123.4567 / 234.5678 / 1345.6789",
+                                          "101.2000 / 222.3000 / 333.4000"]

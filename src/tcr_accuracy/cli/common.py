@@ -19,7 +19,14 @@ EXIT_OK, EXIT_ANALYSIS, EXIT_INPUT = 0, 1, 2
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse, but a usage error is one line and exit code 2."""
+    """argparse, but a usage error is one line and exit code 2, and a value that starts with a minus
+    sign is a value, not an option, in every form a number takes here (``-1e-3``, ``-10/50``: argparse
+    reads only ``-1`` and ``-1.5`` so)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NEGATIVE_VALUE
+
 
     def error(self, message: str) -> None:  # type: ignore[override]
         # "argument --tol: 0: want ..." (an option's type refusing a value) -> "--tol 0: want ..."
@@ -30,6 +37,9 @@ class Parser(argparse.ArgumentParser):
         sys.stderr.write(f"{self.prog}: error: {message} (see {self.prog} --help)\n")
         sys.exit(EXIT_INPUT)
 
+
+#: A value starting with a minus sign: a number (with an exponent) or a range of them (``-10/50``).
+_NEGATIVE_VALUE = re.compile(r"^-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?:/[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)?$")
 
 #: What the argparse types of this module say after the value ("--x VALUE: <one of these>...").
 _REFUSALS = ("want", "not a number", "non-finite", "the folder", "is a folder", "exists and is not a folder",

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import (add_reach_arguments, add_robot_arguments, effect_names, emit_json, integer, noise_mm_value,
-                     number, output_file, reach_values, seed_value)
+from .common import (add_quiet_argument, add_reach_arguments, add_robot_arguments, effect_names, emit_json, integer,
+                     noise_mm_value, number, output_file, reach_values, seed_value)
 
 
 def add_parsers(sub) -> None:
@@ -51,6 +51,7 @@ def add_parsers(sub) -> None:
     p.add_argument("--seed", type=seed_value, default=0, help="seed of the candidates and of the diagnosis")
     p.add_argument("--json", default=None, type=output_file, metavar="FILE",
                    help="also write the plan as JSON ('-' for stdout)")
+    add_quiet_argument(p)  # every command takes it (README); plan-poses has no status line to leave out
     p.set_defaults(run=_run_plan_poses)
 
 
