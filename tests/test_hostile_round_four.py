@@ -452,3 +452,14 @@ def test_37_minor_export_table_columns_stay_apart_past_100_mm():
     cells = [c for c in row.split("  ") if c.strip()]  # columns are two spaces apart or more
     assert [c.strip() for c in cells] == ["full model (as_built.yaml)", "123.4567 / 234.5678 / 1345.6789",
                                           "101.2000 / 222.3000 / 333.4000"]
+
+
+# ---------------------------------------------------------------------------------------
+# Found by the fresh attack
+# ---------------------------------------------------------------------------------------
+def test_37_attack_predict_query_of_training_poses_is_not_held_out(campaign):
+    """--query with the training poses printed 'held-out error ... mean 0.0000 mm' (an in-sample fit)."""
+    rows = (campaign / "m.csv").read_text().splitlines()
+    (campaign / "q.csv").write_text("\n".join([rows[0], rows[7]]) + "\n")  # one training pose, measured
+    refused(campaign, ["predict", "--train", "m.csv", "--query", "q.csv", "--method", "idw-joint", "--quiet"],
+            "--query q.csv: row 2 (1 of 1 measured rows) is a pose of --train m.csv", "in-sample, not held out")
