@@ -463,3 +463,14 @@ def test_37_attack_predict_query_of_training_poses_is_not_held_out(campaign):
     (campaign / "q.csv").write_text("\n".join([rows[0], rows[7]]) + "\n")  # one training pose, measured
     refused(campaign, ["predict", "--train", "m.csv", "--query", "q.csv", "--method", "idw-joint", "--quiet"],
             "--query q.csv: row 2 (1 of 1 measured rows) is a pose of --train m.csv", "in-sample, not held out")
+
+
+@pytest.mark.parametrize("argv, flag", [
+    (["plan-poses", "m.csv", "--effects", "joint_offsets", "--out", "-"], "argument --out"),
+    (["view", "--html", "-"], "argument --view/--html"),
+    (["import", "t.txt", "--out", "-"], "argument --out"),
+])
+def test_37_attack_dash_is_no_file_where_stdout_is_not_written(campaign, argv, flag):
+    """'-' was written as a file named '-', then stopped as a write outside the outputs: exit 1,
+    'unexpected error: RuntimeError' (import named '-' as the file with missing columns)."""
+    refused(campaign, [*argv, "--quiet"], flag, "'-' names standard output, which this option does not write")

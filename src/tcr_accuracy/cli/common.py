@@ -13,7 +13,8 @@ import math
 import re
 import sys
 
-from .output_paths import as_built_file, effects_side_file, output_file, output_folder, shown as _shown  # noqa: F401
+from .output_paths import (as_built_file, effects_side_file, output_file, output_file_only, output_folder,  # noqa: F401
+                           shown as _shown)
 
 EXIT_OK, EXIT_ANALYSIS, EXIT_INPUT = 0, 1, 2
 
