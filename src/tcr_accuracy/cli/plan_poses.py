@@ -12,8 +12,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import (add_reach_arguments, add_robot_arguments, effect_names, emit_json, integer, noise_mm_value,
-                     number, output_file, reach_values, seed_value)
+from .common import (add_quiet_argument, add_reach_arguments, add_robot_arguments, effect_names, emit_json, integer,
+                     noise_mm_value, number, output_file, output_file_only, reach_values, seed_value)
 
 
 def add_parsers(sub) -> None:
@@ -32,7 +32,7 @@ def add_parsers(sub) -> None:
     add_robot_arguments(p)
     p.add_argument("-k", "--poses", type=integer(low=1, high=100_000), default=30,
                    help="how many poses to suggest (default 30)")
-    p.add_argument("--out", required=True, type=output_file, metavar="FILE.csv",
+    p.add_argument("--out", required=True, type=output_file_only, metavar="FILE.csv",
                    help="where to write the suggested poses")
     p.add_argument("--effects", default=None, metavar="LIST",
                    help="comma-separated effects to design for (default: diagnose the measurements and take "
@@ -51,6 +51,7 @@ def add_parsers(sub) -> None:
     p.add_argument("--seed", type=seed_value, default=0, help="seed of the candidates and of the diagnosis")
     p.add_argument("--json", default=None, type=output_file, metavar="FILE",
                    help="also write the plan as JSON ('-' for stdout)")
+    add_quiet_argument(p)  # every command takes it (README); plan-poses has no status line to leave out
     p.set_defaults(run=_run_plan_poses)
 
 

@@ -261,6 +261,21 @@ def _held_out_summary(held) -> dict:
 # ---------------------------------------------------------------------------------------
 # predict
 # ---------------------------------------------------------------------------------------
+def _refuse_training_poses(args, q_train, q, lines) -> None:
+    """A measured query pose that is a training pose (the same joint values) has an in-sample error,
+    not a held-out one: ``--query m.csv`` with ``--train m.csv`` printed 0.0000 mm as "held-out"."""
+    import numpy as np
+
+    from ..exceptions import InputError
+
+    train = {tuple(row) for row in np.round(q_train, 12)}
+    same = [k for k, row in enumerate(np.round(q, 12)) if tuple(row) in train]
+    if same:
+        raise InputError(f"--query {args.query}: row {lines[same[0]]} ({len(same)} of {len(q)} measured rows) is a pose "
+                         f"of --train {args.train}: its error is in-sample, not held out; measure other poses, or "
+                         "leave the positions out to predict there")
+
+
 def _run_predict(args) -> int:
     import numpy as np
 
@@ -272,6 +287,8 @@ def _run_predict(args) -> int:
     q_train, model = _fit(args, robot)
     check_csv_memory(args, args.query, "--query", 3 * 64 * 8.0)
     q, measured, context, lines = read_joint_csv(args.query, robot, need_positions=False, repeats=True, rows=True)
+    if measured is not None:
+        _refuse_training_poses(args, q_train, q, lines)
     scale = robot.display_scale
     prediction = predict_errors(model, q, context=context, measured=measured, label=f"method {args.method}")
     pred, std, kind, held = prediction.predicted_error, prediction.std, prediction.uncertainty, prediction.held_out

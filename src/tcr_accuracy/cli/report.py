@@ -43,11 +43,13 @@ def add_campaign_arguments(parser) -> None:
                        help="a campaign file (YAML or TOML): title, customer, robot model and serial, instrument "
                             "name, serial and certificate, temperature range, date, operator, limits_mm, names "
                             "to sign; the flags below override it")
-    group.add_argument("--title", default=None, help="the report's title (default: 'Calibration report: ROBOT')")
-    group.add_argument("--customer", default=None, metavar="TEXT", help="the customer")
-    group.add_argument("--serial", default=None, metavar="TEXT", help="the robot's serial number")
-    group.add_argument("--operator", default=None, metavar="TEXT", help="who measured the robot")
-    group.add_argument("--certificate", default=None, metavar="TEXT",
+    group.add_argument("--title", default=None, type=text_argument,
+                       help="the report's title (default: 'Calibration report: ROBOT')")
+    group.add_argument("--customer", default=None, type=text_argument, metavar="TEXT", help="the customer")
+    group.add_argument("--serial", default=None, type=text_argument, metavar="TEXT",
+                       help="the robot's serial number")
+    group.add_argument("--operator", default=None, type=text_argument, metavar="TEXT", help="who measured the robot")
+    group.add_argument("--certificate", default=None, type=text_argument, metavar="TEXT",
                        help="the instrument's calibration certificate (number, date)")
     group.add_argument("--limit-mm", action="append", default=None, type=limit_argument, metavar="[FIGURE=]MM",
                        help="a limit the result is judged against [mm], repeatable: FIGURE is one of "
@@ -58,6 +60,21 @@ def add_campaign_arguments(parser) -> None:
 
 #: The figures --limit-mm names (the keys of the campaign file's limits_mm).
 LIMIT_NAMES = ("max", "rms", "mean", "ap", "rp")
+
+
+def text_argument(value: str) -> str:
+    """argparse type of the first page's text flags: the check a campaign file's text has
+    (:func:`tcr_accuracy.io.campaign.text_problem`: no control or bidirectional-override character,
+    at most a line), on the text as the page shows it (white space runs as one space)."""
+    import argparse
+
+    from ..io.campaign import text_problem
+
+    text = " ".join(value.split())
+    problem = text_problem(text)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(problem)
+    return text
 
 
 def limit_argument(text: str) -> tuple[str, float]:
@@ -93,6 +110,11 @@ def read_campaign_arguments(args):
              if getattr(args, dest, None) is not None]
     if given and getattr(args, "out", None) is None:
         raise InputError(f"{given[0]}: fills the report's first page; give --out DIR for the report")
+    figures = [figure for figure, _ in args.limit_mm or ()]
+    twice = next((f for f in figures if figures.count(f) > 1), None)
+    if twice is not None:  # argparse keeps the last: --limit-mm max=0.05 --limit-mm max=0.2 judged by 0.2 alone
+        given = " and ".join(f"{value:g}" for figure, value in args.limit_mm if figure == twice)
+        raise InputError(f"--limit-mm: {twice} is limited twice ({given} mm); give one limit per figure")
     facts = read_campaign(args.campaign) if args.campaign else CampaignFacts()
     facts = facts.updated(**{field: getattr(args, dest) for dest, field in _CAMPAIGN_FLAGS},
                           limits_mm=dict(args.limit_mm) if args.limit_mm else None)

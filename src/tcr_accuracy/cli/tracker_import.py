@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from .common import EXIT_OK, add_quiet_argument, add_robot_arguments, check_csv_memory, number, output_file, status
+from .common import (EXIT_OK, add_quiet_argument, add_robot_arguments, check_csv_memory, number, output_file_only,
+                     status)
 
 
 def add_parsers(sub) -> None:
@@ -29,7 +30,7 @@ def add_parsers(sub) -> None:
                    help="largest time between a tracker point and the joint-log sample it is joined to "
                         "[ms] (default 50)")
     add_robot_arguments(p)
-    p.add_argument("--out", required=True, type=output_file, metavar="CSV", help="measurement CSV to write")
+    p.add_argument("--out", required=True, type=output_file_only, metavar="CSV", help="measurement CSV to write")
     add_quiet_argument(p)
     p.set_defaults(run=_run_import)
 
@@ -51,7 +52,7 @@ def _run_import(args) -> int:
 
     for path in (args.tracker, args.joints):  # before either is read
         if path is not None:
-            check_csv_memory(args, path, "importing", IMPORT_ROW_BYTES)
+            check_csv_memory(args, path, "importing", IMPORT_ROW_BYTES, hint="use a smaller file")
     robot = load_robot(args.robot, args.tool)
     out = Path(args.out)
     result = import_tracker(args.tracker, parse_map(args.map, "--map"), args.joints,

@@ -17,7 +17,8 @@ import argparse
 import sys
 
 from .common import (EXIT_OK, MAX_COUNT, add_quiet_argument, add_robot_arguments, check_memory, format_joint_values,
-                     integer, joint_value, joint_values_si, number, output_file, sample_bytes, seed_value, status)
+                     integer, joint_value, joint_values_si, number, output_file, output_file_only, sample_bytes,
+                     seed_value, status)
 
 DEFAULT_VIEW_FILE = "view.html"
 
@@ -31,7 +32,7 @@ def add_view_arguments(parser: argparse.ArgumentParser, *, always: bool = False)
         for. Other commands get ``--view`` (off unless given).
     """
     if always:
-        parser.add_argument("--view", "--html", dest="html", default=None, type=output_file, metavar="FILE",
+        parser.add_argument("--view", "--html", dest="html", default=None, type=output_file_only, metavar="FILE",
                             help=f"write the view as one self-contained HTML file that opens in any "
                                  f"browser without a server (default: {DEFAULT_VIEW_FILE}, unless only "
                                  "--serve is given)")

@@ -170,12 +170,22 @@ def _text(value, key: str, source: str) -> str:
         kind = {dict: "table", list: "list"}.get(type(value), type(value).__name__)
         raise InputError(f"{source}: {key}: expected text, got a {kind} ({value!r:.40})")
     text = " ".join(str(value).split())
+    problem = text_problem(text)
+    if problem is not None:
+        raise InputError(f"{source}: {key}: {problem}")
+    return text
+
+
+def text_problem(text: str) -> str | None:
+    """What keeps ``text`` off a line of the report's first page (a control or bidirectional-override
+    character, more than :data:`MAX_TEXT` characters), or None: the one check of a text a campaign
+    file gives and of a flag that gives the same fact (``--title``, ``--operator``, ...)."""
     control = control_character(text)
     if control is not None:
-        raise InputError(f"{source}: {key}: holds the control character U+{ord(control):04X}; write plain text")
+        return f"holds the control character U+{ord(control):04X}; write plain text"
     if len(text) > MAX_TEXT:
-        raise InputError(f"{source}: {key}: {len(text)} characters; at most {MAX_TEXT} fit a line of the report")
-    return text
+        return f"{len(text)} characters; at most {MAX_TEXT} fit a line of the report"
+    return None
 
 
 def _date(value, source: str) -> str:

@@ -378,7 +378,7 @@ def read_result(path, kind: str | None = None, *, hint: str = "", required=()) -
 
 def _within(value: float, low: float, high: float, unit: str, where: str) -> None:
     """InputError when ``value`` lies outside [low, high] (with rounding's slack)."""
-    slack = 1e-9 * max(1.0, *(abs(b) for b in (low, high) if math.isfinite(b)))
+    slack = 1e-9 * max([1.0, *(abs(b) for b in (low, high) if math.isfinite(b))])  # both may be infinite
     if not low - slack <= value <= high + slack:
         raise InputError(f"{where}: {value:g} {unit} is outside the range [{low:g}, {high:g}] {unit} a diagnosis "
                          "fits within (the effect's physics and the mechanisms it can stand for)")

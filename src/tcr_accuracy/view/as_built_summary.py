@@ -25,15 +25,19 @@ def accuracy_lines(accuracy) -> list[str]:
     files = {r["form"]: r["file"] for r in records}
     names = {form: f"{form} ({files[form]})" if files[form] else form for form in forms}
     width = max(len(n) for n in [*names.values(), "form (file)"]) + 2
-    header = "  " + "form (file)".ljust(width) + "".join(f"{label:>26}" for _, label in kinds)
+    table = {}
+    for form in forms:
+        for kind, _ in kinds:
+            r = next((r for r in records if r["form"] == form and r["on"] == kind), None)
+            table[form, kind] = "" if r is None else f"{r['mean_mm']:.4f} / {r['rms_mm']:.4f} / {r['max_mm']:.4f}"
+    # each column as wide as its widest cell and two spaces (26 at least): figures past 100 mm stay apart
+    widths = {kind: max(26, len(label) + 2, *(len(table[form, kind]) + 2 for form in forms)) for kind, label in kinds}
+    header = "  " + "form (file)".ljust(width) + "".join(f"{label:>{widths[kind]}}" for kind, label in kinds)
     lines = ["  TCP position error, mean / RMS / max [mm], each form with its own tracker frame fitted on the "
              "measured poses:", header]
     for form in forms:
-        cells = []
-        for kind, _ in kinds:
-            r = next((r for r in records if r["form"] == form and r["on"] == kind), None)
-            cells.append("" if r is None else f"{r['mean_mm']:.4f} / {r['rms_mm']:.4f} / {r['max_mm']:.4f}")
-        lines.append("  " + names[form].ljust(width) + "".join(f"{c:>26}" for c in cells))
+        lines.append("  " + names[form].ljust(width) + "".join(f"{table[form, kind]:>{widths[kind]}}"
+                                                              for kind, _ in kinds))
     data = {r["on"]: r for r in records}
     for kind, label in kinds:
         lines.append(f"  {label}: {data[kind]['data']} ({data[kind]['n']} poses)")
