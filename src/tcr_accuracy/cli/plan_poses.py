@@ -209,7 +209,8 @@ def _run_plan_poses(args) -> int:
         payload = float(np.mean(measured.payload_kg)) if measured is not None and measured.payload_kg is not None \
             else 0.0
     n_refs = 1 + k // 20 if args.references is None else args.references
-    update, close = progress_bar(k, "plan-poses", args.quiet)
+    curve_steps = 5 if args.design != "T" and measured is not None and len(measured) >= 20 else 0
+    update, close = progress_bar(k + curve_steps, "plan-poses", args.quiet)
     try:
         if args.design == "T":
             plan = _plan_t_optimal(args, robot, measured, candidates, k, payload, update)
@@ -301,7 +302,8 @@ def _plan_for_prediction(args, robot, measured, candidates, task_q, k, payload, 
         sizes = ", ".join(f"{e} {t:.2g}" for e, t in prior.tau.items())
         prior_words = (f"prior fitted to the {len(measured)} measured poses (type-II maximum likelihood): noise "
                        f"{prior.noise_m * 1e3:.4f} mm per axis{' (--noise-mm)' if noise_m is not None else ''} "
-                       f"(with what the vocabulary leaves); typical sizes x {sizes}; geometric effects free")
+                       "(with what the vocabulary leaves); " + (f"typical sizes x {sizes}; " if sizes else "")
+                       + "geometric effects free")
     names = {"I": "I-optimal: least prediction variance averaged over", "G": "G-optimal: least largest prediction "
              "variance over", "D": "D-optimal: most information on all parameters; variance reported over"}
     where = f"the {len(task_q)} --targets poses" if task_q is not None else f"the {len(candidates)} candidates"
@@ -328,14 +330,20 @@ def _plan_for_prediction(args, robot, measured, candidates, task_q, k, payload, 
             lines.append(f"learning curve: not drawn ({len(measured)} measured poses; it needs "
                          f"{LEARNING_CURVE_MIN_POSES})")
         else:
-            curve = learning_curve(measured_columns, errors, prior, np.random.default_rng([args.seed, 7]))
-            advice = stop_advice(curve, len(measured), k, min_gain_m=None if args.stop_gain_mm is None
+            curve = learning_curve(measured_columns, errors, prior, np.random.default_rng([args.seed, 7]),
+                                   progress=update)
+            advice = stop_advice(curve, design, min_gain_m=None if args.stop_gain_mm is None
                                  else args.stop_gain_mm * 1e-3)
-            lines.append("learning curve (held-out RMS of the 3D miss of the linearised vocabulary, fitted on "
-                         "subsamples of the measured poses, scored on the rest; 5-95 % over 8 subsamples):")
-            for n, rms, low, high in zip(curve.sizes, curve.rms_m, curve.low_m, curve.high_m):
-                lines.append(f"  {n:5d} poses  {rms * 1e3:.4f} mm  [{low * 1e3:.4f}, {high * 1e3:.4f}]")
-            lines.append(f"  fitted rms(n)^2 = floor^2 + slope/n: floor {curve.floor_m * 1e3:.4f} mm, noise floor "
+            lines.append("learning curve (held-out RMS of the 3D miss of the linearised vocabulary with this prior, "
+                         "fitted on subsamples of the measured poses and scored on the rest, 5-95 % over 8 "
+                         "subsamples; what the model expects there):")
+            for n, rms, low, high, model in zip(curve.sizes, curve.rms_m, curve.low_m, curve.high_m,
+                                                curve.expected_rms_m):
+                lines.append(f"  {n:5d} poses  {rms * 1e3:.4f} mm  [{low * 1e3:.4f}, {high * 1e3:.4f}]  expected "
+                             f"{model * 1e3:.4f} mm")
+            c_low, c_high = np.quantile(curve.calibration_boot, [0.05, 0.95])
+            lines.append(f"  measured over expected mean squared miss {curve.calibration:.2f} [{c_low:.2f}, "
+                         f"{c_high:.2f}] (the extrapolation below is scaled by it); noise floor "
                          f"{curve.noise_floor_m * 1e3:.4f} mm (sqrt(3) x the noise per axis)")
             lines.append(advice.reason)
             plan["stop"] = advice.stop

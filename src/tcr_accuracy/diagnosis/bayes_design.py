@@ -342,6 +342,19 @@ def _task_variances(g_task: np.ndarray, s: np.ndarray, chunk: int = 4096) -> np.
     return out
 
 
+def task_variance(measured: DesignColumns | None, task: DesignColumns, prior: EffectPrior) -> float:
+    """Mean over the task poses of the prediction's posterior variance (3D, the trace of its 3 x 3
+    covariance) [m^2] after the ``measured`` poses (None: the prior alone); what :meth:`LearningCurve.predict`
+    turns into an expected held-out error."""
+    p = task.g.shape[2]
+    information = np.diag(prior.precision(task.owner))
+    if measured is not None and measured.g.shape[0]:
+        flat = measured.g.reshape(-1, p)
+        information += (flat.T @ flat) / prior.noise_m**2
+    covariance = linalg.cho_solve(_cholesky(information), np.eye(p), check_finite=False)
+    return float(np.mean(_task_variances(task.g, covariance)))
+
+
 def plan_design(measured: DesignColumns | None, candidates: DesignColumns, task: DesignColumns, prior: EffectPrior,
                 k: int, *, criterion: str = "I", rng: np.random.Generator | None = None, progress=None) -> Design:
     """Choose k of the candidate poses, greedily, for the prediction over the task poses.
@@ -437,13 +450,17 @@ def plan_design(measured: DesignColumns | None, candidates: DesignColumns, task:
 
 @dataclass(frozen=True)
 class LearningCurve:
-    """Held-out error against the number of measured poses, from subsamples, and its extrapolation.
+    """Held-out error against the number of measured poses, from subsamples, and what the model expects.
 
     Each subsample of ``sizes[i]`` measured poses fits :class:`BayesianErrorModel` (the prior held) and is
-    scored on the poses it left out; ``rms_m[i]`` is the RMS of the 3D miss over the repeats. The curve
-    ``rms(n)^2 = floor^2 + slope / n`` (a linear model's excess error falls as 1/n) is fitted to
-    the mean squared misses by least squares; its interval comes from refitting it to bootstrap
-    resamples of the repeats.
+    scored on the poses it left out: ``rms_m[i]`` is the RMS of the 3D miss over the repeats. Beside it,
+    what the model itself expects there, ``expected_rms_m[i]``: the root of 3 sigma^2 (a measured
+    point's own noise) plus the posterior variance of the prediction at the left-out poses. Their ratio
+    (observed over expected mean squared miss, pooled over the subsamples) is the model's calibration;
+    an extrapolation -- the error with more poses -- is the model's expectation there times that
+    calibration, its interval from bootstrap resamples of the subsamples. The expectation, not a power
+    law fitted to a few noisy points, carries the extrapolation: it knows which parameters the next poses
+    determine.
 
     Attributes
     ----------
@@ -451,68 +468,56 @@ class LearningCurve:
         Training sizes [poses].
     rms_m, low_m, high_m : ndarray of shape (S,)
         RMS held-out 3D miss at each size [m], and the 5-95 % range over the repeats.
-    floor_m : float
-        The fitted curve's limit for many poses [m] (noise plus what the vocabulary cannot express).
+    expected_rms_m : ndarray of shape (S,)
+        What the model expects at each size [m].
+    calibration : float
+        Observed over expected mean squared miss, all subsamples pooled.
+    calibration_boot : ndarray of shape (B,)
+        The same over bootstrap resamples of the subsamples.
     noise_floor_m : float
-        The instrument-and-model noise alone, sqrt(3) x the prior's noise per axis [m]: no number of
-        poses predicts better than this against a measured point.
-    slope_m2 : float
-        The 1/n coefficient [m^2 poses].
-    boot : ndarray of shape (B, 2)
-        (floor^2, slope) of the bootstrap refits.
+        sqrt(3) x the prior's noise per axis [m] (the instrument and what the vocabulary leaves): no number
+        of poses predicts better than this against a measured point.
     """
 
     sizes: np.ndarray
     rms_m: np.ndarray
     low_m: np.ndarray
     high_m: np.ndarray
-    floor_m: float
+    expected_rms_m: np.ndarray
+    calibration: float
+    calibration_boot: np.ndarray
     noise_floor_m: float
-    slope_m2: float
-    boot: np.ndarray
 
-    def at(self, n: float) -> tuple[float, float, float]:
-        """(expected, 5 %, 95 %) held-out RMS miss [m] after n poses."""
-        def rms(a, b):
-            return np.sqrt(np.maximum(a + b / n, 0.0))
+    def predict(self, variance_m2: float) -> tuple[float, float, float]:
+        """(expected, 5 %, 95 %) held-out RMS miss [m] where the prediction's mean posterior variance (3D) is
+        ``variance_m2`` [m^2] (:attr:`Design.task_std_before_m` squared, or after)."""
+        mse = self.noise_floor_m**2 + variance_m2
+        boot = np.sqrt(self.calibration_boot * mse)
+        return float(np.sqrt(self.calibration * mse)), float(np.quantile(boot, 0.05)), float(np.quantile(boot, 0.95))
 
-        values = rms(self.boot[:, 0], self.boot[:, 1])
-        return float(rms(self.floor_m**2, self.slope_m2)), float(np.quantile(values, 0.05)), \
-            float(np.quantile(values, 0.95))
-
-    def gain(self, n: float, more: float) -> tuple[float, float, float]:
-        """(expected, 5 %, 95 %) drop of the held-out RMS miss [m] from n poses to n + more."""
-        def rms(a, b, m):
-            return np.sqrt(np.maximum(a + b / m, 0.0))
-
-        values = rms(self.boot[:, 0], self.boot[:, 1], n) - rms(self.boot[:, 0], self.boot[:, 1], n + more)
-        expected = rms(self.floor_m**2, self.slope_m2, n) - rms(self.floor_m**2, self.slope_m2, n + more)
-        return float(expected), float(np.quantile(values, 0.05)), float(np.quantile(values, 0.95))
+    def gain(self, variance_now_m2: float, variance_then_m2: float) -> tuple[float, float, float]:
+        """(expected, 5 %, 95 %) drop of the held-out RMS miss [m] from one posterior variance to another."""
+        drop = np.sqrt(self.noise_floor_m**2 + variance_now_m2) - np.sqrt(self.noise_floor_m**2 + variance_then_m2)
+        boot = np.sqrt(self.calibration_boot) * drop
+        return float(np.sqrt(self.calibration) * drop), float(np.quantile(boot, 0.05)), \
+            float(np.quantile(boot, 0.95))
 
     def to_dict(self) -> dict:
         return {"sizes": [int(n) for n in self.sizes], "heldout_rms_mm": (self.rms_m * 1e3).tolist(),
                 "heldout_rms_5_mm": (self.low_m * 1e3).tolist(), "heldout_rms_95_mm": (self.high_m * 1e3).tolist(),
-                "floor_mm": self.floor_m * 1e3, "noise_floor_mm": self.noise_floor_m * 1e3,
-                "slope_mm2_poses": self.slope_m2 * 1e6}
+                "expected_rms_mm": (self.expected_rms_m * 1e3).tolist(), "calibration": self.calibration,
+                "calibration_5_95": [float(np.quantile(self.calibration_boot, q)) for q in (0.05, 0.95)],
+                "noise_floor_mm": self.noise_floor_m * 1e3}
 
 
 #: Fewest measured poses a learning curve is drawn from (its smallest subsample is half of them).
 LEARNING_CURVE_MIN_POSES = 20
 
 
-def _curve_fit(sizes: np.ndarray, mse: np.ndarray) -> tuple[float, float]:
-    """(floor^2 >= 0, slope >= 0) of mse = floor^2 + slope / n, least squares (scipy's nnls)."""
-    from scipy.optimize import nnls
-
-    design = np.column_stack([np.ones_like(sizes, dtype=float), 1.0 / sizes])
-    scale = float(np.mean(mse)) or 1.0
-    coefficients, _ = nnls(design, mse / scale)
-    return float(coefficients[0] * scale), float(coefficients[1] * scale)
-
-
 def learning_curve(columns: DesignColumns, errors: np.ndarray, prior: EffectPrior, rng: np.random.Generator, *,
                    n_sizes: int = 5, repeats: int = 8, n_boot: int = 400, progress=None) -> LearningCurve:
-    """The held-out error of :class:`BayesianErrorModel` on subsamples of the measured poses.
+    """The held-out error of :class:`BayesianErrorModel` on subsamples of the measured poses, and the model's
+    own expectation there.
 
     Parameters
     ----------
@@ -525,7 +530,7 @@ def learning_curve(columns: DesignColumns, errors: np.ndarray, prior: EffectPrio
     rng : numpy.random.Generator
         Draws the subsamples and the bootstrap.
     n_sizes, repeats, n_boot : int
-        Training sizes (geometric, from N/2 to 4N/5), subsamples per size, bootstrap refits.
+        Training sizes (geometric, from N/2 to 4N/5), subsamples per size, bootstrap resamples.
     progress : callable(int), optional
         Called with 1 after each size.
 
@@ -545,8 +550,10 @@ def learning_curve(columns: DesignColumns, errors: np.ndarray, prior: EffectPrio
     p = columns.g.shape[2]
     precision = prior.precision(columns.owner)
     full = _Gram(columns.g, errors)
+    noise3 = 3.0 * prior.noise_m**2
     sizes = np.unique(np.round(np.geomspace(n / 2, 0.8 * n, n_sizes)).astype(int))
-    squares = np.empty((len(sizes), repeats))
+    observed = np.empty((len(sizes), repeats))
+    expected = np.empty((len(sizes), repeats))
     for i, size in enumerate(sizes):
         for r in range(repeats):
             test = np.sort(rng.choice(n, n - size, replace=False))
@@ -554,20 +561,25 @@ def learning_curve(columns: DesignColumns, errors: np.ndarray, prior: EffectPrio
             gram = _Gram.__new__(_Gram)
             gram.gtg, gram.gty = full.gtg - left_out.gtg, full.gty - left_out.gty
             gram.yty, gram.rows = full.yty - left_out.yty, full.rows - left_out.rows
-            theta, _ = _posterior_mean(gram, precision, prior.noise_m)
-            miss = errors[test] - columns.g[test].reshape(-1, p).dot(theta).reshape(-1, 3)
-            squares[i, r] = float(np.mean(np.sum(miss**2, axis=1)))
+            theta, factor = _posterior_mean(gram, precision, prior.noise_m)
+            g_test = columns.g[test].reshape(-1, p)
+            miss = errors[test] - g_test.dot(theta).reshape(-1, 3)
+            observed[i, r] = float(np.mean(np.sum(miss**2, axis=1)))
+            covariance = linalg.cho_solve(factor, np.eye(p), check_finite=False)
+            expected[i, r] = noise3 + float(np.sum((g_test @ covariance) * g_test)) / len(test)
         if progress is not None:
             progress(1)
-    floor2, slope = _curve_fit(sizes.astype(float), squares.mean(axis=1))
-    boot = np.empty((n_boot, 2))
+    calibration = float(observed.sum() / expected.sum())
+    flat_observed, flat_expected = observed.ravel(), expected.ravel()
+    boot = np.empty(n_boot)
     for b in range(n_boot):
-        resampled = squares[:, rng.integers(0, repeats, repeats)].mean(axis=1)
-        boot[b] = _curve_fit(sizes.astype(float), resampled)
-    rms = np.sqrt(squares)
-    return LearningCurve(sizes=sizes, rms_m=np.sqrt(squares.mean(axis=1)), low_m=np.quantile(rms, 0.05, axis=1),
-                         high_m=np.quantile(rms, 0.95, axis=1), floor_m=float(np.sqrt(floor2)),
-                         noise_floor_m=float(np.sqrt(3.0) * prior.noise_m), slope_m2=slope, boot=boot)
+        pick = rng.integers(0, flat_observed.size, flat_observed.size)
+        boot[b] = flat_observed[pick].sum() / flat_expected[pick].sum()
+    rms = np.sqrt(observed)
+    return LearningCurve(sizes=sizes, rms_m=np.sqrt(observed.mean(axis=1)), low_m=np.quantile(rms, 0.05, axis=1),
+                         high_m=np.quantile(rms, 0.95, axis=1), expected_rms_m=np.sqrt(expected.mean(axis=1)),
+                         calibration=calibration, calibration_boot=boot,
+                         noise_floor_m=float(np.sqrt(noise3)))
 
 
 @dataclass(frozen=True)
@@ -580,7 +592,7 @@ class StopAdvice:
     reason : str
         Why, in words with the figures [mm].
     now_m, then_m : tuple of float
-        (expected, 5 %, 95 %) held-out RMS miss [m] with the poses measured and after the next ones.
+        (expected, 5 %, 95 %) held-out RMS miss [m] over the task with the poses measured and after the next ones.
     gain_m : tuple of float
         (expected, 5 %, 95 %) drop [m].
     """
@@ -592,20 +604,24 @@ class StopAdvice:
     gain_m: tuple
 
 
-def stop_advice(curve: LearningCurve, n_measured: int, n_more: int, *, min_gain_m: float | None) -> StopAdvice:
-    """Stop when the expected drop of the held-out error from measuring ``n_more`` poses is below
-    ``min_gain_m`` [m], or when the error with the poses measured is within 5 % of the noise floor."""
-    now, then, gain = curve.at(n_measured), curve.at(n_measured + n_more), curve.gain(n_measured, n_more)
-    words = (f"measuring {n_more} more poses would take the held-out RMS error from {now[0] * 1e3:.4f} mm to "
+def stop_advice(curve: LearningCurve, design: "Design", *, min_gain_m: float | None) -> StopAdvice:
+    """Stop when the expected drop of the held-out error over the task from measuring the ``design``'s poses is
+    below ``min_gain_m`` [m], or when the error with the poses measured is within 5 % of the noise floor."""
+    before, after = design.task_std_before_m**2, design.task_std_after_m**2
+    now, then, gain = curve.predict(before), curve.predict(after), curve.gain(before, after)
+    more = len(design.picked)
+    words = (f"measuring the {more} poses would take the held-out RMS error over the task from {now[0] * 1e3:.4f} mm to "
              f"{then[0] * 1e3:.4f} mm [{then[1] * 1e3:.4f}, {then[2] * 1e3:.4f}] (gain {gain[0] * 1e3:.4f} mm "
              f"[{gain[1] * 1e3:.4f}, {gain[2] * 1e3:.4f}], 90 % interval)")
-    if now[0] <= 1.05 * curve.noise_floor_m:
+    floor = np.sqrt(curve.calibration) * curve.noise_floor_m
+    if now[0] <= 1.05 * floor:
         return StopAdvice(True, f"stop: the noise floor is reached ({now[0] * 1e3:.4f} mm against "
-                                f"{curve.noise_floor_m * 1e3:.4f} mm); {words}", now, then, gain)
+                                f"{floor * 1e3:.4f} mm); {words}", now, then, gain)
     if min_gain_m is not None and gain[0] < min_gain_m:
         return StopAdvice(True, f"stop: {words}, below the limit of {min_gain_m * 1e3:g} mm", now, then, gain)
-    limit = "" if min_gain_m is None else f", above the limit of {min_gain_m * 1e3:g} mm"
-    return StopAdvice(False, f"continue: {words}{limit}", now, then, gain)
+    if min_gain_m is None:
+        return StopAdvice(False, f"expected: {words} (no limit given to stop at)", now, then, gain)
+    return StopAdvice(False, f"continue: {words}, above the limit of {min_gain_m * 1e3:g} mm", now, then, gain)
 
 
 def campaign_order(q: np.ndarray, n_references: int, rng: np.random.Generator) -> tuple[np.ndarray, int, float]:
