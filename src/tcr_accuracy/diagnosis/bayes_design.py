@@ -644,6 +644,8 @@ def campaign_order(q: np.ndarray, n_references: int, rng: np.random.Generator) -
     from .design import separating_order
 
     q = np.atleast_2d(np.asarray(q, dtype=float))
+    if len(q) < 2:
+        return np.zeros(max(int(n_references), 1) if len(q) else 0, dtype=int), 0, 0.0
     spread = np.std(q, axis=0)
     spread[spread == 0] = 1.0
     reference = int(np.argmin(np.sum(((q - q.mean(axis=0)) / spread) ** 2, axis=1)))
