@@ -341,10 +341,10 @@ def _plan_for_prediction(args, robot, measured, candidates, task_q, k, payload, 
                                                 curve.expected_rms_m):
                 lines.append(f"  {n:5d} poses  {rms * 1e3:.4f} mm  [{low * 1e3:.4f}, {high * 1e3:.4f}]  expected "
                              f"{model * 1e3:.4f} mm")
-            c_low, c_high = np.quantile(curve.calibration_boot, [0.05, 0.95])
-            lines.append(f"  measured over expected mean squared miss {curve.calibration:.2f} [{c_low:.2f}, "
-                         f"{c_high:.2f}] (the extrapolation below is scaled by it); noise floor "
-                         f"{curve.noise_floor_m * 1e3:.4f} mm (sqrt(3) x the noise per axis)")
+            lines.append(f"  the misses show {curve.noise_weight:.2f} x the noise and {curve.variance_weight:.2f} x the "
+                         "posterior variance the model expects (1 and 1 for a model that is right; the interval "
+                         f"below allows for them); noise floor {curve.floor_m * 1e3:.4f} mm (sqrt(3) x the noise "
+                         "per axis)")
             lines.append(advice.reason)
             plan["stop"] = advice.stop
             out["learning_curve"] = curve.to_dict()
