@@ -357,8 +357,6 @@ def _plan_for_prediction(args, robot, measured, candidates, task_q, k, payload, 
 
 def _plan_t_optimal(args, robot, measured, candidates, k, payload, update) -> dict:
     """T-optimal between the rival models a diagnosis of the measurements cannot tell apart."""
-    import numpy as np
-
     from ..diagnosis.ambiguity import rival_models
     from ..diagnosis.design import plan_discriminating_poses
     from ..diagnosis.diagnose import GapDiagnosis

@@ -14,7 +14,9 @@ prediction at a pose ``x`` is ``g_x S g_x^T``:
 
 * **I-optimal** (the default): the poses that most reduce the prediction variance averaged over
   where the robot will work (a task: given poses, the poses in a box, or the joint ranges),
-  ``trace(W S)`` with ``W`` the task's mean ``g_x^T g_x``;
+  ``trace(W S)`` with ``W`` the task's mean ``g_x^T g_x`` (D-optimal steps first while that variance
+  is above :data:`UNDETERMINED` noise variances: greedy I-steps from an undetermined start end worse
+  than random poses);
 * **G-optimal**: the largest prediction variance over the task (greedily: the mean over the
   task poses whose variance is largest at each step);
 * **D-optimal**: ``log det S^-1``, all parameters at once (the classical calibration design).
@@ -66,6 +68,14 @@ NOISE_BOUNDS_M = (1e-7, 1e-2)
 #: Noise per axis [m] assumed without measurements and without ``noise_m`` (a laser tracker).
 DEFAULT_NOISE_M = 2e-5
 
+#: Mean prediction variance over the task (3D), in noise variances per axis, above which an I-optimal
+#: design takes D-optimal steps (some parameter combination the task needs is still undetermined).
+UNDETERMINED = 100.0
+
+#: A greedy design recomputes its candidates' products from the information once the task's mean
+#: variance has fallen below this fraction of what it was at the last recomputation.
+REFRESH = 0.1
+
 #: Poses of the task whose largest variances a G-optimal step averages (the greedy surrogate of the maximum).
 G_WORST = 10
 
@@ -111,11 +121,13 @@ class DesignColumns:
         return int(self.g.shape[2])
 
 
-def design_columns(robot: RobotModel, q, effects, *, payload_kg: float = 0.0) -> DesignColumns:
+def design_columns(robot: RobotModel, q, effects, *, payload_kg: float = 0.0,
+                   context: MeasurementContext | None = None) -> DesignColumns:
     """The columns of ``effects`` (see :func:`design_vocabulary`) at joint values q (N, n_joints) [rad, m],
-    measured with ``payload_kg`` [kg]; an effect whose columns are zero at every pose is left out."""
+    measured with ``payload_kg`` [kg] (or in the rows' ``context``)."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
-    context = MeasurementContext.defaults(len(q), robot.n_joints, payload_kg=payload_kg)
+    if context is None:
+        context = MeasurementContext.defaults(len(q), robot.n_joints, payload_kg=payload_kg)
     part = Part(robot, q, np.zeros((len(q), 3)), context, robot.tool_frame)
     em = ErrorModel(robot)
     with warnings.catch_warnings():
@@ -401,14 +413,32 @@ def plan_design(measured: DesignColumns | None, candidates: DesignColumns, task:
     weight = task_flat.T @ task_flat / g_task.shape[0]  # W: the task's mean g^T g [m^2]
     variance_before = _task_variances(g_task, s)
     root_beta = np.sqrt(beta)
-    h = (candidates.g.reshape(-1, p) @ s).reshape(m, 3, p) * root_beta  # H_c = w_c S
-    q = np.eye(3) + np.matmul(h, candidates.g.transpose(0, 2, 1)) * root_beta  # I + w_c S w_c^T
-    v = np.matmul(h @ weight, h.transpose(0, 2, 1)) if criterion == "I" else None  # w_c S W S w_c^T
-    h_task = (task_flat @ s).reshape(g_task.shape[0], 3, p) if criterion == "G" else None
+    # from a start that leaves directions undetermined (a first campaign: the geometry is free), greedy
+    # I-optimality takes one direction at a time and ends worse than random poses; D-optimal steps
+    # determine them all together, so an I-optimal design takes D-optimal steps while the task's mean
+    # variance is above UNDETERMINED x the noise^2
+    undetermined = UNDETERMINED * prior.noise_m**2
+
+    def fresh(s):
+        """H, Q, V (and the task's H) from S anew: the rank-3 downdates subtract numbers up to the flat
+        prior's 1e6 typical sizes squared, and rounding would swamp the gains once the variance has
+        fallen by orders of magnitude."""
+        h = (candidates.g.reshape(-1, p) @ s).reshape(m, 3, p) * root_beta  # H_c = w_c S
+        q = np.eye(3) + np.matmul(h, candidates.g.transpose(0, 2, 1)) * root_beta  # I + w_c S w_c^T
+        v = np.matmul(h @ weight, h.transpose(0, 2, 1)) if criterion == "I" else None  # w_c S W S w_c^T
+        h_task = (task_flat @ s).reshape(g_task.shape[0], 3, p) if criterion == "G" else None
+        return h, q, v, h_task, float(np.sum(weight * s))
+
+    h, q, v, h_task, refreshed_at = fresh(s)
     available = np.ones(m, dtype=bool)
     picked, gains = [], []
     for _ in range(k):
-        if criterion == "D":
+        trace = float(np.sum(weight * s))
+        if trace < REFRESH * refreshed_at:
+            s = linalg.cho_solve(_cholesky(information), np.eye(p), check_finite=False)
+            h, q, v, h_task, refreshed_at = fresh(s)
+            trace = refreshed_at
+        if criterion == "D" or (criterion == "I" and trace > undetermined):
             gain = np.linalg.slogdet(q)[1]
         else:
             if criterion == "G":  # the task poses of largest variance now, as one small task
@@ -434,12 +464,12 @@ def plan_design(measured: DesignColumns | None, candidates: DesignColumns, task:
         if h_task is not None:
             h_task -= np.matmul(np.matmul(h_task, candidates.g[best].T) * root_beta, r[None])
         s = s - u @ r
+        information = information + beta * candidates.g[best].T @ candidates.g[best]
         if progress is not None:
             progress(1)
-    s = (s + s.T) / 2
+    s = linalg.cho_solve(_cholesky(information), np.eye(p), check_finite=False)
     variance_after = _task_variances(g_task, s)
-    chosen = candidates.g[picked].reshape(-1, p)
-    log_det = np.linalg.slogdet(information + beta * chosen.T @ chosen)[1]
+    log_det = np.linalg.slogdet(information)[1]
     return Design(picked=np.array(picked, dtype=int), criterion=criterion, gain_per_pose=np.array(gains),
                   task_std_before_m=float(np.sqrt(np.mean(variance_before))),
                   task_std_after_m=float(np.sqrt(np.mean(np.maximum(variance_after, 0)))),

@@ -26,19 +26,17 @@ greedy update is a few lines of numpy.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..analysis.reachable import PoseFilter, draw_poses
-from ..effects import effect_class, make_effect
+from ..effects import effect_class
 from ..effects.compose import predict_positions
 from ..exceptions import InputError
 from ..model.context import MeasurementContext
-from ..model.errors import ErrorModel
-from ..model.robot import JointLimitWarning, RobotModel
-from .bases import EffectBasis, Part, ordered, position_jacobians
+from ..model.robot import RobotModel
+from .bases import ordered
 
 
 @dataclass
@@ -70,17 +68,10 @@ def _design_columns(robot: RobotModel, q: np.ndarray, effects: list, context: Me
                     ) -> tuple[np.ndarray, list]:
     """(N, 3, P) TCP position sensitivity of every parameter of ``effects`` (vocabulary order) at
     its typical size, and the effect each column belongs to."""
-    part = Part(robot, q, np.zeros((len(q), 3)), context, robot.tool_frame)
-    em = ErrorModel(robot)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", JointLimitWarning)
-        jac_x = position_jacobians(robot, q)
-    blocks, owner = [], []
-    for name in ordered(effects):
-        basis = EffectBasis(make_effect(name, robot), part, em, jac_x)
-        blocks.append(basis.g[:, :3, :] * basis.scales)
-        owner += [name] * basis.g.shape[2]
-    return np.concatenate(blocks, axis=2), owner
+    from .bayes_design import design_columns
+
+    columns = design_columns(robot, q, effects, context=context)
+    return columns.g, list(columns.owner)
 
 
 class _Information:
