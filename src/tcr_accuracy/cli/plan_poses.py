@@ -252,17 +252,22 @@ def _order(q, n_refs: int, seed: int):
 
 def _next_step(args, k: int, n_refs: int, largest_r: float, plan: dict) -> str:
     """What to do with the file: the line a person acts on."""
-    measured = " ".join(str(m) for m in args.measurements)
+    import shlex
+
+    measured = " ".join(shlex.quote(str(m)) for m in args.measurements)
+    robot = (f" --robot {shlex.quote(str(args.robot))}" if args.robot else "") + \
+        (f" --tool {shlex.quote(args.tool)}" if args.tool else "")
     refs = (f"; the reference pose R {n_refs} times (first, last and evenly between: drift and repeatability)"
             if n_refs > 1 else "")
     stop = plan.get("stop")
     head = "if you go on: " if stop else "next: "
-    then = (f"tcr-accuracy plan-poses {measured} {Path(args.out).stem}_measured.csv --robot {args.robot} -k {k} "
-            f"--out next.csv" + (f" --stop-gain-mm {args.stop_gain_mm:g}" if args.stop_gain_mm is not None else ""))
+    then = (f"tcr-accuracy plan-poses {(measured + ' ') if measured else ''}{Path(args.out).stem}_measured.csv{robot} "
+            f"-k {k} --out next.csv" + (f" --stop-gain-mm {args.stop_gain_mm:g}" if args.stop_gain_mm is not None
+                                        else ""))
     return (f"{head}measure the {k} poses of {args.out} in its order (no joint follows the order: largest |r| "
             f"{largest_r:.2f}, so a drift cannot pass for an error growing with a joint{refs}); add the measured "
             f"x_mm, y_mm, z_mm columns (as {Path(args.out).stem}_measured.csv), then run `tcr-accuracy diagnose "
-            f"{(measured + ' ') if measured else ''}{Path(args.out).stem}_measured.csv --robot {args.robot}` and, for "
+            f"{(measured + ' ') if measured else ''}{Path(args.out).stem}_measured.csv{robot}` and, for "
             f"the next batch, `{then}`")
 
 
@@ -313,10 +318,11 @@ def _plan_for_prediction(args, robot, measured, candidates, task_q, k, payload, 
     lines.append(f"design: {names[args.design]} {where}; effects {', '.join(effects)} ({cand.n_parameters} "
                  "parameters, linearised at the nominal robot)")
     lines.append(f"  {prior_words}")
-    lines.append(f"  prediction std over the task (3D, RMS; largest): {design.task_std_before_m * 1e3:.4f} mm; "
-                 f"{design.task_worst_std_before_m * 1e3:.4f} mm {'now' if measured is not None else 'from nothing'}"
-                 f" -> {design.task_std_after_m * 1e3:.4f} mm; {design.task_worst_std_after_m * 1e3:.4f} mm with "
-                 f"the {k} poses (information log det +{design.log_det_gain:.1f})")
+    after = (f"{design.task_std_after_m * 1e3:.4f} mm; {design.task_worst_std_after_m * 1e3:.4f} mm with the {k} "
+             f"poses (information log det +{design.log_det_gain:.1f})")
+    lines.append("  prediction std over the task (3D, RMS; largest): " + (
+        f"{design.task_std_before_m * 1e3:.4f} mm; {design.task_worst_std_before_m * 1e3:.4f} mm now -> {after}"
+        if measured is not None else f"{after} (nothing is known of the geometry before them)"))
     out.update({"effects": effects, "n_parameters": cand.n_parameters, "prior": prior.to_dict(),
                 "task": {"source": "targets" if task_q is not None else "candidates", "n": int(task.g.shape[0])},
                 "task_std_mm": {"before": design.task_std_before_m * 1e3, "after": design.task_std_after_m * 1e3,

@@ -14,9 +14,7 @@ prediction at a pose ``x`` is ``g_x S g_x^T``:
 
 * **I-optimal** (the default): the poses that most reduce the prediction variance averaged over
   where the robot will work (a task: given poses, the poses in a box, or the joint ranges),
-  ``trace(W S)`` with ``W`` the task's mean ``g_x^T g_x`` (D-optimal steps first while that variance
-  is above :data:`UNDETERMINED` noise variances: greedy I-steps from an undetermined start end worse
-  than random poses);
+  ``trace(W S)`` with ``W`` the task's mean ``g_x^T g_x``;
 * **G-optimal**: the largest prediction variance over the task (greedily: the mean over the
   task poses whose variance is largest at each step);
 * **D-optimal**: ``log det S^-1``, all parameters at once (the classical calibration design).
@@ -67,10 +65,6 @@ NOISE_BOUNDS_M = (1e-7, 1e-2)
 
 #: Noise per axis [m] assumed without measurements and without ``noise_m`` (a laser tracker).
 DEFAULT_NOISE_M = 2e-5
-
-#: Mean prediction variance over the task (3D), in noise variances per axis, above which an I-optimal
-#: design takes D-optimal steps (some parameter combination the task needs is still undetermined).
-UNDETERMINED = 100.0
 
 #: A greedy design recomputes its candidates' products from the information once the task's mean
 #: variance has fallen below this fraction of what it was at the last recomputation.
@@ -413,12 +407,6 @@ def plan_design(measured: DesignColumns | None, candidates: DesignColumns, task:
     weight = task_flat.T @ task_flat / g_task.shape[0]  # W: the task's mean g^T g [m^2]
     variance_before = _task_variances(g_task, s)
     root_beta = np.sqrt(beta)
-    # from a start that leaves directions undetermined (a first campaign: the geometry is free), greedy
-    # I-optimality takes one direction at a time and ends worse than random poses; D-optimal steps
-    # determine them all together, so an I-optimal design takes D-optimal steps while the task's mean
-    # variance is above UNDETERMINED x the noise^2
-    undetermined = UNDETERMINED * prior.noise_m**2
-
     def fresh(s):
         """H, Q, V (and the task's H) from S anew: the rank-3 downdates subtract numbers up to the flat
         prior's 1e6 typical sizes squared, and rounding would swamp the gains once the variance has
@@ -433,12 +421,10 @@ def plan_design(measured: DesignColumns | None, candidates: DesignColumns, task:
     available = np.ones(m, dtype=bool)
     picked, gains = [], []
     for _ in range(k):
-        trace = float(np.sum(weight * s))
-        if trace < REFRESH * refreshed_at:
+        if float(np.sum(weight * s)) < REFRESH * refreshed_at:
             s = linalg.cho_solve(_cholesky(information), np.eye(p), check_finite=False)
             h, q, v, h_task, refreshed_at = fresh(s)
-            trace = refreshed_at
-        if criterion == "D" or (criterion == "I" and trace > undetermined):
+        if criterion == "D":
             gain = np.linalg.slogdet(q)[1]
         else:
             if criterion == "G":  # the task poses of largest variance now, as one small task
