@@ -675,7 +675,7 @@ def stop_advice(curve: LearningCurve, design: "Design", *, min_gain_m: float | N
 def campaign_order(q: np.ndarray, n_references: int, rng: np.random.Generator) -> tuple[np.ndarray, int, float]:
     """An order to measure poses q (K, n_joints) in, with a reference pose repeated through it.
 
-    The poses are put in an order no joint follows (:func:`~tcr_accuracy.diagnosis.design.separating_order`),
+    The poses are put in an order no joint follows (:func:`separating_order`),
     so a drift in time cannot pass for an error growing with a joint; the reference (the pose nearest
     the middle of the others in joint space) is measured ``n_references`` times, first, last and
     evenly between, so the drift and the repeatability are seen directly.
@@ -689,8 +689,6 @@ def campaign_order(q: np.ndarray, n_references: int, rng: np.random.Generator) -
     largest_r : float
         The largest |correlation| of a joint with the place in the order, the repeats left out.
     """
-    from .design import separating_order
-
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if len(q) < 2:
         return np.zeros(max(int(n_references), 1) if len(q) else 0, dtype=int), 0, 0.0
@@ -710,3 +708,32 @@ def campaign_order(q: np.ndarray, n_references: int, rng: np.random.Generator) -
         previous = 0 if i == 0 else places[i - 1]
         out += rows[previous:place] + [reference]
     return np.array(out, dtype=int), reference, largest_r
+
+
+def separating_order(q: np.ndarray, rng: np.random.Generator, tries: int = 256) -> tuple[np.ndarray, float]:
+    """An order to measure poses q (N, n_joints) in so that no joint's angle follows the order:
+    of ``tries`` random permutations, the one whose largest |correlation| between a joint's value
+    and the row's place is smallest. Measured so, a drift in time (a warm-up, a tracker that moves)
+    cannot pass for an error that grows with a joint (an encoder scale), nor the reverse.
+
+    Returns
+    -------
+    order : ndarray of shape (N,)
+        Row indices of q in the order to measure them.
+    largest_r : float
+        The largest |correlation| of a joint with the place in that order.
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    n = q.shape[0]
+    moving = np.std(q, axis=0) > 0
+    if n < 3 or not moving.any():
+        return np.arange(n), 0.0
+    centred = (q[:, moving] - q[:, moving].mean(axis=0)) / q[:, moving].std(axis=0)
+    place = (np.arange(n) - (n - 1) / 2.0) / np.std(np.arange(n))
+    best, best_r = np.arange(n), float(np.max(np.abs(place @ centred / n)))
+    for _ in range(tries):
+        order = rng.permutation(n)
+        r = float(np.max(np.abs(place @ centred[order] / n)))
+        if r < best_r:
+            best, best_r = order, r
+    return best, best_r

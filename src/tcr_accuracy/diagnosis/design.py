@@ -37,6 +37,7 @@ from ..exceptions import InputError
 from ..model.context import MeasurementContext
 from ..model.robot import RobotModel
 from .bases import ordered
+from .bayes_design import design_columns, separating_order  # noqa: F401 (separating_order: its home moved)
 
 
 @dataclass
@@ -68,8 +69,6 @@ def _design_columns(robot: RobotModel, q: np.ndarray, effects: list, context: Me
                     ) -> tuple[np.ndarray, list]:
     """(N, 3, P) TCP position sensitivity of every parameter of ``effects`` (vocabulary order) at
     its typical size, and the effect each column belongs to."""
-    from .bayes_design import design_columns
-
     columns = design_columns(robot, q, effects, context=context)
     return columns.g, list(columns.owner)
 
@@ -281,32 +280,3 @@ def plan_discriminating_poses(robot: RobotModel, measured_q: np.ndarray, rivals,
         if progress is not None:
             progress(1)
     return candidates[picked]
-
-
-def separating_order(q: np.ndarray, rng: np.random.Generator, tries: int = 256) -> tuple[np.ndarray, float]:
-    """An order to measure poses q (N, n_joints) in so that no joint's angle follows the order:
-    of ``tries`` random permutations, the one whose largest |correlation| between a joint's value
-    and the row's place is smallest. Measured so, a drift in time (a warm-up, a tracker that moves)
-    cannot pass for an error that grows with a joint (an encoder scale), nor the reverse.
-
-    Returns
-    -------
-    order : ndarray of shape (N,)
-        Row indices of q in the order to measure them.
-    largest_r : float
-        The largest |correlation| of a joint with the place in that order.
-    """
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    n = q.shape[0]
-    moving = np.std(q, axis=0) > 0
-    if n < 3 or not moving.any():
-        return np.arange(n), 0.0
-    centred = (q[:, moving] - q[:, moving].mean(axis=0)) / q[:, moving].std(axis=0)
-    place = (np.arange(n) - (n - 1) / 2.0) / np.std(np.arange(n))
-    best, best_r = np.arange(n), float(np.max(np.abs(place @ centred / n)))
-    for _ in range(tries):
-        order = rng.permutation(n)
-        r = float(np.max(np.abs(place @ centred[order] / n)))
-        if r < best_r:
-            best, best_r = order, r
-    return best, best_r
