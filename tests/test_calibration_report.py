@@ -254,7 +254,7 @@ def test_first_page_links_every_written_file_and_its_next_step_command_parses(ca
     assert (campaign / "rep" / "report.pdf").read_bytes().startswith(b"%PDF")
     command = re.search(r"(tcr-accuracy plan-poses [^<(]*?next_poses\.csv)", page.joined).group(1)
     args = build_parser().parse_args(shlex.split(command)[1:])
-    assert args.command == "plan-poses" and args.measurements == "measured.csv" and args.poses == 30
+    assert args.command == "plan-poses" and args.measurements == ["measured.csv"] and args.poses == 30
     assert "Prepared by" in page.joined and "Checked by" in page.joined
 
 
