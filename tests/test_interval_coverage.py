@@ -139,12 +139,15 @@ def _expected_share(hidden: HiddenUR5, n_train: int, n_eval: int = 6000, fits: i
     return {f: math.sqrt(expected([c for c in every if c != f])) - whole for f in FAMILIES}
 
 
-def _campaign(hidden: HiddenUR5, n: int, seed: int):
-    """One measured campaign: (the measured frames, their MeasurementSets)."""
+def _campaign(hidden: HiddenUR5, n: int, seed: int, tracker: list | None = None):
+    """One measured campaign: the measured frames (their robots and MeasurementSets); ``tracker``, a
+    list, receives the tracker's frame ``trackerMbase``."""
     rng = np.random.default_rng([seed, 11])
     q = random_poses(hidden.robots[0], n, rng)
     direction = rng.choice([-1.0, 1.0], (n, 6))
     frame = tracker_frame(rng, 3.0)
+    if tracker is not None:
+        tracker.append(frame)
     frames = []
     for robot in hidden.robots:
         seen = in_tracker(frame, _frame_kinematics(robot, hidden.real_joints(q, direction))[0])
@@ -197,6 +200,39 @@ def test_95_percent_intervals_cover_the_truth(n_frames, n_poses):
     assert 0.92 <= pooled_parameters <= 0.98
     assert len(parameter_hits) >= 14  # j1's and j6's offsets go to the tracker frame and the tool offset
     assert all(np.mean(h) >= 0.85 for h in [*share_hits.values(), *parameter_hits.values()])
+
+
+def test_standard_errors_are_the_least_squares_ones_with_n_minus_k_degrees_of_freedom():
+    """40 poses, one measured point each (120 coordinates, 23 parameters: the measured point is tool0,
+    on wrist_3's axis, which no wrist_3 parameter moves): every joint parameter's standard error is
+    that of an ordinary least-squares fit written here on Pinocchio's Jacobians,
+    sqrt(s^2 [(A^T A)^-1]_jj) with s^2 = RSS / (n - rank A), within 0.2 % (over n alone they would be
+    10 % smaller)."""
+    hidden = HiddenUR5(1)
+    tracker: list = []
+    frames = _campaign(hidden, 40, seed=3, tracker=tracker)
+    _, table = _fixed_model(frames, 3)
+    robot, measured = frames[0].robot, frames[0].measurements
+    in_base = (measured.position - tracker[0].translation) @ tracker[0].rotation  # R^T (p - t)
+    position, rotation, jacobian = _frame_kinematics(robot, measured.q)
+    columns = np.concatenate([np.broadcast_to(np.eye(3), (40, 3, 3)), -np.array([pin.skew(p) for p in position]),
+                              rotation, jacobian, jacobian * measured.q[:, None, :],
+                              jacobian * -measured.direction[:, None, :] / 2], axis=2).reshape(120, -1)
+    y = (in_base - position).ravel()
+    theta, *_ = np.linalg.lstsq(columns, y, rcond=None)
+    rank = np.linalg.matrix_rank(columns)
+    s2 = np.sum((y - columns @ theta) ** 2) / (120 - rank)
+    assert rank == 23
+    covariance = s2 * np.linalg.pinv(columns.T @ columns)
+    compared = 0
+    for effect, first in (("joint_offsets", 9), ("encoder_scale", 15), ("backlash", 21)):
+        for j, joint in enumerate(robot.joint_names):
+            name = f"{effect}.{joint}"
+            if name in table[effect]["std"]:
+                assert table[effect]["std"][name] == pytest.approx(math.sqrt(covariance[first + j, first + j]),
+                                                                   rel=0.002), name
+                compared += 1
+    assert compared == 14
 
 
 # ---------------------------------------------------------------------------------------

@@ -296,7 +296,7 @@ def family_answer(families, primary_family, primary_effect, primary_group) -> st
         head = (f"the gap is mostly {primary_family} ({f.get('what', '')}): without it the held-out RMS rises by "
                 f"{f['share_mm']:.4g} mm [95 %: {low:.4g} to {high:.4g}]")
         if runners:
-            head += f", {_by_how_much(runners[0]['below_largest'])} more than {runners[0]['family']}'s"
+            head += f", more than {runners[0]['family']}'s by {_by_how_much(runners[0]['below_largest'])}"
         if primary_effect:
             head += f"; within it, {primary_effect}"
         elif len(primary_group) > 1:
@@ -317,19 +317,19 @@ def _share_text(family: dict) -> str:
 
 
 def _by_how_much(comparison: dict | None) -> str:
-    """"0.107 mm [95 %: 0.017 to 0.19], paired z = 2.4": a difference of two shares with its interval and
-    the selection's paired test (JSON form), and, where the rows do not rank them apart, why."""
+    """"0.107 mm [95 %: 0.017 to 0.19; paired z = 2.4, not above 3]": a difference of two shares with its
+    interval and the selection's paired test (JSON form), and, where the rows do not rank them apart, why."""
     if not comparison:
         return "an amount not recorded"
     low, high = comparison["interval_mm"]
-    text = f"{comparison['difference_mm']:.4g} mm [95 %: {low:.4g} to {high:.4g}]"
+    text = f"{comparison['difference_mm']:.4g} mm [95 %: {low:.4g} to {high:.4g}"
     z = comparison.get("z")  # None in a JSON file for an infinite z (no spread at all)
     if z is not None:
-        text += f", paired z = {z:.1f}"
+        text += f"; paired z = {z:.1f}"
     if not comparison["ranked"]:
         text += (f", not above {comparison['z_threshold']:g}" if z is not None and z <= comparison["z_threshold"]
-                 else ", but its interval holds zero")
-    return text
+                 else "; the interval holds zero")
+    return text + "]"
 
 
 def primary_effect_text(d) -> str:
