@@ -351,7 +351,8 @@ def test_the_pipeline_gives_the_stages_intervals_and_they_cover(capsys):
         low, high = shares[family]["interval_mm"]
         assert low <= truth * 1e3 <= high, (family, truth * 1e3, low, high)
     truth = hidden.truth(hidden.robots[0].joint_names)
-    inside = [low <= truth[name] <= high for e in MODEL[1:] for name, (low, high) in d.parameter_table[e]["interval"].items()]
+    inside = [low <= truth[name] <= high for e in MODEL[1:]
+              for name, (low, high) in d.parameter_table[e]["interval"].items()]
     assert np.mean(inside) >= 0.8
     assert_intervals_hold(d.to_dict())
 

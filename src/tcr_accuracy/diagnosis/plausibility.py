@@ -210,15 +210,15 @@ def _tool_frame_checks(robot, q, as_built_x, em, tolerance) -> list:
     out = []
     for what, values, limit, unit, scale in (("tool_position", moved, tolerance.tool_position, "mm", 1e3),
                                              ("tool_rotation", turned, tolerance.tool_rotation, "deg", 180 / math.pi)):
-        largest = float(values.max())
+        largest, rms = float(values.max()), float(math.sqrt(np.mean(values**2)))
         flagged = largest > limit
         out.append(GeometryCheck(
             what, frame, largest, None, limit, flagged,
             f"the fitted geometry {'moves' if what == 'tool_position' else 'turns'} the tool frame {frame} by "
-            f"{values.min() * scale:.3g} to {largest * scale:.3g} {unit} (RMS {math.sqrt(np.mean(values**2)) * scale:.3g})"
-            f" from the nominal robot's over the measured poses: {'beyond' if flagged else 'within'} the "
-            f"{limit * scale:.2g} {unit} plausible for {who}",
-            {f"min_{unit}": float(values.min() * scale), f"rms_{unit}": float(math.sqrt(np.mean(values**2)) * scale)}))
+            f"{values.min() * scale:.3g} to {largest * scale:.3g} {unit} (RMS {rms * scale:.3g}) from the nominal "
+            f"robot's over the measured poses: {'beyond' if flagged else 'within'} the {limit * scale:.2g} {unit} "
+            f"plausible for {who}",
+            {f"min_{unit}": float(values.min() * scale), f"rms_{unit}": rms * scale}))
     return out
 
 
@@ -227,22 +227,21 @@ def _tcp_check(as_built_x, em, std_of: dict, tcp_name: str | None, given: np.nda
     fitted = pin.exp6(np.asarray(as_built_x[em.tool_slice], dtype=float)).translation
     difference = fitted - given
     size = float(np.linalg.norm(difference))
-    sigma = np.array([std_of.get(f"{tcp_name}.{c}", 0.0) or 0.0 for c in ("dx", "dy", "dz")]) if tcp_name else \
-        np.zeros(3)
+    sigma = np.array([std_of.get(f"{tcp_name}.{c}") or 0.0 for c in ("dx", "dy", "dz")] if tcp_name else [0.0] * 3)
     sigma = np.where(np.isfinite(sigma), sigma, 0.0)
     std = float(math.sqrt(np.sum((difference / size) ** 2 * sigma**2))) if size > 0 else None
     flagged = size > tolerance.tcp_offset
-    mm = lambda v: "(" + ", ".join(f"{c * 1e3:.4g}" for c in v) + ") mm"  # noqa: E731
-    return GeometryCheck(
-        "tcp_offset", frame, size, std, tolerance.tcp_offset, flagged,
-        f"the measured point is fitted at {mm(fitted)} from the tool frame {frame} ({np.linalg.norm(fitted) * 1e3:.4g} "
-        f"mm away), the given offset is {mm(given)} ({np.linalg.norm(given) * 1e3:.4g} mm): {size * 1e3:.3g} mm apart"
-        + ("" if std is None else f" (+- {std * 1e3:.2g})")
-        + f", {'beyond' if flagged else 'within'} the {tolerance.tcp_offset * 1e3:.2g} mm plausible for a tool "
-          "mounted from a drawing; the fit or the given offset is off (a tool or reflector not where it is said to "
-          "be, or the geometry fit taking up the tool's length)" if flagged else
-        f"the measured point is fitted at {mm(fitted)} from the tool frame {frame}, the given offset is {mm(given)}: "
-        f"{size * 1e3:.3g} mm apart" + ("" if std is None else f" (+- {std * 1e3:.2g})")
-        + f", within the {tolerance.tcp_offset * 1e3:.2g} mm plausible",
-        {"fitted_mm": (fitted * 1e3).tolist(), "given_mm": (given * 1e3).tolist(),
-         "difference_mm": (difference * 1e3).tolist()})
+
+    def mm(v) -> str:
+        return "(" + ", ".join(f"{c * 1e3:.4g}" for c in v) + f") mm ({np.linalg.norm(v) * 1e3:.4g} mm away)"
+
+    text = (f"the measured point is fitted at {mm(fitted)} from the tool frame {frame}, the given offset is "
+            f"{mm(given)}: {size * 1e3:.3g} mm apart" + ("" if std is None else f" (+- {std * 1e3:.2g})")
+            + f", {'beyond' if flagged else 'within'} the {tolerance.tcp_offset * 1e3:.2g} mm plausible for a tool "
+              "mounted from a drawing")
+    if flagged:
+        text += ("; the fit or the given offset is off (a tool or reflector not where it is said to be, or the "
+                 "geometry fit taking up the tool's length)")
+    return GeometryCheck("tcp_offset", frame, size, std, tolerance.tcp_offset, flagged, text,
+                         {"fitted_mm": (fitted * 1e3).tolist(), "given_mm": (given * 1e3).tolist(),
+                          "difference_mm": (difference * 1e3).tolist()})

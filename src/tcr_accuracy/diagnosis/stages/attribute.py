@@ -192,7 +192,8 @@ def attribute_effects(registered: RegisteredMeasurements, candidate_set: Candida
     return Attribution(primary_effect=primary, primary_group=tuple(primary_group), primary_tied=tuple(tied),
                        primary_family=primary_family, families=tuple(families), mechanisms=mechanisms,
                        confounding=tuple(confounding), steps=tuple(steps), stability=stability, notes=tuple(notes),
-                       own_shares=own_shares, own_share_ranking=tuple(own_share_ranking), interval_method=bootstrap.method)
+                       own_shares=own_shares, own_share_ranking=tuple(own_share_ranking),
+                       interval_method=bootstrap.method)
 
 
 def _with_confounding(reading: MechanismReading, confounding) -> MechanismReading:
