@@ -140,16 +140,25 @@ def _diagnosis_schema(names) -> dict:
 
 def _findings_schema(names) -> dict:
     """What the report's first page reads of a diagnosis' findings: the mechanism each chosen effect
-    stands for and its check, the families and their shares, the primary family and group, the
-    order-of-measurement confounds, the instrument's specification, the temperatures measured."""
+    stands for, its check and what its fit assumed, the families and their shares (each compared
+    with the largest), the primary family and group, the order-of-measurement confounds, the
+    fitted geometry's plausibility checks, the instrument's specification, the temperatures measured."""
     effect = {"enum": list(names)}
     mechanism = {"type": "object", "required": ["effect", "family", "mechanism", "physical"],
                  "properties": {"effect": effect, "family": _NAME, "mechanism": _TEXT, "physical": {"type": "boolean"},
-                                "check": _TEXT}}
+                                "check": _TEXT, "assumed": _TEXTS}}
+    # two shares compared (paired): the larger's lead, its interval and the selection's paired test
+    comparison = {"type": "object", "required": ["larger", "smaller", "difference_mm", "interval_mm", "ranked"],
+                  "properties": {"larger": _NAME, "smaller": _NAME, "difference_mm": _SIGNED_MM,
+                                 "interval_mm": _MM_INTERVAL, "z": _NUMBER_OR_NULL, "z_threshold": _NUMBER,
+                                 "ranked": {"type": "boolean"}}}
     family = {"type": "object", "required": ["family", "effects", "share_mm", "interval_mm"],
               "properties": {"family": _NAME, "effects": {"type": "array", "items": effect, "maxItems": 1000},
                              "share_mm": _SIGNED_MM, "interval_mm": _MM_INTERVAL, "what": _TEXT,
-                             "stand_ins": {"type": "array", "items": effect, "maxItems": 1000}}}
+                             "stand_ins": {"type": "array", "items": effect, "maxItems": 1000},
+                             "below_largest": comparison}}
+    check = {"type": "object", "required": ["what", "subject", "flagged", "text"],
+             "properties": {"what": _NAME, "subject": _NAME, "flagged": {"type": "boolean"}, "text": _TEXT}}
     mpe = {"type": "array", "items": {"type": "number", "minimum": 0, "maximum": 1e9}, "minItems": 2, "maxItems": 2}
     temperature = {"type": "number", "minimum": -1e4, "maximum": 1e4}
     return {
@@ -157,6 +166,10 @@ def _findings_schema(names) -> dict:
         "families": {"type": "array", "items": family, "maxItems": 1000},
         "primary_family": {"anyOf": [{"type": "null"}, _NAME]},
         "primary_group": {"type": "array", "items": effect, "maxItems": 1000},
+        "own_share_ranking": {"type": "array", "items": comparison, "maxItems": 1000},
+        "plausibility": {"type": "object", "properties": {
+            "tolerance": {"anyOf": [{"type": "null"}, {"type": "object", "properties": {"robot_class": _NAME}}]},
+            "checks": {"type": "array", "items": check, "maxItems": 10_000}}},
         "confounding": {"type": "array", "items": {"type": "object", "required": ["why"],
                                                    "properties": {"why": _TEXT}}},
         "instrument": {"anyOf": [{"type": "null"}, {"type": "object", "required": ["transverse_mpe_um", "radial_mpe_um"],

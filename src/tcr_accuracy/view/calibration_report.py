@@ -292,6 +292,8 @@ def _found(d, comparisons) -> list:
         items += _effect_items(d)
         items += [f"Mind the order of measurement: {c['why']}; tcr-accuracy plan-poses writes an order that "
                   "separates them." for c in d.get("confounding") or []]
+        items += [f"Flag: {_sentence(c['text'])}." for c in (d.get("plausibility") or {}).get("checks") or []
+                  if c.get("flagged")]
         items += _remains(d)
     if items:
         out.append(("list", items))
@@ -328,6 +330,7 @@ def _effect_items(d) -> list:
         plausible = (d.get("physical") or {}).get(e, {}).get("plausible", True)
         text = (f"{e} ({m['family']}; {gain}{stable}" + ("" if plausible else "; OUTSIDE its physical range")
                 + "): " + m["mechanism"] + ("" if m["physical"] else " (no known mechanism fits most of it)") + "."
+                + "".join(f" Assumed: {a}." for a in m.get("assumed") or [])
                 + (f" Check: {m['check']}." if m.get("check") else ""))
         items.append(text if k < 2 else Droppable(text, "effect", e))  # the two that explain most stay on the page
     return items
