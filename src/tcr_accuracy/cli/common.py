@@ -57,7 +57,7 @@ def effect_names(text: str | None) -> list[str] | None:
 
 def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default=None, metavar="URDF|NAME",
-                        help="URDF file or example-robot-data name (ur3, ur5, ur10, panda, z1, xarm7); "
+                        help="URDF file or example-robot-data name (ur3, ur5, ur10, panda, z1, xarm7, kinova); "
                              "default: the built-in shield-machine tool-changer")
     parser.add_argument("--tool", default=None, metavar="FRAME",
                         help="TCP frame name (default: 'tool' for the tool-changer, the usual "

@@ -65,6 +65,7 @@ EXAMPLE_ROBOTS: dict[str, tuple[str, str]] = {
     "panda": ("panda_description/urdf/panda.urdf", "panda_hand_tcp"),
     "z1": ("z1_description/urdf/z1.urdf", "link06"),
     "xarm7": ("xarm_description/urdf/xarm7.urdf", "link7"),
+    "kinova": ("kinova_description/robots/kinova.urdf", "j2s6s200_end_effector"),
 }
 
 BUILTIN_NAME = "tool_changer"
