@@ -112,6 +112,10 @@ class RobotModel:
     payload_kg : float or None
         The payload an analysis assumes by default [kg] (the 150 kg disc cutter of the
         tool-changer); None: a fifth of the moving links' mass (:attr:`typical_payload_kg`).
+    mounting_plane_z : float or None
+        The plane the robot stands on [m], base frame z: random poses keep the TCP and the joints on
+        or above it (0: an arm bolted to a floor or a table by its base); None for the tool-changer,
+        which works below its base inside the cutterhead.
     """
 
     model: pin.Model
@@ -127,6 +131,7 @@ class RobotModel:
     tool_frame_id: int = -1
     mimic: dict = field(default_factory=dict)
     payload_kg: float | None = None
+    mounting_plane_z: float | None = 0.0
 
     def __post_init__(self) -> None:
         if self.working_pose is None:
@@ -448,6 +453,7 @@ class RobotModel:
             tool_frame_id=self.tool_frame_id,
             mimic=dict(self.mimic),
             payload_kg=self.payload_kg,
+            mounting_plane_z=self.mounting_plane_z,
         )
 
 
@@ -599,6 +605,8 @@ def load_robot(source: str | Path | None = None, tool: str | None = None, *,
         names = {package_of(place.name) for place in robot.mesh_places()} - {None}
         robot.packages = {name: str(folder) for name, folder in
                           find_packages(names, given + ros_package_path(), urdf_path.parent).items()}
+    if working_pose is not None:  # the tool-changer (or its as-built variant) works below its base, in the cutterhead
+        robot.mounting_plane_z = None
     if urdf_path is not None:
         message = robot.missing_mesh_message()
         if message:
