@@ -130,11 +130,11 @@ def _run_plan_poses(args) -> int:
     from ..diagnosis.ambiguity import rival_models
     from ..diagnosis.diagnose import GapDiagnosis
     from ..io.measurements import read_measurements
-    from ..model.robot import load_robot
+    from .common import robot_from_args
 
     _check(args)
     _check_plan_memory(args)
-    robot = load_robot(args.robot, args.tool)
+    robot = robot_from_args(args)
     measured = read_measurements(args.measurements, robot)
     screened, source, pose_filter = _reachable_candidates(args, robot, read_measurements)
     candidates, k = screened.q, min(args.poses, len(screened.q))

@@ -52,7 +52,7 @@ def _run_simulate(args) -> int:
 
     from ..exceptions import InputError
     from ..io.measurements import read_measurements
-    from ..model.robot import load_robot
+    from .common import robot_from_args
     from ..analysis.scenario import load_scenario, scenario_from_dict
     from ..analysis.reachable import PoseFilter
     from ..analysis.simulate import random_scenario, screened_poses, simulate_measurements, truth_text
@@ -65,7 +65,7 @@ def _run_simulate(args) -> int:
         if given is not None and args.poses is not None:
             raise InputError(f"{option} with --poses {args.poses}: the file's rows are the poses; give one of them")
     args.n = 200 if args.n is None else args.n
-    robot = load_robot(args.robot, args.tool)
+    robot = robot_from_args(args)
     # the poses, their context and the CSV text: a few hundred bytes a measurement
     check_memory(args, f"--n {args.n}", args.n * (sample_bytes(robot) + 400.0))
     if args.poses is not None:

@@ -116,6 +116,11 @@ class RobotModel:
         The plane the robot stands on [m], base frame z: random poses keep the TCP and the joints on
         or above it (0: an arm bolted to a floor or a table by its base); None for the tool-changer,
         which works below its base inside the cutterhead.
+    kinematics : dict or None
+        Where the robot's own (factory) kinematics came from, when they replace the URDF's: the
+        file's name, its format and SHA-256, and the joint and TCP-frame placements it gave
+        (``file``, ``format``, ``sha256``, ``placements``; :mod:`tcr_accuracy.asbuilt.factory_kinematics`).
+        None: the URDF's own (the catalogue's) kinematics.
     """
 
     model: pin.Model
@@ -132,6 +137,7 @@ class RobotModel:
     mimic: dict = field(default_factory=dict)
     payload_kg: float | None = None
     mounting_plane_z: float | None = 0.0
+    kinematics: dict | None = None
 
     def __post_init__(self) -> None:
         if self.working_pose is None:
@@ -454,6 +460,7 @@ class RobotModel:
             mimic=dict(self.mimic),
             payload_kg=self.payload_kg,
             mounting_plane_z=self.mounting_plane_z,
+            kinematics=self.kinematics,
         )
 
 
