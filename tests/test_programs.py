@@ -25,7 +25,6 @@ ABB IRB 120 from robots/ (ROS-Industrial's joint origins and axes).
 import json
 import math
 import re
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
