@@ -72,12 +72,7 @@ def as_built_urdf(robot: RobotModel, x: np.ndarray, error_model: ErrorModel | No
         root.set("name", name)
     joints = {j.get("name"): j for j in root.findall("joint")}
     placements, tool = error_model.perturbed_placements(x)
-    for nominal, new, joint_name in zip(robot.joint_placements, placements, robot.joint_names):
-        element = joints.get(joint_name)
-        if element is None:
-            raise InputError(f"{robot.name}: joint {joint_name} of the model is not in its URDF")
-        origin, o = _origin_of(element)
-        _set_origin(origin, o * (nominal.inverse() * new))
+    _set_joint_placements(root, robot, placements)
     measured = f"{robot.tool_frame}{MEASURED_SUFFIX}"
     links = {link.get("name") for link in root.findall("link")}
     if measured in links or measured in joints:
@@ -114,13 +109,7 @@ def urdf_with_placements(robot: RobotModel, placements, tool: pin.SE3, *, commen
     str
     """
     root = parse_urdf_xml(robot.urdf_text, robot.name)
-    joints = {j.get("name"): j for j in root.findall("joint")}
-    for nominal, new, joint_name in zip(robot.joint_placements, placements, robot.joint_names):
-        element = joints.get(joint_name)
-        if element is None:
-            raise InputError(f"{robot.name}: joint {joint_name} of the model is not in its URDF")
-        origin, o = _origin_of(element)
-        _set_origin(origin, o * (nominal.inverse() * new))
+    _set_joint_placements(root, robot, placements)
     change = robot.tool_placement.inverse() * tool
     if np.abs(pin.log6(change).vector).max() > 1e-12:
         carrier = next((j for j in root.findall("joint") if j.find("child") is not None
@@ -135,6 +124,17 @@ def urdf_with_placements(robot: RobotModel, placements, tool: pin.SE3, *, commen
     if comment:
         header += "<!-- " + comment.replace("--", "- -") + " -->\n"
     return header + ElementTree.tostring(root, encoding="unicode") + "\n"
+
+
+def _set_joint_placements(root: ElementTree.Element, robot: RobotModel, placements) -> None:
+    """Each chain joint's ``<origin>`` in the URDF tree ``root`` rewritten so that its placement is the new one."""
+    joints = {j.get("name"): j for j in root.findall("joint")}
+    for nominal, new, joint_name in zip(robot.joint_placements, placements, robot.joint_names):
+        element = joints.get(joint_name)
+        if element is None:
+            raise InputError(f"{robot.name}: joint {joint_name} of the model is not in its URDF")
+        origin, o = _origin_of(element)
+        _set_origin(origin, o * (nominal.inverse() * new))
 
 
 def _link_of_frame(root: ElementTree.Element, frame: str, links: set) -> str:

@@ -26,7 +26,7 @@ import numpy as np
 
 from ...model.kinematics import euler_zyx, rotation_from_euler_zyx
 from .grammar import elements, is_token, is_tree, number_of, parse, start_of, text_of
-from .targets import Configuration, NumberText, ParsedProgram, ProgramTarget, line_column
+from .targets import Configuration, NumberText, ParsedProgram, ProgramTarget, line_column, set_joint_numbers
 
 LANGUAGE = "KRL"
 
@@ -367,9 +367,7 @@ def _motion(program, targets, instruction, argument, declared, tool, tool_note, 
         if not all(isinstance(n, NumberText) for n in numbers):
             target.problem = "a partial axis aggregate (its missing axes are the robot's current ones)"
             return
-        target.joints = np.radians([n.value for n in numbers])
-        target.write = lambda joints, pose, configuration: [e for e in (n.edit(v, 7) for n, v in
-                                                                         zip(numbers, np.degrees(joints))) if e]
+        set_joint_numbers(target, numbers, scale=np.pi / 180.0, decimals=7)
         return
     if kind not in POSE_TYPES:
         target.problem = f"a {kind.upper()} is not a motion target"

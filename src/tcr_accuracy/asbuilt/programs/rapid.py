@@ -23,7 +23,7 @@ import numpy as np
 import pinocchio as pin
 
 from .grammar import elements, is_token, is_tree, numbers_of, parse, start_of, text_of
-from .targets import Configuration, ParsedProgram, ProgramTarget, line_column
+from .targets import Configuration, ParsedProgram, ProgramTarget, line_column, set_joint_numbers
 
 LANGUAGE = "RAPID"
 
@@ -317,9 +317,7 @@ def _motion(program, targets, instruction, joint_motion, atoms, declared, text, 
         if numbers is None or len(numbers) != 6:
             target.problem = "its robax is not six numbers"
             return
-        target.joints = np.radians([n.value for n in numbers])
-        target.write = lambda joints, pose, configuration: [e for e in (n.edit(v, 7) for n, v in
-                                                                         zip(numbers, np.degrees(joints))) if e]
+        set_joint_numbers(target, numbers, scale=np.pi / 180.0, decimals=7)
         return
     if len(parts) < 3 or any(p is None for p in parts[:3]):
         target.problem = "not a robtarget [[x, y, z], [q1, q2, q3, q4], [cf1, cf4, cf6, cfx], [external axes]]"

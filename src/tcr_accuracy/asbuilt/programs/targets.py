@@ -135,3 +135,11 @@ def line_column(text: str, offset: int) -> tuple[int, int]:
     """(line, column) of a character offset, both 1-based."""
     line = text.count("\n", 0, offset) + 1
     return line, offset - (text.rfind("\n", 0, offset) + 1) + 1
+
+
+def set_joint_numbers(target: ProgramTarget, numbers, *, scale: float = 1.0, decimals: int = 9) -> None:
+    """Make ``target`` the joint target ``numbers`` write, each joint the number times ``scale`` [SI per the
+    program's unit], corrected joints written back with at most ``decimals`` decimals."""
+    target.joints = np.array([n.value for n in numbers]) * scale
+    target.write = lambda joints, pose, configuration: [e for e in (n.edit(v / scale, decimals)
+                                                                     for n, v in zip(numbers, joints)) if e]

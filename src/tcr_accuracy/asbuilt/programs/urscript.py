@@ -18,7 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from .grammar import elements, is_token, is_tree, numbers_of, parse, start_of, text_of
-from .targets import ParsedProgram, ProgramTarget, line_column
+from .targets import ParsedProgram, ProgramTarget, line_column, set_joint_numbers
 
 LANGUAGE = "URScript"
 
@@ -189,14 +189,11 @@ def _motion(program, targets, name, group, assigned, tool, tool_note, text, sour
     if numbers is None or (is_tree(literal, "pose") and len(numbers) != 6):
         target.problem = "its literal is not six numbers" if is_tree(literal, "pose") else "its list is not all numbers"
         return
-    values = np.array([n.value for n in numbers])
     if is_tree(literal, "pose"):
         target.kind, target.pose = "pose", _pose(numbers)
         target.write = lambda joints, pose, configuration: _write_pose(numbers, pose)
     else:
-        target.joints = values
-        target.write = lambda joints, pose, configuration: [e for e in (n.edit(v, 9) for n, v in
-                                                                         zip(numbers, joints)) if e]
+        set_joint_numbers(target, numbers)
 
 
 def _write_pose(numbers, pose):
