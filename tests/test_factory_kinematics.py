@@ -268,6 +268,7 @@ def test_the_export_is_relative_to_the_start_and_says_so(factory_campaign, capsy
     code, out, err = run_command(["export", str(folder / "with.json"), "--to", str(folder / "export"), "--quiet"],
                                  capsys)
     assert code == 0, err
+    assert "start: the factory kinematics of factory.yaml (UR ROS 2 driver calibration)" in out
     model = tcr.load_as_built(folder / "export" / "as_built.yaml")
     assert model.robot.kinematics["file"] == "factory.yaml"
     factory = with_factory_kinematics(load_robot("ur5"), folder / "factory.yaml")

@@ -135,6 +135,10 @@ def _summary(args, export, files, filtered) -> list[str]:
     model = export.model
     lines = [f"{model.robot.name}: calibration of {args.diagnosis} ({', '.join(model.parameters)}) -> {args.to}",
              "  " + ", ".join([*files, "accuracy.png"])]
+    start = model.robot.kinematics
+    if start:  # the diagnosis' nominal robot: the robot's own kinematics
+        lines.append(f"  start: the factory kinematics of {start['file']} ({start['format']}); the files hold the whole "
+                     "calibrated kinematics, the tables' corrections are relative to that start")
     geometry = export.geometry
     lines.append(f"  URDF: geometry and joint offsets refitted to the full model over {geometry.n_measured} measured "
                  f"poses and {geometry.n_sampled} between them ({len(geometry.fitted)} parameters, RMS "
