@@ -248,15 +248,37 @@ def test_a_urscript_program_lands_on_its_targets(ur5):
     assert sum(t.status == "filtered" for t in result.targets) == 6
 
 
-def test_a_calibration_without_effects_gives_the_program_back_byte_for_byte(ur5):
-    truth = Truth(ur5, 1, size=0.0)
-    text, _, _ = _urscript_fixture(truth)
-    result = filter_program(truth.model, {"drill.script": text}, threshold=TOLERANCE_M)
-    assert result.texts["drill.script"] == text
-    with_header = filter_program(truth.model, {"drill.script": text}, threshold=TOLERANCE_M, header=HEADER)
-    lines = with_header.texts["drill.script"].splitlines(keepends=True)
-    header = [line for line in lines if line.startswith("# ") and "Drilling" not in line]
-    assert "".join(lines[len(header):]) == text
+@pytest.mark.parametrize("language", ["URScript", "KRL", "RAPID", "CSV"])
+def test_a_calibration_without_effects_gives_the_program_back_byte_for_byte(language, ur5, kuka, abb):
+    """No effect, nothing to correct: every file comes back as it was, byte for byte (under its header when one
+    is asked for)."""
+    if language == "URScript":
+        truth = Truth(ur5, 1, size=0.0)
+        files = {"drill.script": _urscript_fixture(truth)[0]}
+    elif language == "KRL":
+        truth = Truth(kuka, 2, size=0.0)
+        src, dat, _ = _krl_fixture(truth)
+        files = {"weld_seam.src": src, "weld_seam.dat": dat}
+    elif language == "RAPID":
+        truth = Truth(abb, 3, size=0.0)
+        files = {"DrillCell.mod": _rapid_fixture(truth)[0]}
+    else:
+        truth = Truth(ur5, 4, size=0.0)
+        files = {"path.csv": "time_from_start," + ",".join(ur5.joint_names) + "\n0.0,0.1,-1.5,1.4,-1.6,-1.5,0.2\n"
+                             "0.5,0.11,-1.49,1.41,-1.59,-1.5,0.21\n"}
+    result = filter_program(truth.model, files, threshold=TOLERANCE_M)
+    assert result.texts == files
+    with_header = filter_program(truth.model, files, threshold=TOLERANCE_M, header=HEADER)
+    for name, text in files.items():  # the original with a block of comment lines inserted, nothing else
+        new = with_header.texts[name]
+        prefix = next(k for k in range(len(text) + 1) if k == len(text) or new[k] != text[k])
+        prefix = text.rfind("\n", 0, prefix) + 1  # the insertion starts a line
+        suffix = next(k for k in range(len(text) - prefix + 1) if k == len(text) - prefix or new[-1 - k] != text[-1 - k])
+        assert new[:prefix] == text[:prefix] and new[len(new) - suffix:] == text[len(text) - suffix:]
+        assert prefix + suffix >= len(text)
+        inserted = new[prefix:len(new) - (len(text) - prefix)]
+        assert inserted.splitlines()[0].endswith(HEADER[0])
+        assert all(line[:2] in ("# ", "; ", "! ") for line in inserted.splitlines())
 
 
 # ---------------------------------------------------------------------------------------

@@ -201,6 +201,11 @@ def filter_parsed(model: AsBuiltModel, program: ParsedProgram, *, threshold: flo
                 results[k] = _refused(target, str(filtered.status[i]), tcp, before)
                 continue
             command = filtered.command_q[i]
+            if np.array_equal(command, q[i]):  # nothing to correct (already within the threshold): as written
+                results[k] = TargetResult(target.label(), target.file, target.line, target.column, target.kind,
+                                          "filtered", "", tcp, before, float(filtered.error_after[i]),
+                                          target.tool is None)
+                continue
             if target.kind == "joints":
                 changes = target.write(command, None, None)
             else:
