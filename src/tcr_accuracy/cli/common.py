@@ -68,7 +68,7 @@ def effect_names(text: str | None) -> list[str] | None:
 
 def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default=None, metavar="URDF|NAME",
-                        help="URDF file or example-robot-data name (ur3, ur5, ur10, panda, z1, xarm7); "
+                        help="URDF file or example-robot-data name (ur3, ur5, ur10, panda, z1, xarm7, kinova); "
                              "default: the built-in shield-machine tool-changer")
     parser.add_argument("--tool", default=None, metavar="FRAME",
                         help="TCP frame name (default: 'tool' for the tool-changer, the usual "
@@ -77,6 +77,24 @@ def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
                         help="where the URDF's package://NAME/... meshes are: a ROS package folder (with "
                              "package.xml), or a folder holding DIR/NAME or packages further below; "
                              "repeatable; searched before the folders of ROS_PACKAGE_PATH")
+    parser.add_argument("--kinematics", default=None, metavar="FILE",
+                        help="the robot's own (factory) kinematics as the nominal robot: a UR ROS 2 driver "
+                             "calibration YAML (ur_calibration's, or the ur_calibration.yaml export writes) or a "
+                             "DH/MDH table CSV as export writes dh.csv/mdh.csv (its *_base_tool.csv beside it); "
+                             "what follows is relative to it (docs/programs.md)")
+
+
+def robot_from_args(args, tool: str | None = None):
+    """The nominal robot of ``--robot``, ``--tool`` (or ``tool``) and ``--package-dir``, with the
+    kinematics of ``--kinematics`` where given."""
+    from ..model.robot import load_robot
+
+    robot = load_robot(args.robot, args.tool if tool is None else tool)
+    if getattr(args, "kinematics", None) is not None:
+        from ..asbuilt.factory_kinematics import with_factory_kinematics
+
+        robot = with_factory_kinematics(robot, args.kinematics)
+    return robot
 
 
 def package_folder(text: str) -> str:

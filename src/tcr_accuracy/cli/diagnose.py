@@ -89,10 +89,10 @@ def _frame_robot(args, frame: str):
     """The robot with its TCP at a frame the measurement file's columns name (``<frame>.x_mm``):
     a frame the robot lacks is the file's fault, named by its column, unless --tool named it."""
     from ..exceptions import InputError
-    from ..model.robot import load_robot
+    from .common import robot_from_args
 
     try:
-        return load_robot(args.robot, frame)
+        return robot_from_args(args, frame)
     except InputError as exc:
         if args.tool == frame or "no such frame" not in str(exc):
             raise
@@ -114,7 +114,7 @@ def _run_diagnose(args) -> int:
     from ..exceptions import FixedFrameError, InputError
     from ..io.measurements import join_sessions, measured_frames, read_measurements
     from ..view.plots_diagnose import write_plots
-    from ..model.robot import load_robot
+    from .common import robot_from_args
 
     effects = effect_names(args.effects)
     read_campaign_arguments(args)
@@ -164,7 +164,7 @@ def _run_diagnose(args) -> int:
                       for f, position in fixed.items()]
         robot, measurements, data = robots[0], parts[0][1], parts
     else:
-        robot = load_robot(args.robot, args.tool)
+        robot = robot_from_args(args)
         measurements = data = join_sessions([read_measurements(path, robot, min_rows=per_file) for path in files],
                                             labels)
         references = []
@@ -192,6 +192,7 @@ def _run_diagnose(args) -> int:
         bar.close()
     payload = jsonable({"measurements": ", ".join(map(str, files)), "measurement_files": list(map(str, files)),
                         "robot_source": robot_source(args.robot), "tool_frame": robot.tool_frame,
+                        **({"kinematics": robot.kinematics} if robot.kinematics else {}),
                         **result.to_dict(robot)})
     payload["measured_points"] = measured_points(measurements.position)  # the uncertainty budget's distances
     source = ", ".join(map(str, files))

@@ -214,7 +214,7 @@ def _run_evaluate(args) -> int:
     from ..io.campaign import CampaignFacts
     from ..io.measurements import MeasurementWarning, read_measurements
     from ..iso9283.evaluate import compensated_readings, evaluate_conditions, register_from
-    from ..model.robot import load_robot
+    from .common import robot_from_args
     from .output import RunOutput
 
     if args.frame_from and args.frame is not None:
@@ -229,7 +229,7 @@ def _run_evaluate(args) -> int:
                              "report (--path) has no such page")
         return run_path_evaluate(args)
     read_campaign_arguments(args)
-    robot = load_robot(args.robot, args.tool)
+    robot = robot_from_args(args)
     check_csv_memory(args, args.measurements, "MEAS.csv", sample_bytes(robot))
     model = read_model(robot, args.model) if args.model else None
     with warnings.catch_warnings():  # a pose test repeats its poses on purpose, labelled or not

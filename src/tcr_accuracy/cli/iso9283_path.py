@@ -109,14 +109,14 @@ def run_path_evaluate(args) -> int:
     from ..io.tracker_stream import read_tracker_stream
     from ..iso9283.evaluate import compensated_readings, register_from
     from ..iso9283.path_evaluate import evaluate_path_test
-    from ..model.robot import load_robot
+    from .common import robot_from_args
     from .diagnose import robot_source
     from .iso9283_inputs import read_model
     from .output import RunOutput
 
     if args.band_mm is not None:
         raise InputError("--band-mm is for pose tests (stabilisation time); a path test has none")
-    robot = load_robot(args.robot, args.tool)
+    robot = robot_from_args(args)
     check_csv_memory(args, args.measurements, "MEAS.csv", sample_bytes(robot))
     check_csv_memory(args, args.path, "COMMANDED.csv", sample_bytes(robot))
     model = read_model(robot, args.model) if args.model else None

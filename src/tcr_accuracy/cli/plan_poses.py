@@ -186,12 +186,12 @@ def _run_plan_poses(args) -> int:
     import numpy as np
 
     from ..io.measurements import read_measurements
-    from ..model.robot import load_robot
+    from .common import robot_from_args
     from .output import progress_bar
 
     _check(args)
     _check_plan_memory(args)
-    robot = load_robot(args.robot, args.tool)
+    robot = robot_from_args(args)
     measured = _read_measured(args, robot)
     task_q = _targets(args, robot)
     screened, source, pose_filter = _reachable_candidates(args, robot, read_measurements)

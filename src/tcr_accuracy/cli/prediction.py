@@ -218,10 +218,10 @@ def _frame_line(model, args) -> str:
 
 def _start(args, title: str):
     """The robot and the run's outputs, checked before any work."""
-    from ..model.robot import load_robot
+    from .common import robot_from_args
 
     out = RunOutput(args, title)
-    return load_robot(args.robot, args.tool), out
+    return robot_from_args(args), out
 
 
 def _fit_table(out, robot, args, q_train, what: str, n: int) -> None:

@@ -48,12 +48,12 @@ def _run_import(args) -> int:
     from ..exceptions import InputError
     from ..io.measurements import parse_measurements
     from ..io.tracker_import import import_tracker
-    from ..model.robot import load_robot
+    from .common import robot_from_args
 
     for path in (args.tracker, args.joints):  # before either is read
         if path is not None:
             check_csv_memory(args, path, "importing", IMPORT_ROW_BYTES, hint="use a smaller file")
-    robot = load_robot(args.robot, args.tool)
+    robot = robot_from_args(args)
     out = Path(args.out)
     result = import_tracker(args.tracker, parse_map(args.map, "--map"), args.joints,
                             parse_map(args.log_map, "--log-map"), args.tolerance_ms * 1e-3)

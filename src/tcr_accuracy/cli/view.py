@@ -127,14 +127,14 @@ def _run_view(args) -> int:
 
     from ..model.errors import seed_budget
     from ..exceptions import InputError
-    from ..model.robot import load_robot
+    from .common import robot_from_args
     from ..view.viewer import Scene
 
     if args.open and not args.serve:
         raise InputError("--open needs --serve")
     if args.magnify is not None and args.error_preset is None:  # it magnifies the error cloud, and there is none
         raise InputError(f"--magnify {args.magnify:g}: only with --error-preset (it magnifies the TCP error cloud)")
-    robot = load_robot(args.robot, args.tool)
+    robot = robot_from_args(args)
     q = joint_values_si(robot, args.q)
     scene = Scene(f"{robot.name} at {format_joint_values(robot, q)}")
     scene.add_robot(robot, q, "nominal")

@@ -71,7 +71,8 @@ def urdf_comment(export, diagnosis: str) -> str:
             f"hold the geometry and joint zero offsets refitted to the full model over {geometry.n_measured} measured "
             f"poses and {geometry.n_sampled} between them (RMS {geometry.rms * 1e3:.4f} mm from the full model); "
             f"{export.model.robot.tool_frame} is where the maker put it, the measured point is the frame "
-            f"{export.measured_frame}. " + headline(export.accuracy) + ". Compliance, gear errors and the other "
+            f"{export.measured_frame}. " + _start_sentence(export) + headline(export.accuracy)
+            + ". Compliance, gear errors and the other "
             f"non-geometric effects are not in a URDF: the full model ({export.model_file}, tcr_accuracy.load_as_built) "
             "or the compensation filter carry them.")
 
@@ -86,6 +87,7 @@ def ur_file_header(export) -> str:
         "# (ur_description's kinematics_parameters_file), written by tcr-accuracy export.",
         "# The controller's own factory calibration has another hash: the driver reports the mismatch.",
         f"# Measured point on tool0, to set as the TCP: p[{tcp}] (m, rad; rotation vector)",
+        *([f"# {_start_sentence(export).strip()}"] if export.model.robot.kinematics else []),
         f"# {headline(export.accuracy)}",
     ]) + "\n"
 
@@ -105,3 +107,14 @@ def _rotation_vector(rotation: np.ndarray) -> np.ndarray:
     from scipy.spatial.transform import Rotation
 
     return Rotation.from_matrix(rotation).as_rotvec()
+
+
+def _start_sentence(export) -> str:
+    """'The start was the factory kinematics of FILE (...): ...' when the nominal robot was the robot's
+    own kinematics (``--kinematics``), else ''."""
+    start = export.model.robot.kinematics
+    if not start:
+        return ""
+    return (f"The start (the nominal robot) was {export.model.robot.name} with the factory kinematics of "
+            f"{start['file']} ({start['format']}, sha256 {start['sha256'][:12]}); the diagnosis and the tables' "
+            "corrections are relative to it, this file holds the whole calibrated kinematics. ")

@@ -57,6 +57,10 @@ def format_summary(robot, d, source: str) -> str:
     repeats = len(d.stages.residual.heldout_repeats)
     out = [f"Diagnosis of {source}: {d.n_measurements} measurements of {robot_name}, "
            f"{d.folds}-fold cross-validation" + (f" over {repeats} fold assignments" if repeats > 1 else "")]
+    start = getattr(robot, "kinematics", None)
+    if start:  # the nominal robot is the robot's own kinematics: every effect below is relative to them
+        out.append(f"Nominal robot: the factory kinematics of {start['file']} ({start['format']}); every effect "
+                   "below is relative to them")
     out.extend(answer_lines(d))
     out.append(f"\n1. Gap after fitting the tracker frame and TCP offset (frames): "
                f"mean {d.gap.mean * mm:.4f} mm, RMS {d.gap.rms * mm:.4f} mm, max {d.gap.max * mm:.4f} mm")
