@@ -74,6 +74,10 @@ def _plan_rows(path, robot):
     return rows, q / robot.display_scale
 
 
+#: The makers' ready poses [deg], written out: the UR's upright home (PolyScope), Franka's ready pose.
+READY_DEG = {"ur5": [0, -90, 0, -90, 0, 0], "ur10": [0, -90, 0, -90, 0, 0], "panda": [0, -45, 0, -135, 0, 90, 45]}
+
+
 @pytest.mark.parametrize("name", ["ur5", "ur10", "panda", "tool_changer"])
 def test_plan_keeps_above_the_mounting_plane_near_home_and_free_of_collision(name, tmp_path, capsys):
     code, out, err = run(["iso9283", "plan", "--robot", name, "--cycles", "3", "--out", str(tmp_path / "plan.csv"),
@@ -82,7 +86,8 @@ def test_plan_keeps_above_the_mounting_plane_near_home_and_free_of_collision(nam
     robot = load_robot(name)
     rows, q = _plan_rows(tmp_path / "plan.csv", robot)
     payload = json.loads((tmp_path / "plan.json").read_text())
-    home = robot.working_pose  # the robot's reference pose, the default home
+    # the default home: the maker's ready pose (the UR upright, Franka's ready pose), else the reference pose
+    home = np.radians(READY_DEG[name]) if name in READY_DEG else robot.working_pose
     np.testing.assert_allclose(np.asarray(payload["home_display"]) / robot.display_scale, home, atol=1e-12)
     revolute = np.array([k == "revolute" for k in robot.joint_kinds])
     assert np.degrees(np.abs(q - home)[:, revolute]).max() <= 180.0 + 1e-6
@@ -125,7 +130,7 @@ def test_the_cycles_start_at_p1_and_the_conditions_are_blocks_of_the_file(tmp_pa
     assert list(dict.fromkeys(blocks)) == [(100, 100, 5.0), (100, 50, 5.0), (100, 10, 5.0), (10, 100, 0.5)]
     for k in range(4):
         block = rows[10 * k:10 * (k + 1)]
-        assert [r["pose_id"] for r in block] == ["5", "4", "3", "2", "1"] * 2
+        assert [r["pose_id"] for r in block] == ["P5", "P4", "P3", "P2", "P1"] * 2
         assert [r["cycle"] for r in block] == ["1"] * 5 + ["2"] * 5
     comments = [line for line in (tmp_path / "plan.csv").read_text().splitlines() if line.startswith("# condition")]
     assert len(comments) == 4 and all("start at P1" in c for c in comments)
