@@ -150,6 +150,16 @@ def test_without_a_frame_source_every_ap_line_says_relative(ur5_test, capsys):
     assert found["frame_source"] == "base" and found["ap_absolute"] is True and "relative" not in out
     assert "found: the readings lie in the robot's base frame" in found["frame_fit"]
     assert {p["pose_id"]: p["ap_mm"] for p in found["poses"]} == pytest.approx(truth, abs=1e-9)
+    # an instrument's frame set up near the base (20 mm, 0.3 deg off, as simulate draws one) is not taken for it
+    lines = (folder / "base.csv").read_text().splitlines()
+    rotation, shift = pin.exp3(np.radians([0.2, -0.1, 0.2])), np.array([12.0, -9.0, 14.0])
+    near = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        near.append(",".join(cells[:-3] + [repr(float(v)) for v in rotation @ np.array(cells[-3:], float) + shift]))
+    (folder / "near.csv").write_text("\n".join(near) + "\n")
+    out, fitted = _evaluate(capsys, folder, str(folder / "near.csv"))
+    assert fitted["ap_absolute"] is False and "AP RELATIVE" in out
 
 
 # ---------------------------------------------------------------------------------------

@@ -92,7 +92,7 @@ def add_parsers(sub) -> None:
                     "directions; AD and RD between poses measured in the same cycles ('cycle' column); pose "
                     "stabilisation time and overshoot where a visit is a time-stamped stream; per test condition "
                     "(load_pct, speed_pct columns). AP needs the robot's base frame: from --frame-from (other poses "
-                    "of the session), --frame base, or found (readings within 50 mm of it); else the frame is "
+                    "of the session), --frame base, or found (readings within 5 mm of it); else the frame is "
                     "fitted to the poses' barycentres (Kabsch, TCP offset where identifiable) and AP is relative "
                     "to it, said on every line. With --path "
                     "COMMANDED.csv, MEAS.csv is the tracker's stream of a path test (see README, ISO 9283).")
@@ -104,7 +104,7 @@ def add_parsers(sub) -> None:
                                "said on every line); base: the readings are already base-frame TCP positions "
                                "(AP absolute). Default: --frame-from when given, else base when the readings lie "
                                "in the robot's base frame (a frame fitted on the poses moves none by more than "
-                               "50 mm), else fit")
+                               "5 mm), else fit")
     evaluate.add_argument("--frame-from", default=None, metavar="CAL.csv",
                           help="fit the instrument frame on these measurements instead (other poses measured in the "
                                "same instrument frame, e.g. a calibration set of the same session); not with --frame")

@@ -122,8 +122,8 @@ def cycle_order(cycles: int = DEFAULT_CYCLES) -> tuple[np.ndarray, np.ndarray]:
 
     Examples
     --------
-    >>> from tcr_accuracy.iso9283.plan import cycle_order
-    >>> pose, cycle = cycle_order(2)
+    >>> import tcr_accuracy as tcr
+    >>> pose, cycle = tcr.cycle_order(2)
     >>> [f"P{p}" for p in pose], cycle.tolist()
     (['P5', 'P4', 'P3', 'P2', 'P1', 'P5', 'P4', 'P3', 'P2', 'P1'], [1, 1, 1, 1, 1, 2, 2, 2, 2, 2])
     """
