@@ -130,6 +130,14 @@ def test_default_ap_with_a_calibration_set_is_the_base_frames(ur5_test, capsys):
     assert given["frame_n_points"] == 200 and 0 < given["frame_residual_rms_mm"] < 2.0
     assert max(p["ap_mm"] for p in given["poses"]) == pytest.approx(largest, rel=0.10)
     assert "relative" not in out
+    # each pose's distance from the instrument (the origin of the frame its readings are in), for its error
+    head, cells = _plan_rows(folder / "tracker.csv")
+    pose_of = [c[head.index("pose_id")] for c in cells]
+    xyz = np.array([[float(c[head.index(f"{a}_mm")]) for a in "xyz"] for c in cells])
+    for p in given["poses"]:
+        bar = xyz[[i for i, name in enumerate(pose_of) if name == p["pose_id"]]].mean(axis=0)
+        assert p["instrument_distance_mm"] == pytest.approx(np.sqrt(np.sum(bar ** 2)), rel=1e-12)
+    assert all("instrument_distance_mm" not in p for p in base["poses"])
 
     out, fitted = _evaluate(capsys, folder, str(folder / "tracker.csv"))
     assert fitted["frame_source"] == "fitted on the test poses (relative)" and fitted["ap_absolute"] is False

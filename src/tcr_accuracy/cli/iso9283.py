@@ -410,7 +410,9 @@ def evaluation_dict(result) -> dict:
         "n_readings": result.n_readings, "n_visits": result.n_visits, "frame": result.frame, "frame_fit": result.how,
         **result.frame_dict(), "standard_cycles": STANDARD_CYCLES,
         "registration": None if result.registration is None else result.registration.to_dict(),
-        "poses": [_pose_dict(f) for f in fig.poses],
+        "poses": [{**_pose_dict(f), **({} if result.instrument_distance is None else
+                                       {"instrument_distance_mm": result.instrument_distance[f.pose_id] * 1e3})}
+                  for f in fig.poses],
         "summary": {"ap_max_mm": max(f.ap for f in fig.poses) * 1e3,
                     "ap_mean_mm": float(np.mean([f.ap for f in fig.poses])) * 1e3,
                     "rp_max_mm": max(rps) * 1e3 if rps else None},

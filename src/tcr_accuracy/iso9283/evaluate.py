@@ -120,6 +120,10 @@ class IsoEvaluation:
     absolute : bool
         True: AP is the standard's, in the robot's base frame; False: relative to a frame fitted
         on the test's own poses, which takes up most of the robot's absolute error.
+    instrument_distance : dict of str to float, or None
+        Each pose's distance from the origin of the instrument's frame [m] (its barycentre as
+        read: a laser tracker's frame has its origin at the tracker, and its error grows with
+        the distance); None when the readings are taken as base-frame positions.
     """
 
     figures: IsoFigures
@@ -132,6 +136,7 @@ class IsoEvaluation:
     n_visits: int = 0
     frame_source: str = "base"
     absolute: bool = True
+    instrument_distance: dict | None = None
 
     def frame_dict(self) -> dict:
         """JSON-ready account of the frame (mm): ``frame_source``, ``ap_absolute``, and the frame
@@ -381,9 +386,10 @@ def _evaluate(robot, mset, frame, registration, registration_source, band, relat
     if spread > SAME_POSE_TOL:
         figures.notes.append(f"the joint values of one pose scatter by up to {spread:.2g} rad or m (encoder "
                              "readings?): each pose's commanded joints taken as their mean")
+    distance = None if frame == "base" else dict(zip(ids, np.linalg.norm(barycentres, axis=1).tolist()))
     return IsoEvaluation(figures=figures, frame=frame, registration=registration, how=how,
                          orientation_offset=offset, n_readings=len(mset), pose_q=joints, n_visits=len(attained),
-                         frame_source=source, absolute=absolute)
+                         frame_source=source, absolute=absolute, instrument_distance=distance)
 
 
 def _check_one_condition(mset: MeasurementSet) -> None:

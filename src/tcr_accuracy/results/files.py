@@ -166,7 +166,8 @@ def _iso_figures(required: bool) -> dict:
             "properties": {"pose_id": {"anyOf": [{"type": "integer", "minimum": -(2**31), "maximum": 2**31 - 1},
                                                  _NAME]}, "n": _COUNT,
                            "ap_mm": _MM, "rp_mm": _MM_OR_NULL, "ap_x_mm": _SIGNED_MM, "ap_y_mm": _SIGNED_MM,
-                           "ap_z_mm": _SIGNED_MM, "l_mean_mm": _MM_OR_NULL, "s_l_mm": _MM_OR_NULL, "pose": _NAME}}
+                           "ap_z_mm": _SIGNED_MM, "l_mean_mm": _MM_OR_NULL, "s_l_mm": _MM_OR_NULL, "pose": _NAME,
+                           "instrument_distance_mm": _MM}}
     return {
         "type": "object",
         "required": ["poses", "summary", "n_readings", "frame"] if required else ["poses", "summary"],
