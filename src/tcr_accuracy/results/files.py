@@ -186,14 +186,18 @@ def _findings_schema(names) -> dict:
 
 def _iso_figures(required: bool) -> dict:
     pose = {"type": "object", "required": ["pose_id", "n", "ap_mm", "ap_x_mm", "ap_y_mm", "ap_z_mm", "rp_mm"],
-            "properties": {"pose_id": {"type": "integer", "minimum": -(2**31), "maximum": 2**31 - 1}, "n": _COUNT,
+            "properties": {"pose_id": {"anyOf": [{"type": "integer", "minimum": -(2**31), "maximum": 2**31 - 1},
+                                                 _NAME]}, "n": _COUNT,
                            "ap_mm": _MM, "rp_mm": _MM_OR_NULL, "ap_x_mm": _SIGNED_MM, "ap_y_mm": _SIGNED_MM,
-                           "ap_z_mm": _SIGNED_MM, "l_mean_mm": _MM, "s_l_mm": _MM_OR_NULL, "pose": _NAME}}
+                           "ap_z_mm": _SIGNED_MM, "l_mean_mm": _MM_OR_NULL, "s_l_mm": _MM_OR_NULL, "pose": _NAME,
+                           "instrument_distance_mm": _MM}}
     return {
         "type": "object",
         "required": ["poses", "summary", "n_readings", "frame"] if required else ["poses", "summary"],
         "properties": {
             "n_readings": _COUNT, "frame": _NAME, "frame_fit": _TEXT, "measurements": _TEXT,
+            "frame_source": _TEXT, "ap_absolute": {"type": "boolean"}, "frame_residual_rms_mm": _MM_OR_NULL,
+            "frame_n_points": {"anyOf": [{"type": "null"}, _COUNT]}, "standard_cycles": _COUNT,
             "robot": _NAME, "robot_source": _NAME, "tool_frame": _NAME, "model": _TEXT, "kind": _TEXT,
             "poses": {"type": "array", "minItems": 1, "maxItems": 100_000, "items": pose},
             "summary": {"type": "object", "required": ["ap_max_mm", "rp_max_mm"],
