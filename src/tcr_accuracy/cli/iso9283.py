@@ -12,7 +12,7 @@ import argparse
 
 from .common import (DEFAULT_MEMORY_GB, EXIT_OK, MAX_MM, Parser, add_quiet_argument, add_robot_arguments,
                      check_csv_memory, emit_json, integer, number, output_file, sample_bytes, seed_value, status)
-from .iso9283_inputs import condition, plan_inputs, read_model
+from .iso9283_inputs import condition, plan_inputs, read_model, tool_rotation
 from .output import add_output_arguments
 from .report import add_campaign_arguments, read_campaign_arguments
 
@@ -184,14 +184,6 @@ def _pose_test_only(args) -> None:
 
     if args.path_speed_mm_s is not None:
         raise InputError("--path-speed-mm-s is the rated path speed of the path tests: give it with --path")
-
-
-def tool_rotation(args):
-    """(3, 3) the TCP orientation of ``--tool-rpy`` [deg], or None."""
-    import numpy as np
-    import pinocchio as pin
-
-    return None if args.tool_rpy is None else pin.rpy.rpyToMatrix(*np.radians(args.tool_rpy))
 
 
 def pin_rpy(rotation):
