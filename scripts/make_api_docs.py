@@ -31,7 +31,65 @@ SECTIONS = ("Parameters", "Attributes", "Returns", "Yields", "Raises", "Warns", 
 LAYER_TITLES = {"model": "Robot, error model, kinematics", "io": "Measurements", "effects": "Effects",
                 "frames": "Measurement frames", "analysis": "Monte Carlo and simulation", "diagnosis": "Diagnosis",
                 "prediction": "Prediction and compensation", "asbuilt": "As-built model and export",
-                "iso9283": "ISO 9283", "view": "Reports and viewer", "cli": "Files written (the command line's one writer)"}
+                "iso9283": "ISO 9283", "results": "Result files", "view": "Reports and viewer",
+                "cli": "Files written (the command line's one writer)", "exceptions": "Errors"}
+
+#: Examples of the names whose docstrings carry none yet, rendered (and run by tests/test_api_docs.py)
+#: as their Examples section: the ISO 9283 planning and evaluation functions, whose module another
+#: change is rewriting (their docstrings take these over once it lands).
+EXTRA_EXAMPLES = {
+    "plan_iso_cube": """\
+>>> import numpy as np
+>>> import tcr_accuracy as tcr
+>>> robot = tcr.load_robot("ur5")
+>>> plan = tcr.plan_iso_cube(robot, np.random.default_rng(0), n_centres=10)
+>>> plan.q.shape  # P1..P5
+(5, 6)
+""",
+    "evaluate_pose_test": """\
+>>> import numpy as np
+>>> import tcr_accuracy as tcr
+>>> robot = tcr.load_robot("ur5")
+>>> plan = tcr.plan_iso_cube(robot, np.random.default_rng(0), n_centres=10)
+>>> q = np.tile(plan.q, (10, 1))  # 10 cycles of P1..P5
+>>> readings = tcr.tcp_poses(robot, q).position + np.random.default_rng(1).normal(0, 1e-5, (50, 3))
+>>> series = tcr.MeasurementSet(joint_names=list(robot.joint_names), q=q, position=readings,
+...                             annotations={"pose_id": np.array([str(k) for k in range(1, 6)] * 10, dtype=object)})
+>>> evaluation = tcr.evaluate_pose_test(robot, series, frame="base")
+>>> len(evaluation.figures.poses), evaluation.figures.poses[0].ap < 2e-5  # AP_P [m]
+(5, True)
+""",
+    "plan_path_test": """\
+>>> import numpy as np
+>>> import tcr_accuracy as tcr
+>>> plan = tcr.plan_path_test(tcr.load_robot("ur5"), np.random.default_rng(0))
+>>> len(plan.paths) > 0
+True
+""",
+    "evaluate_path_test": """\
+>>> import pathlib
+>>> import tempfile
+>>> import numpy as np
+>>> import tcr_accuracy as tcr
+>>> robot = tcr.load_robot("ur5")
+>>> path = tcr.plan_path_test(robot, np.random.default_rng(0)).paths[0]  # the first standard path
+>>> times = np.linspace(0.0, 2.0, len(path.q))
+>>> commanded = tcr.MeasurementSet(joint_names=list(robot.joint_names), q=path.q, position=path.points,
+...                                time_s=times, annotations={"path": np.full(len(path.q), path.name, dtype=object)})
+>>> rows = ["time_s,x_mm,y_mm,z_mm,path,cycle"]
+>>> for cycle in (1, 2, 3):  # the robot runs the path three times; the tracker logs at 200 Hz
+...     t = np.linspace(0.0, 2.0, 401)
+...     p = np.stack([np.interp(t, times, path.points[:, a]) for a in range(3)], axis=1) * 1e3
+...     rows += [f"{10 * cycle + tk:.3f},{x:.4f},{y:.4f},{z:.4f},{path.name},{cycle}" for tk, (x, y, z) in zip(t, p)]
+>>> stream_file = tempfile.mkdtemp() + "/stream.csv"
+>>> _ = pathlib.Path(stream_file).write_text("\\n".join(rows) + "\\n")
+>>> measured, compensated = tcr.evaluate_path_test(robot, commanded, tcr.read_tracker_stream(stream_file), frame="base",
+...                                              planes=20)
+>>> len(measured.runs), measured.runs[0][1].at < 1e-4  # AT_P [m]: the robot follows its path
+(1, True)
+""",
+}
+
 
 
 def split_sections(doc: str) -> tuple[str, dict[str, str]]:
@@ -197,7 +255,7 @@ def render_api() -> str:
             kind = "class" if inspect.isclass(obj) else "function"
             lines += [f"### {name}", "", f"*{kind}* `tcr_accuracy.{tcr_accuracy._EXPORTS[name]}.{name}`", "",
                       "```python", _signature(name, obj), "```", ""]
-            lines += render_docstring(inspect.getdoc(obj) or "")
+            lines += render_docstring(docstring(name, obj))
             if inspect.isclass(obj):
                 methods = _public_methods(obj)
                 if methods:
@@ -211,6 +269,25 @@ def render_api() -> str:
     text = "\n".join(lines)
     text = re.sub(r"\n{3,}", "\n\n", text)
     return text.rstrip("\n") + "\n"
+
+
+def docstring(name: str, obj) -> str:
+    """``obj``'s cleaned docstring, with :data:`EXTRA_EXAMPLES` as its Examples section where it has none.
+
+    Parameters
+    ----------
+    name : str
+        Its public name.
+    obj : object
+
+    Returns
+    -------
+    str
+    """
+    doc = inspect.getdoc(obj) or ""
+    if name in EXTRA_EXAMPLES and "\nExamples\n--------\n" not in doc:
+        doc = doc.rstrip() + "\n\nExamples\n--------\n" + EXTRA_EXAMPLES[name].strip("\n")
+    return doc
 
 
 def main(argv=None) -> int:
