@@ -225,6 +225,13 @@ def test_37_04_a_model_file_named_as_another_robot_is_refused(diagnosis, tmp_pat
         tcr.load_as_built(forged)
 
 
+def test_load_as_built_given_a_diagnosis_says_what_it_is_and_how_to_build_its_model(diagnosis):
+    """A diagnosis JSON is valid YAML; load_as_built names it a diagnosis and the two calls that make its model."""
+    with pytest.raises(InputError, match=_escaped(f"{diagnosis}: a diagnosis, not an as-built model") +
+                       ".*read_result.*AsBuiltModel.from_diagnosis"):
+        tcr.load_as_built(diagnosis)
+
+
 def test_37_04_another_robots_measurements_with_the_right_row_count_are_refused(diagnosis, tmp_path, capsys):
     """The same 300 joint values with the positions of other rows: the fitted model misses them by
     metres where it was fitted to tenths of a millimetre."""

@@ -169,6 +169,9 @@ def load_as_built(path) -> AsBuiltModel:
 def read_model_document(text: str, source: str) -> AsBuiltModel:
     """The model of a file's text (see :func:`load_as_built`); ``source`` names it in messages."""
     doc = parse_settings(text, source, "yaml")  # YAML 1.2's numbers, no aliases, no key twice
+    if isinstance(doc, dict) and doc.get("format") not in READABLE and {"steps", "parameters"} <= set(doc):
+        raise InputError(f"{source}: a diagnosis, not an as-built model: read it with tcr_accuracy.read_result and "
+                         "build its model with AsBuiltModel.from_diagnosis(robot, diagnosis)")
     if not isinstance(doc, dict) or doc.get("format") not in READABLE:
         raise InputError(f"{source}: not an as-built model written by tcr-accuracy (no 'format: {FORMAT}')")
     for key in REQUIRED:

@@ -62,7 +62,7 @@ class Diagnosis:
 
     A diagnosis read from its JSON form (:meth:`from_json`, :func:`tcr_accuracy.read_result`)
     has no stages: each view is read from the file, equal to the fitted one to the rounding of
-    its mm figures (a relative 1e-15); what the file does not hold (:data:`NOT_STORED_VIEWS`: the
+    its mm figures (a few parts in 1e16); what the file does not hold (:data:`NOT_STORED_VIEWS`: the
     per-row residuals, joint values and gravity torques, the semivariograms, the stages) raises
     :class:`~tcr_accuracy.exceptions.NotStoredError` naming it.
 
