@@ -35,6 +35,15 @@ from .stages.candidates import CandidateSet
 __all__ = ["Diagnosis", "DiagnosisStages", "ErrorStats", "Step"]
 
 
+def _leave_one_out(stages) -> list:
+    """Stage 3's leave-one-out refits with stage 4's own share of each effect (JSON form, mm)."""
+    own = stages.attribute.own_shares
+    return [{**r.to_dict(), **({"own_share_increase_mm": own[r.effect][0] * 1e3,
+                                "own_share_interval_mm": [own[r.effect][1] * 1e3, own[r.effect][2] * 1e3]}
+                               if r.effect in own else {})}
+            for r in stages.select.leave_one_out]
+
+
 @dataclass(frozen=True)
 class DiagnosisStages:
     """Every stage's result, in the order they ran (see :mod:`tcr_accuracy.diagnosis.stages`)."""
@@ -187,7 +196,9 @@ class Diagnosis:
 
     @property
     def leave_one_out(self) -> list:
-        return self._view("leave_one_out", lambda s: [r.to_dict() for r in s.select.leave_one_out])
+        """The final model without each chosen effect (JSON form, mm): the others refitted, and held to
+        their own parameters (its own share, with stage 4's 95 % interval)."""
+        return self._view("leave_one_out", _leave_one_out)
 
     @property
     def eliminated(self) -> list:
@@ -360,6 +371,18 @@ class Diagnosis:
         return self._view("families", lambda s: [f.to_dict() for f in s.attribute.families])
 
     @property
+    def own_share_ranking(self) -> list:
+        """The largest own share against each other the primary effect was chosen among: the
+        difference, its 95 % interval (paired, the same bootstrap replicates) and whether the held-out
+        rows rank the two apart (JSON form, mm; the families' are in :attr:`families`, ``below_largest``)."""
+        return self._view("own_share_ranking", lambda s: [c.to_dict() for c in s.attribute.own_share_ranking])
+
+    @property
+    def interval_method(self) -> str:
+        """How the shares' 95 % intervals were computed, in words."""
+        return self._view("interval_method", lambda s: s.attribute.interval_method)
+
+    @property
     def primary_family(self) -> str | None:
         """The family with the largest share, when the held-out rows rank it above the others."""
         return self._view("primary_family", lambda s: s.attribute.primary_family)
@@ -383,6 +406,18 @@ class Diagnosis:
         """The measuring instrument's specification the diagnosis weighed the points by (JSON form), or None."""
         return self._view("instrument", lambda s: None if s.register.instrument is None
                           else s.register.instrument.to_dict())
+
+    @property
+    def geometry_checks(self) -> list:
+        """The fitted geometry against what the robot's class allows (axis tilts, the tool frame's
+        displacement and rotation, the fitted TCP offset against a given one), JSON form (mm, deg)."""
+        return self._view("geometry_checks", lambda s: [c.to_dict() for c in s.parameters.geometry_checks])
+
+    @property
+    def geometry_tolerance(self) -> dict | None:
+        """The tolerances of the robot's class the geometry is held to (JSON form, mm, deg), or None."""
+        return self._view("geometry_tolerance", lambda s: None if s.parameters.tolerance is None
+                          else s.parameters.tolerance.to_dict())
 
     @property
     def contribution(self) -> dict:

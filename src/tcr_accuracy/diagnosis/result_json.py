@@ -21,6 +21,7 @@ import numpy as np
 
 from ..effects import make_effect
 from ..frames.noise import NoiseEstimate
+from ..frames.uncertainty_budget import PointSet
 from ..io.json_values import finite_or, plain
 from .records import ErrorStats, Step
 
@@ -76,6 +77,9 @@ def diagnosis_document(d) -> dict:
         "mechanisms": d.mechanisms,
         "families": d.families,
         "primary_family": d.primary_family,
+        "own_share_ranking": d.own_share_ranking,
+        "interval_method": d.interval_method,
+        "plausibility": {"tolerance": d.geometry_tolerance, "checks": d.geometry_checks},
         "confounding": d.confounding,
         "instrument": d.instrument,
         "sessions": list(d.sessions),
@@ -95,6 +99,11 @@ def diagnosis_document(d) -> dict:
                               for e, vector in d.effect_parameters.items()},
         "effect_parameters_units": "SI (m, rad, rad/Nm, m/N, 1/K)",
     }
+    if robot.kinematics:  # the nominal robot is the robot's own (factory) kinematics, not its URDF's
+        out["kinematics"] = robot.kinematics
+    position = np.asarray(d.stages.register.measurements.position, dtype=float)
+    # the measured points' moments and box in the tracker frame: what the report's uncertainty budget needs
+    out["measured_points"] = PointSet.of(position[np.isfinite(position).all(axis=1)]).to_dict()
     if out["robot_source"] is None:  # a robot built from URDF text or perturbed: no source to load it from
         del out["robot_source"]
     if len(d.frames_measured) > 1:
@@ -219,6 +228,11 @@ STORED_VIEWS = {
     "instrument": lambda doc: doc["instrument"],
     "contribution": lambda doc: {e: v * 1e-3 for e, v in doc["contribution_mm"].items()},
     "second_order": lambda doc: doc["second_order"],
+    "own_share_ranking": lambda doc: list(doc["own_share_ranking"]),
+    "interval_method": lambda doc: doc["interval_method"],
+    "geometry_checks": lambda doc: list(doc["plausibility"]["checks"]),
+    "geometry_tolerance": lambda doc: doc["plausibility"]["tolerance"],
+    "measured_points": lambda doc: doc["measured_points"],
     "notes": lambda doc: list(doc["notes"]),
     "fold_assignments": lambda doc: doc["fold_assignments"],
     "joint_names": _joint_names,

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..io.json_values import dumps, plain
 from .evaluate import IsoEvaluation
-from .formulas import DirectionalVariation, DistanceFigures, IsoFigures, PoseFigures, Stabilisation, pose_name
+from .formulas import STANDARD_CYCLES, DirectionalVariation, DistanceFigures, IsoFigures, PoseFigures, Stabilisation, pose_name
 
 
 def json_label(label):
@@ -46,7 +46,7 @@ def _si(value_mm):
 def _pose_dict(f: PoseFigures) -> dict:
     out = {"pose_id": json_label(f.pose_id), "pose": pose_name(f.pose_id), "n": f.n, "ap_mm": f.ap * 1e3,
            **{f"ap_{a}_mm": float(v * 1e3) for a, v in zip("xyz", f.ap_xyz)},
-           "rp_mm": _mm(f.rp), "l_mean_mm": f.l_mean * 1e3, "s_l_mm": _mm(f.l_std),
+           "rp_mm": _mm(f.rp), "l_mean_mm": _mm(f.l_mean), "s_l_mm": _mm(f.l_std),
            "barycentre_mm": (f.barycentre * 1e3).tolist(), "commanded_mm": (f.commanded * 1e3).tolist()}
     if f.approach is not None:
         out["approach"] = json_label(f.approach)
@@ -72,8 +72,11 @@ def evaluation_dict(result: IsoEvaluation) -> dict:
     rps = [f.rp for f in fig.poses if f.rp is not None]
     return plain({
         "n_readings": result.n_readings, "n_visits": result.n_visits, "frame": result.frame, "frame_fit": result.how,
+        **result.frame_dict(), "standard_cycles": STANDARD_CYCLES,
         "registration": None if result.registration is None else result.registration.to_dict(),
-        "poses": [_pose_dict(f) for f in fig.poses],
+        "poses": [{**_pose_dict(f), **({} if result.instrument_distance is None else
+                                       {"instrument_distance_mm": result.instrument_distance[f.pose_id] * 1e3})}
+                  for f in fig.poses],
         "summary": {"ap_max_mm": max(f.ap for f in fig.poses) * 1e3,
                     "ap_mean_mm": float(np.mean([f.ap for f in fig.poses])) * 1e3,
                     "rp_max_mm": max(rps) * 1e3 if rps else None},
@@ -110,7 +113,7 @@ def _pose_figures(doc: dict) -> PoseFigures:
                        commanded=np.asarray(doc.get("commanded_mm", [np.nan] * 3), dtype=float) * 1e-3,
                        barycentre=np.asarray(doc.get("barycentre_mm", [np.nan] * 3), dtype=float) * 1e-3,
                        ap=doc["ap_mm"] * 1e-3, ap_xyz=np.array([doc[f"ap_{a}_mm"] for a in "xyz"]) * 1e-3,
-                       rp=_si(doc["rp_mm"]), l_mean=doc.get("l_mean_mm", np.nan) * 1e-3, l_std=_si(doc.get("s_l_mm")),
+                       rp=_si(doc["rp_mm"]), l_mean=_si(doc.get("l_mean_mm")), l_std=_si(doc.get("s_l_mm")),
                        ap_abc=_angles(doc, "ap"), rp_abc=_angles(doc, "rp"))
 
 
@@ -143,9 +146,12 @@ def evaluation_from_dict(doc: dict) -> IsoEvaluation:
                                      s["band_mm"] * 1e-3, s.get("time_mean_s"), s.get("time_max_s"),
                                      _si(s.get("overshoot_mean_mm")), _si(s.get("overshoot_max_mm")),
                                      int(s.get("never_entered", 0))) for s in doc.get("stabilisation", [])])
+    distances = {p["pose_id"]: p["instrument_distance_mm"] for p in doc["poses"] if "instrument_distance_mm" in p}
     return IsoEvaluation(figures=figures, frame=str(doc.get("frame", "")), registration=None,
                          how=str(doc.get("frame_fit", "")), orientation_offset=None,
-                         n_readings=int(doc.get("n_readings", 0)), pose_q=None, n_visits=int(doc.get("n_visits", 0)))
+                         n_readings=int(doc.get("n_readings", 0)), pose_q=None, n_visits=int(doc.get("n_visits", 0)),
+                         frame_source=str(doc.get("frame_source", "base")), absolute=bool(doc.get("ap_absolute", True)),
+                         instrument_distance={_label(k): v * 1e-3 for k, v in distances.items()} if distances else None)
 
 
 @dataclass(frozen=True)

@@ -65,6 +65,7 @@ EXAMPLE_ROBOTS: dict[str, tuple[str, str]] = {
     "panda": ("panda_description/urdf/panda.urdf", "panda_hand_tcp"),
     "z1": ("z1_description/urdf/z1.urdf", "link06"),
     "xarm7": ("xarm_description/urdf/xarm7.urdf", "link7"),
+    "kinova": ("kinova_description/robots/kinova.urdf", "j2s6s200_end_effector"),
 }
 
 BUILTIN_NAME = "tool_changer"
@@ -115,6 +116,15 @@ class RobotModel:
         How :func:`load_robot` loads this robot again: ``tool_changer``, an example-robot-data
         name (``ur5``) or the URDF's absolute path; None for a robot built otherwise (from URDF
         text, or a perturbed copy), which a result file cannot name.
+    mounting_plane_z : float or None
+        The plane the robot stands on [m], base frame z: random poses keep the TCP and the joints on
+        or above it (0: an arm bolted to a floor or a table by its base); None for the tool-changer,
+        which works below its base inside the cutterhead.
+    kinematics : dict or None
+        Where the robot's own (factory) kinematics came from, when they replace the URDF's: the
+        file's name, its format and SHA-256, and the joint and TCP-frame placements it gave
+        (``file``, ``format``, ``sha256``, ``placements``; :mod:`tcr_accuracy.asbuilt.factory_kinematics`).
+        None: the URDF's own (the catalogue's) kinematics.
 
     Examples
     --------
@@ -140,6 +150,8 @@ class RobotModel:
     mimic: dict = field(default_factory=dict)
     payload_kg: float | None = None
     robot_source: str | None = None
+    mounting_plane_z: float | None = 0.0
+    kinematics: dict | None = None
 
     def __post_init__(self) -> None:
         if self.working_pose is None:
@@ -461,6 +473,8 @@ class RobotModel:
             tool_frame_id=self.tool_frame_id,
             mimic=dict(self.mimic),
             payload_kg=self.payload_kg,
+            mounting_plane_z=self.mounting_plane_z,
+            kinematics=self.kinematics,
         )
 
 
@@ -616,6 +630,8 @@ def load_robot(source: str | Path | None = None, tool: str | None = None, *,
         names = {package_of(place.name) for place in robot.mesh_places()} - {None}
         robot.packages = {name: str(folder) for name, folder in
                           find_packages(names, given + ros_package_path(), urdf_path.parent).items()}
+    if working_pose is not None:  # the tool-changer (or its as-built variant) works below its base, in the cutterhead
+        robot.mounting_plane_z = None
     if urdf_path is not None:
         message = robot.missing_mesh_message()
         if message:

@@ -58,7 +58,8 @@ def _figures(block, where: str, source, keys=("mean_mm", "rms_mm", "max_mm")) ->
 def check_consistency(doc: dict, kind: str, source) -> None:
     """The figures of a result of ``kind`` against each other, and its copies of one number against
     each other; InputError naming ``source`` and the key at fault."""
-    {"diagnosis": _diagnosis, "iso9283": _iso, "comparison": _comparison}.get(kind, lambda d, s: None)(doc, source)
+    {"diagnosis": _diagnosis, "iso9283": _iso, "comparison": _comparison,
+     "export": _export}.get(kind, lambda d, s: None)(doc, source)
 
 
 # ---------------------------------------------------------------------------------------
@@ -236,6 +237,18 @@ def _comparison(doc: dict, source) -> None:
     if "significant" in doc and sorted(doc["significant"]) != sorted(named):
         raise InputError(f"{source}: $.significant: {', '.join(doc['significant']) or 'none'}, but the changes "
                          f"flagged significant are {', '.join(named) or 'none'}")
+
+
+def _export(doc: dict, source) -> None:
+    """Each delivered form's figures (export's accuracy.json): mean <= RMS <= max, the points they are
+    on as many as the point set of those poses holds."""
+    sets = doc.get("point_sets") or {}
+    for i, record in enumerate(doc.get("accuracy") or []):
+        _figures(record, f"$.accuracy[{i}]", source)
+        points = sets.get(record.get("on")) or {}
+        if record.get("on") != "k-fold held-out" and _number(points.get("n")) and record.get("n") != points["n"]:
+            raise InputError(f"{source}: $.accuracy[{i}].n: {record.get('n')} {record.get('on')} poses, but "
+                             f"$.point_sets.{record.get('on')} holds {points['n']}: a count that does not match")
 
 
 # ---------------------------------------------------------------------------------------

@@ -8,6 +8,7 @@ is one line here (its keys in ``KINDS``, its schema in :func:`~tcr_accuracy.resu
 
 from __future__ import annotations
 
+from ..asbuilt.export_result import ExportResult
 from ..diagnosis.compare import Comparison
 from ..diagnosis.result import Diagnosis
 from ..iso9283.result_file import IsoTestResult
@@ -19,12 +20,14 @@ RESULT_TYPES = {
     "diagnosis": Diagnosis,
     "iso9283": IsoTestResult,
     "comparison": Comparison,
+    "export": ExportResult,
 }
 
 
 def read_result(path, kind: str | None = None, *, robot=None, required=(), hint: str = ""):
     """The typed result of a result file (``diagnose --json``, ``iso9283 evaluate --json``,
-    ``compare --json``, or what a script saved with ``to_json``), read through the one reader:
+    ``compare --json``, export's ``accuracy.json``, or what a script saved with ``to_json``), read
+    through the one reader:
     the file checked whole before anything is built (its schema; its figures against each other;
     one copy of each number; its robot: the name and joints of what its ``robot_source`` loads,
     a diagnosis' parameters within their effects' physics on it).
@@ -33,7 +36,7 @@ def read_result(path, kind: str | None = None, *, robot=None, required=(), hint:
     ----------
     path : str or Path
         The JSON file.
-    kind : {"diagnosis", "iso9283", "comparison"}, optional
+    kind : {"diagnosis", "iso9283", "comparison", "export"}, optional
         The kind expected (default: whichever the file is).
     robot : RobotModel, optional
         The robot to hold the result to; default the one its ``robot_source`` names (loaded
@@ -47,7 +50,7 @@ def read_result(path, kind: str | None = None, *, robot=None, required=(), hint:
 
     Returns
     -------
-    Diagnosis, IsoTestResult or Comparison
+    Diagnosis, IsoTestResult, Comparison or ExportResult
         As :data:`RESULT_TYPES` says for the file's kind.
 
     Raises
@@ -92,6 +95,11 @@ def _robot_of(doc: dict, path):
     if source != BUILTIN_NAME and source.lower() not in EXAMPLE_ROBOTS and not Path(source).exists():
         return None  # a URDF that is not on this machine: the result is held to nothing beyond itself
     try:
-        return load_robot(source, doc.get("tool_frame") or None)
+        robot = load_robot(source, doc.get("tool_frame") or None)
     except InputError as exc:
         raise InputError(f"{path}: $.robot_source: {exc}") from None
+    if doc.get("kinematics") is None:
+        return robot
+    from ..asbuilt.factory_kinematics import robot_with_start
+
+    return robot_with_start(robot, doc["kinematics"], str(path))  # the robot's own kinematics the result started from
