@@ -256,6 +256,32 @@ def test_37_04_the_right_measurements_pass_and_the_file_says_what_it_leaves_out(
     assert sum(len(v) for v in model.parameters.values()) == total - 6
 
 
+def test_read_result_gives_an_export_its_type_and_refuses_its_contradictions(diagnosis, tmp_path):
+    """export's accuracy.json read with tcr_accuracy.read_result: an ExportResult holding the file's
+    figures, its full model's k-fold figure the diagnosis' own last step (another file's copy of one
+    number); a form whose mean lies above its RMS, or a count its point set does not hold, refused."""
+    code = main(["export", str(diagnosis), "--to", str(tmp_path / "out"), "--quiet"])
+    assert code == 0
+    path = tmp_path / "out" / "accuracy.json"
+    result = tcr.read_result(path)
+    assert isinstance(result, tcr.ExportResult) and result.to_dict() == _doc(path)
+    assert result.forms()[0] == "full model" and result.forms()[-1] == "nominal"
+    kfold = [a for a in result.figures("full model") if a.on == "k-fold held-out"]
+    last = _doc(diagnosis)["steps"][-1]
+    assert len(kfold) == 1 and kfold[0].rms == pytest.approx(last["heldout_rms_mm"] * 1e-3, rel=1e-12)
+    measured = [a for a in result.accuracy if a.on == "measured"]
+    assert {a.n for a in measured} == {_doc(diagnosis)["n_measurements"]}
+    doc = _doc(path)
+    i = next(i for i, a in enumerate(doc["accuracy"]) if a["on"] == "measured")
+    doc["accuracy"][i]["mean_mm"] = doc["accuracy"][i]["rms_mm"] * 2
+    with pytest.raises(InputError, match=_escaped(f"$.accuracy[{i}]: mean_mm") + ".*above rms_mm"):
+        tcr.read_result(_write(tmp_path, doc, "forged_mean.json"))
+    doc = _doc(path)
+    doc["accuracy"][i]["n"] += 1
+    with pytest.raises(InputError, match=_escaped(f"$.accuracy[{i}].n: ") + ".*holds"):
+        tcr.read_result(_write(tmp_path, doc, "forged_count.json"))
+
+
 # ---------------------------------------------------------------------------------------
 # Item 5: the same campaign re-exported with fewer decimals is not a second session
 # ---------------------------------------------------------------------------------------
