@@ -12,7 +12,7 @@ import argparse
 
 from .common import (DEFAULT_MEMORY_GB, EXIT_OK, MAX_MM, Parser, add_quiet_argument, add_robot_arguments,
                      check_csv_memory, emit_json, integer, number, output_file, sample_bytes, seed_value, status)
-from .iso9283_inputs import condition, plan_inputs, read_model
+from .iso9283_inputs import condition, plan_inputs, read_model, tool_rotation
 from .output import add_output_arguments
 from .report import add_campaign_arguments, read_campaign_arguments
 
@@ -108,7 +108,7 @@ def add_parsers(sub) -> None:
     evaluate.add_argument("--frame-from", default=None, metavar="CAL.csv",
                           help="fit the instrument frame on these measurements instead (other poses measured in the "
                                "same instrument frame, e.g. a calibration set of the same session); not with --frame")
-    evaluate.add_argument("--band-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
+    evaluate.add_argument("--band-mm", type=number(low=1e-6, high=MAX_MM, unit="mm"), default=None,
                           metavar="R", help="limit band radius for the pose stabilisation time and overshoot of "
                                             "time-stamped visits (default: each pose's RP)")
     evaluate.add_argument("--model", default=None, metavar="DIAGNOSIS.json",
@@ -184,14 +184,6 @@ def _pose_test_only(args) -> None:
 
     if args.path_speed_mm_s is not None:
         raise InputError("--path-speed-mm-s is the rated path speed of the path tests: give it with --path")
-
-
-def tool_rotation(args):
-    """(3, 3) the TCP orientation of ``--tool-rpy`` [deg], or None."""
-    import numpy as np
-    import pinocchio as pin
-
-    return None if args.tool_rpy is None else pin.rpy.rpyToMatrix(*np.radians(args.tool_rpy))
 
 
 def pin_rpy(rotation):

@@ -51,3 +51,11 @@ def read_model(robot, path: str):
     payload = read_result(path, "diagnosis", robot=robot, hint="give the JSON that 'diagnose --json FILE' wrote"
                           ).to_dict()  # checked whole, its robot and physics too
     return diagnosis_model(robot, payload, path)
+
+
+def tool_rotation(args):
+    """(3, 3) the TCP orientation of ``--tool-rpy`` [deg], or None."""
+    import numpy as np
+    import pinocchio as pin
+
+    return None if args.tool_rpy is None else pin.rpy.rpyToMatrix(*np.radians(args.tool_rpy))

@@ -29,7 +29,7 @@ def run_path_plan(args) -> int:
     centre = None if args.cube_centre_mm is None else np.asarray(args.cube_centre_mm) * 1e-3
     size = None if args.cube_size_mm is None else args.cube_size_mm * 1e-3
     speed = None if args.path_speed_mm_s is None else args.path_speed_mm_s * 1e-3
-    from .iso9283 import tool_rotation
+    from .iso9283_inputs import tool_rotation
 
     tracker = None if args.tracker_mm is None else np.asarray(args.tracker_mm, dtype=float) * 1e-3
     plan = plan_path_test(robot, args.seed, centre=centre, size=size, home=home, workspace=workspace,
