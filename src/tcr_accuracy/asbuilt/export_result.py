@@ -20,7 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..frames.uncertainty_budget import PointSet
-from ..io.json_values import dumps
+from ..io.json_values import JsonForm
 from .accuracy import FormAccuracy
 
 #: The value of the file's ``kind`` key.
@@ -28,7 +28,7 @@ KIND = "export"
 
 
 @dataclass(frozen=True)
-class ExportResult:
+class ExportResult(JsonForm):
     """What an export reaches, as its result file holds it.
 
     Attributes
@@ -91,19 +91,6 @@ class ExportResult:
                 "accuracy": [a.to_dict() for a in self.accuracy],
                 "point_sets": {k: p.to_dict() for k, p in self.point_sets.items()},
                 "reach_mm": None if self.reach is None else self.reach * 1e3}
-
-    def to_json(self, indent: int | None = 1) -> str:
-        """The JSON text of :meth:`to_dict` (what ``export`` writes as ``accuracy.json``).
-
-        Parameters
-        ----------
-        indent : int or None, default=1
-
-        Returns
-        -------
-        str
-        """
-        return dumps(self.to_dict(), indent)
 
     @classmethod
     def from_dict(cls, doc: dict, source: str = "") -> "ExportResult":

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..effects import make_effect, predict_positions, prediction_jacobian
 from ..exceptions import InputError
-from ..io.json_values import dumps, plain
+from ..io.json_values import JsonForm, plain
 from ..model.context import MeasurementContext
 from ..model.robot import RobotModel
 from ..frames.rigid import rigid_fit
@@ -150,7 +150,7 @@ class TcpEffect:
 
 
 @dataclass
-class Comparison:
+class Comparison(JsonForm):
     """What :func:`compare_models` found (SI); :meth:`to_json` is the JSON form ``compare --json``
     writes, :meth:`from_json` (or :func:`tcr_accuracy.read_result` for a file) reads it back.
 
@@ -233,19 +233,6 @@ class Comparison:
         if self.robot_source is None:
             del out["robot_source"]
         return plain(out)
-
-    def to_json(self, indent: int | None = 2) -> str:
-        """The JSON text of :meth:`to_dict`.
-
-        Parameters
-        ----------
-        indent : int or None, default=2
-
-        Returns
-        -------
-        str
-        """
-        return dumps(self.to_dict(), indent)
 
     @classmethod
     def from_dict(cls, doc: dict, source: str = "") -> "Comparison":

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..effects import make_effect, predict_positions
 from ..exceptions import InputError, NotStoredError
-from ..io.json_values import dumps
+from ..io.json_values import JsonForm
 from ..model.context import MeasurementContext
 from ..model.kinematics import tcp_poses
 from ..model.robot import RobotModel
@@ -58,7 +58,7 @@ class DiagnosisStages:
 
 
 @dataclass(frozen=True, repr=False, eq=False)
-class Diagnosis:
+class Diagnosis(JsonForm):
     """Everything :func:`~tcr_accuracy.diagnosis.diagnose.diagnose` found. Lengths in m inside;
     :meth:`to_json` writes the JSON form ``diagnose --json`` writes (mm), :meth:`from_json`
     reads it back.
@@ -514,19 +514,6 @@ class Diagnosis:
         if self.stages is None:
             return dict(self.document)
         return diagnosis_document(self)
-
-    def to_json(self, indent: int | None = 2) -> str:
-        """The JSON text of :meth:`to_dict` (no NaN or infinity: valid JSON).
-
-        Parameters
-        ----------
-        indent : int or None, default=2
-
-        Returns
-        -------
-        str
-        """
-        return dumps(self.to_dict(), indent)
 
     @classmethod
     def from_dict(cls, document: dict, source: str = "") -> "Diagnosis":

@@ -81,3 +81,22 @@ def finite_or(value, infinite: float) -> float:
     float
     """
     return infinite if value is None else float(value)
+
+
+class JsonForm:
+    """A result with a JSON form (its ``to_dict``): :meth:`to_json` writes it as valid JSON, the
+    same text for every kind of result (Diagnosis, IsoTestResult, Comparison, ExportResult)."""
+
+    def to_json(self, indent: int | None = 2) -> str:
+        """The JSON text of ``to_dict()`` (plain values, no NaN or infinity: valid JSON).
+
+        Parameters
+        ----------
+        indent : int or None, default=2
+
+        Returns
+        -------
+        str
+            The JSON text, ending in a newline.
+        """
+        return dumps(self.to_dict(), indent)

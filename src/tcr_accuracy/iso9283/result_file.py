@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..io.json_values import dumps, plain
+from ..io.json_values import JsonForm, plain
 from .evaluate import IsoEvaluation
 from .formulas import STANDARD_CYCLES, DirectionalVariation, DistanceFigures, IsoFigures, PoseFigures, Stabilisation, pose_name
 
@@ -215,7 +215,7 @@ class IsoCondition:
 
 
 @dataclass(frozen=True)
-class IsoTestResult:
+class IsoTestResult(JsonForm):
     """An ISO 9283 pose test's result: what ``iso9283 evaluate --json`` writes and
     :func:`tcr_accuracy.read_result` reads back.
 
@@ -272,19 +272,6 @@ class IsoTestResult:
         if len(parts) > 1:
             out["conditions"] = parts
         return out
-
-    def to_json(self, indent: int | None = 2) -> str:
-        """The JSON text of :meth:`to_dict`.
-
-        Parameters
-        ----------
-        indent : int or None, default=2
-
-        Returns
-        -------
-        str
-        """
-        return dumps(self.to_dict(), indent)
 
     @classmethod
     def from_dict(cls, doc: dict, source: str = "") -> "IsoTestResult":
