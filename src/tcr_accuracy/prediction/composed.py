@@ -230,9 +230,11 @@ class MeasuredErrorModel(BaseEstimator):
     --------
     >>> import tcr_accuracy as tcr
     >>> robot = tcr.load_robot()
-    >>> model = tcr.MeasuredErrorModel(robot=robot, estimator=tcr.make_predictor("gp", robot, random_state=0))
-    >>> model.fit(train.q, train.position, context=train.context)  # doctest: +SKIP
-    >>> model.predict(test.q, context=test.context).shape  # doctest: +SKIP
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> train, test = measured.subset(slice(0, 160)), measured.subset(slice(160, 200))
+    >>> model = tcr.MeasuredErrorModel(robot=robot, estimator=tcr.make_predictor("kriging", robot))
+    >>> model = model.fit(train.q, train.position, context=train.context)
+    >>> model.predict(test.q, context=test.context).shape
     (40, 3)
     """
 
