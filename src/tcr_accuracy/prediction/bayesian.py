@@ -25,6 +25,8 @@ from sklearn.utils._param_validation import Interval
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ..diagnosis.bayes_design import BayesianErrorModel, design_columns, design_vocabulary, fit_prior
+from ..effects import effect_class
+from ..exceptions import InputError
 from ..hyperparameters import validate_hyperparameters
 from ..model.robot import JointLimitWarning
 from .checks import check_joints_and_position_errors
@@ -85,6 +87,20 @@ class BayesianCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
             warnings.simplefilter("ignore", JointLimitWarning)
             return design_columns(self.robot, X, effects, context=context)
 
+    def _vocabulary(self) -> list[str]:
+        """The effects to model: ``effects`` checked (each a vocabulary effect the pose drives), or all of them."""
+        if self.effects is None:
+            return design_vocabulary()
+        for name in self.effects:
+            effect_class(name, vocabulary_only=True, source=f"{type(self).__name__}: effects")
+        chosen = design_vocabulary(self.effects)
+        outside = [name for name in self.effects if name not in chosen]
+        if outside:
+            raise InputError(f"{type(self).__name__}: effects: {', '.join(outside)}: not a function of the joint "
+                             f"values and the payload (drift, temperature, approach direction, clearance); "
+                             f"it models {', '.join(design_vocabulary())}")
+        return chosen
+
     def fit(self, X, y, context=None):
         """Joint values X (n, n_joints) [rad, m], base-frame errors y (n, 3) [m]; returns self.
 
@@ -93,7 +109,7 @@ class BayesianCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
         validate_hyperparameters(self)
         X, y = validate_data(self, X, y, multi_output=True, y_numeric=True)
         check_joints_and_position_errors(self.robot, X, y, type(self).__name__)
-        columns = self._columns(X, context, design_vocabulary(self.effects))
+        columns = self._columns(X, context, self._vocabulary())
         self.prior_ = fit_prior(columns, y, noise_m=self.tracker_noise)
         self.model_ = BayesianErrorModel(self.prior_).fit(columns, y)
         self.effects_ = list(columns.effects)
