@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""A mutation run over the packages that compute the figures: how many planted bugs that change
+r"""A mutation run over the packages that compute the figures: how many planted bugs that change
 a number the tests catch.
 
 Mutants are made and run by cosmic-ray (each written into its source file in place, the tests
@@ -15,7 +15,12 @@ log of that run with ``--durations=0``) and stopped at the first failure.
 usage (from the repository root, on a clean working tree; cosmic-ray and pytest-cov installed)::
 
     python -m pytest -n 2 --cov=tcr_accuracy --cov-context=test --cov-report= --durations=0 > cov.log
-    python scripts/mutation_run.py --coverage .coverage --durations cov.log --sample 300 --out mutation/
+    python scripts/mutation_run.py --coverage .coverage --durations cov.log --sample 150 --out mutation/
+    # after tests written for the survivors: their coverage, then the survivors run again
+    COVERAGE_FILE=.coverage.new python -m pytest --cov=tcr_accuracy --cov-context=test --cov-report= \
+        --durations=0 tests/test_new.py > cov.new.log
+    python scripts/mutation_run.py --rerun --coverage .coverage .coverage.new --durations cov.log cov.new.log
+    python scripts/mutation_run.py --report-only    # the counts again, after judging equivalents
 
 Writes ``OUT/session.sqlite`` (cosmic-ray's), ``OUT/report.json`` and prints the counts and each
 survivor's diff. A survivor is either a gap in the tests or an equivalent mutant (one that
@@ -41,45 +46,57 @@ NUMBER_OPERATORS = re.compile(r"core/(NumberReplacer|ReplaceUnaryOperator_Delete
                               + "|".join(ARITHMETIC) + ")_(" + "|".join(ARITHMETIC) + "))$")
 
 
-def coverage_map(coverage_file: Path, durations_log: Path | None) -> dict:
-    """{"lines": {file: {line: [test ids]}}, "durations": {test id: seconds}} from a coverage run
-    with test contexts (pytest-cov's ``--cov-context=test``)."""
+def coverage_map(coverage_files, durations_logs, packages) -> dict:
+    """{"tests": [test ids], "lines": {file: {line: [indices into tests]}}, "durations": {test id: seconds}}
+    over the packages' files, from a coverage run with test contexts (pytest-cov's
+    ``--cov-context=test``) and the log of that run with ``--durations=0``."""
     import coverage
 
-    data = coverage.CoverageData(basename=str(coverage_file))
-    data.read()
+    data = coverage.CoverageData(no_disk=True)
+    for coverage_file in coverage_files:
+        more = coverage.CoverageData(basename=str(coverage_file))
+        more.read()
+        data.update(more)
+    tests: dict[str, int] = {}
     lines: dict = {}
+    prefixes = tuple(f"src/tcr_accuracy/{p}/" for p in packages)
     for measured in data.measured_files():
-        path = Path(measured)
         try:
-            relative = path.resolve().relative_to(ROOT).as_posix()
+            relative = Path(measured).resolve().relative_to(ROOT).as_posix()
         except ValueError:
             continue
-        if not relative.startswith("src/"):
+        if not relative.startswith(prefixes):
             continue
         by_line = {}
         for line, contexts in data.contexts_by_lineno(measured).items():
-            tests = sorted({c.split("|")[0] for c in contexts if c and "::" in c})
-            if tests:
-                by_line[str(line)] = tests
+            names = sorted({c.split("|")[0] for c in contexts if c and "::" in c})
+            if names:
+                by_line[str(line)] = [tests.setdefault(name, len(tests)) for name in names]
         lines[relative] = by_line
+    # a test that fails on the unmutated code would "kill" every mutant it runs: left out of the map
+    failing = {m.group(1) for log in durations_logs
+               for m in re.finditer(r"^(?:FAILED|ERROR) (\S+)", log.read_text(), re.MULTILINE)}
+    names = list(tests)
+    for by_line in lines.values():
+        for line, indices in by_line.items():
+            by_line[line] = [i for i in indices if names[i] not in failing]
     durations: dict = {}
-    if durations_log is not None:
+    for durations_log in durations_logs:
         for match in re.finditer(r"^([\d.]+)s (?:call|setup|teardown)\s+(\S.*)$", durations_log.read_text(),
                                  re.MULTILINE):
             durations[match.group(2)] = durations.get(match.group(2), 0.0) + float(match.group(1))
-    return {"lines": lines, "durations": durations}
+    return {"tests": names, "lines": lines, "durations": durations, "failing": sorted(failing)}
 
 
-def write_config(out: Path, timeout: float) -> Path:
+def write_config(out: Path, budget: float) -> Path:
     """cosmic-ray's configuration: the test command and its timeout (the mutants are chosen here, not
     by ``cosmic-ray init``)."""
     config = out / "cosmic-ray.toml"
     config.write_text(f"""[cosmic-ray]
 module-path = "src/tcr_accuracy"
-timeout = {timeout}
+timeout = {budget + 300}
 excluded-modules = []
-test-command = "{sys.executable} scripts/mutation_tests.py --map {out / 'map.json'}"
+test-command = "{sys.executable} scripts/mutation_tests.py --map {out / 'map.json'} --budget {budget}"
 
 [cosmic-ray.distributor]
 name = "local"
@@ -154,13 +171,14 @@ def outcomes(session: Path) -> dict:
     with use_db(str(session), WorkDB.Mode.open) as db:
         for item, result in db.completed_work_items:
             m = item.mutations[0]
-            outcome = ("timeout" if result.output == "timeout" else  # cosmic-ray counts a timeout as killed
+            outcome = ("timeout" if result.output == "timeout" else
                        "killed" if result.test_outcome == TestOutcome.KILLED else
                        "survived" if result.test_outcome == TestOutcome.SURVIVED else "incompetent")
             before, after = changed_line(result.diff or "")
             rows[item.job_id] = {"job": item.job_id, "file": str(m.module_path), "line": m.start_pos[0],
                                  "operator": m.operator_name, "outcome": outcome, "before": before, "after": after,
                                  "uncovered": "uncovered: no test ran" in (result.output or ""),
+                                 "budget_spent": "budget spent" in (result.output or ""),
                                  "diff": result.diff}
     return rows
 
@@ -179,11 +197,12 @@ def summarise(rows: list, equivalent: list, population: int) -> dict:
     for row in rows:
         row["equivalent"] = why(row)
     counted = [r for r in rows if r["equivalent"] is None]
-    killed = sum(r["outcome"] != "survived" for r in counted)
+    # only a failing test kills: a cosmic-ray timeout or a test command that could not start is read as a survivor
+    killed = sum(r["outcome"] == "killed" for r in counted)
     low, high = wilson(killed, len(counted))
     return {"population": population, "run": len(rows), "equivalent": len(rows) - len(counted),
             "counted": len(counted), "killed": killed, "kill_rate": killed / max(len(counted), 1),
-            "interval_95": [low, high], "survivors": [r for r in counted if r["outcome"] == "survived"],
+            "interval_95": [low, high], "survivors": [r for r in counted if r["outcome"] != "killed"],
             "mutants": rows}
 
 
@@ -199,14 +218,14 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0].replace("\n", " "),
                                      epilog=__doc__[__doc__.index("usage"):],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--coverage", type=Path, help="pytest-cov's .coverage with test contexts")
-    parser.add_argument("--durations", type=Path, default=None, help="that run's log with --durations=0")
+    parser.add_argument("--coverage", type=Path, nargs="+", help="pytest-cov's .coverage file(s) with test contexts")
+    parser.add_argument("--durations", type=Path, nargs="*", default=[], help="those runs' logs with --durations=0")
     parser.add_argument("--packages", nargs="+", default=list(PACKAGES), help="under src/tcr_accuracy/ (default: "
                         + " ".join(PACKAGES) + ")")
     parser.add_argument("--sample", type=int, default=150, help="number-changing mutants to run (default 150)")
     parser.add_argument("--seed", type=int, default=0, help="of the sample (default 0)")
-    parser.add_argument("--timeout", type=float, default=300.0, help="seconds a mutant's tests may take (default "
-                        "300; a timeout counts as killed)")
+    parser.add_argument("--budget", type=float, default=120.0, help="seconds a mutant's tests may take (default "
+                        "120); a mutant whose tests outlast it counts as a survivor")
     parser.add_argument("--out", type=Path, default=Path("mutation"), help="output folder (default mutation/)")
     parser.add_argument("--equivalent", type=Path, default=ROOT / "scripts" / "mutation_equivalent.json",
                         help="the mutants judged equivalent, each with why (default scripts/mutation_equivalent.json)")
@@ -225,11 +244,11 @@ def main(argv=None) -> int:
             print("the source tree has uncommitted changes: the mutants are found by git diff", file=sys.stderr)
             return 2
         if args.coverage is not None:
-            (out / "map.json").write_text(json.dumps(coverage_map(args.coverage, args.durations)))
+            (out / "map.json").write_text(json.dumps(coverage_map(args.coverage, args.durations, args.packages)))
         if not (out / "map.json").exists():
             print("--coverage is needed (no OUT/map.json yet)", file=sys.stderr)
             return 2
-        config = write_config(out, args.timeout)
+        config = write_config(out, args.budget)
         if args.rerun:
             first = summarise(list(outcomes(session).values()), equivalent, 0)
             jobs = {r["job"] for r in first["survivors"]}
@@ -258,8 +277,9 @@ def main(argv=None) -> int:
     last = result.get("after", before)
     (out / "report.json").write_text(json.dumps(result, indent=1))
     for r in last["mutants"]:
-        if r["outcome"] == "survived":
-            print(f"\nsurvived{' (no test runs the line)' if r['uncovered'] else ''}"
+        if r["outcome"] != "killed":
+            print(f"\n{r['outcome']}{' (no test runs the line)' if r['uncovered'] else ''}"
+                  f"{' (budget spent)' if r['budget_spent'] else ''}"
                   f"{' (equivalent: ' + r['equivalent'] + ')' if r['equivalent'] else ''}: "
                   f"{r['file']}:{r['line']} {r['operator']}\n  - {r['before']}\n  + {r['after']}")
     return 0
