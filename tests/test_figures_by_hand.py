@@ -58,3 +58,58 @@ def test_a_dropped_column_names_the_three_columns_it_is_mostly_made_of():
     removed, = report["effects"]["second"]["removed"]
     assert removed["duplicates"] == ["c", "d", "e"]
     assert removed["reason"] == "linear combination of c, d, e"
+
+
+def test_learning_curve_in_mm_and_its_prediction_by_hand():
+    """A learning curve given in metres: its JSON form in mm, and its expectation at a posterior
+    variance v the closed form sqrt(3 sigma^2 + v) (a = b = 1). Catches ``floor_m * 1001.0`` for
+    ``* 1e3``."""
+    from tcr_accuracy.diagnosis.bayes_design import LearningCurve
+
+    floor = np.sqrt(3) * 0.02 * MM
+    curve = LearningCurve(sizes=np.array([10, 20]), rms_m=np.array([0.3, 0.2]) * MM,
+                          low_m=np.array([0.25, 0.15]) * MM, high_m=np.array([0.35, 0.25]) * MM,
+                          expected_rms_m=np.array([0.28, 0.21]) * MM, noise_weight=1.0, variance_weight=1.0,
+                          boot=np.ones((50, 2)), noise_floor_m=floor)
+    doc = curve.to_dict()
+    assert doc["floor_mm"] == pytest.approx(np.sqrt(3) * 0.02, rel=1e-12)
+    assert doc["noise_floor_mm"] == pytest.approx(np.sqrt(3) * 0.02, rel=1e-12)
+    assert doc["heldout_rms_mm"] == pytest.approx([0.3, 0.2], rel=1e-12)
+    assert doc["heldout_rms_5_mm"] == pytest.approx([0.25, 0.15], rel=1e-12)
+    assert doc["heldout_rms_95_mm"] == pytest.approx([0.35, 0.25], rel=1e-12)
+    assert doc["expected_rms_mm"] == pytest.approx([0.28, 0.21], rel=1e-12)
+    v = (0.1 * MM) ** 2
+    assert curve.predict(v) == pytest.approx((np.sqrt(floor**2 + v),) * 3, rel=1e-12)
+
+
+def test_rigidly_aligned_difference_of_a_moved_copy_is_its_planted_bump():
+    """Points moved by a rotation and a translation built with scipy, one of them then pushed 1 mm
+    along a direction that no rigid motion undoes much: the aligned differences are ~0 elsewhere
+    and the largest at that point. Catches ``trans // reference`` for ``trans - reference``."""
+    from scipy.spatial.transform import Rotation
+
+    from tcr_accuracy.diagnosis.compare import rigidly_aligned_difference
+
+    rng = np.random.default_rng(3)
+    reference = rng.uniform(-0.8, 0.8, size=(30, 3))
+    rot = Rotation.from_rotvec([0.1, -0.2, 0.3]).as_matrix()
+    moved = (reference - [0.05, -0.02, 0.1]) @ rot  # moved @ rot.T + t == reference
+    assert rigidly_aligned_difference(reference, moved) == pytest.approx(np.zeros(30), abs=1e-12)
+    moved[4] += 1.0 * MM * (reference[4] / np.linalg.norm(reference[4])) @ rot
+    distance = rigidly_aligned_difference(reference, moved)
+    assert int(np.argmax(distance)) == 4 and 0.8 * MM < distance[4] < 1.0 * MM
+    assert np.sqrt(np.mean(distance ** 2)) < 1.0 * MM / np.sqrt(30)
+
+
+def test_a_diagnosis_with_a_non_finite_parameter_is_refused_naming_it(tmp_path):
+    """The one non-finite parameter of a diagnosis' JSON named in one line. Catches ``bad[1]`` for
+    ``bad[0]`` (an IndexError, a traceback, where the parameter is to be named)."""
+    from tcr_accuracy.diagnosis.compare import FittedModel
+    from tcr_accuracy.exceptions import InputError
+
+    doc = {"robot": "ur5", "selected_effects": ["geometry"],
+           "parameters": {"geometry": {"geometry.j2.dx": 1e-4, "geometry.j3.dy": float("nan")}},
+           "parameter_std": {"geometry": {"geometry.j2.dx": 1e-5, "geometry.j3.dy": 1e-5}},
+           "parameter_units": {"geometry": {"geometry.j2.dx": "m", "geometry.j3.dy": "m"}}}
+    with pytest.raises(InputError, match=r"^d\.json: parameter geometry\.j3\.dy is not a finite number$"):
+        FittedModel.from_dict(doc, "d.json")
