@@ -113,3 +113,31 @@ def test_a_diagnosis_with_a_non_finite_parameter_is_refused_naming_it(tmp_path):
            "parameter_units": {"geometry": {"geometry.j2.dx": "m", "geometry.j3.dy": "m"}}}
     with pytest.raises(InputError, match=r"^d\.json: parameter geometry\.j3\.dy is not a finite number$"):
         FittedModel.from_dict(doc, "d.json")
+
+
+def test_an_elimination_row_in_mm():
+    """Backward elimination's row: the held-out RMS it gained, 0.012 mm, given in mm. Catches
+    ``increase / 1e3`` for ``* 1e3``."""
+    from tcr_accuracy.diagnosis.stages.select import Elimination
+
+    row = Elimination(effect="backlash", z=0.4, increase=0.012 * MM).to_dict()
+    assert row["effect"] == "backlash" and row["z"] == 0.4
+    assert row["increase_mm"] == pytest.approx(0.012, rel=1e-12)
+
+
+def test_a_diagnosis_summary_line_gives_the_last_steps_held_out_rms():
+    """The one-line summary of a diagnosis (its repr) quotes the held-out RMS of the last step of the
+    shrink table (0.05 mm), not of the first (0.4 mm). Catches ``steps[- 0]`` for ``steps[-1]``."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.diagnosis.result import Diagnosis
+
+    def step(rms_mm):
+        return SimpleNamespace(heldout=SimpleNamespace(rms=rms_mm * MM))
+
+    fake = SimpleNamespace(robot_name="ur5", n_measurements=120, gap=SimpleNamespace(rms=0.5 * MM),
+                           selected_effects=["frames", "geometry", "gravity"], primary_effect="geometry",
+                           steps=[step(0.4), step(0.09), step(0.05)], noise_floor=0.03 * MM)
+    assert Diagnosis.__repr__(fake) == ("Diagnosis('ur5', 120 measurements, gap RMS 0.5 mm, selected [frames, "
+                                        "geometry, gravity], primary 'geometry', held-out RMS 0.05 mm, noise floor "
+                                        "0.03 mm)")
