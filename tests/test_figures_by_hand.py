@@ -141,3 +141,18 @@ def test_a_diagnosis_summary_line_gives_the_last_steps_held_out_rms():
     assert Diagnosis.__repr__(fake) == ("Diagnosis('ur5', 120 measurements, gap RMS 0.5 mm, selected [frames, "
                                         "geometry, gravity], primary 'geometry', held-out RMS 0.05 mm, noise floor "
                                         "0.03 mm)")
+
+
+def test_signed_rank_z_with_ties_is_scipys():
+    """Wilcoxon's signed-rank z of squared errors with tied differences (4 x3, 2 x3, 6 x2) and a
+    zero dropped is scipy's normal approximation with the tie correction, read back from its one-sided
+    p-value. Catches ``counts/3 - counts`` for ``counts**3 - counts`` in the tie correction."""
+    from scipy import stats
+
+    from tcr_accuracy.diagnosis.paired import signed_rank_z
+
+    before = np.array([5.0, 5.0, 5.0, 3.0, 3.0, 8.0, 1.0, 2.0, 9.0, 4.0, 7.0, 2.0])
+    after = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 2.0, 2.0, 0.0, 3.0, 1.0, 7.0, 1.5])
+    d = before - after
+    p = stats.wilcoxon(d, zero_method="wilcox", correction=False, alternative="greater", method="approx").pvalue
+    assert signed_rank_z(before, after) == pytest.approx(stats.norm.isf(p), rel=1e-9)
