@@ -160,16 +160,17 @@ def test_signed_rank_z_with_ties_is_scipys():
 
 def test_registration_covariance_against_monte_carlo_kabsch():
     """The covariance a rigid frame fitted to 6 points (+-0.5 m on each axis, 0.1 mm scatter per
-    axis) adds to a point 1 m off their centroid, against 4000 Kabsch fits of noisy copies done
-    with scipy (``Rotation.align_vectors``): each diagonal term within 10 % (Monte Carlo's own
-    spread ~2 %). Catches a skew matrix of the wrong shape ((N, 3, 4) for (N, 3, 3))."""
+    axis) adds to a point ~1 m off their centroid, against 4000 Kabsch fits of noisy copies done
+    with scipy (``Rotation.align_vectors``): each term within 10 % of the largest (Monte Carlo's own
+    spread ~2 %). Catches a skew matrix of the wrong shape ((N, 3, 4) for (N, 3, 3)) and one entry
+    of it written in the wrong place (``skew[:, 0, 2]`` twice)."""
     from scipy.spatial.transform import Rotation
 
     from tcr_accuracy.frames.uncertainty_budget import PointSet, registration_covariance
 
     sigma, half = 0.1 * MM, 0.5
     points = np.vstack([np.eye(3), -np.eye(3)]) * half + [0.2, -0.1, 0.3]
-    at = points.mean(axis=0) + [1.0, 0.0, 0.0]
+    at = points.mean(axis=0) + [0.6, -0.5, 0.7]
     rng = np.random.default_rng(11)
     mapped = []
     for _ in range(4000):
@@ -178,5 +179,4 @@ def test_registration_covariance_against_monte_carlo_kabsch():
         mapped.append(rot.apply(at - points.mean(axis=0)) + noisy.mean(axis=0))
     simulated = np.cov(np.array(mapped).T)
     computed, = registration_covariance(PointSet.of(points), sigma, at[None, :])
-    assert np.diag(computed) == pytest.approx(np.diag(simulated), rel=0.10)
-    assert np.abs(computed - np.diag(np.diag(computed))).max() < 0.05 * sigma ** 2
+    assert np.abs(computed - simulated).max() < 0.10 * np.abs(simulated).max()
