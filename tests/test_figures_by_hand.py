@@ -180,3 +180,20 @@ def test_registration_covariance_against_monte_carlo_kabsch():
     simulated = np.cov(np.array(mapped).T)
     computed, = registration_covariance(PointSet.of(points), sigma, at[None, :])
     assert np.abs(computed - simulated).max() < 0.10 * np.abs(simulated).max()
+
+
+@pytest.mark.parametrize("interval_mm, z, ranked", [((0.01, 0.05), 3.0, True), ((-0.01, 0.05), 3.0, False),
+                                                    ((0.01, 0.05), 1.5, False)])
+def test_a_share_comparison_in_mm_and_ranked_only_above_zero_and_the_threshold(interval_mm, z, ranked):
+    """Two shares compared: the difference and its interval given in mm, each end in its place; the
+    larger ranked only when z passes the threshold (2.0) and the interval's low end is above zero.
+    Catches ``interval[-1]`` for ``interval[0]`` in the JSON form."""
+    from tcr_accuracy.diagnosis.attribution import ShareComparison
+
+    comparison = ShareComparison(larger="gravity", smaller="geometry", difference=0.03 * MM,
+                                 interval=(interval_mm[0] * MM, interval_mm[1] * MM), z=z, threshold=2.0)
+    doc = comparison.to_dict()
+    assert doc["difference_mm"] == pytest.approx(0.03, rel=1e-12)
+    assert doc["interval_mm"] == pytest.approx(list(interval_mm), rel=1e-12)
+    assert (doc["larger"], doc["smaller"], doc["z"], doc["z_threshold"]) == ("gravity", "geometry", z, 2.0)
+    assert comparison.ranked is ranked and doc["ranked"] is ranked
