@@ -197,3 +197,20 @@ def test_a_share_comparison_in_mm_and_ranked_only_above_zero_and_the_threshold(i
     assert doc["interval_mm"] == pytest.approx(list(interval_mm), rel=1e-12)
     assert (doc["larger"], doc["smaller"], doc["z"], doc["z_threshold"]) == ("gravity", "geometry", z, 2.0)
     assert comparison.ranked is ranked and doc["ranked"] is ranked
+
+
+def test_every_rotation_is_a_tool_orientation_and_a_reflection_is_not():
+    """50 random rotations from scipy (whose determinants round to 1 +- 1e-15, some below 1) are
+    each taken as the plan's tool orientation; a reflection (determinant -1) is refused. Catches
+    ``det < 1`` for ``det < 0`` (a valid rotation refused for its round-off)."""
+    from scipy.spatial.transform import Rotation
+
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.iso9283.plan import _tool_rotation
+
+    rotations = Rotation.random(50, random_state=1).as_matrix()
+    assert np.any(np.linalg.det(rotations) < 1.0)  # the case at stake is in the sample
+    for rotation in rotations:
+        assert np.array_equal(_tool_rotation(rotation), rotation)
+    with pytest.raises(InputError, match="determinant"):
+        _tool_rotation(rotations[0] @ np.diag([1.0, 1.0, -1.0]))
