@@ -214,3 +214,39 @@ def test_every_rotation_is_a_tool_orientation_and_a_reflection_is_not():
         assert np.array_equal(_tool_rotation(rotation), rotation)
     with pytest.raises(InputError, match="determinant"):
         _tool_rotation(rotations[0] @ np.diag([1.0, 1.0, -1.0]))
+
+
+def test_leave_one_out_own_share_increase_is_the_rise_of_the_held_out_rms_by_hand():
+    """Backward elimination's leave-one-out table on an engine whose held-out errors are given:
+    final model 1 mm on every row; without geometry, others refitted, 2 mm; the others held to
+    their own parameters, 3 mm. The rises, written out in numpy: 1 mm refitted and 2 mm own share.
+    Catches ``held_own.rms + final_rms`` for the difference."""
+    from tcr_accuracy.diagnosis.stages.select import _backward
+
+    n = 40
+    sign = np.where(np.arange(n) % 2, 1.0, -1.0)[:, None]
+    errors = {"final": np.hstack([sign * 1.0 * MM, np.zeros((n, 2))]),
+              "refitted": np.hstack([np.zeros((n, 1)), sign * 2.0 * MM, np.zeros((n, 1))]),
+              "own": np.hstack([np.zeros((n, 2)), sign * 3.0 * MM])}
+
+    def fit(which):
+        squares = np.sum(errors[which] ** 2, axis=1)
+        norm = np.sqrt(squares)
+        return {"heldout_stats": ErrorStats(float(norm.mean()), float(np.sqrt(squares.mean())), float(norm.max()), n),
+                "heldout_squares": squares}
+
+    class Engine:
+        def evaluate(self, effects, keep=None):
+            if list(effects) == ["frames", "geometry"]:
+                return fit("final")
+            return fit("refitted" if keep is None else "own")
+
+        def identify(self, effects):
+            return {e: np.ones(1, bool) for e in effects}, {}
+
+    current, loo, eliminated = _backward(Engine(), ["frames", "geometry"], lambda _: None, selection_z=-np.inf)
+    assert current == ["frames", "geometry"] and eliminated == [] and [r.effect for r in loo] == ["geometry"]
+    rms = {k: np.sqrt(np.mean(np.sum(v**2, axis=1))) for k, v in errors.items()}
+    assert loo[0].increase == pytest.approx(rms["refitted"] - rms["final"], rel=1e-12)
+    assert loo[0].own_share_increase == pytest.approx(rms["own"] - rms["final"], rel=1e-12)
+    assert loo[0].own_share_increase == pytest.approx(2.0 * MM, rel=1e-12)
