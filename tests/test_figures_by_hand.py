@@ -250,3 +250,24 @@ def test_leave_one_out_own_share_increase_is_the_rise_of_the_held_out_rms_by_han
     assert loo[0].increase == pytest.approx(rms["refitted"] - rms["final"], rel=1e-12)
     assert loo[0].own_share_increase == pytest.approx(rms["own"] - rms["final"], rel=1e-12)
     assert loo[0].own_share_increase == pytest.approx(2.0 * MM, rel=1e-12)
+
+
+@pytest.mark.parametrize("left_share, named", [(0.4, None), (0.6, "random scatter")])
+def test_scatter_predicted_to_within_half_its_excess_variance_is_structure(monkeypatch, left_share, named):
+    """0.3 mm per axis left against 0.02 mm of noise: excess variance (0.3^2 - 0.02^2) mm^2. Predicted
+    from the joints out of sample, a leftover whose excess is 0.4 of that is structure (not named
+    scatter); one at 0.6 of it is scatter. The leftover's size is planted (the prediction itself has
+    its own tests). Catches ``0.5 % excess_before`` for ``0.5 * excess_before``."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.diagnosis import structure
+
+    sigma, noise = 0.3 * MM, 0.02 * MM
+    after = np.sqrt(noise**2 + left_share * (sigma**2 - noise**2))
+    monkeypatch.setattr(structure, "predictable_leftover", lambda detector, residual: after)
+    scatter = {"detected": True, "estimated_noise_per_axis_mm": sigma / MM}
+    notes = []
+    structure.name_scatter(scatter, {"verdict": "no"}, [], SimpleNamespace(per_axis=noise), notes,
+                           detector=object(), residual=np.zeros((10, 3)))
+    assert scatter["named"] == named
+    assert scatter["predicted_from_joints_left_per_axis_mm"] == pytest.approx(after / MM, rel=1e-12)
