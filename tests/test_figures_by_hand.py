@@ -271,3 +271,27 @@ def test_scatter_predicted_to_within_half_its_excess_variance_is_structure(monke
                            detector=object(), residual=np.zeros((10, 3)))
     assert scatter["named"] == named
     assert scatter["predicted_from_joints_left_per_axis_mm"] == pytest.approx(after / MM, rel=1e-12)
+
+
+def test_a_stand_in_shape_is_its_columns_times_a_draw_at_the_typical_size():
+    """The structure test's stand-in leftover of an unchosen effect: its TCP columns (N, 3, k) per
+    unit parameter times a standard normal draw scaled by the typical sizes (here 0.1 mrad and
+    0.2 mm), nothing absorbed by a chosen model without columns of its own. Written out in numpy on
+    the same draw. Catches the draw divided by the scales."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.diagnosis.ambiguity import stand_in_shapes
+
+    n = 12
+    rng = np.random.default_rng(5)
+    g = rng.standard_normal((n, 6, 2))  # position rows, then rotation rows the probe ignores
+    scales = np.array([1e-4, 2e-4])
+    basis = SimpleNamespace(per_part=[SimpleNamespace(g=g)], scales=scales, index=[np.array([0, 1])])
+    engine = SimpleNamespace(bases={"joint_offsets": basis},
+                             columns=lambda effects: SimpleNamespace(per_part=[(None, np.zeros((n, 3, 0)), [])]))
+    shapes = stand_in_shapes(engine, ["frames"], ["frames", "joint_offsets"], np.random.default_rng(9))
+    draw = np.random.default_rng(9).standard_normal(2) * scales
+    expected = np.einsum("nrk,k->nr", g[:, :3, :], draw)
+    assert list(shapes) == ["joint_offsets"]
+    np.testing.assert_allclose(shapes["joint_offsets"], expected, rtol=1e-12)
+    assert 1e-5 < np.sqrt(np.mean(expected**2)) < 1e-3  # tenths of a millimetre, as the draw's sizes
