@@ -137,10 +137,12 @@ def test_a_diagnosis_summary_line_gives_the_last_steps_held_out_rms():
 
     fake = SimpleNamespace(robot_name="ur5", n_measurements=120, gap=SimpleNamespace(rms=0.5 * MM),
                            selected_effects=["frames", "geometry", "gravity"], primary_effect="geometry",
-                           steps=[step(0.4), step(0.09), step(0.05)], noise_floor=0.03 * MM)
+                           steps=[step(0.4), step(0.09), step(0.05)], noise_floor=0.03 * MM, from_file=False)
     assert Diagnosis.__repr__(fake) == ("Diagnosis('ur5', 120 measurements, gap RMS 0.5 mm, selected [frames, "
                                         "geometry, gravity], primary 'geometry', held-out RMS 0.05 mm, noise floor "
                                         "0.03 mm)")
+    fake.from_file = True  # a diagnosis read from its JSON says so
+    assert Diagnosis.__repr__(fake).endswith("noise floor 0.03 mm, read from file)")
 
 
 def test_signed_rank_z_with_ties_is_scipys():
