@@ -37,7 +37,7 @@ def add_parsers(sub) -> None:
                     "is printed, SI in the YAML.",
     )
     p.add_argument("measurements", metavar="MEASUREMENTS.csv", nargs="+",
-                   help="measurement CSV (see README); several files are several sessions of one robot (each "
+                   help="measurement CSV (see docs/measurements.md); several files are several sessions of one robot (each "
                         "its own tracker frame, the robot's parameters shared), as is a session column")
     add_robot_arguments(p)
     p.add_argument("--effects", default=None, metavar="LIST",
