@@ -211,7 +211,24 @@ def _run_diagnose(args) -> int:
         written += [("calibration URDF", urdf), ("the whole model (tcr_accuracy.load_as_built)", side)]
     if out.report is not None:
         _calibration_page(out.report, args, robot, payload, written)
-    return out.finish(payload, lambda: print(format_summary(robot, result, source)))
+    steps = _next_steps(args, robot, payload, files)
+    return out.finish(payload, lambda: print(format_summary(robot, result, source) + "\n\n" + steps))
+
+
+def _next_steps(args, robot, payload: dict, files) -> str:
+    """What to do next, one sentence a step, with the commands as this run's options need them."""
+    import shlex
+
+    from ..view.next_steps import export_step, next_steps, next_steps_lines
+
+    options = ""
+    if args.robot is not None:
+        options += f" --robot {shlex.quote(str(args.robot))} --tool {shlex.quote(robot.tool_frame)}"
+    if getattr(args, "kinematics", None):
+        options += f" --kinematics {shlex.quote(str(args.kinematics))}"
+    json_file = args.json if args.json not in (None, "-") else None
+    steps = next_steps(payload, measurements=[str(f) for f in files], robot_options=options)
+    return "\n".join(next_steps_lines(steps + [export_step(None if json_file is None else str(json_file))]))
 
 
 def measured_points(position):
