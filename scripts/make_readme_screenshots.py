@@ -106,26 +106,31 @@ REPORT_COMMANDS = [
 ]
 
 
-def calibration_report_page(work: Path, png: Path) -> None:
-    """Page 1 of the README's calibration report, printed by Chromium, rasterised by pdftoppm."""
+def run_in_copy(folder: Path, commands) -> Path:
+    """Run the README's commands (``tcr-accuracy`` argument lists) in ``folder``, holding a copy of
+    the repository's examples, as the README's reader would; exit on the first that fails."""
     import contextlib
     import io
     import os
 
     from tcr_accuracy.cli import main as cli_main
 
-    repo = Path(__file__).resolve().parents[1]
-    folder = work / "readme-report"
-    shutil.copytree(repo / "examples", folder / "examples")
+    shutil.copytree(Path(__file__).resolve().parents[1] / "examples", folder / "examples")
     here = os.getcwd()
     os.chdir(folder)
     try:
-        for argv in REPORT_COMMANDS:
+        for argv in commands:
             with contextlib.redirect_stdout(io.StringIO()):
                 if cli_main([*argv, "--quiet"]) != 0:
                     sys.exit(f"tcr-accuracy {' '.join(argv)} failed")
     finally:
         os.chdir(here)
+    return folder
+
+
+def calibration_report_page(work: Path, png: Path) -> None:
+    """Page 1 of the README's calibration report, printed by Chromium, rasterised by pdftoppm."""
+    folder = run_in_copy(work / "readme-report", REPORT_COMMANDS)
     subprocess.run(["pdftoppm", "-r", "120", "-f", "1", "-l", "1", "-singlefile", "-png",
                     str(folder / "calibration-report" / "report.pdf"), str(png.with_suffix(""))], check=True)
     print(f"wrote {png}")
@@ -146,24 +151,7 @@ TASK_FIGURES = {"ur5_calibration/accuracy.png": "export.png", "iso-report/figure
 
 def task_figures(work: Path, out: Path) -> None:
     """The figures of the README's export and ISO 9283 screens, from the README's own commands."""
-    import contextlib
-    import io
-    import os
-
-    from tcr_accuracy.cli import main as cli_main
-
-    repo = Path(__file__).resolve().parents[1]
-    folder = work / "readme-tasks"
-    shutil.copytree(repo / "examples", folder / "examples")
-    here = os.getcwd()
-    os.chdir(folder)
-    try:
-        for argv in TASK_COMMANDS:
-            with contextlib.redirect_stdout(io.StringIO()):
-                if cli_main([*argv, "--quiet"]) != 0:
-                    sys.exit(f"tcr-accuracy {' '.join(argv)} failed")
-    finally:
-        os.chdir(here)
+    folder = run_in_copy(work / "readme-tasks", TASK_COMMANDS)
     for source, name in TASK_FIGURES.items():
         shutil.copyfile(folder / source, out / name)
         print(f"wrote {out / name}")
