@@ -55,6 +55,9 @@ def main() -> int:
     blocks = [b for page in pages for b in machinery.readme_blocks(page)]
     with tempfile.TemporaryDirectory() as tmp:
         runs = machinery.run_blocks(blocks, Path(tmp))
+    for b in blocks:  # a block that fails is the page's to mend, not a quote to re-take
+        if b.key in runs and runs[b.key].returncode != 0:
+            print(f"{b.where}: the block exits {runs[b.key].returncode}: {runs[b.key].stderr.strip()[-300:]}")
     edits: dict[Path, list] = {}
     for b in blocks:
         if b.kind not in ("prints", "output"):
