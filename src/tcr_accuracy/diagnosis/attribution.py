@@ -63,7 +63,7 @@ def tied_own_shares(engine, model: list, leave_one_out: list, selection_z: float
     if not leave_one_out:
         return []
     ranked = sorted(leave_one_out, key=lambda row: -row["own_share_increase_mm"])
-    keep = engine.identify(tuple(ordered(model)))[0]
+    keep = engine.kept(tuple(ordered(model)))
 
     def without(effect):  # the leave-one-out fit of its own share (cached by the engine)
         rest = ordered([s for s in model if s != effect])

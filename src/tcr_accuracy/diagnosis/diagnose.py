@@ -385,7 +385,7 @@ class GapDiagnosis(BaseEstimator):
         steps, previous = [], None
         for k, effect in enumerate(sequence):
             with _one_blas_thread():
-                r = engine.evaluate(ordered(sequence[:k + 1]))
+                r = engine.evaluate(ordered(sequence[:k + 1]), exact=True)
             z = None if previous is None else paired_z(previous["heldout_residual"], r["heldout_residual"])
             steps.append(Step(effect, tuple(ordered(sequence[:k + 1])), r["n_parameters"],
                               r["train_stats"].rms, ErrorStats.of(r["heldout_residual"]), z))
@@ -404,7 +404,7 @@ class GapDiagnosis(BaseEstimator):
         if missing:
             raise InputError(f"fitted_model: {', '.join(missing)} cannot be fitted on these data")
         with _one_blas_thread():
-            result = engine.evaluate(names)
+            result = engine.evaluate(names, exact=True)
         theta = result["phi"] * result["scale"]
         instances, vectors, offset = [], [], 0
         for e in names:

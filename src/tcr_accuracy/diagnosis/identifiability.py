@@ -66,7 +66,8 @@ def compressed(bases: dict) -> dict:
     return out
 
 
-def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: float | dict = 0.0) -> tuple[dict, dict]:
+def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: float | dict = 0.0,
+                    report: bool = True) -> tuple[dict, dict | None]:
     """Kept columns per effect and a report of what was removed and why.
 
     Each parameter's column of the identification Jacobian (N poses x 3 rows) is taken
@@ -78,7 +79,11 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
     ``min_motion`` [m RMS] (the measurements cannot resolve it) or below ``rank_tol``
     times the column's own motion (a numerical duplicate). ``min_motion`` may be a dict
     (effect -> threshold [m]) when effects are judged at sizes other than their typical ones.
+    With ``report=False`` only the kept columns (the report, what each dropped column duplicates
+    and the condition number, is most of the cost): (keep, None).
     """
+    if not report:
+        return _kept_columns(bases, order, rank_tol, min_motion), None
     kept_q = None  # orthonormal basis of the kept span, (3N, r)
     kept_cols, kept_names = [], []  # normalised kept columns and names, for naming duplicates
     keep: dict = {}
@@ -149,4 +154,31 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
         report["condition_number"] = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
         report["smallest_singular_value"] = float(sv[-1])
     return keep, report
+
+
+def _kept_columns(bases: dict, order, rank_tol: float, min_motion) -> dict:
+    """The kept columns of :func:`identifiability`, by the same projections and pivoted QR."""
+    kept_q = None
+    keep: dict = {}
+    thresholds = min_motion if isinstance(min_motion, dict) else dict.fromkeys(order, min_motion)
+    for name in order:
+        b = bases[name]
+        threshold = thresholds.get(name, 0.0)
+        n_pose = b.n_poses if getattr(b, "n_poses", None) else max(b.g.shape[0], 1)
+        cols = (b.g * b.scales).reshape(-1, len(b.names))
+        norms = np.linalg.norm(cols, axis=0)
+        proj = cols if kept_q is None else cols - kept_q @ (kept_q.T @ cols)
+        tie_break = 1.0 + 1e-9 * np.arange(len(b.names), 0, -1) / max(len(b.names), 1)
+        qmat, rmat, piv = linalg.qr(proj * tie_break, mode="economic", pivoting=True)
+        diag = np.abs(np.diag(rmat)) / tie_break[piv[:min(proj.shape)]]
+        rank = 0
+        for k in range(diag.size):
+            if diag[k] / math.sqrt(n_pose) > threshold and diag[k] > rank_tol * norms[piv[k]]:
+                rank += 1
+            else:
+                break
+        if rank:
+            kept_q = qmat[:, :rank] if kept_q is None else np.hstack([kept_q, qmat[:, :rank]])
+        keep[name] = np.asarray(sorted(piv[:rank].tolist()), dtype=int)
+    return keep
 

@@ -193,7 +193,7 @@ def _family(engine: FitEngine, effect: str) -> str:
 def fitted_mechanisms(engine: FitEngine, current) -> list[MechanismReading]:
     """Each chosen effect's mechanism, read from its fitted values and standard errors (the main
     measured frame's parameters)."""
-    final = engine.evaluate(ordered(current))
+    final = engine.evaluate(ordered(current), exact=True)
     theta = final["phi"] * final["scale"]
     std = final["phi_std"] * final["scale"]
     out, offset = [], 0
@@ -216,7 +216,7 @@ def fitted_mechanisms(engine: FitEngine, current) -> list[MechanismReading]:
 
 def _without(engine: FitEngine, current, dropped) -> dict:
     """The final model without some effects, the others held to their own parameters."""
-    keep = engine.identify(tuple(ordered(current)))[0]
+    keep = engine.kept(tuple(ordered(current)))
     rest = ordered([s for s in current if s not in dropped])
     return engine.evaluate(rest, keep={s: keep[s] for s in rest})
 
@@ -332,15 +332,15 @@ def first_order_reach(part, bases: dict, chosen, full_parameters: dict, nominal:
 
 def explanation_ladder(engine: FitEngine, selected, first: Step) -> list[Step]:
     """The shrink table in the order of explanation: from frames, each step adds the chosen
-    effect that lowers the held-out error most given those before it, with its gain and
-    the gain's 95 % interval."""
+    effect that lowers the held-out error most given those before it (on the engine's linear
+    model), with its figures, its gain and the gain's 95 % interval on the exact kinematics."""
     steps, current = [first], ["frames"]
-    previous = engine.evaluate(["frames"])
+    previous = engine.evaluate(["frames"], exact=True)
     remaining = [e for e in selected if e != "frames"]
     while remaining:
         trials = {e: engine.evaluate(ordered(current + [e])) for e in remaining}
         best = min(trials, key=lambda e: ErrorStats.heldout(trials[e]).rms)
-        r = trials[best]
+        r = engine.evaluate(ordered(current + [best]), exact=True)
         current.append(best)
         remaining.remove(best)
         steps.append(Step(best, tuple(ordered(current)), r["n_parameters"], r["train_stats"].rms,
