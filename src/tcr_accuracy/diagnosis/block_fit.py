@@ -55,11 +55,20 @@ def box_step(system: np.ndarray, gradient: np.ndarray, low: np.ndarray, high: np
     return origin + np.clip(step, low, high)
 
 
-def _penalised(quadratic: Quadratic, weights: np.ndarray, center: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(A + diag(w), b + w * center): the quadratic with the penalty sum w (center + d)^2 added."""
-    if not np.any(weights):
-        return quadratic.gram, quadratic.gradient
-    return quadratic.gram + np.diag(weights), quadratic.gradient + weights * center
+def _system(total: Quadratic, fold: Quadratic | None, weights: np.ndarray, center: np.ndarray) \
+        -> tuple[np.ndarray, np.ndarray]:
+    """(A + diag(w), b + w * center) of the training rows' quadratic (``total`` less the held-out
+    ``fold``, or all rows): the penalty sum w (center + d)^2 added, in one new matrix."""
+    if fold is None:
+        system = total.gram.copy() if np.any(weights) else total.gram
+        gradient = total.gradient
+    else:
+        system = np.subtract(total.gram, fold.gram)
+        gradient = total.gradient - fold.gradient
+    if np.any(weights):
+        system[np.diag_indices_from(system)] += weights
+        gradient = gradient + weights * center
+    return system, gradient
 
 
 @dataclass(frozen=True)
@@ -90,8 +99,9 @@ def fit_blocks(total: Quadratic, held: list, low: np.ndarray, high: np.ndarray, 
     ----------
     total : Quadratic
         The sum of squares over all rows, as a function of the step d (k,).
-    held : list of list of Quadratic
-        Per fold assignment, per fold, the sum of squares over its held-out rows.
+    held : list of list of callables
+        Per fold assignment, per fold, a function giving the sum of squares over its held-out rows as
+        a Quadratic (made when needed and let go: a fine angle table's blocks are 20 MB each).
     low, high : (k,)
         The box of the step (the fit range less the anchor).
     weights : (k,)
@@ -111,12 +121,13 @@ def fit_blocks(total: Quadratic, held: list, low: np.ndarray, high: np.ndarray, 
     elif penalised:
         index, lam = choose_penalty(total, held[0] if held else [], weights, center, start_index)
     w = lam * weights
-    step = box_step(*_penalised(total, w, center), low, high)
+    step = box_step(*_system(total, None, w, center), low, high)
     fold_steps, ssq = [], []
     for folds in held:
         steps, scores = [], []
-        for fold in folds:
-            d = box_step(*_penalised(total - fold, w, center), low, high)
+        for get in folds:
+            fold = get()
+            d = box_step(*_system(total, fold, w, center), low, high)
             steps.append(d)
             scores.append(fold.value(d))
         fold_steps.append(steps)
@@ -133,35 +144,39 @@ def penalty_grid(total: Quadratic, weights: np.ndarray) -> np.ndarray:
 def choose_penalty(total: Quadratic, folds: list, weights: np.ndarray, center: np.ndarray,
                    start_index: int | None) -> tuple[int, float]:
     """(grid index, lambda): the penalty whose fits to each fold's training rows predict its held-out
-    rows best (summed over ``folds``, one assignment), walking :data:`PENALTY_GRID` from
-    ``start_index`` (default its middle) to the nearest minimum. The fits are the free minimisers
-    (a ridge of 1e-12 times the largest diagonal keeps them defined), as the bounds rarely act at the
-    penalty's scale. With fewer than two folds, the grid's middle."""
+    rows best (summed over ``folds``, one assignment: functions giving each fold's held-out
+    Quadratic), walking :data:`PENALTY_GRID` from ``start_index`` (default its middle) to the nearest
+    minimum, a lambda and its neighbours at a time (each fold's blocks made once for them). The fits
+    are the free minimisers (a ridge of 1e-12 times the largest diagonal keeps them defined), as the
+    bounds rarely act at the penalty's scale. With fewer than two folds, the grid's middle."""
     diagonal = np.diag(total.gram)
     grid = penalty_grid(total, weights)
     middle = len(grid) // 2
     if len(folds) < 2:
         return middle, float(grid[middle])
     ridge = 1e-12 * max(float(diagonal.max()) if diagonal.size else 1.0, 1e-300)
-    train = [total - fold for fold in folds]
     scores: dict = {}
 
-    def score(i: int) -> float:
-        if i not in scores:
-            w = grid[i] * weights + ridge
-            total_score = 0.0
-            for t, fold in zip(train, folds):
-                d = cholesky_solve(t.gram + np.diag(w), -(t.gradient + grid[i] * weights * center))
-                total_score += float(2.0 * fold.gradient @ d + d @ fold.gram @ d)  # less the constant
-            scores[i] = total_score
-        return scores[i]
+    def scored(indices) -> None:
+        todo = [i for i in indices if 0 <= i < len(grid) and i not in scores]
+        if not todo:
+            return
+        partial = dict.fromkeys(todo, 0.0)
+        for get in folds:
+            fold = get()
+            for i in todo:
+                system, gradient = _system(total, fold, grid[i] * weights, center)
+                system[np.diag_indices_from(system)] += ridge
+                d = cholesky_solve(system, -gradient)
+                partial[i] += float(2.0 * fold.gradient @ d + d @ fold.gram @ d)  # less the constant
+        scores.update(partial)
 
     i = middle if start_index is None else int(np.clip(start_index, 0, len(grid) - 1))
     while True:
-        here = score(i)
-        if i > 0 and score(i - 1) <= here:
+        scored([i - 1, i, i + 1])
+        if i > 0 and scores[i - 1] <= scores[i]:
             i -= 1
-        elif i < len(grid) - 1 and score(i + 1) < here:
+        elif i < len(grid) - 1 and scores[i + 1] < scores[i]:
             i += 1
         else:
             break

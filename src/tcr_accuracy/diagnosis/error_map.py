@@ -103,6 +103,9 @@ class ErrorMap:
         ``joint_columns``): values (N, k) of d(dq_joint)/d(theta), joint (k,). The map
         :meth:`of` builds from the same Jacobian made dense (N, n_joints, k), without that array."""
         k = values.shape[1]
+        if not isinstance(values, np.ndarray):  # rows made when read (a table's): every column is a mode
+            return cls(n_poses, size, drive_slice, np.zeros((size, k)), None, [], values, np.arange(k),
+                       np.asarray(joint, dtype=int))
         drive_columns = np.flatnonzero(np.any(values != 0, axis=0))
         drive = None
         if drive_columns.size:

@@ -26,6 +26,7 @@ one module above 500 lines; the columns and their chunked products are in
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -34,7 +35,7 @@ from ..model.errors import ErrorModel
 from ..model.kinematics import tcp_poses
 from .bases import Part, ordered
 from .error_map import ErrorMap
-from .identifiability import compressed, identifiability
+from .identifiability import compressed, gram_factor, identifiability
 from .least_squares import DampedSolver
 from .block_fit import PENALTY_GRID, box_step, fit_blocks, penalty_grid
 from .fit_columns import ChainedJacobian, Columns, Sensitivity, gradient_vector, gram_matrix
@@ -148,8 +149,18 @@ class FitEngine:
         return {e: self.min_motion / self.size_factors.get(e, 1.0) for e in order}
 
     def _compressed_bases(self) -> dict:
+        """The bases with the poses folded away (what identifiability reads): a factor F of the total
+        Gram matrix (F^T F = J^T J, :func:`~tcr_accuracy.diagnosis.identifiability.gram_factor`) when the
+        fit weighs every point alike (then the Gram matrix is that of the unweighted columns identifiability
+        judges), else one tall-skinny QR of the columns."""
         if self._compressed is None:
-            self._compressed = compressed(self.bases)
+            if any(part.whitening is not None for part in self.parts):
+                self._compressed = compressed(self.bases)
+            else:
+                store = self._fold_grams()
+                n_poses = self.n_rows * len(self.parts)
+                self._compressed = gram_factor(store.total, {e: (self.bases[e].names, store.layout.columns_of([e]))
+                                                             for e in self.bases}, n_poses)
         return self._compressed
 
     def identify(self, effects) -> tuple[dict, dict]:
@@ -361,8 +372,8 @@ class FitEngine:
     def grams(self) -> FoldGrams:
         """The whole vocabulary's Gram blocks per fold (:class:`~tcr_accuracy.diagnosis.gram.FoldGrams`),
         made when first asked for and anchored at the exact fit of :attr:`anchor_effects`."""
-        if self._grams is None:
-            store = FoldGrams(self.parts, self.bases, self.repeats)
+        store = self._fold_grams()
+        if store.anchor is None:
             effects = [e for e in self.anchor_effects if e in self.bases]
             phi = np.zeros(store.layout.n_columns)
             if effects:
@@ -377,7 +388,12 @@ class FitEngine:
                 residual = [self._pose_residual(p, every, np.zeros((self.n_rows, em.size)))
                             for p, em in enumerate(self.ems)]
             store.set_anchor(Anchor(tuple(effects), phi, residual))
-            self._grams = store
+        return store
+
+    def _fold_grams(self) -> FoldGrams:
+        """The Gram blocks, made when first asked for (not yet anchored)."""
+        if self._grams is None:
+            self._grams = FoldGrams(self.parts, self.bases, self.repeats)
         return self._grams
 
     def cached(self, effects) -> dict | None:
@@ -461,11 +477,14 @@ class FitEngine:
         fixed[index] = 0.0
         fixed = fixed if np.any(fixed) else None
         total = store.quadratic(index, fixed)
-        held = [[store.quadratic(index, fixed, r, f) for f in range(len(tests))] for r, tests in enumerate(store.tests)]
+        held = [[partial(store.quadratic, index, fixed, r, f) for f in range(len(tests))]
+                for r, tests in enumerate(store.tests)]
         weights = layout.penalty[index]
         penalised = tuple(e for e in effects if np.any(layout.penalty[layout.columns_of([e])] > 0))
         low, high = layout.lower[index] - center, layout.upper[index] - center
-        solution = fit_blocks(total, held, low, high, weights, center, self._penalty_start.get(penalised))
+        reuse = index.size > self.LARGE_MODEL and penalised in self._penalty_start
+        solution = fit_blocks(total, held, low, high, weights, center, self._penalty_start.get(penalised),
+                              chosen_index=self._penalty_start[penalised] if reuse else None)
         if solution.grid_index is not None:
             self._penalty_start[penalised] = solution.grid_index
         second_order = None
@@ -476,7 +495,7 @@ class FitEngine:
             products = store.residual_products(self._corrected_residual(effects, keep, index, second_order),
                                                ordered(set(effects) | set(store.anchor.effects)))
             total = store.quadratic(index, fixed, products=products)
-            held = [[store.quadratic(index, fixed, r, f, products=products) for f in range(len(tests))]
+            held = [[partial(store.quadratic, index, fixed, r, f, products=products) for f in range(len(tests))]
                     for r, tests in enumerate(store.tests)]
             solution = fit_blocks(total, held, low, high, weights, center, chosen_index=solution.grid_index)
         phi = center + solution.step
@@ -489,7 +508,13 @@ class FitEngine:
         fields, arrays = self._fields(effects, keep, index, phi, fold_steps, solution.cost, penalty, names,
                                       exact=False, second_order=second_order)
         fields["heldout_ssq"] = solution.heldout_ssq
-        return fields, arrays, self._uncertainty(total.gram, solution.penalty * weights, solution.cost, fields)
+        return fields, arrays, self._uncertainty(index, solution.penalty * weights, solution.cost, fields)
+
+    #: a model of more parameters than this (a fine angle table) takes the smoothness penalty's lambda
+    #: chosen last for the same penalised effects, without searching again: each lambda tried costs a
+    #: solve per fold of the model's size, and the choice follows the penalised effects' own roughness
+    #: and the noise, not the few other effects around them
+    LARGE_MODEL = 800
 
     #: the linear model's fits get one Gauss-Newton step on the exact kinematics when the whole
     #: vocabulary's linear fit misses its exact residual's sum of squares by more than this share
@@ -566,7 +591,7 @@ class FitEngine:
         flat = _flat(self._weighted(train, None))
         fields, arrays = self._fields(effects, keep, index, phi, fold_steps, float(flat @ flat), linear["penalty"],
                                       cols.names, exact=True, train=train)
-        return fields, arrays, self._uncertainty(gram, lam * cols.penalty, fields["cost"], fields)
+        return fields, arrays, self._uncertainty(index, lam * cols.penalty, fields["cost"], fields)
 
     def _fields(self, effects, keep, index, phi, fold_steps, cost, penalty, names, exact, train=None,
                 second_order=None) -> tuple:
@@ -589,16 +614,18 @@ class FitEngine:
         fields["heldout_stats"] = ErrorStats.pooled(heldout_repeats) if heldout_repeats else None
         return fields, arrays
 
-    def _uncertainty(self, gram: np.ndarray, weights: np.ndarray, cost: float, fields: dict) -> dict:
+    def _uncertainty(self, index: np.ndarray, weights: np.ndarray, cost: float, fields: dict) -> dict:
         """The standard errors (and with a penalty, the posterior covariance) of a fit, made when read:
-        s^2 (J^T J + lambda W)^+ with s^2 the training cost per degree of freedom."""
+        s^2 (J^T J + lambda W)^+ with s^2 the training cost per degree of freedom, J^T J the model's
+        block of the total Gram matrix (taken then: a cached fit holds no k x k matrix)."""
         k = fields["n_parameters"]
         variance = cost / max(fields["n_observations"] - k, 1)
         solver = []
+        store = self._grams
 
         def damped():
             if not solver:
-                solver.append(DampedSolver(gram + np.diag(weights)))
+                solver.append(DampedSolver(store.total[np.ix_(index, index)] + np.diag(weights)))
             return solver[0]
 
         lazy = {"phi_std": (lambda: damped().standard_errors(variance)) if k else (lambda: np.zeros(0)),

@@ -33,7 +33,7 @@ import numpy as np
 from .error_map import JointColumnsSensitivity
 
 #: poses whose Jacobian rows are gathered at once (n x r x K floats: ~12 MB at 500 columns)
-CHUNK = 1024
+CHUNK = 512
 
 
 class ColumnLayout:
@@ -128,7 +128,7 @@ class FoldGrams:
         self._total_from_folds = bool(first) and sum(t.size for t in first) == self.n_rows and \
             np.array_equal(np.sort(np.concatenate(first)), np.arange(self.n_rows))
         self.layout = ColumnLayout(bases)
-        self.total, self.held = self._grams(self.layout.effects, None)
+        self.total, self.held = self._grams(self.layout.effects)
         self.anchor: Anchor | None = None
         #: how far the linear model misses the exact kinematics (set by the engine; None: not judged)
         self.curvature: float | None = None
@@ -174,26 +174,23 @@ class FoldGrams:
             out.append(per_fold)
         return out
 
-    def _grams(self, effects, old_effects) -> tuple:
-        """(total, held) Gram blocks of the given effects' columns; with ``old_effects``, the blocks
-        of those effects against the new ones ((K_old, K_new), for :meth:`extend`) and the new
-        ones' own, as (cross, own) pairs."""
+    def _accumulate(self, effects, old_effects, targets: list) -> None:
+        """Add the Gram blocks of the given effects' columns into ``targets`` (each (K, K), its last
+        K_e rows and columns theirs), and with ``old_effects`` (the columns before them) the blocks
+        of those against the new ones: a chunk of poses at a time, straight into the final arrays.
+        ``targets``: the total (or None, when it is the sum of the first assignment's folds), then per
+        assignment per fold."""
         width = sum(self.layout.size[e] for e in effects)
         old_width = sum(self.layout.size[e] for e in old_effects) if old_effects else 0
-
-        def empty():
-            own = np.zeros((width, width))
-            return own if old_effects is None else (np.zeros((old_width, width)), own)
-
-        total = None if self._total_from_folds else empty()
-        held = [[empty() for _ in tests] for tests in self.tests]
+        total, held = targets
 
         def add(target, block, old):
-            if old_effects is None:
-                target += block.T @ block
-            else:
-                target[0][...] += old.T @ block
-                target[1][...] += block.T @ block
+            own = target[old_width:, old_width:]
+            own += block.T @ block
+            if old is not None:
+                cross = old.T @ block
+                target[:old_width, old_width:] += cross
+                target[old_width:, :old_width] += cross.T
 
         for rows in self._chunks():
             fold_rows = self._fold_rows(rows)
@@ -207,10 +204,28 @@ class FoldGrams:
                         if at.size:
                             add(held[r][f], block[at].reshape(-1, width),
                                 None if old is None else old[at].reshape(-1, old_width))
+
+    def _grams(self, effects, old: tuple | None = None) -> tuple:
+        """(total, held) Gram blocks over the layout's K columns: the given effects' (the last ones)
+        multiplied out, the blocks of ``old`` (total, held) of the columns before them copied in."""
+        k = self.layout.n_columns
+        k_old = 0 if old is None else old[0].shape[0]
+
+        def made(previous):
+            out = np.zeros((k, k))
+            if previous is not None:
+                out[:k_old, :k_old] = previous
+            return out
+
+        held = [[made(None if old is None else old[1][r][f]) for f in range(len(tests))]
+                for r, tests in enumerate(self.tests)]
+        total = None if self._total_from_folds else made(None if old is None else old[0])
+        self._accumulate(effects, self.layout.effects[:len(self.layout.effects) - len(effects)] or None,
+                         (total, held))
         if total is None:
-            total = _copy(held[0][0])
+            total = held[0][0].copy()
             for block in held[0][1:]:
-                total = _added(total, block)
+                total += block
         return total, held
 
     def extend(self, effects) -> None:
@@ -219,15 +234,20 @@ class FoldGrams:
         effects = [e for e in effects if e not in self.layout.offset]
         if not effects:
             return
-        old = list(self.layout.effects)
-        self.layout = ColumnLayout(self.bases, old + effects)
-        total, held = self._grams(effects, old)
-        self.total = _joined(self.total, total)
-        self.held = [[_joined(h, n) for h, n in zip(hs, ns)] for hs, ns in zip(self.held, held)]
+        old = (self.total, self.held)
+        self.total, self.held = None, None  # the old blocks are copied into the new ones as they are made
+        self.layout = ColumnLayout(self.bases, list(self.layout.effects) + effects)
+        self.total, self.held = self._grams(effects, old)
+        del old
         self.curvature = None
-        if self.anchor is not None:
-            phi = np.concatenate([self.anchor.phi, np.zeros(self.layout.n_columns - self.anchor.phi.size)])
-            self.set_anchor(Anchor(self.anchor.effects, phi, self.anchor.residual))
+        if self.anchor is not None:  # the anchor's products, for the new columns only
+            k_old = self.anchor.phi.size
+            phi = np.concatenate([self.anchor.phi, np.zeros(self.layout.n_columns - k_old)])
+            self.anchor = Anchor(self.anchor.effects, phi, self.anchor.residual)
+            (total, held), constants = self.residual_products(self.anchor.residual, effects)
+            old_total, old_held = self.gradients
+            self.gradients = (np.concatenate([old_total, total[k_old:]]),
+                              [[np.concatenate([o, n[k_old:]]) for o, n in zip(os, ns)] for os, ns in zip(old_held, held)])
 
     def set_anchor(self, anchor: Anchor) -> None:
         """The residual the linear model is taken at: J^T W r and r^T W r over all rows and each fold."""
@@ -291,26 +311,6 @@ class FoldGrams:
 
     def nbytes(self) -> int:
         return int(self.total.nbytes + sum(h.nbytes for hs in self.held for h in hs))
-
-
-def _copy(block):
-    return block.copy() if isinstance(block, np.ndarray) else tuple(b.copy() for b in block)
-
-
-def _added(a, b):
-    return a + b if isinstance(a, np.ndarray) else tuple(x + y for x, y in zip(a, b))
-
-
-def _joined(old: np.ndarray, new: tuple) -> np.ndarray:
-    """The symmetric block matrix [[old, cross], [cross^T, own]]."""
-    cross, own = new
-    k_old, k_new = old.shape[0], own.shape[0]
-    out = np.empty((k_old + k_new, k_old + k_new))
-    out[:k_old, :k_old] = old
-    out[:k_old, k_old:] = cross
-    out[k_old:, :k_old] = cross.T
-    out[k_old:, k_old:] = own
-    return out
 
 
 def sensitivity_times(g, theta: np.ndarray) -> np.ndarray:
