@@ -363,6 +363,7 @@ class GapDiagnosis(BaseEstimator):
         attribution = attribute_effects(registered, candidates, selection, selection_z=self.selection_z,
                                         min_relative_gain=self.min_relative_gain,
                                         stability_replays=self.stability_replays, seed=seed, say=say)
+        candidates.engine.release_fold_blocks()  # every model is fitted: the residual tests' memory
         residual = analyse_residual(registered, candidates, selection, tracker_noise=self.tracker_noise, rng=rng,
                                     seed=seed, say=say)
         parameters = collect_parameters(registered, candidates, selection, tcp_given)
