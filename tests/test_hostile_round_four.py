@@ -474,3 +474,10 @@ def test_37_attack_dash_is_no_file_where_stdout_is_not_written(campaign, argv, f
     """'-' was written as a file named '-', then stopped as a write outside the outputs: exit 1,
     'unexpected error: RuntimeError' (import named '-' as the file with missing columns)."""
     refused(campaign, [*argv, "--quiet"], flag, "'-' names standard output, which this option does not write")
+
+
+def test_a_stabilisation_band_below_a_nanometre_is_refused(tmp_path):
+    # 1e-320 mm is a subnormal float: a band no instrument resolves, refused before any file is read
+    (tmp_path / "meas.csv").write_text("decoy\n")
+    line = refused(tmp_path, ["iso9283", "evaluate", "meas.csv", "--band-mm", "1e-320"], "--band-mm", ">= 1e-06 mm")
+    assert "1e-320" in line

@@ -108,7 +108,7 @@ def add_parsers(sub) -> None:
     evaluate.add_argument("--frame-from", default=None, metavar="CAL.csv",
                           help="fit the instrument frame on these measurements instead (other poses measured in the "
                                "same instrument frame, e.g. a calibration set of the same session); not with --frame")
-    evaluate.add_argument("--band-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
+    evaluate.add_argument("--band-mm", type=number(low=1e-6, high=MAX_MM, unit="mm"), default=None,
                           metavar="R", help="limit band radius for the pose stabilisation time and overshoot of "
                                             "time-stamped visits (default: each pose's RP)")
     evaluate.add_argument("--model", default=None, metavar="DIAGNOSIS.json",
