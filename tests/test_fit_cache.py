@@ -56,14 +56,16 @@ def test_cached_fits_hold_no_residual_arrays_and_remake_the_same_floats(fitted):
     assert cached and all(isinstance(r, FitResult) for r in cached)
     assert not any(k in dict.keys(r) for r in cached for k in RESIDUAL_KEYS)  # not stored: made when read
     effects = tuple(ordered(fitted.selected_effects_))
-    engine.reset()  # forget it, fit it again: the dict evaluate returns now is the one with the arrays
-    made = engine.evaluate(effects)
-    assert not isinstance(made, FitResult)
-    kept = _arrays(made)
-    again = engine.evaluate(effects)  # from the cache
-    assert isinstance(again, FitResult)
-    for key in RESIDUAL_KEYS:
-        _assert_same(again[key], kept[key])
+    engine.reset()  # forget it, fit it again: the arrays read first are those made with the fit
+    for exact in (False, True):
+        made = engine.evaluate(effects, exact=exact)
+        kept = _arrays(made)
+        other = engine.evaluate(("frames", "geometry"), exact=exact)
+        _arrays(other)  # another fit's arrays read in between: the first fit's are made again
+        again = engine.evaluate(effects, exact=exact)
+        assert again is made
+        for key in RESIDUAL_KEYS:
+            _assert_same(again[key], kept[key])
 
 
 def test_kept_figures_are_those_of_the_arrays(fitted):
@@ -88,7 +90,7 @@ def test_kept_figures_are_those_of_the_arrays(fitted):
 
 def test_ladder_reads_remade_held_out_rows(fitted):
     steps = fitted.ladder([e for e in ordered(fitted.selected_effects_) if e != "frames"])
-    final = fitted.engine_.evaluate(tuple(ordered(fitted.selected_effects_)))
+    final = fitted.engine_.evaluate(tuple(ordered(fitted.selected_effects_)), exact=True)
     first = final["heldout_repeats"][0]
     assert steps[-1].heldout.rms == pytest.approx(np.sqrt(np.mean(np.sum(first**2, axis=1))), rel=1e-12)
     assert all(s.z_statistic is not None for s in steps[1:])

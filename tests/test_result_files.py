@@ -83,7 +83,7 @@ def assert_every_reader_refuses(path, diagnosis, tmp_path, capsys, *fragments):
     (("parameters", "compliance", "compliance.j2"), 1e308, "says 1e+308: one fitted value, written twice"),
     (("robot",), 5, "$.robot: 5 is not of type 'string'"),
     (("effect_options", "cyclic"), {"max_order": 10**9}, "is greater than the maximum of 200"),
-    (("effect_options", "angle_table"), {"intervals": 10**6}, "is greater than the maximum of 200"),
+    (("effect_options", "angle_table"), {"intervals": 10**6}, "is greater than the maximum of 1000"),
     (("effect_options", "angle_table"), {"lower": ["0"]}, "angle_table.lower[0]: \"0\" is not of type 'number'"),
     (("effect_options", "compliance"), {"rng": 1}, "Additional properties are not allowed"),
     (("parameters", "nosuch"), {}, "$.parameters: 'nosuch' is not one of"),

@@ -82,7 +82,7 @@ class EffectBasis:
         #: whether g is held as its factors (every column moves one joint: a cyclic series)
         self.factored = hasattr(effect, "joint_columns")
         if self.factored:  # never the dense (N, n_joints, k) Jacobian
-            values, joint = effect.joint_columns(part.q)
+            values, joint = effect.joint_column_values(part.q)
             self.basis = ErrorMap.of_joint_columns(n, em.size, em.drive_slice, values, joint)
         elif hasattr(effect, "sparse_parameter_jacobian"):  # never the dense (N, p_em, k) Jacobian
             maps, entries = effect.sparse_parameter_jacobian(np.zeros(k), part.q, part.context)

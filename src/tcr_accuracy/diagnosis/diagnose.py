@@ -366,6 +366,7 @@ class GapDiagnosis(BaseEstimator):
         attribution = attribute_effects(registered, candidates, selection, selection_z=self.selection_z,
                                         min_relative_gain=self.min_relative_gain,
                                         stability_replays=self.stability_replays, seed=seed, say=say)
+        candidates.engine.release_fold_blocks()  # every model is fitted: the residual tests' memory
         residual = analyse_residual(registered, candidates, selection, tracker_noise=self.tracker_noise, rng=rng,
                                     seed=seed, say=say)
         parameters = collect_parameters(registered, candidates, selection, tcp_given)
@@ -413,7 +414,7 @@ class GapDiagnosis(BaseEstimator):
         steps, previous = [], None
         for k, effect in enumerate(sequence):
             with _one_blas_thread():
-                r = engine.evaluate(ordered(sequence[:k + 1]))
+                r = engine.evaluate(ordered(sequence[:k + 1]), exact=True)
             z = None if previous is None else paired_z(previous["heldout_residual"], r["heldout_residual"])
             steps.append(Step(effect, tuple(ordered(sequence[:k + 1])), r["n_parameters"],
                               r["train_stats"].rms, ErrorStats.of(r["heldout_residual"]), z))
@@ -432,7 +433,7 @@ class GapDiagnosis(BaseEstimator):
         if missing:
             raise InputError(f"fitted_model: {', '.join(missing)} cannot be fitted on these data")
         with _one_blas_thread():
-            result = engine.evaluate(names)
+            result = engine.evaluate(names, exact=True)
         theta = result["phi"] * result["scale"]
         instances, vectors, offset = [], [], 0
         for e in names:

@@ -103,6 +103,9 @@ class ErrorMap:
         ``joint_columns``): values (N, k) of d(dq_joint)/d(theta), joint (k,). The map
         :meth:`of` builds from the same Jacobian made dense (N, n_joints, k), without that array."""
         k = values.shape[1]
+        if not isinstance(values, np.ndarray):  # rows made when read (a table's): every column is a mode
+            return cls(n_poses, size, drive_slice, np.zeros((size, k)), None, [], values, np.arange(k),
+                       np.asarray(joint, dtype=int))
         drive_columns = np.flatnonzero(np.any(values != 0, axis=0))
         drive = None
         if drive_columns.size:
@@ -245,6 +248,22 @@ class JointColumnsSensitivity:
             total[self.columns] += np.einsum("nc,nc->c", self.values[where], u[:, self.joint])
         return total
 
+    def times(self, theta: np.ndarray) -> np.ndarray:
+        """g @ theta (N, r, m) for parameter vectors theta (k, m): per joint, its columns' values times
+        their parameters (N, m), times the joint's column of the error Jacobian; a chunk of poses at
+        a time."""
+        n, r, _ = self.shape
+        theta = np.asarray(theta)[self.columns]
+        out = np.zeros((n, r, theta.shape[1]))
+        joints = [(j, np.flatnonzero(self.joint == j)) for j in np.unique(self.joint)]
+        joints = [(j, _run(c)) for j, c in joints if np.any(theta[c])]
+        for start in range(0, n, ErrorMap.CHUNK):
+            at = slice(start, start + ErrorMap.CHUNK)
+            values = np.asarray(self.values[at])
+            for j, columns in joints:
+                out[at] += self.jac_q[at, :, j, None] * (values[:, columns] @ theta[columns])[:, None, :]
+        return out
+
 
 class ColumnBlocks:
     """Arrays (N, k_i) side by side, read as one (N, sum k_i) a chunk of rows at a time and never
@@ -346,3 +365,10 @@ def _positions(stored: np.ndarray, wanted: np.ndarray) -> tuple[np.ndarray, np.n
     where = {int(c): i for i, c in enumerate(stored)}
     pairs = [(where[int(c)], new) for new, c in enumerate(wanted) if int(c) in where]
     return (np.array([p for p, _ in pairs], dtype=int), np.array([n for _, n in pairs], dtype=int))
+
+
+def _run(index: np.ndarray):
+    """A slice for consecutive indices (a view when taken), else the index array itself."""
+    if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
+        return slice(int(index[0]), int(index[0]) + index.size)
+    return index

@@ -125,12 +125,6 @@ def _is_range(index: np.ndarray, n: int) -> bool:
     return index.size == n and bool(np.array_equal(index, np.arange(n)))
 
 
-def moved_rows(jac: ChainedJacobian, rows: np.ndarray, step: np.ndarray) -> np.ndarray:
-    """jac[rows] @ step, (len(rows), r), a chunk of rows at a time (jac[rows] whole was a copy of a
-    fifth of the Jacobian per fold)."""
-    return jac.times(step, rows)
-
-
 def gram_matrix(jacs: list[ChainedJacobian], rows) -> np.ndarray:
     """J^T J over the given rows (None: all) of the parts' Jacobians (N, r, k), a chunk of rows at a time."""
     k = jacs[0].shape[2]
@@ -150,4 +144,4 @@ def gradient_vector(jacs: list[ChainedJacobian], residual: list[np.ndarray], row
     return total
 
 
-__all__ = ["ChainedJacobian", "Columns", "Sensitivity", "gradient_vector", "gram_matrix", "moved_rows"]
+__all__ = ["ChainedJacobian", "Columns", "Sensitivity", "gradient_vector", "gram_matrix"]

@@ -26,6 +26,7 @@ one module above 500 lines; the columns and their chunked products are in
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -34,9 +35,11 @@ from ..model.errors import ErrorModel
 from ..model.kinematics import tcp_poses
 from .bases import Part, ordered
 from .error_map import ErrorMap
-from .identifiability import compressed, identifiability
-from .least_squares import DampedSolver, cholesky_solve
-from .fit_columns import ChainedJacobian, Columns, Sensitivity, gradient_vector, gram_matrix, moved_rows
+from .identifiability import compressed, gram_factor, identifiability
+from .least_squares import DampedSolver
+from .block_fit import PENALTY_GRID, box_step, fit_blocks, penalty_grid
+from .fit_columns import ChainedJacobian, Columns, Sensitivity, gradient_vector, gram_matrix
+from .gram import Anchor, FoldGrams, moved_rows
 from .fit_result import FitResult
 from .paired import row_squares
 from .records import ErrorStats
@@ -71,10 +74,15 @@ class FitEngine:
         self._full_cache: dict = {}
         self._materialised = None  # (a cached fit, its remade per-row arrays): the last ones read
         self._keep_cache: dict = {}
+        self._kept_cache: dict = {}  # the kept columns alone, without identifiability's report
         self._compressed = None  # the bases with the poses folded away, for identify
         self._last: dict = {}  # parameter name -> last fitted scaled value (a warm start)
         self.size_factors: dict = {}  # effect -> fitted size / typical size (>= 1), see resize
         self.n_fits = 0
+        #: the model whose exact fit anchors the linear model (see :meth:`grams`)
+        self.anchor_effects: tuple = ("frames",)
+        self._grams: FoldGrams | None = None
+        self._penalty_start: dict = {}  # penalised effects -> where the last lambda search ended
 
     def add_bases(self, bases: dict) -> None:
         """Effects joining after the engine was built (an effect of last resort, tried late):
@@ -83,14 +91,22 @@ class FitEngine:
         self.bases.update(bases)
         self._compressed = None
         self._keep_cache.clear()
+        self._kept_cache.clear()
+        if self._grams is not None:
+            self._grams.extend(list(bases))
 
-    def reset(self) -> None:
-        """Forget every fit and identifiability judgement (the bases were linearised again); the
-        last fitted values stay as warm starts."""
+    def reset(self, anchor=None) -> None:
+        """Forget every fit, identifiability judgement and Gram block (the bases were linearised
+        again); the last fitted values stay as warm starts. ``anchor``: the effects whose exact fit
+        anchors the linear model from now on (default: as before)."""
         self._compressed = None
         self._keep_cache.clear()
+        self._kept_cache.clear()
         self._full_cache.clear()
         self._materialised = None
+        self._grams = None
+        if anchor is not None:
+            self.anchor_effects = tuple(anchor)
 
     def resize(self, factors: dict) -> bool:
         """Judge identifiability at fitted sizes: an effect fitted at f times its typical size
@@ -101,11 +117,52 @@ class FitEngine:
             return False
         self.size_factors = factors
         self._keep_cache.clear()
+        self._kept_cache.clear()
         self._full_cache.clear()
         self._materialised = None
         return True
 
     # -- identifiability -------------------------------------------------------------
+    def kept(self, effects) -> dict:
+        """The identifiable columns of :meth:`identify`, without its report (most of its cost)."""
+        key = tuple(effects)
+        if key in self._keep_cache:
+            return self._keep_cache[key][0]
+        if key not in self._kept_cache:
+            order, borrowed = self._identify_order(effects)
+            keep, _ = identifiability(self._compressed_bases(), order, self.rank_tol, self._thresholds(order),
+                                      report=False)
+            if borrowed:
+                keep.pop("joint_offsets")
+            self._kept_cache[key] = keep
+        return self._kept_cache[key]
+
+    def _identify_order(self, effects) -> tuple[list, bool]:
+        """The order identifiability takes a set in: vocabulary convention, geometry is what frames and
+        joint offsets cannot express, so joint-axis rotations stay joint offsets even when
+        joint_offsets is not (yet) in the model (then it is borrowed)."""
+        order = list(effects)
+        borrowed = "geometry" in order and "joint_offsets" not in order and "joint_offsets" in self.bases
+        return (ordered(order + ["joint_offsets"]) if borrowed else order), borrowed
+
+    def _thresholds(self, order) -> dict:
+        return {e: self.min_motion / self.size_factors.get(e, 1.0) for e in order}
+
+    def _compressed_bases(self) -> dict:
+        """The bases with the poses folded away (what identifiability reads): a factor F of the total
+        Gram matrix (F^T F = J^T J, :func:`~tcr_accuracy.diagnosis.identifiability.gram_factor`) when the
+        fit weighs every point alike (then the Gram matrix is that of the unweighted columns identifiability
+        judges), else one tall-skinny QR of the columns."""
+        if self._compressed is None:
+            if any(part.whitening is not None for part in self.parts):
+                self._compressed = compressed(self.bases)
+            else:
+                store = self._fold_grams()
+                n_poses = self.n_rows * len(self.parts)
+                self._compressed = gram_factor(store.total, {e: (self.bases[e].names, store.layout.columns_of([e]))
+                                                             for e in self.bases}, n_poses)
+        return self._compressed
+
     def identify(self, effects) -> tuple[dict, dict]:
         """Identifiable columns of each effect *within this set* (vocabulary order), and the report.
 
@@ -115,17 +172,8 @@ class FitEngine:
         """
         key = tuple(effects)
         if key not in self._keep_cache:
-            # vocabulary convention: geometry is what frames and joint offsets cannot
-            # express, so joint-axis rotations stay joint offsets even when joint_offsets
-            # is not (yet) in the model
-            order = list(effects)
-            borrowed = "geometry" in order and "joint_offsets" not in order and "joint_offsets" in self.bases
-            if borrowed:
-                order = ordered(order + ["joint_offsets"])
-            thresholds = {e: self.min_motion / self.size_factors.get(e, 1.0) for e in order}
-            if self._compressed is None:
-                self._compressed = compressed(self.bases)
-            keep, report = identifiability(self._compressed, order, self.rank_tol, thresholds)
+            order, borrowed = self._identify_order(effects)
+            keep, report = identifiability(self._compressed_bases(), order, self.rank_tol, self._thresholds(order))
             if self.size_factors:
                 report["fitted_size_factors"] = dict(self.size_factors)
             if borrowed:
@@ -147,7 +195,7 @@ class FitEngine:
     def columns(self, effects, keep: dict | None = None) -> "Columns":
         """The kept parameters of a set of effects: per-part bases and their union layout,
         bounded by each parameter's fit range (what keeps a fit sane, any sign)."""
-        keep = keep if keep is not None else self.identify(effects)[0]
+        keep = keep if keep is not None else self.kept(effects)
         names, scale, lower, upper, penalty = [], [], [], [], []
         for e in effects:
             b = self.bases[e]
@@ -294,21 +342,11 @@ class FitEngine:
     def _fold_step(self, cols: "Columns", gram: np.ndarray, phi: np.ndarray, gradient: np.ndarray,
                    penalty: float) -> np.ndarray:
         """phi moved by one Gauss-Newton step on a fold's training rows (their Gram matrix and
-        their gradient J^T r at phi), inside the bounds, with the smoothness penalty lambda: a
-        Cholesky solve, or the damped solver's pseudo-inverse and box-constrained step where the
-        system is near singular or the step would leave the bounds."""
+        their gradient J^T r at phi), inside the bounds, with the smoothness penalty lambda
+        (:func:`~tcr_accuracy.diagnosis.block_fit.box_step`)."""
         weights = penalty * cols.penalty
         system = gram + np.diag(weights) if penalty else gram
-        rhs = -(gradient + weights * phi)
-        try:
-            norms = np.sqrt(np.clip(np.diag(system), 1e-300, None))
-            step = cholesky_solve(system / np.outer(norms, norms), rhs / norms, strict=True) / norms
-            if np.all(np.isfinite(step)) and np.all(phi + step >= cols.lower) and np.all(phi + step <= cols.upper):
-                return phi + step
-        except np.linalg.LinAlgError:
-            pass
-        step, _ = DampedSolver(system).step(-rhs, 0.0, cols.lower - phi, cols.upper - phi)
-        return cols.clip(phi + step)
+        return cols.clip(phi + box_step(system, gradient + weights * phi, cols.lower - phi, cols.upper - phi))
 
     #: the fit stops when a step lowers the cost (or could lower it) by less than this share of it
     COST_TOLERANCE = 1e-7
@@ -330,93 +368,80 @@ class FitEngine:
                 best, best_cost, best_residual = phi, cost, residual
         return best, best_residual
 
-    #: lambdas tried for a smoothness penalty, times the penalised columns' median Gram diagonal
-    PENALTY_GRID = np.logspace(-5, 3, 9)
+    # -- the fold Gram matrices ----------------------------------------------------------
+    def grams(self) -> FoldGrams:
+        """The whole vocabulary's Gram blocks per fold (:class:`~tcr_accuracy.diagnosis.gram.FoldGrams`),
+        made when first asked for and anchored at the exact fit of :attr:`anchor_effects`."""
+        store = self._fold_grams()
+        if store.anchor is None:
+            effects = [e for e in self.anchor_effects if e in self.bases]
+            phi = np.zeros(store.layout.n_columns)
+            if effects:
+                keep = self.kept(tuple(effects))
+                cols = self.columns(effects, keep)
+                index = store.layout.indices(effects, keep)
+                start = cols.clip(np.array([self._last.get(n, 0.0) for n in cols.names]))
+                fitted, residual = self.fit(cols, None, start=start, gram=store.total[np.ix_(index, index)])
+                phi[index] = fitted
+            else:  # nothing anchors it: the nominal model's residual
+                every = np.arange(self.n_rows)
+                residual = [self._pose_residual(p, every, np.zeros((self.n_rows, em.size)))
+                            for p, em in enumerate(self.ems)]
+            store.set_anchor(Anchor(tuple(effects), phi, residual))
+        return store
 
-    def _penalties(self, cols: "Columns", jacs: list, fold_grams: list, residual: list, phi: np.ndarray) -> dict:
-        """Smoothness-penalty lambdas chosen by held-out error inside the training rows: for the
-        full fit by k-fold over all rows (the first assignment), for each fold's fit by (k-1)-fold
-        over its training rows only (never its held-out rows), in every fold assignment.
-        ``fold_grams``: per assignment, per fold, the Gram matrix of its held-out rows. The model
-        is linearised at phi (residual on all rows): one small solve per lambda and fold."""
-        first = fold_grams[0] if fold_grams else []
-        penalised = cols.penalty > 0
-        base = float(np.median(np.diag(sum(first))[penalised])) if first else 1.0
-        grid = base * self.PENALTY_GRID
-        ridge = 1e-12 * max(float(np.max(np.diag(sum(first)))) if first else 1.0, 1e-300)
+    def release_fold_blocks(self) -> None:
+        """Let the held-out rows' Gram blocks go once the models are fitted
+        (:meth:`~tcr_accuracy.diagnosis.gram.FoldGrams.release`); a later new fit makes them again."""
+        if self._grams is not None:
+            self._grams.release()
 
-        gradients_of = {}
-
-        def choose(folds, grams, allowed: list[int]) -> float:
-            if len(allowed) < 2:
-                return float(grid[len(grid) // 2])
-            key = id(folds)
-            if key not in gradients_of:
-                gradients_of[key] = [gradient_vector(jacs, self._weighted([r[test] for r in residual], test), test,
-                                               self.n_rows)
-                                     for _, test in folds]
-            gradients = gradients_of[key]
-            total_gram = sum(grams[f] for f in allowed)
-            total_gradient = sum(gradients[f] for f in allowed)
-            scores = np.zeros(len(grid))
-            for h in allowed:
-                g_train = total_gram - grams[h]
-                b_train = total_gradient - gradients[h]
-                for i, lam in enumerate(grid):
-                    step = cholesky_solve(g_train + np.diag(lam * cols.penalty + ridge),
-                                           -(b_train + lam * cols.penalty * phi))
-                    # |r + J s|^2 on the held-out rows, less the constant |r|^2: from their Gram
-                    # matrix and gradient, without touching the rows again
-                    scores[i] += float(2.0 * gradients[h] @ step + step @ grams[h] @ step)
-            return float(grid[int(np.argmin(scores))])
-
-        every = list(range(len(self.folds)))
-        first_folds = [choose(self.folds, first, [g for g in every if g != f]) for f in every]
-        # the other fold assignments take the first's choice (its median): one scalar, chosen without
-        # each of the first assignment's held-out folds; the nested search per assignment was most of
-        # a cyclic diagnosis' time and chose the same grid value
-        shared = float(np.median(first_folds)) if first_folds else float(grid[len(grid) // 2])
-        per_repeat = [first_folds] + [[shared] * len(folds) for folds in self.repeats[1:]]
-        return {"full": choose(self.folds, first, every), "folds": per_repeat,
-                "grid_relative": [float(self.PENALTY_GRID[0]), float(self.PENALTY_GRID[-1])]}
+    def _fold_grams(self) -> FoldGrams:
+        """The Gram blocks, made when first asked for (not yet anchored)."""
+        if self._grams is None:
+            self._grams = FoldGrams(self.parts, self.bases, self.repeats)
+        return self._grams
 
     def cached(self, effects) -> dict | None:
         """The fit of a set of effects (own identifiability) if it was evaluated already, else None."""
-        return self._full_cache.get((tuple(effects), None))
+        return self._full_cache.get((False, tuple(effects), None))
 
     def _inner(self, effects) -> dict | None:
-        """The best-fitting model already evaluated whose effects lie inside ``effects``: its
+        """The best-fitting exact model already evaluated whose effects lie inside ``effects``: its
         optimum (the new parameters at zero) is a point of the larger model, and starting
         there is what keeps a nested model from fitting worse than the one inside it."""
         inside = set(effects)
         best = None
-        for result in self._full_cache.values():
-            if set(result["effects"]) < inside:
+        for (exact, _, _), result in self._full_cache.items():
+            if exact and set(result["effects"]) < inside:
                 if best is None or result["cost"] < best["cost"]:
                     best = result
         return best
 
-    def evaluate(self, effects, keep: dict | None = None):
+    def evaluate(self, effects, keep: dict | None = None, exact: bool = False):
         """Full-data fit and k-fold out-of-fold residuals for a set of effects.
 
         ``keep``: identifiable columns to use instead of the set's own (the leave-one-out
         of an effect's own share keeps the full model's partition). Parameters stay inside
         their fit range (:meth:`~tcr_accuracy.effects.base.Effect.fit_range`).
 
-        The full fit starts from the best of: zeros, the values last fitted for these
-        parameters, and the optimum of the best model evaluated so far that is nested in
-        this one, and only accepts steps that lower the cost, so along a ladder of nested
-        models the training cost never rises.
+        Two ways, on the same columns and folds:
 
-        Each fold is refitted from the full optimum by one Gauss-Newton step on the normal
-        equations less its held-out rows (the Jacobian is the engine's constant one, the
-        residual the exact kinematics at the full optimum; a box-constrained step where the
-        bounds stop it). It is exact for a model linear in its parameters and, the effects
-        being linearised per pose, within a second-order term of a full refit; it costs one
-        small solve instead of a Levenberg-Marquardt run over the training rows, which is
-        what makes several fold assignments affordable. The held-out rows' residual is the
-        exact one at the full fit moved by the Jacobian times the step (second order in the
-        step, which is of the size of the parameters' standard errors).
+        * the **linear** model (default; every candidate the selection compares): the residual
+          at phi is the exact one at the engine's anchor moved by the constant Jacobian,
+          r_a + J (phi - phi_a), and every fit, fold fit and held-out sum of squares comes from
+          the model's sub-blocks of the fold Gram matrices (:meth:`grams`,
+          :func:`~tcr_accuracy.diagnosis.block_fit.fit_blocks`); its fits are exact least
+          squares of that model, so a model never fits worse than one nested in it;
+        * ``exact=True`` (the models of the final ladder, the final model's parameters and
+          residual): the residual is the exact kinematics. The full fit is Levenberg-Marquardt
+          from the linear model's optimum (or the best nested exact fit), the Jacobian held
+          constant, accepting only steps that lower the cost; each fold is refitted from the
+          full optimum by one Gauss-Newton step on the normal equations less its held-out rows
+          (a box-constrained step where the bounds stop it), exact for a model linear in its
+          parameters and within a second-order term of a full refit, and its held-out rows'
+          residual is the exact one at the full fit moved by the Jacobian times the step. The
+          smoothness penalty's lambda is the linear model's.
 
         Returns a dict: ``phi``, ``scale``, ``names``, ``keep``, ``n_parameters``,
         ``train_residual`` / ``heldout_residual`` (position errors, (N, 3) for one part,
@@ -427,110 +452,242 @@ class FitEngine:
         ``train_orientation`` / ``heldout_orientation`` (rotation errors [rad], same shapes,
         or None), ``train_stats`` / ``heldout_stats`` (:class:`~tcr_accuracy.diagnosis.records.ErrorStats`
         of the training errors and of the held-out ones pooled over the assignments), ``cost``
-        (training sum of squares [m^2]), ``fold_phi`` (each fold's fit, first assignment),
-        ``fold_steps`` (each fold's fit, every assignment), ``phi_std`` (standard errors of phi from the Jacobian and the residual),
-        ``at_bound`` (which parameters sit on their fit range's bound), ``n_observations``.
-        A later call for the same set returns the cached fit, whose per-row residual arrays are made
-        again when read (:class:`~tcr_accuracy.diagnosis.fit_result.FitResult`).
+        (training sum of squares [m^2], weighted as fitted), ``fold_phi`` (each fold's fit, first
+        assignment), ``fold_steps`` (each fold's fit, every assignment), ``heldout_ssq`` (per
+        assignment, per fold, the weighted held-out sum of squares [m^2]), ``phi_std`` (standard
+        errors of phi from the Jacobian and the residual), ``phi_cov`` (with a penalty: the penalised
+        fit's posterior covariance), ``at_bound`` (which parameters sit on their fit range's bound),
+        ``n_observations``, ``exact``. The fit is cached (per set, ``keep`` and way) without its
+        per-row residual arrays, which are made again when read
+        (:class:`~tcr_accuracy.diagnosis.fit_result.FitResult`).
         """
-        key = (tuple(effects), None if keep is None else tuple((e, tuple(v)) for e, v in keep.items()))
-        if key in self._full_cache:
-            return self._full_cache[key]
-        keep = keep if keep is not None else self.identify(effects)[0]
+        keep_key = None if keep is None else tuple((e, tuple(v)) for e, v in keep.items())
+        key = (bool(exact), tuple(effects), keep_key)
+        if key not in self._full_cache:
+            keep = keep if keep is not None else self.kept(effects)
+            fields, arrays, lazy = self._exact(effects, keep) if exact else self._linear(effects, keep)
+            result = FitResult(fields, self._remade, lazy)
+            self._full_cache[key] = result
+            self._materialised = (result, arrays)
+        return self._full_cache[key]
+
+    def _linear(self, effects, keep: dict) -> tuple[dict, dict]:
+        """The fit of :meth:`evaluate` on the linear model, from the Gram blocks."""
+        self.n_fits += 1
+        store = self.grams()
+        layout = store.layout
+        index = layout.indices(effects, keep)
+        anchor = store.anchor.phi
+        center = anchor[index]
+        fixed = -anchor
+        fixed[index] = 0.0
+        fixed = fixed if np.any(fixed) else None
+        total = store.quadratic(index, fixed)
+        held = [[partial(store.quadratic, index, fixed, r, f) for f in range(len(tests))]
+                for r, tests in enumerate(store.tests)]
+        weights = layout.penalty[index]
+        penalised = tuple(e for e in effects if np.any(layout.penalty[layout.columns_of([e])] > 0))
+        low, high = layout.lower[index] - center, layout.upper[index] - center
+        reuse = index.size > self.LARGE_MODEL and penalised in self._penalty_start
+        solution = fit_blocks(total, held, low, high, weights, center, self._penalty_start.get(penalised),
+                              chosen_index=self._penalty_start[penalised] if reuse else None)
+        if solution.grid_index is not None:
+            self._penalty_start[penalised] = solution.grid_index
+        second_order = None
+        if self._curved():
+            # one Gauss-Newton step on the exact kinematics: the anchor's residual replaced by the exact
+            # residual at the linear fit less J times the fit's step (what the linear model misses there)
+            second_order = center + solution.step
+            products = store.residual_products(self._corrected_residual(effects, keep, index, second_order),
+                                               ordered(set(effects) | set(store.anchor.effects)))
+            total = store.quadratic(index, fixed, products=products)
+            held = [[partial(store.quadratic, index, fixed, r, f, products=products) for f in range(len(tests))]
+                    for r, tests in enumerate(store.tests)]
+            solution = fit_blocks(total, held, low, high, weights, center, chosen_index=solution.grid_index)
+        phi = center + solution.step
+        fold_steps = [[center + d for d in steps] for steps in solution.fold_steps]
+        penalty = None if solution.grid_index is None else {
+            "full": solution.penalty, "folds": [[solution.penalty] * len(steps) for steps in fold_steps],
+            "grid_relative": [float(PENALTY_GRID[0]), float(PENALTY_GRID[-1])],
+            "chosen_on": "k-fold held-out error of the first fold assignment; every fold's fit takes it"}
+        names = [layout.names[i] for i in index]
+        fields, arrays = self._fields(effects, keep, index, phi, fold_steps, solution.cost, penalty, names,
+                                      exact=False, second_order=second_order)
+        fields["heldout_ssq"] = solution.heldout_ssq
+        return fields, arrays, self._uncertainty(index, solution.penalty * weights, solution.cost, fields)
+
+    #: a model of more parameters than this (a fine angle table) takes the smoothness penalty's lambda
+    #: chosen last for the same penalised effects, without searching again: each lambda tried costs a
+    #: solve per fold of the model's size, and the choice follows the penalised effects' own roughness
+    #: and the noise, not the few other effects around them
+    LARGE_MODEL = 800
+
+    #: the linear model's fits get one Gauss-Newton step on the exact kinematics when the whole
+    #: vocabulary's linear fit misses its exact residual's sum of squares by more than this share
+    CURVATURE_TOLERANCE = 1e-4
+
+    def _corrected_residual(self, effects, keep: dict, index: np.ndarray, phi: np.ndarray) -> list:
+        """Per part, the exact residual at phi (the model's columns ``index``, the anchor's others at
+        zero) less J times phi's step from the anchor: the residual of a linear model taken at phi."""
+        store = self.grams()
+        step = -store.anchor.phi
+        step[index] = phi - store.anchor.phi[index]
+        exact = self.predict_residual(self.columns(effects, keep), phi, np.arange(self.n_rows))
+        return [res - moved_rows(self.bases, store.layout, p, step[:, None], self.n_rows, part.rows_per_pose)[:, :, 0]
+                for p, (res, part) in enumerate(zip(exact, self.parts))]
+
+    def _curved(self) -> bool:
+        """Whether the linear model misses the exact kinematics enough to take the Gauss-Newton step
+        (:data:`CURVATURE_TOLERANCE`): judged once per Gram blocks on the linear fit of every effect
+        built (all rows, the penalised effects at the middle of the lambda grid)."""
+        store = self.grams()
+        if store.curvature is None:
+            effects = [e for e in store.layout.effects]
+            keep = self.kept(tuple(effects))
+            index = store.layout.indices(effects, keep)
+            anchor = store.anchor.phi
+            center = anchor[index]
+            total = store.quadratic(index)
+            weights = store.layout.penalty[index]
+            lam = float(penalty_grid(total, weights)[len(PENALTY_GRID) // 2]) if np.any(weights > 0) else 0.0
+            step = box_step(total.gram + np.diag(lam * weights), total.gradient + lam * weights * center,
+                            store.layout.lower[index] - center, store.layout.upper[index] - center)
+            corrected = self._corrected_residual(effects, keep, index, center + step)
+            missed = sum(float(np.sum(_whitened(part, c - a) ** 2))
+                         for part, c, a in zip(self.parts, corrected, store.anchor.residual))
+            store.curvature = missed / max(total.value(step), 1e-300)
+        return store.curvature > self.CURVATURE_TOLERANCE
+
+    def _exact(self, effects, keep: dict) -> tuple[dict, dict]:
+        """The fit of :meth:`evaluate` on the exact kinematics."""
+        linear = self.evaluate(effects, keep)
+        store = self.grams()
+        index = store.layout.indices(effects, keep)
         cols = self.columns(effects, keep)
         k = cols.scale.size
         every = np.arange(self.n_rows)
         inner = self._inner(effects)
-
-        def mapped(names, values) -> np.ndarray:
-            known = dict(zip(names, values))
-            return np.array([known.get(n, 0.0) for n in cols.names])
-
-        # the nested model's optimum costs no more than zeros (its fit only descended from there)
-        starts = [mapped(inner["names"], inner["phi"])] if inner is not None else \
-            [np.zeros(k), mapped(list(self._last), list(self._last.values()))]
+        starts = [linear["phi"]]
+        if inner is not None:
+            known = dict(zip(inner["names"], inner["phi"]))
+            starts.append(np.array([known.get(n, 0.0) for n in cols.names]))
         phi, train = self._best_start(cols, starts, every)
+        lam = linear["penalty"]["full"] if linear["penalty"] else 0.0
+        gram = store.total[np.ix_(index, index)]
         jacs = self._jacobians(cols) if k else []
-        fold_grams = [[gram_matrix(jacs, test) for _, test in folds] for folds in self.repeats] if k else []
-        gram = None
-        if k:  # the first assignment's held-out rows cover every row once: the full Gram matrix is their sum
-            held = np.sort(np.concatenate([test for _, test in self.folds])) if self.folds else None
-            gram = sum(fold_grams[0]) if held is not None and np.array_equal(held, every) else \
-                gram_matrix(jacs, None)
-        penalties = self._penalties(cols, jacs, fold_grams, train, phi) if k and cols.penalty.any() else None
         if k:
-            phi, train = self._minimise(cols, jacs, None, gram, phi, train,
-                                        penalties["full"] if penalties else 0.0)
+            phi, train = self._minimise(cols, jacs, None, gram, phi, train, lam)
         else:
             self.n_fits += 1
         self._last.update(zip(cols.names, phi))
-        total_gradient = gradient_vector(jacs, self._weighted(train, None), None, self.n_rows) if k else None
         fold_steps = []  # per assignment, per fold: the fold's fit (phi where nothing is fitted)
-        for r, folds in enumerate(self.repeats):
+        if k:
+            total_gradient = gradient_vector(jacs, self._weighted(train, None), None, self.n_rows)
+        for r, tests in enumerate(store.tests):
             steps = []
-            for f, (_, test) in enumerate(folds):
+            for f, test in enumerate(tests):
                 phi_k = phi
                 if k:  # one step from the full fit, on the normal equations less the held-out rows
-                    lam = penalties["folds"][r][f] if penalties else 0.0
                     held_gradient = gradient_vector(jacs, self._weighted([res[test] for res in train], test), test,
-                                              self.n_rows)
-                    phi_k = self._fold_step(cols, gram - fold_grams[r][f], phi, total_gradient - held_gradient, lam)
+                                                    self.n_rows)
+                    phi_k = self._fold_step(cols, gram - store.held_blocks()[r][f][np.ix_(index, index)], phi,
+                                            total_gradient - held_gradient, lam)
                 steps.append(phi_k)
             fold_steps.append(steps)
-        arrays = self._residual_arrays(train, jacs, phi, fold_steps)
-        heldout_repeats = arrays["heldout_repeats"]
-        squares = np.mean([row_squares(h) for h in heldout_repeats], axis=0) if heldout_repeats else \
-            np.zeros(self.n_rows)
         flat = _flat(self._weighted(train, None))
-        cost = float(flat @ flat)
-        n_obs = flat.size
-        lam = penalties["full"] if penalties else 0.0
-        # with a smoothness penalty, the posterior covariance of the penalised fit (as for penalised splines)
-        solver = DampedSolver(gram + np.diag(lam * cols.penalty)) if k else None
-        phi_std = solver.standard_errors(cost / max(n_obs - k, 1)) if k else np.zeros(0)
-        phi_cov = solver.covariance(cost / max(n_obs - k, 1)) if k and cols.penalty.any() else None
-        span = np.maximum(np.abs(phi), 1.0) * 1e-9
-        at_bound = (phi <= cols.lower + span) | (phi >= cols.upper - span)
-        result = {"effects": tuple(effects), "phi": phi, "scale": cols.scale,
-                  "names": cols.names, "keep": keep, "n_parameters": int(k),
-                  "lower": cols.lower, "upper": cols.upper, **arrays, "heldout_squares": squares,
-                  "train_stats": ErrorStats.of(arrays["train_residual"]), "heldout_stats": ErrorStats.pooled(
-                      heldout_repeats) if heldout_repeats else None,
-                  "cost": cost, "fold_phi": fold_steps[0] if fold_steps else [], "fold_steps": fold_steps,
-                  "phi_std": phi_std, "at_bound": at_bound, "n_observations": int(n_obs), "phi_cov": phi_cov,
-                  "penalty": penalties, "penalty_weights": cols.penalty}
-        # cached without its per-row arrays (remade when read: :mod:`.fit_result`); the caller's copy has them
-        self._full_cache[key] = FitResult(result, self._remade)
-        return result
+        fields, arrays = self._fields(effects, keep, index, phi, fold_steps, float(flat @ flat), linear["penalty"],
+                                      cols.names, exact=True, train=train)
+        return fields, arrays, self._uncertainty(index, lam * cols.penalty, fields["cost"], fields)
 
-    def _residual_arrays(self, train: list[np.ndarray], jacs: list, phi: np.ndarray, fold_steps: list) -> dict:
+    def _fields(self, effects, keep, index, phi, fold_steps, cost, penalty, names, exact, train=None,
+                second_order=None) -> tuple:
+        """A fit's figures (the dict :meth:`evaluate` returns) and its per-row arrays."""
+        layout = self.grams().layout
+        lower, upper, scale = layout.lower[index], layout.upper[index], layout.scale[index]
+        fields = {"effects": tuple(effects), "phi": phi, "scale": scale, "names": names, "keep": keep,
+                  "n_parameters": int(index.size), "lower": lower, "upper": upper, "cost": cost,
+                  "fold_phi": fold_steps[0] if fold_steps else [], "fold_steps": fold_steps,
+                  "n_observations": int(sum(self.n_rows * p.rows_per_pose for p in self.parts)),
+                  "penalty": penalty, "penalty_weights": layout.penalty[index], "exact": exact, "index": index,
+                  "second_order_at": second_order}
+        span = np.maximum(np.abs(phi), 1.0) * 1e-9
+        fields["at_bound"] = (phi <= lower + span) | (phi >= upper - span)
+        arrays = self._arrays(fields, train)
+        heldout_repeats = arrays["heldout_repeats"]
+        fields["heldout_squares"] = np.mean([row_squares(h) for h in heldout_repeats], axis=0) if heldout_repeats \
+            else np.zeros(self.n_rows)
+        fields["train_stats"] = ErrorStats.of(arrays["train_residual"])
+        fields["heldout_stats"] = ErrorStats.pooled(heldout_repeats) if heldout_repeats else None
+        return fields, arrays
+
+    def _uncertainty(self, index: np.ndarray, weights: np.ndarray, cost: float, fields: dict) -> dict:
+        """The standard errors (and with a penalty, the posterior covariance) of a fit, made when read:
+        s^2 (J^T J + lambda W)^+ with s^2 the training cost per degree of freedom, J^T J the model's
+        block of the total Gram matrix (taken then: a cached fit holds no k x k matrix)."""
+        k = fields["n_parameters"]
+        variance = cost / max(fields["n_observations"] - k, 1)
+        solver = []
+        store = self._grams
+
+        def damped():
+            if not solver:
+                solver.append(DampedSolver(store.total[np.ix_(index, index)] + np.diag(weights)))
+            return solver[0]
+
+        lazy = {"phi_std": (lambda: damped().standard_errors(variance)) if k else (lambda: np.zeros(0)),
+                "phi_cov": (lambda: damped().covariance(variance)) if k and np.any(weights) else (lambda: None)}
+        return lazy
+
+    def _arrays(self, result, train=None) -> dict:
         """The per-row arrays of a fit (:data:`~tcr_accuracy.diagnosis.fit_result.RESIDUAL_KEYS`): its
-        training residual per part (the exact one at phi), and each fold assignment's held-out rows at its
-        folds' fits ``fold_steps`` (per assignment, per fold: scaled parameters)."""
-        repeats = []
-        for folds, steps in zip(self.repeats, fold_steps):
-            oof = [np.empty((self.n_rows, p.rows_per_pose)) for p in self.parts]
-            for (_, test), phi_k in zip(folds, steps):
-                for p, (res, jac) in enumerate(zip(train, jacs or [None] * len(train))):
-                    # the held-out rows at the fold's fit: the exact residual at the full fit moved by
-                    # the Jacobian (the fold's fit is within a step of it; second order is below noise)
-                    oof[p][test] = res[test] if jac is None else res[test] + self._unweighted(
-                        p, test, moved_rows(jac, test, phi_k - phi))
-            repeats.append(oof)
+        training residual per part and each fold assignment's held-out rows at its folds' fits. On
+        the linear model, the anchor's residual moved by J times each fit's step from the anchor; on
+        the exact kinematics, the exact residual at phi (``train``, or made again) moved by J times
+        each fold's step from phi."""
+        store = self.grams()
+        layout = store.layout
+        index, phi = result["index"], result["phi"]
+        columns = [np.zeros(layout.n_columns)]
+        if result["exact"]:
+            base = train if train is not None else self.predict_residual(
+                self.columns(list(result["effects"]), result["keep"]), phi, np.arange(self.n_rows))
+            origin = phi
+        else:
+            base = store.anchor.residual if result["second_order_at"] is None else self._corrected_residual(
+                result["effects"], result["keep"], index, result["second_order_at"])
+            origin = store.anchor.phi[index]
+            columns[0] = -store.anchor.phi
+            columns[0][index] = phi - origin
+        for steps in result["fold_steps"]:
+            for phi_k in steps:
+                column = columns[0].copy()
+                column[index] = phi_k - origin
+                columns.append(column)
+        steps = np.stack(columns, axis=1)
+        # which column each row's held-out error takes, per assignment (its fold's; the full fit's if in none)
+        picks, at = [], 1
+        for r, tests in enumerate(store.tests):
+            label = store.fold_of[r]
+            picks.append(np.where(label >= 0, at + label, 0))
+            at += len(tests)
+        train_rows, repeats = [], [[] for _ in store.tests]
+        for p, part in enumerate(self.parts):
+            moved = moved_rows(self.bases, layout, p, steps, self.n_rows, part.rows_per_pose) if np.any(steps) \
+                else np.zeros((self.n_rows, part.rows_per_pose, steps.shape[1]))
+            train_rows.append(base[p] + moved[:, :, 0])
+            for r, pick in enumerate(picks):
+                repeats[r].append(base[p] + np.take_along_axis(moved, pick[:, None, None], axis=2)[:, :, 0])
         oof = repeats[0] if repeats else [np.zeros((self.n_rows, p.rows_per_pose)) for p in self.parts]
-        return {"train_residual": self._positions(train), "heldout_residual": self._positions(oof),
-                "train_orientation": self._rotations(train), "heldout_orientation": self._rotations(oof),
+        return {"train_residual": self._positions(train_rows), "heldout_residual": self._positions(oof),
+                "train_orientation": self._rotations(train_rows), "heldout_orientation": self._rotations(oof),
                 "heldout_repeats": [self._positions(o) for o in repeats]}
 
     def _remade(self, result: FitResult) -> dict:
         """The per-row arrays of a cached fit, made again as :meth:`evaluate` made them (the same
-        columns, Jacobians, parameters and fold steps: the same floats); the last ones are kept."""
+        parameters and fold steps: the same floats); the last ones are kept."""
         if self._materialised is not None and self._materialised[0] is result:
             return self._materialised[1]
-        cols = self.columns(result["effects"], result["keep"])
-        train = self.predict_residual(cols, result["phi"], np.arange(self.n_rows))
-        arrays = self._residual_arrays(train, self._jacobians(cols) if cols.scale.size else [], result["phi"],
-                                       result["fold_steps"])
+        arrays = self._arrays(result)
         self._materialised = (result, arrays)
         return arrays
 
@@ -544,6 +701,15 @@ class FitEngine:
         if not rot:
             return None
         return rot[0] if len(rot) == 1 else np.concatenate(rot)
+
+
+def _whitened(part: Part, residual: np.ndarray) -> np.ndarray:
+    """A part's residual rows (N, r) as the fit weighs them (the position rows through its whitening)."""
+    if part.whitening is None:
+        return residual
+    out = residual.copy()
+    out[:, :3] = np.einsum("nij,nj->ni", part.whitening, residual[:, :3])
+    return out
 
 
 def _flat(per_part: list[np.ndarray]) -> np.ndarray:

@@ -66,7 +66,28 @@ def compressed(bases: dict) -> dict:
     return out
 
 
-def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: float | dict = 0.0) -> tuple[dict, dict]:
+def gram_factor(gram: np.ndarray, columns: dict, n_poses: int) -> dict:
+    """The same compressed columns as :func:`compressed`, from the columns' Gram matrix A^T A (K, K)
+    (the fit engine holds it, :mod:`~tcr_accuracy.diagnosis.gram`) instead of the rows: a factor F with
+    F^T F = A^T A, by LAPACK's pivoted Cholesky (``dpstrf``) of the matrix scaled to a unit diagonal (so
+    that every column keeps its own relative precision, ~1e-8 of its norm, far below the rank tolerance).
+    ``columns``: effect -> (names, its K-columns); the result's blocks read as :func:`compressed`'s."""
+    from scipy.linalg import lapack
+
+    norms = np.sqrt(np.clip(np.diag(gram), 0.0, None))
+    safe = np.where(norms > 0, norms, 1.0)
+    scaled = gram / np.outer(safe, safe)
+    factor, piv, rank, _ = lapack.dpstrf(scaled, tol=float(np.finfo(float).eps * gram.shape[0]), lower=0)
+    upper = np.triu(factor[:rank])  # (rank, K): the rows of the factor in pivoted column order
+    f = np.zeros((rank, gram.shape[0]))
+    f[:, piv[:gram.shape[0]] - 1] = upper
+    f *= np.where(norms > 0, norms, 0.0)
+    return {e: SensitivityColumns(list(names), f[:, None, cols], np.ones(len(cols)), n_poses)
+            for e, (names, cols) in columns.items()}
+
+
+def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: float | dict = 0.0,
+                    report: bool = True) -> tuple[dict, dict | None]:
     """Kept columns per effect and a report of what was removed and why.
 
     Each parameter's column of the identification Jacobian (N poses x 3 rows) is taken
@@ -78,7 +99,11 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
     ``min_motion`` [m RMS] (the measurements cannot resolve it) or below ``rank_tol``
     times the column's own motion (a numerical duplicate). ``min_motion`` may be a dict
     (effect -> threshold [m]) when effects are judged at sizes other than their typical ones.
+    With ``report=False`` only the kept columns (the report, what each dropped column duplicates
+    and the condition number, is most of the cost): (keep, None).
     """
+    if not report:
+        return _kept_columns(bases, order, rank_tol, min_motion), None
     kept_q = None  # orthonormal basis of the kept span, (3N, r)
     kept_cols, kept_names = [], []  # normalised kept columns and names, for naming duplicates
     keep: dict = {}
@@ -88,17 +113,8 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
     for name in order:
         b = bases[name]
         threshold = thresholds.get(name, 0.0)
-        n_pose = b.n_poses if getattr(b, "n_poses", None) else max(b.g.shape[0], 1)
-        cols = (b.g * b.scales).reshape(-1, len(b.names))
-        norms = np.linalg.norm(cols, axis=0)
-        proj = cols if kept_q is None else cols - kept_q @ (kept_q.T @ cols)
+        n_pose, cols, norms, piv, diag, basis = _block_pivots(b, kept_q)
         removed, kept_local = [], []
-        # columns of equal independent motion (two placement translations along one axis) tie: the
-        # pivoting would then follow round-off, which differs between BLAS builds; weights within
-        # 1e-9 of one make the earlier column win every exact tie and change nothing else
-        tie_break = 1.0 + 1e-9 * np.arange(len(b.names), 0, -1) / max(len(b.names), 1)
-        qmat, rmat, piv = linalg.qr(proj * tie_break, mode="economic", pivoting=True)
-        diag = np.abs(np.diag(rmat)) / tie_break[piv[:min(proj.shape)]]
         independent = np.zeros(len(b.names))
         independent[piv[:diag.size]] = diag
         rank = 0
@@ -135,7 +151,7 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
                           + (f"; the rest duplicates {', '.join(dup)}" if dup else ""))
             removed.append({"parameter": b.names[k], "reason": reason, "duplicates": dup})
         if rank:
-            new_q = qmat[:, :rank]
+            new_q = basis(rank)
             kept_q = new_q if kept_q is None else np.hstack([kept_q, new_q])
             kept_cols += [unit_all[:, k] for k in kept_local]
             kept_names += [b.names[k] for k in kept_local]
@@ -149,4 +165,72 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
         report["condition_number"] = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
         report["smallest_singular_value"] = float(sv[-1])
     return keep, report
+
+
+def _kept_columns(bases: dict, order, rank_tol: float, min_motion) -> dict:
+    """The kept columns of :func:`identifiability`, by the same projections and pivoted QR."""
+    kept_q = None
+    keep: dict = {}
+    thresholds = min_motion if isinstance(min_motion, dict) else dict.fromkeys(order, min_motion)
+    for name in order:
+        b = bases[name]
+        threshold = thresholds.get(name, 0.0)
+        n_pose, _, norms, piv, diag, basis = _block_pivots(b, kept_q)
+        rank = 0
+        for k in range(diag.size):
+            if diag[k] / math.sqrt(n_pose) > threshold and diag[k] > rank_tol * norms[piv[k]]:
+                rank += 1
+            else:
+                break
+        if rank and name != order[-1]:  # the span the effects after it are projected off
+            kept_q = basis(rank) if kept_q is None else np.hstack([kept_q, basis(rank)])
+        keep[name] = np.asarray(sorted(piv[:rank].tolist()), dtype=int)
+    return keep
+
+
+def _block_pivots(b, kept_q: np.ndarray | None) -> tuple:
+    """One effect's block projected off the kept span ``kept_q`` (3N, r) and pivoted: (poses, its
+    scaled columns (3N, P), their norms (P,), and :func:`_pivoted`'s pivots, diagonal and basis)."""
+    n_pose = b.n_poses if getattr(b, "n_poses", None) else max(b.g.shape[0], 1)
+    cols = (b.g * b.scales).reshape(-1, len(b.names))
+    norms = np.linalg.norm(cols, axis=0)
+    proj = cols if kept_q is None else cols - kept_q @ (kept_q.T @ cols)
+    # columns of equal independent motion (two placement translations along one axis) tie: the
+    # pivoting would then follow round-off, which differs between BLAS builds; weights within
+    # 1e-9 of one make the earlier column win every exact tie and change nothing else
+    tie_break = 1.0 + 1e-9 * np.arange(len(b.names), 0, -1) / max(len(b.names), 1)
+    return (n_pose, cols, norms) + _pivoted(proj, tie_break)
+
+
+#: an effect of more columns than this (a fine angle table) is pivoted through the Gram matrix of its
+#: projected columns (:func:`_pivoted`)
+GRAM_PIVOTING = 256
+
+
+def _pivoted(proj: np.ndarray, tie_break: np.ndarray):
+    """QR with column pivoting of ``proj * tie_break`` (rows, P): (pivots, |R's diagonal| / the pivots'
+    tie_break, and a function of the rank giving an orthonormal basis (rows, rank) of the first pivots'
+    columns). Beyond :data:`GRAM_PIVOTING` columns, by LAPACK's pivoted Cholesky (``dpstrf``) of their
+    Gram matrix: the same pivots (each step takes the column of largest remaining norm, Businger and
+    Golub's rule), R's diagonal to ~eps times the largest norm squared over its own value (1e-6
+    relative at the smallest of columns a hundredfold apart, tests/test_gram.py: below the rank
+    tolerance, as the columns are scaled to their typical sizes), and a
+    third of the work of ``dgeqp3`` on a thousand columns; its diagonal stops where the remaining
+    columns are numerically zero."""
+    if proj.shape[1] <= GRAM_PIVOTING:
+        qmat, rmat, piv = linalg.qr(proj * tie_break, mode="economic", pivoting=True)
+        return piv, np.abs(np.diag(rmat)) / tie_break[piv[:min(proj.shape)]], lambda rank: qmat[:, :rank]
+    from scipy.linalg import lapack
+
+    scaled = proj * tie_break
+    gram = scaled.T @ scaled
+    top = float(np.max(np.diag(gram))) if gram.size else 0.0
+    factor, piv, rank_c, _ = lapack.dpstrf(gram, tol=float(np.finfo(float).eps * gram.shape[0] * top), lower=0)
+    piv = piv - 1
+    diag = np.abs(np.diag(factor))[:rank_c] / tie_break[piv[:rank_c]]
+
+    def basis(rank: int) -> np.ndarray:  # Q = A_k R_k^-1 for the first rank pivots' columns A_k
+        return linalg.solve_triangular(np.triu(factor[:rank, :rank]), scaled[:, piv[:rank]].T, trans="T").T
+
+    return piv, diag, basis
 

@@ -117,6 +117,7 @@ class StructureDetector:
         kinds = kinds if kinds is not None else ["revolute"] * q.shape[1]
         self.features = _smooth_features(q, kinds)
         self.split = KFold(n_splits=folds, shuffle=True, random_state=int(rng.integers(2**31 - 1)))
+        self._ridge = None  # the ridge's folds, decomposed when first tested
 
     def _local(self, centred: np.ndarray, total: float, perms=None) -> dict:
         perms = self.perms if perms is None else perms
@@ -124,8 +125,10 @@ class StructureDetector:
         stack = np.concatenate([centred] + [centred[perm] for perm in perms], axis=1)
         best = None
         for subset, average in self.neighbours:
-            error = stack - average @ stack
-            shares = 1.0 - np.sum((error * error).reshape(len(centred), -1, 3), axis=(0, 2)) / total
+            error = average @ stack
+            np.subtract(stack, error, out=error)
+            np.square(error, out=error)
+            shares = 1.0 - error.sum(axis=0).reshape(-1, 3).sum(axis=1) / total
             actual, null = float(shares[0]), shares[1:]
             gain = float(actual - null.mean())
             # a few hundred permutations cannot resolve small p by counting: use their spread
@@ -136,13 +139,9 @@ class StructureDetector:
         return best
 
     def _global(self, centred: np.ndarray, total: float) -> tuple[float, float]:
-        from sklearn.linear_model import RidgeCV
-        from sklearn.model_selection import cross_val_predict
-        from sklearn.pipeline import make_pipeline
-        from sklearn.preprocessing import StandardScaler
-
-        model = make_pipeline(StandardScaler(), RidgeCV(alphas=np.logspace(-3, 3, 13)))
-        predicted = cross_val_predict(model, self.features, centred, cv=self.split)
+        if self._ridge is None:
+            self._ridge = RidgeFolds(self.features, self.split, RIDGE_ALPHAS)
+        predicted = self._ridge.predict(centred)
         share = float(1.0 - np.sum((centred - predicted) ** 2) / total)
         d = np.sum(centred**2, axis=1) - np.sum((centred - predicted) ** 2, axis=1)
         z = float(d.mean() / (d.std(ddof=1) / math.sqrt(d.size))) if d.std() > 0 else 0.0
@@ -185,6 +184,60 @@ class StructureDetector:
         if rng is not None:
             semi = empirical_semivariogram(self.q, residual, n_bins=12, rng=rng)
             out["semivariogram_nugget_ratio_xyz"] = [_nugget_ratio(semi, c) for c in range(3)]
+        return out
+
+
+#: the ridge penalties the global predictor chooses among (on standardised features)
+RIDGE_ALPHAS = np.logspace(-3, 3, 13)
+
+
+class RidgeFolds:
+    """Out-of-fold predictions of scikit-learn's ``make_pipeline(StandardScaler(), RidgeCV(alphas))``
+    under ``cross_val_predict(..., cv=split)``, for any number of residuals on the same features.
+
+    RidgeCV chooses alpha per training fold by its efficient leave-one-out error (the hat matrix's
+    diagonal; mean over rows and targets; the first best alpha) and fits the ridge with an intercept
+    on the fold's standardised features. The features are the same for every residual the structure
+    test is asked about (nine per diagnosis, each with five folds), and RidgeCV decomposes them
+    again each time (most of the test's cost); here each fold's standardised features are
+    decomposed once (Z^T Z = V diag(s) V^T) and a residual costs a few products with Z V. The same
+    formulas: hat diagonal 1/n + sum_j (Z V)_ij^2 / (s_j + alpha), prediction
+    mean(y) + Z V diag(1 / (s + alpha)) V^T Z^T (y - mean(y)).
+    """
+
+    def __init__(self, features: np.ndarray, split, alphas: np.ndarray):
+        self.n_rows = features.shape[0]
+        self.alphas = np.asarray(alphas, dtype=float)
+        self.folds = []
+        for train, test in split.split(features):
+            x = features[train]
+            mean = x.mean(axis=0)
+            scale = x.std(axis=0)
+            scale[scale < 10 * np.finfo(float).eps * np.maximum(np.abs(mean), 1.0)] = 1.0  # StandardScaler's
+            z = (x - mean) / scale
+            values, vectors = np.linalg.eigh(z.T @ z)
+            values = np.clip(values, 0.0, None)
+            projected = z @ vectors  # (n_train, F)
+            inverse = 1.0 / (values[:, None] + self.alphas[None, :])  # (F, n_alphas)
+            hat = 1.0 / len(train) + (projected**2) @ inverse  # (n_train, n_alphas)
+            self.folds.append((train, test, projected, inverse, hat, ((features[test] - mean) / scale) @ vectors))
+
+    def predict(self, y: np.ndarray) -> np.ndarray:
+        """(N, m) out-of-fold predictions of y (N, m)."""
+        out = np.empty_like(y, dtype=float)
+        for train, test, projected, inverse, hat, projected_test in self.folds:
+            target = y[train]
+            offset = target.mean(axis=0)
+            centred = target - offset
+            moment = projected.T @ centred  # (F, m)
+            best, best_score = 0, None
+            for a in range(self.alphas.size):
+                fitted = projected @ (moment * inverse[:, a, None])
+                looe = (centred - fitted) / (1.0 - hat[:, a, None])
+                score = -float(np.mean(looe**2))
+                if best_score is None or score > best_score:
+                    best, best_score = a, score
+            out[test] = offset + projected_test @ (moment * inverse[:, best, None])
         return out
 
 

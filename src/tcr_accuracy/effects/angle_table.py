@@ -25,6 +25,14 @@ GAUSS_POINTS = 8
 CYCLIC_PER_TURN = 2.5
 #: Narrowest travel a table spans [rad] (a joint the data barely move still gets a well-posed table)
 MIN_SPAN = 0.2
+#: Poses per parameter over the revolute joints the diagnosis asks of the data (each pose's three
+#: coordinates fall on every joint's table at once; the roughness penalty holds what they leave free)
+POSES_PER_PARAMETER = 8
+#: Knot intervals per joint at most (a table of 253 modes a joint: hundreds at 10^4 poses)
+MAX_INTERVALS = 256
+#: The share of each knot's place set by the spacing of equal intervals, the rest by the data's
+#: density: every interval keeps at least this share of an equal one, where the poses are sparse too
+UNIFORM_SHARE = 0.2
 
 
 @dataclass(frozen=True)
@@ -33,15 +41,21 @@ class AngleTableFitPolicy(FitPolicy):
     a roughness penalty."""
 
     def options_for_data(self, robot, q, context) -> dict:
-        """Each joint's measured travel (``lower``, ``upper`` [rad]) and the knot intervals: at
-        least 8 poses per parameter over the revolute joints (a quarter of cyclic's density: the
-        smooth errors a table is for need fewer knots, and every fold pays for its columns), 8 to 32
-        intervals (5 to 29 parameters per joint)."""
+        """Each joint's measured travel (``lower``, ``upper`` [rad]), the knot intervals and where the
+        knots sit (``knots``): :data:`POSES_PER_PARAMETER` poses per parameter over the revolute
+        joints, 8 to :data:`MAX_INTERVALS` intervals (5 to 253 parameters per joint: hundreds at 10^4
+        poses, each fit taking the table's columns from the fold Gram matrices), and the knots of
+        each joint at the quantiles of its measured angles (:func:`density_knots`): more where the
+        poses are dense."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         revolute = sum(k == REVOLUTE for k in robot.joint_kinds)
-        intervals = int(min(32, max(8, CONSTRAINED - DEGREE + len(q) // (8 * max(revolute, 1)))))
-        return {"intervals": intervals, "lower": [float(v) for v in q.min(axis=0)],
-                "upper": [float(v) for v in q.max(axis=0)]}
+        intervals = int(min(MAX_INTERVALS, max(8, CONSTRAINED - DEGREE
+                                               + len(q) // (POSES_PER_PARAMETER * max(revolute, 1)))))
+        lower, upper = q.min(axis=0), q.max(axis=0)
+        knots = [[float(v) for v in density_knots(q[:, j], lower[j], upper[j], intervals)]
+                 if kind == REVOLUTE else None for j, kind in enumerate(robot.joint_kinds)]
+        return {"intervals": intervals, "lower": [float(v) for v in lower], "upper": [float(v) for v in upper],
+                "knots": knots}
 
     def penalty_weights(self, effect) -> np.ndarray:
         """(k,) roughness weight of each parameter: the mean squared curvature of its mode (unit
@@ -75,25 +89,45 @@ class JointTable:
         return np.asarray(BSpline.design_matrix(x, self.knots, DEGREE) @ self.modes)
 
 
-def joint_table(lower: float, upper: float, intervals: int) -> JointTable:
-    """The table of one joint over [lower, upper] [rad] with ``intervals`` equal knot intervals.
+def travel(lower: float, upper: float) -> tuple[float, float]:
+    """A joint's table span [rad]: its travel, widened about the middle to :data:`MIN_SPAN`."""
+    lower, upper = float(lower), float(upper)
+    if upper - lower < MIN_SPAN:
+        middle = 0.5 * (lower + upper)
+        lower, upper = middle - MIN_SPAN / 2, middle + MIN_SPAN / 2
+    return lower, upper
+
+
+def density_knots(angles: np.ndarray, lower: float, upper: float, intervals: int) -> np.ndarray:
+    """(intervals - 1,) the inner knots of one joint's table [rad]: the quantiles of its measured
+    angles (each interval holding as many poses), moved a share :data:`UNIFORM_SHARE` of the way to
+    the equal intervals' knots, so that every interval keeps at least that share of an equal one
+    (no interval collapses where the poses pile up, and sparse stretches still get knots)."""
+    lower, upper = travel(lower, upper)
+    share = np.linspace(0.0, 1.0, intervals + 1)[1:-1]
+    angles = np.clip(np.asarray(angles, dtype=float), lower, upper)
+    quantile = np.quantile(angles, share) if angles.size else lower + share * (upper - lower)
+    return (1.0 - UNIFORM_SHARE) * quantile + UNIFORM_SHARE * (lower + share * (upper - lower))
+
+
+def joint_table(lower: float, upper: float, intervals: int, inner=None) -> JointTable:
+    """The table of one joint over [lower, upper] [rad] with ``intervals`` knot intervals, equal or
+    with the inner knots ``inner`` (intervals - 1,) [rad] (:func:`density_knots`).
 
     The B-spline coefficients are restricted to the functions orthogonal (over the travel) to
     1, q, sin q, cos q, sin 2q, cos 2q -- joint_offsets', encoder_scale's and transmission's --
     and, within that space, to the eigenvectors of the roughness (mean squared second derivative)
     relative to the mean square (Demmler-Reinsch): each parameter is one mode of unit RMS and
     its penalty is one number, so the fit's diagonal penalty is the exact roughness penalty.
-    The modes are fixed by (lower, upper, intervals) alone, each with its first coefficient
+    The modes are fixed by (lower, upper, intervals, inner) alone, each with its first coefficient
     positive (from the lower end), so a file's options rebuild the same table.
     """
     from scipy.interpolate import BSpline
     from scipy.linalg import eigh
 
-    lower, upper = float(lower), float(upper)
-    if upper - lower < MIN_SPAN:
-        middle = 0.5 * (lower + upper)
-        lower, upper = middle - MIN_SPAN / 2, middle + MIN_SPAN / 2
-    inner = np.linspace(lower, upper, intervals + 1)
+    lower, upper = travel(lower, upper)
+    inner = np.linspace(lower, upper, intervals + 1) if inner is None else \
+        np.concatenate([[lower], np.clip(np.asarray(inner, dtype=float), lower, upper), [upper]])
     knots = np.concatenate([np.full(DEGREE, lower), inner, np.full(DEGREE, upper)])
     # Gauss-Legendre points in every knot interval: the integrals over the travel below are exact for the
     # splines' piecewise polynomials (and within rounding for the harmonics)
@@ -138,8 +172,9 @@ class AngleTable(JointColumnsEffect):
     the travel a table holds its value at the nearer end. Parameters ``angle_table.<joint>.m<i>``
     [rad], the RMS of mode i over the travel, smoothest first. Options: ``intervals`` (knot
     intervals per joint, ``intervals - 3`` parameters), ``lower``, ``upper`` (each joint's travel
-    [rad]; default its limits, +-pi when it has none): the diagnosis sets them from the data and
-    keeps them for any prediction.
+    [rad]; default its limits, +-pi when it has none), ``knots`` (per joint, its ``intervals - 1``
+    inner knots [rad], or None: equal intervals): the diagnosis sets them from the data (knots
+    where the poses are dense) and keeps them for any prediction.
     """
 
     name = "angle_table"
@@ -153,7 +188,8 @@ class AngleTable(JointColumnsEffect):
     # more basic cause
     fit_policy = AngleTableFitPolicy(order=66.0, last_resort=True)
 
-    def __init__(self, robot, *, intervals: int = 16, lower: list | None = None, upper: list | None = None) -> None:
+    def __init__(self, robot, *, intervals: int = 16, lower: list | None = None, upper: list | None = None,
+                 knots: list | None = None) -> None:
         super().__init__(robot)
         if intervals < CONSTRAINED - DEGREE + 1:
             raise ValueError(f"angle_table needs at least {CONSTRAINED - DEGREE + 1} knot intervals, got {intervals}")
@@ -173,6 +209,19 @@ class AngleTable(JointColumnsEffect):
         inverted = [robot.joint_names[j] for j in np.flatnonzero(self._span[1] < self._span[0])]
         if inverted:
             raise ValueError(f"angle_table: travel of {', '.join(inverted)} ends below where it starts")
+        if knots is not None and len(knots) != robot.n_joints:
+            raise ValueError(f"angle_table knots: {len(knots)} lists for {robot.n_joints} joints")
+        for j, inner in enumerate(knots or ()):
+            if inner is None:
+                continue
+            values = np.asarray(inner, dtype=float) if all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in inner) else None
+            low, high = travel(self._span[0][j], self._span[1][j])
+            if values is None or values.size != self.intervals - 1 or not np.all(np.isfinite(values)) or \
+                    np.any(np.diff(np.concatenate([[low], values, [high]])) <= 0):
+                raise ValueError(f"angle_table knots[{j}]: {self.intervals - 1} increasing angles [rad] strictly "
+                                 f"inside the travel {low:.6g} to {high:.6g} rad, one per inner knot")
+        self.knots = None if knots is None else [None if k is None else [float(v) for v in k] for k in knots]
 
     @cached_property
     def revolute(self) -> tuple[int, ...]:
@@ -187,7 +236,8 @@ class AngleTable(JointColumnsEffect):
         """The table of joint index j (built once)."""
         tables = self.__dict__.setdefault("_tables", {})
         if j not in tables:
-            tables[j] = joint_table(self._span[0][j], self._span[1][j], self.intervals)
+            inner = self.knots[j] if self.knots is not None else None
+            tables[j] = joint_table(self._span[0][j], self._span[1][j], self.intervals, inner)
         return tables[j]
 
     def parameter_names(self):
@@ -261,6 +311,12 @@ class AngleTable(JointColumnsEffect):
             values[:, i * m:(i + 1) * m] = self.table(j).values(q[:, j])
         return values, np.repeat(np.asarray(self.revolute, dtype=int), m)
 
+    def joint_column_values(self, q: np.ndarray) -> tuple:
+        """:meth:`joint_columns` with the values made a chunk of rows at a time when read
+        (:class:`TableValues`): never the (N, k) array."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        return TableValues(self, q), np.repeat(np.asarray(self.revolute, dtype=int), self.modes_per_joint)
+
     def joint_function(self, params, joint: str, angles: np.ndarray) -> np.ndarray:
         """(M,) the fitted table error [rad] of one joint at angles (M,) [rad]."""
         params = self.check_params(params)
@@ -275,3 +331,28 @@ class AngleTable(JointColumnsEffect):
             return [], np.zeros((len(angles), 0))
         names = [f"angle_table.{joint}.m{i}" for i in range(1, self.modes_per_joint + 1)]
         return names, self.table(j).values(np.asarray(angles, dtype=float))
+
+
+class TableValues:
+    """An angle table's compact Jacobian values (N, k) at fixed joint values, made when rows are
+    read: ``values[rows]`` (or ``values[rows, columns]``) is those rows of
+    :meth:`AngleTable.joint_columns`, each joint's B-spline design (four non-zeros a row) times its
+    modes. Held whole, a table of 208 modes a joint was 100 MB at 10^4 poses; ``np.asarray`` of it
+    is that array."""
+
+    ndim = 2
+    dtype = np.dtype(float)
+
+    def __init__(self, effect: AngleTable, q: np.ndarray):
+        self.effect, self.q = effect, q
+        self.shape = (q.shape[0], effect.n_params)
+
+    def __getitem__(self, key):
+        rows, columns = (key if isinstance(key, tuple) else (key, slice(None)))
+        if isinstance(rows, (int, np.integer)):
+            return self.effect.joint_columns(self.q[[rows]])[0][0, columns]
+        return self.effect.joint_columns(self.q[rows])[0][:, columns]
+
+    def __array__(self, dtype=None, copy=None):
+        out = self.effect.joint_columns(self.q)[0]
+        return out if dtype is None else out.astype(dtype)

@@ -165,6 +165,8 @@ def _option_value(default, value, key: str):
             items.append(item)
         elif isinstance(item, int) and not isinstance(item, bool) and abs(item) <= MAX_INTEGER_OPTION:
             items.append(item)
+        elif item is None or (isinstance(item, list) and len(item) <= MAX_INTEGER_OPTION):  # per joint: numbers
+            items.append(None if item is None else [file_number(v, f"{key}[{k}][{i}]") for i, v in enumerate(item)])
         else:
             items.append(file_number(item, f"{key}[{k}]"))
     return tuple(items) if isinstance(default, tuple) else items

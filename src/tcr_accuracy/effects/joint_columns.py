@@ -38,6 +38,12 @@ class JointColumnsEffect(LinearEffect):
         joint : (k,) int, the joint each parameter moves
         """
 
+    def joint_column_values(self, q: np.ndarray) -> tuple:
+        """:meth:`joint_columns` as the diagnosis keeps it for all its poses: the same (values, joint),
+        values possibly an array-like (N, k) that makes its rows when indexed (``values[rows]``)
+        rather than an array (a table of a thousand modes is 100 MB at 10^4 poses)."""
+        return self.joint_columns(q)
+
     def parameter_jacobian(self, params, q, context):
         q = np.atleast_2d(np.asarray(q, dtype=float))
         values, joint = self.joint_columns(q)

@@ -19,9 +19,13 @@ _ANGLES = {"anyOf": [{"type": "null"}, {"type": "array", "maxItems": 10_000,
 
 #: effect -> option -> JSON Schema of its value (options not listed are refused).
 OPTIONS = {
-    # knot intervals per joint (intervals - 3 parameters per revolute joint) and each joint's travel [rad]
-    "angle_table": {"intervals": {"type": "integer", "minimum": 4, "maximum": 200},
-                    "lower": _ANGLES, "upper": _ANGLES},
+    # knot intervals per joint (intervals - 3 parameters per revolute joint: the diagnosis sets up to 256 from
+    # the data's density), each joint's travel [rad] and its inner knots [rad] (None: equal intervals)
+    "angle_table": {"intervals": {"type": "integer", "minimum": 4, "maximum": 1000},
+                    "lower": _ANGLES, "upper": _ANGLES,
+                    "knots": {"anyOf": [{"type": "null"}, {"type": "array", "maxItems": 10_000, "items": {
+                        "anyOf": [{"type": "null"}, {"type": "array", "maxItems": 999, "items": {
+                            "type": "number", "minimum": -1e3, "maximum": 1e3}}]}}]}},
     "backlash": {"link_mass_factors": _LINK_MASS_FACTORS},
     "clearance": {"joints": {"anyOf": [{"type": "null"}, _NAMES]}},
     "compliance": {"link_mass_factors": _LINK_MASS_FACTORS},

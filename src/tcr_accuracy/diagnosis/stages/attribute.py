@@ -232,7 +232,7 @@ def _family(engine: FitEngine, effect: str) -> str:
 def fitted_mechanisms(engine: FitEngine, current) -> list[MechanismReading]:
     """Each chosen effect's mechanism, read from its fitted values and standard errors (the main
     measured frame's parameters)."""
-    final = engine.evaluate(ordered(current))
+    final = engine.evaluate(ordered(current), exact=True)
     theta = final["phi"] * final["scale"]
     std = final["phi_std"] * final["scale"]
     out, offset = [], 0
@@ -255,7 +255,7 @@ def fitted_mechanisms(engine: FitEngine, current) -> list[MechanismReading]:
 
 def _without(engine: FitEngine, current, dropped) -> dict:
     """The final model without some effects, the others held to their own parameters."""
-    keep = engine.identify(tuple(ordered(current)))[0]
+    keep = engine.kept(tuple(ordered(current)))
     rest = ordered([s for s in current if s not in dropped])
     return engine.evaluate(rest, keep={s: keep[s] for s in rest})
 
@@ -331,7 +331,7 @@ def _own_shares(engine: FitEngine, current, bootstrap: PoseBootstrap) -> tuple:
     """((the bootstrap table of the final model and of it without each chosen effect, the others held
     to their own parameters, and their per-row squared errors); effect -> its own share (value, low,
     high) [m])."""
-    keep = engine.identify(tuple(ordered(current)))[0]
+    keep = engine.kept(tuple(ordered(current)))
     squares = {"final": engine.evaluate(ordered(current))["heldout_squares"]}
     for e in current:
         if e != "frames":
@@ -384,15 +384,16 @@ def first_order_reach(part, bases: dict, chosen, full_parameters: dict, nominal:
 
 def explanation_ladder(engine: FitEngine, selected, first: Step, bootstrap: PoseBootstrap | None = None) -> list[Step]:
     """The shrink table in the order of explanation: from frames, each step adds the chosen
-    effect that lowers the held-out error most given those before it, with its gain and
-    the gain's 95 % interval (``bootstrap``'s; None: a pose bootstrap of the engine's rows, seed 0)."""
+    effect that lowers the held-out error most given those before it (on the engine's linear
+    model), with its figures on the exact kinematics, its gain and the gain's 95 % interval
+    (``bootstrap``'s; None: a pose bootstrap of the engine's rows, seed 0)."""
     bootstrap = bootstrap or bootstrap_for(engine, 0)
-    chain, current = [(first, engine.evaluate(["frames"]))], ["frames"]
+    chain, current = [(first, engine.evaluate(["frames"], exact=True))], ["frames"]
     remaining = [e for e in selected if e != "frames"]
     while remaining:
         trials = {e: engine.evaluate(ordered(current + [e])) for e in remaining}
         best = min(trials, key=lambda e: ErrorStats.heldout(trials[e]).rms)
-        r = trials[best]
+        r = engine.evaluate(ordered(current + [best]), exact=True)
         current.append(best)
         remaining.remove(best)
         chain.append((Step(best, tuple(ordered(current)), r["n_parameters"], r["train_stats"].rms,

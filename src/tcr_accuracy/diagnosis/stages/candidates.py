@@ -192,7 +192,7 @@ def frames_jacobians(parts, x_frames) -> list:
 
 def identifiable_alone(engine: FitEngine, name: str) -> bool:
     """Whether an effect keeps any identifiable parameter next to frames alone."""
-    return engine.identify(("frames", name))[0][name].size > 0
+    return engine.kept(("frames", name))[name].size > 0
 
 
 NOT_IDENTIFIABLE = "no identifiable parameter on these data (beyond frames)"

@@ -79,7 +79,7 @@ def collect_parameters(registered: RegisteredMeasurements, candidate_set: Candid
     frame as the user knows it (3,) [m], checked against the fitted one; None: not checked."""
     engine, bases = candidate_set.engine, candidate_set.bases
     selected = ordered(selection.selected)
-    final = engine.evaluate(selected)
+    final = engine.evaluate(selected, exact=True)
     notes: list = []
     keep, identifiability = engine.identify(tuple(selected))
     identifiability = {**identifiability, "all_effects": candidate_set.identifiability_all}

@@ -130,7 +130,7 @@ def analyse_residual(registered: RegisteredMeasurements, candidate_set: Candidat
     measurements = registered.measurements
     robot = registered.robot
     notes: list = []
-    final = engine.evaluate(current)
+    final = engine.evaluate(current, exact=True)
     gap_residual = _first_frame(selection.gap_residual)
     say("where the gap lies")
     context_values = {k: np.asarray(getattr(registered.parts[0].context, k), dtype=float)

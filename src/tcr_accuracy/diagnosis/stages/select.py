@@ -151,7 +151,7 @@ def select_effects(registered: RegisteredMeasurements, candidate_set: CandidateS
     candidates = {c.effect: c for c in candidate_set.untried}
     testable = list(candidate_set.testable)
     notes: list = []
-    result = engine.evaluate(["frames"])
+    result = engine.evaluate(["frames"], exact=True)  # the gap: the exact kinematics' residual after frames
     steps = [Step("frames", ("frames",), result["n_parameters"], result["train_stats"].rms,
                   ErrorStats.heldout(result), None)]
     current = _forward(engine, testable, steps, candidates, say, selection_z, min_relative_gain)
@@ -271,7 +271,7 @@ def _backward(engine: FitEngine, current: list, say, selection_z: float, referen
         chosen = [e for e in current if e != "frames"]
         final = engine.evaluate(ordered(current))
         final_rms = ErrorStats.heldout(final).rms
-        keep = engine.identify(tuple(ordered(current)))[0]
+        keep = engine.kept(tuple(ordered(current)))
         loo = []
         for e in chosen:
             say(f"leave-one-out: {e}")
@@ -299,7 +299,7 @@ def _relinearise_at_fit(engine: FitEngine, current, registered: RegisteredMeasur
     which a converged fit never does. Then every effect is linearised again at the fitted robot
     (each pose at its own fitted joint values and placements) and the model refitted; the new
     linearisation is kept where it lowers the training error."""
-    final = engine.evaluate(ordered(current))
+    final = engine.evaluate(ordered(current), exact=True)  # the linear model cannot see its own linearisation
     if final["train_stats"].rms <= tolerance * ErrorStats.heldout(final).rms:
         return False
     theta = final["phi"] * final["scale"]
@@ -315,15 +315,15 @@ def _relinearise_at_fit(engine: FitEngine, current, registered: RegisteredMeasur
                                             if part.target_rotation is not None else None))
     before = final["cost"]
     relinearise(engine.bases, jacobians)
-    engine.reset()
-    after = engine.evaluate(ordered(current))["cost"]
+    engine.reset(anchor=ordered(current))  # the linear model taken at the fitted robot
+    after = engine.evaluate(ordered(current), exact=True)["cost"]
     if after < before * 0.99:
         notes.append(f"the chosen effects turn the joints far enough that the Jacobian was taken again at the fitted "
                      f"robot: training RMS {np.sqrt(before / final['n_observations']) * 1e3:.4g} -> "
                      f"{np.sqrt(after / final['n_observations']) * 1e3:.4g} mm per coordinate")
         return True
     relinearise(engine.bases, candidate_set.linearised())  # no better: back to the frames-only linearisation
-    engine.reset()
+    engine.reset(anchor=("frames",))
     return False
 
 
@@ -339,10 +339,10 @@ def _judge_at_fitted_sizes(engine: FitEngine, current, notes: list, factor: floa
         offset += size
         if e != "frames" and size and float(np.sqrt(np.mean(phi**2))) > factor:
             factors[e] = float(np.sqrt(np.mean(phi**2)))
-    before = {e: tuple(v) for e, v in engine.identify(tuple(ordered(current)))[0].items()}
+    before = {e: tuple(v) for e, v in engine.kept(tuple(ordered(current))).items()}
     if not engine.resize(factors):
         return False
-    after = {e: tuple(v) for e, v in engine.identify(tuple(ordered(current)))[0].items()}
+    after = {e: tuple(v) for e, v in engine.kept(tuple(ordered(current))).items()}
     if after != before:
         notes.append("identifiability re-judged at the fitted sizes ("
                       + ", ".join(f"{e} {f:.3g} x typical" for e, f in factors.items())

@@ -1,0 +1,186 @@
+"""A candidate model fitted from its sub-blocks of the fold Gram matrices (:mod:`.gram`): the fit to
+all rows, each fold's fit to its training rows, their held-out sums of squares, inside the
+parameters' fit ranges and with the smoothness penalty of the effects that carry one.
+
+Each fit minimises a quadratic d^T A d + 2 b^T d (A, b: the model's sub-blocks, plus lambda W for
+the penalty) over the box lower <= d <= upper. The free minimiser is one Cholesky solve of the
+model's k x k system; where it leaves the box, the box-constrained quadratic is solved on the same
+normal equations by the primal active-set method (:func:`~.least_squares.box_quadratic`, started
+from the anchor, which lies in the box): a fit reaches a bound for a handful of parameters at most,
+and each change of the active set costs one solve of the free block, where a bounded least
+squares on the rows (scipy's ``lsq_linear``) would go back to the tall Jacobian. Near-singular
+systems (a direction the rows do not see) take the damped solver's pseudo-inverse, as the exact
+fits do.
+
+The penalty's lambda is chosen per model on the grid :data:`PENALTY_GRID` (times the penalised
+columns' median Gram diagonal) by the first fold assignment's k-fold held-out error: for each
+lambda and fold, the fit to the fold's training rows scored on its held-out rows, from the blocks.
+The search walks the grid from where the last model with the same penalised effects ended, to the
+nearest minimum (the grid's argmin where the score has one minimum, as it has: too little penalty
+overfits, too much underfits); every fold's fit then takes the chosen lambda.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .gram import Quadratic
+from .least_squares import DampedSolver, cholesky_solve
+
+#: lambdas tried for a smoothness penalty, times the penalised columns' median Gram diagonal
+PENALTY_GRID = np.logspace(-5, 3, 9)
+
+
+def box_step(system: np.ndarray, gradient: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """argmin d^T A d + 2 b^T d over low <= d <= high, for A = ``system`` (k, k) positive
+    semi-definite and b = ``gradient``: a Cholesky solve of the unit-diagonal system where it is
+    well posed and its step inside the box, else the damped solver's pseudo-inverse with the
+    box-constrained active-set step."""
+    if not gradient.size:
+        return np.zeros(0)
+    origin = np.clip(0.0, low, high)  # a feasible point to start the box-constrained step from
+    if np.any(origin):
+        gradient = gradient + system @ origin
+        low, high = low - origin, high - origin
+    norms = np.sqrt(np.clip(np.diag(system), 1e-300, None))
+    try:
+        step = cholesky_solve(system / np.outer(norms, norms), -gradient / norms, strict=True) / norms
+        if np.all(np.isfinite(step)) and np.all(step >= low) and np.all(step <= high):
+            return origin + step
+    except np.linalg.LinAlgError:
+        pass
+    step, _ = DampedSolver(system).step(gradient, 0.0, low, high)
+    return origin + np.clip(step, low, high)
+
+
+def _system(total: Quadratic, fold: Quadratic | None, weights: np.ndarray, center: np.ndarray) \
+        -> tuple[np.ndarray, np.ndarray]:
+    """(A + diag(w), b + w * center) of the training rows' quadratic (``total`` less the held-out
+    ``fold``, or all rows): the penalty sum w (center + d)^2 added, in one new matrix."""
+    if fold is None:
+        system = total.gram.copy() if np.any(weights) else total.gram
+        gradient = total.gradient
+    else:
+        system = np.subtract(total.gram, fold.gram)
+        gradient = total.gradient - fold.gradient
+    if np.any(weights):
+        system[np.diag_indices_from(system)] += weights
+        gradient = gradient + weights * center
+    return system, gradient
+
+
+@dataclass(frozen=True)
+class BlockFit:
+    """A model fitted from its blocks: steps d from the anchor (phi = anchor + d on its columns).
+
+    step : (k,) the fit to all rows
+    fold_steps : per assignment, per fold, (k,) the fit to the fold's training rows
+    penalty : lambda of the smoothness penalty (0: none)
+    cost : the weighted sum of squares of the fit to all rows (the penalty not added) [m^2]
+    heldout_ssq : per assignment, per fold, the weighted held-out sum of squares of its fit [m^2]
+    grid_index : where on :data:`PENALTY_GRID` lambda was chosen (None: no penalty)
+    """
+
+    step: np.ndarray
+    fold_steps: list
+    penalty: float
+    cost: float
+    heldout_ssq: list
+    grid_index: int | None
+
+
+def fit_blocks(total: Quadratic, held: list, low: np.ndarray, high: np.ndarray, weights: np.ndarray,
+               center: np.ndarray, start_index: int | None = None, chosen_index: int | None = None) -> BlockFit:
+    """Fit a model from its quadratics.
+
+    Parameters
+    ----------
+    total : Quadratic
+        The sum of squares over all rows, as a function of the step d (k,).
+    held : list of list of callables
+        Per fold assignment, per fold, a function giving the sum of squares over its held-out rows as
+        a Quadratic (made when needed and let go: a fine angle table's blocks are 20 MB each).
+    low, high : (k,)
+        The box of the step (the fit range less the anchor).
+    weights : (k,)
+        The penalty's weight of each column (0: not penalised); the penalty is
+        lambda * sum(weights * (center + d)^2).
+    center : (k,)
+        The anchor's values on the model's columns.
+    start_index : int or None
+        Where on the lambda grid to start the search (the last choice for these penalised effects).
+    chosen_index : int or None
+        Lambda's place on the grid when it is chosen already (no search).
+    """
+    penalised = np.any(weights > 0)
+    lam, index = 0.0, None
+    if penalised and chosen_index is not None:
+        index, lam = chosen_index, float(penalty_grid(total, weights)[chosen_index])
+    elif penalised:
+        index, lam = choose_penalty(total, held[0] if held else [], weights, center, start_index)
+    w = lam * weights
+    step = box_step(*_system(total, None, w, center), low, high)
+    fold_steps, ssq = [], []
+    for folds in held:
+        steps, scores = [], []
+        for get in folds:
+            fold = get()
+            d = box_step(*_system(total, fold, w, center), low, high)
+            steps.append(d)
+            scores.append(fold.value(d))
+        fold_steps.append(steps)
+        ssq.append(scores)
+    return BlockFit(step, fold_steps, lam, total.value(step), ssq, index)
+
+
+def penalty_grid(total: Quadratic, weights: np.ndarray) -> np.ndarray:
+    """The lambdas tried: :data:`PENALTY_GRID` times the penalised columns' median Gram diagonal."""
+    penalised = weights > 0
+    return float(np.median(np.diag(total.gram)[penalised])) * PENALTY_GRID if penalised.any() else PENALTY_GRID
+
+
+def choose_penalty(total: Quadratic, folds: list, weights: np.ndarray, center: np.ndarray,
+                   start_index: int | None) -> tuple[int, float]:
+    """(grid index, lambda): the penalty whose fits to each fold's training rows predict its held-out
+    rows best (summed over ``folds``, one assignment: functions giving each fold's held-out
+    Quadratic), walking :data:`PENALTY_GRID` from ``start_index`` (default its middle) to the nearest
+    minimum, a lambda and its neighbours at a time (each fold's blocks made once for them). The fits
+    are the free minimisers (a ridge of 1e-12 times the largest diagonal keeps them defined), as the
+    bounds rarely act at the penalty's scale. With fewer than two folds, the grid's middle."""
+    diagonal = np.diag(total.gram)
+    grid = penalty_grid(total, weights)
+    middle = len(grid) // 2
+    if len(folds) < 2:
+        return middle, float(grid[middle])
+    ridge = 1e-12 * max(float(diagonal.max()) if diagonal.size else 1.0, 1e-300)
+    scores: dict = {}
+
+    def scored(indices) -> None:
+        todo = [i for i in indices if 0 <= i < len(grid) and i not in scores]
+        if not todo:
+            return
+        partial = dict.fromkeys(todo, 0.0)
+        for get in folds:
+            fold = get()
+            for i in todo:
+                system, gradient = _system(total, fold, grid[i] * weights, center)
+                system[np.diag_indices_from(system)] += ridge
+                d = cholesky_solve(system, -gradient)
+                partial[i] += float(2.0 * fold.gradient @ d + d @ fold.gram @ d)  # less the constant
+        scores.update(partial)
+
+    i = middle if start_index is None else int(np.clip(start_index, 0, len(grid) - 1))
+    while True:
+        scored([i - 1, i, i + 1])
+        if i > 0 and scores[i - 1] <= scores[i]:
+            i -= 1
+        elif i < len(grid) - 1 and scores[i + 1] < scores[i]:
+            i += 1
+        else:
+            break
+    return i, float(grid[i])
+
+
+__all__ = ["BlockFit", "PENALTY_GRID", "box_step", "choose_penalty", "fit_blocks", "penalty_grid"]
