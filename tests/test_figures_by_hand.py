@@ -278,6 +278,32 @@ def test_scatter_predicted_to_within_half_its_excess_variance_is_structure(monke
     assert scatter["predicted_from_joints_left_per_axis_mm"] == pytest.approx(after / MM, rel=1e-12)
 
 
+@pytest.mark.parametrize("left_share, named", [(0.4, None), (0.6, "random scatter")])
+def test_scatter_predicted_from_the_rows_context_to_within_half_its_excess_is_structure(monkeypatch, left_share,
+                                                                                        named):
+    """The context's twin of the gate above: the joints predict nothing (the leftover stays whole), the
+    rows' measurement order predicts it to a planted 0.4 (structure) or 0.6 (scatter) of its excess
+    variance over the instrument's. Catches the context gate's ``0.5`` turned or its product mutated."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.diagnosis import structure
+
+    sigma, noise = 0.3 * MM, 0.02 * MM
+    after = np.sqrt(noise**2 + left_share * (sigma**2 - noise**2))
+    monkeypatch.setattr(structure, "predictable_leftover", lambda detector, residual: sigma)
+    monkeypatch.setattr(structure, "predictable_from_context", lambda features, residual, split: after)
+    detector = SimpleNamespace(restrict=lambda values: values, split=None)
+    scatter = {"detected": True, "estimated_noise_per_axis_mm": sigma / MM}
+    notes = []
+    structure.name_scatter(scatter, {"verdict": "no"}, [], SimpleNamespace(per_axis=noise), notes,
+                           detector=detector, residual=np.zeros((10, 3)),
+                           context={"measurement order": np.arange(10.0), "constant": np.ones(10)})
+    assert scatter["named"] == named
+    assert scatter["predicted_from_context_left_per_axis_mm"] == pytest.approx(after / MM, rel=1e-12)
+    assert ("measurement order" in " ".join(notes)) == (named is None)
+    assert "constant" not in " ".join(notes)  # a context that does not vary predicts nothing
+
+
 def test_a_stand_in_shape_is_its_columns_times_a_draw_at_the_typical_size():
     """The structure test's stand-in leftover of an unchosen effect: its TCP columns (N, 3, k) per
     unit parameter times a standard normal draw scaled by the typical sizes (here 0.1 mrad and
