@@ -124,6 +124,18 @@ class IsoEvaluation:
         Each pose's distance from the origin of the instrument's frame [m] (its barycentre as
         read: a laser tracker's frame has its origin at the tracker, and its error grows with
         the distance); None when the readings are taken as base-frame positions.
+
+    Examples
+    --------
+    >>> import dataclasses
+    >>> import numpy as np
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot("ur5")
+    >>> series = tcr.plan_iso_cube(robot, random_state=0, n_centres=10).series(cycles=10)
+    >>> readings = tcr.tcp_poses(robot, series.q).position + np.random.default_rng(1).normal(0, 1e-5, (50, 3))
+    >>> evaluation = tcr.evaluate_pose_test(robot, dataclasses.replace(series, position=readings), frame="base")
+    >>> evaluation.frame, evaluation.absolute, evaluation.n_readings
+    ('base', True, 50)
     """
 
     figures: IsoFigures

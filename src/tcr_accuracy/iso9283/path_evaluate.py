@@ -344,6 +344,29 @@ def evaluate_path_test(robot: RobotModel, commanded: MeasurementSet, stream: Tra
     -------
     tuple of (PathEvaluation, PathEvaluation or None)
         As measured, and predicted after compensation with ``model``.
+
+    Examples
+    --------
+    >>> import pathlib
+    >>> import tempfile
+    >>> import numpy as np
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot("ur5")
+    >>> path = tcr.plan_path_test(robot, np.random.default_rng(0)).paths[0]  # the first standard path
+    >>> times = np.linspace(0.0, 2.0, len(path.q))
+    >>> commanded = tcr.MeasurementSet(joint_names=list(robot.joint_names), q=path.q, position=path.points,
+    ...                                time_s=times, annotations={"path": np.full(len(path.q), path.name, dtype=object)})
+    >>> rows = ["time_s,x_mm,y_mm,z_mm,path,cycle"]
+    >>> for cycle in (1, 2, 3):  # the robot runs the path three times; the tracker logs at 200 Hz
+    ...     t = np.linspace(0.0, 2.0, 401)
+    ...     p = np.stack([np.interp(t, times, path.points[:, a]) for a in range(3)], axis=1) * 1e3
+    ...     rows += [f"{10 * cycle + tk:.3f},{x:.4f},{y:.4f},{z:.4f},{path.name},{cycle}" for tk, (x, y, z) in zip(t, p)]
+    >>> stream_file = tempfile.mkdtemp() + "/stream.csv"
+    >>> _ = pathlib.Path(stream_file).write_text("\\n".join(rows) + "\\n")
+    >>> measured, compensated = tcr.evaluate_path_test(robot, commanded, tcr.read_tracker_stream(stream_file), frame="base",
+    ...                                              planes=20)
+    >>> len(measured.runs), measured.runs[0][1].at < 1e-4  # AT_P [m]: the robot follows its path
+    (1, True)
     """
     if frame not in ("fit", "base"):
         raise InputError(f"frame {frame!r}: use 'fit' or 'base'")

@@ -257,6 +257,13 @@ def plan_path_test(robot: RobotModel, random_state=None, *, centre=None, size: f
     Returns
     -------
     PathPlan
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> plan = tcr.plan_path_test(tcr.load_robot("ur5"), random_state=0)
+    >>> len(plan.paths) > 0
+    True
     """
     workspace = workspace or Workspace()
     cube = plan_iso_cube(robot, random_state, centre=centre, size=size, home=home, tool_rotation=tool_rotation,

@@ -235,6 +235,13 @@ class IsoPlan:
         How the instrument's line of sight to P1..P5 was checked, or why it was not.
     robot : RobotModel or None
         The robot planned for (:meth:`series` writes its joints and rated load).
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> plan = tcr.plan_iso_cube(tcr.load_robot("ur5"), random_state=0, n_centres=10)
+    >>> plan.pose_ids, plan.q.shape, len(plan.series(cycles=30))
+    (['P1', 'P2', 'P3', 'P4', 'P5'], (5, 6), 150)
     """
 
     centre: np.ndarray

@@ -92,6 +92,17 @@ def filter_program(model: AsBuiltModel, files: dict, *, threshold: float = 1e-7,
     ------
     InputError
         A file that does not parse (file, line, column), or targets of another number of joints.
+
+    Examples
+    --------
+    >>> import pathlib
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot("ur5")
+    >>> model = tcr.AsBuiltModel(robot, {"joint_offsets": {"joint_offsets.shoulder_lift_joint": 0.001}}, "ur5")
+    >>> program = {"ur5_path.csv": pathlib.Path("examples/programs/ur5_path.csv").read_text()}
+    >>> filtered = tcr.filter_program(model, program)
+    >>> filtered.language, len(filtered.targets), max(t.error_after_m for t in filtered.targets) < 1e-7
+    ('joint trajectory CSV', 8, True)
     """
     program = parse_program_files(files, model.robot)
     check_language_robot(program, model.robot)
