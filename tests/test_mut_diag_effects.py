@@ -116,3 +116,43 @@ def test_cyclic_error_turns_each_joint_by_its_fourier_series_on_pinocchio(ur5):
     np.testing.assert_allclose(effect.parameter_scales(), np.full(60, 5e-5))
     for n_poses, order in ((10, 3), (48, 4), (200, 10), (5000, 30)):
         assert effect.fit_policy.options_for_data(ur5, np.zeros((n_poses, 6)), None) == {"max_order": order}
+
+
+def test_lateral_compliance_tilts_each_joint_by_its_moment_across_the_axis_on_pinocchio(ur5):
+    """Each UR5 joint tilted about the two axes across it (x, y for a z joint; z, x for a y joint) by k_c times
+    the gravity moment it carries across the axis: the moment from Pinocchio's RNEA here (minus the joint
+    force ``data.f[j]`` at rest, in the joint's moving frame, turned into the placement frame by exp3(a q_j)), the tilt applied on the right of the
+    joint's placement as exp6((0, w)), and the TCP by Pinocchio's forward kinematics on that model. Seen
+    failing on the Rodrigues rotation's ``m * c + np.cross(a, m) * s`` turned to ``m * c - ...`` (its
+    ``(1.0 - c)`` term is along the axis, which no tilt reads)."""
+    from tcr_accuracy.effects.lateral_compliance import LateralCompliance
+
+    rng = np.random.default_rng(7)
+    q = random_joint_values(ur5, 4, rng)
+    effect = LateralCompliance(ur5)
+    names = effect.parameter_names()
+    assert names[:4] == [f"lateral_compliance.{ur5.joint_names[0]}.x", f"lateral_compliance.{ur5.joint_names[0]}.y",
+                         f"lateral_compliance.{ur5.joint_names[1]}.z", f"lateral_compliance.{ur5.joint_names[1]}.x"]
+    params = rng.uniform(0.5, 2.0, effect.n_params) * 2e-6
+    model = ur5.model
+    ids = [model.getJointId(name) for name in ur5.joint_names]
+    expected = []
+    for row in q:
+        qp = pin.neutral(model)
+        for jid, value in zip(ids, row):
+            qp[model.joints[jid].idx_q] = value
+        data = model.createData()
+        pin.rnea(model, data, qp, np.zeros(model.nv), np.zeros(model.nv))
+        tilted = model.copy()
+        for j, jid in enumerate(ids):
+            moment = -data.f[jid].angular
+            placed = pin.exp3(ur5.joint_axis(j) * row[j]) @ moment  # the moving frame turned by q_j about a
+            first, second = ur5.axis_perpendiculars(j)
+            w = params[2 * j] * (placed @ first) * first + params[2 * j + 1] * (placed @ second) * second
+            tilted.jointPlacements[jid] = model.jointPlacements[jid] * pin.exp6(pin.Motion(np.zeros(3), w))
+        tilted_data = tilted.createData()
+        pin.framesForwardKinematics(tilted, tilted_data, qp)
+        expected.append(tilted_data.oMf[tilted.getFrameId(ur5.tool_frame)].translation.copy())
+    got = predict_positions(ur5, [effect], [params], q, MeasurementContext.defaults(4, 6))
+    np.testing.assert_allclose(got, np.array(expected), atol=1e-12)
+    assert np.abs(got - _tcp(ur5, q)).max() > 1e-6  # the tilt moves the TCP by micrometres or more
