@@ -290,7 +290,8 @@ def test_campaign_order_places_the_central_reference_evenly_and_scores_the_order
     cloud); it is measured at the places round(linspace(0, K - 1, n)) of the K - 1 others, plus its own
     earlier repeats; the returned correlation is the largest |np.corrcoef| of a joint with the place.
     With no tries, the order is the identity and its correlation that of the poses as given. Catches
-    the reference's places spread by ``linspace(0, len(rows), repeats)`` turned to ``repeats + 1``."""
+    the reference's places spread by ``linspace(0, len(rows), repeats)`` turned to ``repeats + 1``, and
+    ``max(int(n_references), 1)`` turned to ``max(..., 0)`` (no rows at all for 0 references)."""
     rng = np.random.default_rng(12)
     q = rng.uniform(-1, 1, size=(21, 3))
     q[7] = q.mean(axis=0) + 1e-3  # near the centre: the reference
@@ -305,6 +306,8 @@ def test_campaign_order_places_the_central_reference_evenly_and_scores_the_order
     # once: the reference first, the rest after it
     rows_once, _, _ = campaign_order(q, 1, np.random.default_rng(1))
     assert rows_once[0] == 7 and len(rows_once) == 21
+    rows_none, _, _ = campaign_order(q, 0, np.random.default_rng(1))  # no repeats asked: the reference once
+    np.testing.assert_array_equal(rows_none, rows_once)
     # the identity scored
     ramp = np.column_stack([np.arange(10.0), rng.normal(size=10)])
     order, r_identity = separating_order(ramp, np.random.default_rng(0), tries=0)
