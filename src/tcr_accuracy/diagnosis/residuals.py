@@ -170,12 +170,15 @@ def noise_from_repeats(q: np.ndarray, position: np.ndarray, context_columns: np.
     dof = 3 * (repeated.size - groups)
     if dof < min_dof:
         return None
-    sq = 0.0
+    sq, copies = 0.0, True
     for g in np.flatnonzero(counts > 1):
         points = position[inverse == g]
         sq += float(np.sum((points - points.mean(axis=0)) ** 2))
+        copies = copies and bool(np.all(points == points[0]))
     sigma = math.sqrt(sq / dof)
-    if sigma == 0.0:  # no instrument reads a pose twice to the last digit: a noise floor of 0 divides later
+    # no instrument reads a pose twice to the last digit: a noise floor of 0 divides later. Judged on the
+    # readings themselves: the mean of equal numbers can differ from them in the last bit, and sigma with it
+    if copies:
         first = np.flatnonzero(inverse == np.flatnonzero(counts > 1)[0])[:2]
         raise InputError(f"the {repeated.size} readings of {groups} repeated poses agree to the last digit: copies "
                          "of one measurement (the same data given twice?), not repeats",
