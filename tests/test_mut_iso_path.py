@@ -165,3 +165,31 @@ def test_corner_round_off_overshoot_and_the_planes_left_out_near_a_corner():
         past = near[near[:, 1] > 0]
         assert c.co[j] == pytest.approx(max(0.0, float(np.max(past[:, 0] - 0.2))), abs=1e-12)
     assert c.co[1] == pytest.approx(0.6 * MM, rel=1e-9) and c.co[2] == 0.0
+
+
+def test_projection_on_a_sampled_path_is_the_nearest_point_of_its_segments():
+    """Points scattered within 5 mm of a sampled circle arc: each foot point and its arc length equal
+    a brute-force search over every segment of the polyline, written out here. Catches the foot's
+    ``s[a] + w * (s[b] - s[a])`` as ``- w``, the neighbour ``k - 1`` as ``k - 2`` and the clip
+    bound 1.0 as 2.0."""
+    from tcr_accuracy.iso9283.path_evaluate import project_on_path
+    from tcr_accuracy.iso9283.path_plan import arc_length
+
+    angle = np.linspace(0.0, 1.5, 151)
+    path = np.column_stack([0.2 * np.cos(angle), 0.2 * np.sin(angle), 0.01 * angle])
+    s = arc_length(path)
+    rng = np.random.default_rng(4)
+    at = rng.uniform(-0.01, 1.51, 60)
+    points = np.column_stack([0.2 * np.cos(at), 0.2 * np.sin(at), 0.01 * at]) + rng.normal(0, 2e-3, (60, 3))
+    feet, arc = project_on_path(points, path, s)
+    for point, foot, got_s in zip(points, feet, arc):
+        best = (math.inf, None, None)
+        for k in range(len(path) - 1):
+            ab = path[k + 1] - path[k]
+            w = min(max(float(np.dot(point - path[k], ab) / np.dot(ab, ab)), 0.0), 1.0)
+            candidate = path[k] + w * ab
+            d = float(np.linalg.norm(point - candidate))
+            if d < best[0]:
+                best = (d, candidate, s[k] + w * (s[k + 1] - s[k]))
+        np.testing.assert_allclose(foot, best[1], atol=1e-12)
+        assert got_s == pytest.approx(best[2], abs=1e-12)
