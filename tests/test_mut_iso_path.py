@@ -193,3 +193,31 @@ def test_projection_on_a_sampled_path_is_the_nearest_point_of_its_segments():
                 best = (d, candidate, s[k] + w * (s[k + 1] - s[k]))
         np.testing.assert_allclose(foot, best[1], atol=1e-12)
         assert got_s == pytest.approx(best[2], abs=1e-12)
+
+
+@pytest.mark.parametrize("ratio, words", [(1e-3, "the times look like ms"), (1e3, "the times look like s where"),
+                                          (0.02, "check the unit of time_s"), (40.0, "check the unit of time_s"),
+                                          (0.3e-3, "look like ms"), (3e3, "look like s where"),
+                                          (0.25e-3, "check the unit"), (3.5e-3, "check the unit"),
+                                          (0.25e3, "check the unit"), (3.5e3, "check the unit")])
+def test_a_stream_at_an_impossible_speed_names_the_unit_it_looks_like(ratio, words):
+    """A stream measured moving ``ratio`` times the commanded 100 mm/s: beyond 30 times either way it
+    is refused naming the time unit it looks like (ms where 1e-3, s against ms where 1e3, within a
+    factor 3.3 of those), quoting both speeds in mm/s; within 30 times it passes. Catches
+    ``SPEED_RATIO_LIMIT`` 30 changed, the hint's bounds ``0.3e-3`` / ``3e3`` moved and the speeds'
+    ``* 1e3`` as ``/ 1e3``."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.iso9283.path_evaluate import SPEED_RATIO_LIMIT, CommandedRun, _check_speed
+
+    run = CommandedRun("line", 50.0, np.zeros((2, 3)), np.zeros(2), np.zeros((2, 6)), None, 0.1, ())
+    stream = SimpleNamespace(source="stream.csv")
+    assert SPEED_RATIO_LIMIT == 30.0
+    _check_speed(stream, run, SimpleNamespace(v_mean=0.1 * 29.0, speed=0.1))
+    _check_speed(stream, run, SimpleNamespace(v_mean=0.1 / 29.0, speed=0.1))
+    with pytest.raises(InputError) as refused:
+        _check_speed(stream, run, SimpleNamespace(v_mean=0.1 * ratio, speed=0.1))
+    message = str(refused.value)
+    assert words in message and "line at 50 %" in message
+    assert f"{100 * ratio:.4g} mm/s where it is commanded at 100 mm/s" in message
