@@ -221,3 +221,23 @@ def test_a_stream_at_an_impossible_speed_names_the_unit_it_looks_like(ratio, wor
     message = str(refused.value)
     assert words in message and "line at 50 %" in message
     assert f"{100 * ratio:.4g} mm/s where it is commanded at 100 mm/s" in message
+
+
+def test_interleaved_cycles_are_refused_at_the_first_reading_of_the_later_one():
+    """Cycle 2's readings (rows 12-15 of the file, from 3.0 s) start before cycle 1's last reading
+    (at 3.5 s): refused naming cycle 2's first row and time and cycle 1's end. Catches ``inside =
+    b[0]`` as ``b[-1]`` (the last reading named)."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.iso9283.path_evaluate import CommandedRun, _check_apart
+
+    time_s = np.array([0.0, 1.0, 2.0, 3.5, 3.0, 4.0, 5.0, 6.0])
+    stream = SimpleNamespace(source="stream.csv", time_s=time_s, rows=np.arange(8) + 8)
+    run = CommandedRun("circle_small", 10.0, np.zeros((2, 3)), np.zeros(2), np.zeros((2, 6)), None, 0.1, ())
+    _check_apart(stream, run, [("1", np.array([0, 1, 2])), ("2", np.array([4, 5, 6, 7]))])  # apart: passes
+    with pytest.raises(InputError) as refused:
+        _check_apart(stream, run, [("2", np.array([4, 5, 6, 7])), ("1", np.array([0, 1, 2, 3]))])
+    assert str(refused.value) == ("stream.csv: row 12, column cycle: cycle 2 of the circle_small at 10 % starts at 3 s, "
+                                  "before cycle 1 ends (3.5 s): a cycle is one run along the path, one block of "
+                                  "readings in time; label each run's readings with its cycle")
