@@ -189,3 +189,23 @@ def ur5_model():
     robot = load_robot("ur5")
     model = robot.model
     return robot, model, model.createData(), robot.tool_frame_id
+
+
+def test_one_reading_5_mm_off_among_40_is_left_out_not_the_noise_inflated():
+    """40 rows of two still references, 3 um of noise, one reading 5 mm off (the module docstring's
+    own case): it is left out, and the scatter is the other readings' (below 4 um, not 0.3 mm). Was
+    a bug: the far reading shifts its reference's least-squares offset by 5 mm / 40 = 125 um, so
+    every other reading of that reference sat 40 robust sigmas off, the outlier step gave up and
+    kept them all (scatter 325 um). Catches the residuals' centring on each reference's median
+    dropped (``r - np.median(...)`` as ``r``)."""
+    rng = np.random.default_rng(7)
+    rows = 40
+    refs = _references(rng, None, 3 * UM, rows)
+    refs[1][2][17] += [5e-3, 0.0, 0.0]
+    _, report, estimate = tracker_drift(refs, np.zeros(rows, dtype=int), 1, [])
+    assert [(o["reference"], o["row"]) for o in report[0]["outliers"]] == [("ref_b", 17)]
+    keep = np.arange(rows) != 17
+    spread = [refs[0][2] - refs[0][2].mean(axis=0), refs[1][2][keep] - refs[1][2][keep].mean(axis=0)]
+    assert estimate.per_axis == pytest.approx(math.sqrt(sum(float(np.sum(s ** 2)) for s in spread) /
+                                                        (3 * (2 * rows - 1 - 2))), rel=0.05)
+    assert estimate.per_axis < 4 * UM
