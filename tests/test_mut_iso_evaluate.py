@@ -123,3 +123,45 @@ def test_orientation_deviations_are_the_rotation_vector_of_measured_against_comm
         rows = pose_id == f.pose_id
         np.testing.assert_allclose(f.ap_abc, deviation[rows].mean(axis=0), atol=1e-12)
         np.testing.assert_allclose(f.rp_abc, 3 * deviation[rows].std(axis=0, ddof=1), rtol=1e-9)
+
+
+def _rigid_residual(nominal, points):
+    """RMS [m] of the closed-form rigid fit of ``nominal`` onto ``points``: Kabsch on numpy's SVD."""
+    mn, mp = nominal.mean(axis=0), points.mean(axis=0)
+    u, _, vt = np.linalg.svd((nominal - mn).T @ (points - mp))
+    r = vt.T @ np.diag([1.0, 1.0, np.sign(np.linalg.det(vt.T @ u.T))]) @ u.T
+    return math.sqrt(np.mean(np.sum(((nominal - mn) @ r.T + mp - points) ** 2, axis=1)))
+
+
+def test_a_column_in_the_other_unit_is_named_and_the_conditions_ordered(setup):
+    """The nominal TCP of the 20 readings mapped by a rigid frame, its y column divided by 1000 (metres
+    under a ``_mm`` header, read as mm and scaled to m again): refused naming ``y_mm``, the residual
+    as read and with the column times 1000 quoted in mm; the x column times 1000 (mm under ``_m``):
+    ``x_m``. Readings of four conditions: the reference one (100 % load and speed) first, then in
+    file order. Catches the column's ``factor`` 1e3 as 1e2, the quoted residual's ``* 1e3`` as
+    ``/ 1e3`` and the reference condition's key (100.0, 100.0) changed."""
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.iso9283.evaluate import COLUMN_UNIT_GAIN, check_column_units, condition_blocks
+
+    robot, series, pose_id, nominal, base, rotation, translation, calibration = setup
+    measured = nominal @ rotation.T + translation
+    check_column_units(measured, nominal, "m.csv")  # rigid: passes
+    for axis, factor, header in ((1, 1e-3, "y_mm"), (0, 1e3, "x_m")):
+        wrong = measured.copy()
+        wrong[:, axis] *= factor
+        with pytest.raises(InputError) as refused:
+            check_column_units(wrong, nominal, "m.csv")
+        message = str(refused.value)
+        assert message.startswith(f"m.csv: column {header}: its values look like {'m' if factor < 1 else 'mm'}")
+
+        assert f"closer than {_rigid_residual(nominal, wrong) * 1e3:.4g} mm RMS" in message
+        assert f"with this column times {1 / factor:g}, " in message
+    assert COLUMN_UNIT_GAIN == 10.0
+    load = np.array([10.0, 10.0, 100.0, 100.0, 100.0, 50.0])
+    speed = np.array([100.0, 100.0, 50.0, 100.0, 100.0, 100.0])
+    mset = tcr.MeasurementSet(joint_names=list(robot.joint_names), q=np.zeros((6, 6)), position=np.zeros((6, 3)),
+                              annotations={"load_pct": load, "speed_pct": speed})
+    blocks = condition_blocks(mset)
+    assert [(b.load_pct, b.speed_pct, b.rows.tolist()) for b in blocks] == [
+        (100.0, 100.0, [3, 4]), (10.0, 100.0, [0, 1]), (100.0, 50.0, [2]), (50.0, 100.0, [5])]
+    assert blocks[1].words() == "10 % rated load, 100 % rated speed"
