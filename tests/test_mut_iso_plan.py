@@ -176,3 +176,20 @@ def test_the_workspace_room_and_half_a_turn_from_home():
     np.testing.assert_allclose(hi, np.minimum(limit_hi, home + math.pi), rtol=1e-12)
     q = home + np.array([[0.1, -0.2, 0.3, 0.0, 0.0, -0.4], [0.0, 0.0, 0.0, 0.0, 0.5, 0.0]])
     np.testing.assert_allclose(reach.swing(q), [0.4, 0.5], rtol=1e-12)
+
+
+def test_whole_turns_move_a_revolute_joint_nearest_home_within_its_limits():
+    """The UR5's joints (limits +-2 pi): a shoulder at 4.0 and 4.5 rad with home 0 is moved a turn
+    down to 4.0 - 2 pi and 4.5 - 2 pi (both rows alike); a wrist at -5.5 rad with home 3.0 goes a
+    turn up; a joint at 6.2 rad with home 6.0 stays (a turn up crosses its limit, a turn down is farther
+    from home). Catches the limits' tolerance ``lo[j] - 1e-12`` as ``lo[j] % 1e-12`` (every
+    negative value refused) and ``2 * np.pi * turns`` with its 2 changed."""
+    ur5 = load_robot("ur5")
+    home = np.array([0.0, 0.0, 0.0, 3.0, 0.0, 6.0])
+    reach = Reach(ur5, None, Workspace(), home, "exact")
+    q = np.array([[4.0, 0.1, 0.2, -5.5, 0.3, 6.2], [4.5, 0.1, 0.2, -5.4, 0.3, 6.1]])
+    got = reach.nearest_home(q)
+    expected = q.copy()
+    expected[:, 0] -= 2 * math.pi
+    expected[:, 3] += 2 * math.pi
+    np.testing.assert_allclose(got, expected, rtol=1e-15, atol=1e-15)
