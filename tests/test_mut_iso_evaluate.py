@@ -165,3 +165,32 @@ def test_a_column_in_the_other_unit_is_named_and_the_conditions_ordered(setup):
     assert [(b.load_pct, b.speed_pct, b.rows.tolist()) for b in blocks] == [
         (100.0, 100.0, [3, 4]), (10.0, 100.0, [0, 1]), (100.0, 50.0, [2]), (50.0, 100.0, [5])]
     assert blocks[1].words() == "10 % rated load, 100 % rated speed"
+
+
+def test_streamed_visits_give_the_attained_pose_and_the_stabilisation_by_hand(setup):
+    """Each of 20 visits (5 poses, 4 cycles) streamed as 5 readings 50 ms apart at distances 5, 0.5,
+    1.5, 0.2 and 0 band radii (0.05 mm) from the attained reading: AP and RP from the attained
+    readings alone, 20 visits of 100 readings, each pose's stabilisation 0.1 s (in at 50 ms, in for
+    good at 150 ms) and overshoot 1.5 bands. Catches the attained reading as the stream's first
+    (``rows[-1]`` as ``rows[0]``) and the band's ``* 1e3`` in the note."""
+    robot, series, pose_id, nominal, base, *_ = setup
+    band = 0.05 * MM
+    steps = np.array([5.0, 0.5, 1.5, 0.2, 0.0]) * band
+    direction = np.array([0.6, 0.0, -0.8])
+    n = len(series)
+    rows = np.repeat(np.arange(n), 5)
+    stream = dataclasses.replace(
+        series.subset(rows), position=base[rows] + np.tile(steps, n)[:, None] * direction,
+        time_s=np.arange(5 * n) * 0.05 + np.repeat(np.arange(n), 5) * 1.0)
+    result = evaluate_pose_test(robot, stream, frame="base", band=band)
+    expected = _figures(base, nominal, pose_id)
+    assert result.n_visits == n and result.n_readings == 5 * n
+    for f in result.figures.poses:
+        assert f.ap == pytest.approx(expected[f.pose_id][0], abs=1e-12)
+        assert f.rp == pytest.approx(expected[f.pose_id][2], abs=1e-12)
+    assert len(result.figures.stabilisation) == 5
+    for s in result.figures.stabilisation:
+        assert s.n == 4 and s.band == pytest.approx(band)
+        assert (s.time_mean, s.time_max) == pytest.approx((0.1, 0.1), rel=1e-9)
+        assert (s.overshoot_mean, s.overshoot_max) == pytest.approx((1.5 * band, 1.5 * band), rel=1e-9)
+    assert "(band: 0.05 mm)" in result.figures.notes[0]
