@@ -9,6 +9,8 @@ import math
 import numpy as np
 import pytest
 
+from tcr_accuracy import load_robot
+from tcr_accuracy.io.measurement_set import MeasurementSet
 from tcr_accuracy.iso9283.path import CORNER_ZONE, CROSSING_LIMIT, path_figures
 
 MM = 1e-3
@@ -241,3 +243,39 @@ def test_interleaved_cycles_are_refused_at_the_first_reading_of_the_later_one():
     assert str(refused.value) == ("stream.csv: row 12, column cycle: cycle 2 of the circle_small at 10 % starts at 3 s, "
                                   "before cycle 1 ends (3.5 s): a cycle is one run along the path, one block of "
                                   "readings in time; label each run's readings with its cycle")
+
+
+def test_commanded_runs_name_the_row_at_fault_and_read_the_speed_in_m_per_s():
+    """A commanded file of two paths (rows 2-7 and 8-12, CSV rows): each a run with its speed_mm_s read
+    in m/s; a path resumed after the other is refused at its first resumed row; a point repeated at
+    the row repeating it; a commanded time that does not increase at its row. Catches each
+    ``argmax(...) + 1`` as ``+ 2`` or ``- 1`` (the row before or after named) and ``* 1e-3`` of the
+    speed as ``* 1e-2``."""
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.iso9283.path_evaluate import commanded_runs
+
+    ur5 = load_robot("ur5")
+    base = np.array([0.3, -1.2, 1.4, -1.8, -1.57, 0.2])
+    q = base + np.outer(np.arange(11), [0.02, 0.01, -0.01, 0.0, 0.0, 0.0])
+    path = np.array(["line"] * 6 + ["circle_small"] * 5, dtype=object)
+
+    def file(q, path, time_s=None):
+        return MeasurementSet(joint_names=list(ur5.joint_names), q=q, position=np.zeros((len(q), 3)), source="c.csv",
+                              rows=np.arange(len(q)) + 2, time_s=time_s,
+                              annotations={"path": path, "speed_mm_s": np.full(len(q), 250.0)})
+
+    runs = commanded_runs(ur5, file(q, path))
+    assert [(r.path, len(r.s)) for r in runs] == [("line", 6), ("circle_small", 5)]
+    assert runs[0].speed == pytest.approx(0.25, rel=1e-12)
+    mixed = path.copy()
+    mixed[8] = "line"
+    with pytest.raises(InputError, match=r"^c\.csv: row 10: the line path continues after other rows"):
+        commanded_runs(ur5, file(q, mixed))
+    repeated = q.copy()
+    repeated[3] = repeated[2]
+    with pytest.raises(InputError, match=r"^c\.csv: row 5: the same commanded point as the row before"):
+        commanded_runs(ur5, file(repeated, path))
+    times = np.arange(11) * 0.1
+    times[4] = times[3]
+    with pytest.raises(InputError, match=r"^c\.csv: row 6, column time_s: the commanded time does not increase"):
+        commanded_runs(ur5, file(q, path, times))
