@@ -193,3 +193,14 @@ def test_whole_turns_move_a_revolute_joint_nearest_home_within_its_limits():
     expected[:, 0] -= 2 * math.pi
     expected[:, 3] += 2 * math.pi
     np.testing.assert_allclose(got, expected, rtol=1e-15, atol=1e-15)
+
+
+def test_the_line_of_sight_words_give_the_tracker_in_mm():
+    """The tracker at (2.5, -1.25, 0.4) m is quoted as (2500, -1250, 400) mm, whether or not the line
+    of sight could be checked. Catches ``v * 1e3`` as ``v * 1e2`` or ``v ** 1e3``."""
+    ur5 = load_robot("ur5")
+    reach = Reach(ur5, None, Workspace(), np.zeros(6), "exact", tracker=np.array([2.5, -1.25, 0.4]))
+    assert reach.sight_words() == ("not checked: the URDF of ur5 has no collision geometry (tracker at "
+                                   "(2500, -1250, 400) mm)")
+    assert Reach(ur5, None, Workspace(), np.zeros(6), "exact").sight_words() == \
+        "not checked: no tracker position given"
