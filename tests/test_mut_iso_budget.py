@@ -227,3 +227,13 @@ def test_instruments_as_their_makers_state_them_and_a_given_mpe():
     assert instrument_from("Leica-AT9XX ") is INSTRUMENTS["leica-at9xx"]
     assert instrument_from() is None
     assert isinstance(given, Instrument)
+
+
+def test_distances_default_to_the_frames_origin():
+    """A point set's distances without an origin are from (0, 0, 0): the RMS of the points' norms.
+    Catches the default origin ``(0.0, 0.0, 0.0)`` with a 1.0 in it."""
+    points = np.array([[1.0, 2.0, 2.0], [2.0, 3.0, 6.0]])  # norms 3 and 7
+    rms, least, largest = PointSet.of(points).distance()
+    assert rms == pytest.approx(math.sqrt((9 + 49) / 2), rel=1e-12)
+    assert largest == pytest.approx(7.0, rel=1e-12)  # the box's far corner is the second point
+    assert least == pytest.approx(3.0, rel=1e-12)  # its near corner the first

@@ -246,7 +246,7 @@ def test_interleaved_cycles_are_refused_at_the_first_reading_of_the_later_one():
 
 
 def test_commanded_runs_name_the_row_at_fault_and_read_the_speed_in_m_per_s():
-    """A commanded file of two paths (rows 2-7 and 8-12, CSV rows): each a run with its speed_mm_s read
+    """A path of 2 points is refused naming it; a commanded file of two paths (rows 2-7 and 8-12, CSV rows): each a run with its speed_mm_s read
     in m/s; a path resumed after the other is refused at its first resumed row; a point repeated at
     the row repeating it; a commanded time that does not increase at its row. Catches each
     ``argmax(...) + 1`` as ``+ 2`` or ``- 1`` (the row before or after named) and ``* 1e-3`` of the
@@ -264,6 +264,8 @@ def test_commanded_runs_name_the_row_at_fault_and_read_the_speed_in_m_per_s():
                               rows=np.arange(len(q)) + 2, time_s=time_s,
                               annotations={"path": path, "speed_mm_s": np.full(len(q), 250.0)})
 
+    with pytest.raises(InputError, match=r"^c\.csv: row 2: the line path has 2 point\(s\); a commanded path needs"):
+        commanded_runs(ur5, file(q[:2], path[:2]))
     runs = commanded_runs(ur5, file(q, path))
     assert [(r.path, len(r.s)) for r in runs] == [("line", 6), ("circle_small", 5)]
     assert runs[0].speed == pytest.approx(0.25, rel=1e-12)

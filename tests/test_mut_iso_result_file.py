@@ -159,3 +159,21 @@ def test_stabilisation_figures_are_the_mean_and_largest_over_the_visits():
     assert p10.overshoot_mean == pytest.approx(sum(expected_overshoot) / 3, rel=1e-9)
     assert p10.overshoot_max == pytest.approx(max(expected_overshoot), rel=1e-9)
     assert out[0].band == pytest.approx(2 * band) and out[0].time_mean == 0.0
+
+
+def test_a_pose_read_twice_in_a_cycle_is_left_out_of_ad_rd_and_said():
+    """Poses 1, 2 and 3 read in cycles 1-4, pose 2 twice in cycle 3: the pairs with pose 2 use its
+    three single cycles (n = 3), the pair 1-3 all four, and the note names the first pose and cycle read
+    twice. Catches the note's string joined with ``*`` instead of ``+`` (a TypeError) and
+    ``MIN_REPEATS`` changed."""
+    from tcr_accuracy.iso9283.formulas import MIN_REPEATS, iso_figures
+
+    pose = ["1", "2", "3"] * 4 + ["2"]
+    cycle = [str(c) for c in np.repeat([1, 2, 3, 4], 3)] + ["3"]
+    rng = np.random.default_rng(0)
+    commanded = {"1": [0.0, 0.0, 0.0], "2": [0.1, 0.0, 0.0], "3": [0.0, 0.2, 0.0]}
+    positions = np.array([commanded[p] for p in pose]) + rng.normal(0, 1e-5, (13, 3))
+    figures = iso_figures(pose, positions, np.array([commanded[p] for p in pose]), cycle=cycle)
+    assert MIN_REPEATS == 3
+    assert [(d.pose_a, d.pose_b, d.n) for d in figures.distances] == [("1", "2", 3), ("1", "3", 4), ("2", "3", 3)]
+    assert "1 (pose, cycle) pair(s) read more than once, left out of AD and RD (first: pose P2, cycle 3)" in figures.notes
