@@ -109,8 +109,12 @@ def _robust_drift(axis: np.ndarray, readings: list) -> tuple:
     keep = [np.ones(axis.size, dtype=bool) for _ in readings]
     velocity, residuals = fit(keep)
     for _ in range(3):
-        scale = 1.4826 * float(np.median(np.abs(np.concatenate([r[k] for r, k in zip(residuals, keep)]))))
-        fresh = [np.all(np.abs(r) <= OUTLIER_SIGMAS * scale, axis=1) for r in residuals]
+        # each reference's residuals about their median: a far reading shifts its reference's
+        # least-squares offset by (its excess) / M, which would otherwise make every other reading of
+        # that reference look as far off and leave the far one in
+        centred = [r - np.median(r[k], axis=0) for r, k in zip(residuals, keep)]
+        scale = 1.4826 * float(np.median(np.abs(np.concatenate([r[k] for r, k in zip(centred, keep)]))))
+        fresh = [np.all(np.abs(r) <= OUTLIER_SIGMAS * scale, axis=1) for r in centred]
         if scale <= 0 or all(np.array_equal(f, k) for f, k in zip(fresh, keep)) or \
                 any(int(f.sum()) < 2 for f in fresh):
             break
