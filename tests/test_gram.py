@@ -89,3 +89,92 @@ def test_the_diagnosis_gives_a_fine_table_hundreds_of_modes_at_ten_thousand_pose
     rows = np.array([5, 17, 9999])
     np.testing.assert_array_equal(values[rows], whole[rows])
     np.testing.assert_array_equal(np.asarray(values), whole)
+
+
+def _table_grams_case(rng, n=1300):
+    """Fold Gram blocks of a dense effect, an angle table and another dense effect (the table's columns in
+    the middle), on one whitened part, and the same whitened Jacobian written out whole here."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.diagnosis.error_map import JointColumnsSensitivity
+
+    robot = load_robot("ur10")
+    lower, upper = robot.joint_bounds()
+    q = rng.uniform(lower, upper, (n, 6))
+    table = make_effect("angle_table", robot, **AngleTableFitPolicy().options_for_data(robot, q, None))
+    values, joint = table.joint_column_values(q)
+    k = table.n_params
+    table_g = JointColumnsSensitivity(rng.standard_normal((n, 3, 6)), values, joint, np.arange(k), k)
+
+    def basis(g, k):
+        return SimpleNamespace(names=[f"p{i}" for i in range(k)], scales=rng.uniform(0.5, 2.0, k),
+                               fit_lower=-np.ones(k), fit_upper=np.ones(k), penalty=np.zeros(k),
+                               index=[np.arange(k)], per_part=[SimpleNamespace(g=g)])
+
+    bases = {"first": basis(rng.standard_normal((n, 3, 7)), 7), "angle_table": basis(table_g, k),
+             "last": basis(rng.standard_normal((n, 3, 5)), 5)}
+    whitening = rng.standard_normal((n, 3, 3)) + 3 * np.eye(3)
+    part = SimpleNamespace(q=q, rows_per_pose=3, whitening=whitening)
+    order = rng.permutation(n)
+    repeats = [[(np.setdiff1d(order, t), t) for t in np.array_split(order, 4)],
+               [(np.setdiff1d(order[::-1], t), t) for t in np.array_split(order[::-1], 3)]]
+    # the whitened Jacobian, whole: each effect's dense columns times their scales, side by side
+    columns = [np.asarray(b.per_part[0].g) * b.scales for b in bases.values()]
+    jacobian = np.einsum("nij,njk->nik", whitening, np.concatenate(columns, axis=2))
+    return part, bases, repeats, jacobian
+
+
+def test_an_angle_tables_gram_blocks_from_its_splines_are_the_dense_products():
+    from tcr_accuracy.diagnosis.gram import FoldGrams
+
+    rng = np.random.default_rng(4)
+    part, bases, repeats, jacobian = _table_grams_case(rng)
+
+    def dense(rows):
+        j = jacobian[rows].reshape(-1, jacobian.shape[2])
+        return j.T @ j
+
+    def check(store):
+        scale = np.max(np.abs(dense(slice(None))))
+        np.testing.assert_allclose(store.total, dense(slice(None)), rtol=0, atol=1e-11 * scale)
+        for blocks, folds in zip(store.held_blocks(), repeats):
+            for block, (_, test) in zip(blocks, folds):
+                np.testing.assert_allclose(block, dense(test), rtol=0, atol=1e-11 * scale)
+
+    # every effect at once: the table's columns between two dense effects'
+    check(FoldGrams([part], bases, repeats))
+    # the table joining later (an effect of last resort), then the last effect; the folds' blocks made again
+    store = FoldGrams([part], {"first": bases["first"]}, repeats)
+    store.bases = bases
+    store.extend(["angle_table"])
+    store.extend(["last"])
+    check(store)
+    store.release()
+    check(store)
+    # J^T W r and r^T W r of a residual, whitened as the rows are
+    residual = rng.standard_normal((part.q.shape[0], 3))
+    whitened = np.einsum("nij,nj->ni", part.whitening, residual)
+    (total, held), (c_total, c_held) = store.residual_products([residual], store.layout.effects)
+
+    def gradient(rows):
+        return jacobian[rows].reshape(-1, jacobian.shape[2]).T @ whitened[rows].ravel()
+
+    scale = np.max(np.abs(gradient(slice(None))))
+    np.testing.assert_allclose(total, gradient(slice(None)), rtol=0, atol=1e-11 * scale)
+    assert abs(c_total - np.sum(whitened**2)) < 1e-10 * c_total
+    for products, constants, folds in zip(held, c_held, repeats):
+        for product, constant, (_, test) in zip(products, constants, folds):
+            np.testing.assert_allclose(product, gradient(test), rtol=0, atol=1e-11 * scale)
+            assert abs(constant - np.sum(whitened[test] ** 2)) < 1e-10 * c_total
+
+
+def test_an_angle_tables_rows_times_steps_are_the_dense_products():
+    from tcr_accuracy.diagnosis.gram import sensitivity_times
+
+    rng = np.random.default_rng(5)
+    _, bases, _, _ = _table_grams_case(rng, n=300)
+    g = bases["angle_table"].per_part[0].g
+    theta = rng.standard_normal((g.shape[2], 2))
+    theta[: g.shape[2] // 6] = 0.0  # a joint whose parameters do not move
+    expected = np.einsum("nrk,km->nrm", np.asarray(g), theta)
+    np.testing.assert_allclose(sensitivity_times(g, theta), expected, rtol=0, atol=1e-12 * np.abs(expected).max())

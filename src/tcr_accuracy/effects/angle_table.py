@@ -83,10 +83,16 @@ class JointTable:
 
     def values(self, angles: np.ndarray) -> np.ndarray:
         """(M, m) each mode's value at angles (M,) [rad]; outside the travel, its value at the nearer end."""
+        return np.asarray(self.design(angles) @ self.modes)
+
+    def design(self, angles: np.ndarray):
+        """The B-spline design at angles (M,) [rad]: a sparse (M, intervals + DEGREE) CSR matrix, at most
+        DEGREE + 1 non-zeros a row (outside the travel, the nearer end's); :meth:`values` is it times
+        ``modes``."""
         from scipy.interpolate import BSpline
 
         x = np.clip(np.asarray(angles, dtype=float), self.knots[0], self.knots[-1])
-        return np.asarray(BSpline.design_matrix(x, self.knots, DEGREE) @ self.modes)
+        return BSpline.design_matrix(x, self.knots, DEGREE).tocsr()
 
 
 def travel(lower: float, upper: float) -> tuple[float, float]:
@@ -356,3 +362,13 @@ class TableValues:
     def __array__(self, dtype=None, copy=None):
         out = self.effect.joint_columns(self.q)[0]
         return out if dtype is None else out.astype(dtype)
+
+    def sparse_factors(self, rows=slice(None)) -> list:
+        """The values' two factors, per revolute joint: (joint index, its B-spline design at the rows'
+        angles (M, nb) sparse, its modes (nb, m), the positions of its m columns among the k). The
+        Gram blocks of a table's columns are taken from them (:class:`~tcr_accuracy.diagnosis.gram.FoldGrams`):
+        the design has four non-zeros a row, so B^T D B costs 16 products a pose, where the (M, k)
+        values' products cost k^2."""
+        m = self.effect.modes_per_joint
+        return [(j, self.effect.table(j).design(self.q[rows, j]), self.effect.table(j).modes,
+                 np.arange(i * m, (i + 1) * m)) for i, j in enumerate(self.effect.revolute)]
