@@ -178,3 +178,41 @@ def test_an_angle_tables_rows_times_steps_are_the_dense_products():
     theta[: g.shape[2] // 6] = 0.0  # a joint whose parameters do not move
     expected = np.einsum("nrk,km->nrm", np.asarray(g), theta)
     np.testing.assert_allclose(sensitivity_times(g, theta), expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+
+
+def test_a_penalised_fit_from_blocks_is_the_ridge_solved_here():
+    from tcr_accuracy.diagnosis.block_fit import PENALTY_GRID, fit_blocks
+    from tcr_accuracy.diagnosis.gram import Quadratic
+
+    rng = np.random.default_rng(6)
+    n, k = 400, 30
+    x = rng.standard_normal((n, k)) * np.logspace(0, -1, k)
+    truth = np.where(np.arange(k) < 5, 1.0, 0.05 * rng.standard_normal(k))
+    y = x @ truth + 0.3 * rng.standard_normal(n)  # residual at the anchor: r = -y, the step d fits it
+    weights = np.where(np.arange(k) < 5, 0.0, np.linspace(0.1, 10.0, k))  # the first five not penalised
+    center = np.zeros(k)
+    folds = np.array_split(rng.permutation(n), 5)
+
+    def quadratic(rows):
+        return Quadratic(x[rows].T @ x[rows], -x[rows].T @ y[rows], float(y[rows] @ y[rows]))
+
+    total = quadratic(np.arange(n))
+    held = [[(lambda rows=rows: quadratic(rows)) for rows in folds]]
+    fit = fit_blocks(total, held, -np.full(k, 1e3), np.full(k, 1e3), weights, center)
+    # each lambda's k-fold held-out error, solved here on the rows
+    grid = np.median(np.diag(total.gram)[weights > 0]) * PENALTY_GRID
+
+    def fold_step(rows, lam):
+        train = np.setdiff1d(np.arange(n), rows)
+        return np.linalg.solve(x[train].T @ x[train] + lam * np.diag(weights), x[train].T @ y[train])
+
+    scores = [sum(np.sum((y[rows] - x[rows] @ fold_step(rows, lam)) ** 2) for rows in folds) for lam in grid]
+    best = int(np.argmin(scores))
+    assert fit.grid_index == best and fit.penalty == grid[best]
+    for d, rows in zip(fit.fold_steps[0], folds):
+        expected = fold_step(rows, grid[best])
+        np.testing.assert_allclose(d, expected, rtol=0, atol=1e-9 * np.abs(expected).max())
+    for value, rows, d in zip(fit.heldout_ssq[0], folds, fit.fold_steps[0]):
+        assert abs(value - np.sum((y[rows] - x[rows] @ d) ** 2)) < 1e-9 * value
+    whole = np.linalg.solve(total.gram + grid[best] * np.diag(weights), x.T @ y)
+    np.testing.assert_allclose(fit.step, whole, rtol=0, atol=1e-9 * np.abs(whole).max())
