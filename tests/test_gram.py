@@ -216,3 +216,25 @@ def test_a_penalised_fit_from_blocks_is_the_ridge_solved_here():
         assert abs(value - np.sum((y[rows] - x[rows] @ d) ** 2)) < 1e-9 * value
     whole = np.linalg.solve(total.gram + grid[best] * np.diag(weights), x.T @ y)
     np.testing.assert_allclose(fit.step, whole, rtol=0, atol=1e-9 * np.abs(whole).max())
+
+
+def test_identifiability_resuming_a_stored_leading_run_keeps_the_same_columns():
+    from tcr_accuracy.diagnosis.identifiability import identifiability
+
+    rng = np.random.default_rng(7)
+    a = _columns(rng, 300, 40, 0)
+    # effects that share directions: c repeats two of a's columns, d mixes b's and c's
+    a = np.hstack([a, a[:, [3, 12]] + 1e-12 * rng.standard_normal((300, 2)), a[:, 20:26] @ rng.standard_normal((6, 4))])
+    names = {"a": range(0, 15), "b": range(15, 30), "c": range(30, 42), "d": range(42, 46)}
+    gram = a.T @ a
+    bases = gram_factor(gram, {e: ([f"{e}{i}" for i in cols], np.asarray(cols)) for e, cols in names.items()},
+                        n_poses=300)
+    prefixes: dict = {}
+    for order in (["a", "b", "c"], ["a", "b", "d"], ["a", "b", "c", "d"], ["a", "c"], ["a", "b", "c", "d"], ["b", "d"]):
+        for motion in (0.0, {"a": 0.0, "b": 0.0, "c": 0.5, "d": 0.0}):
+            fresh, report = identifiability(bases, order, 1e-6, motion, report=True)
+            resumed, _ = identifiability(bases, order, 1e-6, motion, report=False, prefixes=prefixes)
+            assert fresh.keys() == resumed.keys()
+            for e in order:
+                np.testing.assert_array_equal(fresh[e], resumed[e])
+    assert len(prefixes) > 2  # leading runs were stored (and some resumed: ["a", "b"] three times)

@@ -75,6 +75,7 @@ class FitEngine:
         self._materialised = None  # (a cached fit, its remade per-row arrays): the last ones read
         self._keep_cache: dict = {}
         self._kept_cache: dict = {}  # the kept columns alone, without identifiability's report
+        self._prefixes: dict = {}  # identifiability's leading effects' work, for the compressed bases
         self._compressed = None  # the bases with the poses folded away, for identify
         self._last: dict = {}  # parameter name -> last fitted scaled value (a warm start)
         self.size_factors: dict = {}  # effect -> fitted size / typical size (>= 1), see resize
@@ -131,7 +132,7 @@ class FitEngine:
         if key not in self._kept_cache:
             order, borrowed = self._identify_order(effects)
             keep, _ = identifiability(self._compressed_bases(), order, self.rank_tol, self._thresholds(order),
-                                      report=False)
+                                      report=False, prefixes=self._prefixes)
             if borrowed:
                 keep.pop("joint_offsets")
             self._kept_cache[key] = keep
