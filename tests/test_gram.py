@@ -238,3 +238,29 @@ def test_identifiability_resuming_a_stored_leading_run_keeps_the_same_columns():
             for e in order:
                 np.testing.assert_array_equal(fresh[e], resumed[e])
     assert len(prefixes) > 2  # leading runs were stored (and some resumed: ["a", "b"] three times)
+
+
+def test_maps_side_by_side_give_the_dense_jacobians_errors():
+    from tcr_accuracy.diagnosis.error_map import ErrorMap, JoinedMaps
+
+    rng = np.random.default_rng(8)
+    n, size, drive = 50, 12, slice(4, 10)
+    dense, maps = [], []
+    for k, kind in ((3, "fixed"), (4, "per pose"), (5, "drive")):
+        x = np.zeros((n, size, k))
+        dq = None
+        if kind == "fixed":
+            x[:] = rng.standard_normal((size, k))
+        elif kind == "per pose":
+            x[:, [0, 2, 11]] = rng.standard_normal((n, 3, k))
+        else:
+            dq = rng.standard_normal((n, 6, k))
+            x[:, drive] = dq
+        maps.append(ErrorMap.of(n, size, drive, x[0] if kind == "fixed" else (x if kind == "per pose" else None),
+                                dq, k))
+        dense.append(x)
+    theta = rng.standard_normal(12)
+    expected = np.einsum("nek,k->ne", np.concatenate(dense, axis=2), theta)
+    rows = np.array([3, 7, 41])
+    np.testing.assert_allclose(JoinedMaps(maps).errors(theta), expected, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(JoinedMaps(maps).errors(theta, rows), expected[rows], rtol=0, atol=1e-12)

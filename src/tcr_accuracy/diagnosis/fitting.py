@@ -34,7 +34,7 @@ from scipy.spatial.transform import Rotation
 from ..model.errors import ErrorModel
 from ..model.kinematics import tcp_poses
 from .bases import Part, ordered
-from .error_map import ErrorMap
+from .error_map import JoinedMaps
 from .identifiability import compressed, gram_factor, identifiability
 from .least_squares import DampedSolver
 from .block_fit import PENALTY_GRID, box_step, fit_blocks, penalty_grid
@@ -222,7 +222,7 @@ class FitEngine:
                 gs.append((local.g, np.array(cols, dtype=int)))
                 idx.append(offset + np.array([position[ub.index[p][c]] for c in cols], dtype=int))
                 offset += keep[e].size
-            per_part.append((ErrorMap.concatenate(bases), Sensitivity(gs),
+            per_part.append((JoinedMaps(bases), Sensitivity(gs),
                              np.concatenate(idx) if idx else np.zeros(0, dtype=int)))
         return Columns(names=names, scale=scale, per_part=per_part, lower=lower, upper=upper, penalty=penalty)
 

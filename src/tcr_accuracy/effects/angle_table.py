@@ -10,7 +10,7 @@ from functools import cached_property
 import numpy as np
 
 from ..units import REVOLUTE
-from .joint_columns import JointColumnsEffect
+from .joint_columns import JointColumnsEffect, RowsWhenRead
 from .fit_policy import FitPolicy
 
 #: Spline degree (cubic: a continuous curvature, what the roughness penalty measures)
@@ -339,29 +339,11 @@ class AngleTable(JointColumnsEffect):
         return names, self.table(j).values(np.asarray(angles, dtype=float))
 
 
-class TableValues:
+class TableValues(RowsWhenRead):
     """An angle table's compact Jacobian values (N, k) at fixed joint values, made when rows are
-    read: ``values[rows]`` (or ``values[rows, columns]``) is those rows of
-    :meth:`AngleTable.joint_columns`, each joint's B-spline design (four non-zeros a row) times its
-    modes. Held whole, a table of 208 modes a joint was 100 MB at 10^4 poses; ``np.asarray`` of it
-    is that array."""
-
-    ndim = 2
-    dtype = np.dtype(float)
-
-    def __init__(self, effect: AngleTable, q: np.ndarray):
-        self.effect, self.q = effect, q
-        self.shape = (q.shape[0], effect.n_params)
-
-    def __getitem__(self, key):
-        rows, columns = (key if isinstance(key, tuple) else (key, slice(None)))
-        if isinstance(rows, (int, np.integer)):
-            return self.effect.joint_columns(self.q[[rows]])[0][0, columns]
-        return self.effect.joint_columns(self.q[rows])[0][:, columns]
-
-    def __array__(self, dtype=None, copy=None):
-        out = self.effect.joint_columns(self.q)[0]
-        return out if dtype is None else out.astype(dtype)
+    read (:class:`~tcr_accuracy.effects.joint_columns.RowsWhenRead`): each joint's B-spline design
+    (four non-zeros a row) times its modes. Held whole, a table of 208 modes a joint was 100 MB at
+    10^4 poses."""
 
     def sparse_factors(self, rows=slice(None)) -> list:
         """The values' two factors, per revolute joint: (joint index, its B-spline design at the rows'
