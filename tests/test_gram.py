@@ -89,3 +89,178 @@ def test_the_diagnosis_gives_a_fine_table_hundreds_of_modes_at_ten_thousand_pose
     rows = np.array([5, 17, 9999])
     np.testing.assert_array_equal(values[rows], whole[rows])
     np.testing.assert_array_equal(np.asarray(values), whole)
+
+
+def _table_grams_case(rng, n=1300):
+    """Fold Gram blocks of a dense effect, an angle table and another dense effect (the table's columns in
+    the middle), on one whitened part, and the same whitened Jacobian written out whole here."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.diagnosis.error_map import JointColumnsSensitivity
+
+    robot = load_robot("ur10")
+    lower, upper = robot.joint_bounds()
+    q = rng.uniform(lower, upper, (n, 6))
+    table = make_effect("angle_table", robot, **AngleTableFitPolicy().options_for_data(robot, q, None))
+    values, joint = table.joint_column_values(q)
+    k = table.n_params
+    table_g = JointColumnsSensitivity(rng.standard_normal((n, 3, 6)), values, joint, np.arange(k), k)
+
+    def basis(g, k):
+        return SimpleNamespace(names=[f"p{i}" for i in range(k)], scales=rng.uniform(0.5, 2.0, k),
+                               fit_lower=-np.ones(k), fit_upper=np.ones(k), penalty=np.zeros(k),
+                               index=[np.arange(k)], per_part=[SimpleNamespace(g=g)])
+
+    bases = {"first": basis(rng.standard_normal((n, 3, 7)), 7), "angle_table": basis(table_g, k),
+             "last": basis(rng.standard_normal((n, 3, 5)), 5)}
+    whitening = rng.standard_normal((n, 3, 3)) + 3 * np.eye(3)
+    part = SimpleNamespace(q=q, rows_per_pose=3, whitening=whitening)
+    order = rng.permutation(n)
+    repeats = [[(np.setdiff1d(order, t), t) for t in np.array_split(order, 4)],
+               [(np.setdiff1d(order[::-1], t), t) for t in np.array_split(order[::-1], 3)]]
+    # the whitened Jacobian, whole: each effect's dense columns times their scales, side by side
+    columns = [np.asarray(b.per_part[0].g) * b.scales for b in bases.values()]
+    jacobian = np.einsum("nij,njk->nik", whitening, np.concatenate(columns, axis=2))
+    return part, bases, repeats, jacobian
+
+
+def test_an_angle_tables_gram_blocks_from_its_splines_are_the_dense_products():
+    from tcr_accuracy.diagnosis.gram import FoldGrams
+
+    rng = np.random.default_rng(4)
+    part, bases, repeats, jacobian = _table_grams_case(rng)
+
+    def dense(rows):
+        j = jacobian[rows].reshape(-1, jacobian.shape[2])
+        return j.T @ j
+
+    def check(store):
+        scale = np.max(np.abs(dense(slice(None))))
+        np.testing.assert_allclose(store.total, dense(slice(None)), rtol=0, atol=1e-11 * scale)
+        for blocks, folds in zip(store.held_blocks(), repeats):
+            for block, (_, test) in zip(blocks, folds):
+                np.testing.assert_allclose(block, dense(test), rtol=0, atol=1e-11 * scale)
+
+    # every effect at once: the table's columns between two dense effects'
+    check(FoldGrams([part], bases, repeats))
+    # the table joining later (an effect of last resort), then the last effect; the folds' blocks made again
+    store = FoldGrams([part], {"first": bases["first"]}, repeats)
+    store.bases = bases
+    store.extend(["angle_table"])
+    store.extend(["last"])
+    check(store)
+    store.release()
+    check(store)
+    # J^T W r and r^T W r of a residual, whitened as the rows are
+    residual = rng.standard_normal((part.q.shape[0], 3))
+    whitened = np.einsum("nij,nj->ni", part.whitening, residual)
+    (total, held), (c_total, c_held) = store.residual_products([residual], store.layout.effects)
+
+    def gradient(rows):
+        return jacobian[rows].reshape(-1, jacobian.shape[2]).T @ whitened[rows].ravel()
+
+    scale = np.max(np.abs(gradient(slice(None))))
+    np.testing.assert_allclose(total, gradient(slice(None)), rtol=0, atol=1e-11 * scale)
+    assert abs(c_total - np.sum(whitened**2)) < 1e-10 * c_total
+    for products, constants, folds in zip(held, c_held, repeats):
+        for product, constant, (_, test) in zip(products, constants, folds):
+            np.testing.assert_allclose(product, gradient(test), rtol=0, atol=1e-11 * scale)
+            assert abs(constant - np.sum(whitened[test] ** 2)) < 1e-10 * c_total
+
+
+def test_an_angle_tables_rows_times_steps_are_the_dense_products():
+    from tcr_accuracy.diagnosis.gram import sensitivity_times
+
+    rng = np.random.default_rng(5)
+    _, bases, _, _ = _table_grams_case(rng, n=300)
+    g = bases["angle_table"].per_part[0].g
+    theta = rng.standard_normal((g.shape[2], 2))
+    theta[: g.shape[2] // 6] = 0.0  # a joint whose parameters do not move
+    expected = np.einsum("nrk,km->nrm", np.asarray(g), theta)
+    np.testing.assert_allclose(sensitivity_times(g, theta), expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+
+
+def test_a_penalised_fit_from_blocks_is_the_ridge_solved_here():
+    from tcr_accuracy.diagnosis.block_fit import PENALTY_GRID, fit_blocks
+    from tcr_accuracy.diagnosis.gram import Quadratic
+
+    rng = np.random.default_rng(6)
+    n, k = 400, 30
+    x = rng.standard_normal((n, k)) * np.logspace(0, -1, k)
+    truth = np.where(np.arange(k) < 5, 1.0, 0.05 * rng.standard_normal(k))
+    y = x @ truth + 0.3 * rng.standard_normal(n)  # residual at the anchor: r = -y, the step d fits it
+    weights = np.where(np.arange(k) < 5, 0.0, np.linspace(0.1, 10.0, k))  # the first five not penalised
+    center = np.zeros(k)
+    folds = np.array_split(rng.permutation(n), 5)
+
+    def quadratic(rows):
+        return Quadratic(x[rows].T @ x[rows], -x[rows].T @ y[rows], float(y[rows] @ y[rows]))
+
+    total = quadratic(np.arange(n))
+    held = [[(lambda rows=rows: quadratic(rows)) for rows in folds]]
+    fit = fit_blocks(total, held, -np.full(k, 1e3), np.full(k, 1e3), weights, center)
+    # each lambda's k-fold held-out error, solved here on the rows
+    grid = np.median(np.diag(total.gram)[weights > 0]) * PENALTY_GRID
+
+    def fold_step(rows, lam):
+        train = np.setdiff1d(np.arange(n), rows)
+        return np.linalg.solve(x[train].T @ x[train] + lam * np.diag(weights), x[train].T @ y[train])
+
+    scores = [sum(np.sum((y[rows] - x[rows] @ fold_step(rows, lam)) ** 2) for rows in folds) for lam in grid]
+    best = int(np.argmin(scores))
+    assert fit.grid_index == best and fit.penalty == grid[best]
+    for d, rows in zip(fit.fold_steps[0], folds):
+        expected = fold_step(rows, grid[best])
+        np.testing.assert_allclose(d, expected, rtol=0, atol=1e-9 * np.abs(expected).max())
+    for value, rows, d in zip(fit.heldout_ssq[0], folds, fit.fold_steps[0]):
+        assert abs(value - np.sum((y[rows] - x[rows] @ d) ** 2)) < 1e-9 * value
+    whole = np.linalg.solve(total.gram + grid[best] * np.diag(weights), x.T @ y)
+    np.testing.assert_allclose(fit.step, whole, rtol=0, atol=1e-9 * np.abs(whole).max())
+
+
+def test_identifiability_resuming_a_stored_leading_run_keeps_the_same_columns():
+    from tcr_accuracy.diagnosis.identifiability import identifiability
+
+    rng = np.random.default_rng(7)
+    a = _columns(rng, 300, 40, 0)
+    # effects that share directions: c repeats two of a's columns, d mixes b's and c's
+    a = np.hstack([a, a[:, [3, 12]] + 1e-12 * rng.standard_normal((300, 2)), a[:, 20:26] @ rng.standard_normal((6, 4))])
+    names = {"a": range(0, 15), "b": range(15, 30), "c": range(30, 42), "d": range(42, 46)}
+    gram = a.T @ a
+    bases = gram_factor(gram, {e: ([f"{e}{i}" for i in cols], np.asarray(cols)) for e, cols in names.items()},
+                        n_poses=300)
+    prefixes: dict = {}
+    for order in (["a", "b", "c"], ["a", "b", "d"], ["a", "b", "c", "d"], ["a", "c"], ["a", "b", "c", "d"], ["b", "d"]):
+        for motion in (0.0, {"a": 0.0, "b": 0.0, "c": 0.5, "d": 0.0}):
+            fresh, report = identifiability(bases, order, 1e-6, motion, report=True)
+            resumed, _ = identifiability(bases, order, 1e-6, motion, report=False, prefixes=prefixes)
+            assert fresh.keys() == resumed.keys()
+            for e in order:
+                np.testing.assert_array_equal(fresh[e], resumed[e])
+    assert len(prefixes) > 2  # leading runs were stored (and some resumed: ["a", "b"] three times)
+
+
+def test_maps_side_by_side_give_the_dense_jacobians_errors():
+    from tcr_accuracy.diagnosis.error_map import ErrorMap, JoinedMaps
+
+    rng = np.random.default_rng(8)
+    n, size, drive = 50, 12, slice(4, 10)
+    dense, maps = [], []
+    for k, kind in ((3, "fixed"), (4, "per pose"), (5, "drive")):
+        x = np.zeros((n, size, k))
+        dq = None
+        if kind == "fixed":
+            x[:] = rng.standard_normal((size, k))
+        elif kind == "per pose":
+            x[:, [0, 2, 11]] = rng.standard_normal((n, 3, k))
+        else:
+            dq = rng.standard_normal((n, 6, k))
+            x[:, drive] = dq
+        maps.append(ErrorMap.of(n, size, drive, x[0] if kind == "fixed" else (x if kind == "per pose" else None),
+                                dq, k))
+        dense.append(x)
+    theta = rng.standard_normal(12)
+    expected = np.einsum("nek,k->ne", np.concatenate(dense, axis=2), theta)
+    rows = np.array([3, 7, 41])
+    np.testing.assert_allclose(JoinedMaps(maps).errors(theta), expected, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(JoinedMaps(maps).errors(theta, rows), expected[rows], rtol=0, atol=1e-12)

@@ -44,15 +44,22 @@ def box_step(system: np.ndarray, gradient: np.ndarray, low: np.ndarray, high: np
     if np.any(origin):
         gradient = gradient + system @ origin
         low, high = low - origin, high - origin
+    step = free_step(system, gradient)
+    if step is not None and np.all(step >= low) and np.all(step <= high):
+        return origin + step
+    step, _ = DampedSolver(system).step(gradient, 0.0, low, high)
+    return origin + np.clip(step, low, high)
+
+
+def free_step(system: np.ndarray, gradient: np.ndarray) -> np.ndarray | None:
+    """argmin d^T A d + 2 b^T d without bounds: a Cholesky solve of the unit-diagonal system, or None
+    where it is not well posed (not positive definite, or near singular)."""
     norms = np.sqrt(np.clip(np.diag(system), 1e-300, None))
     try:
         step = cholesky_solve(system / np.outer(norms, norms), -gradient / norms, strict=True) / norms
-        if np.all(np.isfinite(step)) and np.all(step >= low) and np.all(step <= high):
-            return origin + step
     except np.linalg.LinAlgError:
-        pass
-    step, _ = DampedSolver(system).step(gradient, 0.0, low, high)
-    return origin + np.clip(step, low, high)
+        return None
+    return step if np.all(np.isfinite(step)) else None
 
 
 def _system(total: Quadratic, fold: Quadratic | None, weights: np.ndarray, center: np.ndarray) \
@@ -115,19 +122,25 @@ def fit_blocks(total: Quadratic, held: list, low: np.ndarray, high: np.ndarray, 
         Lambda's place on the grid when it is chosen already (no search).
     """
     penalised = np.any(weights > 0)
-    lam, index = 0.0, None
+    lam, index, searched = 0.0, None, {}
     if penalised and chosen_index is not None:
         index, lam = chosen_index, float(penalty_grid(total, weights)[chosen_index])
     elif penalised:
-        index, lam = choose_penalty(total, held[0] if held else [], weights, center, start_index)
+        index, lam, searched = choose_penalty(total, held[0] if held else [], weights, center, start_index,
+                                              steps=True)
     w = lam * weights
     step = box_step(*_system(total, None, w, center), low, high)
+    inside = not np.any(np.clip(0.0, low, high))  # the box holds the anchor: a free step is box_step's own
     fold_steps, ssq = [], []
-    for folds in held:
+    for r, folds in enumerate(held):
         steps, scores = [], []
-        for get in folds:
+        for f, get in enumerate(folds):
             fold = get()
-            d = box_step(*_system(total, fold, w, center), low, high)
+            free = searched.get(f) if r == 0 and inside else None
+            if free is not None and np.all(free >= low) and np.all(free <= high):
+                d = free  # the search's solve at the chosen lambda: what box_step would solve again
+            else:
+                d = box_step(*_system(total, fold, w, center), low, high)
             steps.append(d)
             scores.append(fold.value(d))
         fold_steps.append(steps)
@@ -142,32 +155,39 @@ def penalty_grid(total: Quadratic, weights: np.ndarray) -> np.ndarray:
 
 
 def choose_penalty(total: Quadratic, folds: list, weights: np.ndarray, center: np.ndarray,
-                   start_index: int | None) -> tuple[int, float]:
+                   start_index: int | None, steps: bool = False) -> tuple:
     """(grid index, lambda): the penalty whose fits to each fold's training rows predict its held-out
     rows best (summed over ``folds``, one assignment: functions giving each fold's held-out
     Quadratic), walking :data:`PENALTY_GRID` from ``start_index`` (default its middle) to the nearest
     minimum, a lambda and its neighbours at a time (each fold's blocks made once for them). The fits
-    are the free minimisers (a ridge of 1e-12 times the largest diagonal keeps them defined), as the
-    bounds rarely act at the penalty's scale. With fewer than two folds, the grid's middle."""
+    are the free minimisers (:func:`free_step`, as :func:`box_step` solves them; where that is not well
+    posed, with a ridge of 1e-12 times the largest diagonal), as the bounds rarely act at the
+    penalty's scale. With fewer than two folds, the grid's middle. With ``steps``, also each fold's
+    free step at the chosen lambda ({fold: (k,) or None where the ridge was needed}): the fold fits
+    at that lambda are those steps where they lie in the box, no second solve."""
     diagonal = np.diag(total.gram)
     grid = penalty_grid(total, weights)
     middle = len(grid) // 2
     if len(folds) < 2:
-        return middle, float(grid[middle])
+        return (middle, float(grid[middle])) + (({},) if steps else ())
     ridge = 1e-12 * max(float(diagonal.max()) if diagonal.size else 1.0, 1e-300)
     scores: dict = {}
+    solved: dict = {}  # (lambda's index, fold) -> its free step (None: ridge needed)
 
     def scored(indices) -> None:
         todo = [i for i in indices if 0 <= i < len(grid) and i not in scores]
         if not todo:
             return
         partial = dict.fromkeys(todo, 0.0)
-        for get in folds:
+        for f, get in enumerate(folds):
             fold = get()
             for i in todo:
                 system, gradient = _system(total, fold, grid[i] * weights, center)
-                system[np.diag_indices_from(system)] += ridge
-                d = cholesky_solve(system, -gradient)
+                d = free_step(system, gradient)
+                solved[i, f] = d
+                if d is None:
+                    system[np.diag_indices_from(system)] += ridge
+                    d = cholesky_solve(system, -gradient)
                 partial[i] += float(2.0 * fold.gradient @ d + d @ fold.gram @ d)  # less the constant
         scores.update(partial)
 
@@ -180,7 +200,9 @@ def choose_penalty(total: Quadratic, folds: list, weights: np.ndarray, center: n
             i += 1
         else:
             break
+    if steps:
+        return i, float(grid[i]), {f: solved.get((i, f)) for f in range(len(folds))}
     return i, float(grid[i])
 
 
-__all__ = ["BlockFit", "PENALTY_GRID", "box_step", "choose_penalty", "fit_blocks", "penalty_grid"]
+__all__ = ["BlockFit", "PENALTY_GRID", "box_step", "choose_penalty", "fit_blocks", "free_step", "penalty_grid"]

@@ -200,6 +200,34 @@ class ErrorMap:
                    np.concatenate([m.drive_joint for m in driven]) if compact else None, entries)
 
 
+class JoinedMaps:
+    """Maps side by side, as :meth:`ErrorMap.concatenate` joins them, for their errors alone: x(theta)
+    is the sum of each map's errors at its own part of theta, the maps' arrays never joined (a model
+    of the whole vocabulary joined its effects' per-pose arrays, each spread over the union of
+    their entries: 1 GB at 10^5 poses, the diagnosis' memory peak)."""
+
+    def __init__(self, maps: list):
+        self.maps = list(maps)
+        ends = np.cumsum([m.n_columns for m in self.maps])
+        self.bounds = list(zip(np.concatenate([[0], ends[:-1]]).astype(int), ends.astype(int)))
+        self.n_poses, self.size = self.maps[0].n_poses, self.maps[0].size
+
+    @property
+    def n_columns(self) -> int:
+        return int(self.bounds[-1][1]) if self.bounds else 0
+
+    def errors(self, theta: np.ndarray, rows=None) -> np.ndarray:
+        """Error vectors (len(rows) or N, p_em) at parameters theta (k,): the maps' errors summed."""
+        out = None
+        for m, (start, stop) in zip(self.maps, self.bounds):
+            x = m.errors(theta[start:stop], rows)
+            if out is None:
+                out = x
+            else:
+                out += x
+        return out
+
+
 class JointColumnsSensitivity:
     """A TCP sensitivity (N, r, k) whose every column moves one joint, held as its two factors:
     g[n, :, c] = jac_q[n, :, joint[c]] * values[n, c] (the joints' columns of the error Jacobian times

@@ -34,7 +34,7 @@ from scipy.spatial.transform import Rotation
 from ..model.errors import ErrorModel
 from ..model.kinematics import tcp_poses
 from .bases import Part, ordered
-from .error_map import ErrorMap
+from .error_map import JoinedMaps
 from .identifiability import compressed, gram_factor, identifiability
 from .least_squares import DampedSolver
 from .block_fit import PENALTY_GRID, box_step, fit_blocks, penalty_grid
@@ -75,6 +75,7 @@ class FitEngine:
         self._materialised = None  # (a cached fit, its remade per-row arrays): the last ones read
         self._keep_cache: dict = {}
         self._kept_cache: dict = {}  # the kept columns alone, without identifiability's report
+        self._prefixes: dict = {}  # identifiability's leading effects' work, for the compressed bases
         self._compressed = None  # the bases with the poses folded away, for identify
         self._last: dict = {}  # parameter name -> last fitted scaled value (a warm start)
         self.size_factors: dict = {}  # effect -> fitted size / typical size (>= 1), see resize
@@ -131,7 +132,7 @@ class FitEngine:
         if key not in self._kept_cache:
             order, borrowed = self._identify_order(effects)
             keep, _ = identifiability(self._compressed_bases(), order, self.rank_tol, self._thresholds(order),
-                                      report=False)
+                                      report=False, prefixes=self._prefixes)
             if borrowed:
                 keep.pop("joint_offsets")
             self._kept_cache[key] = keep
@@ -221,7 +222,7 @@ class FitEngine:
                 gs.append((local.g, np.array(cols, dtype=int)))
                 idx.append(offset + np.array([position[ub.index[p][c]] for c in cols], dtype=int))
                 offset += keep[e].size
-            per_part.append((ErrorMap.concatenate(bases), Sensitivity(gs),
+            per_part.append((JoinedMaps(bases), Sensitivity(gs),
                              np.concatenate(idx) if idx else np.zeros(0, dtype=int)))
         return Columns(names=names, scale=scale, per_part=per_part, lower=lower, upper=upper, penalty=penalty)
 

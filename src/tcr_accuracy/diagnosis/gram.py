@@ -73,6 +73,38 @@ class ColumnLayout:
 
 
 @dataclass(frozen=True)
+class TableGroup:
+    """One joint's columns of an angle table on one part: the sensitivity they come from, the joint,
+    its sparse B-spline design (N, nb) and modes (nb, m), their global columns (m,) and scales (m,):
+    column c's whitened Jacobian rows are W J_q[:, :, joint] (design @ modes)[:, c] scales[c]."""
+
+    sensitivity: object
+    joint: int
+    design: object
+    modes: np.ndarray
+    columns: np.ndarray
+    scales: np.ndarray
+
+
+def _run(index: np.ndarray):
+    """index as a slice when it is a run of consecutive integers, else itself."""
+    if index.size and index[-1] - index[0] == index.size - 1 and np.all(np.diff(index) == 1):
+        return slice(int(index[0]), int(index[-1]) + 1)
+    return index
+
+
+def _add_at(target: np.ndarray, rows: np.ndarray, columns: np.ndarray, values: np.ndarray) -> None:
+    """target[rows, columns] += values, in place through slices where the indices are runs."""
+    if not rows.size or not columns.size:
+        return
+    r, c = _run(rows), _run(columns)
+    if isinstance(r, slice) and isinstance(c, slice):
+        target[r, c] += values
+    else:
+        target[np.ix_(np.arange(target.shape[0])[r], np.arange(target.shape[1])[c])] += values
+
+
+@dataclass(frozen=True)
 class Anchor:
     """Where the engine's linear model is taken: parameters phi (K,) of the whole layout (zero outside
     the anchor's model) and the exact residual there, per part (N, r) [m, and weighted rad]. A model's
@@ -175,35 +207,146 @@ class FoldGrams:
         return out
 
     def _accumulate(self, effects, old_effects, targets: list) -> None:
-        """Add the Gram blocks of the given effects' columns into ``targets`` (each (K, K), its last
-        K_e rows and columns theirs), and with ``old_effects`` (the columns before them) the blocks
-        of those against the new ones: a chunk of poses at a time, straight into the final arrays.
-        ``targets``: the total (or None, when it is the sum of the first assignment's folds), then per
-        assignment per fold."""
-        width = sum(self.layout.size[e] for e in effects)
-        old_width = sum(self.layout.size[e] for e in old_effects) if old_effects else 0
+        """Add the Gram blocks of the given effects' columns into ``targets`` (each (K, K) over the
+        layout's columns), and with ``old_effects`` (other columns already held) the blocks of those
+        against the new ones, straight into the final arrays. ``targets``: the total (or None, when it
+        is the sum of the first assignment's folds), then per assignment per fold.
+
+        Columns held as dense rows are multiplied a chunk of poses at a time. An angle table's columns
+        (:meth:`_structured`) are not made: their blocks come from the table's B-spline designs
+        (:meth:`_table_blocks`)."""
+        old_effects = list(old_effects or [])
+        for p in range(len(self.parts)):
+            structured = {e: g for e in list(effects) + old_effects if (g := self._structured(p, e)) is not None}
+            dense_new = [e for e in effects if e not in structured]
+            dense_old = [e for e in old_effects if e not in structured]
+            new_groups = [grp for e in effects if e in structured for grp in self._groups(p, e, structured[e])]
+            old_groups = [grp for e in old_effects if e in structured for grp in self._groups(p, e, structured[e])]
+            self._dense_blocks(p, dense_new, dense_old, new_groups, old_groups if dense_new else [], targets)
+            if new_groups:
+                self._table_blocks(p, new_groups, old_groups, targets)
+
+    def _dense_blocks(self, p: int, dense_new, dense_old, new_groups, old_groups, targets) -> None:
+        """The dense columns' blocks (new against new and old), and, from the same chunks of dense rows,
+        the blocks of the table groups against them: ``new_groups`` against every dense column given,
+        ``old_groups`` against the new dense columns only."""
         total, held = targets
+        new_cols, old_cols = self.layout.columns_of(dense_new), self.layout.columns_of(dense_old)
+        if not new_cols.size and not new_groups:
+            return
+        both = dense_old + dense_new
+        both_cols = np.concatenate([old_cols, new_cols])
+        # per group: (its dense columns, accumulators (nb, width) for the total and per assignment per fold)
+        crossing = [(grp, both_cols, len(dense_old)) for grp in new_groups] + \
+            [(grp, new_cols, None) for grp in old_groups]
+        crossing = [(grp, cols, which) for grp, cols, which in crossing if cols.size]
+        sums = [(None if total is None else np.zeros((grp.design.shape[1], cols.size)),
+                 [[np.zeros((grp.design.shape[1], cols.size)) for _ in tests] for tests in self.tests])
+                for grp, cols, _ in crossing]
+        jacobians = {}
 
         def add(target, block, old):
-            own = target[old_width:, old_width:]
-            own += block.T @ block
+            _add_at(target, new_cols, new_cols, block.T @ block)
             if old is not None:
                 cross = old.T @ block
-                target[:old_width, old_width:] += cross
-                target[old_width:, :old_width] += cross.T
+                _add_at(target, old_cols, new_cols, cross)
+                _add_at(target, new_cols, old_cols, cross.T)
 
         for rows in self._chunks():
             fold_rows = self._fold_rows(rows)
-            for p in range(len(self.parts)):
-                block = self._block(p, rows, effects)
-                old = self._block(p, rows, old_effects) if old_effects else None
+            block = self._block(p, rows, dense_new) if new_cols.size else None
+            old = self._block(p, rows, dense_old) if old_cols.size and (block is not None or new_groups) else None
+            if block is not None:
                 if total is not None:
-                    add(total, block.reshape(-1, width), None if old is None else old.reshape(-1, old_width))
+                    add(total, block.reshape(-1, new_cols.size), None if old is None else old.reshape(-1, old_cols.size))
                 for r, per_fold in enumerate(fold_rows):
                     for f, at in enumerate(per_fold):
                         if at.size:
-                            add(held[r][f], block[at].reshape(-1, width),
-                                None if old is None else old[at].reshape(-1, old_width))
+                            add(held[r][f], block[at].reshape(-1, new_cols.size),
+                                None if old is None else old[at].reshape(-1, old_cols.size))
+            for (grp, cols, split), (sum_total, sum_held) in zip(crossing, sums):
+                key = id(grp.sensitivity)
+                if key not in jacobians:
+                    jacobians[key] = self._whitened_joint_jacobian(p, grp.sensitivity, rows)
+                jac = jacobians[key][:, :, grp.joint]  # (n, r_g)
+                if split is None:
+                    dense = block
+                elif block is None or old is None:
+                    dense = old if block is None else block
+                else:
+                    dense = np.concatenate([old, block], axis=2)
+                z = np.einsum("nr,nrc->nc", jac, dense[:, :jac.shape[1]])  # (n, width): J_joint^T W^2 J_dense
+                design = grp.design[rows]
+                if sum_total is not None:
+                    sum_total += design.T @ z
+                for r, per_fold in enumerate(fold_rows):
+                    for f, at in enumerate(per_fold):
+                        if at.size:
+                            sum_held[r][f] += design[at].T @ z[at]
+            jacobians.clear()
+        for (grp, cols, _), (sum_total, sum_held) in zip(crossing, sums):
+            for target, value in ([(total, sum_total)] if total is not None else []) + \
+                    [(held[r][f], sum_held[r][f]) for r in range(len(self.tests)) for f in range(len(self.tests[r]))]:
+                cross = (grp.modes.T @ value) * grp.scales[:, None]
+                _add_at(target, grp.columns, cols, cross)
+                _add_at(target, cols, grp.columns, cross.T)
+
+    def _table_blocks(self, p: int, new_groups, old_groups, targets) -> None:
+        """The blocks of the table groups ``new_groups`` against themselves and ``old_groups``, per fold:
+        M_a^T (B_a^T D_ab B_b) M_b, D_ab the diagonal of the whitened joint Jacobians' products
+        (J_a^T W^2 J_b per pose) on the fold's rows, B the groups' sparse B-spline designs."""
+        total, held = targets
+        jacobians = {}
+        for grp in new_groups + old_groups:
+            key = id(grp.sensitivity)
+            if key not in jacobians:
+                jacobians[key] = self._whitened_joint_jacobian(p, grp.sensitivity, slice(None))
+        pairs = [(a, b) for i, a in enumerate(new_groups) for b in new_groups[i:]] + \
+            [(a, b) for a in new_groups for b in old_groups]
+        row_sets = ([(total, None)] if total is not None else []) + \
+            [(held[r][f], test) for r, tests in enumerate(self.tests) for f, test in enumerate(tests)]
+        for a, b in pairs:
+            ja, jb = jacobians[id(a.sensitivity)], jacobians[id(b.sensitivity)]
+            rows = min(ja.shape[1], jb.shape[1])
+            weight = np.einsum("nr,nr->n", ja[:, :rows, a.joint], jb[:, :rows, b.joint])  # (N,)
+            for target, test in row_sets:
+                da, db, w = (a.design, b.design, weight) if test is None else \
+                    (a.design[test], b.design[test], weight[test])
+                inner = (da.multiply(w[:, None]).tocsr().T @ db).toarray()  # (nb_a, nb_b)
+                value = (a.modes.T @ inner @ b.modes) * np.outer(a.scales, b.scales)
+                _add_at(target, a.columns, b.columns, value)
+                if a is not b:
+                    _add_at(target, b.columns, a.columns, value.T)
+
+    def _structured(self, p: int, e: str):
+        """Effect e's sensitivity on part p when its Gram blocks are taken from its factors: a
+        joint-columns product (:class:`~tcr_accuracy.diagnosis.error_map.JointColumnsSensitivity`)
+        whose values are sparse B-spline designs times modes (an angle table's,
+        :meth:`~tcr_accuracy.effects.angle_table.TableValues.sparse_factors`); else None."""
+        g = self.bases[e].per_part[p].g
+        if isinstance(g, JointColumnsSensitivity) and hasattr(g.values, "sparse_factors") and \
+                (self.parts[p].whitening is None or g.shape[1] >= 3):
+            return g
+        return None
+
+    def _groups(self, p: int, e: str, g) -> list:
+        """Effect e's columns on part p, one :class:`TableGroup` per joint of its table."""
+        basis = self.bases[e]
+        index = basis.index[p]
+        out = []
+        for _, design, modes, positions in g.values.sparse_factors():
+            union = index[g.columns[positions]]
+            out.append(TableGroup(g, int(g.joint[positions[0]]), design, modes, self.layout.offset[e] + union,
+                                  basis.scales[union]))
+        return out
+
+    def _whitened_joint_jacobian(self, p: int, g, rows) -> np.ndarray:
+        """(n, r_g, n_joints) the sensitivity's joint Jacobian on the rows, its position rows whitened."""
+        jac = np.array(g.jac_q[rows], dtype=float)
+        whitening = self.parts[p].whitening
+        if whitening is not None:
+            jac[:, :3] = np.einsum("nij,njk->nik", whitening[rows], jac[:, :3])
+        return jac
 
     def _grams(self, effects, old: tuple | None = None) -> tuple:
         """(total, held) Gram blocks over the layout's K columns: the given effects' (the last ones)
@@ -257,35 +400,55 @@ class FoldGrams:
     def residual_products(self, residual: list, effects) -> tuple:
         """J^T W r (K,) over the given effects' columns (zero elsewhere) and r^T W r, over all rows and
         over each fold's held-out rows, for a residual r per part (N, r) [m]: ((total, per assignment
-        per fold), (total, per assignment per fold))."""
+        per fold), (total, per assignment per fold)). An angle table's columns from its designs:
+        M^T B^T (J_joint^T W^2 r per pose)."""
         k = self.layout.n_columns
-        columns = self.layout.columns_of(effects)
-        total = np.zeros(columns.size)
-        held = [[np.zeros(columns.size) for _ in tests] for tests in self.tests]
+        total = np.zeros(k)
+        held = [[np.zeros(k) for _ in tests] for tests in self.tests]
         c_total, c_held = 0.0, [[0.0 for _ in tests] for tests in self.tests]
-        for rows in self._chunks():
-            fold_rows = self._fold_rows(rows)
-            for p, part in enumerate(self.parts):
-                block = self._block(p, rows, effects)
+        for p, part in enumerate(self.parts):
+            structured = {e: g for e in effects if (g := self._structured(p, e)) is not None}
+            dense = [e for e in effects if e not in structured]
+            columns = self.layout.columns_of(dense)
+            groups = [grp for e in effects if e in structured for grp in self._groups(p, e, structured[e])]
+            sums = [(np.zeros(grp.design.shape[1]), [[np.zeros(grp.design.shape[1]) for _ in tests]
+                                                     for tests in self.tests]) for grp in groups]
+            for rows in self._chunks():
+                fold_rows = self._fold_rows(rows)
                 r = residual[p][rows]
                 if part.whitening is not None:
                     r = r.copy()
                     r[:, :3] = np.einsum("nij,nj->ni", part.whitening[rows], r[:, :3])
-                total += block.reshape(-1, columns.size).T @ r.ravel()
                 c_total += float(np.sum(r**2))
                 for a, per_fold in enumerate(fold_rows):
                     for f, at in enumerate(per_fold):
-                        if at.size:
-                            w = r[at]
-                            held[a][f] += block[at].reshape(-1, columns.size).T @ w.ravel()
-                            c_held[a][f] += float(np.sum(w**2))
-
-        def spread(values):
-            out = np.zeros(k)
-            out[columns] = values
-            return out
-
-        return (spread(total), [[spread(h) for h in hs] for hs in held]), (c_total, c_held)
+                        c_held[a][f] += float(np.sum(r[at] ** 2))
+                if columns.size:
+                    block = self._block(p, rows, dense)
+                    total[columns] += block.reshape(-1, columns.size).T @ r.ravel()
+                    for a, per_fold in enumerate(fold_rows):
+                        for f, at in enumerate(per_fold):
+                            if at.size:
+                                held[a][f][columns] += block[at].reshape(-1, columns.size).T @ r[at].ravel()
+                jacobians = {}
+                for grp, (sum_total, sum_held) in zip(groups, sums):
+                    key = id(grp.sensitivity)
+                    if key not in jacobians:
+                        jacobians[key] = self._whitened_joint_jacobian(p, grp.sensitivity, rows)
+                    jac = jacobians[key][:, :, grp.joint]
+                    u = np.einsum("nr,nr->n", jac, r[:, :jac.shape[1]])
+                    design = grp.design[rows]
+                    sum_total += design.T @ u
+                    for a, per_fold in enumerate(fold_rows):
+                        for f, at in enumerate(per_fold):
+                            if at.size:
+                                sum_held[a][f] += design[at].T @ u[at]
+            for grp, (sum_total, sum_held) in zip(groups, sums):
+                total[grp.columns] += (grp.modes.T @ sum_total) * grp.scales
+                for a, tests in enumerate(self.tests):
+                    for f in range(len(tests)):
+                        held[a][f][grp.columns] += (grp.modes.T @ sum_held[a][f]) * grp.scales
+        return (total, held), (c_total, c_held)
 
     # -- a model's sub-blocks ---------------------------------------------------------------
     def quadratic(self, index: np.ndarray, fixed: np.ndarray | None = None, repeat=None, fold=None,
@@ -334,6 +497,8 @@ class FoldGrams:
 def sensitivity_times(g, theta: np.ndarray) -> np.ndarray:
     """(N, r, m) g (N, r, P) times the parameter vectors theta (P, m), a chunk of poses at a time; g
     may be held as its factors (:class:`~tcr_accuracy.diagnosis.error_map.JointColumnsSensitivity`)."""
+    if isinstance(g, JointColumnsSensitivity) and hasattr(g.values, "sparse_factors"):
+        return _table_times(g, theta)
     if isinstance(g, JointColumnsSensitivity):
         return g.times(theta)
     n, r, k = g.shape
@@ -342,6 +507,22 @@ def sensitivity_times(g, theta: np.ndarray) -> np.ndarray:
         at = slice(start, start + 4 * CHUNK)
         block = np.asarray(g[at])
         out[at] = (block.reshape(-1, k) @ theta).reshape(block.shape[0], r, theta.shape[1])
+    return out
+
+
+def _table_times(g, theta: np.ndarray) -> np.ndarray:
+    """:func:`sensitivity_times` of an angle table's sensitivity: per joint, its B-spline design times
+    (modes times the joint's parameters), times the joint's column of the error Jacobian; the
+    table's (N, k) values are never made."""
+    n, r, _ = g.shape
+    theta = np.asarray(theta)[g.columns]
+    out = np.zeros((n, r, theta.shape[1]))
+    for _, design, modes, positions in g.values.sparse_factors():
+        weights = theta[positions]
+        if not np.any(weights):
+            continue
+        joint = int(g.joint[positions[0]])
+        out += g.jac_q[:, :, joint, None] * np.asarray(design @ (modes @ weights))[:, None, :]
     return out
 
 

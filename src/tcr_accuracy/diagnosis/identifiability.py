@@ -87,7 +87,7 @@ def gram_factor(gram: np.ndarray, columns: dict, n_poses: int) -> dict:
 
 
 def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: float | dict = 0.0,
-                    report: bool = True) -> tuple[dict, dict | None]:
+                    report: bool = True, prefixes: dict | None = None) -> tuple[dict, dict | None]:
     """Kept columns per effect and a report of what was removed and why.
 
     Each parameter's column of the identification Jacobian (N poses x 3 rows) is taken
@@ -100,10 +100,11 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
     times the column's own motion (a numerical duplicate). ``min_motion`` may be a dict
     (effect -> threshold [m]) when effects are judged at sizes other than their typical ones.
     With ``report=False`` only the kept columns (the report, what each dropped column duplicates
-    and the condition number, is most of the cost): (keep, None).
+    and the condition number, is most of the cost): (keep, None); then ``prefixes`` (a dict the
+    caller keeps for these bases) lets orders that start alike share their leading effects' work.
     """
     if not report:
-        return _kept_columns(bases, order, rank_tol, min_motion), None
+        return _kept_columns(bases, order, rank_tol, min_motion, prefixes), None
     kept_q = None  # orthonormal basis of the kept span, (3N, r)
     kept_cols, kept_names = [], []  # normalised kept columns and names, for naming duplicates
     keep: dict = {}
@@ -167,12 +168,34 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
     return keep, report
 
 
-def _kept_columns(bases: dict, order, rank_tol: float, min_motion) -> dict:
-    """The kept columns of :func:`identifiability`, by the same projections and pivoted QR."""
+#: the projections of this many leading effect sets kept for later sets that start alike
+PREFIXES = 8
+
+
+def _kept_columns(bases: dict, order, rank_tol: float, min_motion, prefixes: dict | None = None) -> dict:
+    """The kept columns of :func:`identifiability`, by the same projections and pivoted QR.
+
+    ``prefixes``: a dict kept by the caller for these bases: the state after each leading run of
+    effects (the kept span and columns) is stored in it, and a later order that starts with the same
+    effects at the same thresholds resumes from there (a candidate added to a model, a model of the
+    selection's ladder: the same floats, without projecting and pivoting the leading effects again)."""
     kept_q = None
     keep: dict = {}
     thresholds = min_motion if isinstance(min_motion, dict) else dict.fromkeys(order, min_motion)
-    for name in order:
+    key = [rank_tol]
+    start = 0
+    if prefixes is not None:
+        if prefixes.get("bases") is not bases:
+            prefixes.clear()
+            prefixes["bases"] = bases
+        for i in range(len(order) - 1, 0, -1):  # the longest stored run of leading effects
+            leading = tuple(key + [(n, thresholds.get(n, 0.0)) for n in order[:i]])
+            if leading in prefixes:
+                prefixes[leading] = stored = prefixes.pop(leading)  # to the end: the most recently used
+                kept_q, keep, start = stored[0], dict(stored[1]), i
+                break
+        key += [(n, thresholds.get(n, 0.0)) for n in order[:start]]
+    for name in order[start:]:
         b = bases[name]
         threshold = thresholds.get(name, 0.0)
         n_pose, _, norms, piv, diag, basis = _block_pivots(b, kept_q)
@@ -185,6 +208,11 @@ def _kept_columns(bases: dict, order, rank_tol: float, min_motion) -> dict:
         if rank and name != order[-1]:  # the span the effects after it are projected off
             kept_q = basis(rank) if kept_q is None else np.hstack([kept_q, basis(rank)])
         keep[name] = np.asarray(sorted(piv[:rank].tolist()), dtype=int)
+        if prefixes is not None and name != order[-1]:
+            key.append((name, threshold))
+            prefixes[tuple(key)] = (kept_q, dict(keep))
+            while len(prefixes) > PREFIXES + 1:  # the least recently used go ("bases" stays first)
+                prefixes.pop(next(k for k in prefixes if k != "bases"))
     return keep
 
 

