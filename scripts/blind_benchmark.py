@@ -85,6 +85,7 @@ def run_scenario(robot, index: int, rng: np.random.Generator, *, n_train: int, n
         "primary_group": result.primary_group,
         "ambiguous": [g["effects"] for g in result.ambiguous],
         "swaps": result.swaps,
+        "search": result.search,
         "named_or_grouped": result.primary_effect == dominant or (result.primary_effect is None and (
             dominant in result.primary_group or result.primary_family == family)),
         "primary_family": result.primary_family,

@@ -140,6 +140,12 @@ class Diagnosis:
         return list(self.stages.select.swaps)
 
     @property
+    def search(self) -> dict:
+        """The search beyond the greedy path: sets fitted, where each path ended, the best set on
+        another path and whether the chosen set beats it by more than a standard error."""
+        return self.stages.select.search.to_dict()
+
+    @property
     def ambiguous(self) -> list:
         """Groups of effects the data cannot tell apart."""
         return list(self.stages.select.ambiguous)
@@ -358,6 +364,7 @@ class Diagnosis:
             "primary_tied": list(self.primary_tied),
             "ambiguous": self.ambiguous,
             "swaps": self.swaps,
+            "search": self.search,
             "second_order": self.second_order,
             "leave_one_out": self.leave_one_out,
             "backward_eliminated": self.eliminated,

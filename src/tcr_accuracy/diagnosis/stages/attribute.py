@@ -22,6 +22,7 @@ from ..records import ErrorStats, Step
 from ..uncertainty import difference_interval, selection_frequency
 from .candidates import CandidateSet
 from .register import RegisteredMeasurements, measured_context
+from .search import explanation_order
 from .select import Selection
 
 
@@ -331,21 +332,13 @@ def first_order_reach(part, bases: dict, chosen, full_parameters: dict, nominal:
 
 
 def explanation_ladder(engine: FitEngine, selected, first: Step) -> list[Step]:
-    """The shrink table in the order of explanation: from frames, each step adds the chosen
-    effect that lowers the held-out error most given those before it (on the engine's linear
-    model), with its figures, its gain and the gain's 95 % interval on the exact kinematics."""
-    steps, current = [first], ["frames"]
-    previous = engine.evaluate(["frames"], exact=True)
-    remaining = [e for e in selected if e != "frames"]
-    while remaining:
-        trials = {e: engine.evaluate(ordered(current + [e])) for e in remaining}
-        best = min(trials, key=lambda e: ErrorStats.heldout(trials[e]).rms)
-        r = engine.evaluate(ordered(current + [best]), exact=True)
-        current.append(best)
-        remaining.remove(best)
-        steps.append(Step(best, tuple(ordered(current)), r["n_parameters"], r["train_stats"].rms,
+    """The shrink table in the order of explanation (:func:`~.search.explanation_order`), with
+    each step's figures, its gain and the gain's 95 % interval on the exact kinematics."""
+    steps = [first]
+    rungs = explanation_order(engine, selected)
+    for (_, previous), (effect, r) in zip(rungs, rungs[1:]):
+        steps.append(Step(effect, tuple(r["effects"]), r["n_parameters"], r["train_stats"].rms,
                           ErrorStats.heldout(r),
                           paired_z(previous["heldout_squares"], r["heldout_squares"]),
                           difference_interval(previous["heldout_squares"], r["heldout_squares"])))
-        previous = r
     return steps
