@@ -6,8 +6,9 @@
 Writes docs/img/viewer.png (the built-in tool-changer at the seed's working pose with a
 TCP error cloud of the seed's Table 2 errors), and docs/img/demo.png and docs/img/report.png:
 the index and the diagnosis report that ``tcr-accuracy demo`` writes, and the demo's plots
-under docs/img/figures/. Needs Chromium
-(``apt-get install -y chromium``).
+under docs/img/figures/, and docs/img/calibration_report.png: page 1 of the printed report of the
+README's "The report" commands (diagnosis, ISO 9283 test, export, report), at 120 dpi. Needs
+Chromium (``apt-get install -y chromium``) and poppler's pdftoppm (``apt-get install -y poppler-utils``).
 """
 
 from __future__ import annotations
@@ -85,6 +86,46 @@ def main() -> None:
             for png in sorted((work / "demo" / part).glob("figure-*.png")):
                 shutil.copyfile(png, figures / f"demo-{part}-{png.name}")
                 print(f"wrote {figures / f'demo-{part}-{png.name}'}")
+        calibration_report_page(work, args.out / "calibration_report.png")
+
+
+#: The README's "The report" commands (the report's page 1 is the README's image).
+REPORT_COMMANDS = [
+    ["diagnose", "examples/measured.csv", "--json", "diagnosis.json", "--as-built-urdf", "as_built.urdf"],
+    ["iso9283", "plan", "--cube-centre-mm", "0", "1400", "300", "--cube-size-mm", "200", "--cycles", "5", "--out",
+     "iso_plan.csv"],
+    ["simulate", "--scenario", "examples/scenario_compliance.yaml", "--poses", "iso_plan.csv", "--seed", "3", "--out",
+     "iso.csv"],
+    ["iso9283", "evaluate", "iso.csv", "--model", "diagnosis.json", "--json", "iso.json"],
+    ["export", "diagnosis.json", "--to", "calibration"],
+    ["report", "diagnosis.json", "iso.json", "calibration/accuracy.json", "--out", "calibration-report", "--campaign",
+     "examples/report_campaign.yaml", "--operator", "K. Lee"],
+]
+
+
+def calibration_report_page(work: Path, png: Path) -> None:
+    """Page 1 of the README's calibration report, printed by Chromium, rasterised by pdftoppm."""
+    import contextlib
+    import io
+    import os
+
+    from tcr_accuracy.cli import main as cli_main
+
+    repo = Path(__file__).resolve().parents[1]
+    folder = work / "readme-report"
+    shutil.copytree(repo / "examples", folder / "examples")
+    here = os.getcwd()
+    os.chdir(folder)
+    try:
+        for argv in REPORT_COMMANDS:
+            with contextlib.redirect_stdout(io.StringIO()):
+                if cli_main([*argv, "--quiet"]) != 0:
+                    sys.exit(f"tcr-accuracy {' '.join(argv)} failed")
+    finally:
+        os.chdir(here)
+    subprocess.run(["pdftoppm", "-r", "120", "-f", "1", "-l", "1", "-singlefile", "-png",
+                    str(folder / "calibration-report" / "report.pdf"), str(png.with_suffix(""))], check=True)
+    print(f"wrote {png}")
 
 
 if __name__ == "__main__":

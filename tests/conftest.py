@@ -1,5 +1,6 @@
 """Shared fixtures: models are built in-process (no network, no files outside the repo)."""
 
+import os
 import signal
 from pathlib import Path
 
@@ -10,6 +11,10 @@ from tcr_accuracy.cli import main
 from tcr_accuracy.model.robot import load_robot
 
 REPO = Path(__file__).resolve().parents[1]
+
+# the commands tests start as subprocesses (`python -m tcr_accuracy`) run this checkout's code, not whatever
+# copy of the package pip installed last (a worktree, or an install older than the working tree)
+os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO / "src"), os.environ.get("PYTHONPATH")]))
 
 
 @pytest.fixture(scope="session")

@@ -267,8 +267,8 @@ def test_cli_plan_poses_writes_poses_within_limits_and_refuses_bad_k(tmp_path, t
     run = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO, timeout=600)
     assert run.returncode == 0, run.stderr
     lines = [ln for ln in out.read_text().splitlines() if not ln.startswith("#")]
-    assert lines[0].split(",")[:2] == ["j1_deg", "j2_deg"]
-    values = np.array([[float(v) for v in ln.split(",")] for ln in lines[1:]])
+    assert lines[0].split(",")[:3] == ["pose_id", "j1_deg", "j2_deg"]
+    values = np.array([[float(v) for v in ln.split(",")[1:]] for ln in lines[1:]])
     assert values.shape == (12, 6)
     lo, hi = tool_changer.joint_bounds()
     assert np.all(values <= hi * tool_changer.display_scale + 1e-6)

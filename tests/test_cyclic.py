@@ -85,3 +85,27 @@ def test_without_cyclic_in_the_vocabulary_structure_remains():
     d = GapDiagnosis(robot=robot, tracker_noise=NOISE, effects=effects, stability_replays=5).fit(observations).result_
     assert "cyclic" not in d.selected_effects
     assert d.structure_remains
+
+
+@pytest.mark.parametrize("max_order", [3, 7, 30])
+def test_the_series_holds_every_order_from_three_to_its_highest(max_order):
+    """Orders 3..max_order inclusive, a sine and a cosine each, on every revolute joint: counted
+    here by hand, and each term's joint offset against sin(n q) / cos(n q) written out (a series
+    one order short fits a gear's tooth mesh frequency no more)."""
+    robot = load_robot("ur5")
+    effect = make_effect("cyclic", robot, max_order=max_order)
+    expected = {f"cyclic.{joint}.{trig}{n}" for joint in robot.joint_names for n in range(3, max_order + 1)
+                for trig in "ab"}
+    assert set(effect.parameter_names()) == expected
+    assert effect.n_params == 2 * (max_order - 2) * 6
+    q = np.random.default_rng(3).uniform(-3, 3, (5, 6))
+    names = effect.parameter_names()
+    for name in (f"cyclic.wrist_1_joint.a{max_order}", f"cyclic.elbow_joint.b{max_order}", "cyclic.shoulder_pan_joint.a3"):
+        params = np.zeros(effect.n_params)
+        params[names.index(name)] = 2e-4
+        joint, term = name.split(".")[1:]
+        j, n = robot.joint_names.index(joint), int(term[1:])
+        dq = effect.perturb(params, q, None).dq
+        expected_dq = np.zeros_like(q)
+        expected_dq[:, j] = 2e-4 * (np.sin(n * q[:, j]) if term[0] == "a" else np.cos(n * q[:, j]))
+        np.testing.assert_allclose(dq, expected_dq, atol=1e-15)

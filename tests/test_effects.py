@@ -206,8 +206,9 @@ def test_clearance_draws_match_its_covariance(tool_changer):
     block = slice(start, start + 6)
     np.testing.assert_allclose(np.cov(x[:, block].T), cov[block, block], atol=0.05 * 4e-5**2)
     assert not x[:, ErrorModel(tool_changer).index("j4.dx")].any()  # prismatic: no play by default
-    with pytest.raises(Exception, match="random generator"):
-        Clearance(tool_changer).perturb(params, q[:2], _context(2, 6))
+    # without a generator, the mean robot (an as-built model's): what the draws average to, no play
+    assert not Clearance(tool_changer).perturb(params, q[:2], _context(2, 6)).x.any()
+    np.testing.assert_allclose(x[:, block].mean(axis=0), 0.0, atol=5 * 4e-5 / np.sqrt(20000))
 
 
 def _finite_difference_jacobian(robot, effects, params, q, ctx, scales):
@@ -273,3 +274,21 @@ def test_display_units():
     assert display_value(2.5e-4, "m") == (pytest.approx(0.25), "mm")
     assert display_value(math.radians(0.02) / 1e3, "rad/Nm") == (pytest.approx(0.02), "deg/kNm")
     assert display_value(1.2e-5, "1/K") == (pytest.approx(12.0), "ppm/K")
+
+
+@pytest.mark.parametrize("time_constant", [0.05, 0.25, 1.0])
+def test_drift_shapes_average_zero_over_the_campaign_and_rise_by_one(time_constant):
+    """Both drift shapes integrate to zero over the campaign's progress u in [0, 1] (scipy's
+    quadrature of the class's own shape, not its closed-form mean: the other effects describe the
+    robot as it was on average) and rise by exactly 1 from the first row to the last."""
+    from scipy.integrate import quad
+
+    from tcr_accuracy.effects import make_effect
+    from tcr_accuracy.model.robot import load_robot
+
+    drift = make_effect("drift", load_robot("ur5"), time_constant=time_constant)
+    for k in range(2):
+        mean, _ = quad(lambda u: drift.shapes(np.array([u]), 1)[0, k], 0.0, 1.0, epsabs=1e-13)
+        assert abs(mean) < 1e-10
+        ends = drift.shapes(np.array([0.0, 1.0]), 2)[:, k]
+        assert ends[1] - ends[0] == pytest.approx(1.0, abs=1e-12)

@@ -240,6 +240,46 @@ def test_standard_errors_match_a_monte_carlo_over_noise_draws():
     assert np.all(np.abs(ratio - 1.0) < 0.2), ratio
 
 
+
+def test_standard_errors_count_the_fitted_parameters_as_degrees_of_freedom():
+    """On 10 poses (30 coordinates, 15 parameters) the residual variance is the training sum of
+    squares over n - k, not n: the standard errors said against the spread of the estimates over
+    300 noise draws (within 15 %: dividing by n would say 0.76 of it)."""
+    robot = load_robot()
+    rng = np.random.default_rng(5)
+    n = 12
+    q = random_joint_values(robot, n, rng)
+    offsets = np.radians([0.05, -0.03, 0.04, 0.0, 0.06, 0.02])
+    offsets[3] = 3e-4  # prismatic joint [m]
+    exact = _positions(robot, q + offsets)
+    fit = GapDiagnosis(robot=robot, effects=["joint_offsets"], folds=2, stability_replays=2).fit(
+        _observations(q, exact))
+    engine = fit.engine_
+    model = ["frames", "joint_offsets"]
+    noise = 5e-5
+    estimates, errors = [], []
+    for _ in range(300):
+        parts = [dataclasses.replace(p, target=p.target + noise * rng.standard_normal(p.target.shape))
+                 for p in engine.parts]
+        result = FitEngine(parts, engine.bases, [], rank_tol=engine.rank_tol, min_motion=engine.min_motion) \
+            .evaluate(model)
+        estimates.append(result["phi"] * result["scale"])
+        errors.append(result["phi_std"] * result["scale"])
+    assert 3 * n - result["n_parameters"] <= 24  # few degrees of freedom left: n and n - k differ
+    ratio = np.mean(errors, axis=0) / np.std(estimates, axis=0, ddof=1)
+    assert np.all(np.abs(ratio - 1.0) < 0.15), ratio
+    # each parameter's 95 % interval: value +- the two-sided normal quantile (scipy's) x its
+    # standard error, cut to the fit range
+    from scipy.stats import norm
+
+    for table in fit.result_.parameter_table.values():
+        for name, value in table["values"].items():
+            half = norm.ppf(0.975) * table["std"][name]
+            low, high = table["fit_range"][name]
+            np.testing.assert_allclose(table["interval"][name], [max(value - half, low), min(value + half, high)],
+                                       rtol=1e-12, atol=0)
+
+
 THREE_REFLECTORS = """<?xml version="1.0"?>
 <robot name="reflector_arm">
   <link name="base"/>
@@ -367,3 +407,26 @@ def _registered_target(part, measured_tracker, diagnosis):
     registered them (its first session's closed-form frame)."""
     rotation, translation = diagnosis.registration
     return (measured_tracker - translation) @ rotation
+
+
+def test_an_effect_enters_only_when_it_cuts_the_held_out_error_by_the_relative_gain_asked():
+    """Joint offsets that leave only the noise: they cut the held-out RMS after frames alone by
+    about 90 % (0.40 -> 0.035 mm), with an overwhelming z. Asked for a 50 % cut they enter; asked
+    for 95 % they cannot (the relative gate: rms < (1 - gain) x the previous rms)."""
+    robot = load_robot()
+    rng = np.random.default_rng(8)
+    n = 60
+    q = random_joint_values(robot, n, rng)
+    offsets = np.radians([0.05, -0.03, 0.04, 0.0, 0.06, 0.02])
+    offsets[3] = 3e-4  # prismatic joint [m]
+    measured = _positions(robot, q + offsets) + 2e-5 * rng.standard_normal((n, 3))
+    chosen = {}
+    for gain in (0.5, 0.95):
+        d = GapDiagnosis(robot=robot, effects=["joint_offsets"], folds=3, stability_replays=2,
+                         min_relative_gain=gain).fit(_observations(q, measured)).result_
+        chosen[gain] = d.selected_effects
+        if gain == 0.5:
+            frames, offsets_step = d.steps[0].heldout.rms, d.steps[-1].heldout.rms
+            assert 0.05 * frames < offsets_step < 0.5 * frames  # the cut lies between the two gates
+    assert "joint_offsets" in chosen[0.5]
+    assert "joint_offsets" not in chosen[0.95]

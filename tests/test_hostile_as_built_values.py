@@ -112,8 +112,9 @@ def test_a_joint_angle_table_needs_a_travel_per_joint_that_runs_forward(exported
     n = tcr.load_as_built(exported / "out" / "as_built.yaml").robot.n_joints
     for options, reason in (({"lower": [0.0, 1.0], "upper": [1.0, 2.0]}, f"2 values for {n} joints"),
                             ({"lower": [1.0] * n, "upper": [0.0] * n}, "ends below where it starts"),
-                            ({"lower": ["a"] * n}, "lower[0]: 'a' is not a number"), ({"upper": [True] * n}, "upper[0]: True"),
-                            ({"intervals": 2}, "at least 4 knot intervals"),
+                            ({"lower": ["a"] * n}, "lower[0]: 'a' is not of type 'number'"),
+                            ({"upper": [True] * n}, "upper[0]: True"),
+                            ({"intervals": 2}, "intervals: 2 is less than the minimum of 4"),
                             ({"intervals": 8, "knots": [[0.5, 0.1, 0.2, 0.3, 0.4, 0.6, 0.7] for _ in range(n)]},
                              "knots[0]: 7 increasing angles [rad]"),
                             ({"intervals": 8, "knots": [[0.1, 0.2] for _ in range(n)]},

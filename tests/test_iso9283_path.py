@@ -7,6 +7,7 @@ from it with numpy; the code under test sees only the two CSVs."""
 
 import json
 import math
+import warnings
 
 import numpy as np
 import pinocchio as pin
@@ -23,8 +24,9 @@ RATE_HZ = 1000.0
 def planned(tmp_path_factory):
     """The UR10's path plan (its CSV and JSON) and the commanded runs recomputed from its joints."""
     folder = tmp_path_factory.mktemp("path")
-    code = _main(["iso9283", "plan", "--robot", "ur10", "--path", "--out", str(folder / "path.csv"), "--json",
-                  str(folder / "path.json"), "--quiet"])
+    # the URDF's zero as home (the cube these tests' tolerances were set on; the default is the UR's upright pose)
+    code = _main(["iso9283", "plan", "--robot", "ur10", "--path", "--home", *["0"] * 6, "--out",
+                  str(folder / "path.csv"), "--json", str(folder / "path.json"), "--quiet"])
     assert code == 0
     robot = load_robot("ur10")
     lines = [line for line in (folder / "path.csv").read_text().splitlines() if not line.startswith("#")]
@@ -299,3 +301,42 @@ def test_plane_crossings_in_blocks_equal_one_pass(monkeypatch):
     np.testing.assert_array_equal(whole[0], blocked[0])
     np.testing.assert_array_equal(whole[1], blocked[1])
     np.testing.assert_allclose(blocked[1], centres[:, 0] / 0.5, atol=1e-12)  # x = 0.5 t crosses x = c at t = 2c
+
+
+# ---------------------------------------------------------------------------------------
+# Issue 37 item 9: a stream's time in another unit, cycles labelled reading by reading
+# ---------------------------------------------------------------------------------------
+def _rewrite(text, path, cell):
+    """The stream ``text`` written to ``path`` with each reading's cells (time_s, x, y, z, path, speed,
+    cycle) passed through ``cell(index, cells)``."""
+    lines = text.splitlines()
+    path.write_text("\n".join([lines[0]] + [",".join(cell(i, line.split(","))) for i, line in
+                                            enumerate(lines[1:])]) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("name, cell, words", [
+    ("ms.csv", lambda i, c: [f"{float(c[0]) * 1e3:.4f}", *c[1:]],
+     "column time_s: the line at 50 % is measured moving at"),
+    ("per_reading.csv", lambda i, c: [*c[:6], str(i + 1)],
+     "row 2, column cycle: cycle 1 of the line at 50 % holds 1 reading(s)"),
+    ("in_turn.csv", lambda i, c: [*c[:6], str(i % 3 + 1)],
+     "column cycle: cycle 2 of the line at 50 % starts at"),
+])
+def test_a_stream_in_ms_or_with_cycles_per_reading_is_refused(planned, capsys, tmp_path, name, cell, words):
+    """time_s in milliseconds gave AV -99.9 % and FV 0; cycle labels given reading by reading gave a raw
+    numpy warning and AT 58 mm: now one line naming the file and the column, exit 2."""
+    folder, runs, _ = planned
+    text = _stream(runs, [("line", 50.0)], _bow, OFFSETS[:3], np.ones(3), NOISE, np.random.default_rng(3))
+    good = _rewrite(text, tmp_path / "good.csv", lambda i, c: c)
+    code, out, err = run(["iso9283", "evaluate", str(good), "--path", str(folder / "path.csv"), "--robot", "ur10",
+                          "--frame", "base"], capsys)
+    assert code == 0, err
+    bad = _rewrite(text, tmp_path / name, cell)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no raw numpy warning on the way
+        code, out, err = run(["iso9283", "evaluate", str(bad), "--path", str(folder / "path.csv"), "--robot",
+                              "ur10", "--frame", "base"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and str(bad) in err and words in err, err
+    if name == "ms.csv":
+        assert "the times look like ms" in err

@@ -74,6 +74,10 @@ def _plan_rows(path, robot):
     return rows, q / robot.display_scale
 
 
+#: The makers' ready poses [deg], written out: the UR's upright home (PolyScope), Franka's ready pose.
+READY_DEG = {"ur5": [0, -90, 0, -90, 0, 0], "ur10": [0, -90, 0, -90, 0, 0], "panda": [0, -45, 0, -135, 0, 90, 45]}
+
+
 @pytest.mark.parametrize("name", ["ur5", "ur10", "panda", "tool_changer"])
 def test_plan_keeps_above_the_mounting_plane_near_home_and_free_of_collision(name, tmp_path, capsys):
     code, out, err = run(["iso9283", "plan", "--robot", name, "--cycles", "3", "--out", str(tmp_path / "plan.csv"),
@@ -82,7 +86,8 @@ def test_plan_keeps_above_the_mounting_plane_near_home_and_free_of_collision(nam
     robot = load_robot(name)
     rows, q = _plan_rows(tmp_path / "plan.csv", robot)
     payload = json.loads((tmp_path / "plan.json").read_text())
-    home = robot.working_pose  # the robot's reference pose, the default home
+    # the default home: the maker's ready pose (the UR upright, Franka's ready pose), else the reference pose
+    home = np.radians(READY_DEG[name]) if name in READY_DEG else robot.working_pose
     np.testing.assert_allclose(np.asarray(payload["home_display"]) / robot.display_scale, home, atol=1e-12)
     revolute = np.array([k == "revolute" for k in robot.joint_kinds])
     assert np.degrees(np.abs(q - home)[:, revolute]).max() <= 180.0 + 1e-6
@@ -125,7 +130,7 @@ def test_the_cycles_start_at_p1_and_the_conditions_are_blocks_of_the_file(tmp_pa
     assert list(dict.fromkeys(blocks)) == [(100, 100, 5.0), (100, 50, 5.0), (100, 10, 5.0), (10, 100, 0.5)]
     for k in range(4):
         block = rows[10 * k:10 * (k + 1)]
-        assert [r["pose_id"] for r in block] == ["5", "4", "3", "2", "1"] * 2
+        assert [r["pose_id"] for r in block] == ["P5", "P4", "P3", "P2", "P1"] * 2
         assert [r["cycle"] for r in block] == ["1"] * 5 + ["2"] * 5
     comments = [line for line in (tmp_path / "plan.csv").read_text().splitlines() if line.startswith("# condition")]
     assert len(comments) == 4 and all("start at P1" in c for c in comments)
@@ -162,3 +167,53 @@ def test_a_given_cube_under_the_floor_is_named(tmp_path):
     with pytest.raises(Exception, match="outside the workspace"):
         plan_iso_cube(load_robot("ur5"), np.random.default_rng(0), centre=[0.4, 0.1, 0.04], size=0.2,
                       workspace=Workspace(floor=0.0))
+
+
+def _rpy_by_hand(roll, pitch, yaw):
+    """R = Rz(yaw) Ry(pitch) Rx(roll) [rad], written out (the URDF's rpy)."""
+    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def test_the_tool_orientation_and_the_trackers_line_of_sight_are_kept(tmp_path, capsys):
+    """--tool-rpy: every pose holds that TCP orientation (Pinocchio's forward kinematics here);
+    --tracker-mm: no collision body on the beam to P1..P5 (coal capsules built here) and each pose's
+    distance from the tracker written; a tracker inside the robot's base sees nothing: refused."""
+    rpy, tracker = (180.0, 0.0, 90.0), np.array([1500.0, -1200.0, 600.0])
+    code, out, err = run(["iso9283", "plan", "--robot", "ur5", "--tool-rpy", *map(str, rpy), "--tracker-mm",
+                          *map(str, tracker), "--cycles", "1", "--conditions", "100/100", "--out",
+                          str(tmp_path / "plan.csv"), "--json", str(tmp_path / "plan.json")], capsys)
+    assert code == 0, err
+    robot = load_robot("ur5")
+    rows, q = _plan_rows(tmp_path / "plan.csv", robot)
+    wanted = _rpy_by_hand(*np.radians(rpy))
+    for qk in q:
+        _, placement = pinocchio_kinematics(robot, qk)
+        np.testing.assert_allclose(placement.rotation, wanted, atol=1e-6)
+    payload = json.loads((tmp_path / "plan.json").read_text())
+    geom = _geometry(robot)
+    model, data = robot.full_model, robot.full_model.createData()
+    for pose in payload["poses"]:
+        target = np.array(pose["target_mm"]) * 1e-3
+        assert pose["tracker_distance_mm"] == pytest.approx(np.linalg.norm(target * 1e3 - tracker), abs=1e-6)
+        qk = np.asarray(pose["q_display"]) / robot.display_scale
+        gdata = geom.createData()
+        pin.updateGeometryPlacements(model, data, geom, gdata, _full_q(robot, qk))
+        start = tracker * 1e-3
+        end = target + (start - target) * 0.025 / np.linalg.norm(start - target)  # the reflector's 25 mm
+        axis = (end - start) / np.linalg.norm(end - start)
+        beam = pin.coal.Capsule(1e-3, float(np.linalg.norm(end - start)))
+        at = pin.coal.Transform3s(pin.Quaternion.FromTwoVectors(np.array([0.0, 0.0, 1.0]), axis).matrix(),
+                                  0.5 * (start + end))
+        for body, placement in zip(geom.geometryObjects, gdata.oMg):
+            hit = pin.coal.collide(beam, at, body.geometry, pin.coal.Transform3s(placement.rotation,
+                                                                                 placement.translation),
+                                   pin.coal.CollisionRequest(), pin.coal.CollisionResult())
+            assert not hit, (pose["pose_id"], body.name)
+    assert "sees every measured pose" in out and "mm from the tracker" in out
+    code, out, err = run(["iso9283", "plan", "--robot", "ur5", "--tracker-mm", "0", "0", "40", "--cycles", "1",
+                          "--conditions", "100/100", "--out", str(tmp_path / "hidden.csv")], capsys)
+    assert code == 2 and "in sight of the tracker" in err and not (tmp_path / "hidden.csv").exists(), err

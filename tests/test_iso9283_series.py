@@ -297,3 +297,59 @@ def test_a_test_too_small_for_the_unit_check_says_so(tmp_path, capsys):
     code, out, err = run(["iso9283", "evaluate", str(path), "--robot", "ur10", "--frame", "base", "--json", "-"],
                          capsys)
     assert not any("unit check" in n for n in json.loads(out)["notes"])
+
+
+# ---------------------------------------------------------------------------------------
+# Issue 37: units per column, conditions and flags that do nothing (refused, one line, exit 2)
+# ---------------------------------------------------------------------------------------
+def _scaled_column(src, dst, column, factor):
+    lines = src.read_text().splitlines()
+    k = lines[0].split(",").index(column)
+    out = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        cells[k] = repr(float(cells[k]) * factor)
+        out.append(",".join(cells))
+    dst.write_text("\n".join(out) + "\n")
+    return dst
+
+
+@pytest.mark.parametrize("column", ["x_mm", "z_mm"])
+@pytest.mark.parametrize("where", ["measurements", "frame-from"])
+def test_one_position_column_in_metres_is_refused_naming_it(column, where, tmp_path, capsys):
+    """Metres in one column under its _mm header: the spread of the three columns together passes the
+    reader's check, but no rigid frame maps the nominal TCP onto the readings (AP was 12 mm)."""
+    good = _small_test(tmp_path, "good.csv")
+    bad = _scaled_column(good, tmp_path / "one_column_m.csv", column, 1e-3)
+    argv = [str(bad)] if where == "measurements" else [str(good), "--frame-from", str(bad)]
+    code, out, err = run(["iso9283", "evaluate", *argv, "--robot", "ur10"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert str(bad) in err and f"column {column}: its values look like m" in err
+    code, out, err = run(["iso9283", "evaluate", str(good), "--robot", "ur10"], capsys)
+    assert code == 0, err  # the same file in its unit passes
+
+
+@pytest.mark.parametrize("column, value, words", [("load_pct", "150", "column load_pct: 150 %"),
+                                                  ("speed_pct", "0", "column speed_pct: 0 %")])
+def test_a_condition_outside_the_rated_ones_is_refused(column, value, words, tmp_path, capsys):
+    good = _small_test(tmp_path, "good.csv")
+    lines = good.read_text().splitlines()
+    lines = [lines[0] + ",load_pct,speed_pct"] + [line + ",100,100" for line in lines[1:]]
+    lines[3] = lines[3].rsplit(",", 2)[0] + (f",{value},100" if column == "load_pct" else f",100,{value}")
+    (tmp_path / "bad.csv").write_text("\n".join(lines) + "\n")
+    code, out, err = run(["iso9283", "evaluate", str(tmp_path / "bad.csv"), "--robot", "ur10"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"{tmp_path / 'bad.csv'}: row 4, {words}" in err
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["evaluate", "{good}", "--planes", "50"], "--planes 50: the normal planes of a path test; give it with --path"),
+    (["plan", "--path-speed-mm-s", "500", "--out", "{plan}"], "--path-speed-mm-s is the rated path speed of the "
+                                                              "path tests: give it with --path"),
+])
+def test_path_options_without_path_are_refused(argv, words, tmp_path, capsys):
+    good = _small_test(tmp_path, "good.csv")
+    argv = [a.format(good=good, plan=tmp_path / "plan.csv") for a in argv]
+    code, out, err = run(["iso9283", argv[0], "--robot", "ur10", *argv[1:]], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and words in err, err
+    assert not (tmp_path / "plan.csv").exists()

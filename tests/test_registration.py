@@ -120,3 +120,21 @@ def test_registration_input_errors_name_the_problem(ur5):
     bad[2, 1] = np.nan
     with pytest.raises(InputError, match="must be finite"):
         register_tracker(ur5, q + np.arange(5)[:, None] * 0.1, bad)
+
+
+def test_the_residual_rms_is_the_root_mean_square_of_the_point_distances(ur5, tracked):
+    """The residual figure against the distances recomputed here with Pinocchio's own forward
+    kinematics: the root of the mean squared distance, not the mean distance (for 3D Gaussian
+    noise the mean is sqrt(8 / (3 pi)) = 0.92 of the RMS, which a tolerance on the noise alone
+    would not tell apart)."""
+    mset, _ = tracked
+    reg = register_tracker(ur5, mset.q, mset.position)
+    model, data = ur5.model, ur5.model.createData()
+    points = []
+    for q in mset.q:
+        pin.framesForwardKinematics(model, data, q)
+        tool = data.oMf[ur5.tool_frame_id]
+        points.append(tool.translation + tool.rotation @ reg.tool_offset)
+    distances = np.linalg.norm(np.asarray(points) @ reg.rotation.T + reg.translation - mset.position, axis=1)
+    assert reg.residual_rms == pytest.approx(np.sqrt(np.mean(distances**2)), rel=1e-9)
+    assert abs(reg.residual_rms - distances.mean()) > 0.02 * reg.residual_rms  # the two figures differ here

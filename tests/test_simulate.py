@@ -2,6 +2,7 @@
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -216,3 +217,60 @@ def test_cli_poses_file_and_bad_input(tmp_path, capsys, tool_changer):
                         "--out", str(tmp_path / "x.csv"), "--noise-mm", "-1"], capsys)
     assert code == 2 and "--noise-mm" in err
     assert not (tmp_path / "x.csv").exists()
+
+
+def _lowest_points(robot, q):
+    """(N,) the lowest z [m] of every joint origin and the TCP at each row of q, base frame: Pinocchio's
+    forward kinematics, each joint set by name (a continuous joint as its cos and sin), none of the
+    package's kinematics."""
+    import pinocchio as pin
+
+    model, out = robot.model, []
+    data = model.createData()
+    for row in q:
+        qp = pin.neutral(model)
+        for name, value in zip(robot.joint_names, row):
+            joint = model.joints[model.getJointId(name)]
+            qp[joint.idx_q:joint.idx_q + joint.nq] = [value] if joint.nq == 1 else [np.cos(value), np.sin(value)]
+        pin.framesForwardKinematics(model, data, qp)
+        tcp = data.oMf[model.getFrameId(robot.tool_frame)].translation[2]
+        out.append(min([data.oMi[j].translation[2] for j in range(1, model.njoints)] + [tcp]))
+    return np.array(out)
+
+
+@pytest.mark.parametrize("name", ["kinova", "ur5"])
+def test_simulate_keeps_the_robot_above_the_plane_it_stands_on(name, tmp_path, capsys):
+    """Issue 42: 'simulate --random --n 300' on a Kinova put 42 of 300 tool positions below the mounting
+    plane (to -446 mm). Now no joint origin and no TCP of the commanded poses lies below z = 0 of the
+    base; with --below-mounting-plane a fair share does again (the draw is uniform in the joints), and the
+    printed line says how many were drawn again."""
+    from tcr_accuracy.model.robot import load_robot
+
+    robot = load_robot(name)
+    lowest = {}
+    for flag in ([], ["--below-mounting-plane"]):
+        out = tmp_path / f"m{len(flag)}.csv"
+        assert main(["simulate", "--robot", name, "--random", "--n", "300", "--seed", "3", "--out", str(out),
+                     "--quiet", *flag]) == 0
+        printed = capsys.readouterr().out
+        q = read_measurements(out, robot).q
+        lowest[bool(flag)] = _lowest_points(robot, q)
+        if not flag:
+            assert "TCP and joints above the mounting plane (z >= 0 mm)" in printed
+            assert re.search(r"\d+ below the mounting plane", printed)
+    assert lowest[False].min() >= -1e-9
+    assert np.mean(lowest[True] < 0.0) > 0.05
+
+
+def test_the_tool_changer_works_below_its_base_unless_told():
+    """The built-in tool-changer reaches into the cutterhead below its base (its demo data go to z = -281 mm):
+    no plane by default; a PoseFilter given one keeps its poses above it."""
+    from tcr_accuracy.analysis.reachable import PoseFilter, draw_poses
+    from tcr_accuracy.model.robot import load_robot
+
+    robot = load_robot()
+    assert robot.mounting_plane_z is None
+    drawn = draw_poses(PoseFilter.for_robot(robot, collision=False), 200, np.random.default_rng(0)).q
+    assert (_lowest_points(robot, drawn) < 0).any()
+    kept = draw_poses(PoseFilter.for_robot(robot, collision=False, floor_z=0.0), 200, np.random.default_rng(0))
+    assert _lowest_points(robot, kept.q).min() >= -1e-9 and kept.rejected["mounting plane"] > 0

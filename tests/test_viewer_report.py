@@ -241,7 +241,7 @@ def test_report_writes_tables_figures_scenes_command_and_versions(tmp_path):
     assert (out / "figure-1.png").read_bytes().startswith(b"\x89PNG")
     assert not re.search(r"(src|href)=\"https?://", page)
     markdown = (out / "report.md").read_text(encoding="utf-8")
-    assert "| axis | std [mm] | n |" in markdown and "| \\|dP\\| | NaN | 7 |" in markdown
+    assert "| axis | std \\[mm\\] | n |" in markdown and "| \\|dP\\| | NaN | 7 |" in markdown
     assert "![A line](figure-1.png)" in markdown
 
 

@@ -41,9 +41,12 @@ _EXPORTS = {
     "load_as_built": "asbuilt.model_file", "AsBuiltModel": "asbuilt.model",
     "build_export": "asbuilt.export", "refit_geometry": "asbuilt.refit", "dh_table": "asbuilt.dh",
     "mdh_table": "asbuilt.dh", "filter_joint_targets": "asbuilt.compensation_filter",
-    "filter_pose_targets": "asbuilt.compensation_filter",
+    "filter_pose_targets": "asbuilt.compensation_filter", "filter_program": "asbuilt.programs",
+    "with_factory_kinematics": "asbuilt.factory_kinematics",
     "plan_iso_cube": "iso9283.plan", "evaluate_pose_test": "iso9283.evaluate",
     "plan_path_test": "iso9283.path_plan", "evaluate_path_test": "iso9283.path_evaluate",
+    "IsoPlan": "iso9283.plan", "cycle_order": "iso9283.plan", "evaluate_conditions": "iso9283.evaluate",
+    "IsoEvaluation": "iso9283.evaluate",
     "read_tracker_stream": "io.tracker_stream",
     "Scene": "view.viewer", "diagnosis_summary": "view.diagnosis_summary",
 }

@@ -48,8 +48,12 @@ MB = 1 << 20
 SIZE_LIMITS = {"table": 2048 * MB, "json": 256 * MB, "settings": 4 * MB, "urdf": 50 * MB, "mesh": 512 * MB}
 
 #: Memory [bytes] reading one byte of a file takes, parsed (text, cells or objects, numbers): the
-#: figure the command line's CSV estimate uses too.
+#: figure the command line's CSV estimate uses too. A reader whose parser takes more says how much
+#: (``memory_per_byte``): a URDF's XML trees about 30, a YAML file's nodes about 350 (measured on
+#: lists of empty tables: 330), a TOML file's about 100; a JSON text's objects are counted
+#: (:func:`json_memory`).
 MEMORY_PER_BYTE = 12.0
+MEMORY_PER_BYTE_OF = {"urdf": 30.0, "yaml": 350.0, "toml": 100.0}
 
 #: The deepest nesting of objects, lists or tables a JSON, YAML or TOML file may have (the
 #: tool's own files use at most 6; real settings files 3 or 4).
@@ -132,7 +136,7 @@ def check_input_file(path, what: str) -> os.stat_result:
     return st
 
 
-def read_input_bytes(path, what: str, *, limit: int) -> bytes:
+def read_input_bytes(path, what: str, *, limit: int, memory_per_byte: float = MEMORY_PER_BYTE) -> bytes:
     """The bytes of the regular file ``path`` (see the module docstring), recorded as an input.
 
     Parameters
@@ -142,13 +146,15 @@ def read_input_bytes(path, what: str, *, limit: int) -> bytes:
         What the file is, for messages ("measurement file", "diagnosis JSON").
     limit : int
         The largest size accepted [bytes] (one of :data:`SIZE_LIMITS`).
+    memory_per_byte : float
+        Memory [bytes] the file's reader takes per byte (held to :func:`memory_budget`).
 
     Raises
     ------
     InputError
         Missing, not a regular file, larger than ``limit``, or unreadable.
     """
-    fd, st = open_input(path, what, limit=limit)
+    fd, st = open_input(path, what, limit=limit, memory_per_byte=memory_per_byte)
     try:
         chunks, size = [], 0
         while True:
@@ -158,7 +164,7 @@ def read_input_bytes(path, what: str, *, limit: int) -> bytes:
             chunks.append(chunk)
             size += len(chunk)
             if size > limit:
-                _check_size(path, what, size, limit)
+                _check_size(path, what, size, limit, memory_per_byte)
     except OSError as exc:
         raise InputError(f"{path}: cannot read the {what} ({exc.strerror or exc})") from None
     finally:
@@ -167,12 +173,12 @@ def read_input_bytes(path, what: str, *, limit: int) -> bytes:
     return b"".join(chunks)
 
 
-def open_input(path, what: str, *, limit: int) -> tuple[int, os.stat_result]:
+def open_input(path, what: str, *, limit: int, memory_per_byte: float = MEMORY_PER_BYTE) -> tuple[int, os.stat_result]:
     """(file descriptor, its ``os.fstat``) of the regular file ``path``, opened for reading
     without blocking and checked on the open descriptor (see :func:`read_input_bytes`); the
     caller closes it. For a reader that streams the file instead of reading it whole."""
     before = check_input_file(path, what)
-    _check_size(path, what, before.st_size, limit)
+    _check_size(path, what, before.st_size, limit, memory_per_byte)
     flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0) | getattr(os, "O_CLOEXEC", 0)
     try:
         fd = os.open(path, flags)
@@ -183,22 +189,34 @@ def open_input(path, what: str, *, limit: int) -> tuple[int, os.stat_result]:
         kind = _kind_of(st.st_mode)
         if kind:  # replaced between the look and the open
             raise _refuse_kind(path, what, kind)
-        _check_size(path, what, st.st_size, limit)
+        _check_size(path, what, st.st_size, limit, memory_per_byte)
     except BaseException:
         os.close(fd)
         raise
     return fd, st
 
 
-def _check_size(path, what: str, size: int, limit: int) -> None:
+def _check_size(path, what: str, size: int, limit: int, memory_per_byte: float = MEMORY_PER_BYTE) -> None:
     if size > limit:
         raise InputError(f"{path}: the {what} is larger than the {_size(limit)} this kind of file may have "
                          f"({_size(size)}{' or more' if size == limit + 1 else ''})")
+    check_parse_memory(path, f"the {what} ({_size(size)})", size * memory_per_byte)
+
+
+def check_parse_memory(source, what: str, need: float) -> None:
+    """Inside :func:`memory_budget`, one InputError line when reading ``what`` of ``source`` needs
+    ``need`` bytes of memory, more than the budget (outside it, nothing)."""
     budget = _budget.get()
-    if budget is not None and size * MEMORY_PER_BYTE > budget[0]:
-        need = size * MEMORY_PER_BYTE / 1e9
-        raise InputError(f"{path}: reading the {what} ({_size(size)}) needs about {need:.3g} GB of memory, more than "
+    if budget is not None and need > budget[0]:
+        raise InputError(f"{source}: reading {what} needs about {need / 1e9:.3g} GB of memory, more than "
                          f"the {budget[0] / 1e9:.3g} GB allowed; {budget[1]}")
+
+
+def json_memory(text: str) -> float:
+    """Memory [bytes] parsing the JSON ``text`` takes, estimated from what it holds (measured with
+    tracemalloc on ``json.loads``: an object about 200 bytes, a list 64, each item 40, beside
+    twice the text): 12 bytes per byte for a result's numbers, 25 for a file of ``{},`` only."""
+    return 2.0 * len(text) + 200.0 * text.count("{") + 64.0 * text.count("[") + 40.0 * text.count(",")
 
 
 def _size(n: int) -> str:
@@ -216,9 +234,9 @@ def decode_text(data: bytes, source, what: str) -> str:
                          "must be text saved as UTF-8") from None
 
 
-def read_input_text(path, what: str, *, limit: int) -> str:
+def read_input_text(path, what: str, *, limit: int, memory_per_byte: float = MEMORY_PER_BYTE) -> str:
     """The UTF-8 text of the regular file ``path`` (:func:`read_input_bytes`, :func:`decode_text`)."""
-    return decode_text(read_input_bytes(path, what, limit=limit), path, what)
+    return decode_text(read_input_bytes(path, what, limit=limit, memory_per_byte=memory_per_byte), path, what)
 
 
 # ---------------------------------------------------------------------------------------
@@ -241,6 +259,52 @@ def _nesting(data) -> int:
 
 def _too_deep(source) -> InputError:
     return InputError(f"{source}: objects or lists nested more than {MAX_NESTING} deep")
+
+
+#: The most digits an integer of a file may have: beyond 309, no float holds it (a YAML or TOML
+#: integer of 400 digits ended as "OverflowError: int too large to convert to float", one of more
+#: than 4300, Python's bound on converting text to int, as a ValueError or a traceback).
+MAX_INTEGER_DIGITS = 309
+
+
+class _HugeInteger(str):
+    """An integer's text too long for a number (a parser's hook returns it in place of the int,
+    so that :func:`_huge_integer_at` can name its key)."""
+
+
+def _integer(text: str):
+    """``text`` (an integer's digits, with a sign, TOML's ``_``) as an int, or a :class:`_HugeInteger`
+    when it has more than :data:`MAX_INTEGER_DIGITS` digits or lies beyond the largest float."""
+    digits = sum(c.isdigit() for c in text)
+    if digits > MAX_INTEGER_DIGITS:
+        return _HugeInteger(text)
+    value = int(text)
+    return _HugeInteger(text) if abs(value) > 1.7976931348623157e308 else value
+
+
+def _huge_integer_at(data, top: str) -> tuple[str, _HugeInteger] | None:
+    """(key path, text) of the first integer of ``data`` too large for a number, or None; the path
+    starts with ``top`` (``$`` for JSON, empty for a settings file) and names keys and list items."""
+    stack = [(data, top)]
+    while stack:
+        node, path = stack.pop()
+        if isinstance(node, _HugeInteger) or (isinstance(node, int) and not isinstance(node, bool)
+                                              and node.bit_length() > 1024):
+            return path, node
+        if isinstance(node, dict):
+            stack.extend((v, f"{path}.{k}" if path else str(k)) for k, v in reversed(list(node.items())))
+        elif isinstance(node, list):
+            stack.extend((v, f"{path}[{i}]") for i, v in reversed(list(enumerate(node))))
+    return None
+
+
+def _refuse_huge_integer(source, data, top: str = "") -> None:
+    found = _huge_integer_at(data, top)
+    if found is not None:
+        path, value = found
+        digits = sum(c.isdigit() for c in str(value))
+        raise InputError(f"{source}: {path or 'the value'}: an integer of {digits} digits is beyond the range of a "
+                         f"number (about 1.8e308); write a number of sane size")
 
 
 def parse_json(text: str, source, hint: str = "") -> object:
@@ -267,18 +331,19 @@ def parse_json(text: str, source, hint: str = "") -> object:
             out[key] = value
         return out
 
+    check_parse_memory(source, f"its JSON ({text.count('{') + text.count('[')} objects and lists)", json_memory(text))
     try:
-        data = json.loads(text, parse_constant=constant, parse_float=finite, object_pairs_hook=unique)
+        data = json.loads(text, parse_constant=constant, parse_float=finite, parse_int=_integer,
+                          object_pairs_hook=unique)
     except InputError:
         raise
     except json.JSONDecodeError as exc:
         raise InputError(f"{source}: not JSON (line {exc.lineno}, column {exc.colno}: {exc.msg}){hint}") from None
     except RecursionError:
         raise _too_deep(source) from None
-    except ValueError:  # an integer of more digits than Python converts
-        raise InputError(f"{source}: not JSON (an integer of more than 4300 digits){hint}") from None
     if _nesting(data) > MAX_NESTING:
         raise _too_deep(source)
+    _refuse_huge_integer(source, data, "$")
     return data
 
 
@@ -294,6 +359,8 @@ def parse_settings(text: str, source, kind: str = "yaml") -> object:
     """TOML or YAML text to Python, nested at most :data:`MAX_NESTING` deep, YAML without
     aliases and no key given twice in one table; anything else is one InputError line naming
     ``source`` (and its line where the parser says it)."""
+    check_parse_memory(source, f"its {kind.upper()} ({len(text)} characters)",
+                       len(text) * MEMORY_PER_BYTE_OF["toml" if kind == "toml" else "yaml"])
     try:
         if kind == "toml":
             try:
@@ -305,6 +372,8 @@ def parse_settings(text: str, source, kind: str = "yaml") -> object:
                 data = tomllib.loads(text)
             except tomllib.TOMLDecodeError as exc:
                 raise InputError(f"{source}: not valid TOML: {_short(exc)}") from None
+            except ValueError:  # an integer of more than 4300 digits: tomllib's int() refuses it
+                raise _huge_toml_integer(text, source) from None
         else:
             import yaml
 
@@ -316,7 +385,26 @@ def parse_settings(text: str, source, kind: str = "yaml") -> object:
         raise InputError(f"{source}: tables or lists nested too deeply (at most {MAX_NESTING} levels)") from None
     if _nesting(data) > MAX_NESTING:
         raise InputError(f"{source}: tables or lists nested too deeply (at most {MAX_NESTING} levels)")
+    _refuse_huge_integer(source, data)
     return data
+
+
+def _huge_toml_integer(text: str, source) -> InputError:
+    """The refusal of a TOML text holding an integer tomllib cannot convert: its line, the table
+    above it and the key on it named (tomllib's ValueError says none of them)."""
+    table = ""
+    for number, line in enumerate(text.splitlines(), start=1):
+        header = re.match(r"\s*\[\[?\s*([^\]]+?)\s*\]", line)
+        if header:
+            table = header.group(1)
+        run = re.search(r"[0-9_]{%d,}" % (MAX_INTEGER_DIGITS + 1), line)
+        if run:
+            key = re.match(r"\s*([^=\[]+?)\s*=", line)
+            path = ".".join(p for p in (table, key.group(1).strip('"\' ') if key else "") if p)
+            return InputError(f"{source}: line {number}: {path or 'a value'}: an integer of "
+                              f"{sum(c.isdigit() for c in run.group(0))} digits is beyond the range of a number "
+                              "(about 1.8e308); write a number of sane size")
+    return InputError(f"{source}: not valid TOML: an integer of more than 4300 digits")
 
 
 def read_settings_file(path, what: str, kind: str | None = None, *, limit: int = SIZE_LIMITS["settings"]) -> object:
@@ -356,7 +444,7 @@ def _core_schema(loader_class) -> None:
             return build(text)
         return construct
 
-    loader_class.add_constructor("tag:yaml.org,2002:int", checked(_INT, int))
+    loader_class.add_constructor("tag:yaml.org,2002:int", checked(_INT, _integer))
     loader_class.add_constructor("tag:yaml.org,2002:float", checked(
         _FLOAT, lambda t: float(t.lower().replace(".inf", "inf").replace(".nan", "nan"))))
     loader_class.add_constructor("tag:yaml.org,2002:bool", checked(_BOOL, lambda t: t.lower() == "true"))

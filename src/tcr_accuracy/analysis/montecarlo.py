@@ -183,20 +183,6 @@ def radial_error(nominal_position: np.ndarray, actual_position: np.ndarray) -> n
     return np.linalg.norm(actual_position, axis=1) - np.linalg.norm(nominal_position)
 
 
-def error_columns(nominal_position: np.ndarray, nominal_euler: np.ndarray,
-                  position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
-    """(N, 8) values of :data:`STAT_COLUMNS` for actual TCP poses (N, 3), (N, 3, 3)."""
-    dpos = position - nominal_position
-    angles = euler_zyx(rotation) - nominal_euler
-    angles = (angles + np.pi) % (2 * np.pi) - np.pi
-    out = np.empty((position.shape[0], len(STAT_COLUMNS)))
-    out[:, :3] = dpos
-    out[:, 3] = np.sqrt(np.einsum("ni,ni->n", dpos, dpos))
-    out[:, 4:7] = angles
-    out[:, 7] = radial_error(nominal_position, position)
-    return out
-
-
 # ---------------------------------------------------------------------------------------
 # Seeding and chunking
 # ---------------------------------------------------------------------------------------

@@ -7,6 +7,9 @@ test it fails):
    value its rule gives (drawn poses are made to follow it; a given pose that breaks it is
    an input error, :func:`check_given_poses`);
 2. ``box``: the nominal TCP lies in the task box (base frame), when one is given;
+2b. ``mounting plane``: the nominal TCP and every joint origin lie on or above the plane the robot
+   stands on (``z = floor_z`` of the base frame), when one is given (a robot bolted to a floor or a
+   table reaches no point below it);
 3. ``self-collision``: no two bodies of the URDF's collision geometry touch
    (:mod:`tcr_accuracy.analysis.collision`, with its excluded pairs), when it has any;
 4. ``line of sight``: the segment from the tracker to the TCP, stopped
@@ -40,7 +43,7 @@ BEAM_RADIUS_M = 1e-3
 #: is taken as rounding (0.0006 deg, 0.01 mm): a CSV written with a few decimals still follows it.
 MIMIC_TOLERANCE = 1e-5
 
-REASONS = ("limits", "box", "self-collision", "line of sight")
+REASONS = ("limits", "box", "mounting plane", "self-collision", "line of sight")
 
 
 @dataclass
@@ -59,6 +62,7 @@ class Screened:
     def rejections(self) -> str:
         """'1650 outside the box, 400 in self-collision' (the reasons that rejected any), or 'none rejected'."""
         words = {"limits": "outside the joint limits", "box": "with the TCP outside the box",
+                 "mounting plane": "below the mounting plane",
                  "self-collision": "in self-collision", "line of sight": "hidden from the tracker"}
         parts = [f"{n} {words[reason]}" for reason, n in self.rejected.items() if n]
         return ", ".join(parts) or "none rejected"
@@ -73,18 +77,22 @@ class PoseFilter:
     box : (3, 2) [[xmin, xmax], [ymin, ymax], [zmin, zmax]] [m] in the base frame, or None
     tracker : (3,) the tracker's position [m] in the base frame, or None
     checker : the robot's collision checker, or None when its URDF has no collision geometry
+    floor_z : the mounting plane's height [m] in the base frame (the TCP and every joint origin on or
+        above it), or None: no plane
     """
 
     robot: RobotModel
     checker: CollisionChecker | None = None
     box: np.ndarray | None = None
     tracker: np.ndarray | None = None
+    floor_z: float | None = None
 
     @classmethod
-    def for_robot(cls, robot: RobotModel, *, box=None, tracker=None, collision: bool = True) -> "PoseFilter":
-        """The filter of ``robot``: joint limits and ``<mimic>`` rules always; the task box and
-        the tracker's line of sight when given; self-collision when ``collision`` and the URDF
-        has collision geometry.
+    def for_robot(cls, robot: RobotModel, *, box=None, tracker=None, collision: bool = True,
+                  floor_z: float | None = None) -> "PoseFilter":
+        """The filter of ``robot``: joint limits and ``<mimic>`` rules always; the task box, the
+        mounting plane (``floor_z`` [m], base frame) and the tracker's line of sight when given;
+        self-collision when ``collision`` and the URDF has collision geometry.
 
         Raises
         ------
@@ -100,12 +108,16 @@ class PoseFilter:
             tracker = np.asarray(tracker, dtype=float)
             if tracker.shape != (3,) or not np.isfinite(tracker).all():
                 raise InputError("tracker position: give x y z, three finite numbers")
-        return cls(robot, collision_checker(robot) if collision else None, box, tracker)
+        if floor_z is not None and not np.isfinite(floor_z):
+            raise InputError(f"mounting plane: z = {floor_z} is not a finite number")
+        return cls(robot, collision_checker(robot) if collision else None, box, tracker,
+                   None if floor_z is None else float(floor_z))
 
     @property
     def rejects_any(self) -> bool:
         """Whether a uniform draw within the limits may be rejected (else it is kept as drawn)."""
-        return self.robot.has_chain_mimic or self.box is not None or self.checker is not None
+        return (self.robot.has_chain_mimic or self.box is not None or self.checker is not None
+                or self.floor_z is not None)
 
     @property
     def tests(self) -> str:
@@ -114,6 +126,8 @@ class PoseFilter:
         if self.box is not None:
             done.append("TCP in the box " + " ".join(f"{axis} [{lo:g}, {hi:g}]" for axis, (lo, hi)
                                                       in zip("xyz", self.box * 1e3)) + " mm")
+        if self.floor_z is not None:
+            done.append(f"TCP and joints above the mounting plane (z >= {self.floor_z * 1e3:g} mm)")
         if self.checker is not None:
             done.append(f"free of self-collision (coal, {self.checker.n_pairs} body pairs of the URDF's collision "
                         "geometry)")
@@ -147,6 +161,10 @@ class PoseFilter:
             inside = np.all((position >= self.box[:, 0]) & (position <= self.box[:, 1]), axis=1)
             rejected["box"] = int(np.sum(~inside))
             keep[np.flatnonzero(keep)[~inside]] = False
+        if self.floor_z is not None and keep.any():
+            above = self.above_floor(q[keep])
+            rejected["mounting plane"] = int(np.sum(~above))
+            keep[np.flatnonzero(keep)[~above]] = False
         if self.checker is not None and keep.any():
             index = np.flatnonzero(keep)
             free = self.checker.is_free(q[index])
@@ -158,6 +176,23 @@ class PoseFilter:
                 rejected["line of sight"] = int(np.sum(~seen))
                 keep[index[~seen]] = False
         return keep, rejected
+
+    def above_floor(self, q: np.ndarray) -> np.ndarray:
+        """(N,) True where the TCP and every joint origin of the chain at q (N, n_joints) lie on or
+        above the mounting plane (1e-9 m of rounding allowed; True throughout without a plane)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        if self.floor_z is None:
+            return np.ones(len(q), dtype=bool)
+        import pinocchio as pin
+
+        model = self.robot.model
+        data = model.createData()
+        lowest = np.empty(len(q))
+        for k, row in enumerate(q):
+            pin.forwardKinematics(model, data, self.robot.to_pinocchio_q(row))
+            lowest[k] = min(data.oMi[j].translation[2] for j in range(1, model.njoints))
+        lowest = np.minimum(lowest, tcp_poses(self.robot, q).position[:, 2])
+        return lowest >= self.floor_z - 1e-9
 
     def in_sight(self, q: np.ndarray) -> np.ndarray:
         """(N,) True where the tracker sees the TCP at q (N, n_joints): the segment from the

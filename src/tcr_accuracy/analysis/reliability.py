@@ -18,11 +18,14 @@ P(|dP| > T), each with its own limits:
    move the TCP (the row space of the linearised map, rank <= 3) are sampled with an
    inflated spread k, all other directions with the true one. The weights are exact
    density ratios ``k^r exp(-|y|^2 (1 - 1/k^2) / 2)`` over only those r directions, so
-   the estimate is unbiased for the true model and its weights stay tame in any
-   number of sources. The interval is the normal one on the weighted mean
-   (reported with the effective sample size that backs it). It needs sources that
-   are functions of independent scalars (an ErrorBudget); the joint clearance model
-   (nonlinear in s and theta) gets the other two.
+   they stay tame in any number of sources. k puts the proposal's typical radius at the
+   nearest failure, counted from where the TCP sits at the sources' medians (a budget
+   with a bias already outside the tolerance needs no inflation: k = 1, plain sampling).
+   The estimate is self-normalised (sum of the failing weights over the sum of all), so it
+   is a probability in [0, 1] whatever the draw; its standard error is the delta method's
+   and the interval the normal one (reported with the effective sample size that backs
+   it). It needs sources that are functions of independent scalars (an ErrorBudget); the
+   joint clearance model (nonlinear in s and theta) gets the other two.
 """
 
 from __future__ import annotations
@@ -121,14 +124,18 @@ def gaussian_exceedance(mean: np.ndarray, covariance: np.ndarray, threshold: flo
 
     Notes
     -----
-    Integrated in polar/spherical coordinates: along each ray omega the Gaussian
-    density is exp(-(alpha r^2 - 2 beta r + gamma) / 2), whose integral
-    int_T^inf r^(k-1) ... dr has a closed form in erfc; the remaining 1-D (circle) or
-    2-D (sphere) integral over directions uses Gauss-Legendre nodes. Every term is
-    positive, so the relative accuracy holds deep in the tail (1e-6 and below),
-    where formulas of the type 1/2 + (oscillating integral) lose all digits.
-    Directions with (numerically) zero variance are removed first; their constant
-    offset enlarges or shrinks the effective threshold.
+    Integrated in whitened coordinates z (d = mean + V Lambda^(1/2) z, z standard normal),
+    where the density is the same in every direction: along each ray z = r omega the ball
+    |d| <= threshold is an interval [r1, r2] of r (a quadratic's roots; none when the ray
+    misses it), and the mass of the ray outside it is ``F(r1) + S(r2)``, F and S the chi
+    distribution's CDF and tail with k degrees of freedom (scipy). What remains is an average
+    over directions (Gauss-Legendre nodes on the circle or sphere) of a bounded positive
+    function: no narrow peak to miss, whether the mean lies inside the ball (the deep tail:
+    every term positive, relative accuracy kept at 1e-6 and below) or far outside it in units
+    of the spread (P near 1: an integral over directions of the density itself, done in the
+    tolerance's coordinates, misses a peak of width spread / |mean| and said 1e-96 there).
+    Directions with (numerically) zero variance are removed first; their constant offset
+    enlarges or shrinks the effective threshold.
     """
     mean = np.asarray(mean, dtype=float)
     lam, vec = np.linalg.eigh(np.asarray(covariance, dtype=float))
@@ -141,17 +148,16 @@ def gaussian_exceedance(mean: np.ndarray, covariance: np.ndarray, threshold: flo
         return float(x < 0.0)
     if x <= 0.0:
         return 1.0
-    radius = np.sqrt(x)
     k = lam.size
     if k > 3:
         raise ValueError("gaussian_exceedance handles up to 3 dimensions")
-    # directions omega (m, k) and quadrature weights (m,)
+    # directions omega (m, k) and quadrature weights (m,) summing to 1
     if k == 1:
-        omega, weights = np.array([[1.0], [-1.0]]), np.ones(2)
+        omega, weights = np.array([[1.0], [-1.0]]), np.full(2, 0.5)
     elif k == 2:
         t, w = np.polynomial.legendre.leggauss(2 * nodes)
         phi = np.pi * (t + 1.0)
-        omega, weights = np.stack([np.cos(phi), np.sin(phi)], axis=1), np.pi * w
+        omega, weights = np.stack([np.cos(phi), np.sin(phi)], axis=1), w / 2.0
     else:
         t, wt = np.polynomial.legendre.leggauss(nodes)  # cos(polar angle)
         u, wu = np.polynomial.legendre.leggauss(2 * nodes)
@@ -159,26 +165,20 @@ def gaussian_exceedance(mean: np.ndarray, covariance: np.ndarray, threshold: flo
         sin_t = np.sqrt(1.0 - t * t)
         omega = np.stack([np.outer(sin_t, np.cos(phi)).ravel(), np.outer(sin_t, np.sin(phi)).ravel(),
                           np.repeat(t, phi.size)], axis=1)
-        weights = np.outer(wt, np.pi * wu).ravel()
-    inv = 1.0 / lam
-    alpha = (omega * omega) @ inv  # omega^T Sigma^-1 omega
-    beta = omega @ (inv * proj)  # omega^T Sigma^-1 mu
-    gamma = float(np.sum(inv * proj * proj))
-    m = beta / alpha
-    t0 = radius - m
-    sqrt_a = np.sqrt(alpha)
-    i0 = np.sqrt(2.0 * np.pi) / sqrt_a * stats.norm.sf(t0 * sqrt_a)  # int e^{-a t^2/2}
-    e0 = np.exp(-0.5 * alpha * t0 * t0)
-    i1 = e0 / alpha  # int t e^{-a t^2/2}
-    if k == 1:
-        radial = i0
-    elif k == 2:
-        radial = i1 + m * i0
-    else:
-        i2 = t0 * e0 / alpha + i0 / alpha  # int t^2 e^{-a t^2/2}
-        radial = i2 + 2.0 * m * i1 + m * m * i0
-    log_const = -0.5 * (gamma - beta * beta / alpha) - 0.5 * k * np.log(2.0 * np.pi) - 0.5 * np.sum(np.log(lam))
-    return float(min(1.0, np.sum(weights * radial * np.exp(log_const))))
+        weights = np.outer(wt, wu).ravel() / 4.0
+    # |mean + Lambda^(1/2) r omega|^2 = a r^2 + 2 b r + c <= x along each ray
+    root = np.sqrt(lam)
+    a = (omega * omega) @ lam
+    b = omega @ (root * proj)
+    c = float(proj @ proj)
+    disc = b * b - a * (c - x)
+    hit = disc > 0.0
+    sq = np.sqrt(np.where(hit, disc, 0.0))
+    r1 = np.where(hit, np.maximum((-b - sq) / a, 0.0), 0.0)
+    r2 = np.where(hit, np.maximum((-b + sq) / a, 0.0), 0.0)  # r1 = r2 = 0: the ray misses the ball
+    chi = stats.chi(k)
+    outside = np.where(hit & (r2 > r1), chi.cdf(r1) + chi.sf(r2), 1.0)
+    return float(min(1.0, max(0.0, np.sum(weights * outside))))
 
 
 # ---------------------------------------------------------------------------------------
@@ -188,8 +188,8 @@ def gaussian_exceedance(mean: np.ndarray, covariance: np.ndarray, threshold: flo
 class TailEstimate:
     """P(|dP| > threshold) by importance sampling.
 
-    probability : the estimate
-    ci95 : (low, high) normal interval on the weighted mean, clipped to [0, 1]
+    probability : the estimate, in [0, 1] (self-normalised)
+    ci95 : (low, high) normal interval on the estimate, clipped to [0, 1]
     standard_error : of the estimate
     effective_samples : (sum w 1)^2 / sum (w 1)^2 over the failing samples
     inflation : the spread factor k of the proposal
@@ -239,9 +239,10 @@ def importance_exceedance(budget: ErrorBudget, q: np.ndarray, threshold: float, 
     rng : numpy Generator
     inflation : float, optional
         Spread factor k of the proposal in the influential directions; default
-        ``max(1, threshold / (s_max sqrt(r)))`` with s_max the largest singular value of
-        the linearised map u -> dP, which puts the proposal's typical radius at the
-        nearest failure point.
+        ``max(1, (threshold - |d0|) / (s_max sqrt(r)))`` with d0 the TCP's displacement at the
+        sources' medians (u = 0, on the exact model) and s_max the largest singular value of the
+        linearised map u -> dP, which puts the proposal's typical radius at the nearest failure
+        point (k = 1 where d0 already fails: the tail is then no rare event).
 
     Returns
     -------
@@ -258,12 +259,15 @@ def importance_exceedance(budget: ErrorBudget, q: np.ndarray, threshold: float, 
     _, sing, vt = np.linalg.svd(g, full_matrices=False)
     rank = int(np.sum(sing > sing.max() * 1e-9)) if sing.size and sing.max() > 0 else 0
     basis = vt[:rank].T  # (s, r)
-    if inflation is None:
-        inflation = max(1.0, threshold / (sing[0] * np.sqrt(max(rank, 1)))) if rank else 1.0
-    k = float(inflation)
     nominal = tcp_poses(robot, q).position[0]
-    total = total_sq = 0.0
-    sum_w1 = sum_w1_sq = 0.0
+    if inflation is None:
+        at_median = matrix @ _standard_normal_map(budget, np.zeros((len(budget.sources), 1)))
+        offset = float(np.linalg.norm(tcp_chain_soa(robot, q, at_median, em)[1][:, 0] - nominal))
+        # at most 1e4: a failure 1e4 spreads away has a probability below 1e-300 (no draw reaches it)
+        inflation = min(max(1.0, (threshold - offset) / (sing[0] * np.sqrt(rank))), 1e4) if rank else 1.0
+    k = float(inflation)
+    sum_w = sum_w_sq = 0.0  # every sample's weight
+    sum_w1 = sum_w1_sq = 0.0  # the failing samples'
     done = 0
     while done < n_samples:
         n = min(chunk, n_samples - done)
@@ -279,16 +283,19 @@ def importance_exceedance(budget: ErrorBudget, q: np.ndarray, threshold: float, 
         x_t = matrix @ values
         _, pos = tcp_chain_soa(robot, q, x_t, em)
         fail = np.linalg.norm(pos - nominal[:, None], axis=0) > threshold
-        w = np.where(fail, np.exp(log_w), 0.0)
-        total += w.sum()
-        total_sq += (w * w).sum()
-        sum_w1 += w.sum()
-        sum_w1_sq += (w * w).sum()
+        w = np.exp(log_w)
+        sum_w += w.sum()
+        sum_w_sq += (w * w).sum()
+        sum_w1 += w[fail].sum()
+        sum_w1_sq += (w[fail] ** 2).sum()
         done += n
-    p = total / n_samples
-    var = max(total_sq / n_samples - p * p, 0.0) / max(n_samples - 1, 1)
-    se = float(np.sqrt(var))
+    # self-normalised: sum w 1 / sum w (E[w] = 1 under the proposal), a probability whatever the draw;
+    # delta-method variance sum w^2 (1 - p)^2 over the failing plus p^2 over the others, / (sum w)^2
+    p = sum_w1 / sum_w if sum_w > 0 else 0.0
+    var = (sum_w1_sq * (1.0 - p) ** 2 + (sum_w_sq - sum_w1_sq) * p * p) / sum_w**2 if sum_w > 0 else 0.0
+    se = float(np.sqrt(max(var, 0.0)))
     ess = sum_w1**2 / sum_w1_sq if sum_w1_sq > 0 else 0.0
-    return TailEstimate(probability=float(p), ci95=(max(0.0, p - 1.96 * se), min(1.0, p + 1.96 * se)),
+    p = float(min(1.0, max(0.0, p)))
+    return TailEstimate(probability=p, ci95=(max(0.0, p - 1.96 * se), min(1.0, p + 1.96 * se)),
                         standard_error=se, effective_samples=float(ess), inflation=k, rank=rank,
                         n_samples=int(n_samples))

@@ -55,6 +55,7 @@ import numpy as np
 
 from ..model.context import REFERENCE_TEMPERATURE_C
 from ..effects import Effect, effect_class
+from ..effects.option_schema import check_options
 from ..exceptions import InputError
 from ..io.budget_file import parse_table, setting_number
 from ..input_files import SIZE_LIMITS, read_input_text
@@ -192,8 +193,14 @@ def resolve_effect(robot: RobotModel, name: str, spec: dict, rng: np.random.Gene
     """
     cls = effect_class(name, source=source)
     where = f"{source}: effects.{name}"
-    options = dict(spec.get("options") or {})
+    options = spec.get("options") or {}
+    if not isinstance(options, dict):
+        raise InputError(f"{where}.options: a mapping option -> value, got {type(options).__name__}")
+    options = dict(options)
     mass_spread = options.pop("link_mass_spread", None)
+    # the bounds a diagnosis JSON and an as-built YAML hold the same options to: cyclic's max_order
+    # 1000000 asked for 3.5 GB of parameters, angle_table's intervals 1000 for a table no data resolve
+    check_options(name, options, f"{where}.options")
     if mass_spread is not None:
         spread = _number(mass_spread, f"{where}.options.link_mass_spread", low=0.0)
         options["link_mass_factors"] = np.clip(1.0 + spread * rng.standard_normal(robot.n_joints), 0.1, None)

@@ -56,8 +56,10 @@ class FormAccuracy:
     """The TCP position error of one form on one data set [m].
 
     form : e.g. "URDF alone"; file : the file that carries it ("" for none)
-    on : "measured" (in-sample) or "held-out"; data : the data's label; n : rows
+    on : "measured" (in-sample), "held-out" or "k-fold held-out"; data : the data's label; n : rows
     mean, rms, max : [m]
+    frame_rms : RMS [m] of the form's tracker-frame fit on the measured poses (its residual there),
+        None where the frame was fitted with the model (k-fold)
     """
 
     form: str
@@ -68,11 +70,20 @@ class FormAccuracy:
     mean: float
     rms: float
     max: float
+    frame_rms: float | None = None
 
     def to_dict(self) -> dict:
         """JSON-ready, lengths in mm."""
         return {"form": self.form, "file": self.file, "on": self.on, "data": self.data, "n": self.n,
-                "mean_mm": self.mean * 1e3, "rms_mm": self.rms * 1e3, "max_mm": self.max * 1e3}
+                "mean_mm": self.mean * 1e3, "rms_mm": self.rms * 1e3, "max_mm": self.max * 1e3,
+                "frame_rms_mm": None if self.frame_rms is None else self.frame_rms * 1e3}
+
+    @classmethod
+    def from_dict(cls, doc: dict) -> "FormAccuracy":
+        """From :meth:`to_dict`'s dict (mm)."""
+        frame = doc.get("frame_rms_mm")
+        return cls(doc["form"], doc["file"], doc["on"], doc["data"], int(doc["n"]), doc["mean_mm"] * 1e-3,
+                   doc["rms_mm"] * 1e-3, doc["max_mm"] * 1e-3, None if frame is None else frame * 1e-3)
 
 
 #: A form's forward kinematics: (q (N, n_joints), context or None, held_out) -> (N, 3) base frame [m].
@@ -106,14 +117,19 @@ def form_accuracy(form: str, file: str, kinematics: Kinematics, measured: Measur
         rotation, translation = rigid_fit(model_points[rows], measured.position[rows])
         frames[int(s)] = (rotation, translation)
         registered[rows] = model_points[rows] @ rotation.T + translation
-    out = [_stats(form, file, "measured", measured.label, np.linalg.norm(registered - measured.position, axis=1))]
+    in_sample = np.linalg.norm(registered - measured.position, axis=1)
+    frame_rms = float(np.sqrt(np.mean(in_sample ** 2)))
+    out = [error_statistics(form, file, "measured", measured.label, in_sample, frame_rms)]
     if held_out is not None:
         rotation, translation = frames[min(frames)]
         points = kinematics(held_out.q, held_out.context, True) @ rotation.T + translation
-        out.append(_stats(form, file, "held-out", held_out.label, np.linalg.norm(points - held_out.position, axis=1)))
+        out.append(error_statistics(form, file, "held-out", held_out.label,
+                                    np.linalg.norm(points - held_out.position, axis=1), frame_rms))
     return out
 
 
-def _stats(form, file, on, data, error) -> FormAccuracy:
+def error_statistics(form: str, file: str, on: str, data: str, error: np.ndarray,
+                     frame_rms: float | None = None) -> FormAccuracy:
+    """A :class:`FormAccuracy` of the error norms ``error`` (N,) [m]."""
     return FormAccuracy(form, file, on, data, int(error.size), float(error.mean()),
-                        float(np.sqrt(np.mean(error ** 2))), float(error.max()))
+                        float(np.sqrt(np.mean(error ** 2))), float(error.max()), frame_rms)

@@ -43,7 +43,7 @@ def model_from_diagnosis(data: dict, source: str) -> AsBuiltModel:
     """The full model a diagnosis JSON holds, every value checked."""
     return model_from_values(source, ("effect_parameters", "effect_options"), data["robot_source"],
                              data["tool_frame"], data["effect_parameters"], data.get("effect_options"),
-                             data["tracker_transform"], "tracker_transform")
+                             data["tracker_transform"], "tracker_transform", kinematics=data.get("kinematics"))
 
 
 def measurement_files(data: dict, source: str) -> list[str]:

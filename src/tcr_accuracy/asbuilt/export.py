@@ -24,10 +24,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pinocchio as pin
 
+from ..frames.uncertainty_budget import PointSet
 from ..model.errors import ErrorModel
 from ..model.kinematics import tcp_poses
 from ..model.robot import RobotModel
-from .accuracy import FormAccuracy, MeasuredPoses, form_accuracy
+from ..prediction.nominal import nominal_errors
+from .accuracy import FormAccuracy, MeasuredPoses, error_statistics, form_accuracy
+from .export_result import ExportResult
 from .dh import DhTable, NoDhForm, dh_table, mdh_table
 from .maker_dh import maker_table, published_table
 from .model import AsBuiltModel
@@ -38,6 +41,8 @@ from .urdf import as_built_urdf
 
 #: File names in an export folder.
 URDF_FILE, MODEL_FILE, UR_FILE = "as_built.urdf", "as_built.yaml", "ur_calibration.yaml"
+#: The export's result file (kind "export", :mod:`tcr_accuracy.asbuilt.export_result`).
+RESULT_FILE = "accuracy.json"
 
 
 @dataclass(frozen=True)
@@ -97,6 +102,18 @@ class AsBuiltExport:
         extra = {"urdf": self.urdf_file, "urdf_measured_frame": self.measured_frame}
         extra["accuracy"] = [a.to_dict() for a in self.accuracy]
         return model_yaml(model_document(self.model, **extra, **informational))
+
+    def result(self, diagnosis: str, measured: MeasuredPoses, held_out: MeasuredPoses | None = None) -> ExportResult:
+        """The export's result file (:class:`~tcr_accuracy.asbuilt.export_result.ExportResult`):
+        ``diagnosis`` the diagnosis' file name; ``measured`` and ``held_out`` the poses its figures are on."""
+        sets = {"measured": PointSet.of(measured.position)}
+        if held_out is not None:
+            sets["held-out"] = PointSet.of(held_out.position)
+        reach = float(np.max(np.linalg.norm(self.model.tcp_poses(measured.q, measured.context).position, axis=1)))
+        summary = {k: v for k, v in self.to_dict().items() if k not in ("robot", "robot_source", "tool_frame",
+                                                                        "measured_frame", "accuracy")}
+        return ExportResult(diagnosis, self.model.robot.name, self.model.robot_source, self.model.robot.tool_frame,
+                            self.measured_frame, tuple(self.accuracy), sets, reach, summary)
 
     def to_dict(self) -> dict:
         """JSON-ready summary, lengths in mm and angles in deg."""
@@ -191,14 +208,10 @@ def _accuracies(export: AsBuiltExport, measured: MeasuredPoses, held_out, kfold)
     def ur(q, context, later):
         return (tool0_poses(export.ur, q) @ offset)[:, :3, 3]
 
-    def nominal(q, context, later):
-        return tcp_poses(model.measured_point_robot(), q).position
-
     forms = [("full model", export.model_file, full), ("URDF alone", export.urdf_file, urdf)]
     if export.ur is not None:
         forms.append(("UR calibration file", UR_FILE, ur))
     forms += [(f"{t.name} table", t.file, table(t.as_built)) for t in export.tables]
-    forms.append(("nominal", "", nominal))
     out = []
     if kfold:
         out.append(FormAccuracy("full model", export.model_file, "k-fold held-out",
@@ -206,4 +219,10 @@ def _accuracies(export: AsBuiltExport, measured: MeasuredPoses, held_out, kfold)
                                 float(kfold["mean"]), float(kfold["rms"]), float(kfold["max"])))
     for form, file, kinematics in forms:
         out += form_accuracy(form, file, kinematics, measured, held_out)
+    # the nominal robot: its own tracker frame and TCP offset fitted (prediction.nominal, the one definition)
+    nominal = nominal_errors(model.robot, measured.q, measured.position, session=measured.session,
+                             held_out=None if held_out is None else (held_out.q, held_out.position))
+    for figure, data in zip(nominal, (measured, held_out)):
+        out.append(error_statistics("nominal", "", figure.on, data.label, figure.error,
+                                    figure.registration.residual_rms))
     return out

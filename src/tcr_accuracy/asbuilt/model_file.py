@@ -44,7 +44,7 @@ REQUIRED = ("format", "robot_source", "tool_frame", "effects")
 INFORMATIONAL = ("robot", "units", "note", "state", "urdf", "urdf_measured_frame", "urdf_tool_frame", "accuracy",
                  "uncertainty", "uncertainty_note", "joint_functions", "joint_functions_note", "measured_frames",
                  "chain_in_urdf", "selected_effects")
-KEYS = REQUIRED + ("options", "tracker_from_base") + INFORMATIONAL
+KEYS = REQUIRED + ("options", "tracker_from_base", "kinematics") + INFORMATIONAL
 #: Largest model file read [bytes] (a cyclic model of a 20-joint robot is under 1 MB).
 MAX_BYTES = 20_000_000
 #: Largest translation of the tracker frame [m] and how far from a rotation its matrix may be.
@@ -87,6 +87,8 @@ def model_document(model: AsBuiltModel, **extra) -> dict:
         "tracker_from_base": None if model.tracker_from_base is None else
         [[float(v) for v in row] for row in model.tracker_from_base],
     }
+    if model.robot.kinematics:  # the nominal robot is the robot's own kinematics, not its URDF's
+        doc["kinematics"] = _plain(model.robot.kinematics)
     doc.update(extra)
     return doc
 
@@ -150,14 +152,16 @@ def read_model_document(text: str, source: str) -> AsBuiltModel:
         if key not in KEYS:
             raise InputError(f"{source}: key {key!r} is not part of the format (keys: {', '.join(KEYS)})")
     return model_from_values(source, ("effects", "options"), doc["robot_source"], doc["tool_frame"],
-                             doc["effects"], doc.get("options"), doc.get("tracker_from_base"), "tracker_from_base")
+                             doc["effects"], doc.get("options"), doc.get("tracker_from_base"), "tracker_from_base",
+                             kinematics=doc.get("kinematics"))
 
 
 def model_from_values(source: str, keys: tuple, robot_source, tool_frame, parameters, options, tracker,
-                      tracker_key: str) -> AsBuiltModel:
+                      tracker_key: str, *, kinematics=None) -> AsBuiltModel:
     """The model of values read from a file (a model file's or a diagnosis JSON's), each checked;
     ``keys`` names the parameters' and the options' mappings in that file, ``tracker_key`` the
-    tracker frame's."""
+    tracker frame's; ``kinematics`` the robot's own kinematics the file was fitted from
+    (:func:`~tcr_accuracy.asbuilt.factory_kinematics.robot_with_start`), None: the URDF's."""
     for key, value in (("robot_source", robot_source), ("tool_frame", tool_frame)):
         if not isinstance(value, str) or not value or len(value) > 4096:
             raise InputError(f"{source}: {key}: {value!r} is not a robot name, path or frame name")
@@ -167,6 +171,10 @@ def model_from_values(source: str, keys: tuple, robot_source, tool_frame, parame
             raise InputError(f"{source}: {key}: must map effect names to {{name: value}}")
     tracker = tracker_matrix(tracker, f"{source}: {tracker_key}")
     robot = load_robot(None if robot_source == "tool_changer" else robot_source, tool_frame)
+    if kinematics is not None:
+        from .factory_kinematics import robot_with_start
+
+        robot = robot_with_start(robot, kinematics, source)
     return AsBuiltModel(robot, {str(e): dict(p or {}) for e, p in parameters.items()}, robot_source, tracker,
                         {str(e): dict(o or {}) for e, o in options.items()}, source=source, source_keys=keys)
 

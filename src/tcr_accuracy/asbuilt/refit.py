@@ -148,6 +148,28 @@ def refit_geometry(model: AsBuiltModel, q, context: MeasurementContext | None = 
                                n_sampled=len(samples), fitted=tuple(em.names[i] for i in columns))
 
 
+def fit_to_poses(robot, q, position, rotation) -> np.ndarray:
+    """The error vector (:class:`~tcr_accuracy.model.errors.ErrorModel` of ``robot``) whose robot puts
+    its TCP frame at the given poses: the same Gauss-Newton fit, from zero, of every parameter the
+    poses determine (the others stay zero: the nearest such robot to ``robot``).
+
+    Parameters
+    ----------
+    robot : RobotModel
+    q : (N, n_joints) joint values [rad, m]
+    position : (N, 3) TCP positions [m]; rotation : (N, 3, 3) TCP orientations, base frame
+
+    Returns
+    -------
+    ndarray of shape (n_params,)
+    """
+    em = ErrorModel(robot)
+    problem = _Problem(robot, em, np.asarray(q, dtype=float), np.asarray(position, dtype=float),
+                       np.asarray(rotation, dtype=float))
+    x0 = em.zeros()
+    return _gauss_newton(problem, x0, problem.determined_columns(x0), max_iter=60)
+
+
 def _rotation_errors(rotation: np.ndarray, target: np.ndarray) -> np.ndarray:
     """(N, 3) rotation vectors of ``rotation @ target^T`` (base frame) [rad]."""
     from scipy.spatial.transform import Rotation

@@ -73,7 +73,8 @@ def ur_kinematics(as_built: RobotModel, nominal: RobotModel, source: str) -> dic
     as_built : RobotModel
         The calibrated chain (example-robot-data's frames, the URDF's geometry).
     nominal : RobotModel
-        The nominal robot of example-robot-data (``source``).
+        The nominal robot of example-robot-data (``source``), or the robot's own kinematics on its
+        URDF (the catalogue's URDF then says how each UR link rides its body).
     source : str
         ``ur3``, ``ur5`` or ``ur10``.
 
@@ -85,7 +86,12 @@ def ur_kinematics(as_built: RobotModel, nominal: RobotModel, source: str) -> dic
     if not is_ur(source, nominal):
         raise InputError(f"UR calibration file: {source} is not a UR3, UR5 or UR10 measured at tool0")
     ur_links = _link_frames(nominal_origins(source))
-    bodies_nominal, bodies = _joint_frames(nominal), _joint_frames(as_built)
+    catalogue = nominal
+    if nominal.kinematics:  # each UR link rides its body as the catalogue's URDF has it, whatever the start
+        from ..model.robot import load_robot
+
+        catalogue = load_robot(source, nominal.tool_frame)
+    bodies_nominal, bodies = _joint_frames(catalogue), _joint_frames(as_built)
     attach = [b.inverse() * u for b, u in zip(bodies_nominal, ur_links[1:])]  # constant per body
     frames = [ur_links[0]] + [b * c for b, c in zip(bodies, attach)]
     entries = {}
@@ -98,6 +104,77 @@ def ur_kinematics(as_built: RobotModel, nominal: RobotModel, source: str) -> dic
     digest = hashlib.sha256(repr(sorted((k, sorted(v.items())) for k, v in entries.items())).encode()).hexdigest()
     entries["hash"] = f"calib_tcr_accuracy_{int(digest[:15], 16)}"
     return {"kinematics": entries}
+
+
+#: The keys of each entry of the file, and the largest translation an entry may hold [m] (a plain
+#: DH calibration of a UR puts a few origins hundreds of metres away; 1 km is no robot).
+ENTRY_KEYS = ("x", "y", "z", "roll", "pitch", "yaw")
+MAX_ORIGIN_M = 1000.0
+
+
+def read_ur_calibration(text: str, source) -> dict:
+    """The ``kinematics`` document of a UR ROS 2 driver calibration file (what ``ur_calibration``
+    extracts from a controller, and what :func:`ur_kinematics` writes), every value checked.
+
+    Parameters
+    ----------
+    text : str
+        The YAML text (comments and a ``hash`` allowed; other keys refused).
+    source : str or Path
+        Names the file in messages.
+
+    Returns
+    -------
+    dict
+        ``{"kinematics": {shoulder: {x, y, z, roll, pitch, yaw}, ..., "hash": str}}`` [m, rad],
+        as :func:`tool0_poses` reads it.
+
+    Raises
+    ------
+    InputError
+        One line naming the file and the key at fault.
+    """
+    from ..effects.file_values import file_number
+    from ..input_files import parse_settings
+
+    doc = parse_settings(text, source, "yaml")
+    if not isinstance(doc, dict) or "kinematics" not in doc:
+        raise InputError(f"{source}: no 'kinematics' mapping: not a UR calibration file (ur_calibration's, or "
+                         "the ur_calibration.yaml export writes)")
+    extra = sorted(str(k) for k in doc if k != "kinematics")
+    if extra:
+        raise InputError(f"{source}: key {extra[0]!r} is not part of a UR calibration file (only 'kinematics')")
+    entries = doc["kinematics"]
+    if not isinstance(entries, dict):
+        raise InputError(f"{source}: kinematics: must map {', '.join(LINKS)} to their origins")
+    unknown = sorted(str(k) for k in entries if k not in (*LINKS, "hash"))
+    if unknown:
+        raise InputError(f"{source}: kinematics.{unknown[0]}: not a joint of a UR arm (its entries: "
+                         f"{', '.join(LINKS)}, hash)")
+    out = {}
+    for name in LINKS:
+        entry = entries.get(name)
+        if not isinstance(entry, dict):
+            raise InputError(f"{source}: kinematics.{name}: missing, or not a mapping of {', '.join(ENTRY_KEYS)}")
+        bad = sorted(str(k) for k in entry if k not in ENTRY_KEYS)
+        if bad:
+            raise InputError(f"{source}: kinematics.{name}.{bad[0]}: not one of {', '.join(ENTRY_KEYS)}")
+        values = {}
+        for key in ENTRY_KEYS:
+            if key not in entry:
+                raise InputError(f"{source}: kinematics.{name}.{key}: missing")
+            values[key] = file_number(entry[key], f"{source}: kinematics.{name}.{key}")
+            limit = MAX_ORIGIN_M if key in "xyz" else 4 * np.pi
+            if abs(values[key]) > limit:
+                unit = "m" if key in "xyz" else "rad"
+                raise InputError(f"{source}: kinematics.{name}.{key}: {values[key]:g} {unit} is beyond {limit:g} "
+                                 f"{unit}: no robot's joint origin")
+        out[name] = values
+    if "hash" in entries:
+        if not isinstance(entries["hash"], str) or len(entries["hash"]) > 200:
+            raise InputError(f"{source}: kinematics.hash: must be a short text")
+        out["hash"] = entries["hash"]
+    return {"kinematics": out}
 
 
 def tool0_poses(document: dict, q) -> np.ndarray:

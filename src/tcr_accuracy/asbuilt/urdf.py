@@ -72,12 +72,7 @@ def as_built_urdf(robot: RobotModel, x: np.ndarray, error_model: ErrorModel | No
         root.set("name", name)
     joints = {j.get("name"): j for j in root.findall("joint")}
     placements, tool = error_model.perturbed_placements(x)
-    for nominal, new, joint_name in zip(robot.joint_placements, placements, robot.joint_names):
-        element = joints.get(joint_name)
-        if element is None:
-            raise InputError(f"{robot.name}: joint {joint_name} of the model is not in its URDF")
-        origin, o = _origin_of(element)
-        _set_origin(origin, o * (nominal.inverse() * new))
+    _set_joint_placements(root, robot, placements)
     measured = f"{robot.tool_frame}{MEASURED_SUFFIX}"
     links = {link.get("name") for link in root.findall("link")}
     if measured in links or measured in joints:
@@ -92,6 +87,54 @@ def as_built_urdf(robot: RobotModel, x: np.ndarray, error_model: ErrorModel | No
     if comment:
         header += "<!-- " + comment.replace("--", "- -") + " -->\n"
     return header + ElementTree.tostring(root, encoding="unicode") + "\n", measured
+
+
+def urdf_with_placements(robot: RobotModel, placements, tool: pin.SE3, *, comment: str | None = None) -> str:
+    """URDF text of ``robot`` whose chain joints sit at ``placements`` and whose TCP frame at ``tool``:
+    the robot's own (factory) kinematics written into its URDF, every other element unchanged.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        The robot whose URDF is rewritten.
+    placements : sequence of pin.SE3, one per chain joint
+        The new ``parentMjoint`` at q = 0.
+    tool : pin.SE3
+        The new ``jointMtool``; the TCP frame must hang on a fixed joint to move (REP 199's ``tool0`` does).
+    comment : str, optional
+        An XML comment at the top.
+
+    Returns
+    -------
+    str
+    """
+    root = parse_urdf_xml(robot.urdf_text, robot.name)
+    _set_joint_placements(root, robot, placements)
+    change = robot.tool_placement.inverse() * tool
+    if np.abs(pin.log6(change).vector).max() > 1e-12:
+        carrier = next((j for j in root.findall("joint") if j.find("child") is not None
+                        and j.find("child").get("link") == robot.tool_frame), None)
+        if carrier is None or carrier.get("type") != "fixed":
+            raise InputError(f"{robot.name}: the TCP frame {robot.tool_frame} is no link on a fixed joint; its "
+                             "placement cannot change in the URDF")
+        origin, o = _origin_of(carrier)
+        _set_origin(origin, o * change)
+    ElementTree.indent(root, space="  ")
+    header = '<?xml version="1.0"?>\n'
+    if comment:
+        header += "<!-- " + comment.replace("--", "- -") + " -->\n"
+    return header + ElementTree.tostring(root, encoding="unicode") + "\n"
+
+
+def _set_joint_placements(root: ElementTree.Element, robot: RobotModel, placements) -> None:
+    """Each chain joint's ``<origin>`` in the URDF tree ``root`` rewritten so that its placement is the new one."""
+    joints = {j.get("name"): j for j in root.findall("joint")}
+    for nominal, new, joint_name in zip(robot.joint_placements, placements, robot.joint_names):
+        element = joints.get(joint_name)
+        if element is None:
+            raise InputError(f"{robot.name}: joint {joint_name} of the model is not in its URDF")
+        origin, o = _origin_of(element)
+        _set_origin(origin, o * (nominal.inverse() * new))
 
 
 def _link_of_frame(root: ElementTree.Element, frame: str, links: set) -> str:

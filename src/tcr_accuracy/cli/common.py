@@ -13,13 +13,21 @@ import math
 import re
 import sys
 
-from .output_paths import as_built_file, effects_side_file, output_file, output_folder, shown as _shown  # noqa: F401
+from .output_paths import (as_built_file, effects_side_file, output_file, output_file_only, output_folder,  # noqa: F401
+                           shown as _shown)
 
 EXIT_OK, EXIT_ANALYSIS, EXIT_INPUT = 0, 1, 2
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse, but a usage error is one line and exit code 2."""
+    """argparse, but a usage error is one line and exit code 2, and a value that starts with a minus
+    sign is a value, not an option, in every form a number takes here (``-1e-3``, ``-10/50``: argparse
+    reads only ``-1`` and ``-1.5`` so)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NEGATIVE_VALUE
+
 
     def error(self, message: str) -> None:  # type: ignore[override]
         # "argument --tol: 0: want ..." (an option's type refusing a value) -> "--tol 0: want ..."
@@ -30,6 +38,9 @@ class Parser(argparse.ArgumentParser):
         sys.stderr.write(f"{self.prog}: error: {message} (see {self.prog} --help)\n")
         sys.exit(EXIT_INPUT)
 
+
+#: A value starting with a minus sign: a number (with an exponent) or a range of them (``-10/50``).
+_NEGATIVE_VALUE = re.compile(r"^-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?:/[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)?$")
 
 #: What the argparse types of this module say after the value ("--x VALUE: <one of these>...").
 _REFUSALS = ("want", "not a number", "non-finite", "the folder", "is a folder", "exists and is not a folder",
@@ -57,7 +68,7 @@ def effect_names(text: str | None) -> list[str] | None:
 
 def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default=None, metavar="URDF|NAME",
-                        help="URDF file or example-robot-data name (ur3, ur5, ur10, panda, z1, xarm7); "
+                        help="URDF file or example-robot-data name (ur3, ur5, ur10, panda, z1, xarm7, kinova); "
                              "default: the built-in shield-machine tool-changer")
     parser.add_argument("--tool", default=None, metavar="FRAME",
                         help="TCP frame name (default: 'tool' for the tool-changer, the usual "
@@ -66,6 +77,24 @@ def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
                         help="where the URDF's package://NAME/... meshes are: a ROS package folder (with "
                              "package.xml), or a folder holding DIR/NAME or packages further below; "
                              "repeatable; searched before the folders of ROS_PACKAGE_PATH")
+    parser.add_argument("--kinematics", default=None, metavar="FILE",
+                        help="the robot's own (factory) kinematics as the nominal robot: a UR ROS 2 driver "
+                             "calibration YAML (ur_calibration's, or the ur_calibration.yaml export writes) or a "
+                             "DH/MDH table CSV as export writes dh.csv/mdh.csv (its *_base_tool.csv beside it); "
+                             "what follows is relative to it (docs/programs.md)")
+
+
+def robot_from_args(args, tool: str | None = None):
+    """The nominal robot of ``--robot``, ``--tool`` (or ``tool``) and ``--package-dir``, with the
+    kinematics of ``--kinematics`` where given."""
+    from ..model.robot import load_robot
+
+    robot = load_robot(args.robot, args.tool if tool is None else tool)
+    if getattr(args, "kinematics", None) is not None:
+        from ..asbuilt.factory_kinematics import with_factory_kinematics
+
+        robot = with_factory_kinematics(robot, args.kinematics)
+    return robot
 
 
 def package_folder(text: str) -> str:
@@ -187,11 +216,11 @@ def sample_bytes(robot) -> float:
 
 def check_csv_memory(args, path, what: str, row_bytes: float, fixed_bytes=lambda rows: 0.0,
                      hint: str = "use fewer rows") -> int:
-    """Count the rows of a CSV (without reading it into memory) and refuse it with
-    :func:`check_memory` when reading it (about 12 bytes per byte of text, ``row_bytes``
-    per row) and ``fixed_bytes(rows)`` would exceed the budget; returns the row count
-    (0 when the file is missing or cannot be opened: its reader says why). A pipe, a device
-    or a folder is refused here, in one line, before anything opens it."""
+    """Count the rows and cells of a CSV (without reading it into memory) and refuse it with
+    :func:`check_memory` when reading it (about 12 bytes per byte of text, :data:`CELL_BYTES`
+    per cell, ``row_bytes`` per row) and ``fixed_bytes(rows)`` would exceed the budget; returns
+    the row count (0 when the file is missing or cannot be opened: its reader says why). A pipe,
+    a device or a folder is refused here, in one line, before anything opens it."""
     import os
 
     from ..input_files import SIZE_LIMITS, open_input
@@ -199,15 +228,24 @@ def check_csv_memory(args, path, what: str, row_bytes: float, fixed_bytes=lambda
     if not os.path.lexists(path):
         return 0
     fd, st = open_input(path, "measurement file", limit=SIZE_LIMITS["table"])
-    size, rows = st.st_size, 0
+    size, rows, cells = st.st_size, 0, 0
     try:
         with os.fdopen(fd, "rb") as handle:
             for block in iter(lambda: handle.read(1 << 20), b""):
                 rows += block.count(b"\n")
+                cells += block.count(b",") + block.count(b";") + block.count(b"\t")  # any reader's delimiter
     except OSError:
         return 0
-    check_memory(args, f"{what} {path} ({rows} rows)", 12.0 * size + rows * row_bytes + fixed_bytes(rows), hint)
+    shape = f"{rows} rows" if cells <= 100 * max(rows, 1) else f"{rows} rows, {cells + rows} cells"  # cells when many
+    check_memory(args, f"{what} {path} ({shape})",
+                 12.0 * size + (cells + rows) * CELL_BYTES + rows * row_bytes + fixed_bytes(rows), hint)
     return rows
+
+
+#: Memory [bytes] a cell of a CSV takes beyond its text once split: its slot in the row's list,
+#: over-allocated as the list grows (one-character cells are shared strings, so their text costs
+#: nothing more: a 320 MB file of one such row, 160 million cells, took 3.6 GB before it failed).
+CELL_BYTES = 16.0
 
 
 #: Error distributions ``--preset`` names: the seed's Table 1, Table 2 and Table 4 (joint clearance).

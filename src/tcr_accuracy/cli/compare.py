@@ -74,6 +74,14 @@ def _run_compare(args) -> int:
     if tool is None and frames:
         tool = frames.pop()  # the frame the diagnoses are of
     robot = _load_named(load_robot, source, tool)
+    if args.kinematics is not None:
+        from ..asbuilt.factory_kinematics import with_factory_kinematics
+
+        robot = with_factory_kinematics(robot, args.kinematics)
+    elif given and isinstance(given[0].get("kinematics"), dict):  # the start the diagnoses recorded
+        from ..asbuilt.factory_kinematics import robot_with_start
+
+        robot = robot_with_start(robot, given[0]["kinematics"], args.old if docs[0] is not None else args.new)
     _check_comparable(docs, (args.old, args.new), robot)
     docs = [doc if doc is not None else _diagnose_csv(args, path, robot)
             for doc, path in zip(docs, (args.old, args.new))]
@@ -156,6 +164,13 @@ def _check_comparable(docs, paths, robot) -> None:
         if doc.get("tool_frame", robot.tool_frame) != robot.tool_frame:
             raise InputError(f"{path}: a diagnosis of the TCP frame {doc['tool_frame']}, not of --tool "
                              f"{robot.tool_frame}: compare two diagnoses of one TCP frame")
+        start = (doc.get("kinematics") or {}).get("sha256") if isinstance(doc.get("kinematics"), dict) else None
+        ours = (robot.kinematics or {}).get("sha256")
+        if start != ours:  # parameters relative to another start differ by the starts, not by the robot
+            said = {None: "the URDF's kinematics"}
+            raise InputError(f"{path}: diagnosed from {said.get(start, 'the kinematics file sha256 ' + str(start)[:12])}"
+                             f", the comparison from {said.get(ours, 'the kinematics file sha256 ' + str(ours)[:12])}: "
+                             "give --kinematics as the diagnoses had it")
         check_physics(doc, robot, path)
 
 

@@ -59,6 +59,11 @@ def add_parsers(sub) -> None:
                         "--instrument-radial-mpe); positions in the instrument's own frame, it at the origin")
     p.add_argument("--instrument-radial-mpe", nargs=2, type=number(low=0, high=1e4, unit="um, um/m"), default=None,
                    metavar=("A_UM", "B_UM_PER_M"), help="the instrument's MPE along the beam, where it differs")
+    p.add_argument("--tcp-mm", nargs=3, type=number(low=-1e4, high=1e4, unit="mm"), default=None,
+                   metavar=("X", "Y", "Z"),
+                   help="the measured point's offset from the tool frame (--tool's, in its axes) as you know it "
+                        "[mm]: set beside the fitted one and flagged where they differ by more than the robot's "
+                        "class allows")
     p.add_argument("--as-built-urdf", default=None, type=as_built_file, metavar="FILE",
                    help="write the calibration URDF (geometry refitted to the full model, tool0 unchanged) to "
                         "FILE and the whole model (for tcr_accuracy.load_as_built) to FILE with suffix .effects.yaml")
@@ -84,10 +89,10 @@ def _frame_robot(args, frame: str):
     """The robot with its TCP at a frame the measurement file's columns name (``<frame>.x_mm``):
     a frame the robot lacks is the file's fault, named by its column, unless --tool named it."""
     from ..exceptions import InputError
-    from ..model.robot import load_robot
+    from .common import robot_from_args
 
     try:
-        return load_robot(args.robot, frame)
+        return robot_from_args(args, frame)
     except InputError as exc:
         if args.tool == frame or "no such frame" not in str(exc):
             raise
@@ -109,7 +114,7 @@ def _run_diagnose(args) -> int:
     from ..exceptions import FixedFrameError, InputError
     from ..io.measurements import join_sessions, measured_frames, read_measurements
     from ..view.plots_diagnose import write_plots
-    from ..model.robot import load_robot
+    from .common import robot_from_args
 
     effects = effect_names(args.effects)
     read_campaign_arguments(args)
@@ -159,7 +164,7 @@ def _run_diagnose(args) -> int:
                       for f, position in fixed.items()]
         robot, measurements, data = robots[0], parts[0][1], parts
     else:
-        robot = load_robot(args.robot, args.tool)
+        robot = robot_from_args(args)
         measurements = data = join_sessions([read_measurements(path, robot, min_rows=per_file) for path in files],
                                             labels)
         references = []
@@ -176,6 +181,7 @@ def _run_diagnose(args) -> int:
         result = diagnose(robot, data, effects=effects, folds=args.folds, random_state=args.seed,
                           tracker_noise=None if args.noise_mm is None else args.noise_mm * 1e-3,
                           instrument=_instrument(args),
+                          tcp_offset=None if args.tcp_mm is None else [v * 1e-3 for v in args.tcp_mm],
                           references=[(f, p, m.position, m.time_s) for f, p, m in references],
                           progress=bar.set_postfix_str)
     except InputError as error:
@@ -186,7 +192,9 @@ def _run_diagnose(args) -> int:
         bar.close()
     payload = jsonable({"measurements": ", ".join(map(str, files)), "measurement_files": list(map(str, files)),
                         "robot_source": robot_source(args.robot), "tool_frame": robot.tool_frame,
+                        **({"kinematics": robot.kinematics} if robot.kinematics else {}),
                         **result.to_dict(robot)})
+    payload["measured_points"] = measured_points(measurements.position)  # the uncertainty budget's distances
     source = ", ".join(map(str, files))
     _report_tables(out, robot, result, source)
     out.add_plots(lambda folder: list(write_plots(result, robot, folder).values()), PLOT_CAPTIONS)
@@ -204,6 +212,17 @@ def _run_diagnose(args) -> int:
     if out.report is not None:
         _calibration_page(out.report, args, robot, payload, written)
     return out.finish(payload, lambda: print(format_summary(robot, result, source)))
+
+
+def measured_points(position):
+    """The measured points' moments and box in the tracker frame (mm): what the report's uncertainty
+    budget needs of them (:class:`tcr_accuracy.frames.uncertainty_budget.PointSet`)."""
+    import numpy as np
+
+    from ..frames.uncertainty_budget import PointSet
+
+    position = np.asarray(position, dtype=float)
+    return PointSet.of(position[np.isfinite(position).all(axis=1)]).to_dict()
 
 
 def _calibration_page(report, args, robot, payload: dict, written: list) -> None:

@@ -13,7 +13,9 @@ and writes into ``--to DIR`` (files written together at the end of the run):
   convention (``ur5_dh.csv``, ``panda_mdh.csv``), each with ``*_base_tool.csv``;
 * ``ur_calibration.yaml`` for a UR arm (the ROS 2 driver's kinematics calibration file);
 * ``joint_offsets_tcp.csv``; ``accuracy.json`` and ``accuracy.png``: what every form reaches;
-* with ``--targets CSV``, ``compensation.csv``: the compensation filter's corrected commands.
+* with ``--targets CSV``, ``compensation.csv``: the compensation filter's corrected commands;
+* with ``--program FILE ...``, each robot program (URScript, KRL, RAPID, a joint trajectory CSV) filtered
+  through the full model, under its own name (:mod:`tcr_accuracy.cli.export_programs`).
 """
 
 from __future__ import annotations
@@ -33,7 +35,8 @@ def add_parsers(sub) -> None:
                     "take, each with what it reaches: the calibration URDF (geometry refitted to the full model, "
                     "tool0 unchanged, the measured point a frame of its own), the whole model as YAML for "
                     "tcr_accuracy.load_as_built, DH/MDH tables (and the maker's convention), the UR ROS 2 driver's "
-                    "calibration file, and with --targets the compensation filter's corrected commands. "
+                    "calibration file, with --targets the compensation filter's corrected commands, and with "
+                    "--program the robot programs filtered through the full model. "
                     "Units: mm and deg in what is printed and in the CSV tables, SI in URDF and YAML.",
     )
     p.add_argument("diagnosis", metavar="DIAGNOSIS.json", help="the JSON that 'diagnose --json FILE' wrote")
@@ -47,10 +50,17 @@ def add_parsers(sub) -> None:
                    help="targets to correct: joint values (the measurement format) or Cartesian positions of "
                         "the measured point, base frame (x_mm,y_mm,z_mm [qw..qz] [seed_<joint>_deg ...] "
                         "[payload_kg]); writes compensation.csv")
+    p.add_argument("--program", nargs="+", metavar="FILE", default=None,
+                   help="robot programs to filter through the full model, each written under --to with its own "
+                        "name: URScript (.script), KUKA KRL (.src with its .dat), ABB RAPID (.mod, .prg, .sys), a "
+                        "joint trajectory CSV (.csv: time_from_start and a column per joint, rad); only the motion "
+                        "targets change, the header says how, what was not filtered is listed (docs/programs.md)")
     p.add_argument("--payload-kg", type=number(low=0, high=1e6, unit="kg"), default=None,
-                   help="the load the URDF and tables hold [kg] (default: each measured row's)")
-    p.add_argument("--threshold-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=0.0001,
-                   help="compensation: stop when the model's miss is below this [mm] (default 0.0001)")
+                   help="the load the URDF and tables hold [kg] (default: each measured row's); the load the "
+                        "programs run with (default 0)")
+    p.add_argument("--threshold-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
+                   help="compensation: stop when the model's miss is below this [mm] (default 0.0001; for "
+                        "--program a thousandth of the diagnosis' noise floor)")
     add_quiet_argument(p)
     p.set_defaults(run=_run_export)
 
@@ -60,7 +70,7 @@ def _run_export(args) -> int:
     import sys
 
     from ..asbuilt.diagnosis_file import kfold_figures, model_from_diagnosis
-    from ..asbuilt.export import MODEL_FILE, UR_FILE, URDF_FILE, build_export
+    from ..asbuilt.export import MODEL_FILE, RESULT_FILE, UR_FILE, URDF_FILE, build_export
     from ..view.as_built_summary import accuracy_lines, ur_file_header, urdf_comment
     from ..view.plots_export import accuracy_plot
     from .export_tables import offsets_and_tcp_csv, table_csv
@@ -71,6 +81,11 @@ def _run_export(args) -> int:
                        required=MODEL_KEYS)[1]  # validated on read: one line naming the key at fault
     model = model_from_diagnosis(data, args.diagnosis)
     check_physics(data, model.robot, args.diagnosis)
+    programs = []
+    if args.program:  # every program read and parsed before the export's work
+        from .export_programs import read_programs
+
+        programs = read_programs(args, model.robot)
     measured = read_calibration_measurements(args, data, model.robot)
     held_out = None
     if args.check is not None:
@@ -92,7 +107,19 @@ def _run_export(args) -> int:
         from .export_tables import compensation_csv
 
         files["compensation.csv"] = compensation_csv(filtered[0], model.robot, filtered[1])
-    files["accuracy.json"] = json.dumps({"diagnosis": str(args.diagnosis), **export.to_dict()}, indent=1) + "\n"
+    program_lines = []
+    if programs:
+        from ..exceptions import InputError
+        from .export_programs import filtered_programs, threshold_m
+
+        program_files, program_lines = filtered_programs(args, model, data, programs, threshold_m(args, data))
+        clash = sorted((set(program_files) & set(files)) | (set(program_files) & {RESULT_FILE, "accuracy.png"}))
+        if clash:
+            raise InputError(f"--program {clash[0]}: export writes a file of that name under --to; rename the program")
+        files.update(program_files)
+    # the export's result (kind 'export', read back by report): the diagnosis by its file name only
+    result = export.result(Path(args.diagnosis).name, measured, held_out)
+    files[RESULT_FILE] = json.dumps(result.to_dict(), indent=1) + "\n"
     folder = Path(args.to)
     stage_folder(folder)
     for name, text in files.items():
@@ -101,7 +128,7 @@ def _run_export(args) -> int:
     write_bytes(plot.path, plot.png)
     for name, why in export.not_tabled.items():  # said on stderr too (--quiet), once the files are in place
         hold_message(sys.stderr, f"tcr-accuracy: warning: {name}: not written ({why})\n", "warning")
-    print("\n".join(_summary(args, export, files, filtered) + accuracy_lines(export.accuracy)))
+    print("\n".join(_summary(args, export, files, filtered) + program_lines + accuracy_lines(export.accuracy)))
     status(args, f"export written to {folder}")
     return EXIT_OK
 
@@ -110,6 +137,10 @@ def _summary(args, export, files, filtered) -> list[str]:
     model = export.model
     lines = [f"{model.robot.name}: calibration of {args.diagnosis} ({', '.join(model.parameters)}) -> {args.to}",
              "  " + ", ".join([*files, "accuracy.png"])]
+    start = model.robot.kinematics
+    if start:  # the diagnosis' nominal robot: the robot's own kinematics
+        lines.append(f"  start: the factory kinematics of {start['file']} ({start['format']}); the files hold the whole "
+                     "calibrated kinematics, the tables' corrections are relative to that start")
     geometry = export.geometry
     lines.append(f"  URDF: geometry and joint offsets refitted to the full model over {geometry.n_measured} measured "
                  f"poses and {geometry.n_sampled} between them ({len(geometry.fitted)} parameters, RMS "
@@ -181,7 +212,7 @@ def _targets(args, model):
     # each target: the model's TCP and its Jacobian over the joints, a few copies
     check_csv_memory(args, args.targets, "--targets", 3 * 64 * 8.0 * (model.robot.n_joints + 1),
                      hint="use fewer targets")
-    threshold = args.threshold_mm * 1e-3
+    threshold = (1e-4 if args.threshold_mm is None else args.threshold_mm) * 1e-3
     if is_cartesian(args.targets, model.robot):
         targets = read_pose_targets(args.targets, model.robot)
         return filter_pose_targets(model, targets.positions, targets.rotations, q_seed=targets.q_seed,

@@ -12,7 +12,7 @@ import argparse
 
 from .common import (DEFAULT_MEMORY_GB, EXIT_OK, MAX_MM, Parser, add_quiet_argument, add_robot_arguments,
                      check_csv_memory, emit_json, integer, number, output_file, sample_bytes, seed_value, status)
-from .iso9283_inputs import condition, plan_inputs, read_model
+from .iso9283_inputs import condition, plan_inputs, read_model, tool_rotation
 from .output import add_output_arguments
 from .report import add_campaign_arguments, read_campaign_arguments
 
@@ -48,7 +48,18 @@ def add_parsers(sub) -> None:
                       metavar="S", help="edge of the given cube [mm], at least 10")
     plan.add_argument("--home", nargs="+", type=number(low=-MAX_MM, high=MAX_MM), default=None, metavar="Q",
                       help="the home configuration, one value per joint [deg, mm for prismatic joints]; default the "
-                           "robot's reference pose")
+                           "robot's usual ready pose (the UR's upright pose, 0 -90 0 -90 0 0; else its reference "
+                           "pose)")
+    plan.add_argument("--tool-rpy", nargs=3, type=number(low=-360, high=360, unit="deg"), default=None,
+                      metavar=("ROLL", "PITCH", "YAW"),
+                      help="the TCP orientation every pose holds, roll-pitch-yaw of the TCP frame in the base frame "
+                           "[deg] (URDF convention: R = Rz(yaw) Ry(pitch) Rx(roll)); default the one found at the "
+                           "cube's centre")
+    plan.add_argument("--tracker-mm", nargs=3, type=number(low=-MAX_MM, high=MAX_MM, unit="mm"), default=None,
+                      metavar=("X", "Y", "Z"),
+                      help="the instrument's position [mm] in the base frame: the poses must be in its line of sight "
+                           "(no collision body on the beam; needs the URDF's collision geometry), their distances "
+                           "from it written")
     plan.add_argument("--floor-mm", type=number(low=-MAX_MM, high=MAX_MM, unit="mm"), default=0.0, metavar="Z",
                       help="keep the test and the robot's bodies above z = Z of the base frame (default 0, the "
                            "mounting plane)")
@@ -72,7 +83,7 @@ def add_parsers(sub) -> None:
     plan.add_argument("--json", nargs="?", const="-", default=None, type=output_file, metavar="FILE",
                       help="also write the plan as JSON (stdout without FILE)")
     add_quiet_argument(plan)
-    plan.set_defaults(run=_run_plan, tracker_mm=None)
+    plan.set_defaults(run=_run_plan)
     evaluate = steps.add_parser(
         "evaluate", help="AP, RP (vAP, AD, RD, stabilisation where the data allow) of a measured pose test; "
                          "--path: AT, RT, corners, path velocity of a measured path",
@@ -80,19 +91,24 @@ def add_parsers(sub) -> None:
                     "with orientations (qw..qz) AP_a/b/c and RP_a/b/c; vAP where an 'approach' column labels "
                     "directions; AD and RD between poses measured in the same cycles ('cycle' column); pose "
                     "stabilisation time and overshoot where a visit is a time-stamped stream; per test condition "
-                    "(load_pct, speed_pct columns). The measurement frame is fitted to the poses' barycentres "
-                    "(Kabsch, TCP offset where identifiable) unless --frame base or --frame-from. With --path "
+                    "(load_pct, speed_pct columns). AP needs the robot's base frame: from --frame-from (other poses "
+                    "of the session), --frame base, or found (readings within 5 mm of it); else the frame is "
+                    "fitted to the poses' barycentres (Kabsch, TCP offset where identifiable) and AP is relative "
+                    "to it, said on every line. With --path "
                     "COMMANDED.csv, MEAS.csv is the tracker's stream of a path test (see README, ISO 9283).")
     evaluate.add_argument("measurements", metavar="MEAS.csv",
                           help="the measured pose test, or with --path the tracker's stream (see README)")
     add_robot_arguments(evaluate)
     evaluate.add_argument("--frame", choices=("fit", "base"), default=None,
-                          help="fit: register the instrument's frame to the poses (default); base: the readings "
-                               "are already base-frame TCP positions")
+                          help="fit: register the instrument's frame to the test's poses (AP then relative to it, "
+                               "said on every line); base: the readings are already base-frame TCP positions "
+                               "(AP absolute). Default: --frame-from when given, else base when the readings lie "
+                               "in the robot's base frame (a frame fitted on the poses moves none by more than "
+                               "5 mm), else fit")
     evaluate.add_argument("--frame-from", default=None, metavar="CAL.csv",
                           help="fit the instrument frame on these measurements instead (other poses measured in the "
                                "same instrument frame, e.g. a calibration set of the same session); not with --frame")
-    evaluate.add_argument("--band-mm", type=number(low=0, low_open=True, high=MAX_MM, unit="mm"), default=None,
+    evaluate.add_argument("--band-mm", type=number(low=1e-6, high=MAX_MM, unit="mm"), default=None,
                           metavar="R", help="limit band radius for the pose stabilisation time and overshoot of "
                                             "time-stamped visits (default: each pose's RP)")
     evaluate.add_argument("--model", default=None, metavar="DIAGNOSIS.json",
@@ -102,7 +118,7 @@ def add_parsers(sub) -> None:
                                "path, speed_pct and cycle labels), COMMANDED.csv the commanded path ('iso9283 plan "
                                "--path' writes it; or the joints of its points): AT, RT, corner deviations CR, CO "
                                "and the path velocity figures AV, RV, FV")
-    evaluate.add_argument("--planes", type=integer(low=3, high=100_000), default=100, metavar="M",
+    evaluate.add_argument("--planes", type=integer(low=3, high=100_000), default=None, metavar="M",
                           help="--path: normal planes along each path (default 100)")
     add_output_arguments(evaluate, plots=False)
     add_campaign_arguments(evaluate)
@@ -120,34 +136,40 @@ def add_parsers(sub) -> None:
 def _run_plan(args) -> int:
     import numpy as np
 
-    from ..iso9283.plan import DEFAULT_CYCLES, cycle_order, plan_iso_cube
+    from ..iso9283.plan import DEFAULT_CYCLES, plan_iso_cube
     from .staging import write_text
 
     if args.path:
         from .iso9283_path import run_path_plan
 
         return run_path_plan(args)
+    _pose_test_only(args)
     robot, home, workspace, conditions, rated = plan_inputs(args)
     centre = None if args.cube_centre_mm is None else np.asarray(args.cube_centre_mm) * 1e-3
     size = None if args.cube_size_mm is None else args.cube_size_mm * 1e-3
-    plan = plan_iso_cube(robot, np.random.default_rng(args.seed), centre=centre, size=size, home=home,
-                         workspace=workspace)
+    plan = plan_iso_cube(robot, args.seed, centre=centre, size=size, home=home, workspace=workspace,
+                         tool_rotation=tool_rotation(args), tracker=_tracker(args))
     cycles = args.cycles or DEFAULT_CYCLES
-    pose_id, cycle = cycle_order(cycles)
+    series = plan.series(cycles, [(c.load_pct, c.speed_pct) for c in conditions], rated_load_kg=args.rated_load_kg)
     from pathlib import Path
 
-    write_text(Path(args.out), _plan_csv(robot, plan, pose_id, cycle, conditions, rated))
+    write_text(Path(args.out), _plan_csv(robot, plan, series, conditions, rated))
     payload = {"robot": robot.name, "tool": robot.tool_frame, "cube_centre_mm": (plan.centre * 1e3).tolist(),
                "cube_size_mm": plan.size * 1e3, "searched": plan.searched, "candidate_centres": plan.n_centres,
-               "orientation": plan.orientation, "collision": plan.collision, "workspace": plan.workspace,
+               "orientation": plan.orientation, "tool_rpy_deg": np.degrees(pin_rpy(plan.rotation[0])).tolist(),
+               "collision": plan.collision, "workspace": plan.workspace, "sight": plan.sight,
+               "tracker_mm": None if plan.tracker is None else (plan.tracker * 1e3).tolist(),
                "home_display": (plan.home * robot.display_scale).tolist(),
                "max_swing_deg": float(np.degrees(plan.max_swing)), "cycles": cycles,
                "order": "start at P1, then P5, P4, P3, P2, P1 in every cycle",
                "conditions": [{"load_pct": c.load_pct, "speed_pct": c.speed_pct, "payload_kg": c.payload_kg}
                               for c in conditions], "rated_load": rated,
-               "poses": [{"pose_id": k + 1, "target_mm": (plan.positions[k] * 1e3).tolist(),
-                          "q_display": (plan.q[k] * robot.display_scale).tolist()} for k in range(5)],
-               "joint_units": robot.display_units, "rows": len(pose_id) * len(conditions), "out": str(args.out)}
+               "poses": [{"pose_id": name, "target_mm": (plan.positions[k] * 1e3).tolist(),
+                          "q_display": (plan.q[k] * robot.display_scale).tolist(),
+                          **({} if plan.tracker_distance is None else
+                             {"tracker_distance_mm": float(plan.tracker_distance[k] * 1e3)})}
+                         for k, name in enumerate(plan.pose_ids)],
+               "joint_units": robot.display_units, "rows": len(series), "out": str(args.out)}
     if args.json:
         emit_json(payload, args.json)
     if args.json != "-":
@@ -156,28 +178,56 @@ def _run_plan(args) -> int:
     return EXIT_OK
 
 
-def _plan_csv(robot, plan, pose_id, cycle, conditions, rated) -> str:
+def _pose_test_only(args) -> None:
+    """InputError for the path test's options given to the pose test's plan."""
+    from ..exceptions import InputError
+
+    if args.path_speed_mm_s is not None:
+        raise InputError("--path-speed-mm-s is the rated path speed of the path tests: give it with --path")
+
+
+def pin_rpy(rotation):
+    """(3,) roll, pitch, yaw [rad] of a rotation (Pinocchio's, the inverse of ``rpyToMatrix``)."""
+    import pinocchio as pin
+
+    return pin.rpy.matrixToRpy(rotation)
+
+
+def _tracker(args):
+    import numpy as np
+
+    return None if args.tracker_mm is None else np.asarray(args.tracker_mm, dtype=float) * 1e-3
+
+
+def _plan_csv(robot, plan, series, conditions, rated) -> str:
     import io
 
     joints = [f"{n}_{u}" for n, u in zip(robot.joint_names, robot.display_units)]
-    payload = all(c.payload_kg is not None for c in conditions)
+    labels = series.annotations
+    payload = series.payload_kg is not None
     out = io.StringIO()
     out.write(f"# ISO 9283 pose test of {robot.name} (TCP {robot.tool_frame}), written by tcr-accuracy iso9283 plan\n")
     out.write(f"# cube centre {', '.join(f'{v * 1e3:.3f}' for v in plan.centre)} mm, edge {plan.size * 1e3:.3f} mm; "
               "run the rows in order, add the measured x_mm,y_mm,z_mm (and qw,qx,qy,qz) columns\n")
+    if plan.tracker is not None:
+        out.write(f"# tracker at {', '.join(f'{v * 1e3:.1f}' for v in plan.tracker)} mm (base frame): P1..P5 at "
+                  + ", ".join(f"{d * 1e3:.0f}" for d in plan.tracker_distance) + " mm from it\n")
     out.write(f"# {len(conditions)} test condition(s), {rated}; before each block, set the load and speed and "
               "move to P1\n")
     out.write(",".join(joints + (["payload_kg"] if payload else []) + ["pose_id", "cycle", "load_pct", "speed_pct",
                                                                        "target_x_mm", "target_y_mm", "target_z_mm"])
               + "\n")
-    for k, cond in enumerate(conditions):
-        out.write(f"# condition {k + 1}: {cond.words()}; start at P1\n")
-        for pid, c in zip(pose_id, cycle):
-            row = [format(v, ".10g") for v in plan.q[pid - 1] * robot.display_scale]
-            row += [format(cond.payload_kg, ".10g")] if payload else []
-            row += [str(pid), str(c), format(cond.load_pct, "g"), format(cond.speed_pct, "g")]
-            row += [format(v, ".10g") for v in plan.positions[pid - 1] * 1e3]
-            out.write(",".join(row) + "\n")
+    per_block = len(series) // len(conditions)
+    for i in range(len(series)):
+        if i % per_block == 0:
+            cond = conditions[i // per_block]
+            out.write(f"# condition {i // per_block + 1}: {cond.words()}; start at P1\n")
+        row = [format(v, ".10g") for v in series.q[i] * robot.display_scale]
+        row += [format(series.payload_kg[i], ".10g")] if payload else []
+        row += [labels["pose_id"][i], labels["cycle"][i], format(labels["load_pct"][i], "g"),
+                format(labels["speed_pct"][i], "g")]
+        row += [format(labels[f"target_{a}_mm"][i], ".10g") for a in "xyz"]
+        out.write(",".join(row) + "\n")
     return out.getvalue()
 
 
@@ -189,16 +239,21 @@ def _plan_text(robot, plan, args, cycles, conditions, rated) -> str:
              f"  centre [mm]      {', '.join(f'{v * 1e3:.1f}' for v in plan.centre)}",
              f"  edge             {plan.size * 1e3:.1f} mm",
              "  orientation      " + ("one TCP orientation at every pose" if plan.orientation == "exact" else
-                                     "positions exact, orientation as close as the robot can (rank < 6)"),
+                                     "positions exact, orientation as close as the robot can (rank < 6)")
+             + " (roll, pitch, yaw " + ", ".join(f"{v + 0.0:.1f}" for v in np.degrees(pin_rpy(plan.rotation[0])))
+             + " deg" + (", as given)" if args.tool_rpy is not None else ")"),
              f"  self-collision   {plan.collision}",
              f"  workspace        {plan.workspace}",
+             f"  line of sight    {plan.sight}",
              f"  home [{', '.join(robot.display_units)}]  " + " ".join(f"{v:.2f}" for v in plan.home * robot.display_scale)
              + f"; no joint turns more than {np.degrees(plan.max_swing):.1f} deg from it",
              f"  {'pose':<5}" + "".join(f"{a + ' [mm]':>12}" for a in "xyz") + "  joints [" +
              ", ".join(robot.display_units) + "]"]
     for k in range(5):
         lines.append(f"  P{k + 1:<4}" + "".join(f"{v * 1e3:12.1f}" for v in plan.positions[k]) + "  " +
-                     " ".join(f"{v:.2f}" for v in plan.q[k] * robot.display_scale))
+                     " ".join(f"{v:.2f}" for v in plan.q[k] * robot.display_scale)
+                     + ("" if plan.tracker_distance is None else
+                        f"  ({plan.tracker_distance[k] * 1e3:.0f} mm from the tracker)"))
     lines.append(f"  conditions       {rated}:")
     lines += [f"    {k + 1}. {c.words()}" for k, c in enumerate(conditions)]
     lines.append(f"  each: start at P1, {cycles} cycles of P5, P4, P3, P2, P1 ({5 * cycles * len(conditions)} rows) "
@@ -214,13 +269,16 @@ def _run_evaluate(args) -> int:
     from ..io.campaign import CampaignFacts
     from ..io.measurements import MeasurementWarning, read_measurements
     from ..iso9283.evaluate import compensated_readings, evaluate_conditions, register_from
-    from ..model.robot import load_robot
+    from .common import robot_from_args
     from .output import RunOutput
 
     if args.frame_from and args.frame is not None:
         raise InputError(f"--frame {args.frame} and --frame-from {args.frame_from}: give one (--frame-from fits "
                          "the instrument frame on other poses; --frame base takes the readings as base-frame "
                          "positions)")
+    if args.planes is not None and not args.path:
+        raise InputError(f"--planes {args.planes}: the normal planes of a path test; give it with --path "
+                         "COMMANDED.csv")
     if args.path:
         from .iso9283_path import run_path_evaluate
 
@@ -229,7 +287,7 @@ def _run_evaluate(args) -> int:
                              "report (--path) has no such page")
         return run_path_evaluate(args)
     read_campaign_arguments(args)
-    robot = load_robot(args.robot, args.tool)
+    robot = robot_from_args(args)
     check_csv_memory(args, args.measurements, "MEAS.csv", sample_bytes(robot))
     model = read_model(robot, args.model) if args.model else None
     with warnings.catch_warnings():  # a pose test repeats its poses on purpose, labelled or not
@@ -243,12 +301,13 @@ def _run_evaluate(args) -> int:
             given_after = {**given, "registration": register_from(robot, compensated_readings(
                 robot, calibration, given["registration"], *model))}
     band = None if args.band_mm is None else args.band_mm * 1e-3
-    blocks = evaluate_conditions(robot, mset, frame=args.frame or "fit", band=band, **given)
+    blocks = evaluate_conditions(robot, mset, frame=args.frame or "auto", band=band, **given)
     afters = [None] * len(blocks)
     if model is not None:
         compensated = compensated_readings(robot, mset, blocks[0][1].registration, *model)
-        afters = [r for _, r in evaluate_conditions(robot, compensated, frame=args.frame or "fit", band=band,
-                                                    **given_after)]
+        # the frame the measured figures were found in (base, or fitted on the test), not found again
+        frame = args.frame or (blocks[0][1].frame if blocks[0][1].frame in ("base", "fit") else "auto")
+        afters = [r for _, r in evaluate_conditions(robot, compensated, frame=frame, band=band, **given_after)]
     from .diagnose import robot_source
 
     out = RunOutput(args, f"ISO 9283 pose test: {robot.name}")
@@ -315,8 +374,8 @@ def _pose_dict(f) -> dict:
 
     out = {"pose_id": json_label(f.pose_id), "pose": pose_name(f.pose_id), "n": f.n, "ap_mm": f.ap * 1e3,
            **{f"ap_{a}_mm": float(v * 1e3) for a, v in zip("xyz", f.ap_xyz)},
-           "rp_mm": None if f.rp is None else f.rp * 1e3, "l_mean_mm": f.l_mean * 1e3,
-           "s_l_mm": None if f.l_std is None else f.l_std * 1e3,
+           "rp_mm": None if f.rp is None else f.rp * 1e3, "l_mean_mm": _mm(f.l_mean),
+           "s_l_mm": _mm(f.l_std),
            "barycentre_mm": (f.barycentre * 1e3).tolist(), "commanded_mm": (f.commanded * 1e3).tolist()}
     if f.approach is not None:
         out["approach"] = json_label(f.approach)
@@ -335,12 +394,17 @@ def evaluation_dict(result) -> dict:
     """JSON-ready figures of an :class:`~tcr_accuracy.iso9283.evaluate.IsoEvaluation` (mm, deg, s)."""
     import numpy as np
 
+    from ..iso9283.formulas import STANDARD_CYCLES
+
     fig = result.figures
     rps = [f.rp for f in fig.poses if f.rp is not None]
     return {
         "n_readings": result.n_readings, "n_visits": result.n_visits, "frame": result.frame, "frame_fit": result.how,
+        **result.frame_dict(), "standard_cycles": STANDARD_CYCLES,
         "registration": None if result.registration is None else result.registration.to_dict(),
-        "poses": [_pose_dict(f) for f in fig.poses],
+        "poses": [{**_pose_dict(f), **({} if result.instrument_distance is None else
+                                       {"instrument_distance_mm": result.instrument_distance[f.pose_id] * 1e3})}
+                  for f in fig.poses],
         "summary": {"ap_max_mm": max(f.ap for f in fig.poses) * 1e3,
                     "ap_mean_mm": float(np.mean([f.ap for f in fig.poses])) * 1e3,
                     "rp_max_mm": max(rps) * 1e3 if rps else None},
@@ -367,11 +431,16 @@ def evaluation_dict(result) -> dict:
 
 def format_evaluation(robot, args, result, after=None, block=None) -> str:
     """The printed figures: the per-pose table, the summary, and what could not be computed (of one
-    test condition when ``block`` is given)."""
+    test condition when ``block`` is given); every AP figure relative to a frame fitted on the test's
+    poses says so on its line."""
+    from ..iso9283.evaluate import RELATIVE_WORDS
     visits = "" if result.n_visits == result.n_readings else f" in {result.n_visits} visits"
     condition = "" if block is None else f", {block.words()}"
     lines = [f"{robot.name}: ISO 9283 pose test {args.measurements}{condition} ({result.n_readings} "
              f"readings{visits}, {len(result.pose_q)} poses)", f"  measurement frame {result.how}"]
+    if not result.absolute:
+        lines.append(f"  {RELATIVE_WORDS.upper()}: not the standard's absolute AP, which needs the robot's base "
+                     "frame (--frame-from CAL.csv: other poses of the session; --frame base: readings in it)")
     lines += _figures_lines(result)
     if after is not None:
         lines += [f"after compensation with {args.model} (predicted: the model's displacement removed from "
@@ -386,7 +455,8 @@ PRINTED_DISTANCES = 10
 def _figures_lines(result, table_only: bool = False) -> list:
     import numpy as np
 
-    from ..iso9283.formulas import pose_name
+    from ..iso9283.evaluate import RELATIVE_WORDS
+    from ..iso9283.formulas import MIN_REPEATS, STANDARD_CYCLES, pose_name
 
     fig = result.figures
     angles = any(f.ap_abc is not None for f in fig.poses)
@@ -397,7 +467,8 @@ def _figures_lines(result, table_only: bool = False) -> list:
         "".join(f"{h:>10}" for h in ("AP_P", "AP_x", "AP_y", "AP_z", "RP_l")) + "  [mm]"
     if angles:
         head += "".join(f"{h:>9}" for h in ("AP_a", "AP_b", "AP_c", "RP_a", "RP_b", "RP_c")) + "  [deg]"
-    lines = [head]
+    lines = [head + ("" if result.absolute else f"  ({RELATIVE_WORDS})")]
+    relative = "" if result.absolute else "relative"
     for f in fig.poses:
         row = f"  {pose_name(f.pose_id):<{width}}" + (f"{f.approach:>{appr}}" if labelled else "") + f"{f.n:>4}" + \
             "".join(f"{v * 1e3:10.4f}" for v in (f.ap, *f.ap_xyz)) + \
@@ -405,10 +476,16 @@ def _figures_lines(result, table_only: bool = False) -> list:
         if f.ap_abc is not None:
             row += "       " + "".join(f"{np.degrees(v):9.4f}" for v in f.ap_abc)
             row += "".join(f"{np.degrees(v):9.4f}" for v in f.rp_abc) if f.rp_abc is not None else f"{'-':>27}"
-        lines.append(row)
+        remarks = [relative] + ([] if f.n >= STANDARD_CYCLES else
+                                [f"{f.n} of the standard's {STANDARD_CYCLES} cycles" +
+                                 ("" if f.n >= MIN_REPEATS else ": AP only" if f.n == 1 else ": no RP")])
+        lines.append(row + "".join(f"  {r}" for r in remarks if r))
     rps = [f.rp for f in fig.poses if f.rp is not None]
-    lines.append(f"  largest AP_P {max(f.ap for f in fig.poses) * 1e3:.4f} mm, largest RP_l "
-                 + (f"{max(rps) * 1e3:.4f} mm" if rps else "- (no pose with 3 readings)"))
+    lines.append(f"  largest AP_P {max(f.ap for f in fig.poses) * 1e3:.4f} mm"
+                 + ("" if result.absolute else f" ({RELATIVE_WORDS})") + ", largest RP_l "
+                 + (f"{max(rps) * 1e3:.4f} mm" if rps else f"- (no pose with {MIN_REPEATS} readings)")
+                 + (f" (of {len(rps)} poses read {MIN_REPEATS} times or more)" if rps and len(rps) < len(fig.poses)
+                    else ""))
     for d in fig.directional:
         lines.append(f"  vAP {pose_name(d.pose_id)} over approaches {', '.join(map(str, d.approaches))}: "
                      f"{d.vap * 1e3:.4f} mm")

@@ -27,12 +27,12 @@ def plan_inputs(args):
     from ..exceptions import InputError
     from ..iso9283.plan import STANDARD_CONDITIONS, plan_conditions
     from ..iso9283.reach import Workspace
-    from ..model.robot import load_robot
+    from .common import robot_from_args
     from .common import joint_values_si, reach_values
 
     if (args.cube_centre_mm is None) != (args.cube_size_mm is None):
         raise InputError("--cube-centre-mm and --cube-size-mm: give both, or neither to search the largest cube")
-    robot = load_robot(args.robot, args.tool)
+    robot = robot_from_args(args)
     home = None if args.home is None else joint_values_si(robot, args.home, "--home")
     box, _ = reach_values(args)
     workspace = Workspace(floor=args.floor_mm * 1e-3, box=None if box is None else box.T)
@@ -51,3 +51,11 @@ def read_model(robot, path: str):
     payload = read_result(path, "diagnosis", hint="give the JSON that 'diagnose --json FILE' wrote")[1]
     check_physics(payload, robot, path)
     return diagnosis_model(robot, payload, path)
+
+
+def tool_rotation(args):
+    """(3, 3) the TCP orientation of ``--tool-rpy`` [deg], or None."""
+    import numpy as np
+    import pinocchio as pin
+
+    return None if args.tool_rpy is None else pin.rpy.rpyToMatrix(*np.radians(args.tool_rpy))

@@ -12,6 +12,9 @@ from __future__ import annotations
 
 from .common import EXIT_OK, check_csv_memory, emit_json, sample_bytes, status
 
+#: Normal planes along each path when --planes is not given.
+PATH_PLANES = 100
+
 
 def run_path_plan(args) -> int:
     import numpy as np
@@ -26,8 +29,11 @@ def run_path_plan(args) -> int:
     centre = None if args.cube_centre_mm is None else np.asarray(args.cube_centre_mm) * 1e-3
     size = None if args.cube_size_mm is None else args.cube_size_mm * 1e-3
     speed = None if args.path_speed_mm_s is None else args.path_speed_mm_s * 1e-3
-    plan = plan_path_test(robot, np.random.default_rng(args.seed), centre=centre, size=size, home=home,
-                          workspace=workspace, rated_speed=speed)
+    from .iso9283_inputs import tool_rotation
+
+    tracker = None if args.tracker_mm is None else np.asarray(args.tracker_mm, dtype=float) * 1e-3
+    plan = plan_path_test(robot, args.seed, centre=centre, size=size, home=home, workspace=workspace,
+                          rated_speed=speed, tool_rotation=tool_rotation(args), tracker=tracker)
     cycles = args.cycles or PATH_CYCLES
     from pathlib import Path
 
@@ -91,6 +97,7 @@ def _path_plan_text(robot, plan, runs, cycles, rated, args) -> str:
     lines = [f"{robot.name}: ISO 9283 test paths in the plane of the test cube (centre "
              f"{', '.join(f'{v * 1e3:.1f}' for v in cube.centre)} mm, edge {cube.size * 1e3:.1f} mm)",
              f"  self-collision   {cube.collision}", f"  workspace        {cube.workspace}",
+             f"  line of sight    {cube.sight}" + ("" if cube.tracker is None else " (at the cube's five poses)"),
              f"  rated speed      {plan.rated_speed * 1e3:.1f} mm/s ({plan.speed_source})",
              f"  {'path':<14}{'length [mm]':>12}{'samples':>9}  corners"]
     for path in plan.paths:
@@ -109,14 +116,14 @@ def run_path_evaluate(args) -> int:
     from ..io.tracker_stream import read_tracker_stream
     from ..iso9283.evaluate import compensated_readings, register_from
     from ..iso9283.path_evaluate import evaluate_path_test
-    from ..model.robot import load_robot
+    from .common import robot_from_args
     from .diagnose import robot_source
     from .iso9283_inputs import read_model
     from .output import RunOutput
 
     if args.band_mm is not None:
         raise InputError("--band-mm is for pose tests (stabilisation time); a path test has none")
-    robot = load_robot(args.robot, args.tool)
+    robot = robot_from_args(args)
     check_csv_memory(args, args.measurements, "MEAS.csv", sample_bytes(robot))
     check_csv_memory(args, args.path, "COMMANDED.csv", sample_bytes(robot))
     model = read_model(robot, args.model) if args.model else None
@@ -131,7 +138,8 @@ def run_path_evaluate(args) -> int:
         if model is not None:  # the compensated robot seen from the same poses, compensated alike
             given["registration_after"] = register_from(robot, compensated_readings(
                 robot, calibration, given["registration"], *model))
-    before, after = evaluate_path_test(robot, commanded, stream, frame=args.frame or "fit", planes=args.planes,
+    before, after = evaluate_path_test(robot, commanded, stream, frame=args.frame or "fit",
+                                       planes=args.planes or PATH_PLANES,
                                        model=model, **given)
     out = RunOutput(args, f"ISO 9283 path test: {robot.name}")
     text = format_path_evaluation(robot, args, stream, before, after)

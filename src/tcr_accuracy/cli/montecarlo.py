@@ -111,11 +111,11 @@ def _run_montecarlo(args) -> int:
     from ..analysis.montecarlo import CHUNK, STAT_COLUMNS, run_monte_carlo
     from ..model.errors import ErrorBudget, default_preset
     from ..analysis.reliability import binomial_interval, first_order, gaussian_exceedance, importance_exceedance
-    from ..model.robot import load_robot
+    from .common import robot_from_args
 
     _check_args(args)
     out = RunOutput(args, "Monte Carlo accuracy of the TCP")
-    robot = load_robot(args.robot, args.tool)
+    robot = robot_from_args(args)
     q = joint_values_si(robot, args.q)
     sampler = sampler_from_args(robot, args.preset, args.config)
     tolerances_m = np.array(args.tol) * 1e-3

@@ -350,6 +350,16 @@ def output_file(text: str) -> str:
     return text
 
 
+def output_file_only(text: str) -> str:
+    """argparse type of an option naming a file the run writes that is never standard output
+    (``plan-poses --out``, ``view --html``): ``-`` is refused now, as ``--to -`` is (it was
+    written as a file named ``-`` and stopped the run as a write outside its outputs, exit 1)."""
+    if text == "-":
+        raise argparse.ArgumentTypeError("-: '-' names standard output, which this option does not write; for a "
+                                         "file of that name give ./-")
+    return output_file(text)
+
+
 def output_folder(text: str) -> str:
     """argparse type of an option naming a folder the run fills (see :func:`output_file`)."""
     problem = output_folder_problem(text)
@@ -380,4 +390,4 @@ def as_built_file(text: str) -> str:
 
 
 #: The argparse types that name an output of the run.
-OUTPUT_TYPES = (output_file, output_folder, as_built_file)
+OUTPUT_TYPES = (output_file, output_file_only, output_folder, as_built_file)

@@ -28,9 +28,9 @@ def _run_pose(args) -> int:
     import pinocchio as pin
 
     from ..model.kinematics import euler_zyx, tcp_poses
-    from ..model.robot import load_robot
+    from .common import robot_from_args
 
-    robot = load_robot(args.robot, args.tool)
+    robot = robot_from_args(args)
     q = joint_values_si(robot, args.q)
     pose = tcp_poses(robot, q)
     position, rotation = pose.position[0], pose.rotation[0]

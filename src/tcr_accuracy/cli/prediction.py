@@ -218,10 +218,10 @@ def _frame_line(model, args) -> str:
 
 def _start(args, title: str):
     """The robot and the run's outputs, checked before any work."""
-    from ..model.robot import load_robot
+    from .common import robot_from_args
 
     out = RunOutput(args, title)
-    return load_robot(args.robot, args.tool), out
+    return robot_from_args(args), out
 
 
 def _fit_table(out, robot, args, q_train, what: str, n: int) -> None:
@@ -232,6 +232,21 @@ def _fit_table(out, robot, args, q_train, what: str, n: int) -> None:
 
 def _joint_columns(robot, prefix: str = "") -> list[str]:
     return [f"{prefix}{n}_{u}" for n, u in zip(robot.joint_names, robot.display_units)]
+
+
+def _nominal_summary(nominal) -> dict:
+    """The JSON's ``nominal`` of a :class:`~tcr_accuracy.prediction.nominal.NominalError` [mm]."""
+    from ..prediction.nominal import NOMINAL_DEFINITION
+
+    return {"mean_mm": nominal.mean * 1e3, "rms_mm": nominal.rms * 1e3, "max_mm": nominal.max * 1e3, "n": nominal.n,
+            "definition": NOMINAL_DEFINITION}
+
+
+def nominal_line(summary: dict, poses: str) -> str:
+    """The printed line of the nominal figure (the same words in export, predict and compensate)."""
+    return (f"nominal (the nominal robot, tracker frame and TCP offset fitted to the training poses) on the "
+            f"{summary['n']} {poses}: mean {summary['mean_mm']:.4f} mm, RMS {summary['rms_mm']:.4f} mm, max "
+            f"{summary['max_mm']:.4f} mm")
 
 
 def _held_out_summary(held) -> dict:
@@ -246,16 +261,34 @@ def _held_out_summary(held) -> dict:
 # ---------------------------------------------------------------------------------------
 # predict
 # ---------------------------------------------------------------------------------------
+def _refuse_training_poses(args, q_train, q, lines) -> None:
+    """A measured query pose that is a training pose (the same joint values) has an in-sample error,
+    not a held-out one: ``--query m.csv`` with ``--train m.csv`` printed 0.0000 mm as "held-out"."""
+    import numpy as np
+
+    from ..exceptions import InputError
+
+    train = {tuple(row) for row in np.round(q_train, 12)}
+    same = [k for k, row in enumerate(np.round(q, 12)) if tuple(row) in train]
+    if same:
+        raise InputError(f"--query {args.query}: row {lines[same[0]]} ({len(same)} of {len(q)} measured rows) is a pose "
+                         f"of --train {args.train}: its error is in-sample, not held out; measure other poses, or "
+                         "leave the positions out to predict there")
+
+
 def _run_predict(args) -> int:
     import numpy as np
 
     from ..prediction.error_prediction import predict_errors
+    from ..prediction.nominal import nominal_error
     from ..view.plots_prediction import plot_predicted_errors
 
     robot, out = _start(args, "Error prediction")
     q_train, model = _fit(args, robot)
     check_csv_memory(args, args.query, "--query", 3 * 64 * 8.0)
     q, measured, context, lines = read_joint_csv(args.query, robot, need_positions=False, repeats=True, rows=True)
+    if measured is not None:
+        _refuse_training_poses(args, q_train, q, lines)
     scale = robot.display_scale
     prediction = predict_errors(model, q, context=context, measured=measured, label=f"method {args.method}")
     pred, std, kind, held = prediction.predicted_error, prediction.std, prediction.uncertainty, prediction.held_out
@@ -281,6 +314,8 @@ def _run_predict(args) -> int:
     }
     if held is not None:
         payload["measured_errors_mm"] = (held.measured_error * 1e3).tolist()
+        nominal = nominal_error(model.registration_, robot, q, measured)
+        payload["nominal"] = _nominal_summary(nominal)
     _fit_table(out, robot, args, q_train, "query poses", int(q.shape[0]))
     out.add_table("Tracker frame", ["setting", "value"], _frame_rows(model, args),
                   note="p_tracker = R p_base + t, fitted with the TCP offset on the training data "
@@ -348,6 +383,7 @@ def _run_predict(args) -> int:
              (f"uncertainty ({kind}): mean std per axis {np.mean(std) * 1e3:.4f} mm" if std is not None
               else f"uncertainty: none ({args.method} gives no standard deviation)")]
     if heldout is not None:
+        lines.append(nominal_line(payload["nominal"], "measured query poses"))
         lines.append(f"held-out error against the {heldout['count']} measured query positions: mean "
                      f"{heldout['mean_mm']:.4f} mm, RMS {heldout['rms_mm']:.4f} mm, max {heldout['max_mm']:.4f} mm"
                      + (f"; {100 * heldout['within_2std']:.0f} % of axis misses within 2 std"
@@ -368,6 +404,7 @@ def _run_compensate(args) -> int:
     import numpy as np
 
     from ..exceptions import InputError
+    from ..prediction.nominal import nominal_error
     from ..prediction.target_compensation import compensate_targets
     from ..view.plots_prediction import plot_compensation
 
@@ -397,6 +434,8 @@ def _run_compensate(args) -> int:
         heldout, heldout_miss = _held_out_summary(done.held_out), done.held_out.miss
         heldout["measured_error_before_mean_mm"] = float(done.measured_before.mean() * 1e3)
         heldout["measured_error_before_max_mm"] = float(done.measured_before.max() * 1e3)
+        # the nominal figure on every measured target, solved or not (it does not depend on the compensation)
+        heldout["nominal"] = _nominal_summary(nominal_error(model.registration_, robot, q_all, measured_all))
     payload = {
         "robot": robot.name, "method": args.method, "frame": args.frame, "n_train": int(q_train.shape[0]),
         "n_targets": int(q.shape[0]), "tracker_frame": model.registration_.to_dict(), "heldout": heldout,
@@ -474,8 +513,8 @@ def _run_compensate(args) -> int:
              f"predicted error at the targets before compensation: mean {before.mean() * 1e3:.4f} mm, "
              f"max {before.max() * 1e3:.4f} mm"]
     if heldout is not None:  # the realistic figure first: what compensation is expected to leave
-        lines.append(f"measured at the targets (held out): error {heldout['measured_error_before_mean_mm']:.4f} mm "
-                     f"mean uncompensated; |measured - predicted error| mean {heldout['mean_mm']:.4f} mm, "
+        lines.append(nominal_line(heldout["nominal"], "measured targets"))
+        lines.append(f"measured at the targets (held out): |measured - predicted error| mean {heldout['mean_mm']:.4f} mm, "
                      f"max {heldout['max_mm']:.4f} mm (about what compensation leaves)")
     lines.append(f"the model's own miss after compensation (its prediction, not a measurement): mean "
                  f"{after.mean() * 1e3:.2g} mm, max {after.max() * 1e3:.2g} mm")

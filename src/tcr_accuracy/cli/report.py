@@ -27,7 +27,7 @@ def add_parsers(sub) -> None:
                     "installed, DIR/report.pdf (A4).")
     p.add_argument("results", metavar="RESULT.json", nargs="+",
                    help="JSON results: diagnose --json (the last one is the calibration shown), iso9283 evaluate "
-                        "--json, compare --json")
+                        "--json, compare --json, and export's DIR/accuracy.json (each delivered form judged)")
     p.add_argument("--out", required=True, type=output_folder, metavar="DIR", help="the report folder")
     add_campaign_arguments(p)
     add_quiet_argument(p)
@@ -43,11 +43,13 @@ def add_campaign_arguments(parser) -> None:
                        help="a campaign file (YAML or TOML): title, customer, robot model and serial, instrument "
                             "name, serial and certificate, temperature range, date, operator, limits_mm, names "
                             "to sign; the flags below override it")
-    group.add_argument("--title", default=None, help="the report's title (default: 'Calibration report: ROBOT')")
-    group.add_argument("--customer", default=None, metavar="TEXT", help="the customer")
-    group.add_argument("--serial", default=None, metavar="TEXT", help="the robot's serial number")
-    group.add_argument("--operator", default=None, metavar="TEXT", help="who measured the robot")
-    group.add_argument("--certificate", default=None, metavar="TEXT",
+    group.add_argument("--title", default=None, type=text_argument,
+                       help="the report's title (default: 'Calibration report: ROBOT')")
+    group.add_argument("--customer", default=None, type=text_argument, metavar="TEXT", help="the customer")
+    group.add_argument("--serial", default=None, type=text_argument, metavar="TEXT",
+                       help="the robot's serial number")
+    group.add_argument("--operator", default=None, type=text_argument, metavar="TEXT", help="who measured the robot")
+    group.add_argument("--certificate", default=None, type=text_argument, metavar="TEXT",
                        help="the instrument's calibration certificate (number, date)")
     group.add_argument("--limit-mm", action="append", default=None, type=limit_argument, metavar="[FIGURE=]MM",
                        help="a limit the result is judged against [mm], repeatable: FIGURE is one of "
@@ -58,6 +60,21 @@ def add_campaign_arguments(parser) -> None:
 
 #: The figures --limit-mm names (the keys of the campaign file's limits_mm).
 LIMIT_NAMES = ("max", "rms", "mean", "ap", "rp")
+
+
+def text_argument(value: str) -> str:
+    """argparse type of the first page's text flags: the check a campaign file's text has
+    (:func:`tcr_accuracy.io.campaign.text_problem`: no control or bidirectional-override character,
+    at most a line), on the text as the page shows it (white space runs as one space)."""
+    import argparse
+
+    from ..io.campaign import text_problem
+
+    text = " ".join(value.split())
+    problem = text_problem(text)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(problem)
+    return text
 
 
 def limit_argument(text: str) -> tuple[str, float]:
@@ -93,6 +110,11 @@ def read_campaign_arguments(args):
              if getattr(args, dest, None) is not None]
     if given and getattr(args, "out", None) is None:
         raise InputError(f"{given[0]}: fills the report's first page; give --out DIR for the report")
+    figures = [figure for figure, _ in args.limit_mm or ()]
+    twice = next((f for f in figures if figures.count(f) > 1), None)
+    if twice is not None:  # argparse keeps the last: --limit-mm max=0.05 --limit-mm max=0.2 judged by 0.2 alone
+        given = " and ".join(f"{value:g}" for figure, value in args.limit_mm if figure == twice)
+        raise InputError(f"--limit-mm: {twice} is limited twice ({given} mm); give one limit per figure")
     facts = read_campaign(args.campaign) if args.campaign else CampaignFacts()
     facts = facts.updated(**{field: getattr(args, dest) for dest, field in _CAMPAIGN_FLAGS},
                           limits_mm=dict(args.limit_mm) if args.limit_mm else None)
@@ -105,6 +127,7 @@ def _run_report(args) -> int:
     from ..results.kinds import kind_of
     from ..view.calibration_report import Campaign, RobotFacts
     from ..view.result_tables import add_technical_tables
+    from ..view.uncertainty_words import add_budget_tables
     from ..view.report import Report
 
     facts = read_campaign_arguments(args)
@@ -122,6 +145,7 @@ def _run_report(args) -> int:
         if len(given) > 1:
             named = ", ".join(f"{path} ({doc.get(key, 'not recorded')})" for path, doc in documents)
             raise InputError(f"RESULT.json: results of different {what} ({named}): one report is of one robot and TCP")
+    _check_exports_match(documents)
     robot = _robot_facts(RobotFacts.from_documents(documents), documents)
     title = facts.title or f"Calibration report: {robot.name}"
     report = Report(title, command=getattr(args, "argv", None))
@@ -135,23 +159,39 @@ def _run_report(args) -> int:
     campaign = Campaign(robot, documents)
     add_calibration_page(report, args, campaign, links)
     add_technical_tables(report, campaign)
+    add_budget_tables(report, campaign)
     _add_result_plots(report, campaign)
     from .writers import write_report
 
     index = write_report(report, args.out)
     status(args, f"report written to {index}")
     pdf_status(args, report)
-    print(f"Result: {' '.join(verdict_line(campaign))}")
+    for line in verdict_lines(campaign):
+        print(f"Result: {line}")
     return EXIT_OK
 
 
-def verdict_line(campaign) -> tuple[str, str]:
-    """(status, why) of the campaign's results against its limits: the first page's pass/fail line."""
-    from ..view.accuracy_verdict import accuracy_figures, verdict
+def verdict_lines(campaign) -> list[str]:
+    """The first page's pass/fail lines, one per form judged (``STATUS for FORM: why``)."""
+    from ..view.accuracy_verdict import form_verdicts
+    from ..view.uncertainty_words import exports_of
 
     diagnoses, isos = campaign.of_kind("diagnosis"), campaign.of_kind("iso9283")
-    status_, why = verdict(accuracy_figures(diagnoses[-1][1] if diagnoses else None, isos), campaign.facts.limits_mm)
-    return f"{status_}:", why
+    return [v.line for v in form_verdicts(diagnoses[-1][1] if diagnoses else None, isos, exports_of(campaign),
+                                          campaign.facts.limits_mm)]
+
+
+def _check_exports_match(documents) -> None:
+    """An export result judged beside a diagnosis is that diagnosis' export (by its file name): the
+    forms of another calibration are not this one's."""
+    from ..exceptions import InputError
+    from ..results.kinds import kind_of
+
+    diagnoses = [Path(path).name for path, doc in documents if kind_of(doc, path) == "diagnosis"]
+    for path, doc in documents:
+        if kind_of(doc, path) == "export" and diagnoses and doc["diagnosis"] != diagnoses[-1]:
+            raise InputError(f"RESULT.json: {path} is the export of {doc['diagnosis']}, not of {diagnoses[-1]} (the "
+                             "diagnosis judged): give the export of the same diagnosis")
 
 
 def _identity(path: str):
@@ -166,7 +206,8 @@ def _identity(path: str):
 def _read_result(path: str):
     from ..results.files import read_result
 
-    return read_result(path, hint="give the --json result of diagnose, iso9283 evaluate or compare")[1]
+    return read_result(path, hint="give the --json result of diagnose, iso9283 evaluate or compare, or export's "
+                                  "accuracy.json")[1]
 
 
 def _robot_facts(facts, documents):

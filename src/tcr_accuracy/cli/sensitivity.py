@@ -46,7 +46,7 @@ def _run_sensitivity(args) -> int:
 
     from ..exceptions import InputError
     from ..analysis.random_inputs import random_inputs
-    from ..model.robot import load_robot
+    from .common import robot_from_args
     from ..analysis.sensitivity import OUTPUT_UNITS, OUTPUTS, clearance_sweeps, seed_sweeps
     from ..analysis.sobol import sobol_indices
 
@@ -54,7 +54,7 @@ def _run_sensitivity(args) -> int:
     if n < 2 or n & (n - 1):
         raise InputError(f"--sobol-samples {n}: must be a power of two >= 2 (e.g. 512, 1024, 4096)")
     out = RunOutput(args, "Sensitivity of the TCP error to each error source")
-    robot = load_robot(args.robot, args.tool)
+    robot = robot_from_args(args)
     q = joint_values_si(robot, args.q)
     sampler, label = error_sampler(robot, args)
     sweeps = seed_sweeps(robot, q)

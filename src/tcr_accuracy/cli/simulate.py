@@ -12,8 +12,9 @@ def add_parsers(sub) -> None:
         "simulate", help="write a measurement CSV of a robot with hidden effects",
         description="Stand-in for the real robot: perturb the nominal model with the hidden effects "
                     "of a scenario (YAML), take N poses (random within the joint limits, <mimic> rules kept, "
-                    "free of self-collision where the URDF has collision geometry, optionally in a task box "
-                    "and in the tracker's line of sight; or from --poses), add laser-tracker noise and write "
+                    "free of self-collision where the URDF has collision geometry, the TCP and the joints above "
+                    "the plane the robot stands on, optionally in a task box and in the tracker's line of sight; "
+                    "or from --poses), add laser-tracker noise and write "
                     "a measurement CSV. The hidden truth goes to --truth only, never into the CSV.",
     )
     add_robot_arguments(p)
@@ -29,6 +30,10 @@ def add_parsers(sub) -> None:
     p.add_argument("--poses", metavar="CSV", default=None,
                    help="commanded poses (joint columns, optional context columns) instead of random ones")
     add_reach_arguments(p, "random poses")
+    p.add_argument("--below-mounting-plane", action="store_true",
+                   help="also draw random poses that put the TCP or a joint below the plane the robot stands on "
+                        "(z = 0 of its base); by default they are drawn again, for every robot but the built-in "
+                        "tool-changer, which works below its base inside the cutterhead")
     p.add_argument("--noise-mm", type=number(low=0, high=MAX_MM, unit="mm"), default=None,
                    help="tracker noise, std per axis [mm] (default: the scenario's, else 0.02)")
     p.add_argument("--orientation", action="store_true", help="also write measured orientations (qw..qz)")
@@ -47,7 +52,7 @@ def _run_simulate(args) -> int:
 
     from ..exceptions import InputError
     from ..io.measurements import read_measurements
-    from ..model.robot import load_robot
+    from .common import robot_from_args
     from ..analysis.scenario import load_scenario, scenario_from_dict
     from ..analysis.reachable import PoseFilter
     from ..analysis.simulate import random_scenario, screened_poses, simulate_measurements, truth_text
@@ -55,11 +60,12 @@ def _run_simulate(args) -> int:
     from .writers import write_measurements
 
     # --poses fixes the poses: these would be ignored
-    for given, option in ((args.n, "--n"), (args.box, "--box"), (args.tracker_mm, "--tracker-mm")):
+    for given, option in ((args.n, "--n"), (args.box, "--box"), (args.tracker_mm, "--tracker-mm"),
+                          (args.below_mounting_plane or None, "--below-mounting-plane")):
         if given is not None and args.poses is not None:
             raise InputError(f"{option} with --poses {args.poses}: the file's rows are the poses; give one of them")
     args.n = 200 if args.n is None else args.n
-    robot = load_robot(args.robot, args.tool)
+    robot = robot_from_args(args)
     # the poses, their context and the CSV text: a few hundred bytes a measurement
     check_memory(args, f"--n {args.n}", args.n * (sample_bytes(robot) + 400.0))
     if args.poses is not None:
@@ -82,7 +88,8 @@ def _run_simulate(args) -> int:
         q, context = poses.q, poses.make_context(rng=rng)
     box, tracker = reach_values(args)
     if q is None:  # drawn here, as simulate_measurements would, to say what was rejected
-        pose_filter = PoseFilter.for_robot(robot, box=box, tracker=tracker)
+        pose_filter = PoseFilter.for_robot(robot, box=box, tracker=tracker,
+                                           floor_z=None if args.below_mounting_plane else robot.mounting_plane_z)
         screened = screened_poses(robot, args.n, rng, pose_filter=pose_filter)
         q = screened.q
     noise = None if args.noise_mm is None else args.noise_mm * 1e-3

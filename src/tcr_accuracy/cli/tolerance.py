@@ -45,7 +45,7 @@ def _run_tolerance(args) -> int:
 
     from ..exceptions import AnalysisError, InputError
     from ..analysis.random_inputs import random_inputs
-    from ..model.robot import load_robot
+    from .common import robot_from_args
     from ..analysis.tolerance import allocate_tolerance
 
     if args.samples * (1.0 - args.target_prob) < 1.0:  # fewer than one expected miss: 1.0 is all it can say
@@ -53,7 +53,7 @@ def _run_tolerance(args) -> int:
                          f"(not one miss expected); use about {10 / (1.0 - args.target_prob):.2g} --samples "
                          "(ten misses expected), or a lower --target-prob")
     out = RunOutput(args, "Tolerance allocation")
-    robot = load_robot(args.robot, args.tool)
+    robot = robot_from_args(args)
     q = joint_values_si(robot, args.q)
     check_memory(args, f"--samples {args.samples}", args.samples * sample_bytes(robot))
     sampler, label = error_sampler(robot, args)

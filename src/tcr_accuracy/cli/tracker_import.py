@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from .common import EXIT_OK, add_quiet_argument, add_robot_arguments, check_csv_memory, number, output_file, status
+from .common import (EXIT_OK, add_quiet_argument, add_robot_arguments, check_csv_memory, number, output_file_only,
+                     status)
 
 
 def add_parsers(sub) -> None:
@@ -29,7 +30,7 @@ def add_parsers(sub) -> None:
                    help="largest time between a tracker point and the joint-log sample it is joined to "
                         "[ms] (default 50)")
     add_robot_arguments(p)
-    p.add_argument("--out", required=True, type=output_file, metavar="CSV", help="measurement CSV to write")
+    p.add_argument("--out", required=True, type=output_file_only, metavar="CSV", help="measurement CSV to write")
     add_quiet_argument(p)
     p.set_defaults(run=_run_import)
 
@@ -47,12 +48,12 @@ def _run_import(args) -> int:
     from ..exceptions import InputError
     from ..io.measurements import parse_measurements
     from ..io.tracker_import import import_tracker
-    from ..model.robot import load_robot
+    from .common import robot_from_args
 
     for path in (args.tracker, args.joints):  # before either is read
         if path is not None:
-            check_csv_memory(args, path, "importing", IMPORT_ROW_BYTES)
-    robot = load_robot(args.robot, args.tool)
+            check_csv_memory(args, path, "importing", IMPORT_ROW_BYTES, hint="use a smaller file")
+    robot = robot_from_args(args)
     out = Path(args.out)
     result = import_tracker(args.tracker, parse_map(args.map, "--map"), args.joints,
                             parse_map(args.log_map, "--log-map"), args.tolerance_ms * 1e-3)

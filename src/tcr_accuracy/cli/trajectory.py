@@ -35,11 +35,11 @@ def _run_trajectory(args) -> int:
     import numpy as np
 
     from ..exceptions import InputError
-    from ..model.robot import load_robot
+    from .common import robot_from_args
     from ..analysis.trajectory import read_trajectory_csv, tool_change_motion, trajectory_error_bands
 
     out = RunOutput(args, "TCP error along a trajectory")
-    robot = load_robot(args.robot, args.tool)
+    robot = robot_from_args(args)
     if args.file:
         check_csv_memory(args, args.file, "--file", 8.0 * (robot.n_joints + 1))
         traj = read_trajectory_csv(args.file, robot)

@@ -17,7 +17,8 @@ import argparse
 import sys
 
 from .common import (EXIT_OK, MAX_COUNT, add_quiet_argument, add_robot_arguments, check_memory, format_joint_values,
-                     integer, joint_value, joint_values_si, number, output_file, sample_bytes, seed_value, status)
+                     integer, joint_value, joint_values_si, number, output_file, output_file_only, sample_bytes,
+                     seed_value, status)
 
 DEFAULT_VIEW_FILE = "view.html"
 
@@ -31,7 +32,7 @@ def add_view_arguments(parser: argparse.ArgumentParser, *, always: bool = False)
         for. Other commands get ``--view`` (off unless given).
     """
     if always:
-        parser.add_argument("--view", "--html", dest="html", default=None, type=output_file, metavar="FILE",
+        parser.add_argument("--view", "--html", dest="html", default=None, type=output_file_only, metavar="FILE",
                             help=f"write the view as one self-contained HTML file that opens in any "
                                  f"browser without a server (default: {DEFAULT_VIEW_FILE}, unless only "
                                  "--serve is given)")
@@ -126,14 +127,14 @@ def _run_view(args) -> int:
 
     from ..model.errors import seed_budget
     from ..exceptions import InputError
-    from ..model.robot import load_robot
+    from .common import robot_from_args
     from ..view.viewer import Scene
 
     if args.open and not args.serve:
         raise InputError("--open needs --serve")
     if args.magnify is not None and args.error_preset is None:  # it magnifies the error cloud, and there is none
         raise InputError(f"--magnify {args.magnify:g}: only with --error-preset (it magnifies the TCP error cloud)")
-    robot = load_robot(args.robot, args.tool)
+    robot = robot_from_args(args)
     q = joint_values_si(robot, args.q)
     scene = Scene(f"{robot.name} at {format_joint_values(robot, q)}")
     scene.add_robot(robot, q, "nominal")

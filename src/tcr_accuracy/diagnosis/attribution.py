@@ -2,8 +2,10 @@
 
 * :func:`contributions` -- the TCP motion each chosen effect's fitted parameters cause,
   beyond what a rigid frame change could absorb.
-* :func:`tied_own_shares` -- the chosen effects whose own share the data cannot rank below
-  the largest: the primary effect is then one of them, not the largest by a hair.
+* :func:`rank_largest` -- the largest of several shares (own shares, family shares) against
+  each other one: the difference of the two and its 95 % interval, paired on the same bootstrap
+  replicates, and the selection's paired test on the same rows; the data rank them apart only where
+  both do, and the primary effect or family is otherwise one of those tied, not the largest by a hair.
 * :func:`fixed_point_check` -- the effects are first order in their own joint deflections
   (compliance takes gravity at the commanded pose): how far one fixed-point step would move
   the TCP, against the noise floor.
@@ -13,10 +15,11 @@ Lengths in m inside; the returned dicts carry mm in ``_mm`` keys.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..effects.compose import fixed_point_motion
-from .bases import ordered
 from .paired import entry_z
 from ..model.errors import ErrorModel
 from ..model.kinematics import tcp_poses
@@ -54,21 +57,62 @@ def fixed_point_check(part, bases, full_parameters, noise_floor) -> tuple[float,
     return rms, largest, note
 
 
-def tied_own_shares(engine, model: list, leave_one_out: list, selection_z: float) -> list:
-    """Of the effects in ``leave_one_out`` (rows of the final ``model`` without each), the one with
-    the largest own share (held-out error without it, the others held to their own parameters)
-    and every other whose own share it does not beat on the same held-out rows by the selection's
-    test (:func:`~.paired.entry_z` of ``selection_z``): a geometry error and a compliance error that each leave 2 mm are not
-    ranked by 0.01 mm between them."""
-    if not leave_one_out:
+@dataclass(frozen=True)
+class ShareComparison:
+    """Two shares of the held-out error compared on the same rows (SI units).
+
+    Attributes
+    ----------
+    larger, smaller : str
+        What the shares are of (an effect, a family): the larger point estimate first.
+    difference : float
+        The larger share minus the smaller [m] (the held-out RMS without ``larger`` minus that without
+        ``smaller``).
+    interval : (float, float)
+        Its 95 % interval [m], from the same bootstrap replicates as both shares (paired).
+    z : float
+        The selection's paired test on the same rows (:func:`~.paired.entry_z`): how clearly the
+        per-row squared errors without ``larger`` exceed those without ``smaller``.
+    threshold : float
+        The z it must exceed (the selection's).
+    """
+
+    larger: str
+    smaller: str
+    difference: float
+    interval: tuple
+    z: float
+    threshold: float
+
+    @property
+    def ranked(self) -> bool:
+        """The held-out rows rank ``larger`` above ``smaller``: the test that lets an effect into the
+        model passes (z above ``threshold``) and the difference's 95 % interval lies above zero, so that
+        no answer names the larger of two by less than the diagnosis asks of an effect, nor against its
+        own printed interval."""
+        return bool(self.z > self.threshold and self.interval[0] > 0.0)
+
+    def to_dict(self) -> dict:
+        return {"larger": self.larger, "smaller": self.smaller, "difference_mm": self.difference * 1e3,
+                "interval_mm": [self.interval[0] * 1e3, self.interval[1] * 1e3], "z": self.z,
+                "z_threshold": self.threshold, "ranked": self.ranked}
+
+
+def rank_largest(table, squares: dict, names: list, final, threshold: float) -> list[ShareComparison]:
+    """The largest share of ``names`` against each other one, largest first.
+
+    ``squares``: name -> per-row squared held-out errors of the model without it, and of the model
+    with all (``final``); ``table``: their :class:`~.uncertainty.BootstrapTable`. A share is the rise
+    of the held-out RMS without it. The difference of two shares and its interval are read on the same
+    replicates, the paired test (:func:`~.paired.entry_z`) on the same rows. Returns [] for fewer than
+    two names."""
+    if len(names) < 2:
         return []
-    ranked = sorted(leave_one_out, key=lambda row: -row["own_share_increase_mm"])
-    keep = engine.kept(tuple(ordered(model)))
-
-    def without(effect):  # the leave-one-out fit of its own share (cached by the engine)
-        rest = ordered([s for s in model if s != effect])
-        return engine.evaluate(rest, keep={s: keep[s] for s in rest})["heldout_squares"]
-
-    top = ranked[0]["dropped"]
-    return [top] + [row["dropped"] for row in ranked[1:]
-                    if entry_z(without(top), without(row["dropped"])) < selection_z]
+    ranked = sorted(names, key=lambda n: -(table.point[n] - table.point[final]))
+    top = ranked[0]
+    out = []
+    for other in ranked[1:]:
+        d = table.difference(top, other)
+        out.append(ShareComparison(top, other, d.value, (d.low, d.high), entry_z(squares[top], squares[other]),
+                                   float(threshold)))
+    return out

@@ -80,7 +80,7 @@ from .stages.select import select_effects
 def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, random_state=0,
              tracker_noise: float | None = None, selection_z: float = 3.0, min_relative_gain: float = 0.002,
              rank_tol: float = 1e-6, orientation_weight: float | None = None, progress=None,
-             references=(), instrument=None) -> Diagnosis:
+             references=(), instrument=None, tcp_offset=None) -> Diagnosis:
     """Diagnose the gap between the nominal robot and its measurements.
 
     The function form of :class:`GapDiagnosis`: ``GapDiagnosis(robot=robot, ...).fit(measurements).result_``.
@@ -123,6 +123,9 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, r
         Base references: frames fixed to the robot's base (their place in the base frame), measured on
         the same rows in the tracker frame: they pin the tracker frame and show its drift
         (estimated per session, corrected where significant and larger than the noise).
+    tcp_offset : array-like of shape (3,), default=None
+        The measured point's offset from the robot's tool frame as the user knows it [m] (see
+        :class:`GapDiagnosis`).
 
     Returns
     -------
@@ -140,7 +143,8 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, r
     """
     return GapDiagnosis(robot=robot, effects=effects, folds=folds, random_state=random_state,
                         tracker_noise=tracker_noise, selection_z=selection_z, min_relative_gain=min_relative_gain,
-                        rank_tol=rank_tol, orientation_weight=orientation_weight, instrument=instrument).fit(
+                        rank_tol=rank_tol, orientation_weight=orientation_weight, instrument=instrument,
+                        tcp_offset=tcp_offset).fit(
         measurements, progress=progress, references=references).result_
 
 
@@ -199,6 +203,11 @@ class GapDiagnosis(BaseEstimator):
         or :func:`~tcr_accuracy.frames.instrument.instrument_from`): every measured point weighed
         by its own noise (an MPE growing with its distance, along and across the beam), and the
         noise floor from it where the data's redundancy gives none. None: every point alike.
+    tcp_offset : array-like of shape (3,), default=None
+        The measured point's offset from the robot's tool frame (of the first measured frame), in that
+        frame's axes, as the user knows it (a drawing, the tool's data sheet) [m]. The diagnosis fits
+        its own; the two are set side by side and flagged where they differ by more than the robot's
+        class allows (:mod:`tcr_accuracy.diagnosis.plausibility`). None: not checked.
 
     Attributes
     ----------
@@ -236,13 +245,14 @@ class GapDiagnosis(BaseEstimator):
         "orientation_weight": [None, Interval(Real, 0, 1e3, closed="neither")],
         "stability_replays": [Interval(Integral, 1, 100_000, closed="both")],
         "fold_repeats": [None, Interval(Integral, 1, 1000, closed="both")],
+        "tcp_offset": [None, "array-like"],
     }
 
     @renamed_keyword("seed", "random_state")
     def __init__(self, *, robot=None, effects=None, folds: int = 5, random_state=0,
                  tracker_noise: float | None = None, selection_z: float = 3.0, min_relative_gain: float = 0.002,
                  rank_tol: float = 1e-6, orientation_weight: float | None = None, stability_replays: int = 50,
-                 fold_repeats: int | None = None, instrument=None):
+                 fold_repeats: int | None = None, instrument=None, tcp_offset=None):
         self.robot = robot
         self.effects = effects
         self.folds = folds
@@ -255,6 +265,7 @@ class GapDiagnosis(BaseEstimator):
         self.stability_replays = stability_replays
         self.fold_repeats = fold_repeats
         self.instrument = instrument
+        self.tcp_offset = tcp_offset
 
     def __repr__(self, N_CHAR_MAX=700) -> str:
         """scikit-learn's repr of the parameters on one line, and once fitted what was found."""
@@ -333,6 +344,7 @@ class GapDiagnosis(BaseEstimator):
     def _fit(self, robot, measurements, progress, references) -> "GapDiagnosis":
         """The stages of :mod:`tcr_accuracy.diagnosis.stages`, in order."""
         frames = self._check(robot, measurements)
+        tcp_given = self._tcp_offset()
         say = progress or (lambda message: None)
         seed = int_seed(self.random_state)
         rng = np.random.default_rng(seed)  # one stream, drawn in stage order: folds, structure test, residual
@@ -351,9 +363,10 @@ class GapDiagnosis(BaseEstimator):
         attribution = attribute_effects(registered, candidates, selection, selection_z=self.selection_z,
                                         min_relative_gain=self.min_relative_gain,
                                         stability_replays=self.stability_replays, seed=seed, say=say)
+        candidates.engine.release_fold_blocks()  # every model is fitted: the residual tests' memory
         residual = analyse_residual(registered, candidates, selection, tracker_noise=self.tracker_noise, rng=rng,
                                     seed=seed, say=say)
-        parameters = collect_parameters(registered, candidates, selection)
+        parameters = collect_parameters(registered, candidates, selection, tcp_given)
         first_order = first_order_reach(registered.parts[0], candidates.bases,
                                         [e for e in selection.selected if e != "frames"], parameters.full_vectors,
                                         registered.nominal[0].position, residual.noise_floor)
@@ -370,6 +383,19 @@ class GapDiagnosis(BaseEstimator):
         self.parameters_ = parameters.values
         self.noise_ = residual.noise
         return self
+
+    def _tcp_offset(self) -> np.ndarray | None:
+        """The given TCP offset (3,) [m], checked: three finite numbers within 10 m."""
+        if self.tcp_offset is None:
+            return None
+        try:
+            offset = np.asarray(self.tcp_offset, dtype=float)
+        except (TypeError, ValueError):
+            offset = np.full(0, np.nan)
+        if offset.shape != (3,) or not np.all(np.isfinite(offset)) or np.linalg.norm(offset) > 10.0:
+            raise InputError(f"tcp_offset={self.tcp_offset!r}: want three finite numbers [m], within 10 m of the tool "
+                             "frame", parameter="tcp_offset", value=self.tcp_offset)
+        return offset
 
     def ladder(self, effects) -> list[Step]:
         """The shrink table along a given order of effects (``frames`` first), on the same data,

@@ -390,6 +390,12 @@ class FitEngine:
             store.set_anchor(Anchor(tuple(effects), phi, residual))
         return store
 
+    def release_fold_blocks(self) -> None:
+        """Let the held-out rows' Gram blocks go once the models are fitted
+        (:meth:`~tcr_accuracy.diagnosis.gram.FoldGrams.release`); a later new fit makes them again."""
+        if self._grams is not None:
+            self._grams.release()
+
     def _fold_grams(self) -> FoldGrams:
         """The Gram blocks, made when first asked for (not yet anchored)."""
         if self._grams is None:
@@ -584,7 +590,7 @@ class FitEngine:
                 if k:  # one step from the full fit, on the normal equations less the held-out rows
                     held_gradient = gradient_vector(jacs, self._weighted([res[test] for res in train], test), test,
                                                     self.n_rows)
-                    phi_k = self._fold_step(cols, gram - store.held[r][f][np.ix_(index, index)], phi,
+                    phi_k = self._fold_step(cols, gram - store.held_blocks()[r][f][np.ix_(index, index)], phi,
                                             total_gradient - held_gradient, lam)
                 steps.append(phi_k)
             fold_steps.append(steps)

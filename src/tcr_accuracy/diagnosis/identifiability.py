@@ -113,16 +113,8 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
     for name in order:
         b = bases[name]
         threshold = thresholds.get(name, 0.0)
-        n_pose = b.n_poses if getattr(b, "n_poses", None) else max(b.g.shape[0], 1)
-        cols = (b.g * b.scales).reshape(-1, len(b.names))
-        norms = np.linalg.norm(cols, axis=0)
-        proj = cols if kept_q is None else cols - kept_q @ (kept_q.T @ cols)
+        n_pose, cols, norms, piv, diag, basis = _block_pivots(b, kept_q)
         removed, kept_local = [], []
-        # columns of equal independent motion (two placement translations along one axis) tie: the
-        # pivoting would then follow round-off, which differs between BLAS builds; weights within
-        # 1e-9 of one make the earlier column win every exact tie and change nothing else
-        tie_break = 1.0 + 1e-9 * np.arange(len(b.names), 0, -1) / max(len(b.names), 1)
-        piv, diag, basis = _pivoted(proj, tie_break)
         independent = np.zeros(len(b.names))
         independent[piv[:diag.size]] = diag
         rank = 0
@@ -183,12 +175,7 @@ def _kept_columns(bases: dict, order, rank_tol: float, min_motion) -> dict:
     for name in order:
         b = bases[name]
         threshold = thresholds.get(name, 0.0)
-        n_pose = b.n_poses if getattr(b, "n_poses", None) else max(b.g.shape[0], 1)
-        cols = (b.g * b.scales).reshape(-1, len(b.names))
-        norms = np.linalg.norm(cols, axis=0)
-        proj = cols if kept_q is None else cols - kept_q @ (kept_q.T @ cols)
-        tie_break = 1.0 + 1e-9 * np.arange(len(b.names), 0, -1) / max(len(b.names), 1)
-        piv, diag, basis = _pivoted(proj, tie_break)
+        n_pose, _, norms, piv, diag, basis = _block_pivots(b, kept_q)
         rank = 0
         for k in range(diag.size):
             if diag[k] / math.sqrt(n_pose) > threshold and diag[k] > rank_tol * norms[piv[k]]:
@@ -201,6 +188,20 @@ def _kept_columns(bases: dict, order, rank_tol: float, min_motion) -> dict:
     return keep
 
 
+def _block_pivots(b, kept_q: np.ndarray | None) -> tuple:
+    """One effect's block projected off the kept span ``kept_q`` (3N, r) and pivoted: (poses, its
+    scaled columns (3N, P), their norms (P,), and :func:`_pivoted`'s pivots, diagonal and basis)."""
+    n_pose = b.n_poses if getattr(b, "n_poses", None) else max(b.g.shape[0], 1)
+    cols = (b.g * b.scales).reshape(-1, len(b.names))
+    norms = np.linalg.norm(cols, axis=0)
+    proj = cols if kept_q is None else cols - kept_q @ (kept_q.T @ cols)
+    # columns of equal independent motion (two placement translations along one axis) tie: the
+    # pivoting would then follow round-off, which differs between BLAS builds; weights within
+    # 1e-9 of one make the earlier column win every exact tie and change nothing else
+    tie_break = 1.0 + 1e-9 * np.arange(len(b.names), 0, -1) / max(len(b.names), 1)
+    return (n_pose, cols, norms) + _pivoted(proj, tie_break)
+
+
 #: an effect of more columns than this (a fine angle table) is pivoted through the Gram matrix of its
 #: projected columns (:func:`_pivoted`)
 GRAM_PIVOTING = 256
@@ -211,7 +212,9 @@ def _pivoted(proj: np.ndarray, tie_break: np.ndarray):
     tie_break, and a function of the rank giving an orthonormal basis (rows, rank) of the first pivots'
     columns). Beyond :data:`GRAM_PIVOTING` columns, by LAPACK's pivoted Cholesky (``dpstrf``) of their
     Gram matrix: the same pivots (each step takes the column of largest remaining norm, Businger and
-    Golub's rule), R's diagonal to ~1e-8 of each column's norm (far below the rank tolerance), and a
+    Golub's rule), R's diagonal to ~eps times the largest norm squared over its own value (1e-6
+    relative at the smallest of columns a hundredfold apart, tests/test_gram.py: below the rank
+    tolerance, as the columns are scaled to their typical sizes), and a
     third of the work of ``dgeqp3`` on a thousand columns; its diagonal stops where the remaining
     columns are numerically zero."""
     if proj.shape[1] <= GRAM_PIVOTING:

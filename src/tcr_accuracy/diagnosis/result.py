@@ -128,7 +128,13 @@ class Diagnosis:
 
     @property
     def leave_one_out(self) -> list:
-        return [r.to_dict() for r in self.stages.select.leave_one_out]
+        """The final model without each chosen effect (JSON form, mm): the others refitted, and held to
+        their own parameters (its own share, with stage 4's 95 % interval)."""
+        own = self.stages.attribute.own_shares
+        return [{**r.to_dict(), **({"own_share_increase_mm": own[r.effect][0] * 1e3,
+                                    "own_share_interval_mm": [own[r.effect][1] * 1e3, own[r.effect][2] * 1e3]}
+                                   if r.effect in own else {})}
+                for r in self.stages.select.leave_one_out]
 
     @property
     def eliminated(self) -> list:
@@ -296,6 +302,13 @@ class Diagnosis:
         return [f.to_dict() for f in self.stages.attribute.families]
 
     @property
+    def own_share_ranking(self) -> list:
+        """The largest own share against each other the primary effect was chosen among: the
+        difference, its 95 % interval (paired, the same bootstrap replicates) and whether the held-out
+        rows rank the two apart (JSON form, mm; the families' are in :attr:`families`, ``below_largest``)."""
+        return [c.to_dict() for c in self.stages.attribute.own_share_ranking]
+
+    @property
     def primary_family(self) -> str | None:
         """The family with the largest share, when the held-out rows rank it above the others."""
         return self.stages.attribute.primary_family
@@ -307,6 +320,12 @@ class Diagnosis:
         return [{"effect": m.effect, "description": m.mechanism, "physical": m.physical,
                  "n_outside": sum(1 for p in m.parameters if not p["textbook"])}
                 for m in self.stages.attribute.mechanisms if not m.textbook and m.effect != "frames"]
+
+    @property
+    def geometry_checks(self) -> list:
+        """The fitted geometry against what the robot's class allows (axis tilts, the tool frame's
+        displacement and rotation, the fitted TCP offset against a given one), JSON form (mm, deg)."""
+        return [c.to_dict() for c in self.stages.parameters.geometry_checks]
 
     @property
     def contribution(self) -> dict:
@@ -390,6 +409,11 @@ class Diagnosis:
             "mechanisms": self.mechanisms,
             "families": self.families,
             "primary_family": self.primary_family,
+            "own_share_ranking": self.own_share_ranking,
+            "interval_method": self.stages.attribute.interval_method,
+            "plausibility": {"tolerance": (None if self.stages.parameters.tolerance is None
+                                           else self.stages.parameters.tolerance.to_dict()),
+                             "checks": self.geometry_checks},
             "confounding": [c.to_dict() for c in self.stages.attribute.confounding],
             "instrument": (None if self.stages.register.instrument is None
                            else self.stages.register.instrument.to_dict()),

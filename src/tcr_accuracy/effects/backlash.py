@@ -10,7 +10,7 @@ import numpy as np
 from ..model.context import context_column
 from ..model.gravity import gravity_torque
 from ..units import REVOLUTE
-from .base import PerJointEffect, joint_unit, per_joint_kind
+from .base import PerJointEffect, joint_unit, link_mass_factors_option, per_joint_kind
 from .fit_policy import FitPolicy
 from .simulation_rules import SimulationRules
 
@@ -55,7 +55,7 @@ class Backlash(PerJointEffect):
 
     def __init__(self, robot, *, link_mass_factors=None) -> None:
         super().__init__(robot)
-        self.link_mass_factors = link_mass_factors
+        self.link_mass_factors = link_mass_factors_option(robot, link_mass_factors)
 
     def parameter_units(self):
         return [joint_unit(k) for k in self.robot.joint_kinds]

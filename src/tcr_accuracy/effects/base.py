@@ -464,6 +464,23 @@ def reference_poses(robot: RobotModel, n: int = 64) -> np.ndarray:
     return lo + (hi - lo) * u
 
 
+def link_mass_factors_option(robot: RobotModel, factors):
+    """``factors`` (the ``link_mass_factors`` option of the gravity effects), returned as given once
+    it is None or one finite factor >= 0 per chain joint; else a ValueError that the reader of a
+    file words with the file and the key (it said "link mass factors: need 6 values >= 0" only
+    when the model was first evaluated, naming neither)."""
+    if factors is None:
+        return None
+    values = np.asarray(factors, dtype=float)
+    if values.shape != (robot.n_joints,):
+        raise ValueError(f"link_mass_factors: {values.size} values for the {robot.n_joints} joints of "
+                         f"{robot.name}; want one factor >= 0 per joint")
+    bad = np.flatnonzero(~np.isfinite(values) | (values < 0))
+    if bad.size:
+        raise ValueError(f"link_mass_factors[{int(bad[0])}]: {values[bad[0]]:g} is not a factor >= 0")
+    return factors
+
+
 def loaded_joint_scales(robot: RobotModel, rms_load: np.ndarray, revolute_target: float,
                         prismatic_target: float) -> np.ndarray:
     """Per-joint compliance scales that turn a joint by a target under its RMS load.

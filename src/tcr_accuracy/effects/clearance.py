@@ -22,7 +22,8 @@ class Clearance(Effect):
     (:class:`~tcr_accuracy.model.clearance.ClearanceModel`, ``Trans * Rot`` on the placement). Parameters: the spreads ``clearance.axial`` [m],
     ``clearance.radial`` [m], ``clearance.tilt`` [rad], shared by the joints with play.
     ``joints``: names (default every revolute joint, as the seed); ``rng``: a numpy
-    Generator (else ``context.rng`` is used).
+    Generator (else ``context.rng`` is used; with neither, :meth:`perturb` gives the mean robot,
+    which play leaves unmoved: an as-built model or a comparison predicts the mean TCP).
     """
 
     name = "clearance"
@@ -65,8 +66,9 @@ class Clearance(Effect):
     def perturb(self, params, q, context) -> EffectOutput:
         q = np.atleast_2d(q)
         rng = self.rng or (context.rng if context is not None else None)
-        if rng is None:
-            raise InputError("clearance: a random generator is needed (option rng= or context.rng)")
+        if rng is None:  # no draw asked for: the mean robot, which play leaves where it is (scatter, not bias)
+            self.check_params(params)
+            return EffectOutput(x=np.zeros((q.shape[0], self.error_model.size)))
         return EffectOutput(x=self.model(params).sample(q.shape[0], rng))
 
     def twist_covariance(self, params) -> np.ndarray:

@@ -10,7 +10,7 @@ import numpy as np
 from ..model.context import context_column
 from ..model.gravity import gravity_torque
 from ..units import REVOLUTE
-from .base import PerJointEffect, loaded_joint_scales, reference_poses
+from .base import PerJointEffect, link_mass_factors_option, loaded_joint_scales, reference_poses
 from .fit_policy import FitPolicy
 from .simulation_rules import SimulationRules
 
@@ -54,7 +54,7 @@ class Compliance(PerJointEffect):
 
     def __init__(self, robot, *, link_mass_factors=None) -> None:
         super().__init__(robot)
-        self.link_mass_factors = link_mass_factors
+        self.link_mass_factors = link_mass_factors_option(robot, link_mass_factors)
 
     def parameter_units(self):
         return ["rad/Nm" if k == REVOLUTE else "m/N" for k in self.robot.joint_kinds]

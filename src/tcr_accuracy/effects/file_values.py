@@ -24,6 +24,7 @@ import numpy as np
 
 from ..exceptions import InputError
 from .base import Effect, effect_class, make_effect
+from .option_schema import check_options
 
 #: Bounds of the setup's parameters read from a file [m, rad]: ``frames.tool.*`` (the measured
 #: point on the TCP frame) and ``frames.base.*`` (the tracker's frame).
@@ -129,6 +130,7 @@ def effect_options(name: str, options, where: str) -> dict:
         if option not in defaults:
             raise InputError(f"{key}: {name} has no option {option!r} (options: {', '.join(defaults) or 'none'})")
         out[option] = _option_value(defaults[option], value, key)
+    check_options(name, options, where)  # each option's bounds, as a diagnosis JSON's and a scenario's
     return out
 
 
@@ -153,8 +155,10 @@ def _option_value(default, value, key: str):
     # None or a sequence by default: a list of numbers or names, or null
     if value is None:
         return None
-    if not isinstance(value, list) or len(value) > MAX_INTEGER_OPTION:
+    if not isinstance(value, list):
         raise InputError(f"{key}: {type(value).__name__} is not a list (or null)")
+    if len(value) > MAX_INTEGER_OPTION:
+        raise InputError(f"{key}: {len(value)} items; at most {MAX_INTEGER_OPTION}")
     items = []
     for k, item in enumerate(value):
         if isinstance(item, str) and len(item) <= 200:
@@ -172,7 +176,8 @@ def checked_effect(name, robot, options, where: str) -> Effect:
     """The effect ``name`` on ``robot`` with the file's options (checked), or one InputError line."""
     if not isinstance(name, str):
         raise InputError(f"{where}: effect names are text, got {name!r}")
+    checked = effect_options(name, options, f"{where}.{name}")  # its InputError names the file and key
     try:
-        return make_effect(name, robot, **effect_options(name, options, f"{where}.{name}"))
+        return make_effect(name, robot, **checked)
     except (TypeError, ValueError) as exc:
         raise InputError(f"{where}.{name}: options not usable ({exc})") from None

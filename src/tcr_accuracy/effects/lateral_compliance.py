@@ -9,7 +9,7 @@ import numpy as np
 from ..model.context import MeasurementContext, context_column
 from ..model.gravity import gravity_wrench
 from ..units import REVOLUTE
-from .base import EffectJacobian, LinearEffect, loaded_joint_scales, reference_poses
+from .base import EffectJacobian, LinearEffect, link_mass_factors_option, loaded_joint_scales, reference_poses
 from .pose_entries import PoseEntries
 from .fit_policy import FitPolicy
 
@@ -46,7 +46,7 @@ class LateralCompliance(LinearEffect):
 
     def __init__(self, robot, *, link_mass_factors=None) -> None:
         super().__init__(robot)
-        self.link_mass_factors = link_mass_factors
+        self.link_mass_factors = link_mass_factors_option(robot, link_mass_factors)
 
     def _axes(self) -> list[tuple[int, str, np.ndarray]]:
         """(joint index, label, unit vector in the placement frame) of every parameter."""

@@ -85,6 +85,9 @@ class MechanismReading:
         whether that is the effect's own physics.
     confounded : tuple of str
         Why the data cannot tell this effect from another (empty when they can).
+    assumed : tuple of str
+        What the fit assumed that the data did not say (drift on the measurement order for want
+        of a time column, say); empty when nothing.
     """
 
     effect: str
@@ -97,12 +100,14 @@ class MechanismReading:
     parameters: tuple
     #: what the data cannot tell this effect from (a variable that follows the measurement order)
     confounded: tuple = ()
+    #: what the fit assumed that the data did not say
+    assumed: tuple = ()
 
     def to_dict(self) -> dict:
         return {"effect": self.effect, "family": self.family, "mechanism": self.mechanism,
                 "mechanism_keys": list(self.keys), "physical": self.physical, "textbook": self.textbook,
                 "check": self.check, "parameters": [dict(p) for p in self.parameters],
-                "confounded_with": list(self.confounded)}
+                "confounded_with": list(self.confounded), "assumed": list(self.assumed)}
 
 
 def _joint_of(name: str) -> str:

@@ -13,7 +13,11 @@ what is not given reads "not stated" on the report's first page::
       name: API Radian laser tracker
       serial: R20-1234
       certificate: DAkkS D-K-15183-01-00, 2026-03-02
+      mpe_um: [15, 6]             # maximum permissible error, A [um] + B [um/m] x distance (ISO 10360-10)
+      radial_mpe_um: [10, 0.3]    # along the beam, where it differs from mpe_um (across it)
+      position_mm: [0, 0, 0]      # the instrument in the measurements' frame (default: their origin)
     temperature_c: [19.5, 21.0]   # lowest and highest during the measurements [degC]
+    payload_kg: 0                 # the load the robot carried while measured
     date: 2026-11-20              # when the robot was measured (default: the report's date)
     operator: J. Smith
     limits_mm:                    # the figures the result is judged against [mm]
@@ -54,8 +58,12 @@ LIMIT_FIGURES = {
 #: The keys of the file: top-level text keys, and the keys of its two small tables.
 TEXT_KEYS = ("title", "customer", "date", "operator", "prepared_by", "checked_by")
 ROBOT_KEYS = ("model", "serial")
-INSTRUMENT_KEYS = ("name", "serial", "certificate")
-KEYS = (*TEXT_KEYS, "robot", "instrument", "temperature_c", "limits_mm")
+INSTRUMENT_KEYS = ("name", "serial", "certificate", "mpe_um", "radial_mpe_um", "position_mm")
+KEYS = (*TEXT_KEYS, "robot", "instrument", "temperature_c", "payload_kg", "limits_mm")
+#: The largest MPE terms a campaign may state: A [um], B [um/m] (a total station's is about 1000 + 1.5).
+MAX_MPE_UM = (1e4, 1e3)
+#: The farthest an instrument may stand from the measurements' origin [mm], and the heaviest payload [kg].
+MAX_POSITION_MM, MAX_PAYLOAD_KG = 1e6, 1e6
 
 #: The longest text a key may hold [characters] (a line of the first page, not a document).
 MAX_TEXT = 300
@@ -90,6 +98,10 @@ class CampaignFacts:
     prepared_by: str = ""
     checked_by: str = ""
     limits_mm: dict = field(default_factory=dict)
+    instrument_mpe_um: tuple | None = None  # (A [um], B [um/m]) across the beam (and along it unless radial)
+    instrument_radial_mpe_um: tuple | None = None
+    instrument_position_mm: tuple | None = None  # in the measurements' frame
+    payload_kg: float | None = None
 
     def updated(self, **given) -> "CampaignFacts":
         """These facts with those of ``given`` that are not None (flags over the file);
@@ -125,6 +137,14 @@ def read_campaign(path) -> CampaignFacts:
         instrument_serial=_text(instrument.get("serial"), "instrument.serial", source),
         certificate=_text(instrument.get("certificate"), "instrument.certificate", source),
         temperature_c=temperature_range(doc.get("temperature_c"), f"{source}: temperature_c"),
+        instrument_mpe_um=_numbers(instrument.get("mpe_um"), 2, (0.0, 0.0), MAX_MPE_UM, f"{source}: instrument.mpe_um",
+                                   "A [um] and B [um/m], e.g. [15, 6]"),
+        instrument_radial_mpe_um=_numbers(instrument.get("radial_mpe_um"), 2, (0.0, 0.0), MAX_MPE_UM,
+                                          f"{source}: instrument.radial_mpe_um", "A [um] and B [um/m]"),
+        instrument_position_mm=_numbers(instrument.get("position_mm"), 3, (-MAX_POSITION_MM,) * 3,
+                                        (MAX_POSITION_MM,) * 3, f"{source}: instrument.position_mm", "x, y, z [mm]"),
+        payload_kg=None if doc.get("payload_kg") is None else _numbers(
+            [doc["payload_kg"]], 1, (0.0,), (MAX_PAYLOAD_KG,), f"{source}: payload_kg", "a load [kg] >= 0")[0],
         limits_mm={k: limit_mm(v, f"{source}: limits_mm.{k}") for k, v in limits.items()},
     )
 
@@ -150,12 +170,22 @@ def _text(value, key: str, source: str) -> str:
         kind = {dict: "table", list: "list"}.get(type(value), type(value).__name__)
         raise InputError(f"{source}: {key}: expected text, got a {kind} ({value!r:.40})")
     text = " ".join(str(value).split())
+    problem = text_problem(text)
+    if problem is not None:
+        raise InputError(f"{source}: {key}: {problem}")
+    return text
+
+
+def text_problem(text: str) -> str | None:
+    """What keeps ``text`` off a line of the report's first page (a control or bidirectional-override
+    character, more than :data:`MAX_TEXT` characters), or None: the one check of a text a campaign
+    file gives and of a flag that gives the same fact (``--title``, ``--operator``, ...)."""
     control = control_character(text)
     if control is not None:
-        raise InputError(f"{source}: {key}: holds the control character U+{ord(control):04X}; write plain text")
+        return f"holds the control character U+{ord(control):04X}; write plain text"
     if len(text) > MAX_TEXT:
-        raise InputError(f"{source}: {key}: {len(text)} characters; at most {MAX_TEXT} fit a line of the report")
-    return text
+        return f"{len(text)} characters; at most {MAX_TEXT} fit a line of the report"
+    return None
 
 
 def _date(value, source: str) -> str:
@@ -168,6 +198,20 @@ def _date(value, source: str) -> str:
         except ValueError as err:
             raise InputError(f"{source}: date: {text} is not a day of the calendar ({err})") from None
     return text
+
+
+def _numbers(value, count: int, low, high, where: str, want: str) -> tuple | None:
+    """``count`` finite numbers within [low, high] each, as a tuple, or None; InputError naming ``where``."""
+    if value is None:
+        return None
+    if not isinstance(value, (list, tuple)) or len(value) != count or any(
+            isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) for v in value):
+        raise InputError(f"{where}: {value!r:.60}: want {count} number{'s' if count > 1 else ''}: {want}")
+    if any(not lo <= v <= hi for v, lo, hi in zip(value, low, high)):
+        raise InputError(f"{where}: {list(value)}: out of range ({want}; each within {list(low)} to {list(high)})")
+    if count == 2 and sum(value) <= 0:
+        raise InputError(f"{where}: {list(value)}: A + B must be above 0 ({want})")
+    return tuple(float(v) for v in value)
 
 
 def limit_mm(value, where: str) -> float:

@@ -96,9 +96,17 @@ class ImportResult:
 # ---------------------------------------------------------------------------------------
 # Reading delimited text
 # ---------------------------------------------------------------------------------------
+#: The most cells a line of a tracker export or joint log may have (an export has tens of columns;
+#: a line of 80 million one-character cells took gigabytes and minutes before its header was found).
+MAX_COLUMNS = 10_000
+
+
 def _split(line: str, delimiter: str, source, row: int) -> list[str]:
     from ..input_files import csv_cells
 
+    if line.count(delimiter) >= MAX_COLUMNS:  # counted before the line is split
+        raise InputError(f"{source}: row {row}: {line.count(delimiter) + 1} cells; a tracker export or joint log has "
+                         f"at most {MAX_COLUMNS} columns")
     return [cell.strip() for cell in csv_cells(line, source, row, delimiter)]
 
 
@@ -399,7 +407,8 @@ def import_tracker(tracker_path, tracker_map: dict[str, str] | None = None, log_
 
     if log_path is None:  # joint and context columns of the tracker file itself pass through
         used = set(mapping.values())
-        tracker_cols += [(t, tracker.header.index(h)) for t, h in _auto_log_map(tracker.header).items()
+        first = {h: i for i, h in reversed(list(enumerate(tracker.header)))}  # header.index(h), once per column
+        tracker_cols += [(t, first[h]) for t, h in _auto_log_map(tracker.header).items()
                          if t != TIME and t not in mapping and h not in used and t.split("_")[0] not in AXES]
         columns = [t for t, _ in tracker_cols]
         result.columns = columns

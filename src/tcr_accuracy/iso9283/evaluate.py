@@ -6,20 +6,32 @@ commanded joints, a ``pose_id`` (and optionally ``cycle``, ``approach`` and the 
 standard's formulas (:mod:`tcr_accuracy.iso9283.formulas`) apply, the readings must be in the
 robot's base frame:
 
-- ``frame="fit"`` (default): the barycentre of each pose is matched to the robot's nominal TCP
-  at the commanded joints by :func:`tcr_accuracy.frames.registration.register_tracker`
-  (Kabsch, then a least-squares refinement with the measured point's offset from the TCP frame
-  fitted where the poses' orientations tell it apart from the frame's translation, held at 0
-  and said where they do not). The commanded position of a pose is then the nominal TCP with
-  that fitted offset. With orientations, the measured frame's rotation relative to the TCP
-  frame is fitted too (the mean of ``R_commanded^T R_measured`` over the readings). What the
-  fit takes up (6 to 9 of the 3 x poses coordinates) is not seen in AP: the standard assumes a
-  known base frame; give ``frame="base"`` when the readings are already in it.
+- ``frame="auto"`` (default): a frame given (``registration=``, fitted beforehand on other
+  poses measured in the same instrument frame: ``iso9283 evaluate --frame-from CAL.csv``, a
+  calibration set of the same session) is used, so that the test's own poses do not place the
+  frame and AP keeps all it measures. Without one, the frame is fitted to the test's poses (as
+  ``frame="fit"``); when that frame moves no pose by more than :data:`BASE_FRAME_TOL` (the
+  readings already lie in the robot's base frame: a real instrument's own frame is metres
+  away), the readings are taken as base-frame positions (as ``frame="base"``) and AP is the
+  standard's, the barycentre against the command pose; else AP is relative to the fitted
+  frame, and :attr:`IsoEvaluation.absolute` is False. (The test's poses cannot tell the
+  frame's offset from the robot's own error: a robot off by more than that bound, its readings
+  in the base frame, is evaluated with ``frame="base"``.)
+- ``frame="fit"``: the barycentre of each pose is matched to the robot's nominal TCP at the
+  commanded joints by :func:`tcr_accuracy.frames.registration.register_tracker` (Kabsch, then
+  a least-squares refinement with the measured point's offset from the TCP frame fitted where
+  the poses' orientations tell it apart from the frame's translation, held at 0 and said where
+  they do not). The commanded position of a pose is then the nominal TCP with that fitted
+  offset. With orientations, the measured frame's rotation relative to the TCP frame is fitted
+  too (the mean of ``R_commanded^T R_measured`` over the readings). What the fit takes up (6 to
+  9 of the 3 x poses coordinates: on the five poses of a cube most of the robot's absolute
+  error) is not seen in AP, which is then relative to that frame, not the standard's: the
+  standard assumes the base frame known.
 - ``frame="base"``: the readings are base-frame TCP positions (and orientations); nothing is
   fitted.
-- ``registration=`` a frame fitted beforehand on other poses measured in the same instrument
-  frame (``iso9283 evaluate --frame-from CAL.csv``: a calibration set of the same session), so
-  that the test's own poses are not used to place the frame and AP keeps all it measures.
+
+A pose may be read once (AP only), twice (AP, l̄ and S_l) or three times and more (RP too);
+the standard's 30 cycles are said against each pose's count, not required.
 
 Pose ids, cycles and approach directions are labels (``P1``, ``S01.P1``, ``+x``; whole numbers
 name the same pose however written). A visit is one reading, or, where the readings carry
@@ -43,7 +55,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .formulas import IsoFigures, as_labels, check_repeats, iso_figures, ordered, stabilisation_figures
+from .formulas import IsoFigures, as_labels, iso_figures, ordered, stabilisation_figures
 from ..effects import predict_positions
 from ..effects.file_values import checked_effect, parameter_vector
 from ..exceptions import InputError
@@ -52,6 +64,7 @@ from ..io.measurements import MeasurementSet
 from ..model.kinematics import tcp_poses
 from ..model.robot import RobotModel
 from ..frames.registration import Registration, register_tracker
+from ..frames.rigid import rigid_fit
 
 #: Joint values of the readings of one pose may differ by this much [rad, m] (CSV rounding).
 SAME_POSE_TOL = 1e-6
@@ -61,6 +74,21 @@ SAME_POSE_TOL = 1e-6
 POSE_GROUP_TOL = 1e-3
 #: A target column farther than this from the nominal TCP at the pose's joints warns [m].
 TARGET_TOL = 1e-5
+#: ``frame="auto"``: a frame fitted on the test's poses that moves none of them by more than this
+#: [m] is taken for the robot's base frame (the readings are base-frame positions, their AP the
+#: standard's). What the fit moves is the frame's offset and the robot's own error together, which
+#: the test's poses cannot tell apart: the bound is a robot's usual absolute error (the UR5's ~2-3
+#: mm), below what an instrument's own frame is off (metres; a frame set up near the base, as
+#: ``simulate`` draws one, centimetres). Beyond it the frame is fitted and AP said relative.
+BASE_FRAME_TOL = 5e-3
+#: A position column whose values, multiplied (or divided) by 1000, bring the rigid fit of the nominal
+#: TCP to the readings this many times closer is in the other unit (m under ``_mm`` or mm under ``_m``):
+#: a robot's own errors cannot be undone by scaling one axis of the instrument's frame.
+COLUMN_UNIT_GAIN = 10.0
+#: What ``frame_source`` says of AP relative to a frame fitted on the test's own poses.
+RELATIVE_SOURCE = "fitted on the test poses (relative)"
+#: The words printed beside every AP figure relative to such a frame.
+RELATIVE_WORDS = "AP relative to a frame fitted on the test poses"
 
 
 @dataclass(frozen=True)
@@ -71,9 +99,10 @@ class IsoEvaluation:
     ----------
     figures : IsoFigures
     frame : str
-        ``fit``, ``base`` or ``given`` (a registration from other poses).
+        ``fit`` (fitted on the test's poses), ``base`` or ``given`` (a registration from other
+        poses).
     registration : Registration or None
-        The fitted measurement frame and TCP offset (``frame="fit"``).
+        The measurement frame and TCP offset fitted (``fit``) or given (``given``).
     how : str
         How the readings were brought into the base frame, in words.
     orientation_offset : ndarray of shape (3, 3) or None
@@ -84,6 +113,17 @@ class IsoEvaluation:
         Commanded joints [rad, m] of each pose, by label.
     n_visits : int
         Visits (one reading each, or one stream each: the attained readings the figures use).
+    frame_source : str
+        Where the base frame came from, in words: ``base`` (given, or found: the readings lie in
+        it), ``calibration set (N poses)`` (other poses of the session), or
+        :data:`RELATIVE_SOURCE` (fitted on the test's own poses: AP relative).
+    absolute : bool
+        True: AP is the standard's, in the robot's base frame; False: relative to a frame fitted
+        on the test's own poses, which takes up most of the robot's absolute error.
+    instrument_distance : dict of str to float, or None
+        Each pose's distance from the origin of the instrument's frame [m] (its barycentre as
+        read: a laser tracker's frame has its origin at the tracker, and its error grows with
+        the distance); None when the readings are taken as base-frame positions.
     """
 
     figures: IsoFigures
@@ -94,6 +134,18 @@ class IsoEvaluation:
     n_readings: int
     pose_q: dict
     n_visits: int = 0
+    frame_source: str = "base"
+    absolute: bool = True
+    instrument_distance: dict | None = None
+
+    def frame_dict(self) -> dict:
+        """JSON-ready account of the frame (mm): ``frame_source``, ``ap_absolute``, and the frame
+        registration's ``frame_residual_rms_mm`` and ``frame_n_points`` (None where nothing was
+        fitted), for the report's first page and its uncertainty budget."""
+        fitted = self.registration is not None
+        return {"frame_source": self.frame_source, "ap_absolute": self.absolute,
+                "frame_residual_rms_mm": self.registration.residual_rms * 1e3 if fitted else None,
+                "frame_n_points": self.registration.n_points if fitted else None}
 
 
 @dataclass(frozen=True)
@@ -140,9 +192,7 @@ def pose_labels(mset: MeasurementSet) -> PoseLabels:
     def named(name):
         return None if name not in labels else as_labels(labels[name])
 
-    out = PoseLabels(named("pose_id"), named("cycle"), named("approach"), grouped)
-    check_repeats(out.pose_id, mset.rows, mset.source)
-    return out
+    return PoseLabels(named("pose_id"), named("cycle"), named("approach"), grouped)
 
 
 def pose_joints(mset: MeasurementSet, pose_id: np.ndarray) -> dict:
@@ -199,7 +249,7 @@ def visits_of(mset: MeasurementSet, labels: PoseLabels) -> Visits:
     return Visits(np.array([rows[-1] for rows in streams]), streams)
 
 
-def evaluate_pose_test(robot: RobotModel, mset: MeasurementSet, *, frame: str = "fit",
+def evaluate_pose_test(robot: RobotModel, mset: MeasurementSet, *, frame: str = "auto",
                        registration: Registration | None = None, registration_source: str = "",
                        band: float | None = None) -> IsoEvaluation:
     """Register the readings (see the module docstring) and compute every ISO 9283 figure.
@@ -209,12 +259,15 @@ def evaluate_pose_test(robot: RobotModel, mset: MeasurementSet, *, frame: str = 
     robot : RobotModel
     mset : MeasurementSet
         With ``annotations["pose_id"]`` (and optionally ``cycle``, ``approach``,
-        ``target_x_mm`` ...; ``time_s`` for streamed visits).
-    frame : {"fit", "base"}, default="fit"
-        How the readings are brought into the base frame when no ``registration`` is given.
+        ``target_x_mm`` ...; ``time_s`` for streamed visits); of one test condition (see
+        :func:`evaluate_conditions` for several).
+    frame : {"auto", "fit", "base"}, default="auto"
+        How the readings are brought into the base frame when no ``registration`` is given:
+        ``auto`` takes them as base-frame positions when they lie in the base frame, else fits
+        the frame on the test's poses (AP relative, said in :attr:`IsoEvaluation.frame_source`).
     registration : Registration, optional
         The instrument frame (and TCP offset) fitted on other poses (:func:`register_from`);
-        not with ``frame="base"``.
+        not with ``frame="base"`` or ``"fit"``.
     registration_source : str
         Where that registration came from, for the record.
     band : float, optional
@@ -223,16 +276,42 @@ def evaluate_pose_test(robot: RobotModel, mset: MeasurementSet, *, frame: str = 
     Returns
     -------
     IsoEvaluation
+
+    Raises
+    ------
+    InputError
+        Several test conditions in ``mset``, a pose commanded at two joint values, a visit's
+        stream with a repeated time, a position column in the other unit, or fewer than 3 poses
+        to fit a frame on.
+
+    Examples
+    --------
+    >>> import dataclasses
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot("ur5")
+    >>> plan = tcr.plan_iso_cube(robot, random_state=0, centre=[-0.13, -0.44, 0.32], size=0.2)
+    >>> series = plan.series(cycles=3)
+    >>> simulated, _ = tcr.simulate_measurements(robot, {"noise_mm": 0.02}, len(series), random_state=1,
+    ...                                          q=series.q, context=series.context)
+    >>> result = tcr.evaluate_pose_test(robot, dataclasses.replace(series, position=simulated.position))
+    >>> result.frame_source, [(f.pose_id, f.n) for f in result.figures.poses]
+    ('base', [('P1', 3), ('P2', 3), ('P3', 3), ('P4', 3), ('P5', 3)])
     """
-    if frame not in ("fit", "base"):
-        raise InputError(f"frame {frame!r}: use 'fit' or 'base'")
-    if registration is not None and frame == "base":
-        raise InputError("frame 'base' and a registration from other poses: the readings are either in the base "
-                         "frame already or in the instrument's; give one")
+    if registration is not None and frame in ("base", "fit"):
+        raise InputError(f"frame {frame!r} and a registration from other poses: the readings are either in the "
+                         "base frame already, or in the instrument's with the frame fitted on the test or on "
+                         "other poses; give one")
+    return _evaluate(robot, mset, frame, registration, registration_source, band, relative=False)
+
+
+def _evaluate(robot, mset, frame, registration, registration_source, band, relative: bool) -> IsoEvaluation:
+    """:func:`evaluate_pose_test`; ``relative``: the registration given was fitted on this test's own
+    poses (another condition's block), so AP is relative."""
+    if frame not in ("auto", "fit", "base"):
+        raise InputError(f"frame {frame!r}: use 'auto', 'fit' or 'base'")
     if band is not None and not (np.isfinite(band) and band > 0):
         raise InputError(f"band {band!r} m: want a positive limit band radius")
-    if registration is not None:
-        frame = "given"
+    _check_one_condition(mset)
     labels = pose_labels(mset)
     visits = visits_of(mset, labels)
     attained = visits.attained
@@ -243,25 +322,41 @@ def evaluate_pose_test(robot: RobotModel, mset: MeasurementSet, *, frame: str = 
     row_pose = np.array([index[p] for p in labels.pose_id])
     nominal = tcp_poses(robot, q_poses)
     _check_targets(mset, labels.pose_id, nominal.position, index)
-    if frame == "given":
-        commanded = registration.tcp_positions(robot, q_poses)
-        positions = registration.to_base(mset.position)
-        how = (f"from {registration_source or 'other poses'}: fitted on its "
-               f"{registration.n_points} poses (Kabsch, then least squares with the TCP offset; fit residual RMS "
-               f"{registration.residual_rms * 1e3:.4f} mm)")
-    elif frame == "fit":
+    barycentres = np.array([mset.position[attained][row_pose[attained] == k].mean(axis=0) for k in range(len(ids))])
+    check_column_units(barycentres, nominal.position, mset.source)
+    source, absolute = "base", True
+    if registration is not None:
+        frame = "given"
+        if relative:
+            source, absolute = RELATIVE_SOURCE, False
+            how = (f"fitted on {registration_source}: {registration.n_points} poses of this test "
+                   f"(fit residual RMS {registration.residual_rms * 1e3:.4f} mm); {RELATIVE_WORDS}")
+        else:
+            source = f"calibration set ({registration.n_points} poses)"
+            how = (f"from {registration_source or 'other poses'}: fitted on its "
+                   f"{registration.n_points} poses (Kabsch, then least squares with the TCP offset; fit residual "
+                   f"RMS {registration.residual_rms * 1e3:.4f} mm)")
+    elif frame in ("auto", "fit"):
         if len(ids) < 3:
             raise InputError(f"{mset.source}: {len(ids)} poses; fitting the measurement frame needs at least 3 "
                              "(or readings already in the robot's base frame, evaluated with frame 'base')")
-        barycentres = np.array([mset.position[attained][row_pose[attained] == k].mean(axis=0)
-                                for k in range(len(ids))])
         registration = register_tracker(robot, q_poses, barycentres)
+        moved = np.linalg.norm(registration.to_tracker(nominal.position) - nominal.position, axis=1).max()
+        if frame == "auto" and moved <= BASE_FRAME_TOL:
+            frame, registration = "base", None
+            how = (f"found: the readings lie in the robot's base frame (a frame fitted on the test poses would move "
+                   f"them by {moved * 1e3:.3g} mm at most, an instrument's own frame by centimetres to metres): AP "
+                   "absolute, each pose's barycentre against its command pose (frame 'fit' fits it instead)")
+        else:
+            frame, source, absolute = "fit", RELATIVE_SOURCE, False
+            how = f"fitted on the test poses: {_fit_words(registration, len(ids))}; {RELATIVE_WORDS}"
+    else:
+        how = "not fitted: the readings are taken as base-frame TCP positions (frame base)"
+    if registration is None:
+        commanded, positions = nominal.position, mset.position
+    else:
         commanded = registration.tcp_positions(robot, q_poses)
         positions = registration.to_base(mset.position)
-        how = f"fitted: {_fit_words(registration, len(ids))}"
-    else:
-        commanded, positions = nominal.position, mset.position
-        how = "not fitted: the readings are taken as base-frame TCP positions (frame base)"
     deviations = offset = None
     if mset.quaternion is not None:
         deviations, offset = _orientation_deviations(mset.quaternion[attained], nominal.rotation[row_pose[attained]],
@@ -291,8 +386,19 @@ def evaluate_pose_test(robot: RobotModel, mset: MeasurementSet, *, frame: str = 
     if spread > SAME_POSE_TOL:
         figures.notes.append(f"the joint values of one pose scatter by up to {spread:.2g} rad or m (encoder "
                              "readings?): each pose's commanded joints taken as their mean")
+    distance = None if frame == "base" else dict(zip(ids, np.linalg.norm(barycentres, axis=1).tolist()))
     return IsoEvaluation(figures=figures, frame=frame, registration=registration, how=how,
-                         orientation_offset=offset, n_readings=len(mset), pose_q=joints, n_visits=len(attained))
+                         orientation_offset=offset, n_readings=len(mset), pose_q=joints, n_visits=len(attained),
+                         frame_source=source, absolute=absolute, instrument_distance=distance)
+
+
+def _check_one_condition(mset: MeasurementSet) -> None:
+    """InputError when ``mset`` holds several test conditions (``load_pct``, ``speed_pct``): their
+    figures are per condition (:func:`evaluate_conditions`), not mixed."""
+    blocks = condition_blocks(mset)
+    if len(blocks) > 1:
+        raise InputError(f"{mset.source}: {len(blocks)} test conditions ({'; '.join(b.words() for b in blocks)}); "
+                         "each has its own figures: evaluate them with evaluate_conditions")
 
 
 def _fit_words(registration: Registration, n_poses: int) -> str:
@@ -352,6 +458,15 @@ def condition_blocks(mset: MeasurementSet) -> list:
     load, speed = labels.get("load_pct"), labels.get("speed_pct")
     if load is None and speed is None:
         return [ConditionBlock(None, None, np.arange(len(mset)))]
+    for name, values, low_open in (("load_pct", load, False), ("speed_pct", speed, True)):
+        if values is None:
+            continue
+        values = np.asarray(values, dtype=float)
+        bad = ~(((values > 0) if low_open else (values >= 0)) & (values <= 100))
+        if bad.any():
+            r = int(np.argmax(bad))
+            raise InputError(f"{mset.source}: row {mset.rows[r]}, column {name}: {values[r]:g} %; a test condition "
+                             f"is a {'speed of (0, 100]' if low_open else 'load of 0-100'} % of the rated one")
     keys = list(zip(*(np.asarray(v, dtype=float).tolist() if v is not None else [None] * len(mset)
                       for v in (load, speed))))
     order = list(dict.fromkeys(keys))
@@ -359,32 +474,100 @@ def condition_blocks(mset: MeasurementSet) -> list:
     return [ConditionBlock(k[0], k[1], np.array([i for i, key in enumerate(keys) if key == k])) for k in order]
 
 
-def evaluate_conditions(robot: RobotModel, mset: MeasurementSet, *, frame: str = "fit",
+def evaluate_conditions(robot: RobotModel, mset: MeasurementSet, *, frame: str = "auto",
                         registration: Registration | None = None, registration_source: str = "",
                         band: float | None = None) -> list:
-    """:func:`evaluate_pose_test` per test condition: the measurement frame fitted on the reference
-    condition (``frame="fit"``) is used for the others, so that what changes with load and speed
-    shows in their AP.
+    """:func:`evaluate_pose_test` per test condition: the measurement frame of the reference
+    condition (fitted on its poses, or found to be the base frame) is used for the others, so that
+    what changes with load and speed shows in their AP.
+
+    Parameters
+    ----------
+    robot : RobotModel
+    mset : MeasurementSet
+        A pose test with ``load_pct`` and ``speed_pct`` annotations (one block per condition).
+    frame, registration, registration_source, band
+        As for :func:`evaluate_pose_test`.
 
     Returns
     -------
     list of (ConditionBlock, IsoEvaluation)
+
+    Examples
+    --------
+    >>> import dataclasses
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot("ur5")
+    >>> plan = tcr.plan_iso_cube(robot, random_state=0, centre=[-0.13, -0.44, 0.32], size=0.2)
+    >>> series = plan.series(cycles=3, conditions=[(100, 100), (10, 100)])
+    >>> nominal = tcr.tcp_poses(robot, series.q).position
+    >>> blocks = tcr.evaluate_conditions(robot, dataclasses.replace(series, position=nominal))
+    >>> [(block.words(), round(result.figures.poses[0].ap, 9)) for block, result in blocks]
+    [('100 % rated load, 100 % rated speed', 0.0), ('10 % rated load, 100 % rated speed', 0.0)]
     """
-    out = []
+    if registration is not None and frame in ("base", "fit"):
+        raise InputError(f"frame {frame!r} and a registration from other poses: give one")
+    out, relative = [], False
     for block in condition_blocks(mset):
         part = mset.subset(block.rows)
-        result = evaluate_pose_test(robot, part, frame=frame, registration=registration,
-                                    registration_source=registration_source, band=band)
+        result = _evaluate(robot, part, frame, registration, registration_source, band, relative)
+        if not out and result.frame == "fit":  # the reference block's frame, fitted on its poses, for all
+            frame, registration, relative = "auto", result.registration, True
+            registration_source = f"the {block.words()} block"
+        elif not out and result.frame == "base":  # found (or given) to be the base frame: for all
+            frame = "base"
         out.append((block, result))
-        if frame == "fit" and registration is None:
-            registration = result.registration
-            registration_source = f"the {block.words()} block of this test"
     return out
 
 
 def register_from(robot: RobotModel, other: MeasurementSet) -> Registration:
-    """The instrument frame and TCP offset fitted on other measured poses of the same session."""
+    """The instrument frame and TCP offset fitted on other measured poses of the same session (each
+    position column's unit checked first, :func:`check_column_units`)."""
+    check_column_units(other.position, tcp_poses(robot, other.q).position, other.source)
     return register_tracker(robot, other.q, other.position, context=other.context)
+
+
+def check_column_units(measured, nominal, source: str) -> None:
+    """InputError naming the file and the position column whose values are in the other unit.
+
+    The measurement reader checks the spread of all three columns together (metres under every
+    ``_mm`` header); one column alone in metres changes the spread little but bends the point cloud,
+    which no rigid motion maps onto the nominal TCP: the rigid fit's residual falls
+    :data:`COLUMN_UNIT_GAIN` times or more when that column is scaled back by 1000.
+
+    Parameters
+    ----------
+    measured : array-like of shape (N, 3)
+        The measured points, as read [m], in the instrument's frame.
+    nominal : array-like of shape (N, 3)
+        The nominal TCP at the same joints, base frame [m].
+    source : str
+        The file, for the message.
+    """
+    measured, nominal = np.asarray(measured, dtype=float), np.asarray(nominal, dtype=float)
+    if len(measured) < 4 or rms_spread(nominal) < MIN_UNIT_SPREAD:
+        return
+
+    def residual(points) -> float:
+        try:
+            rotation, translation = rigid_fit(nominal, points)
+        except InputError:  # points on one line: no frame, no comparison
+            return np.nan
+        return float(np.sqrt(np.mean(np.sum((nominal @ rotation.T + translation - points) ** 2, axis=1))))
+
+    as_read = residual(measured)
+    if not np.isfinite(as_read):
+        return
+    for axis, name in enumerate("xyz"):
+        for factor, header, words in ((1e3, f"{name}_mm", "m"), (1e-3, f"{name}_m", "mm")):
+            scaled = measured.copy()
+            scaled[:, axis] *= factor
+            better = residual(scaled)
+            if np.isfinite(better) and better * COLUMN_UNIT_GAIN < as_read:
+                raise InputError(f"{source}: column {header}: its values look like {words} (no rigid frame maps the "
+                                 f"nominal TCP onto the readings closer than {as_read * 1e3:.4g} mm RMS; with this "
+                                 f"column times {factor:g}, {better * 1e3:.4g} mm); write the column in the unit its "
+                                 "header names")
 
 
 def _check_targets(mset, pose_id, nominal_positions, index) -> None:
@@ -451,5 +634,5 @@ def compensated_readings(robot: RobotModel, mset: MeasurementSet, registration: 
     return replace(mset, position=mset.position - shift, quaternion=None)
 
 
-__all__ = ["ConditionBlock", "IsoEvaluation", "condition_blocks", "evaluate_conditions", "PoseLabels", "Visits", "compensated_readings", "diagnosis_model", "evaluate_pose_test",
+__all__ = ["ConditionBlock", "IsoEvaluation", "condition_blocks", "evaluate_conditions", "PoseLabels", "Visits", "check_column_units", "compensated_readings", "diagnosis_model", "evaluate_pose_test",
            "pose_joints", "pose_labels", "register_from", "visits_of"]

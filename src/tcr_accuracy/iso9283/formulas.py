@@ -11,7 +11,9 @@ For a pose j visited n times with measured positions (x_i, y_i, z_i) and command
 - pose accuracy ``AP_P = sqrt((x̄ - x_c)² + (ȳ - y_c)² + (z̄ - z_c)²)``, components
   ``AP_x = x̄ - x_c``, ``AP_y``, ``AP_z``;
 - pose repeatability ``RP_l = l̄ + 3 S_l`` with ``l_i = |p_i - barycentre|``, ``l̄`` their
-  mean and ``S_l = sqrt(Σ (l_i - l̄)² / (n - 1))``; not given below 3 visits;
+  mean and ``S_l = sqrt(Σ (l_i - l̄)² / (n - 1))``; not given below 3 visits (l̄ and S_l
+  from 2, AP alone from 1: a series may read most poses once; the standard's 30 cycles are
+  said against each pose's n, not required);
 - orientation, where measured: angles a, b, c are the measured orientation's deviation from
   the commanded one, as a rotation vector about the base frame's x, y, z axes
   (``log(R_measured R_commanded^T)``; for the small deviations of a pose test this is the
@@ -51,8 +53,12 @@ import numpy as np
 
 from ..exceptions import InputError
 
-#: Fewest visits of a pose (or cycles of a pair) for a repeatability figure.
+#: Fewest visits of a pose (or cycles of a pair) for a repeatability figure RP (RD): with two, both
+#: readings lie the same distance from their barycentre, S_l is 0 by construction and l̄ + 3 S_l
+#: would be half their distance, about a third of the spread the standard's RP describes.
 MIN_REPEATS = 3
+#: The standard's cycles per pose (ISO 9283, 7.2.1): a pose read fewer times is evaluated, and said.
+STANDARD_CYCLES = 30
 
 
 
@@ -104,7 +110,8 @@ class PoseFigures:
     rp : float or None
         RP_l [m]; None below :data:`MIN_REPEATS` visits.
     l_mean, l_std : float or None
-        l̄ and S_l [m] (S_l None below 2 visits).
+        l̄ [m] (None for one visit: no spread) and S_l [m] (None below :data:`MIN_REPEATS` visits:
+        with two, both distances are equal and S_l is 0 by construction).
     ap_abc : ndarray of shape (3,) or None
         AP_a, AP_b, AP_c [rad]; None without orientations.
     rp_abc : ndarray of shape (3,) or None
@@ -120,7 +127,7 @@ class PoseFigures:
     ap: float
     ap_xyz: np.ndarray
     rp: float | None
-    l_mean: float
+    l_mean: float | None
     l_std: float | None
     ap_abc: np.ndarray | None = None
     rp_abc: np.ndarray | None = None
@@ -219,8 +226,8 @@ def pose_figures(positions, commanded, deviations=None, *, pose_id="1", approach
     barycentre = positions.mean(axis=0)
     ap_xyz = barycentre - commanded
     distances = np.linalg.norm(positions - barycentre, axis=1)
-    l_mean = float(distances.mean())
-    l_std = float(distances.std(ddof=1)) if n >= 2 else None
+    l_mean = float(distances.mean()) if n >= 2 else None
+    l_std = float(distances.std(ddof=1)) if n >= MIN_REPEATS else None
     rp = l_mean + 3.0 * l_std if n >= MIN_REPEATS else None
     ap_abc = rp_abc = None
     if deviations is not None:
@@ -307,14 +314,10 @@ def iso_figures(pose_id, positions, commanded, *, deviations=None, cycle=None, a
     for pid in ordered(pose_id):
         for label in ordered(labels[pose_id == pid]):
             rows = np.flatnonzero((pose_id == pid) & (labels == label))
-            fig = pose_figures(positions[rows], commanded[rows[0]],
-                               None if deviations is None else np.asarray(deviations)[rows], pose_id=pid,
-                               approach=None if approach is None else label)
-            poses.append(fig)
-            if fig.rp is None:
-                where = f"pose {pose_name(pid)}" + ("" if approach is None else f" approach {label}")
-                notes.append(f"{where}: {fig.n} readings, no RP (the standard needs at least {MIN_REPEATS}; "
-                             "it uses 30)")
+            poses.append(pose_figures(positions[rows], commanded[rows[0]],
+                                      None if deviations is None else np.asarray(deviations)[rows], pose_id=pid,
+                                      approach=None if approach is None else label))
+    notes += cycle_notes(poses, approach is not None)
     directional = []
     if approach is not None:
         for pid in ordered(pose_id):
@@ -336,6 +339,26 @@ def iso_figures(pose_id, positions, commanded, *, deviations=None, cycle=None, a
     return IsoFigures(poses=poses, directional=directional, distances=distances, notes=notes)
 
 
+def cycle_notes(poses, labelled: bool = False) -> list:
+    """What the poses' counts leave out, one note per count below :data:`MIN_REPEATS` (a few names
+    each), and how many poses were read fewer than the standard's :data:`STANDARD_CYCLES` times."""
+    def name(f):
+        return pose_name(f.pose_id) + (f" ({f.approach})" if labelled else "")
+
+    notes = []
+    for n, words in ((1, "read once: AP only"), (2, "read twice: AP, l̄ and S_l, no RP")):
+        few = [f for f in poses if f.n == n]
+        if few:
+            shown = ", ".join(name(f) for f in few[:5]) + (f" and {len(few) - 5} more" if len(few) > 5 else "")
+            notes.append(f"{len(few)} pose(s) {words} (RP needs at least {MIN_REPEATS} readings): {shown}")
+    short = [f.n for f in poses if f.n < STANDARD_CYCLES]
+    if short:
+        counts = f"{min(short)}-{max(short)} readings" if min(short) != max(short) else f"{short[0]} readings each"
+        notes.append(f"{len(short)} of {len(poses)} pose(s) read fewer times than the standard's {STANDARD_CYCLES} "
+                     f"cycles ({counts}): evaluated, their figures less certain than the standard's")
+    return notes
+
+
 def _distances(pose_id, labels, cycle, positions, commanded, labelled: bool) -> tuple[list, list]:
     """AD, RD of every pair of poses read in at least MIN_REPEATS common cycles (per approach), and
     notes on what was left out."""
@@ -344,8 +367,11 @@ def _distances(pose_id, labels, cycle, positions, commanded, labelled: bool) -> 
         ids = ordered(pose_id[labels == label])
         single = {}
         for pid in ids:
-            single[pid], twice = _one_per_cycle(pose_id, labels, cycle, pid, label)
+            once, twice = _one_per_cycle(pose_id, labels, cycle, pid, label)
             repeated += [(pid, label, c) for c in twice]
+            if len(once) >= MIN_REPEATS:  # a pose read in fewer cycles pairs with none
+                single[pid] = once
+        ids = [pid for pid in ids if pid in single]
         for a, b in combinations(ids, 2):
             common = sorted(set(single[a]) & set(single[b]), key=label_key)
             if len(common) < MIN_REPEATS:
@@ -404,17 +430,6 @@ def stabilisation_figures(pose_id, approach, visits, band) -> list:
     return out
 
 
-def check_repeats(pose_id, rows, source: str) -> None:
-    """InputError naming the first pose measured only once (no spread can be computed)."""
-    pose_id = as_labels(pose_id)
-    for pid in ordered(pose_id):
-        where = np.flatnonzero(pose_id == pid)
-        if len(where) < 2:
-            r = int(np.asarray(rows)[where[0]])
-            raise InputError(f"{source}: row {r}, column pose_id: pose {pid} has 1 reading; a pose test "
-                             "measures each pose several times (ISO 9283: 30 cycles)")
-
-
-__all__ = ["DirectionalVariation", "DistanceFigures", "IsoFigures", "MIN_REPEATS", "PoseFigures", "Stabilisation",
-           "as_labels", "check_repeats", "distance_figures", "iso_figures", "label_key", "ordered", "pose_figures",
+__all__ = ["DirectionalVariation", "DistanceFigures", "IsoFigures", "MIN_REPEATS", "PoseFigures", "STANDARD_CYCLES",
+           "Stabilisation", "as_labels", "cycle_notes", "distance_figures", "iso_figures", "label_key", "ordered", "pose_figures",
            "pose_name", "settling", "stabilisation_figures"]

@@ -50,6 +50,11 @@ TARGET_TOL = 1e-5
 #: Iterations and readings per run of the closest-point frame fit.
 ICP_ITERATIONS = 50
 ICP_SAMPLES = 2000
+#: Fewest readings of one cycle of a path: a run along it is a stream.
+MIN_CYCLE_READINGS = 3
+#: A measured path speed more than this many times the commanded one, or less than its inverse, is
+#: no robot's: the time column is in another unit (AV would read -99.9 % for milliseconds).
+SPEED_RATIO_LIMIT = 30.0
 
 
 @dataclass(frozen=True)
@@ -188,11 +193,46 @@ def stream_cycles(stream: TrackerStream, runs: list) -> tuple[dict, list]:
                 r = rows[same[0] + 1]
                 raise InputError(f"{stream.source}: row {stream.rows[r]}, column time_s: {stream.time_s[r]:g} s "
                                  f"repeats a time of the same cycle ({runs[k].words()}, cycle {label})")
+            if len(rows) < MIN_CYCLE_READINGS:
+                raise InputError(f"{stream.source}: row {stream.rows[rows[0]]}, column cycle: cycle {label} of the "
+                                 f"{runs[k].words()} holds {len(rows)} reading(s); a cycle is one run along the "
+                                 "path, its readings labelled alike (a label per run, not per reading)")
             cycles[k].append(rows)
+        _check_apart(stream, runs[k], [(label, rows) for label, rows in
+                                       zip(sorted(by_cycle, key=label_key), cycles[k])])
     unmeasured = [runs[k].words() for k in range(len(runs)) if k not in cycles]
     if unmeasured:
         notes.append(f"not measured: {', '.join(unmeasured)}")
     return cycles, notes
+
+
+def _check_apart(stream: TrackerStream, run: CommandedRun, labelled: list) -> None:
+    """InputError when two cycles of a run interleave in time: each cycle is one run along the path,
+    one block of readings in time (labels given reading by reading in turn mix the runs)."""
+    spans = sorted(labelled, key=lambda item: stream.time_s[item[1][0]])
+    for (label_a, a), (label_b, b) in zip(spans, spans[1:]):
+        if stream.time_s[b[0]] < stream.time_s[a[-1]]:
+            inside = b[0]
+            raise InputError(f"{stream.source}: row {stream.rows[inside]}, column cycle: cycle {label_b} of the "
+                             f"{run.words()} starts at {stream.time_s[inside]:g} s, before cycle {label_a} ends "
+                             f"({stream.time_s[a[-1]]:g} s): a cycle is one run along the path, one block of readings "
+                             "in time; label each run's readings with its cycle")
+
+
+def _check_speed(stream: TrackerStream, run: CommandedRun, figures) -> None:
+    """InputError when the stream moves along the path at a speed no robot runs a commanded one at
+    (beyond :data:`SPEED_RATIO_LIMIT` either way): the time column in another unit."""
+    if figures.v_mean is None or not figures.speed:
+        return
+    ratio = figures.v_mean / figures.speed
+    if 1.0 / SPEED_RATIO_LIMIT < ratio < SPEED_RATIO_LIMIT:
+        return
+    hint = ("the times look like ms: give time_s in seconds" if 0.3e-3 <= ratio <= 3e-3 else
+            "the times look like s where the commanded file's are ms" if 0.3e3 <= ratio <= 3e3 else
+            "check the unit of time_s here and in the commanded file (seconds)")
+    raise InputError(f"{stream.source}: column time_s: the {run.words()} is measured moving at "
+                     f"{figures.v_mean * 1e3:.4g} mm/s where it is commanded at {figures.speed * 1e3:.4g} mm/s "
+                     f"({ratio:.3g} times); {hint}")
 
 
 def project_on_path(points, path_points, s, tree: cKDTree | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -328,23 +368,27 @@ def evaluate_path_test(robot: RobotModel, commanded: MeasurementSet, stream: Tra
                "rotation of the attained paths is taken up and not seen in AT")
     else:
         base, used, how = stream.position, "base", "not fitted: the readings are taken as base-frame positions"
-    before = _figures(runs, measured_runs, cycles, stream.time_s, base, planes, used, how, notes)
+    before = _figures(runs, measured_runs, cycles, stream, base, planes, used, how, notes)
     after = None
     if model is not None:
         if registration is not None and registration_after is not None:  # the compensated robot's frame
             base = registration_after.to_base(stream.position)
             runs = commanded_runs(robot, commanded, registration_after)
         shifted = base - _model_shift(robot, runs, cycles, base, *model)
-        after = _figures(runs, measured_runs, cycles, stream.time_s, shifted, planes, used, how, notes)
+        after = _figures(runs, measured_runs, cycles, stream, shifted, planes, used, how, notes)
     return before, after
 
 
-def _figures(runs, measured_runs, cycles, times, base, planes, frame, how, notes) -> PathEvaluation:
+def _figures(runs, measured_runs, cycles, stream, base, planes, frame, how, notes) -> PathEvaluation:
     out = []
     for k in measured_runs:
         run = runs[k]
-        figures = path_figures(run.points, run.s, [(times[rows], base[rows]) for rows in cycles[k]], planes=planes,
-                               corners=run.corners, commanded_times=run.times, speed=run.speed)
+        try:
+            figures = path_figures(run.points, run.s, [(stream.time_s[rows], base[rows]) for rows in cycles[k]],
+                                   planes=planes, corners=run.corners, commanded_times=run.times, speed=run.speed)
+        except InputError as exc:  # the formulas know no file: say which and which run
+            raise InputError(f"{stream.source}: the {run.words()}: {exc}") from None
+        _check_speed(stream, run, figures)
         out.append((run, figures))
     said = list(notes)
     missed = [(run.words(), f.missed) for run, f in out if f.missed]

@@ -32,6 +32,7 @@ import numpy as np
 from ..exceptions import InputError
 from ..analysis.collision import collision_checker
 from ..model.robot import RobotModel
+from ..random_state import renamed_keyword
 from .plan import IsoPlan, cube_corners, iso_points, plan_iso_cube
 from .reach import Reach, Workspace
 
@@ -236,16 +237,20 @@ def plan_test_paths(reach: Reach, cube: IsoPlan, rated_speed: float | None = Non
     return PathPlan(cube=cube, paths=paths, rotation=rotation, rated_speed=float(rated_speed), speed_source=source)
 
 
-def plan_path_test(robot: RobotModel, rng: np.random.Generator, *, centre=None, size: float | None = None,
-                   home=None, workspace: Workspace | None = None, rated_speed: float | None = None) -> PathPlan:
+@renamed_keyword("rng", "random_state")
+def plan_path_test(robot: RobotModel, random_state=None, *, centre=None, size: float | None = None,
+                   home=None, tool_rotation=None, tracker=None, workspace: Workspace | None = None,
+                   rated_speed: float | None = None) -> PathPlan:
     """The test cube (:func:`tcr_accuracy.iso9283.plan.plan_iso_cube`, same arguments) and its test paths.
 
     Parameters
     ----------
     robot : RobotModel
-    rng : numpy.random.Generator
-    centre, size, home, workspace
-        As for :func:`~tcr_accuracy.iso9283.plan.plan_iso_cube`.
+    random_state : int, numpy.random.Generator or None, default=None
+        Draws the cube search's candidates (formerly ``rng``).
+    centre, size, home, tool_rotation, tracker, workspace
+        As for :func:`~tcr_accuracy.iso9283.plan.plan_iso_cube` (the tracker's line of sight checked at
+        the cube's five poses, not along the paths between them).
     rated_speed : float, optional
         The rated path speed [m/s]; default the largest the joints' velocity limits allow.
 
@@ -254,7 +259,8 @@ def plan_path_test(robot: RobotModel, rng: np.random.Generator, *, centre=None, 
     PathPlan
     """
     workspace = workspace or Workspace()
-    cube = plan_iso_cube(robot, rng, centre=centre, size=size, home=home, workspace=workspace)
+    cube = plan_iso_cube(robot, random_state, centre=centre, size=size, home=home, tool_rotation=tool_rotation,
+                         tracker=tracker, workspace=workspace)
     reach = Reach(robot, collision_checker(robot), workspace, cube.home, cube.orientation)
     return plan_test_paths(reach, cube, rated_speed)
 

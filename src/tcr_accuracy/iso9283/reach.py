@@ -4,7 +4,9 @@
 :class:`Reach` holds a robot to it: inverse kinematics within the joint limits, every revolute
 joint within half a turn of a home configuration (whole turns taken off jointly, see
 :meth:`Reach.nearest_home`), no self-collision, no body below the mounting plane (coal's
-half-space; the joint origins without collision geometry). The pose test's cube
+half-space; the joint origins without collision geometry), and, when the instrument's position is
+given, its line of sight to the measured points free of the robot's bodies (as
+:mod:`tcr_accuracy.analysis.reachable` checks it). The pose test's cube
 (:mod:`tcr_accuracy.iso9283.plan`) and the test paths (:mod:`tcr_accuracy.iso9283.path_plan`)
 both use it. Lengths are metres, angles radians; nothing here prints.
 """
@@ -17,6 +19,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..analysis.collision import CollisionChecker
+from ..analysis.reachable import BEAM_RADIUS_M, REFLECTOR_CLEARANCE_M
 from ..analysis.sampling import inverse_kinematics
 from ..exceptions import InputError
 from ..model.robot import RobotModel
@@ -87,6 +90,8 @@ class Reach:
         The home configuration [rad, m].
     mode : str
         ``exact`` or ``best_effort`` (see :func:`tcr_accuracy.analysis.sampling.inverse_kinematics`).
+    tracker : ndarray of shape (3,) or None
+        The instrument's position in the base frame [m]: the measured points must be in its sight.
     """
 
     robot: RobotModel
@@ -95,6 +100,7 @@ class Reach:
     home: np.ndarray
     mode: str
     floor_exempt: set = field(default_factory=set)
+    tracker: np.ndarray | None = None
 
     def __post_init__(self):
         self.revolute = np.array([k == REVOLUTE for k in self.robot.joint_kinds])
@@ -161,10 +167,35 @@ class Reach:
         exempt = ", ".join(sorted(self.floor_exempt)) or "none"
         return f"the robot's {what} above z = {self.workspace.lowest * 1e3:g} mm (not held: {exempt})"
 
+    # -- the instrument's line of sight -----------------------------------------------------
+    def hidden(self, q, points) -> np.ndarray:
+        """(k,) True where a body of the robot at q (k, n_joints) stands between the instrument and the
+        point (k, 3) [m] (the beam stopped short of it by the reflector's size); False throughout
+        without an instrument position or collision geometry."""
+        q, points = np.atleast_2d(q), np.atleast_2d(points)
+        out = np.zeros(len(points), dtype=bool)
+        if self.tracker is None or self.checker is None:
+            return out
+        for k, (row, point) in enumerate(zip(q, points)):
+            distance = float(np.linalg.norm(point - self.tracker))
+            if distance > REFLECTOR_CLEARANCE_M:
+                end = point + (self.tracker - point) * (REFLECTOR_CLEARANCE_M / distance)
+                out[k] = bool(self.checker.blocking_bodies(row, self.tracker, end, BEAM_RADIUS_M))
+        return out
+
+    def sight_words(self) -> str:
+        if self.tracker is None:
+            return "not checked: no tracker position given"
+        where = "(" + ", ".join(f"{v * 1e3:.0f}" for v in self.tracker) + ") mm"
+        if self.checker is None:
+            return f"not checked: the URDF of {self.robot.name} has no collision geometry (tracker at {where})"
+        return f"the tracker at {where} sees every measured pose (coal: no collision body on the beam)"
+
     # -- a set of targets -------------------------------------------------------------------
-    def solve(self, targets, rotation, q_start):
-        """Joint values (k, n) reaching every target (k, 3) [m] at ``rotation`` (3, 3), or None."""
-        q, bad = self._attempt(targets, rotation, q_start)
+    def solve(self, targets, rotation, q_start, sighted: int = 0):
+        """Joint values (k, n) reaching every target (k, 3) [m] at ``rotation`` (3, 3), or None; the
+        first ``sighted`` targets (the measured ones) in the instrument's sight."""
+        q, bad = self._attempt(targets, rotation, q_start, sighted=sighted)
         return None if bad.any() else q
 
     def solve_raw(self, targets, rotation, q_start, tol: float = 1e-7):
@@ -176,11 +207,11 @@ class Reach:
                                 tol_position=tol, tol_rotation=tol)
         return ik.q if ik.success.all() else None
 
-    def failures(self, targets, rotation, q_start) -> list[str]:
+    def failures(self, targets, rotation, q_start, sighted: int = 0) -> list[str]:
         """Why each target fails, in words ('' where it does not), in target order."""
-        return self._attempt(targets, rotation, q_start, reasons=True)[1]
+        return self._attempt(targets, rotation, q_start, reasons=True, sighted=sighted)[1]
 
-    def _attempt(self, targets, rotation, q_start, reasons: bool = False):
+    def _attempt(self, targets, rotation, q_start, reasons: bool = False, sighted: int = 0):
         """(q, bad): bad a (k,) mask, or with ``reasons`` a list of words per target ('' where fine);
         without reasons, the checks stop at the first that fails (q None when before IK)."""
         targets = np.atleast_2d(targets)
@@ -194,7 +225,9 @@ class Reach:
         steps = (("not reachable", lambda: ~ik.success),
                  ("a joint more than half a turn from home", lambda: self.swing(q) > MAX_SWING + 1e-9),
                  ("self-collision", lambda: np.zeros(k, bool) if self.checker is None else ~self.checker.is_free(q)),
-                 ("a body below the floor", lambda: np.array([bool(self.below(row)) for row in q])))
+                 ("a body below the floor", lambda: np.array([bool(self.below(row)) for row in q])),
+                 ("hidden from the tracker", lambda: np.concatenate([self.hidden(q[:sighted], targets[:sighted]),
+                                                                     np.zeros(k - min(sighted, k), bool)])))
         for word, check in steps:
             checks[word] = check()
             if not reasons and checks[word].any():

@@ -65,6 +65,7 @@ EXAMPLE_ROBOTS: dict[str, tuple[str, str]] = {
     "panda": ("panda_description/urdf/panda.urdf", "panda_hand_tcp"),
     "z1": ("z1_description/urdf/z1.urdf", "link06"),
     "xarm7": ("xarm_description/urdf/xarm7.urdf", "link7"),
+    "kinova": ("kinova_description/robots/kinova.urdf", "j2s6s200_end_effector"),
 }
 
 BUILTIN_NAME = "tool_changer"
@@ -111,6 +112,15 @@ class RobotModel:
     payload_kg : float or None
         The payload an analysis assumes by default [kg] (the 150 kg disc cutter of the
         tool-changer); None: a fifth of the moving links' mass (:attr:`typical_payload_kg`).
+    mounting_plane_z : float or None
+        The plane the robot stands on [m], base frame z: random poses keep the TCP and the joints on
+        or above it (0: an arm bolted to a floor or a table by its base); None for the tool-changer,
+        which works below its base inside the cutterhead.
+    kinematics : dict or None
+        Where the robot's own (factory) kinematics came from, when they replace the URDF's: the
+        file's name, its format and SHA-256, and the joint and TCP-frame placements it gave
+        (``file``, ``format``, ``sha256``, ``placements``; :mod:`tcr_accuracy.asbuilt.factory_kinematics`).
+        None: the URDF's own (the catalogue's) kinematics.
     """
 
     model: pin.Model
@@ -126,6 +136,8 @@ class RobotModel:
     tool_frame_id: int = -1
     mimic: dict = field(default_factory=dict)
     payload_kg: float | None = None
+    mounting_plane_z: float | None = 0.0
+    kinematics: dict | None = None
 
     def __post_init__(self) -> None:
         if self.working_pose is None:
@@ -447,6 +459,8 @@ class RobotModel:
             tool_frame_id=self.tool_frame_id,
             mimic=dict(self.mimic),
             payload_kg=self.payload_kg,
+            mounting_plane_z=self.mounting_plane_z,
+            kinematics=self.kinematics,
         )
 
 
@@ -598,6 +612,8 @@ def load_robot(source: str | Path | None = None, tool: str | None = None, *,
         names = {package_of(place.name) for place in robot.mesh_places()} - {None}
         robot.packages = {name: str(folder) for name, folder in
                           find_packages(names, given + ros_package_path(), urdf_path.parent).items()}
+    if working_pose is not None:  # the tool-changer (or its as-built variant) works below its base, in the cutterhead
+        robot.mounting_plane_z = None
     if urdf_path is not None:
         message = robot.missing_mesh_message()
         if message:

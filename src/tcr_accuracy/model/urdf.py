@@ -17,7 +17,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..exceptions import InputError
-from ..input_files import SIZE_LIMITS, read_input_text
+from ..input_files import MEMORY_PER_BYTE_OF, SIZE_LIMITS, read_input_text
 from ..units import PRISMATIC, REVOLUTE, parse_number
 
 
@@ -27,7 +27,7 @@ MAX_URDF_BYTES = SIZE_LIMITS["urdf"]
 
 def read_urdf_text(path: Path) -> str:
     """Read a URDF file, refusing DTDs and entities (no entity expansion, ever)."""
-    return read_input_text(path, "URDF", limit=MAX_URDF_BYTES)
+    return read_input_text(path, "URDF", limit=MAX_URDF_BYTES, memory_per_byte=MEMORY_PER_BYTE_OF["urdf"])
 
 
 def parse_urdf_xml(text: str, source: str) -> ElementTree.Element:

@@ -248,12 +248,12 @@ class MeasuredErrorModel(BaseEstimator):
     def fit(self, X, y, context=None):
         """Joint values X (n, n_joints) [rad, m], measured positions y (n, 3) in the tracker frame [m];
         ``context``: the rows' MeasurementContext, for the estimators that take one."""
-        from ..frames.registration import register_tracker
+        from .nominal import nominal_registration
 
         X, y = validate_data(self, X, y, multi_output=True, y_numeric=True)
         if self.robot is None or self.estimator is None:
             raise InputError("MeasuredErrorModel needs a robot and an estimator")
-        self.registration_ = register_tracker(self.robot, X, y, fit_base=self.fit_frame)
+        self.registration_ = nominal_registration(self.robot, X, y, fit_frame=self.fit_frame)  # the one 'nominal'
         measured = self.registration_.to_base(y)
         self.frame_robot_ = self.registration_.measured_frame_robot(self.robot)
         self.errors_ = measured - tcp_poses(self.robot, X).position

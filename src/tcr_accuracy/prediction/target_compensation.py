@@ -18,6 +18,7 @@ from ..model.kinematics import tcp_poses
 from .compensation import CompensationResult, compensate_joints
 from .error_prediction import finite_prediction
 from .held_out import HeldOutError, held_out_error
+from .nominal import nominal_error
 
 
 @dataclass(frozen=True)
@@ -136,8 +137,8 @@ def compensate_targets(model, q_targets, *, threshold: float = 1e-6, max_iter: i
         # the targets were measured at their uncompensated commands: how well the predicted
         # error there matches the measured one is what compensation can hope to remove
         held = held_out_error(model, q, measured, context=context)
-        # measured against the target: the measured point of the model (its TCP offset included)
-        measured_before = np.linalg.norm(model.registration_.to_base(measured) - target, axis=1)
+        # measured against the target, the measured point of the nominal robot: the one nominal figure
+        measured_before = nominal_error(model.registration_, model.robot, q, measured).error
     return TargetCompensation(result=result, solved=solved, q=q, q_compensated=q_comp, target=target,
                               predicted_before=before, predicted_after=after, held_out=held,
                               measured_before=measured_before)

@@ -1,6 +1,7 @@
 """Results as files: the one reader of the JSON results the commands and scripts write.
 
-A diagnosis, an ISO 9283 evaluation, a comparison of two campaigns: each is written to JSON and
+A diagnosis, an ISO 9283 evaluation, a comparison of two campaigns, an export's accuracy of each
+delivered form (``accuracy.json``, kind "export"): each is written to JSON and
 read back through this package, which checks a file whole before anything uses it (its schema,
 its parameters against their effects' physics on the robot). The command line and a Python
 script read alike. It sits above the layers whose results it reads (``diagnosis``, ``iso9283``,

@@ -45,6 +45,15 @@ _TRANSFORM = {"type": "array", "minItems": 4, "maxItems": 4,
               "items": {"type": "array", "minItems": 4, "maxItems": 4, "items": _NUMBER}}
 
 
+_VECTOR_MM = {"type": "array", "items": _SIGNED_MM, "minItems": 3, "maxItems": 3}
+#: Measured points summarised (:class:`tcr_accuracy.frames.uncertainty_budget.PointSet`, mm).
+_POINT_SET = {"type": "object", "required": ["n", "mean_mm", "covariance_mm2", "lower_mm", "upper_mm"],
+              "properties": {"n": _COUNT, "mean_mm": _VECTOR_MM, "lower_mm": _VECTOR_MM, "upper_mm": _VECTOR_MM,
+                             "covariance_mm2": {"type": "array", "minItems": 3, "maxItems": 3, "items": {
+                                 "type": "array", "minItems": 3, "maxItems": 3,
+                                 "items": {"type": "number", "minimum": -1e12, "maximum": 1e12}}}}}
+
+
 def _by_effect(value: dict, names) -> dict:
     """An object keyed by effect names (``names``: the vocabulary) with values of schema ``value``."""
     return {"type": "object", "propertyNames": {"enum": list(names)}, "additionalProperties": value}
@@ -123,6 +132,7 @@ def _diagnosis_schema(names) -> dict:
             "candidates": _by_effect(candidate, names),
             "as_built_urdf": _TEXT, "as_built_effects": _TEXT,
             "frames_measured": {"type": "array", "items": _NAME, "maxItems": 1000},
+            "measured_points": _POINT_SET,
             **_findings_schema(names),
         },
     }
@@ -130,16 +140,25 @@ def _diagnosis_schema(names) -> dict:
 
 def _findings_schema(names) -> dict:
     """What the report's first page reads of a diagnosis' findings: the mechanism each chosen effect
-    stands for and its check, the families and their shares, the primary family and group, the
-    order-of-measurement confounds, the instrument's specification, the temperatures measured."""
+    stands for, its check and what its fit assumed, the families and their shares (each compared
+    with the largest), the primary family and group, the order-of-measurement confounds, the
+    fitted geometry's plausibility checks, the instrument's specification, the temperatures measured."""
     effect = {"enum": list(names)}
     mechanism = {"type": "object", "required": ["effect", "family", "mechanism", "physical"],
                  "properties": {"effect": effect, "family": _NAME, "mechanism": _TEXT, "physical": {"type": "boolean"},
-                                "check": _TEXT}}
+                                "check": _TEXT, "assumed": _TEXTS}}
+    # two shares compared (paired): the larger's lead, its interval and the selection's paired test
+    comparison = {"type": "object", "required": ["larger", "smaller", "difference_mm", "interval_mm", "ranked"],
+                  "properties": {"larger": _NAME, "smaller": _NAME, "difference_mm": _SIGNED_MM,
+                                 "interval_mm": _MM_INTERVAL, "z": _NUMBER_OR_NULL, "z_threshold": _NUMBER,
+                                 "ranked": {"type": "boolean"}}}
     family = {"type": "object", "required": ["family", "effects", "share_mm", "interval_mm"],
               "properties": {"family": _NAME, "effects": {"type": "array", "items": effect, "maxItems": 1000},
                              "share_mm": _SIGNED_MM, "interval_mm": _MM_INTERVAL, "what": _TEXT,
-                             "stand_ins": {"type": "array", "items": effect, "maxItems": 1000}}}
+                             "stand_ins": {"type": "array", "items": effect, "maxItems": 1000},
+                             "below_largest": comparison}}
+    check = {"type": "object", "required": ["what", "subject", "flagged", "text"],
+             "properties": {"what": _NAME, "subject": _NAME, "flagged": {"type": "boolean"}, "text": _TEXT}}
     mpe = {"type": "array", "items": {"type": "number", "minimum": 0, "maximum": 1e9}, "minItems": 2, "maxItems": 2}
     temperature = {"type": "number", "minimum": -1e4, "maximum": 1e4}
     return {
@@ -147,6 +166,10 @@ def _findings_schema(names) -> dict:
         "families": {"type": "array", "items": family, "maxItems": 1000},
         "primary_family": {"anyOf": [{"type": "null"}, _NAME]},
         "primary_group": {"type": "array", "items": effect, "maxItems": 1000},
+        "own_share_ranking": {"type": "array", "items": comparison, "maxItems": 1000},
+        "plausibility": {"type": "object", "properties": {
+            "tolerance": {"anyOf": [{"type": "null"}, {"type": "object", "properties": {"robot_class": _NAME}}]},
+            "checks": {"type": "array", "items": check, "maxItems": 10_000}}},
         "confounding": {"type": "array", "items": {"type": "object", "required": ["why"],
                                                    "properties": {"why": _TEXT}}},
         "instrument": {"anyOf": [{"type": "null"}, {"type": "object", "required": ["transverse_mpe_um", "radial_mpe_um"],
@@ -163,14 +186,18 @@ def _findings_schema(names) -> dict:
 
 def _iso_figures(required: bool) -> dict:
     pose = {"type": "object", "required": ["pose_id", "n", "ap_mm", "ap_x_mm", "ap_y_mm", "ap_z_mm", "rp_mm"],
-            "properties": {"pose_id": {"type": "integer", "minimum": -(2**31), "maximum": 2**31 - 1}, "n": _COUNT,
+            "properties": {"pose_id": {"anyOf": [{"type": "integer", "minimum": -(2**31), "maximum": 2**31 - 1},
+                                                 _NAME]}, "n": _COUNT,
                            "ap_mm": _MM, "rp_mm": _MM_OR_NULL, "ap_x_mm": _SIGNED_MM, "ap_y_mm": _SIGNED_MM,
-                           "ap_z_mm": _SIGNED_MM, "l_mean_mm": _MM, "s_l_mm": _MM_OR_NULL, "pose": _NAME}}
+                           "ap_z_mm": _SIGNED_MM, "l_mean_mm": _MM_OR_NULL, "s_l_mm": _MM_OR_NULL, "pose": _NAME,
+                           "instrument_distance_mm": _MM}}
     return {
         "type": "object",
         "required": ["poses", "summary", "n_readings", "frame"] if required else ["poses", "summary"],
         "properties": {
             "n_readings": _COUNT, "frame": _NAME, "frame_fit": _TEXT, "measurements": _TEXT,
+            "frame_source": _TEXT, "ap_absolute": {"type": "boolean"}, "frame_residual_rms_mm": _MM_OR_NULL,
+            "frame_n_points": {"anyOf": [{"type": "null"}, _COUNT]}, "standard_cycles": _COUNT,
             "robot": _NAME, "robot_source": _NAME, "tool_frame": _NAME, "model": _TEXT, "kind": _TEXT,
             "poses": {"type": "array", "minItems": 1, "maxItems": 100_000, "items": pose},
             "summary": {"type": "object", "required": ["ap_max_mm", "rp_max_mm"],
@@ -227,13 +254,27 @@ def _comparison_schema(names) -> dict:
     }
 
 
+def _export_schema() -> dict:
+    """export's accuracy.json (:class:`tcr_accuracy.asbuilt.export_result.ExportResult`)."""
+    figure = {"type": "object", "required": ["form", "file", "on", "data", "n", "mean_mm", "rms_mm", "max_mm"],
+              "properties": {"form": _NAME, "file": _TEXT, "on": {"enum": ["measured", "held-out", "k-fold held-out"]},
+                             "data": _TEXT, "n": {"type": "integer", "minimum": 0, "maximum": MAX_COUNT},
+                             "mean_mm": _MM, "rms_mm": _MM, "max_mm": _MM, "frame_rms_mm": _MM_OR_NULL}}
+    return {"type": "object", "required": ["kind", "diagnosis", "robot", "accuracy", "point_sets"],
+            "properties": {"kind": {"const": "export"}, "diagnosis": _TEXT, "robot": _NAME, "robot_source": _NAME,
+                           "tool_frame": _NAME, "measured_frame": _NAME, "reach_mm": _MM_OR_NULL,
+                           "accuracy": {"type": "array", "minItems": 1, "maxItems": 1000, "items": figure},
+                           "point_sets": {"type": "object", "propertyNames": {"enum": ["measured", "held-out"]},
+                                          "additionalProperties": _POINT_SET}}}
+
+
 def schema_of(kind: str) -> dict:
-    """The JSON Schema of a result of ``kind`` ('diagnosis', 'iso9283', 'comparison')."""
+    """The JSON Schema of a result of ``kind`` ('diagnosis', 'iso9283', 'comparison', 'export')."""
     from ..effects import vocabulary
 
     names = sorted(set(vocabulary()) | {"frames"})
     return {"diagnosis": _diagnosis_schema, "iso9283": lambda n: _iso_schema(),
-            "comparison": _comparison_schema}[kind](names)
+            "comparison": _comparison_schema, "export": lambda n: _export_schema()}[kind](names)
 
 
 #: What a diagnosis must hold to be compared: each parameter's standard error and unit.
@@ -244,7 +285,7 @@ PAGE_KEYS = ("n_measurements", "folds", "steps", "selected_effects", "noise_floo
 #: ``Diagnosis.to_dict()`` without the robot has not got them).
 MODEL_KEYS = ("robot_source", "tool_frame", "effect_parameters", "tracker_transform")
 #: The keys each kind must hold (a diagnosis: :data:`PAGE_KEYS` too where a report reads it).
-REQUIRED = {"diagnosis": PAGE_KEYS, "iso9283": ("robot",), "comparison": ()}  # robot: the one-robot check
+REQUIRED = {"diagnosis": PAGE_KEYS, "iso9283": ("robot",), "comparison": (), "export": ()}  # robot: the one-robot check
 
 
 def validate_result(doc, kind: str, source, required=()) -> dict:
@@ -354,7 +395,7 @@ def read_result(path, kind: str | None = None, *, hint: str = "", required=()) -
 
 def _within(value: float, low: float, high: float, unit: str, where: str) -> None:
     """InputError when ``value`` lies outside [low, high] (with rounding's slack)."""
-    slack = 1e-9 * max(1.0, *(abs(b) for b in (low, high) if math.isfinite(b)))
+    slack = 1e-9 * max([1.0, *(abs(b) for b in (low, high) if math.isfinite(b))])  # both may be infinite
     if not low - slack <= value <= high + slack:
         raise InputError(f"{where}: {value:g} {unit} is outside the range [{low:g}, {high:g}] {unit} a diagnosis "
                          "fits within (the effect's physics and the mechanisms it can stand for)")

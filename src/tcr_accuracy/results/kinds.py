@@ -10,16 +10,17 @@ KINDS = {
     "diagnosis": ("steps", "selected_effects", "parameters", "noise_floor_mm"),
     "iso9283": ("poses", "summary", "n_readings", "frame"),
     "comparison": ("changes", "tcp_effect", "z_threshold", "old", "new"),
+    "export": ("accuracy", "measured_frame", "refit"),  # export's accuracy.json (asbuilt.export_result)
 }
 
 
 def kind_of(doc, source: str) -> str:
-    """Which result ``doc`` is ("diagnosis", "iso9283", "comparison"); InputError naming ``source`` if none."""
+    """Which result ``doc`` is ("diagnosis", "iso9283", "comparison", "export"); InputError naming ``source`` if none."""
     if isinstance(doc, dict):
         for kind, keys in KINDS.items():
             if all(k in doc for k in keys):
                 return kind
-    raise InputError(f"{source}: not a diagnosis, ISO 9283 evaluation or comparison result as tcr-accuracy "
+    raise InputError(f"{source}: not a diagnosis, ISO 9283 evaluation, comparison or export result as tcr-accuracy "
                      "writes them; a calibration report is made of those")
 
 

@@ -25,19 +25,30 @@ def accuracy_lines(accuracy) -> list[str]:
     files = {r["form"]: r["file"] for r in records}
     names = {form: f"{form} ({files[form]})" if files[form] else form for form in forms}
     width = max(len(n) for n in [*names.values(), "form (file)"]) + 2
-    header = "  " + "form (file)".ljust(width) + "".join(f"{label:>26}" for _, label in kinds)
+    table = {}
+    for form in forms:
+        for kind, _ in kinds:
+            r = next((r for r in records if r["form"] == form and r["on"] == kind), None)
+            table[form, kind] = "" if r is None else f"{r['mean_mm']:.4f} / {r['rms_mm']:.4f} / {r['max_mm']:.4f}"
+    # each column as wide as its widest cell and two spaces (26 at least): figures past 100 mm stay apart
+    widths = {kind: max(26, len(label) + 2, *(len(table[form, kind]) + 2 for form in forms)) for kind, label in kinds}
+    header = "  " + "form (file)".ljust(width) + "".join(f"{label:>{widths[kind]}}" for kind, label in kinds)
     lines = ["  TCP position error, mean / RMS / max [mm], each form with its own tracker frame fitted on the "
              "measured poses:", header]
     for form in forms:
-        cells = []
-        for kind, _ in kinds:
-            r = next((r for r in records if r["form"] == form and r["on"] == kind), None)
-            cells.append("" if r is None else f"{r['mean_mm']:.4f} / {r['rms_mm']:.4f} / {r['max_mm']:.4f}")
-        lines.append("  " + names[form].ljust(width) + "".join(f"{c:>26}" for c in cells))
+        lines.append("  " + names[form].ljust(width) + "".join(f"{table[form, kind]:>{widths[kind]}}"
+                                                              for kind, _ in kinds))
     data = {r["on"]: r for r in records}
     for kind, label in kinds:
         lines.append(f"  {label}: {data[kind]['data']} ({data[kind]['n']} poses)")
+    if "nominal" in forms:
+        lines.append(f"  nominal: {NOMINAL_WORDS}")
     return lines
+
+
+#: What the nominal line is (prediction.nominal's definition), in the words predict and compensate print too.
+NOMINAL_WORDS = ("the nominal robot, tracker frame and TCP offset fitted to the measured poses (the figure predict "
+                 "and compensate print)")
 
 
 def headline(accuracy) -> str:
@@ -60,7 +71,8 @@ def urdf_comment(export, diagnosis: str) -> str:
             f"hold the geometry and joint zero offsets refitted to the full model over {geometry.n_measured} measured "
             f"poses and {geometry.n_sampled} between them (RMS {geometry.rms * 1e3:.4f} mm from the full model); "
             f"{export.model.robot.tool_frame} is where the maker put it, the measured point is the frame "
-            f"{export.measured_frame}. " + headline(export.accuracy) + ". Compliance, gear errors and the other "
+            f"{export.measured_frame}. " + _start_sentence(export) + headline(export.accuracy)
+            + ". Compliance, gear errors and the other "
             f"non-geometric effects are not in a URDF: the full model ({export.model_file}, tcr_accuracy.load_as_built) "
             "or the compensation filter carry them.")
 
@@ -75,6 +87,7 @@ def ur_file_header(export) -> str:
         "# (ur_description's kinematics_parameters_file), written by tcr-accuracy export.",
         "# The controller's own factory calibration has another hash: the driver reports the mismatch.",
         f"# Measured point on tool0, to set as the TCP: p[{tcp}] (m, rad; rotation vector)",
+        *([f"# {_start_sentence(export).strip()}"] if export.model.robot.kinematics else []),
         f"# {headline(export.accuracy)}",
     ]) + "\n"
 
@@ -94,3 +107,14 @@ def _rotation_vector(rotation: np.ndarray) -> np.ndarray:
     from scipy.spatial.transform import Rotation
 
     return Rotation.from_matrix(rotation).as_rotvec()
+
+
+def _start_sentence(export) -> str:
+    """'The start was the factory kinematics of FILE (...): ...' when the nominal robot was the robot's
+    own kinematics (``--kinematics``), else ''."""
+    start = export.model.robot.kinematics
+    if not start:
+        return ""
+    return (f"The start (the nominal robot) was {export.model.robot.name} with the factory kinematics of "
+            f"{start['file']} ({start['format']}, sha256 {start['sha256'][:12]}); the diagnosis and the tables' "
+            "corrections are relative to it, this file holds the whole calibrated kinematics. ")

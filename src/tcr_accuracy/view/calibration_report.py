@@ -32,7 +32,8 @@ from ..exceptions import InputError
 from ..io.campaign import CampaignFacts
 from ..results.kinds import kind_of
 from ..units import display_value
-from .accuracy_verdict import accuracy_figures, iso_blocks, verdict
+from .accuracy_verdict import TCP_KEYS, accuracy_figures, file_name, form_verdicts, iso_blocks
+from .uncertainty_words import budget_blocks, budget_index, export_table, exports_of
 from .diagnosis_summary import family_answer
 from .page_blocks import PAGE_LINES, Code, Droppable, fit_page, to_html, to_markdown
 
@@ -121,9 +122,19 @@ def page_blocks(c: Campaign, created: str) -> list:
     out: list = [("h1", c.facts.title or f"Calibration report: {c.robot.name}")]
     out.append(("facts", _identification(c, created, d, diagnoses, isos, comparisons)))
     figures = accuracy_figures(d, isos)
+    exports = exports_of(c)
+    budgets = budget_index(c, d, exports, isos)
     out.append(("h2", "Result"))
-    out.append(_result_table(figures, c.facts.limits_mm, d, isos))
-    out.append(("verdict", *verdict(figures, c.facts.limits_mm)))
+    if exports:  # each form the customer receives, with its expanded uncertainty
+        out.append(export_table(exports[-1], budgets, c.facts.limits_mm))
+        if isos:
+            out.append(_result_table([f for f in figures if f.limit_key in ("ap", "rp")], c.facts.limits_mm, None,
+                                     isos, budgets))
+    else:
+        out.append(_result_table(figures, c.facts.limits_mm, d, isos, budgets))
+    out += [("verdict", v.status + (f" for {v.form}" if v.form else ""), v.why)
+            for v in form_verdicts(d, isos, exports, c.facts.limits_mm)]
+    out += budget_blocks(c, d, exports, isos, budgets)
     out.append(("h2", "What was done"))
     out.append(("p", _what_was_done(c, d, diagnoses, isos, comparisons)))
     if d is not None or comparisons:
@@ -162,10 +173,16 @@ def _instrument_text(f: CampaignFacts, d) -> list:
     spec = (d or {}).get("instrument") or {}
     name = f.instrument_name or spec.get("name") or "not stated"
     lines = [f"{name}, serial {_stated(f.instrument_serial)}; certificate {_stated(f.certificate)}"]
-    if spec:
+    if f.instrument_mpe_um is not None:
+        a, b = f.instrument_mpe_um
+        lines.append(f"specified MPE {a:g} um + {b:g} um/m" + (" across the beam, {:g} um + {:g} um/m along it".format(
+            *f.instrument_radial_mpe_um) if f.instrument_radial_mpe_um else "") + " (campaign file)")
+    elif spec:
         a, b = spec["transverse_mpe_um"]
         ar, br = spec["radial_mpe_um"]
         lines.append(f"specified MPE {a:g} um + {b:g} um/m across the beam, {ar:g} um + {br:g} um/m along it")
+    else:
+        lines.append("no MPE stated (instrument.mpe_um in the campaign file, or diagnose --instrument)")
     if d is not None:
         noise = d.get("noise") or {}
         how = {"given": "given for the instrument (--noise-mm)",
@@ -174,8 +191,8 @@ def _instrument_text(f: CampaignFacts, d) -> list:
                "residual": "estimated from the final residual (an upper bound: the instrument may be better)",
                "residual nugget": "estimated from the part of the residual that does not vary with the joints"}
         source = noise.get("source", "")
-        lines.append(f"tracker noise {_mm(d.get('tracker_noise_mm'))} mm per axis, noise floor "
-                     f"{_mm(d.get('noise_floor_mm'))} mm; {how.get(source, source)}")
+        lines.append(f"noise the data show (not the instrument's specification): {_mm(d.get('tracker_noise_mm'))} mm "
+                     f"per axis, noise floor {_mm(d.get('noise_floor_mm'))} mm; {how.get(source, source)}")
     return lines
 
 
@@ -191,8 +208,8 @@ def _temperature_text(f: CampaignFacts, d) -> str:
 def _urdf_source(source: str) -> str:
     if source == "tool_changer":
         return "built-in shield-machine tool-changer (tcr-accuracy)"
-    if "/" in source or source.endswith(".urdf"):
-        return source
+    if "/" in source or "\\" in source or source.endswith(".urdf"):
+        return file_name(source)  # the file's name: no folder of the user's machine on page 1
     return f"example-robot-data {source}"
 
 
@@ -204,25 +221,33 @@ def _mm3(value) -> str:
     return "-" if value is None else f"{value:.3f}"
 
 
-def _result_table(figures, limits_mm: dict, d, isos) -> tuple:
+def _result_table(figures, limits_mm: dict, d, isos, budgets=None) -> tuple:
     rows = []
+    own = {"mean": ("full model", "k-fold held-out", "mean"), "rms": ("full model", "k-fold held-out", "rms"),
+           "max": ("full model", "k-fold held-out", "max"), "ap": None, "rp": None}
     for f in figures:
         limit = limits_mm.get(f.limit_key)
-        judged = "-" if limit is None else ("within" if f.judged_mm <= limit else "OUTSIDE")
+        judged = "-" if limit is None or f.judged_mm is None else ("within" if f.judged_mm <= limit else "OUTSIDE")
+        budget = (budgets or {}).get(own.get(f.limit_key)) if f.limit_key in TCP_KEYS else next(
+            (b for (form, on, s), b in (budgets or {}).items() if on == "iso" and s == f.limit_key
+             and form in f.label), None)
         rows.append((f.label, _mm(f.before_mm), _mm(f.after_mm),
+                     "-" if budget is None else f"{budget.expanded * 1e3:.4f}",
                      "-" if limit is None else f"{limit:g}", judged, "mm"))
     note = []
     if d is not None:
-        note.append("Held-out: from poses not used in the fit (k-fold cross-validation). Before: only the tracker "
-                    "frame and TCP offset fitted; after: the calibrated model.")
+        note.append("Held-out: from poses not used in the fit (k-fold cross-validation). Before: the nominal robot "
+                    "with only the tracker frame and TCP offset fitted; after: the full model (the form the "
+                    "compensation filter carries). U: expanded uncertainty (k = 2) of the judged figure.")
     if isos:
         note.append("ISO 9283: before as measured, after predicted with the diagnosis of iso9283 evaluate --model "
                     "('-': none).")
     if limits_mm:
         note.append("A limit judges the after figure where there is one.")
     if not rows:
-        rows.append(("no accuracy figures in these results", "-", "-", "-", "-", ""))
-    return ("table", ("figure", "before", "after", "limit", "judged", "unit"), rows, " ".join(note), "accuracy")
+        rows.append(("no accuracy figures in these results", "-", "-", "-", "-", "-", ""))
+    return ("table", ("figure", "before", "after", "U (k = 2)", "limit", "judged", "unit"), rows, " ".join(note),
+            "accuracy")
 
 
 # ---------------------------------------------------------------------------------------
@@ -233,25 +258,26 @@ def _what_was_done(c, d, diagnoses, isos, comparisons) -> str:
     said = []
     instrument = c.facts.instrument_name or ((d or {}).get("instrument") or {}).get("name") or "the instrument"
     for source, doc in diagnoses[:-1]:
-        said.append(f"Also diagnosed: {doc.get('measurements', source)} ({doc['n_measurements']} poses).")
+        said.append(f"Also diagnosed: {file_name(doc.get('measurements', source))} ({doc['n_measurements']} poses).")
     for source, doc in diagnoses[-1:]:
         chosen = [e for e in doc["selected_effects"] if e != "frames"]
         tried = sum(1 for x in (doc.get("candidates") or {}).values() if x.get("tried"))
         sessions = max(len(doc.get("sessions") or []), 1)
         said.append(f"Measured with {instrument} at {doc['n_measurements']} poses in {sessions} session"
-                    f"{'s' if sessions > 1 else ''} ({doc.get('measurements', source)}); tracker frame and TCP offset "
+                    f"{'s' if sessions > 1 else ''} ({file_name(doc.get('measurements', source))}); tracker frame and TCP offset "
                     f"fitted; of {tried} candidate effects, those lowering the error on held-out poses kept "
                     f"({doc.get('folds')}-fold cross-validation): " + (", ".join(chosen) if chosen else "none")
                     + ("; written out as an as-built URDF and effects file" if doc.get("as_built_urdf") else "") + ".")
     for source, iso in isos:
         blocks = iso_blocks(iso)
         model = (blocks[0].get("compensated") or {}).get("model")
-        said.append(f"ISO 9283 pose test {iso.get('measurements', source)}: {sum(b['n_readings'] for b in blocks)} "
+        said.append(f"ISO 9283 pose test {file_name(iso.get('measurements', source))}: "
+                    f"{sum(b['n_readings'] for b in blocks)} "
                     f"readings at {len(iso['poses'])} poses" + (f", {len(blocks)} test conditions" if len(blocks) > 1
                                                                 else "")
-                    + ", as measured" + (f" and predicted after compensation with {model}." if model else "."))
+                    + ", as measured" + (f" and predicted after compensation with {file_name(model)}." if model else "."))
     for _, cmp in comparisons:
-        said.append(f"Compared with campaign {cmp['old']} over {cmp['tcp_effect']['n_poses']} poses (significant "
+        said.append(f"Compared with campaign {file_name(cmp['old'])} over {cmp['tcp_effect']['n_poses']} poses (significant "
                     f"beyond {cmp['z_threshold']:g} standard errors).")
     return " ".join(said) or "Nothing: no results were given."
 
@@ -266,6 +292,8 @@ def _found(d, comparisons) -> list:
         items += _effect_items(d)
         items += [f"Mind the order of measurement: {c['why']}; tcr-accuracy plan-poses writes an order that "
                   "separates them." for c in d.get("confounding") or []]
+        items += [f"Flag: {_sentence(c['text'])}." for c in (d.get("plausibility") or {}).get("checks") or []
+                  if c.get("flagged")]
         items += _remains(d)
     if items:
         out.append(("list", items))
@@ -302,6 +330,7 @@ def _effect_items(d) -> list:
         plausible = (d.get("physical") or {}).get(e, {}).get("plausible", True)
         text = (f"{e} ({m['family']}; {gain}{stable}" + ("" if plausible else "; OUTSIDE its physical range")
                 + "): " + m["mechanism"] + ("" if m["physical"] else " (no known mechanism fits most of it)") + "."
+                + "".join(f" Assumed: {a}." for a in m.get("assumed") or [])
                 + (f" Check: {m['check']}." if m.get("check") else ""))
         items.append(text if k < 2 else Droppable(text, "effect", e))  # the two that explain most stay on the page
     return items
@@ -406,7 +435,7 @@ def _calibration_forms(d, c: Campaign) -> list:
     from .as_built_summary import urdf_phrase
 
     sources = [s for s, _ in c.of_kind("diagnosis")]
-    path = sources[-1] if sources and str(sources[-1]).endswith(".json") else "DIAGNOSIS.json"
+    path = file_name(sources[-1]) if sources and str(sources[-1]).endswith(".json") else "DIAGNOSIS.json"
     as_built = d.get("as_built") if isinstance(d.get("as_built"), dict) else {}
     urdf = urdf_phrase(as_built.get("accuracy") or [])
     steps = d.get("steps") or []
@@ -422,11 +451,11 @@ def _calibration_forms(d, c: Campaign) -> list:
 def _robot_options(robot: RobotFacts) -> str:
     if robot.source in ("tool_changer", "", "not recorded"):
         return ""
-    return f" --robot {shlex.quote(robot.source)} --tool {shlex.quote(robot.tool_frame)}"
+    return f" --robot {shlex.quote(file_name(robot.source))} --tool {shlex.quote(robot.tool_frame)}"
 
 
 def plan_poses_command(robot: RobotFacts, d) -> str:
     """The ``plan-poses`` command line for the measurements of a diagnosis (its first session's file)."""
-    files = [f.strip() for f in str(d.get("measurements", "MEASUREMENTS.csv")).split(",") if f.strip()]
+    files = [file_name(f) for f in str(d.get("measurements", "MEASUREMENTS.csv")).split(",") if f.strip()]
     return (f"tcr-accuracy plan-poses {shlex.quote(files[0] if files else 'MEASUREMENTS.csv')}"
             f"{_robot_options(robot)} -k {NEXT_POSES} --out next_poses.csv")

@@ -57,6 +57,10 @@ def format_summary(robot, d, source: str) -> str:
     repeats = len(d.stages.residual.heldout_repeats)
     out = [f"Diagnosis of {source}: {d.n_measurements} measurements of {robot_name}, "
            f"{d.folds}-fold cross-validation" + (f" over {repeats} fold assignments" if repeats > 1 else "")]
+    start = getattr(robot, "kinematics", None)
+    if start:  # the nominal robot is the robot's own kinematics: every effect below is relative to them
+        out.append(f"Nominal robot: the factory kinematics of {start['file']} ({start['format']}); every effect "
+                   "below is relative to them")
     out.extend(answer_lines(d))
     out.append(f"\n1. Gap after fitting the tracker frame and TCP offset (frames): "
                f"mean {d.gap.mean * mm:.4f} mm, RMS {d.gap.rms * mm:.4f} mm, max {d.gap.max * mm:.4f} mm")
@@ -146,12 +150,17 @@ def format_summary(robot, d, source: str) -> str:
     out.append(f"   primary effect: {primary_effect_text(d)}")
     if d.families:
         out.append("   families (held-out RMS without all their members and their stand-ins, the others held to their "
-                   "parameters):")
+                   "parameters; each below the largest by the difference of the two shares [95 % interval], "
+                   "the selection's paired z):")
         for f in d.families:
             low, high = f["interval_mm"]
             beside = f" (stand-ins beside it: {', '.join(f['stand_ins'])})" if f.get("stand_ins") else ""
+            below = f.get("below_largest")
+            rank = "" if not below else (f"; {below['difference_mm']:.4f} mm [{below['interval_mm'][0]:+.4f}, "
+                                         f"{below['interval_mm'][1]:+.4f}] below {below['larger']}, paired z = "
+                                         f"{below['z']:.1f}" + ("" if below["ranked"] else ": not ranked apart"))
             out.append(f"     {f['family']:10s} {{{', '.join(f['effects'])}}}{beside}: +{f['share_mm']:.4f} mm "
-                       f"[{low:+.4f}, {high:+.4f}]")
+                       f"[{low:+.4f}, {high:+.4f}]{rank}")
     selection = d.selection
     if selection.get("frequency"):
         chosen = [e for e in d.selected_effects if e != "frames"]
@@ -205,8 +214,8 @@ def format_summary(robot, d, source: str) -> str:
     if st["remains"]:
         out.append("   -> something the vocabulary does not express is still in the data: the fit is not the "
                    "whole story")
-    for note in d.notes:
-        out.append(f"   note: {note}")
+    said = {f"{m['effect']}: {a}" for m in d.mechanisms for a in m.get("assumed", [])}  # in the answer already
+    out += [f"   note: {note}" for note in d.notes if note not in said]
     return "\n".join(out)
 
 
@@ -248,12 +257,17 @@ def parameter_lines(d, per_effect: int = 4) -> list[str]:
             out.append("       held on a physical bound: " + ", ".join(
                 f"{p['parameter']} ({p['bound']})" for p in table["pinned"][:6])
                 + (f" and {len(table['pinned']) - 6} more" if len(table["pinned"]) > 6 else ""))
+    tolerance = d.stages.parameters.tolerance
+    if d.geometry_checks and tolerance is not None:
+        out.append(f"   the fitted geometry against what an {tolerance.robot_class} allows (plausibility.py):")
+        out += [f"     {'FLAG: ' if c['flagged'] else ''}{c['text']}" for c in d.geometry_checks]
     return out
 
 
 def answer_lines(d) -> list[str]:
     """The answer first: the family and, where the data resolve it, the effect that causes the
-    largest share of the gap, and what mechanism each chosen effect's sign and size fit."""
+    largest share of the gap, what mechanism each chosen effect's sign and size fit (and what its fit
+    assumed), and the fitted geometry beyond what the robot's class allows."""
     out = ["Answer: " + family_answer(d.families, d.primary_family, d.primary_effect, d.primary_group)]
     for c in d.stages.attribute.confounding:
         out.append(f"  mind the order of measurement: {c.to_dict()['why']}; tcr-accuracy plan-poses writes an order "
@@ -263,21 +277,30 @@ def answer_lines(d) -> list[str]:
             continue
         mark = "" if m["physical"] else " [no known mechanism fits most of it]"
         out.append(f"  {m['effect']} ({m['family']}): {m['mechanism']}{mark}")
+        for assumed in m.get("assumed", []):
+            out.append(f"    assumed: {assumed}")
         if m["check"]:
             out.append(f"    check: {m['check']}")
+    out += [f"  flag: {c['text']}" for c in d.geometry_checks if c["flagged"]]
     return out
 
 
 def family_answer(families, primary_family, primary_effect, primary_group) -> str:
     """Which family of effects causes most of the gap and, where the data resolve it, which effect
     within it: one sentence from a diagnosis' ``families`` (dicts as in its JSON), primary family,
-    primary effect and the group that stands in for it."""
+    primary effect and the group that stands in for it. The largest family is compared with the
+    next (``below_largest``: the difference of the two shares and its 95 % interval, paired); where
+    that interval holds zero the sentence says the rows do not rank them apart, and still which is
+    the larger and by how much."""
     by_name = {f["family"]: f for f in families}
+    runners = [f for f in families if f.get("below_largest")]
     if primary_family in by_name:
         f = by_name[primary_family]
         low, high = f["interval_mm"]
         head = (f"the gap is mostly {primary_family} ({f.get('what', '')}): without it the held-out RMS rises by "
                 f"{f['share_mm']:.4g} mm [95 %: {low:.4g} to {high:.4g}]")
+        if runners:
+            head += f", more than {runners[0]['family']}'s by {_by_how_much(runners[0]['below_largest'])}"
         if primary_effect:
             head += f"; within it, {primary_effect}"
         elif len(primary_group) > 1:
@@ -286,27 +309,57 @@ def family_answer(families, primary_family, primary_effect, primary_group) -> st
     if primary_effect:
         return f"{primary_effect} causes the largest share of the gap"
     if families:
-        return "the held-out rows do not rank the families apart: " + ", ".join(
-            f"{f['family']} +{f['share_mm']:.4g} mm" for f in families[:3])
+        tied = [f for f in runners if not f["below_largest"]["ranked"]] or families[1:3]
+        return (f"the held-out rows do not rank the families apart: {_share_text(families[0])} is the larger, "
+                + "; ".join(f"above {_share_text(f)} by {_by_how_much(f.get('below_largest'))}" for f in tied))
     return "nothing beyond the tracker frame and the TCP offset (frames) is resolved"
 
 
+def _share_text(family: dict) -> str:
+    low, high = family["interval_mm"]
+    return f"{family['family']} +{family['share_mm']:.4g} mm [95 %: {low:.4g} to {high:.4g}]"
+
+
+def _by_how_much(comparison: dict | None) -> str:
+    """"0.107 mm [95 %: 0.017 to 0.19; paired z = 2.4, not above 3]": a difference of two shares with its
+    interval and the selection's paired test (JSON form), and, where the rows do not rank them apart, why."""
+    if not comparison:
+        return "an amount not recorded"
+    low, high = comparison["interval_mm"]
+    text = f"{comparison['difference_mm']:.4g} mm [95 %: {low:.4g} to {high:.4g}"
+    z = comparison.get("z")  # None in a JSON file for an infinite z (no spread at all)
+    if z is not None:
+        text += f"; paired z = {z:.1f}"
+    if not comparison["ranked"]:
+        text += (f", not above {comparison['z_threshold']:g}" if z is not None and z <= comparison["z_threshold"]
+                 else "; the interval holds zero")
+    return text + "]"
+
+
 def primary_effect_text(d) -> str:
-    """The primary effect, or the group that stands in for it and why."""
+    """The primary effect, or the group that stands in for it and why; each with the difference of
+    the largest own share and the next and its 95 % interval (paired)."""
+    comparisons = {c["smaller"]: c for c in d.own_share_ranking}
+    share = {r["dropped"]: r["own_share_increase_mm"] for r in d.leave_one_out}
     if d.primary_effect:
-        return f"{d.primary_effect} (the largest own share)"
+        text = f"{d.primary_effect} (the largest own share"
+        runner = next((c for c in d.own_share_ranking if c["larger"] == d.primary_effect), None)
+        if runner:
+            text += (f", +{share[runner['larger']]:.4g} mm, above {runner['smaller']} +{share[runner['smaller']]:.4g} "
+                     f"mm by {_by_how_much(runner)}")
+        return text + ")"
     if len(d.primary_group) > 1:
         largest = d.primary_tied[0] if d.primary_tied else d.primary_group[0]
         tied = [e for e in d.primary_tied[1:] if e in d.primary_group]
         stand_ins = [e for e in d.primary_group if e not in tied and e != largest]
-        share = {r["dropped"]: r["own_share_increase_mm"] for r in d.leave_one_out}
         why = []
         if stand_ins:
             why.append(f"{', '.join(stand_ins)} explain the data as well: measure poses that separate them, "
                        "see plan-poses")
         if tied:
-            why.append("own shares not ranked apart by the held-out rows: " + ", ".join(
-                f"{e} +{share[e]:.4g} mm" for e in [largest, *tied]))
+            why.append("own shares not ranked apart by the held-out rows: " + "; ".join(
+                f"{largest} +{share[largest]:.4g} mm above {e} +{share[e]:.4g} mm by "
+                f"{_by_how_much(comparisons.get(e))}" for e in tied))
         return (f"one of {{{', '.join(d.primary_group)}}} (the largest own share is {largest}'s, but "
                 + "; ".join(why) + ")")
     return "none beyond frames"

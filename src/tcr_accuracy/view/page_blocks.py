@@ -105,8 +105,14 @@ def estimated_lines(block) -> float:
         return lines + 0.5
     if kind == "table":  # a row's text spread over the width, the first column wrapping first
         _, columns, rows, note, _ = block
-        lines = 1.3 + (_wrapped(note, CHARS_PER_LINE * 1.15) * 0.9 if note else 0.0)
+        # the head wraps its longest name in an even share of the width beyond the first column's
+        share = CHARS_PER_LINE * 0.6 / max(len(columns) - 1, 1)
+        head = max([1.0] + [_wrapped(str(c), max(share, 8)) for c in columns[1:]])
+        lines = 0.3 + head + (_wrapped(note, CHARS_PER_LINE * 1.15) * 0.9 if note else 0.0)
         for row in _kept(rows):
+            if len(row) == 2 and row[0] == "group":  # a row spanning the table
+                lines += 0.25 + _wrapped(str(row[1]), CHARS_PER_LINE)
+                continue
             cells = [str(c) for c in row]
             rest = sum(len(c) + 3 for c in cells[1:])
             lines += 0.25 + max(_wrapped(cells[0], max(CHARS_PER_LINE - rest, 20)), 1)

@@ -49,7 +49,7 @@ def write_result_plots(documents, folder: Path, limits_mm: dict | None = None) -
                         f"ISO 9283 pose accuracy AP_P and repeatability RP_l per pose ({source})"
                         + (", as measured and predicted after compensation" if doc.get("compensated") else "")
                         + (", against the limits" if {"ap", "rp"} & set(limits_mm) else "")))
-        else:
+        elif kind == "comparison":
             out.append((plot_changes(doc, folder / f"changes-{k}.png"),
                         f"Change of each robot parameter between the campaigns in standard errors ({source})"))
     return out

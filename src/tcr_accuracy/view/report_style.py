@@ -48,7 +48,9 @@ table.signatures { margin-top: 1em; }
 table.signatures th { width: 50%; text-align: left; }
 table.signatures td { height: 3.2em; text-align: left; vertical-align: bottom; color: #888; font-size: 0.85em; }
 
-@page { size: A4; margin: 11mm 12mm 12mm; }
+@page { size: A4; margin: 11mm 12mm 12mm;
+  @bottom-right { content: "page " counter(page) " of " counter(pages); font-size: 7.5pt; color: #555; } }
+
 @media print {
   body { max-width: none; margin: 0; padding: 0; font-size: 9pt; line-height: 1.3; }
   .first-page { border: none; padding: 0; margin: 0; break-after: page; page-break-after: always;
@@ -63,7 +65,11 @@ table.signatures td { height: 3.2em; text-align: left; vertical-align: bottom; c
   th, td { padding: 2px 6px; }
   .table.wide table { font-size: 7pt; }
   .table.wide th, .table.wide td { padding: 1px 3px; }
-  table, figure, pre.command, .table, ul { break-inside: avoid; page-break-inside: avoid; }
+  figure, pre.command, ul, .first-page table { break-inside: avoid; page-break-inside: avoid; }
+  /* a long table starts on the page its heading is on and runs on, row by row, its head repeated
+     (kept whole, the parameter table left page 2 blank but for the part's heading) */
+  tr { break-inside: avoid; page-break-inside: avoid; }
+  thead { display: table-header-group; }
   h1, h2, h3 { break-after: avoid; page-break-after: avoid; }
   pre.printed { font-size: 7pt; }
   img { max-height: 200mm; }

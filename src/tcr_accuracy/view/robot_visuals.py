@@ -205,7 +205,9 @@ def _confined_visualizer_class(checked: dict, painted: bool):
     geometry: Pinocchio sends meshes as meshcat "mesh file objects", and meshcat's browser
     side draws those with the file's own materials, ignoring the one sent along; a ghost needs
     its colour and transparency, which plain mesh geometries take from Pinocchio's material.
-    A COLLADA file otherwise goes with its images as data URLs, read from the checked list.
+    A COLLADA file otherwise goes with its images as data URLs, read from the checked list, and each
+    of its meshes of several materials split in one mesh per material
+    (:func:`one_material_per_mesh`).
     """
     import base64
 
@@ -221,7 +223,8 @@ def _confined_visualizer_class(checked: dict, painted: bool):
         def __init__(self, path: Path, references: list[tuple[str, Path]]):  # noqa: D107
             mg.ReferenceSceneElement.__init__(self)  # Pinocchio's own __init__ reads the images itself
             self.path, self.material, self.intrinsic_transform = None, None, mg.tf.identity_matrix()
-            self.dae_raw = read_input_bytes(path, "mesh", limit=SIZE_LIMITS["mesh"]).decode("utf-8", "replace")
+            self.dae_raw = one_material_per_mesh(
+                read_input_bytes(path, "mesh", limit=SIZE_LIMITS["mesh"]).decode("utf-8", "replace"))
             self.img_resources = {
                 str(Path(name)): "data:image/png;base64," + base64.b64encode(
                     read_input_bytes(file, "mesh image", limit=SIZE_LIMITS["mesh"])).decode("ascii")
@@ -244,3 +247,87 @@ def _confined_visualizer_class(checked: dict, painted: bool):
             return None
 
     return ConfinedMeshcatVisualizer
+
+
+#: The COLLADA 1.4 namespace, and the elements of a ``<mesh>`` that draw with one material each.
+_COLLADA = "http://www.collada.org/2005/11/COLLADASchema"
+_PRIMITIVES = ("triangles", "polylist", "polygons", "trifans", "tristrips", "lines", "linestrips")
+
+
+def one_material_per_mesh(text: str) -> str:
+    """A COLLADA document in which every ``<geometry>`` holds one primitive element (one material):
+    a geometry of several (the UR5's housings: ``<triangles>`` of the grey metal and of the dark
+    ring, in one mesh) becomes one geometry per element, each with its own copy of the sources, and
+    every ``<instance_geometry>`` of it one instance per part, with the same material bindings.
+
+    Why: meshcat's browser side (``merge_geometries`` in its ``index.js``) merges a COLLADA file's
+    meshes into one geometry with one group per *mesh*, and hands it the meshes' materials as a
+    list; a mesh of several materials puts a list inside that list, which three.js cannot draw, and
+    the whole mesh vanishes (the UR5's housings did, leaving its blue caps and wrist parts floating
+    in the air). One material per mesh is drawn whole. Placements, vertices and materials are
+    unchanged. A document that does not parse, or has none to split, is returned as it is (the
+    loader reports what it cannot read); so is a geometry a skin controller uses.
+    """
+    import copy
+    from xml.etree import ElementTree
+
+    ns = {"c": _COLLADA}
+    try:
+        root = ElementTree.fromstring(text)
+    except ElementTree.ParseError:
+        return text
+    if root.tag != f"{{{_COLLADA}}}COLLADA":
+        return text
+    skinned = {c.get("source", "").lstrip("#") for c in root.iterfind(".//c:library_controllers//c:skin", ns)}
+    parts: dict[str, list[str]] = {}
+    for library in root.iterfind("c:library_geometries", ns):
+        for geometry in list(library.iterfind("c:geometry", ns)):
+            mesh = geometry.find("c:mesh", ns)
+            gid = geometry.get("id", "")
+            if mesh is None or not gid or gid in skinned:
+                continue
+            primitives = [e for e in mesh if e.tag.split("}")[-1] in _PRIMITIVES]
+            if len(primitives) < 2:
+                continue
+            position = list(library).index(geometry)
+            library.remove(geometry)
+            parts[gid] = []
+            for k, primitive in enumerate(primitives):
+                part = copy.deepcopy(geometry)
+                part.set("id", f"{gid}-part{k}")
+                if part.get("name"):
+                    part.set("name", f"{part.get('name')}-part{k}")
+                part_mesh = part.find("c:mesh", ns)
+                for other in [e for e in part_mesh if e.tag.split("}")[-1] in _PRIMITIVES]:
+                    part_mesh.remove(other)
+                part_mesh.append(copy.deepcopy(primitive))
+                _rename_ids(part, f"-part{k}")
+                library.insert(position + k, part)
+                parts[gid].append(part.get("id"))
+    if not parts:
+        return text
+    for parent in list(root.iter()):
+        for k, child in reversed(list(enumerate(parent))):
+            url = child.get("url", "").lstrip("#") if child.tag == f"{{{_COLLADA}}}instance_geometry" else ""
+            if url in parts:
+                parent.remove(child)
+                for j, part in enumerate(parts[url]):
+                    instance = copy.deepcopy(child)
+                    instance.set("url", f"#{part}")
+                    parent.insert(k + j, instance)
+    ElementTree.register_namespace("", _COLLADA)
+    return ElementTree.tostring(root, encoding="unicode")
+
+
+def _rename_ids(element, suffix: str) -> None:
+    """Give every ``id`` inside ``element`` (but its own) ``suffix``, and the ``#id`` references to
+    them inside it (``source``, ``url`` and ``<accessor source>``), so copies of one geometry stay
+    apart in the document."""
+    renamed = {e.get("id"): e.get("id") + suffix for e in element.iter() if e is not element and e.get("id")}
+    for e in element.iter():
+        if e is not element and e.get("id") in renamed:
+            e.set("id", renamed[e.get("id")])
+        for attribute in ("source", "url"):
+            value = e.get(attribute, "")
+            if value.startswith("#") and value[1:] in renamed:
+                e.set(attribute, "#" + renamed[value[1:]])

@@ -12,14 +12,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...effects.mechanisms import FAMILIES, MechanismReading, read_mechanism
-from ..attribution import contributions, fixed_point_check, tied_own_shares
+from ..attribution import ShareComparison, contributions, fixed_point_check, rank_largest
 from ..confounding import confounded_variables
 from ..error_map import column_rms
 from ..fitting import FitEngine
 from ..bases import ordered
-from ..paired import entry_z, paired_z
+from ..paired import paired_z
 from ..records import ErrorStats, Step
-from ..uncertainty import difference_interval, selection_frequency
+from ..uncertainty import PoseBootstrap, bootstrap_for, selection_frequency
 from .candidates import CandidateSet
 from .register import RegisteredMeasurements, measured_context
 from .search import explanation_order
@@ -39,12 +39,15 @@ class FamilyShare:
         How much the held-out RMS rises without the whole family (and what stands in for its
         members), the other effects held to their parameters [m].
     interval : (float, float)
-        The share's 95 % interval [m].
+        The share's 95 % interval [m] (the pose bootstrap's, :class:`~..uncertainty.PoseBootstrap`).
     heldout_without : ErrorStats
         Held-out errors without the family.
     stand_ins : tuple of str
         Unchosen effects the data cannot tell from its members, in the model beside them while the
         shares are measured and removed with the family.
+    below_largest : ShareComparison or None
+        The largest family's share against this one's (paired, the same replicates): by how much it
+        is larger, and whether the held-out rows rank the two apart; None for the largest itself.
     """
 
     family: str
@@ -53,12 +56,16 @@ class FamilyShare:
     interval: tuple
     heldout_without: ErrorStats
     stand_ins: tuple = ()
+    below_largest: ShareComparison | None = None
 
     def to_dict(self) -> dict:
-        return {"family": self.family, "effects": list(self.effects), "share_mm": self.share * 1e3,
-                "interval_mm": [self.interval[0] * 1e3, self.interval[1] * 1e3],
-                "heldout_rms_without_mm": self.heldout_without.rms * 1e3, "what": FAMILIES.get(self.family, ""),
-                "stand_ins": list(self.stand_ins)}
+        out = {"family": self.family, "effects": list(self.effects), "share_mm": self.share * 1e3,
+               "interval_mm": [self.interval[0] * 1e3, self.interval[1] * 1e3],
+               "heldout_rms_without_mm": self.heldout_without.rms * 1e3, "what": FAMILIES.get(self.family, ""),
+               "stand_ins": list(self.stand_ins)}
+        if self.below_largest is not None:
+            out["below_largest"] = self.below_largest.to_dict()
+        return out
 
 
 @dataclass(frozen=True)
@@ -75,7 +82,9 @@ class Attribution:
     primary_tied : tuple of str
         The largest own share and those not ranked below it by the held-out rows.
     primary_family : str or None
-        The family with the largest share, when the held-out rows rank it above the others.
+        The family with the largest share, when the held-out rows rank it above the others (the
+        selection's paired test above ``selection_z`` and the 95 % interval of the difference of the
+        two shares above zero, each family's ``below_largest``).
     families : tuple of FamilyShare
         Every family with a chosen member, largest share first.
     mechanisms : tuple of MechanismReading
@@ -87,6 +96,13 @@ class Attribution:
     stability : dict
         How often bootstrap replays of the selection choose each effect (JSON form).
     notes : tuple of str
+    own_shares : dict
+        Chosen effect -> (own share, low, high) [m]: how much the held-out RMS rises without it, the
+        others held to their own parameters, with its 95 % interval.
+    own_share_ranking : tuple of ShareComparison
+        The largest own share against the others the primary effect was chosen among.
+    interval_method : str
+        How every held-out interval here was made (the pose bootstrap, in words).
     """
 
     primary_effect: str | None
@@ -99,6 +115,9 @@ class Attribution:
     steps: tuple
     stability: dict
     notes: tuple
+    own_shares: dict = dataclasses.field(default_factory=dict)
+    own_share_ranking: tuple = ()
+    interval_method: str = ""
 
     def mechanism_of(self, effect: str) -> MechanismReading | None:
         return next((m for m in self.mechanisms if m.effect == effect), None)
@@ -120,23 +139,29 @@ def attribute_effects(registered: RegisteredMeasurements, candidate_set: Candida
     """
     engine = candidate_set.engine
     current = list(selection.selected)
-    loo = [r.to_dict() for r in selection.leave_one_out]
     notes: list = []
     confounding = confounded_variables(registered.robot.joint_names, registered.measurements.q,
                                        registered.parts[0].context, measured_context(registered.measurements))
-    mechanisms = tuple(_with_confounding(m, confounding) for m in fitted_mechanisms(engine, current))
+    mechanisms = tuple(_with_assumptions(_with_confounding(m, confounding), engine, registered.measurements.time_s)
+                       for m in fitted_mechanisms(engine, current))
+    notes += [f"{m.effect}: {assumed}" for m in mechanisms for assumed in m.assumed]
     unexplained = [m.effect for m in mechanisms if not m.physical]
     confounded = [m.effect for m in mechanisms if m.confounded]
     stand_ins = stand_ins_of(selection.groups)
-    families = family_shares(engine, current, stand_ins)
-    top_families = _tied_families(engine, current, families, selection_z)
+    # one bootstrap over the poses for every held-out interval and comparison below (its own stream)
+    bootstrap = bootstrap_for(engine, np.random.default_rng([seed, 3]))
+    families = _family_table(engine, current, stand_ins, bootstrap, selection_z)
+    top_families = [f.family for f in families if f.below_largest is None or not f.below_largest.ranked]
     primary_family = top_families[0] if len(top_families) == 1 else None
+    own_table, own_shares = _own_shares(engine, current, bootstrap)
     # within the primary family (or among every chosen effect when no family stands out): the member
     # with the largest own share and those the held-out rows do not rank below it
-    members = [e for e in current if e != "frames"]
+    members = [e for e in current if e != "frames" and e in own_shares]
     if primary_family is not None:
         members = [e for e in members if _family(engine, e) == primary_family]
-    tied = tied_own_shares(engine, current, [r for r in loo if r["dropped"] in members], selection_z)
+    own_share_ranking = rank_largest(*own_table, members, "final", selection_z)
+    tied = [own_share_ranking[0].larger] + [c.smaller for c in own_share_ranking if not c.ranked] \
+        if own_share_ranking else members[:1]
     primary = tied[0] if tied else None
     primary_group = group_members(selection.groups, primary)
     primary_group += [e for e in tied[1:] if e not in primary_group]
@@ -159,7 +184,7 @@ def attribute_effects(registered: RegisteredMeasurements, candidate_set: Candida
     else:
         primary = primary_group[0]
     # the shrink table in the order the chosen effects explain the data
-    steps = explanation_ladder(engine, current, selection.forward_steps[0])
+    steps = explanation_ladder(engine, current, selection.forward_steps[0], bootstrap)
     say("selection stability")
     testable = list(selection.testable)
     stability = selection_frequency(engine, testable, selection_z, min_relative_gain, stability_replays,
@@ -167,7 +192,9 @@ def attribute_effects(registered: RegisteredMeasurements, candidate_set: Candida
                                     late=[e for e in selection.late if e in testable])
     return Attribution(primary_effect=primary, primary_group=tuple(primary_group), primary_tied=tuple(tied),
                        primary_family=primary_family, families=tuple(families), mechanisms=mechanisms,
-                       confounding=tuple(confounding), steps=tuple(steps), stability=stability, notes=tuple(notes))
+                       confounding=tuple(confounding), steps=tuple(steps), stability=stability, notes=tuple(notes),
+                       own_shares=own_shares, own_share_ranking=tuple(own_share_ranking),
+                       interval_method=bootstrap.method)
 
 
 def _with_confounding(reading: MechanismReading, confounding) -> MechanismReading:
@@ -185,6 +212,18 @@ def _with_confounding(reading: MechanismReading, confounding) -> MechanismReadin
         return reading
     return dataclasses.replace(reading, mechanism=reading.mechanism + "; or a drift in time, which the data cannot "
                                "tell it from: " + "; ".join(why), confounded=tuple(why))
+
+
+def _with_assumptions(reading: MechanismReading, engine: FitEngine, time_s) -> MechanismReading:
+    """The reading, with what its fit assumed: an effect of time (drift) fitted on the measurement order
+    because the rows carry no time (``time_s`` absent, constant or incomplete) took that order for time."""
+    effect = engine.bases[reading.effect].per_part[0].effect
+    if getattr(effect, "time_axis", None) != "order":
+        return reading
+    why = "no time_s column" if time_s is None else "a time_s column that does not vary (or has gaps)"
+    return dataclasses.replace(reading, assumed=reading.assumed + (
+        f"fitted on the measurement order: the rows carry {why}, so their order was taken for time (each row one "
+        "equal step after the one before)",))
 
 
 def _family(engine: FitEngine, effect: str) -> str:
@@ -253,41 +292,54 @@ def _joined(current, stand_ins: list) -> list:
     return ordered(set(current) | {s for extra in stand_ins for s in extra})
 
 
-def family_shares(engine: FitEngine, current, stand_ins: dict | None = None) -> list[FamilyShare]:
+def family_shares(engine: FitEngine, current, stand_ins: dict | None = None,
+                  bootstrap: PoseBootstrap | None = None, selection_z: float = 3.0) -> list[FamilyShare]:
     """Every family with a chosen member and its own share: how much the held-out RMS rises
-    without all its members (the other effects held to their parameters), largest first.
+    without all its members (the other effects held to their parameters), largest first, with its
+    95 % interval from ``bootstrap`` (None: a pose bootstrap of the engine's rows, seed 0).
 
     The shares are measured in the chosen model joined by the stand-ins (``stand_ins``: chosen
     effect -> the unchosen effects the data cannot tell from it), and a family leaves with its
     members' stand-ins: which of two effects the data cannot tell apart was chosen (an encoder
     scale or a transmission error on 250 poses, say) must not decide how the rest of the gap is
-    shared between the other families, since each takes a different part of them."""
-    members = _family_members(engine, current, stand_ins or {})
+    shared between the other families, since each takes a different part of them. Each family below
+    the largest is compared with it (``below_largest``: ranked apart where the selection's paired test
+    exceeds ``selection_z`` and the difference's 95 % interval lies above zero)."""
+    return _family_table(engine, current, stand_ins or {}, bootstrap or bootstrap_for(engine, 0), selection_z)
+
+
+def _family_table(engine: FitEngine, current, stand_ins: dict, bootstrap: PoseBootstrap,
+                  selection_z: float) -> list[FamilyShare]:
+    """:func:`family_shares`: every share and difference read on the same bootstrap replicates."""
+    members = _family_members(engine, current, stand_ins)
     joined = _joined(current, [extra for _, extra in members.values()])
-    final = engine.evaluate(joined)
-    final_rms = ErrorStats.heldout(final).rms
-    out = []
+    squares = {"final": engine.evaluate(joined)["heldout_squares"]}
+    held = {}
     for family, (effects, extra) in members.items():
         without = _without(engine, joined, effects + extra)
-        held = ErrorStats.heldout(without)
-        _, low, high = difference_interval(without["heldout_squares"], final["heldout_squares"])
-        out.append(FamilyShare(family, effects, held.rms - final_rms, (low, high), held, extra))
+        squares[family], held[family] = without["heldout_squares"], ErrorStats.heldout(without)
+    table = bootstrap.read(squares)
+    out = []
+    for family, (effects, extra) in members.items():
+        share = table.difference(family, "final")
+        out.append(FamilyShare(family, effects, share.value, (share.low, share.high), held[family], extra))
     out.sort(key=lambda f: -f.share)
-    return out
+    below = {c.smaller: c for c in rank_largest(table, squares, [f.family for f in out], "final", selection_z)}
+    return [dataclasses.replace(f, below_largest=below.get(f.family)) for f in out]
 
 
-def _tied_families(engine: FitEngine, current, families: list, selection_z: float) -> list:
-    """The first family and those whose removal the held-out rows do not rank below its removal
-    (the selection's test, :func:`~..paired.entry_z`, on the rows without each, in the model the
-    shares were measured in)."""
-    if not families:
-        return []
-    joined = _joined(current, [f.stand_ins for f in families])
-    removed = {f.family: f.effects + f.stand_ins for f in families}
-    top = _without(engine, joined, removed[families[0].family])["heldout_squares"]
-    return [families[0].family] + [f.family for f in families[1:]
-                                   if entry_z(top, _without(engine, joined, removed[f.family])["heldout_squares"])
-                                   < selection_z]
+def _own_shares(engine: FitEngine, current, bootstrap: PoseBootstrap) -> tuple:
+    """((the bootstrap table of the final model and of it without each chosen effect, the others held
+    to their own parameters, and their per-row squared errors); effect -> its own share (value, low,
+    high) [m])."""
+    keep = engine.kept(tuple(ordered(current)))
+    squares = {"final": engine.evaluate(ordered(current))["heldout_squares"]}
+    for e in current:
+        if e != "frames":
+            rest = ordered([s for s in current if s != e])
+            squares[e] = engine.evaluate(rest, keep={s: keep[s] for s in rest})["heldout_squares"]
+    table = bootstrap.read(squares)
+    return (table, squares), {e: tuple(table.difference(e, "final")) for e in squares if e != "final"}
 
 
 @dataclass(frozen=True)
@@ -331,14 +383,18 @@ def first_order_reach(part, bases: dict, chosen, full_parameters: dict, nominal:
                       within_range=bool(rms <= 0.25 * noise_floor), notes=(note,) if note else ())
 
 
-def explanation_ladder(engine: FitEngine, selected, first: Step) -> list[Step]:
-    """The shrink table in the order of explanation (:func:`~.search.explanation_order`), with
-    each step's figures, its gain and the gain's 95 % interval on the exact kinematics."""
-    steps = [first]
+def explanation_ladder(engine: FitEngine, selected, first: Step, bootstrap: PoseBootstrap | None = None) -> list[Step]:
+    """The shrink table in the order of explanation (:func:`~.search.explanation_order`: from frames,
+    each step adds the chosen effect that lowers the held-out error most given those before it, on
+    the engine's linear model), with its figures on the exact kinematics, its gain and the gain's
+    95 % interval (``bootstrap``'s; None: a pose bootstrap of the engine's rows, seed 0)."""
+    bootstrap = bootstrap or bootstrap_for(engine, 0)
     rungs = explanation_order(engine, selected)
-    for (_, previous), (effect, r) in zip(rungs, rungs[1:]):
-        steps.append(Step(effect, tuple(r["effects"]), r["n_parameters"], r["train_stats"].rms,
-                          ErrorStats.heldout(r),
-                          paired_z(previous["heldout_squares"], r["heldout_squares"]),
-                          difference_interval(previous["heldout_squares"], r["heldout_squares"])))
-    return steps
+    chain = [(first, rungs[0][1])]
+    for effect, r in rungs[1:]:
+        chain.append((Step(effect, tuple(r["effects"]), r["n_parameters"], r["train_stats"].rms,
+                           ErrorStats.heldout(r), paired_z(chain[-1][1]["heldout_squares"], r["heldout_squares"])),
+                      r))
+    table = bootstrap.read({k: r["heldout_squares"] for k, (_, r) in enumerate(chain)})
+    return [first] + [dataclasses.replace(step, gain=tuple(table.difference(k - 1, k)))
+                      for k, (step, _) in enumerate(chain) if k > 0]

@@ -67,6 +67,15 @@ class Candidate:
         return out
 
 
+def _no_parameter(name: str, robot) -> str:
+    """Why an effect has no parameter on ``robot`` (in the words of a candidate left untried)."""
+    from ...units import REVOLUTE
+
+    if REVOLUTE not in robot.joint_kinds:
+        return f"{name} has no parameter on {robot.name}: its joints are all prismatic, and it acts on revolute ones"
+    return f"{name} has no parameter on {robot.name}"
+
+
 def untried(effect: str, why: str) -> Candidate:
     return Candidate(effect, False, why)
 
@@ -146,6 +155,8 @@ def build_bases(parts: list[Part], names, measured, notes: list, session_labels=
                     options["sessions"] = tuple(session_labels)
                 options.update(cls.fit_policy.options_for_data(part.robot, part.q, part.context))
                 effect = make_effect(name, part.robot, **options)
+                if effect.n_params == 0:  # e.g. a gear's cyclic error on a robot of prismatic joints only
+                    raise InputError(_no_parameter(name, part.robot))
                 labels = _part_names(effect, part, len(parts))
                 em = ErrorModel(part.robot)
                 if p not in jacobians:

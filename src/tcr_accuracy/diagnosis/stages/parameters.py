@@ -1,6 +1,7 @@
 """Stage 6: the fitted parameters -- every value with its standard error, 95 % interval and
 physical range, the parameters held on their fit range's bound, the as-built geometry and the
-tracker frame ``trackerMbase``.
+tracker frame ``trackerMbase``, and how far that geometry moves the tool frame, tilts the axes and
+puts the measured point from a given TCP offset, against what the robot's class allows.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from ...effects import effect_class
 from ...frames.rigid import homogeneous
 from ...model.errors import ErrorModel
 from ..bases import ordered
+from ..plausibility import TOLERANCES, geometry_checks, robot_class
 from ..uncertainty import joint_function_bands, parameter_table
 from .candidates import CandidateSet
 from .register import RegisteredMeasurements
@@ -48,6 +50,12 @@ class FittedParameters:
     physics : dict
         effect -> why its parameters lie in their range.
     notes : tuple of str
+    geometry_checks : tuple of GeometryCheck
+        The as-built geometry against what the robot's class allows: axis tilts, the tool frame's
+        displacement and rotation, the fitted TCP offset against a given one
+        (:mod:`~tcr_accuracy.diagnosis.plausibility`).
+    tolerance : GeometryTolerance or None
+        The tolerances they were judged against.
     """
 
     values: dict
@@ -61,11 +69,14 @@ class FittedParameters:
     effect_options: dict
     physics: dict
     notes: tuple
+    geometry_checks: tuple = ()
+    tolerance: object = None
 
 
 def collect_parameters(registered: RegisteredMeasurements, candidate_set: CandidateSet,
-                       selection: Selection) -> FittedParameters:
-    """Stage 6 of the diagnosis."""
+                       selection: Selection, tcp_offset: np.ndarray | None = None) -> FittedParameters:
+    """Stage 6 of the diagnosis. ``tcp_offset``: the first measured point's offset from its robot's tool
+    frame as the user knows it (3,) [m], checked against the fitted one; None: not checked."""
     engine, bases = candidate_set.engine, candidate_set.bases
     selected = ordered(selection.selected)
     final = engine.evaluate(selected, exact=True)
@@ -98,9 +109,15 @@ def collect_parameters(registered: RegisteredMeasurements, candidate_set: Candid
     base_twist = as_built[em.base_slice].copy()
     as_built[em.base_slice] = 0.0  # the base twist belongs to the tracker frame, not the robot
     tracker = homogeneous(*registered.stations[0]) @ pin.exp6(base_twist).homogeneous
+    tolerance = TOLERANCES[robot_class(robot)]
+    first = registered.parts[0]
+    checks = geometry_checks(robot, registered.measurements.q, as_built, table,
+                             "frames.tool" if len(registered.parts) == 1 else f"frames.{first.label}", tcp_offset,
+                             tolerance)
     return FittedParameters(
         values=values, units=units, full_vectors=full_vectors, table=table, as_built_x=as_built,
         trackerMbase=tracker, identifiability=identifiability,
         joint_function_bands=joint_function_bands(final, bases, selected, registered.measurements.q),
         effect_options={e: dict(bases[e].per_part[0].effect.options) for e in selected},
-        physics={e: effect_class(e).physics for e in table}, notes=tuple(notes))
+        physics={e: effect_class(e).physics for e in table}, notes=tuple(notes), geometry_checks=tuple(checks),
+        tolerance=tolerance)

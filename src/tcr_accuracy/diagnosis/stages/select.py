@@ -14,7 +14,7 @@ from ..fitting import FitEngine
 from ..bases import ordered
 from ..paired import entry_z, paired_z
 from ..records import ErrorStats, Step
-from ..uncertainty import difference_interval, implausibility
+from ..uncertainty import implausibility
 from ..bases import position_jacobians
 from .candidates import NOT_IDENTIFIABLE, Candidate, CandidateSet, build_bases, identifiable_alone, relinearise, \
     untried
@@ -39,9 +39,8 @@ class LeaveOneOut:
     own_share_heldout : ErrorStats
         Held-out errors without it, the others held to their own parameters.
     own_share_increase : float
-        Its own share: how much the held-out RMS rises then [m].
-    own_share_interval : (float, float)
-        95 % interval of the own share [m].
+        Its own share: how much the held-out RMS rises then [m] (its 95 % interval is stage 4's,
+        :attr:`~.attribute.Attribution.own_shares`, on the same bootstrap as the other shares).
     """
 
     effect: str
@@ -50,12 +49,10 @@ class LeaveOneOut:
     z: float
     own_share_heldout: ErrorStats
     own_share_increase: float
-    own_share_interval: tuple
 
     def to_dict(self) -> dict:
         return {"dropped": self.effect, "heldout_rms_mm": self.heldout.rms * 1e3,
                 "heldout_mean_mm": self.heldout.mean * 1e3,
-                "own_share_interval_mm": [self.own_share_interval[0] * 1e3, self.own_share_interval[1] * 1e3],
                 "heldout_max_mm": self.heldout.max * 1e3, "increase_mm": self.increase * 1e3, "z": self.z,
                 "own_share_heldout_rms_mm": self.own_share_heldout.rms * 1e3,
                 "own_share_heldout_mean_mm": self.own_share_heldout.mean * 1e3,
@@ -302,11 +299,9 @@ def _backward(engine: FitEngine, current: list, say, selection_z: float, referen
             r = engine.evaluate(rest)
             own = engine.evaluate(rest, keep={s: keep[s] for s in rest})
             held, held_own = ErrorStats.heldout(r), ErrorStats.heldout(own)
-            share = difference_interval(own["heldout_squares"], final["heldout_squares"])
             loo.append(LeaveOneOut(effect=e, heldout=held, increase=held.rms - final_rms,
                                    z=entry_z(r["heldout_squares"], final["heldout_squares"]),
-                                   own_share_heldout=held_own, own_share_increase=held_own.rms - final_rms,
-                                   own_share_interval=(share[1], share[2])))
+                                   own_share_heldout=held_own, own_share_increase=held_own.rms - final_rms))
         weakest = min(loo, key=lambda row: row.z) if loo else None
         if weakest is None or weakest.z > selection_z or (reference is not None and not within_reach(
                 engine.evaluate(ordered([s for s in current if s != weakest.effect]))["heldout_squares"],
