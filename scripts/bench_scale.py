@@ -276,16 +276,16 @@ def main(argv=None) -> int:
                         help=f"git ref of the code to compare diagnose with (default {PREVIOUS}; 'none': skip)")
     parser.add_argument("--json", default=None, metavar="FILE")
     args = parser.parse_args(argv)
+    label = None
+    if args.previous != "none":  # the commit compared with, named as it was taken
+        commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", args.previous], capture_output=True,
+                                text=True, check=False).stdout.strip()
+        label = f"{args.previous} {commit}".strip()
     with tempfile.TemporaryDirectory(prefix="bench_scale_") as tmp:
         previous = None if args.previous == "none" else previous_source(args.previous, Path(tmp))
         results = [bench_size(n, Path(tmp), plain=not args.no_plain, previous=previous, predict=not args.no_predict)
                    for n in args.sizes]
         table = None if args.table is None else bench_table(args.table, Path(tmp), previous)
-    label = None
-    if args.previous != "none":
-        commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", args.previous], capture_output=True,
-                                text=True, check=False).stdout.strip()
-        label = f"{args.previous} {commit}".strip()
     report(results, label)
     if table is not None:
         report_table(table, label)
