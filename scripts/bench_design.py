@@ -6,10 +6,11 @@ candidates; 20 of them, drawn at random, are measured first; then batches of ``-
 added either by the Bayesian I-optimal design (the prior fitted to the poses so far, the candidates as the task:
 what ``plan-poses MEAS.csv -k BATCH --candidates POOL.csv`` does) or at random. At 60 and 120 poses each set
 trains ``predict --method diagnosis`` (the diagnosis' fitted model, the tracker frame fitted) and, beside it,
-the design's own linearised Bayesian model; both are scored on the 300 held-out grid poses and on the 20
-random poses of ``ur5_random_20.csv`` (mean 3D miss, mm). All 700 candidates and 200 random poses are the
-yardsticks. The stop rule is checked too: from the 60 poses, the learning curve's predicted gain for 140
-more against what the 200 give.
+``predict --method bayes`` (the design's own linearised Bayesian model, :class:`BayesianCalibration`); both are
+scored on the 300 held-out grid poses and on the 20 random poses of ``ur5_random_20.csv`` (mean 3D miss, mm;
+for bayes also the share of axis misses inside its 95 % predictive interval). All 700 candidates and 200 random
+poses are the yardsticks. The stop rule is checked too: from the 60 poses, the learning curve's predicted gain
+for 140 more against what the 200 give (with the design's own model, and with ``predict --method bayes``).
 
 Simulated UR10 (always): a hidden truth written here on Pinocchio (joint-placement errors, joint stiffness
 under gravity, a two-harmonic gear error on the first three joints), never the project's effect classes;
@@ -47,28 +48,42 @@ def rows(columns: DesignColumns, idx) -> DesignColumns:
     return DesignColumns(columns.g[idx], columns.owner, columns.effects)
 
 
-def diagnosis_scores(robot, q, position, tests, seed=0):
-    """Mean 3D held-out miss [mm] of ``predict --method diagnosis`` trained on (q, position), per test set."""
-    model = MeasuredErrorModel(robot=robot, estimator=make_predictor("diagnosis", robot, random_state=seed),
+def method_scores(method, robot, q, position, tests, seed=0):
+    """``predict --method METHOD`` trained on (q, position), per test set (q, position): (mean 3D held-out miss
+    [mm], RMS 3D miss [mm], share of axis misses inside the 95 % predictive interval or nan)."""
+    model = MeasuredErrorModel(robot=robot, estimator=make_predictor(method, robot, random_state=seed),
                                fit_frame=True)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         model.fit(q, position)
-        return [predict_errors(model, tq, measured=tp).held_out.mean * 1e3 for tq, tp in tests]
+        out = []
+        for tq, tp in tests:
+            held = predict_errors(model, tq, measured=tp).held_out
+            inside = np.nan if held.std is None else float(np.mean(np.abs(held.residual) <= 1.96 * held.std))
+            out.append((held.mean * 1e3, held.rms * 1e3, inside))
+        return out
 
 
-def bayes_scores(robot, columns, q, position, idx, tests):
-    """Mean 3D held-out miss [mm] of the design's linearised Bayesian model, per test set (columns, q, position)."""
+def diagnosis_scores(robot, q, position, tests, seed=0):
+    """Mean 3D held-out miss [mm] of ``predict --method diagnosis`` trained on (q, position), per test set."""
+    return [mean for mean, _, _ in method_scores("diagnosis", robot, q, position, tests, seed)]
+
+
+def design_prior(robot, columns, q, position, idx):
+    """The design's prior fitted to the poses idx (tracker frame registered first) and their base-frame errors."""
     registration = register_tracker(robot, q[idx], position[idx])
     errors = registration.to_base(position[idx]) - tcp_poses(robot, q[idx]).position
-    prior = fit_prior(rows(columns, idx), errors)
+    return fit_prior(rows(columns, idx), errors), errors
+
+
+def design_model_rms(robot, columns, q, position, idx, test):
+    """RMS 3D miss [mm] at the poses ``test`` of the design's own model (:class:`BayesianErrorModel` on the nominal
+    robot's columns, what ``plan-poses``' stop rule predicts for) fitted to the poses ``idx``."""
+    prior, errors = design_prior(robot, columns, q, position, idx)
+    registration = register_tracker(robot, q[idx], position[idx])
     model = BayesianErrorModel(prior).fit(rows(columns, idx), errors)
-    out, rms = [], []
-    for test_columns, test_q, test_position in tests:
-        miss = registration.to_base(test_position) - tcp_poses(robot, test_q).position - model.predict(test_columns)
-        out.append(float(np.linalg.norm(miss, axis=1).mean() * 1e3))
-        rms.append(float(np.sqrt(np.mean(np.sum(miss**2, axis=1))) * 1e3))
-    return out, prior, errors, rms
+    miss = registration.to_base(position[test]) - tcp_poses(robot, q[test]).position - model.predict(rows(columns, test))
+    return float(np.sqrt(np.mean(np.sum(miss**2, axis=1))) * 1e3)
 
 
 def planned_sequence(robot, columns, q, position, first, pool, total, batch):
@@ -76,9 +91,7 @@ def planned_sequence(robot, columns, q, position, first, pool, total, batch):
     measured = list(first)
     while len(measured) < total:
         idx = np.array(measured)
-        registration = register_tracker(robot, q[idx], position[idx])
-        errors = registration.to_base(position[idx]) - tcp_poses(robot, q[idx]).position
-        prior = fit_prior(rows(columns, idx), errors)
+        prior, _ = design_prior(robot, columns, q, position, idx)
         taken = set(measured)
         candidates = np.array([i for i in pool if i not in taken])
         design = plan_design(rows(columns, idx), rows(columns, candidates), rows(columns, pool), prior,
@@ -93,61 +106,63 @@ def ur5(real: Path, seeds, batch: int) -> None:
     rand = read_measurements(real / "ur5_tracker" / "ur5_random_20.csv", robot)
     effects = design_vocabulary()
     columns = design_columns(robot, grid.q, effects)
-    rand_columns = design_columns(robot, rand.q, effects)
-    print("UR5: mean 3D held-out miss [mm]; diagnosis = predict --method diagnosis, bayes = the design's own "
-          "linearised model")
+    print("UR5: mean 3D held-out miss [mm] of predict --method diagnosis and --method bayes; 'in 95%': share of "
+          "bayes' axis misses inside its 95 % predictive interval")
     print(f"{'seed':>4} {'poses':>5} {'how':>8} {'diag grid300':>12} {'diag rand20':>11} {'bayes grid300':>13} "
-          f"{'bayes rand20':>12} {'CPU s':>6}")
+          f"{'bayes rand20':>12} {'in 95%':>7} {'CPU s':>6}")
     ratios = {60: [], 120: []}
     rand20 = {60: []}
-    curve_checks = []
     for seed in seeds:
         permutation = np.random.default_rng(seed).permutation(len(grid.q))
         test, pool = permutation[:300], permutation[300:]
         order = np.random.default_rng(seed + 100).permutation(pool)
         first = order[:20]
-        tests_d = [(grid.q[test], grid.position[test]), (rand.q, rand.position)]
+        tests = [(grid.q[test], grid.position[test]), (rand.q, rand.position)]
         started = time.process_time()
         planned = planned_sequence(robot, columns, grid.q, grid.position, first, pool, 120, batch)
         plan_cpu = time.process_time() - started
         rows_out = {}
-        for how, sequence in (("planned", planned), ("random", order)):
-            for n in (60, 120) if how == "planned" else (60, 120, 200):
+        for how, sequence, sizes in (("planned", planned, (60, 120)), ("random", order, (60, 120, 200)),
+                                     ("all", pool, (len(pool),))):
+            for n in sizes:
                 idx = sequence[:n]
                 t0 = time.process_time()
-                d = diagnosis_scores(robot, grid.q[idx], grid.position[idx], tests_d)
-                b, prior, errors, b_rms = bayes_scores(robot, columns, grid.q, grid.position, idx,
-                                                [(rows(columns, test), grid.q[test], grid.position[test]),
-                                                 (rand_columns, rand.q, rand.position)])
-                rows_out[how, n] = (d, b, b_rms)
-                print(f"{seed:>4} {n:>5} {how:>8} {d[0]:12.4f} {d[1]:11.4f} {b[0]:13.4f} {b[1]:12.4f} "
-                      f"{time.process_time() - t0 + (plan_cpu if how == 'planned' and n == 60 else 0):6.1f}",
+                d = method_scores("diagnosis", robot, grid.q[idx], grid.position[idx], tests)
+                b = method_scores("bayes", robot, grid.q[idx], grid.position[idx], tests)
+                rows_out[how, n] = (d, b)
+                print(f"{seed:>4} {n:>5} {how:>8} {d[0][0]:12.4f} {d[1][0]:11.4f} {b[0][0]:13.4f} {b[1][0]:12.4f} "
+                      f"{b[0][2]:7.3f} {time.process_time() - t0 + (plan_cpu if how == 'planned' and n == 60 else 0):6.1f}",
                       flush=True)
-                if how == "random" and n == 60:  # the stop rule: predicted at 60 for the 140 random poses to 200
-                    curve = learning_curve(rows(columns, idx), errors, prior, np.random.default_rng(seed))
-                    before = task_variance(rows(columns, idx), rows(columns, test), prior)
-                    after = task_variance(rows(columns, sequence[:200]), rows(columns, test), prior)
-                    curve_checks.append((seed, curve.gain(before, after), curve.predict(before),
-                                         curve.predict(after)))
         for n in (60, 120):
-            ratios[n].append((rows_out["planned", n][0][0] / rows_out["random", n][0][0],
-                              rows_out["planned", n][1][0] / rows_out["random", n][1][0]))
-        rand20[60].append(rows_out["planned", 60][0][1])
-        for seed_, gain, now, then in curve_checks[-1:]:
-            actual = rows_out["random", 60][2][0] - rows_out["random", 200][2][0]
-            diagnosis = rows_out["random", 60][0][0] - rows_out["random", 200][0][0]
-            print(f"     stop rule at 60 random poses for 140 more (the design's model, held-out RMS of the 3D miss): "
-                  f"predicted {now[0] * 1e3:.4f} -> {then[0] * 1e3:.4f} mm, gain {gain[0] * 1e3:.4f} mm "
-                  f"[{gain[1] * 1e3:.4f}, {gain[2] * 1e3:.4f}]; measured on the 300 held-out grid poses "
-                  f"{rows_out['random', 60][2][0]:.4f} -> {rows_out['random', 200][2][0]:.4f} mm, gain {actual:.4f} mm "
-                  f"(predicted/measured {gain[0] * 1e3 / actual:.2f}); the diagnosis' mean miss gains {diagnosis:.4f} mm")
-    d_all = diagnosis_scores(robot, grid.q[pool], grid.position[pool], tests_d)
-    print(f"all 700 candidates (last seed): diagnosis {d_all[0]:.4f} / {d_all[1]:.4f} mm")
+            ratios[n].append((rows_out["planned", n][0][0][0] / rows_out["random", n][0][0][0],
+                              rows_out["planned", n][1][0][0] / rows_out["random", n][1][0][0]))
+        rand20[60].append((rows_out["planned", 60][0][1][0], rows_out["planned", 60][1][1][0],
+                           rows_out["random", 60][1][1][0]))
+        # the stop rule: predicted at 60 random poses for the 140 more to 200 (the design's model)
+        idx = order[:60]
+        prior, errors = design_prior(robot, columns, grid.q, grid.position, idx)
+        curve = learning_curve(rows(columns, idx), errors, prior, np.random.default_rng(seed))
+        before = task_variance(rows(columns, idx), rows(columns, test), prior)
+        after = task_variance(rows(columns, order[:200]), rows(columns, test), prior)
+        gain = curve.gain(before, after)
+        now, then = curve.predict(before), curve.predict(after)
+        measured_now, measured_then = rows_out["random", 60][1][0][1], rows_out["random", 200][1][0][1]
+        design_now, design_then = (design_model_rms(robot, columns, grid.q, grid.position, order[:n], test)
+                                   for n in (60, 200))
+        print(f"     stop rule at 60 random poses for 140 more (held-out RMS of the 3D miss on the 300 grid poses): "
+              f"predicted {now[0] * 1e3:.4f} -> {then[0] * 1e3:.4f} mm, gain {gain[0] * 1e3:.4f} mm "
+              f"[{gain[1] * 1e3:.4f}, {gain[2] * 1e3:.4f}]; measured with the design's model {design_now:.4f} -> "
+              f"{design_then:.4f} mm, gain {design_now - design_then:.4f} mm (predicted/measured "
+              f"{gain[0] * 1e3 / (design_now - design_then):.2f}); with predict --method bayes {measured_now:.4f} -> "
+              f"{measured_then:.4f} mm, gain {measured_now - measured_then:.4f} mm (predicted/measured "
+              f"{gain[0] * 1e3 / (measured_now - measured_then):.2f})")
     for n in (60, 120):
         r = np.array(ratios[n])
         print(f"planned/random at {n} poses, held-out grid, mean over seeds: diagnosis {r[:, 0].mean():.3f}, "
               f"bayes {r[:, 1].mean():.3f}")
-    print(f"60 planned poses on the 20 random poses (diagnosis), mean over seeds: {np.mean(rand20[60]):.4f} mm")
+    r20 = np.array(rand20[60])
+    print(f"on the 20 random poses, mean over seeds: 60 planned poses diagnosis {r20[:, 0].mean():.4f} mm, "
+          f"bayes {r20[:, 1].mean():.4f} mm; 60 random poses bayes {r20[:, 2].mean():.4f} mm")
 
 
 def ur10(seeds) -> None:

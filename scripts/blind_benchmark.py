@@ -62,7 +62,7 @@ def run_scenario(robot, index: int, rng: np.random.Generator, *, n_train: int, n
     result = diagnose(robot, measured, folds=folds, random_state=index, tracker_noise=scenario["noise_m"])
     seconds = time.perf_counter() - start
     # --- only now look at the truth -------------------------------------------------
-    predicted = result.predict(robot, test.q, test.context)
+    predicted = result.tracker_positions(robot, test.q, test.context)
     test_rms = float(np.sqrt(np.mean(np.sum((predicted - test.position) ** 2, axis=1))))
     floor = result.noise_floor
     dominant = scenario["dominant"][0]

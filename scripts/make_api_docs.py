@@ -31,7 +31,104 @@ SECTIONS = ("Parameters", "Attributes", "Returns", "Yields", "Raises", "Warns", 
 LAYER_TITLES = {"model": "Robot, error model, kinematics", "io": "Measurements", "effects": "Effects",
                 "frames": "Measurement frames", "analysis": "Monte Carlo and simulation", "diagnosis": "Diagnosis",
                 "prediction": "Prediction and compensation", "asbuilt": "As-built model and export",
-                "iso9283": "ISO 9283", "view": "Reports and viewer", "cli": "Files written (the command line's one writer)"}
+                "iso9283": "ISO 9283", "results": "Result files", "view": "Reports and viewer",
+                "cli": "Files written (the command line's one writer)", "exceptions": "Errors"}
+
+#: Examples of the names whose docstrings carry none yet, rendered (and run by tests/test_api_docs.py)
+#: as their Examples section: names of modules other changes are still editing (the ISO 9283 tests,
+#: robot programs and factory kinematics); their docstrings take these over when those settle.
+EXTRA_EXAMPLES = {
+    "evaluate_pose_test": """\
+>>> import dataclasses
+>>> import numpy as np
+>>> import tcr_accuracy as tcr
+>>> robot = tcr.load_robot("ur5")
+>>> series = tcr.plan_iso_cube(robot, random_state=0, n_centres=10).series(cycles=10)  # P1..P5, the standard's order
+>>> readings = tcr.tcp_poses(robot, series.q).position + np.random.default_rng(1).normal(0, 1e-5, (50, 3))
+>>> evaluation = tcr.evaluate_pose_test(robot, dataclasses.replace(series, position=readings), frame="base")
+>>> [p.pose_id for p in evaluation.figures.poses], evaluation.figures.poses[0].ap < 2e-5  # AP_P [m]
+(['P1', 'P2', 'P3', 'P4', 'P5'], True)
+""",
+    "IsoEvaluation": """\
+>>> import dataclasses
+>>> import numpy as np
+>>> import tcr_accuracy as tcr
+>>> robot = tcr.load_robot("ur5")
+>>> series = tcr.plan_iso_cube(robot, random_state=0, n_centres=10).series(cycles=10)
+>>> readings = tcr.tcp_poses(robot, series.q).position + np.random.default_rng(1).normal(0, 1e-5, (50, 3))
+>>> evaluation = tcr.evaluate_pose_test(robot, dataclasses.replace(series, position=readings), frame="base")
+>>> evaluation.frame, evaluation.absolute, evaluation.n_readings
+('base', True, 50)
+""",
+    "IsoPlan": """\
+>>> import tcr_accuracy as tcr
+>>> plan = tcr.plan_iso_cube(tcr.load_robot("ur5"), random_state=0, n_centres=10)
+>>> plan.pose_ids, plan.q.shape, len(plan.series(cycles=30))
+(['P1', 'P2', 'P3', 'P4', 'P5'], (5, 6), 150)
+""",
+    "plan_path_test": """\
+>>> import tcr_accuracy as tcr
+>>> plan = tcr.plan_path_test(tcr.load_robot("ur5"), random_state=0)
+>>> len(plan.paths) > 0
+True
+""",
+    "filter_program": """\
+>>> import pathlib
+>>> import tcr_accuracy as tcr
+>>> robot = tcr.load_robot("ur5")
+>>> model = tcr.AsBuiltModel(robot, {"joint_offsets": {"joint_offsets.shoulder_lift_joint": 0.001}}, "ur5")
+>>> program = {"ur5_path.csv": pathlib.Path("examples/programs/ur5_path.csv").read_text()}
+>>> filtered = tcr.filter_program(model, program)
+>>> filtered.language, len(filtered.targets), max(t.error_after_m for t in filtered.targets) < 1e-7
+('joint trajectory CSV', 8, True)
+""",
+    "with_factory_kinematics": """\
+>>> import pathlib
+>>> import tempfile
+>>> import numpy as np
+>>> import tcr_accuracy as tcr
+>>> ur5 = tcr.load_robot("ur5")
+>>> half_turn = np.pi / 2  # each link: x, y, z [m], roll, pitch, yaw [rad] of its joint's placement
+>>> links = {"shoulder": (0, 0, 0.08920, 0, 0, 0), "upper_arm": (0, 0, 0, half_turn, 0, 0),
+...          "forearm": (-0.425, 0, 0, 0, 0, 0), "wrist_1": (-0.39225, 0, 0.10915, 0, 0, 0),
+...          "wrist_2": (0, -0.09465, 0, half_turn, 0, 0), "wrist_3": (0, 0.0823, 0, -half_turn, 0, 0)}
+>>> text = "kinematics:\\n" + "".join(
+...     f"  {name}: {{" + ", ".join(f"{k}: {v}" for k, v in zip(("x", "y", "z", "roll", "pitch", "yaw"), six))
+...     + "}\\n" for name, six in links.items())
+>>> path = pathlib.Path(tempfile.mkdtemp()) / "calibration.yaml"  # the UR ROS 2 driver's file
+>>> _ = path.write_text(text)
+>>> robot = tcr.with_factory_kinematics(ur5, path)
+>>> robot.kinematics["format"], robot.robot_source
+('UR ROS 2 driver calibration', 'ur5')
+>>> q = np.zeros((1, 6))
+>>> shift = tcr.tcp_poses(robot, q).position - tcr.tcp_poses(ur5, q).position
+>>> round(float(np.linalg.norm(shift)) * 1e3, 3)  # mm: the shoulder 0.041 mm higher
+0.041
+""",
+    "evaluate_path_test": """\
+>>> import pathlib
+>>> import tempfile
+>>> import numpy as np
+>>> import tcr_accuracy as tcr
+>>> robot = tcr.load_robot("ur5")
+>>> path = tcr.plan_path_test(robot, np.random.default_rng(0)).paths[0]  # the first standard path
+>>> times = np.linspace(0.0, 2.0, len(path.q))
+>>> commanded = tcr.MeasurementSet(joint_names=list(robot.joint_names), q=path.q, position=path.points,
+...                                time_s=times, annotations={"path": np.full(len(path.q), path.name, dtype=object)})
+>>> rows = ["time_s,x_mm,y_mm,z_mm,path,cycle"]
+>>> for cycle in (1, 2, 3):  # the robot runs the path three times; the tracker logs at 200 Hz
+...     t = np.linspace(0.0, 2.0, 401)
+...     p = np.stack([np.interp(t, times, path.points[:, a]) for a in range(3)], axis=1) * 1e3
+...     rows += [f"{10 * cycle + tk:.3f},{x:.4f},{y:.4f},{z:.4f},{path.name},{cycle}" for tk, (x, y, z) in zip(t, p)]
+>>> stream_file = tempfile.mkdtemp() + "/stream.csv"
+>>> _ = pathlib.Path(stream_file).write_text("\\n".join(rows) + "\\n")
+>>> measured, compensated = tcr.evaluate_path_test(robot, commanded, tcr.read_tracker_stream(stream_file), frame="base",
+...                                              planes=20)
+>>> len(measured.runs), measured.runs[0][1].at < 1e-4  # AT_P [m]: the robot follows its path
+(1, True)
+""",
+}
+
 
 
 def split_sections(doc: str) -> tuple[str, dict[str, str]]:
@@ -197,7 +294,7 @@ def render_api() -> str:
             kind = "class" if inspect.isclass(obj) else "function"
             lines += [f"### {name}", "", f"*{kind}* `tcr_accuracy.{tcr_accuracy._EXPORTS[name]}.{name}`", "",
                       "```python", _signature(name, obj), "```", ""]
-            lines += render_docstring(inspect.getdoc(obj) or "")
+            lines += render_docstring(docstring(name, obj))
             if inspect.isclass(obj):
                 methods = _public_methods(obj)
                 if methods:
@@ -211,6 +308,25 @@ def render_api() -> str:
     text = "\n".join(lines)
     text = re.sub(r"\n{3,}", "\n\n", text)
     return text.rstrip("\n") + "\n"
+
+
+def docstring(name: str, obj) -> str:
+    """``obj``'s cleaned docstring, with :data:`EXTRA_EXAMPLES` as its Examples section where it has none.
+
+    Parameters
+    ----------
+    name : str
+        Its public name.
+    obj : object
+
+    Returns
+    -------
+    str
+    """
+    doc = inspect.getdoc(obj) or ""
+    if name in EXTRA_EXAMPLES and "\nExamples\n--------\n" not in doc:
+        doc = doc.rstrip() + "\n\nExamples\n--------\n" + EXTRA_EXAMPLES[name].strip("\n")
+    return doc
 
 
 def main(argv=None) -> int:

@@ -132,7 +132,7 @@ def test_an_exported_table_predicts_the_hidden_truth(campaign, tmp_path):
     model = tcr.load_as_built(tmp_path / "out" / "as_built.yaml")
     assert model.options["angle_table"] == written["effect_options"]["angle_table"]
     check_q, check_position = campaign["check_q"], campaign["check_position"]
-    tracker = model.tracker_from_base
+    tracker = model.trackerMbase
 
     def miss_of(m):  # [m] at each check pose, the model's point in the tracker's frame
         points = m.tcp_poses(check_q).position @ tracker[:3, :3].T + tracker[:3, 3]

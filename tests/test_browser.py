@@ -323,7 +323,7 @@ def _check_view_frame(chromium, tmp_path, view, data, as_built, q, raw_tracker, 
     print(f"measured vs model TCP: max {near.max() * 1e3:.3f} mm; raw tracker coordinates: min {raw.min():.3f} m")
     assert near.max() < tolerance_m
     assert raw.min() > 0.05  # the tracker's own coordinates would be far off: the check can fail
-    np.testing.assert_allclose(scene["matrix:tracker frame"], np.linalg.inv(np.array(data["tracker_transform"])),
+    np.testing.assert_allclose(scene["matrix:tracker frame"], np.linalg.inv(np.array(data["trackerMbase"])),
                                atol=1e-5)
     dom = _dom(chromium, tmp_path, view)
     factor = float(re.search(r"TCP offset only \(segments magnified x ([0-9.e+]+)[;)]", dom).group(1))
@@ -367,7 +367,7 @@ def test_diagnosis_view_of_a_ur10_whose_tracker_is_turned_half_round(chromium, t
                  "--out", str(csv), "--quiet"]) == 0
     view, data, as_built = _diagnosed_view(tmp_path, csv, ["--robot", "ur10", "--effects", "geometry"])
     m = read_measurements(csv, load_robot("ur10"))
-    assert abs(abs(np.array(data["tracker_transform"])[0, 0]) - 1.0) < 1e-3  # the turn half round is found
+    assert abs(abs(np.array(data["trackerMbase"])[0, 0]) - 1.0) < 1e-3  # the turn half round is found
     _check_view_frame(chromium, tmp_path, view, data, as_built, m.q, m.position, 0.5e-3)
 
 

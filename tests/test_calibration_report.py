@@ -440,7 +440,7 @@ def test_report_refuses_what_is_not_a_result_of_ours_in_one_line_and_writes_noth
 
 def test_results_of_two_robots_are_refused(campaign, tmp_path, capsys):
     other = _json(campaign, "iso.json")
-    other["robot"] = "ur5"
+    other.update(robot="ur5", robot_source="ur5", tool_frame="tool0")  # a pose test of a UR5, consistent in itself
     (tmp_path / "ur5_iso.json").write_text(json.dumps(other))
     code, _, err = run_command(["report", str(campaign / "d.json"), str(tmp_path / "ur5_iso.json"), "--out",
                                 str(tmp_path / "r")], capsys)
@@ -590,14 +590,14 @@ def test_a_crowded_first_page_leaves_out_what_does_not_fit_and_keeps_the_lines_t
     extra = ["lateral_compliance", "backlash", "thermal", "transmission", "encoder_scale"]
     for e in extra:
         d["mechanisms"].append({**template, "effect": e, "family": "other"})
-        d["steps"].append({**d["steps"][-1], "effect": e})
+        d["steps"].append({**d["steps"][-1], "effect": e, "effects": [*d["steps"][-1]["effects"], e]})
     d["selected_effects"] += extra
     d["ambiguous"] = [{"effects": ["compliance", "lateral_compliance"], "members": []},
                       {"effects": ["transmission", "encoder_scale"], "members": []}]
     d["physical"]["geometry"]["pinned"] = [{"parameter": name, "bound": "upper"}
                                            for name in list(d["parameters"]["geometry"])[:5]]
-    for ch in cmp["changes"][:12]:
-        ch["significant"], ch["z"] = True, 9.0
+    for ch in cmp["changes"][:12]:  # each change 9 of its standard errors (the file's figures agree)
+        ch["significant"], ch["z"], ch["std_error"] = True, 9.0, abs(ch["new"] - ch["old"]) / 9.0
     cmp["significant"] = [ch["parameter"] for ch in cmp["changes"][:12]]
     for name, doc in (("d.json", d), ("iso.json", iso), ("cmp.json", cmp)):
         (tmp_path / name).write_text(json.dumps(doc))

@@ -15,7 +15,6 @@ import pytest
 
 from tcr_accuracy.analysis.simulate import simulate_measurements
 from tcr_accuracy.cli import main
-from tcr_accuracy.cli.diagnose import jsonable
 from tcr_accuracy.diagnosis.compare import FittedModel, parameter_changes
 from tcr_accuracy.diagnosis.diagnose import diagnose
 from tcr_accuracy.cli.writers import write_measurements
@@ -54,7 +53,7 @@ def campaigns(tool_changer, tmp_path_factory):
         write_measurements(csv, tool_changer, mset)
         files[name] = csv
         if name != "same":  # the unchanged pair is compared from its CSVs
-            doc = jsonable(diagnose(tool_changer, mset, random_state=0).to_dict())
+            doc = diagnose(tool_changer, mset, random_state=0).to_dict()
             files[f"{name}.json"] = folder / f"{name}.json"
             files[f"{name}.json"].write_text(json.dumps(doc))
     return files

@@ -104,7 +104,7 @@ def test_cli_predict_and_python_diagnosis_give_the_same_predictions(ur10_setup, 
     cli = json.loads(out_json.read_text())["heldout"]
     train = read_measurements(s["train"], robot)
     d = diagnose(robot, train)
-    python = np.linalg.norm(d.predict(robot, q_query) - measured, axis=1) * 1e3
+    python = np.linalg.norm(d.tracker_positions(robot, q_query) - measured, axis=1) * 1e3
     print(f"held-out mean: CLI {cli['mean_mm']:.5f} mm, Python {python.mean():.5f} mm")
     assert cli["mean_mm"] == pytest.approx(python.mean(), rel=0.03)
     assert cli["max_mm"] == pytest.approx(python.max(), rel=0.1)

@@ -88,7 +88,7 @@ def test_compliance_dominant_is_named_and_the_gap_shrinks_to_the_noise(complianc
     final = result.steps[-1].heldout.rms
     assert final < 1.5 * result.noise_floor
     # the fitted model predicts measurements it never saw to the noise floor
-    predicted = result.predict(tool_changer, test.q, test.context)
+    predicted = result.tracker_positions(tool_changer, test.q, test.context)
     rms = np.sqrt(np.mean(np.sum((predicted - test.position) ** 2, axis=1)))
     assert rms < 1.5 * result.noise_floor
     # and recovers the hidden compliances of the two heavily loaded joints within 10 %
@@ -194,7 +194,7 @@ def test_geometry_only_as_built_urdf_reproduces_the_robot(tmp_path, ur5):
     import yaml
 
     doc = yaml.safe_load(side.read_text())
-    tracker = np.array(doc["tracker_from_base"])
+    tracker = np.array(doc["trackerMbase"])
     asbuilt = load_robot(str(urdf), doc["urdf_measured_frame"])
     position = tcp_poses(asbuilt, mset.q).position @ tracker[:3, :3].T + tracker[:3, 3]
     rms = np.sqrt(np.mean(np.sum((position - mset.position) ** 2, axis=1)))

@@ -272,8 +272,8 @@ def _fitted_in_base(robot, csv, data, frame=None):
     parts = read_measurements(csv, robot, frame=frame) if frame else read_measurements(csv, robot)
     d = diagnose(robot, parts if frame is None else _all_frames(csv, robot, frame),
                  effects=data["selected_effects"])
-    base = np.linalg.inv(np.array(data["tracker_transform"]))
-    tracker = d.predict(robot, parts.q, parts.context)
+    base = np.linalg.inv(np.array(data["trackerMbase"]))
+    tracker = d.tracker_positions(robot, parts.q, parts.context)
     return parts, tracker @ base[:3, :3].T + base[:3, 3]
 
 

@@ -430,3 +430,40 @@ def test_an_effect_enters_only_when_it_cuts_the_held_out_error_by_the_relative_g
             assert 0.05 * frames < offsets_step < 0.5 * frames  # the cut lies between the two gates
     assert "joint_offsets" in chosen[0.5]
     assert "joint_offsets" not in chosen[0.95]
+
+
+def test_penalised_fit_lands_on_the_closed_form_ridge_optimum():
+    """The Levenberg-Marquardt loop with a smoothness penalty on a linear residual r = A phi - y:
+    its optimum is the ridge solution (A^T A + lambda W) phi = A^T y, written out here. The data are
+    small (a tenth of a millimetre in scaled units) so that a penalty term mis-computed at the
+    trial point (not lambda * sum(w phi^2)) turns the accepted steps away from it."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.diagnosis.fit_columns import Columns
+
+    rng = np.random.default_rng(11)
+    a = rng.standard_normal((30, 3))
+    y = a @ np.array([0.02, 0.05, 0.03]) + 1e-3 * rng.standard_normal(30)
+    w, lam = np.array([1.0, 2.0, 0.5]), 3.0
+
+    class LinearJacobian:  # the one product the loop asks of a Jacobian: J^T r
+        shape = (30, 1, 3)
+
+        @staticmethod
+        def transposed_times(r, rows):
+            return a.T @ r.ravel()
+
+    def residual(cols, phi, rows):
+        return [(a @ phi - y)[:, None]]
+
+    engine = SimpleNamespace(n_fits=0, n_rows=30, MAX_EVALUATIONS=FitEngine.MAX_EVALUATIONS,
+                             COST_TOLERANCE=FitEngine.COST_TOLERANCE, predict_residual=residual,
+                             _weighted=lambda res, rows: res)
+    cols = Columns(names=["p0", "p1", "p2"], scale=np.ones(3), per_part=[], lower=np.full(3, -1e3),
+                   upper=np.full(3, 1e3), penalty=w)
+    start = np.zeros(3)
+    phi, _ = FitEngine._minimise(engine, cols, [LinearJacobian()], None, a.T @ a, start,
+                                 residual(cols, start, None), penalty=lam)
+    ridge = np.linalg.solve(a.T @ a + lam * np.diag(w), a.T @ y)
+    np.testing.assert_allclose(phi, ridge, rtol=1e-6, atol=1e-12)
+    assert np.all(np.abs(ridge) > 1e-3)  # the penalised optimum is not the start

@@ -330,6 +330,7 @@ def test_one_position_column_in_metres_is_refused_naming_it(column, where, tmp_p
 
 
 @pytest.mark.parametrize("column, value, words", [("load_pct", "150", "column load_pct: 150 %"),
+                                                  ("load_pct", "-0.5", "column load_pct: -0.5 %"),
                                                   ("speed_pct", "0", "column speed_pct: 0 %")])
 def test_a_condition_outside_the_rated_ones_is_refused(column, value, words, tmp_path, capsys):
     good = _small_test(tmp_path, "good.csv")

@@ -274,3 +274,14 @@ def test_the_tool_changer_works_below_its_base_unless_told():
     assert (_lowest_points(robot, drawn) < 0).any()
     kept = draw_poses(PoseFilter.for_robot(robot, collision=False, floor_z=0.0), 200, np.random.default_rng(0))
     assert _lowest_points(robot, kept.q).min() >= -1e-9 and kept.rejected["mounting plane"] > 0
+
+
+def test_unmodelled_named_without_values_is_drawn_at_tenths_of_a_millimetre(tool_changer):
+    """A scenario naming ``unmodelled`` with no values draws its amplitude around the effect's
+    typical size: a link distortion a tracker calibration meets is tenths of a millimetre (the
+    example scenario hides 0.6 mm), not metres nor microns. Catches the typical scale ``3e-4``
+    changed to 1.0003 or -0.9997."""
+    rng = np.random.default_rng(21)
+    amplitudes = np.array([resolve_effect(tool_changer, "unmodelled", {}, rng)[1][0] for _ in range(400)])
+    rms = float(np.sqrt(np.mean(amplitudes**2)))
+    assert 0.05e-3 < rms < 2e-3

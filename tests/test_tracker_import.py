@@ -11,7 +11,7 @@ from tcr_accuracy.io.measurements import read_measurements
 from tcr_accuracy.io.tracker_import import import_tracker
 from tcr_accuracy.model.robot import load_robot
 
-from conftest import REPO
+from conftest import REPO, pinocchio_kinematics
 
 START = 10 * 3600 + 15 * 60  # 10:15:00 [s of the day]
 
@@ -95,6 +95,38 @@ def test_positions_found_by_name_and_converted_from_the_header_unit(tmp_path):
     path.write_text("# exported\nid,X (m),Y (m),Z (m)\na,1.25,-0.5,2\n")
     result = import_tracker(path)
     assert result.columns == ["x_m", "y_m", "z_m"] and result.rows == [["1.25", "-0.5", "2"]]
+
+
+def test_the_trackers_time_and_sessions_travel_into_the_measurements(tmp_path):
+    # two stations, read across midnight: the times in seconds from the clock (written out here),
+    # carried on past 24 h, and each row's session label as the export has it
+    robot = load_robot("ur5")
+    joints = ",".join(f"{n}_deg" for n in robot.joint_names)
+    path = tmp_path / "stations.csv"
+    lines = [f"Session,Time,X [mm],Y [mm],Z [mm],{joints}"]
+    for session, clock_time, j1 in (("east", "23:59:58.500", 10), ("east", "23:59:59.750", 30),
+                                    ("west", "00:00:01.250", 50)):
+        q = np.radians([j1, -60, 80, -90, -90, 0])
+        tcp = pinocchio_kinematics(robot, q)[1].translation * 1e3  # where the robot is: Pinocchio's own kinematics
+        lines.append(",".join([session, clock_time, *(f"{v:.4f}" for v in tcp), *(f"{v:g}" for v in np.degrees(q))]))
+    path.write_text("\n".join(lines) + "\n")
+    result = import_tracker(path)
+    assert result.columns[-2:] == ["time_s", "session"]
+    times = [float(row[-2]) for row in result.rows]
+    assert times == pytest.approx([86398.5, 86399.75, 86401.25], abs=1e-9)
+    assert [row[-1] for row in result.rows] == ["east", "east", "west"]
+    out = tmp_path / "m.csv"
+    out.write_text(result.csv_text())
+    measured = read_measurements(out, robot)
+    assert list(measured.session) == ["east", "east", "west"]
+    assert np.diff(measured.time_s) == pytest.approx([1.25, 1.5])
+
+
+def test_a_session_label_with_a_comma_is_refused_naming_its_row(tmp_path):
+    path = tmp_path / "stations.csv"
+    path.write_text('session;X [mm];Y [mm];Z [mm]\neast;1;2;3\n"we,st";1;2;3\n')
+    with pytest.raises(Exception, match=r"row 3, column 'session': a session label"):
+        import_tracker(path)
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -244,7 +244,7 @@ def test_the_temperature_line_is_the_expansion_at_the_reach(campaign):
     from tcr_accuracy.results.budgets import figure_budgets
 
     budgets = _budgets(campaign)
-    transform = np.array(campaign["d"]["tracker_transform"])
+    transform = np.array(campaign["d"]["trackerMbase"])
     base = (campaign["train"].position - transform[:3, 3]) @ transform[:3, :3]
     reach = np.linalg.norm(base, axis=1).max()
     expected = 23e-6 * (TEMPERATURE_C[1] - TEMPERATURE_C[0]) * reach / math.sqrt(12)

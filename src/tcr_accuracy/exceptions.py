@@ -41,3 +41,32 @@ class FixedFrameError(InputError):
 
 class AnalysisError(TcrError, RuntimeError):
     """The input was valid but the analysis could not reach a result."""
+
+
+class NotStoredError(TcrError, LookupError):
+    """A result read back from its file was asked for what the file does not hold (the per-row
+    residual arrays of a diagnosis, its stages).
+
+    Parameters
+    ----------
+    message : str
+        What is missing and how to get it.
+    name : str
+        The attribute asked for.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> saved = tcr.diagnose(robot, measured, effects=["joint_offsets"], folds=3).to_json()
+    >>> try:
+    ...     tcr.Diagnosis.from_json(saved).final_residual
+    ... except tcr.NotStoredError as error:
+    ...     print(error.name)
+    final_residual
+    """
+
+    def __init__(self, message: str, name: str = ""):
+        super().__init__(message)
+        self.name = name

@@ -99,6 +99,13 @@ def load_scenario(path: str | Path) -> Scenario:
     -------
     Scenario
         The hidden effects, their parameters [SI] and the context to draw.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> scenario = tcr.load_scenario("examples/scenario_compliance.yaml")
+    >>> "compliance" in scenario.effects
+    True
     """
     path = Path(path)
     text = read_input_text(path, "scenario file", limit=SIZE_LIMITS["settings"])

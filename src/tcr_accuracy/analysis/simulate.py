@@ -286,6 +286,13 @@ def random_scenario(robot: RobotModel, random_state=None, dominant: list[str] | 
     -------
     dict: a scenario with explicit SI parameters, plus ``dominant`` (ordered, largest
     first) and ``notes``.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> scenario = tcr.random_scenario(tcr.load_robot("ur5"), random_state=0, dominant=["compliance"])
+    >>> scenario["dominant"]
+    ['compliance']
     """
     rng = np.random.default_rng(random_state)
     candidates = dominant_candidates()

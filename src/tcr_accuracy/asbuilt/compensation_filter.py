@@ -88,6 +88,16 @@ def filter_joint_targets(model: AsBuiltModel, q, context: MeasurementContext | N
     Returns
     -------
     FilteredTargets
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> d = tcr.diagnose(robot, measured, effects=["joint_offsets"], folds=3)
+    >>> filtered = tcr.filter_joint_targets(tcr.AsBuiltModel.from_diagnosis(robot, d), measured.q[:5])
+    >>> int(filtered.solved.sum())
+    5
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     return _filtered(model, q, context, threshold, np.array(["ok"] * len(q), dtype=object), cartesian=False)
@@ -110,6 +120,18 @@ def filter_pose_targets(model: AsBuiltModel, positions, rotations=None, *, q_see
     Returns
     -------
     FilteredTargets
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> d = tcr.diagnose(robot, measured, effects=["joint_offsets"], folds=3)
+    >>> model = tcr.AsBuiltModel.from_diagnosis(robot, d)
+    >>> targets = model.measured_point_robot()
+    >>> filtered = tcr.filter_pose_targets(model, tcr.tcp_poses(targets, measured.q[:5]).position, q_seed=measured.q[:5])
+    >>> int(filtered.solved.sum())
+    5
     """
     positions = np.atleast_2d(np.asarray(positions, dtype=float))
     if positions.ndim != 2 or positions.shape[1] != 3 or not np.all(np.isfinite(positions)):

@@ -140,6 +140,13 @@ def dh_table(robot: RobotModel, nominal: RobotModel | None = None, *, reference:
     -------
     DhTable
         Checked against the robot's forward kinematics (1e-9 m); NoDhForm otherwise.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> table = tcr.dh_table(tcr.load_robot("ur5"))
+    >>> table.convention, len(table.joints)
+    ('DH', 6)
     """
     lines, tcp = _lines(robot)
     parallel = _parallel_pairs(nominal or robot)
@@ -180,6 +187,13 @@ def mdh_table(robot: RobotModel, nominal: RobotModel | None = None, *, reference
     -------
     DhTable
         Checked against the robot's forward kinematics (1e-9 m); NoDhForm otherwise.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> table = tcr.mdh_table(tcr.load_robot("ur5"))
+    >>> table.convention, len(table.joints)
+    ('MDH', 6)
     """
     lines, tcp = _lines(robot)
     parallel = _parallel_pairs(nominal or robot) + [False]

@@ -1,7 +1,7 @@
 """The calibrated model in a ``diagnose --json`` result, read strictly.
 
 ``export`` reads the keys ``robot_source``, ``tool_frame``, ``effect_parameters``,
-``effect_options`` and ``tracker_transform``, and where they are there the measurement files
+``effect_options`` and ``trackerMbase`` (``tracker_transform`` in files of 0.1), and where they are there the measurement files
 (``measurement_files``, else ``measurements``) and the final step's k-fold held-out figures.
 Every value is checked as :mod:`tcr_accuracy.effects.file_values` and
 :func:`~tcr_accuracy.asbuilt.model_file.tracker_matrix` say; the first one at fault is one
@@ -19,7 +19,7 @@ from .model_file import model_from_values
 
 #: Largest diagnosis JSON read [bytes].
 MAX_BYTES = 200_000_000
-REQUIRED = ("effect_parameters", "robot_source", "tool_frame", "tracker_transform")
+REQUIRED = ("effect_parameters", "robot_source", "tool_frame", "trackerMbase")
 
 
 def parse_diagnosis_json(text: str, source: str) -> dict:
@@ -43,7 +43,8 @@ def model_from_diagnosis(data: dict, source: str) -> AsBuiltModel:
     """The full model a diagnosis JSON holds, every value checked."""
     return model_from_values(source, ("effect_parameters", "effect_options"), data["robot_source"],
                              data["tool_frame"], data["effect_parameters"], data.get("effect_options"),
-                             data["tracker_transform"], "tracker_transform", kinematics=data.get("kinematics"))
+                             data.get("trackerMbase", data.get("tracker_transform")), "trackerMbase",
+                             kinematics=data.get("kinematics"))
 
 
 def measurement_files(data: dict, source: str) -> list[str]:

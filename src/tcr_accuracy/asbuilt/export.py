@@ -24,6 +24,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pinocchio as pin
 
+from ..io.measurement_set import MeasurementSet
 from ..frames.uncertainty_budget import PointSet
 from ..model.errors import ErrorModel
 from ..model.kinematics import tcp_poses
@@ -103,7 +104,7 @@ class AsBuiltExport:
         extra["accuracy"] = [a.to_dict() for a in self.accuracy]
         return model_yaml(model_document(self.model, **extra, **informational))
 
-    def result(self, diagnosis: str, measured: MeasuredPoses, held_out: MeasuredPoses | None = None) -> ExportResult:
+    def result(self, diagnosis: str, measured: MeasurementSet, held_out: MeasurementSet | None = None) -> ExportResult:
         """The export's result file (:class:`~tcr_accuracy.asbuilt.export_result.ExportResult`):
         ``diagnosis`` the diagnosis' file name; ``measured`` and ``held_out`` the poses its figures are on."""
         sets = {"measured": PointSet.of(measured.position)}
@@ -132,7 +133,7 @@ class AsBuiltExport:
         }
 
 
-def build_export(model: AsBuiltModel, measured: MeasuredPoses, held_out: MeasuredPoses | None = None, *,
+def build_export(model: AsBuiltModel, measured: MeasurementSet, held_out: MeasurementSet | None = None, *,
                  payload_kg: float | None = None, kfold: dict | None = None, urdf_file: str = URDF_FILE,
                  model_file: str = MODEL_FILE) -> AsBuiltExport:
     """Every form of the calibration and what each reaches.
@@ -141,9 +142,10 @@ def build_export(model: AsBuiltModel, measured: MeasuredPoses, held_out: Measure
     ----------
     model : AsBuiltModel
         The full model (a diagnosis').
-    measured : MeasuredPoses
-        The measurements it was fitted to (the calibrated workspace, each form's tracker frame).
-    held_out : MeasuredPoses, optional
+    measured : MeasurementSet
+        The measurements it was fitted to (the calibrated workspace; each session gets each form's
+        own tracker frame). Its ``source`` labels the figures.
+    held_out : MeasurementSet, optional
         Measurements it was not fitted to, in the first session's tracker frame.
     payload_kg : float, optional
         The load the static forms hold [kg] (default: each measured row's).
@@ -156,7 +158,18 @@ def build_export(model: AsBuiltModel, measured: MeasuredPoses, held_out: Measure
     Returns
     -------
     AsBuiltExport
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> d = tcr.diagnose(robot, measured, effects=["joint_offsets"], folds=3)
+    >>> export = tcr.build_export(tcr.AsBuiltModel.from_diagnosis(robot, d), measured)
+    >>> [a.form for a in export.accuracy][:2]
+    ['full model', 'URDF alone']
     """
+    measured, held_out = (_poses(m) for m in (measured, held_out))
     robot = model.robot
     geometry = refit_geometry(model, measured.q, measured.context, payload_kg=payload_kg)
     em = ErrorModel(robot)
@@ -170,6 +183,13 @@ def build_export(model: AsBuiltModel, measured: MeasuredPoses, held_out: Measure
     export = AsBuiltExport(model, geometry, calibrated, flange, offset, tuple(tables), not_tabled, ur, (),
                            urdf_file, model_file)
     return replace(export, accuracy=tuple(_accuracies(export, measured, held_out, kfold)))
+
+
+def _poses(measurements) -> MeasuredPoses | None:
+    """The rows the figures are computed on, labelled by their source (file names)."""
+    if measurements is None or isinstance(measurements, MeasuredPoses):
+        return measurements
+    return MeasuredPoses.of(measurements, str(measurements.source))
 
 
 def _tables(model: AsBuiltModel, flange: RobotModel) -> tuple[list[TableForm], dict]:

@@ -116,6 +116,7 @@ def robot_with_start(robot: RobotModel, record, source: str) -> RobotModel:
     rebuilt = _robot_from_placements(robot, chain, tool, source)
     q = _configurations(robot, 0)
     _check_same_robot(robot, tcp_poses(rebuilt, q), q, where)
+    rebuilt.robot_source = robot.robot_source
     rebuilt.kinematics = {**record, "placements": {"joints": dict(joints), "tool": list(placements["tool"])}}
     return rebuilt
 
@@ -312,6 +313,7 @@ def _rewritten(robot: RobotModel, fk, record: dict, source: str) -> RobotModel:
         raise InputError(f"{source}: the URDF of {robot.name} cannot carry these kinematics (its joints placed as "
                          f"near as they go miss them by {miss * 1e3:.3g} mm and {np.degrees(turn):.3g} deg): a chain "
                          "of other joints")
+    rebuilt.robot_source = robot.robot_source  # load_robot(robot_source) and these placements give it again
     rebuilt.kinematics = {**record, "placements": {
         "joints": {name: _six(p) for name, p in zip(robot.joint_names, rebuilt.joint_placements)},
         "tool": _six(rebuilt.tool_placement)}}

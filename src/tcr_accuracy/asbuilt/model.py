@@ -37,18 +37,28 @@ class AsBuiltModel:
     robot : RobotModel, the nominal robot
     parameters : dict, effect name -> {parameter name: value [SI]}, in vocabulary order
     robot_source : str, how to load the nominal robot (example-robot-data name, ``tool_changer``
-        or a URDF path)
-    tracker_from_base : (4, 4) ndarray or None, the fitted tracker frame (``p_tracker = M p_base``)
+        or a URDF path); default: the robot's own (:attr:`RobotModel.robot_source`)
+    trackerMbase : (4, 4) ndarray or None, the fitted tracker frame (``p_tracker = trackerMbase @ p_base``)
     options : dict, effect name -> the options it was fitted with (a cyclic error's highest order,
         thermal's reference temperature); the sessions' tracker frames are not the robot's and are left out
     source : str, where the values came from (a file name), named in error messages
     source_keys : (str, str), the keys of the parameters and the options in that file
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> d = tcr.diagnose(robot, measured, effects=["joint_offsets"], folds=3)
+    >>> model = tcr.AsBuiltModel.from_diagnosis(robot, d)
+    >>> model.robot_source, model.tcp_poses(measured.q[:2]).position.shape
+    ('tool_changer', (2, 3))
     """
 
     robot: RobotModel
     parameters: dict
-    robot_source: str = "tool_changer"
-    tracker_from_base: np.ndarray | None = None
+    robot_source: str | None = None
+    trackerMbase: np.ndarray | None = None
     options: dict = field(default_factory=dict)
     source: str = "as-built model"
     source_keys: tuple = ("effects", "options")
@@ -56,11 +66,17 @@ class AsBuiltModel:
 
     def __repr__(self) -> str:
         n = sum(len(v) for v in self.parameters.values())
-        tracker = ", with tracker frame" if self.tracker_from_base is not None else ""
+        tracker = ", with tracker frame" if self.trackerMbase is not None else ""
         return (f"AsBuiltModel({self.robot.name!r}, effects [{', '.join(self.parameters)}], {n} parameters"
                 f"{tracker})")
 
     def __post_init__(self) -> None:
+        if self.robot_source is None:
+            self.robot_source = self.robot.robot_source
+        if self.robot_source is None:
+            raise InputError(f"{self.source}: robot_source: {self.robot.name} was not loaded by load_robot (built from "
+                             "URDF text, or a perturbed copy): give robot_source, how load_robot loads it again "
+                             "(an example-robot-data name, tool_changer or a URDF path)", parameter="robot_source")
         if not isinstance(self.parameters, dict) or not isinstance(self.options or {}, dict):
             raise InputError(f"{self.source}: parameters and options must map effect names to mappings")
         self.options = {e: {k: v for k, v in (o or {}).items() if not (e == "frames" and k == "sessions")}
@@ -75,17 +91,49 @@ class AsBuiltModel:
             self.effects.append(effect)
         self._vectors = vectors
 
+    @property
+    def tracker_from_base(self) -> np.ndarray | None:
+        """Deprecated alias of :attr:`trackerMbase` (until 0.2): one name for the base-to-tracker transform."""
+        import warnings
+
+        warnings.warn("AsBuiltModel.tracker_from_base is deprecated and will be removed in 0.2; use "
+                      "AsBuiltModel.trackerMbase", DeprecationWarning, stacklevel=2)
+        return self.trackerMbase
+
     @classmethod
-    def from_diagnosis(cls, robot: RobotModel, diagnosis, robot_source: str = "tool_changer") -> "AsBuiltModel":
-        """The model a :class:`~tcr_accuracy.diagnosis.result.Diagnosis` fitted (first measured frame)."""
+    def from_diagnosis(cls, robot: RobotModel, diagnosis, robot_source: str | None = None) -> "AsBuiltModel":
+        """The model a :class:`~tcr_accuracy.diagnosis.result.Diagnosis` fitted (first measured
+        frame), fitted here or read from its JSON form.
+
+        Parameters
+        ----------
+        robot : RobotModel
+            The robot it was fitted to (the first measured frame's).
+        diagnosis : Diagnosis
+        robot_source : str, optional
+            How to load the robot again; default the robot's own (:attr:`RobotModel.robot_source`,
+            set by :func:`~tcr_accuracy.model.robot.load_robot`), so the model file loads back.
+
+        Returns
+        -------
+        AsBuiltModel
+        """
         from ..effects import make_effect
 
+        if diagnosis.robot_name != robot.name:
+            raise InputError(f"{diagnosis.file or 'diagnosis'}: a diagnosis of {diagnosis.robot_name}, not of "
+                             f"{robot.name}", parameter="robot")
         options = {e: dict(o) for e, o in diagnosis.effect_options.items()}
         parameters = {}
         for e, vector in diagnosis.effect_parameters.items():
             effect = make_effect(e, robot, **{k: v for k, v in options.get(e, {}).items() if k != "sessions"})
-            parameters[e] = dict(zip(effect.parameter_names(), map(float, vector)))
-        return cls(robot, parameters, robot_source, np.asarray(diagnosis.tracker_transform, dtype=float), options)
+            names = effect.parameter_names()
+            if len(names) != len(vector):
+                raise InputError(f"{diagnosis.file or 'diagnosis'}: {e} has {len(vector)} parameters, {e} of "
+                                 f"{robot.name} has {len(names)}: a diagnosis of another robot", parameter="robot")
+            parameters[e] = dict(zip(names, map(float, vector)))
+        return cls(robot, parameters, robot_source, np.asarray(diagnosis.trackerMbase, dtype=float), options,
+                   source=diagnosis.file or "diagnosis")
 
     # -- the model ---------------------------------------------------------------------
     def tcp_poses(self, q, context=None) -> TcpPoses:

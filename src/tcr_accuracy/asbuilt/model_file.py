@@ -4,7 +4,7 @@
 (``FILE.effects.yaml``) write the same format; :func:`load_as_built` reads it. The format is
 written down in ``docs/as-built-format.md`` for other tools. In short (SI units)::
 
-    format: tcr-accuracy as-built model 2
+    format: tcr-accuracy as-built model 3
     robot: ur5                       # the nominal robot's name
     robot_source: ur5                # example-robot-data name, tool_changer, or a URDF's absolute path
     tool_frame: tool0                # the nominal TCP frame the chain ends at
@@ -12,7 +12,7 @@ written down in ``docs/as-built-format.md`` for other tools. In short (SI units)
       joint_offsets: {joint_offsets.shoulder_pan_joint: 1.2e-05, ...}
       ...
     options: {cyclic: {max_order: 30}, ...}   # each effect's options (may be empty)
-    tracker_from_base: [[...4 rows...]]       # or null: p_tracker = M p_base [m]
+    trackerMbase: [[...4 rows...]]            # or null: p_tracker = trackerMbase @ p_base [m]
 
 and, not needed to rebuild the model: ``units``, ``note``, ``state``, ``urdf`` and
 ``urdf_measured_frame`` (the URDF written with it), ``accuracy`` (what each exported form
@@ -37,14 +37,16 @@ from ..model.robot import load_robot
 from .model import AsBuiltModel
 
 #: Format tag written (and the ones read).
-FORMAT = "tcr-accuracy as-built model 2"
-READABLE = (FORMAT, "tcr-accuracy as-built model 1")
+FORMAT = "tcr-accuracy as-built model 3"
+READABLE = (FORMAT, "tcr-accuracy as-built model 2", "tcr-accuracy as-built model 1")
+#: The tracker frame's key, and the one formats 1 and 2 wrote it under (still read).
+TRACKER_KEY, OLD_TRACKER_KEY = "trackerMbase", "tracker_from_base"
 #: Keys a file may carry; the first four are required.
 REQUIRED = ("format", "robot_source", "tool_frame", "effects")
-INFORMATIONAL = ("robot", "units", "note", "state", "urdf", "urdf_measured_frame", "urdf_tool_frame", "accuracy",
+INFORMATIONAL = ("robot", "units", "note", "left_out", "state", "urdf", "urdf_measured_frame", "urdf_tool_frame", "accuracy",
                  "uncertainty", "uncertainty_note", "joint_functions", "joint_functions_note", "measured_frames",
                  "chain_in_urdf", "selected_effects")
-KEYS = REQUIRED + ("options", "tracker_from_base", "kinematics") + INFORMATIONAL
+KEYS = REQUIRED + ("options", TRACKER_KEY, OLD_TRACKER_KEY, "kinematics") + INFORMATIONAL
 #: Largest model file read [bytes] (a cyclic model of a 20-joint robot is under 1 MB).
 MAX_BYTES = 20_000_000
 #: Largest translation of the tracker frame [m] and how far from a rotation its matrix may be.
@@ -79,18 +81,30 @@ def model_document(model: AsBuiltModel, **extra) -> dict:
         "tool_frame": model.robot.tool_frame,
         "units": UNITS,
         "note": "tcp_poses = the nominal robot with these effects; the frames' base twist is the tracker's and is "
-                "left out (tracker_from_base: p_tracker = M p_base)",
+                "left out (trackerMbase: p_tracker = trackerMbase @ p_base)",
+        "left_out": left_out(model),
         "state": STATE,
         "effects": {e: {k: float(v) for k, v in p.items() if not (e == "frames" and str(k).startswith("frames.base."))}
                     for e, p in model.parameters.items()},
         "options": {e: _plain(o) for e, o in model.options.items() if o},
-        "tracker_from_base": None if model.tracker_from_base is None else
-        [[float(v) for v in row] for row in model.tracker_from_base],
+        TRACKER_KEY: None if model.trackerMbase is None else [[float(v) for v in row] for row in model.trackerMbase],
     }
     if model.robot.kinematics:  # the nominal robot is the robot's own kinematics, not its URDF's
         doc["kinematics"] = _plain(model.robot.kinematics)
     doc.update(extra)
     return doc
+
+
+def left_out(model: AsBuiltModel) -> str:
+    """What the file leaves out of the model's parameters, in words: the tracker frame's base twist
+    (``frames.base.*``, folded into ``trackerMbase``), which ``tcp_poses`` does not use."""
+    base = sorted(n for n in model.parameters.get("frames", {}) if str(n).startswith("frames.base."))
+    if not base:
+        return "nothing"
+    total = sum(len(p) for p in model.parameters.values())
+    return (f"{len(base)} parameters of the tracker frame ({', '.join(base)}): part of the measurement setup, not "
+            f"of the robot; trackerMbase holds them with the frame; the file keeps {total - len(base)} of the "
+            f"{total} parameters of the model")
 
 
 def model_yaml(document: dict) -> str:
@@ -131,6 +145,20 @@ def load_as_built(path) -> AsBuiltModel:
     ------
     InputError
         One line naming the file and the key at fault.
+
+    Examples
+    --------
+    >>> import pathlib
+    >>> import tempfile
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> d = tcr.diagnose(robot, measured, effects=["joint_offsets"], folds=3)
+    >>> export = tcr.build_export(tcr.AsBuiltModel.from_diagnosis(robot, d), measured)
+    >>> path = tempfile.mkdtemp() + "/as_built.yaml"
+    >>> _ = pathlib.Path(path).write_text(export.model_text())
+    >>> tcr.load_as_built(path)
+    AsBuiltModel('tool_changer', effects [frames, joint_offsets], 9 parameters, with tracker frame)
     """
     path = Path(path)
     if path.suffix.lower() == ".urdf":
@@ -143,6 +171,9 @@ def load_as_built(path) -> AsBuiltModel:
 def read_model_document(text: str, source: str) -> AsBuiltModel:
     """The model of a file's text (see :func:`load_as_built`); ``source`` names it in messages."""
     doc = parse_settings(text, source, "yaml")  # YAML 1.2's numbers, no aliases, no key twice
+    if isinstance(doc, dict) and doc.get("format") not in READABLE and {"steps", "parameters"} <= set(doc):
+        raise InputError(f"{source}: a diagnosis, not an as-built model: read it with tcr_accuracy.read_result and "
+                         "build its model with AsBuiltModel.from_diagnosis(robot, diagnosis)")
     if not isinstance(doc, dict) or doc.get("format") not in READABLE:
         raise InputError(f"{source}: not an as-built model written by tcr-accuracy (no 'format: {FORMAT}')")
     for key in REQUIRED:
@@ -151,9 +182,17 @@ def read_model_document(text: str, source: str) -> AsBuiltModel:
     for key in doc:
         if key not in KEYS:
             raise InputError(f"{source}: key {key!r} is not part of the format (keys: {', '.join(KEYS)})")
-    return model_from_values(source, ("effects", "options"), doc["robot_source"], doc["tool_frame"],
-                             doc["effects"], doc.get("options"), doc.get("tracker_from_base"), "tracker_from_base",
-                             kinematics=doc.get("kinematics"))
+    if TRACKER_KEY in doc and OLD_TRACKER_KEY in doc:
+        raise InputError(f"{source}: {TRACKER_KEY} and {OLD_TRACKER_KEY}: the tracker frame is given twice (formats "
+                         f"1 and 2 wrote {OLD_TRACKER_KEY}, format 3 {TRACKER_KEY}); give it once")
+    key = OLD_TRACKER_KEY if OLD_TRACKER_KEY in doc else TRACKER_KEY
+    model = model_from_values(source, ("effects", "options"), doc["robot_source"], doc["tool_frame"],
+                              doc["effects"], doc.get("options"), doc.get(key), key,
+                              kinematics=doc.get("kinematics"))
+    if "robot" in doc and doc["robot"] != model.robot.name:
+        raise InputError(f"{source}: robot: {doc['robot']!r}, but robot_source {doc['robot_source']!r} loads "
+                         f"{model.robot.name!r}: the model of one robot named as another's")
+    return model
 
 
 def model_from_values(source: str, keys: tuple, robot_source, tool_frame, parameters, options, tracker,

@@ -119,6 +119,16 @@ def refit_geometry(model: AsBuiltModel, q, context: MeasurementContext | None = 
     Returns
     -------
     CalibrationGeometry
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> d = tcr.diagnose(robot, measured, effects=["joint_offsets", "compliance"], folds=3)
+    >>> geometry = tcr.refit_geometry(tcr.AsBuiltModel.from_diagnosis(robot, d), measured.q)
+    >>> geometry.x.shape == (tcr.ErrorModel(robot).size,)
+    True
     """
     robot = model.robot
     q = np.atleast_2d(np.asarray(q, dtype=float))

@@ -101,11 +101,9 @@ def _run_compare(args) -> int:
         q, context = sample_poses(robot, args.n_poses, np.random.default_rng(args.seed)), None
         poses = f"{args.n_poses} random poses within the joint limits (seed {args.seed})"
     result = compare_models(robot, old, new, q, z=args.z, context=context)
-    from .diagnose import jsonable, robot_source
-
+    result.poses = poses
     out = RunOutput(args, f"Comparison of two campaigns: {robot.name}")
-    payload = jsonable({**result.to_dict(), "poses": poses, "robot_source": robot_source(source),
-                        "tool_frame": robot.tool_frame})
+    payload = result.to_dict()
     if out.report is not None:
         _calibration_page(out.report, args, robot, payload, docs[1])
     _report(out, result, poses)
@@ -126,7 +124,7 @@ def _calibration_page(report, args, robot, payload: dict, new: dict) -> None:
     files = [(f"{label} campaign: {path}", path) for label, path in (("earlier", args.old), ("later", args.new))]
     if args.json not in (None, "-"):
         files.append(("comparison JSON", args.json))
-    campaign = Campaign(RobotFacts.of_robot(robot, payload["robot_source"]),
+    campaign = Campaign(RobotFacts.of_robot(robot, payload.get("robot_source", "")),
                         [(str(args.new), new), ("comparison", payload)])
     add_calibration_page(report, args, campaign, files)
 
@@ -143,16 +141,18 @@ def _read_json(path: str):
         return None
     if len(text.encode("utf-8")) > SIZE_LIMITS["json"]:
         raise InputError(f"{path}: a JSON result larger than the {SIZE_LIMITS['json'] >> 20} MB a result may have")
-    from ..results.files import FIT_KEYS, validate_result
+    from ..results.files import FIT_KEYS, renamed_keys, validate_result
 
-    return validate_result(parse_json(text, path, "give a diagnose --json result or a measurement CSV"), "diagnosis",
-                           path, FIT_KEYS)
+    doc = parse_json(text, path, "give a diagnose --json result or a measurement CSV")
+    renamed_keys(doc, path)
+    return validate_result(doc, "diagnosis", path, FIT_KEYS)  # the one reader's checks, the robot's below
 
 
 def _check_comparable(docs, paths, robot) -> None:
     """Two diagnoses of one robot and one TCP frame, their parameters within each effect's physical
     range (a forged standard error or value never decides what changed). InputError otherwise."""
     from ..exceptions import InputError
+    from ..results.consistency import check_robot
     from ..results.files import check_physics
 
     for doc, path in zip(docs, paths):
@@ -161,6 +161,7 @@ def _check_comparable(docs, paths, robot) -> None:
         if doc["robot"] != robot.name:
             raise InputError(f"{path}: a diagnosis of {doc['robot']}, not of {robot.name}: compare two diagnoses of "
                              "the same robot")
+        check_robot(doc, robot, path)
         if doc.get("tool_frame", robot.tool_frame) != robot.tool_frame:
             raise InputError(f"{path}: a diagnosis of the TCP frame {doc['tool_frame']}, not of --tool "
                              f"{robot.tool_frame}: compare two diagnoses of one TCP frame")
@@ -189,7 +190,7 @@ def _diagnose_csv(args, path: str, robot) -> dict:
     from ..diagnosis.diagnose import diagnose
     from ..exceptions import InputError
     from ..io.measurements import measured_frames, read_measurements
-    from .diagnose import DIAGNOSE_ROW_BYTES, jsonable
+    from .diagnose import DIAGNOSE_ROW_BYTES
 
     check_csv_memory(args, path, "diagnosing", DIAGNOSE_ROW_BYTES)
     if measured_frames(path):
@@ -199,7 +200,7 @@ def _diagnose_csv(args, path: str, robot) -> dict:
     status(args, f"diagnosing {path} ...")
     result = diagnose(robot, data, effects=effect_names(args.effects), folds=args.folds, random_state=args.seed,
                       tracker_noise=None if args.noise_mm is None else args.noise_mm * 1e-3)
-    return jsonable({"measurements": str(path), **result.to_dict()})
+    return {**result.to_dict(), "measurements": str(path)}
 
 
 # ---------------------------------------------------------------------------------------

@@ -190,11 +190,8 @@ def _run_diagnose(args) -> int:
         raise InputError(f"{_rows_named(measurements, error.value, files, labels)}: {error}") from None
     finally:
         bar.close()
-    payload = jsonable({"measurements": ", ".join(map(str, files)), "measurement_files": list(map(str, files)),
-                        "robot_source": robot_source(args.robot), "tool_frame": robot.tool_frame,
-                        **({"kinematics": robot.kinematics} if robot.kinematics else {}),
-                        **result.to_dict(robot)})
-    payload["measured_points"] = measured_points(measurements.position)  # the uncertainty budget's distances
+    payload = {**result.to_dict(), "measurements": ", ".join(map(str, files)),
+               "measurement_files": list(map(str, files))}
     source = ", ".join(map(str, files))
     _report_tables(out, robot, result, source)
     out.add_plots(lambda folder: list(write_plots(result, robot, folder).values()), PLOT_CAPTIONS)
@@ -204,7 +201,7 @@ def _run_diagnose(args) -> int:
                       "nominal robot and the calibrated as-built robot (geometric errors magnified)")
     written = []
     if args.as_built_urdf:
-        urdf, side, summary = write_as_built(robot, result, Path(args.as_built_urdf), measurements, args.robot,
+        urdf, side, summary = write_as_built(robot, result, Path(args.as_built_urdf), measurements,
                                              ", ".join(Path(f).name for f in files))
         status(args, f"as-built URDF written to {urdf} (the whole model, every effect and the tracker frame: {side})")
         payload.update(as_built_urdf=str(urdf), as_built_effects=str(side), as_built=summary)
@@ -212,17 +209,6 @@ def _run_diagnose(args) -> int:
     if out.report is not None:
         _calibration_page(out.report, args, robot, payload, written)
     return out.finish(payload, lambda: print(format_summary(robot, result, source)))
-
-
-def measured_points(position):
-    """The measured points' moments and box in the tracker frame (mm): what the report's uncertainty
-    budget needs of them (:class:`tcr_accuracy.frames.uncertainty_budget.PointSet`)."""
-    import numpy as np
-
-    from ..frames.uncertainty_budget import PointSet
-
-    position = np.asarray(position, dtype=float)
-    return PointSet.of(position[np.isfinite(position).all(axis=1)]).to_dict()
 
 
 def _calibration_page(report, args, robot, payload: dict, written: list) -> None:
@@ -259,45 +245,27 @@ def robot_source(source) -> str:
     return str(Path(source).resolve())
 
 
-def jsonable(value):
-    """Plain JSON types; non-finite floats become None."""
-    import numpy as np
-
-    if isinstance(value, dict):
-        return {str(k): jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return jsonable(value.tolist())
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return float(value) if math.isfinite(value) else None
-    return value
-
-
 # ---------------------------------------------------------------------------------------
 # As-built model
 # ---------------------------------------------------------------------------------------
-def write_as_built(robot, d, path: Path, measurements, source: str, label: str) -> tuple[Path, Path, dict]:
+def write_as_built(robot, d, path: Path, measurements, label: str) -> tuple[Path, Path, dict]:
     """The calibration URDF at ``path`` and the whole model beside it (``X.effects.yaml``, the one
     model format of :mod:`tcr_accuracy.asbuilt.model_file`), through the export's own builder;
     returns (urdf, model file, the export's summary for the JSON)."""
+    from dataclasses import replace
+
     import numpy as np
 
-    from ..asbuilt.accuracy import MeasuredPoses
     from ..asbuilt.export import build_export
     from ..asbuilt.model import AsBuiltModel
     from .staging import write_text
     from ..view.as_built_summary import urdf_comment
 
-    model = AsBuiltModel.from_diagnosis(robot, d, robot_source(source))
+    model = AsBuiltModel.from_diagnosis(robot, d)
     final = d.steps[-1].heldout
     kfold = {"mean": final.mean, "rms": final.rms, "max": final.max, "folds": d.folds, "n": d.n_measurements}
     side = effects_side_file(path)
-    export = build_export(model, MeasuredPoses.of(measurements, label), kfold=kfold, urdf_file=path.name,
+    export = build_export(model, replace(measurements, source=label), kfold=kfold, urdf_file=path.name,
                           model_file=side.name)
     write_text(path, export.urdf_text(urdf_comment(export, "this diagnosis")))
     informational = {
@@ -509,9 +477,9 @@ def _scene(robot, d, measurements):
     from ..view.viewer import (COLORS, Scene, data_extent, frame_axis_length, ghost_magnification, point_size,
                                rotate_vectors, segment_magnification, transform_points)
 
-    base_M_tracker = np.linalg.inv(d.tracker_transform)
+    base_M_tracker = np.linalg.inv(d.trackerMbase)
     context = measurements.context
-    model_final = transform_points(base_M_tracker, d.predict(robot, d.q, context))  # the fitted model's TCP
+    model_final = d.model_positions(robot, d.q, context)  # the fitted model's TCP, base frame
     measured = model_final - rotate_vectors(base_M_tracker, d.final_residual)
     nominal_model = measured + rotate_vectors(base_M_tracker, d.gap_residual)  # tracker frame and TCP offset only
     gap = np.linalg.norm(d.gap_residual, axis=1)

@@ -23,6 +23,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .common import EXIT_OK, MAX_MM, add_quiet_argument, number, output_folder, status
+from ..exceptions import InputError
 
 #: Memory [bytes] planned per measured row (the refit holds six poses' Jacobians per row).
 EXPORT_ROW_BYTES = 40_000
@@ -66,32 +67,42 @@ def add_parsers(sub) -> None:
 
 
 def _run_export(args) -> int:
-    import json
     import sys
+
+    from dataclasses import replace
 
     from ..asbuilt.diagnosis_file import kfold_figures, model_from_diagnosis
     from ..asbuilt.export import MODEL_FILE, RESULT_FILE, UR_FILE, URDF_FILE, build_export
+    from ..io.session_rows import shared_rows
+    from ..results.consistency import check_fitted_to
+    from ..results.files import MODEL_KEYS
+    from ..results.types import read_result
     from ..view.as_built_summary import accuracy_lines, ur_file_header, urdf_comment
     from ..view.plots_export import accuracy_plot
     from .export_tables import offsets_and_tcp_csv, table_csv
-    from ..results.files import MODEL_KEYS, check_physics, read_result
     from .staging import hold_message, stage_folder, write_bytes, write_text
 
+    # checked whole on read (schema, figures, one copy of each number, the robot its source loads, the
+    # physics): one line naming the key at fault
     data = read_result(args.diagnosis, "diagnosis", hint="give the JSON that 'diagnose --json FILE' wrote",
-                       required=MODEL_KEYS)[1]  # validated on read: one line naming the key at fault
+                       required=MODEL_KEYS).to_dict()
     model = model_from_diagnosis(data, args.diagnosis)
-    check_physics(data, model.robot, args.diagnosis)
     programs = []
     if args.program:  # every program read and parsed before the export's work
         from .export_programs import read_programs
 
         programs = read_programs(args, model.robot)
     measured = read_calibration_measurements(args, data, model.robot)
+    check_fitted_to(data, _model_rms(model, measured), measured.source, args.diagnosis)
     held_out = None
     if args.check is not None:
-        from ..asbuilt.accuracy import MeasuredPoses
-
-        held_out = MeasuredPoses.of(_read(args.check, model.robot, 3), Path(args.check).name)
+        held_out = _read(args.check, model.robot, 3)
+        shared = shared_rows(measured, held_out)
+        if shared:
+            raise InputError(f"--check {args.check}: {shared} of its {len(held_out)} rows are rows of the "
+                             f"measurements {args.diagnosis} was fitted to ({measured.source}): their error is "
+                             "in-sample, not held-out; give measurements the diagnosis was not fitted to")
+        held_out = replace(held_out, source=Path(args.check).name)
     filtered = _targets(args, model) if args.targets is not None else None
     export = build_export(model, measured, held_out, payload_kg=args.payload_kg,
                           kfold=kfold_figures(data, args.diagnosis))
@@ -109,7 +120,6 @@ def _run_export(args) -> int:
         files["compensation.csv"] = compensation_csv(filtered[0], model.robot, filtered[1])
     program_lines = []
     if programs:
-        from ..exceptions import InputError
         from .export_programs import filtered_programs, threshold_m
 
         program_files, program_lines = filtered_programs(args, model, data, programs, threshold_m(args, data))
@@ -119,7 +129,7 @@ def _run_export(args) -> int:
         files.update(program_files)
     # the export's result (kind 'export', read back by report): the diagnosis by its file name only
     result = export.result(Path(args.diagnosis).name, measured, held_out)
-    files[RESULT_FILE] = json.dumps(result.to_dict(), indent=1) + "\n"
+    files[RESULT_FILE] = result.to_json()
     folder = Path(args.to)
     stage_folder(folder)
     for name, text in files.items():
@@ -160,7 +170,8 @@ def _summary(args, export, files, filtered) -> list[str]:
 def read_calibration_measurements(args, data: dict, robot):
     """The measurements the diagnosis was fitted to (``--measurements``, else the files its JSON
     names, relative to the working folder or to the JSON's), one session per file."""
-    from ..asbuilt.accuracy import MeasuredPoses
+    from dataclasses import replace
+
     from ..asbuilt.diagnosis_file import measurement_files
     from ..exceptions import InputError
     from ..io.measurements import join_sessions, measured_frames
@@ -191,7 +202,16 @@ def read_calibration_measurements(args, data: dict, robot):
         # diagnosis never saw and print their error as "on the measured poses"
         raise InputError(f"{', '.join(files)}: {len(joined)} measurement rows, but {args.diagnosis} was fitted to "
                          f"{fitted} (n_measurements); give the files it was fitted to with --measurements CSV ...")
-    return MeasuredPoses.of(joined, ", ".join(Path(f).name for f in files))
+    return replace(joined, source=", ".join(Path(f).name for f in files))
+
+
+def _model_rms(model, measured) -> float:
+    """RMS [m] of the full model's miss on the measurements, each session's frame fitted to them:
+    what it reached on the data it was fitted to, if these are they."""
+    from ..asbuilt.accuracy import MeasuredPoses, form_accuracy
+
+    rows = MeasuredPoses.of(measured, measured.source)
+    return form_accuracy("full model", "", lambda q, context, later: model.tcp_poses(q, context).position, rows)[0].rms
 
 
 def _read(path, robot, min_rows: int):

@@ -308,24 +308,15 @@ def _run_evaluate(args) -> int:
         # the frame the measured figures were found in (base, or fitted on the test), not found again
         frame = args.frame or (blocks[0][1].frame if blocks[0][1].frame in ("base", "fit") else "auto")
         afters = [r for _, r in evaluate_conditions(robot, compensated, frame=frame, band=band, **given_after)]
-    from .diagnose import robot_source
+    from ..iso9283.result_file import IsoCondition, IsoTestResult
 
     out = RunOutput(args, f"ISO 9283 pose test: {robot.name}")
     text = "\n".join(format_evaluation(robot, args, result, after, block if len(blocks) > 1 else None)
                      for (block, result), after in zip(blocks, afters))
-    parts = []
-    for (block, result), after in zip(blocks, afters):
-        part = {**({} if block.load_pct is None and block.speed_pct is None else
-                   {"condition": {"load_pct": block.load_pct, "speed_pct": block.speed_pct}}),
-                **evaluation_dict(result)}
-        if after is not None:
-            part["compensated"] = {"model": str(args.model), "kind": "predicted: the model's displacement removed "
-                                   "from each reading (first order, positions only)", **evaluation_dict(after)}
-        parts.append(part)
-    payload = {"measurements": str(args.measurements), "robot": robot.name, "robot_source": robot_source(args.robot),
-               "tool_frame": robot.tool_frame, **parts[0]}
-    if len(parts) > 1:
-        payload["conditions"] = parts
+    result = IsoTestResult(robot.name, robot.robot_source, robot.tool_frame, str(args.measurements), tuple(
+        IsoCondition(block.load_pct, block.speed_pct, evaluated, after, "" if after is None else str(args.model))
+        for (block, evaluated), after in zip(blocks, afters)))
+    payload = result.to_dict()
     if out.report is not None:
         _calibration_page(out.report, args, robot, payload)
     out.add_preformatted(text, "ISO 9283 figures")
@@ -346,87 +337,22 @@ def _calibration_page(report, args, robot, payload: dict) -> None:
     from ..view.calibration_report import Campaign, RobotFacts
     from ..view.result_tables import add_iso_tables
     from .report import add_calibration_page
-    from ..results.files import PAGE_KEYS, read_result, validate_result
+    from ..results.files import PAGE_KEYS, read_result_document, validate_result
 
     documents = [(str(args.measurements), payload)]
     files = [("ISO 9283 JSON", args.json)] if args.json not in (None, "-") else []
     if args.model:  # read and checked already (read_model); one of ours written before the report: shown
-        model = read_result(args.model, "diagnosis")[1]
+        model = read_result_document(args.model, "diagnosis")[1]
         if kind_or_none(model) == "diagnosis":  # on the page: with what the page reads
             documents.insert(0, (str(args.model), validate_result(model, "diagnosis", args.model, PAGE_KEYS)))
         files.append(("diagnosis JSON (--model)", args.model))
-    add_calibration_page(report, args, Campaign(RobotFacts.of_robot(robot, payload["robot_source"]), documents),
+    add_calibration_page(report, args, Campaign(RobotFacts.of_robot(robot, payload.get("robot_source", "")), documents),
                          files)
     add_iso_tables(report, str(args.measurements), payload)
 
 
-def json_label(label):
-    """A label as JSON: a whole number as an int (as the pose ids ``iso9283 plan`` writes), else text."""
-    import re
-
-    return None if label is None else int(label) if re.fullmatch(r"[+-]?\d+", str(label)) else str(label)
-
-
-def _pose_dict(f) -> dict:
-    import numpy as np
-
-    from ..iso9283.formulas import pose_name
-
-    out = {"pose_id": json_label(f.pose_id), "pose": pose_name(f.pose_id), "n": f.n, "ap_mm": f.ap * 1e3,
-           **{f"ap_{a}_mm": float(v * 1e3) for a, v in zip("xyz", f.ap_xyz)},
-           "rp_mm": None if f.rp is None else f.rp * 1e3, "l_mean_mm": _mm(f.l_mean),
-           "s_l_mm": _mm(f.l_std),
-           "barycentre_mm": (f.barycentre * 1e3).tolist(), "commanded_mm": (f.commanded * 1e3).tolist()}
-    if f.approach is not None:
-        out["approach"] = json_label(f.approach)
-    if f.ap_abc is not None:
-        out.update({f"ap_{a}_deg": float(np.degrees(v)) for a, v in zip("abc", f.ap_abc)})
-        out.update({f"rp_{a}_deg": None if f.rp_abc is None else float(np.degrees(f.rp_abc[k]))
-                    for k, a in enumerate("abc")})
-    return out
-
-
 def _mm(value):
     return None if value is None else value * 1e3
-
-
-def evaluation_dict(result) -> dict:
-    """JSON-ready figures of an :class:`~tcr_accuracy.iso9283.evaluate.IsoEvaluation` (mm, deg, s)."""
-    import numpy as np
-
-    from ..iso9283.formulas import STANDARD_CYCLES
-
-    fig = result.figures
-    rps = [f.rp for f in fig.poses if f.rp is not None]
-    return {
-        "n_readings": result.n_readings, "n_visits": result.n_visits, "frame": result.frame, "frame_fit": result.how,
-        **result.frame_dict(), "standard_cycles": STANDARD_CYCLES,
-        "registration": None if result.registration is None else result.registration.to_dict(),
-        "poses": [{**_pose_dict(f), **({} if result.instrument_distance is None else
-                                       {"instrument_distance_mm": result.instrument_distance[f.pose_id] * 1e3})}
-                  for f in fig.poses],
-        "summary": {"ap_max_mm": max(f.ap for f in fig.poses) * 1e3,
-                    "ap_mean_mm": float(np.mean([f.ap for f in fig.poses])) * 1e3,
-                    "rp_max_mm": max(rps) * 1e3 if rps else None},
-        "directional": [{"pose_id": json_label(d.pose_id), "approaches": [json_label(a) for a in d.approaches],
-                         "vap_mm": d.vap * 1e3,
-                         **({} if d.vap_abc is None else
-                            {f"vap_{a}_deg": float(np.degrees(v)) for a, v in zip("abc", d.vap_abc)})}
-                        for d in fig.directional],
-        "distances": [{"pose_a": json_label(d.pose_a), "pose_b": json_label(d.pose_b),
-                       **({} if d.approach is None else {"approach": json_label(d.approach)}),
-                       "n": d.n, "commanded_mm": d.commanded * 1e3,
-                       "mean_mm": d.mean * 1e3, "ad_mm": d.ad * 1e3,
-                       **{f"ad_{a}_mm": float(v * 1e3) for a, v in zip("xyz", d.ad_xyz)}, "rd_mm": d.rd * 1e3}
-                      for d in fig.distances],
-        "stabilisation": [{"pose_id": json_label(s.pose_id),
-                           **({} if s.approach is None else {"approach": json_label(s.approach)}),
-                           "visits": s.n, "band_mm": s.band * 1e3, "time_mean_s": s.time_mean,
-                           "time_max_s": s.time_max, "overshoot_mean_mm": _mm(s.overshoot_mean),
-                           "overshoot_max_mm": _mm(s.overshoot_max), "never_entered": s.never_entered}
-                          for s in fig.stabilisation],
-        "notes": list(fig.notes),
-    }
 
 
 def format_evaluation(robot, args, result, after=None, block=None) -> str:

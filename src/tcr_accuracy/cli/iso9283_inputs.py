@@ -46,10 +46,10 @@ def read_model(robot, path: str):
     """The effects and parameter vectors of the ``diagnose --json`` result at ``path`` (``--model``),
     validated on read (:mod:`tcr_accuracy.results.files`) and held to each effect's physics."""
     from ..iso9283.evaluate import diagnosis_model
-    from ..results.files import check_physics, read_result
+    from ..results.types import read_result
 
-    payload = read_result(path, "diagnosis", hint="give the JSON that 'diagnose --json FILE' wrote")[1]
-    check_physics(payload, robot, path)
+    payload = read_result(path, "diagnosis", robot=robot, hint="give the JSON that 'diagnose --json FILE' wrote"
+                          ).to_dict()  # checked whole, its robot and physics too
     return diagnosis_model(robot, payload, path)
 
 

@@ -352,6 +352,8 @@ def _plan_for_prediction(args, robot, measured, candidates, task_q, k, payload, 
                          f"below allows for them); noise floor {curve.floor_m * 1e3:.4f} mm (sqrt(3) x the noise "
                          "per axis)")
             lines.append(advice.reason)
+            lines.append("to predict with this model (the vocabulary, linearised, with the fitted prior): tcr-accuracy "
+                         "predict --method bayes")
             plan["stop"] = advice.stop
             out["learning_curve"] = curve.to_dict()
             out["stop"] = {"stop": advice.stop, "reason": advice.reason,

@@ -79,7 +79,8 @@ def _common(p: argparse.ArgumentParser, methods) -> None:
     p.add_argument("--method", default=DEFAULT_METHOD, choices=methods,
                    help=f"predictor (default {DEFAULT_METHOD}: the diagnosis' fitted effect model plus a "
                         "Gaussian process of what it leaves; kriging-pf is the seed's method; local-gp for "
-                        "10,000 training poses and more)")
+                        "10,000 training poses and more; bayes: the whole effect vocabulary linearised, with "
+                        "a prior fitted to the data, for few poses)")
     p.add_argument("--frame", default="fit", choices=("fit", "base"),
                    help="fit: the positions are in a tracker's own frame; fit it and the TCP offset on the "
                         "training data (default); base: they are in the robot's base frame already (only the "
@@ -144,6 +145,8 @@ def _training_row_bytes(method: str) -> float:
     """Memory [bytes] a method plans per training row (the diagnosis' Jacobians for diagnosis*)."""
     from .diagnose import DIAGNOSE_ROW_BYTES
 
+    if method == "bayes":  # the columns of the linearised vocabulary, about 600 on a 6-joint arm, and their making
+        return 4 * 3 * 600 * 8.0
     return DIAGNOSE_ROW_BYTES if method.startswith("diagnosis") else 3 * 64 * 8.0
 
 

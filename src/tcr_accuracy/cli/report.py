@@ -203,11 +203,12 @@ def _identity(path: str):
     return st.st_dev, st.st_ino
 
 
-def _read_result(path: str):
-    from ..results.files import read_result
+def _read_result(path: str) -> dict:
+    """The JSON form of a result read through the one reader (:func:`tcr_accuracy.read_result`)."""
+    from ..results.types import read_result
 
     return read_result(path, hint="give the --json result of diagnose, iso9283 evaluate or compare, or export's "
-                                  "accuracy.json")[1]
+                                  "accuracy.json").to_dict()
 
 
 def _robot_facts(facts, documents):

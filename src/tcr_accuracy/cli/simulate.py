@@ -85,7 +85,7 @@ def _run_simulate(args) -> int:
     q = context = screened = None
     if args.poses is not None:
         poses = read_measurements(args.poses, robot, require_position=False)
-        q, context = poses.q, poses.make_context(rng=rng)
+        q, context = poses.q, poses.make_context(random_state=rng)
     box, tracker = reach_values(args)
     if q is None:  # drawn here, as simulate_measurements would, to say what was rejected
         pose_filter = PoseFilter.for_robot(robot, box=box, tracker=tracker,

@@ -35,6 +35,18 @@ def write_measurements(path, robot, mset, unit: str = "mm", comment: str | None 
     -------
     Path
         The path written.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import numpy as np
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot("ur5")
+    >>> q = np.random.default_rng(0).uniform(-1, 1, (20, 6))
+    >>> measured = tcr.MeasurementSet(joint_names=list(robot.joint_names), q=q, position=tcr.tcp_poses(robot, q).position)
+    >>> path = tcr.write_measurements(tempfile.mkdtemp() + "/m.csv", robot, measured)
+    >>> len(tcr.read_measurements(path, robot))
+    20
     """
     from ..io.measurements import format_measurements
 

@@ -287,10 +287,20 @@ def fit_prior(columns: DesignColumns, errors: np.ndarray, *, noise_m: float | No
 
 
 class BayesianErrorModel:
-    """The posterior mean of the linearised vocabulary: the errors a prior and measured poses predict.
+    """The posterior of the linearised vocabulary: the errors a prior and measured poses predict, with their spread.
 
-    Fitted in closed form (one Cholesky factor of the P x P information); what the learning curve of
-    :func:`learning_curve` refits on every subsample.
+    Fitted in closed form (one Cholesky factor of the P x P information ``A = G^T G / sigma^2 + Lambda``):
+    the posterior mean ``theta = A^-1 G^T y / sigma^2`` and covariance ``S = A^-1`` (Bishop, *Pattern
+    Recognition and Machine Learning*, 3.3). What the learning curve of :func:`learning_curve` refits on every
+    subsample, and what ``predict --method bayes`` (:class:`~tcr_accuracy.prediction.bayesian.BayesianCalibration`)
+    predicts with.
+
+    Attributes (after :meth:`fit`)
+    ------------------------------
+    theta_ : ndarray of shape (P,)
+        Posterior mean [typical sizes].
+    factor_ : tuple
+        scipy's Cholesky factor of the posterior information (``cho_factor`` form).
     """
 
     def __init__(self, prior: EffectPrior):
@@ -299,12 +309,47 @@ class BayesianErrorModel:
     def fit(self, columns: DesignColumns, errors: np.ndarray) -> "BayesianErrorModel":
         """Fit to columns (N, 3, P) and errors (N, 3) [m]; returns self."""
         gram = _Gram(columns.g, np.asarray(errors, dtype=float))
-        self.theta_, _ = _posterior_mean(gram, self.prior.precision(columns.owner), self.prior.noise_m)
+        self.theta_, self.factor_ = _posterior_mean(gram, self.prior.precision(columns.owner), self.prior.noise_m)
         return self
 
-    def predict(self, columns: DesignColumns) -> np.ndarray:
-        """(M, 3) predicted errors [m] at the poses of ``columns``."""
-        return columns.g @ self.theta_
+    @property
+    def covariance_(self) -> np.ndarray:
+        """(P, P) posterior covariance ``S`` of the parameters [typical sizes^2]."""
+        return linalg.cho_solve(self.factor_, np.eye(len(self.theta_)), check_finite=False)
+
+    def _whitened(self, g_flat: np.ndarray) -> np.ndarray:
+        """(P, R) ``C^-1 g^T`` for rows g (R, P), ``C`` the Cholesky factor (``A = C C^T``): its columns' inner
+        products are ``g S g^T``."""
+        c, lower = self.factor_
+        return linalg.solve_triangular(c, g_flat.T, lower=lower, trans="N" if lower else "T", check_finite=False)
+
+    def predict(self, columns: DesignColumns, return_std: bool = False, chunk: int = 2048):
+        """(M, 3) predicted errors [m] at the poses of ``columns``; with ``return_std``, also the posterior
+        predictive standard deviation of a measurement there per axis (M, 3) [m]:
+        ``sqrt(diag(g S g^T) + sigma^2)``, the parameters' spread plus the prior's noise (which, fitted, holds
+        what the vocabulary leaves)."""
+        mean = columns.g @ self.theta_
+        if not return_std:
+            return mean
+        p = columns.g.shape[2]
+        variance = np.empty(mean.shape)
+        for start in range(0, len(mean), chunk):
+            block = columns.g[start:start + chunk]
+            whitened = self._whitened(block.reshape(-1, p))
+            variance[start:start + chunk] = np.sum(whitened**2, axis=0).reshape(-1, 3)
+        return mean, np.sqrt(variance + self.prior.noise_m**2)
+
+    def leave_one_out(self, columns: DesignColumns, errors: np.ndarray) -> np.ndarray:
+        """(N, 3) leave-one-pose-out residuals [m] at the poses it was fitted to, the prior held: the error of
+        pose i minus what the model fitted without it predicts there, ``(I - H_ii)^-1 r_i`` with ``r_i`` the
+        fitted residual and ``H_ii = g_i S g_i^T / sigma^2`` the pose's 3 x 3 block of the hat matrix
+        (exact for a linear model with a fixed prior)."""
+        errors = np.asarray(errors, dtype=float)
+        n, _, p = columns.g.shape
+        residual = errors - self.predict(columns)
+        whitened = self._whitened(columns.g.reshape(-1, p)).T.reshape(n, 3, -1)
+        hat = np.einsum("nip,njp->nij", whitened, whitened) / self.prior.noise_m**2
+        return np.linalg.solve(np.eye(3) - hat, residual[:, :, None])[:, :, 0]
 
 
 @dataclass

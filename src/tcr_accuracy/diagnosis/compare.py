@@ -24,6 +24,7 @@ import numpy as np
 
 from ..effects import make_effect, predict_positions, prediction_jacobian
 from ..exceptions import InputError
+from ..io.json_values import JsonForm, plain
 from ..model.context import MeasurementContext
 from ..model.robot import RobotModel
 from ..frames.rigid import rigid_fit
@@ -149,8 +150,48 @@ class TcpEffect:
 
 
 @dataclass
-class Comparison:
-    """What :func:`compare_models` found (SI); :meth:`to_dict` is its JSON form."""
+class Comparison(JsonForm):
+    """What :func:`compare_models` found (SI); :meth:`to_json` is the JSON form ``compare --json``
+    writes, :meth:`from_json` (or :func:`tcr_accuracy.read_result` for a file) reads it back.
+
+    Attributes
+    ----------
+    robot : str
+        The robot's name.
+    z_threshold : float
+        A change is significant beyond this many standard errors of it.
+    changes : list of ParameterChange
+        The robot's parameters fitted in both campaigns.
+    setup : list of ParameterChange
+        The TCP offset's (the setup's, listed apart).
+    one_sided : list of OneSided
+        Parameters present in one fit only.
+    tcp_all, tcp_significant : TcpEffect
+        What all changes, and the significant ones alone, do to the TCP [m].
+    n_poses : int
+        Poses the TCP effect was evaluated on.
+    sources : tuple of str
+        The two campaigns (old, new).
+    notes : list of str
+    poses : str
+        Which poses, in words.
+    robot_source : str or None
+        How to load the robot again.
+    tool_frame : str
+        Its TCP frame.
+    document : dict or None
+        The JSON form it was read from (None when computed); :meth:`to_dict` gives it back as it was.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> d = tcr.diagnose(robot, measured, effects=["joint_offsets"], folds=3)
+    >>> same = tcr.compare_models(robot, d, d, measured.q)
+    >>> tcr.Comparison.from_json(same.to_json()).significant  # one campaign against itself: nothing changed
+    []
+    """
 
     robot: str
     z_threshold: float
@@ -162,13 +203,20 @@ class Comparison:
     n_poses: int
     sources: tuple = ("", "")
     notes: list = field(default_factory=list)
+    poses: str = ""
+    robot_source: str | None = None
+    tool_frame: str = ""
+    document: dict | None = field(default=None, repr=False, compare=False)
 
     @property
     def significant(self) -> list:
         return [c for c in self.changes if c.significant]
 
     def to_dict(self) -> dict:
-        return {
+        """The JSON form (plain values; lengths in mm, parameters in their SI unit)."""
+        if self.document is not None:
+            return dict(self.document)
+        out = {
             "robot": self.robot,
             "old": self.sources[0], "new": self.sources[1],
             "z_threshold": self.z_threshold,
@@ -180,7 +228,82 @@ class Comparison:
                            "significant_changes": self.tcp_significant.to_dict(),
                            "rigid_frame_change_removed": True},
             "notes": list(self.notes),
+            "poses": self.poses, "robot_source": self.robot_source, "tool_frame": self.tool_frame,
         }
+        if self.robot_source is None:
+            del out["robot_source"]
+        return plain(out)
+
+    @classmethod
+    def from_dict(cls, doc: dict, source: str = "") -> "Comparison":
+        """Of its JSON form (a document :func:`tcr_accuracy.read_result` checked).
+
+        Parameters
+        ----------
+        doc : dict
+        source : str
+            The file it came from, for messages.
+
+        Returns
+        -------
+        Comparison
+        """
+        def change(c, setup):
+            as_fitted = c.get("as_fitted")
+            return ParameterChange(c["parameter"], c.get("effect", ""), c["unit"], c["old"], c["new"],
+                                   math.inf if c["std_error"] is None else c["std_error"],
+                                   _z(c), bool(c["significant"]), setup,
+                                   None if as_fitted is None else (as_fitted["old"], as_fitted["new"]))
+
+        def one(o):
+            return OneSided(o["effect"], o["present_in"], {n: (p["value"], math.inf if p["std"] is None else p["std"],
+                                                               p["unit"]) for n, p in o["parameters"].items()},
+                            o.get("what", "").startswith("effect"))
+
+        tcp = doc["tcp_effect"]
+        effect = {k: TcpEffect(v["mean_mm"] * 1e-3, v["rms_mm"] * 1e-3, v["max_mm"] * 1e-3)
+                  for k, v in tcp.items() if isinstance(v, dict)}
+        return cls(str(doc["robot"]), float(doc["z_threshold"]), [change(c, False) for c in doc["changes"]],
+                   [change(c, True) for c in doc.get("setup_changes", [])],
+                   [one(o) for o in doc.get("one_fit_only", [])], effect["all_changes"], effect["significant_changes"],
+                   int(tcp["n_poses"]), (str(doc["old"]), str(doc["new"])), list(doc.get("notes", [])),
+                   str(doc.get("poses", "")), doc.get("robot_source"), str(doc.get("tool_frame", "")), doc)
+
+    @classmethod
+    def from_json(cls, text: str, source: str = "") -> "Comparison":
+        """:meth:`from_dict` of JSON text a script holds (a file: :func:`tcr_accuracy.read_result`).
+
+        Parameters
+        ----------
+        text : str
+        source : str
+
+        Returns
+        -------
+        Comparison
+        """
+        from ..input_files import parse_json
+
+        doc = parse_json(text, source or "comparison JSON", "give what Comparison.to_json wrote")
+        if not isinstance(doc, dict) or not {"changes", "tcp_effect", "robot"} <= set(doc):
+            raise InputError(f"{source or 'comparison JSON'}: not a comparison as Comparison.to_json writes it")
+        return cls.from_dict(doc, source)
+
+
+def _fitted(fit, label: str) -> FittedModel:
+    """A comparison's view of a diagnosis (a :class:`~tcr_accuracy.diagnosis.result.Diagnosis`, or
+    already a :class:`FittedModel`)."""
+    if isinstance(fit, FittedModel):
+        return fit
+    return FittedModel.from_dict(fit.to_dict(), getattr(fit, "file", "") or fit.source or label)
+
+
+def _z(change: dict) -> float:
+    """A change's z of its JSON form: null is infinite where the standard error is 0 and the value
+    moved (the fits gave none), else 0 (no standard error: not judged)."""
+    if change["z"] is not None:
+        return float(change["z"])
+    return math.inf if change["std_error"] == 0 and change["change"] else 0.0
 
 
 # ---------------------------------------------------------------------------------------
@@ -316,8 +439,35 @@ def compare_models(robot: RobotModel, old: FittedModel, new: FittedModel, q: np.
                    context: MeasurementContext | None = None) -> Comparison:
     """Compare two fits of ``robot`` (see the module docstring).
 
-    q : (N, n_joints) joint values [SI] to evaluate the TCP effect on (N >= 3).
+    Parameters
+    ----------
+    robot : RobotModel
+        The robot both were fitted to.
+    old, new : Diagnosis or FittedModel
+        The earlier and the later campaign's diagnosis (fitted, or read with
+        :func:`tcr_accuracy.read_result`).
+    q : array-like of shape (N, n_joints)
+        Joint values [rad, m] to evaluate the TCP effect on (N >= 3).
+    z : float, default=3.0
+        A change is significant beyond this many standard errors of it.
+    context : MeasurementContext, optional
+        The poses' payload, temperature, ... (None: the defaults).
+
+    Returns
+    -------
+    Comparison
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> d = tcr.diagnose(robot, measured, effects=["joint_offsets"], folds=3)
+    >>> same = tcr.compare_models(robot, d, d, measured.q)
+    >>> tcr.Comparison.from_json(same.to_json()).significant  # one campaign against itself: nothing changed
+    []
     """
+    old, new = (_fitted(fit, label) for fit, label in ((old, "old"), (new, "new")))
     check_same_robot(robot, old, new)
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if q.shape[0] < 3 or q.shape[1] != robot.n_joints:
@@ -352,4 +502,4 @@ def compare_models(robot: RobotModel, old: FittedModel, new: FittedModel, q: np.
     return Comparison(robot.name, z, changes, setup, one_sided,
                       TcpEffect.of(rigidly_aligned_difference(p_old, p_new)),
                       TcpEffect.of(rigidly_aligned_difference(p_old, p_sig)), q.shape[0],
-                      (old.source, new.source), notes)
+                      (old.source, new.source), notes, robot_source=robot.robot_source, tool_frame=robot.tool_frame)

@@ -134,12 +134,12 @@ def diagnose(robot: RobotModel, measurements, *, effects=None, folds: int = 5, r
 
     Examples
     --------
-    >>> import numpy as np, tcr_accuracy as tcr
+    >>> import tcr_accuracy as tcr
     >>> robot = tcr.load_robot()
-    >>> scenario = tcr.load_scenario("examples/scenario_compliance.yaml")  # doctest: +SKIP
-    >>> measured, truth = tcr.simulate_measurements(robot, scenario, 200, random_state=1)  # doctest: +SKIP
-    >>> tcr.diagnose(robot, measured).primary_effect  # doctest: +SKIP
-    'compliance'
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> d = tcr.diagnose(robot, measured, effects=["joint_offsets", "compliance"], folds=3)
+    >>> d.primary_effect, round(d.steps[-1].heldout.rms * 1e3, 2)  # [mm]
+    ('compliance', 0.3)
     """
     return GapDiagnosis(robot=robot, effects=effects, folds=folds, random_state=random_state,
                         tracker_noise=tracker_noise, selection_z=selection_z, min_relative_gain=min_relative_gain,
@@ -228,11 +228,14 @@ class GapDiagnosis(BaseEstimator):
     --------
     >>> import tcr_accuracy as tcr
     >>> robot = tcr.load_robot()
-    >>> estimator = tcr.GapDiagnosis(robot=robot, folds=5, random_state=0)
+    >>> estimator = tcr.GapDiagnosis(robot=robot, effects=["joint_offsets", "compliance"], folds=3, random_state=0)
     >>> estimator.get_params()["folds"]
-    5
-    >>> estimator.fit(measured).selected_effects_  # doctest: +SKIP
-    ['frames', 'compliance', 'geometry', 'joint_offsets']
+    3
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> estimator.fit(measured).selected_effects_
+    ['frames', 'compliance', 'joint_offsets']
+    >>> estimator.predict(measured.q[:2]).shape  # TCP position errors, base frame [m]
+    (2, 3)
     """
 
     #: checked when fit starts (:func:`tcr_accuracy.hyperparameters.validate_hyperparameters`)
@@ -443,10 +446,42 @@ class GapDiagnosis(BaseEstimator):
         return instances, vectors
 
     def predict(self, q: np.ndarray, context: MeasurementContext | None = None) -> np.ndarray:
-        """(N, 3) TCP positions [m] in the tracker frame that the fitted model predicts at q (N, n)."""
+        """(N, 3) TCP position errors [m] in the robot's base frame that the fitted model predicts
+        at joints q (N, n_joints): its TCP minus the nominal robot's, as every estimator's
+        ``predict`` (:func:`tcr_accuracy.make_predictor`); :meth:`tracker_positions` gives what
+        the tracker would measure.
+
+        Parameters
+        ----------
+        q : array-like of shape (N, n_joints)
+            Commanded joint values [rad, m].
+        context : MeasurementContext, optional
+            The rows' payload, temperature, ... (None: the defaults).
+
+        Returns
+        -------
+        ndarray of shape (N, 3)
+        """
         if not hasattr(self, "result_"):
             raise AnalysisError("GapDiagnosis.predict: call fit first")
         return self.result_.predict(self.robot_, q, context)
+
+    def tracker_positions(self, q: np.ndarray, context: MeasurementContext | None = None) -> np.ndarray:
+        """(N, 3) TCP positions [m] in the tracker frame the fitted model predicts at joints q
+        (N, n_joints) (:meth:`Diagnosis.tracker_positions`).
+
+        Parameters
+        ----------
+        q : array-like of shape (N, n_joints)
+        context : MeasurementContext, optional
+
+        Returns
+        -------
+        ndarray of shape (N, 3)
+        """
+        if not hasattr(self, "result_"):
+            raise AnalysisError("GapDiagnosis.tracker_positions: call fit first")
+        return self.result_.tracker_positions(self.robot_, q, context)
 
 
 def _measurement_set(measurements) -> MeasurementSet:

@@ -60,7 +60,7 @@ class Step:
         out = {"effect": self.effect, "effects": list(self.effects), "n_parameters": self.n_parameters,
                "train_rms_mm": self.train_rms * 1e3, "heldout_rms_mm": self.heldout.rms * 1e3,
                "heldout_mean_mm": self.heldout.mean * 1e3, "heldout_max_mm": self.heldout.max * 1e3,
-               "z_vs_previous": self.z_statistic}
+               "heldout_count": self.heldout.count, "z_vs_previous": self.z_statistic}
         if self.gain is not None:
             out["gain_heldout_rms_mm"] = self.gain[0] * 1e3
             out["gain_interval_mm"] = [self.gain[1] * 1e3, self.gain[2] * 1e3]

@@ -119,6 +119,13 @@ class Effect(abc.ABC):
     robot : RobotModel
         The nominal robot (never modified). Subclasses add their options as
         keyword-only arguments.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> effect = tcr.make_effect("compliance", tcr.load_robot("ur5"))
+    >>> isinstance(effect, tcr.Effect), effect.family
+    (True, 'gravity')
     """
 
     name: ClassVar[str]
@@ -347,6 +354,12 @@ def vocabulary() -> tuple[str, ...]:
     -------
     tuple of str
         ``frames`` first, then the order the diagnosis tries them in.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> "geometry" in tcr.vocabulary() and "compliance" in tcr.vocabulary()
+    True
     """
     return tuple(effect_classes())
 
@@ -378,6 +391,13 @@ def make_effect(name: str, robot: RobotModel, **options) -> Effect:
     -------
     Effect
         The effect, with ``parameter_names()`` and its error model.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> effect = tcr.make_effect("joint_offsets", tcr.load_robot("ur5"))
+    >>> effect.parameter_names()[:2]
+    ['joint_offsets.shoulder_pan_joint', 'joint_offsets.shoulder_lift_joint']
     """
     cls = effect_class(name, source="effect")
     accepted = [p for p, spec in inspect.signature(cls.__init__).parameters.items()

@@ -104,11 +104,17 @@ class Registration:
         return np.atleast_2d(np.asarray(vectors, dtype=float)) @ self.rotation
 
     @property
-    def matrix(self) -> np.ndarray:
-        """(4, 4) homogeneous transform ``trackerMbase``."""
+    def trackerMbase(self) -> np.ndarray:
+        """(4, 4) homogeneous transform from the base to the tracker frame
+        (``p_tracker = trackerMbase @ p_base``), the name every result gives it."""
         out = np.eye(4)
         out[:3, :3], out[:3, 3] = self.rotation, self.translation
         return out
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """(4, 4) :attr:`trackerMbase` (its former name, kept for the callers that use it)."""
+        return self.trackerMbase
 
     @property
     def tool_offset(self) -> np.ndarray:
@@ -195,6 +201,17 @@ def register_tracker(robot: RobotModel, q, measured, *, context: MeasurementCont
     Returns
     -------
     Registration
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot("ur5")
+    >>> q = np.random.default_rng(0).uniform(-1, 1, (30, 6))
+    >>> measured = tcr.tcp_poses(robot, q).position + [1.0, 2.0, 0.5]  # a tracker 2.3 m away, not turned
+    >>> frame = tcr.register_tracker(robot, q, measured)
+    >>> np.round(frame.trackerMbase[:3, 3], 6)
+    array([1. , 2. , 0.5])
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     measured = np.atleast_2d(np.asarray(measured, dtype=float))

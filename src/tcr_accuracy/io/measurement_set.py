@@ -12,6 +12,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..model.context import REFERENCE_TEMPERATURE_C, MeasurementContext
+from ..random_state import renamed_keyword
 
 QUATERNION_COLUMNS = ("qw", "qx", "qy", "qz")
 CONTEXT_COLUMNS = ("payload_kg", "temperature_c", "time_s")
@@ -62,6 +63,17 @@ class MeasurementSet:
         Session label of each row (one tracker frame each); None: one session.
     time_s : ndarray of shape (N,) or None
         Time of each measurement [s]; None when the file has no ``time_s`` column.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot("ur5")
+    >>> q = np.random.default_rng(0).uniform(-1, 1, (20, 6))
+    >>> measured = tcr.MeasurementSet(joint_names=list(robot.joint_names), q=q,
+    ...                               position=tcr.tcp_poses(robot, q).position, source="simulated")
+    >>> measured
+    MeasurementSet(20 rows x 6 joints, source='simulated', context columns: none)
     """
 
     joint_names: list[str]
@@ -101,10 +113,13 @@ class MeasurementSet:
         with defaults where a column is absent: no payload, the reference temperature, no direction."""
         return self.make_context()
 
+    @renamed_keyword("rng", "random_state")
     def make_context(self, reference_temperature_c: float = REFERENCE_TEMPERATURE_C,
-                     rng: np.random.Generator | None = None) -> MeasurementContext:
+                     random_state=None) -> MeasurementContext:
         """The per-row context with another reference temperature [degC] where the file has none,
-        or a generator for the effects that draw random numbers (``rng``)."""
+        and the random numbers the effects that draw them (clearance) take (``random_state``: an
+        int, a Generator or None for none; formerly ``rng``)."""
+        rng = None if random_state is None else np.random.default_rng(random_state)
         n, nj = self.q.shape
         return MeasurementContext(
             payload_kg=self.payload_kg.copy() if self.payload_kg is not None else np.zeros(n),
@@ -146,9 +161,14 @@ class MeasurementSet:
 def join_sessions(sets: list[MeasurementSet], labels: list[str]) -> MeasurementSet:
     """Several measurement sets of one robot as one, each its own session (its label, or
     ``<label>:<session>`` where a set has a session column already); columns one set has and
-    another lacks take their defaults (no payload, the reference temperature, no direction)."""
+    another lacks take their defaults (no payload, the reference temperature, no direction). A set
+    whose rows are all an earlier set's rows (to its files' rounding: the same campaign written
+    twice) is refused (:func:`~tcr_accuracy.io.session_rows.check_distinct_sessions`)."""
     if len(sets) == 1:
         return sets[0]
+    from .session_rows import check_distinct_sessions
+
+    check_distinct_sessions(sets, labels)
     session = np.concatenate([np.array([f"{label}:{v}" for v in s.session], dtype=object) if s.session is not None
                               else np.full(len(s), label, dtype=object) for s, label in zip(sets, labels)])
 

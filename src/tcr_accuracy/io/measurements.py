@@ -183,9 +183,9 @@ def read_measurements(path: str | Path, robot: RobotModel, *, min_rows: int = 1,
     --------
     >>> import tcr_accuracy as tcr
     >>> robot = tcr.load_robot()
-    >>> measured = tcr.read_measurements("examples/measured.csv", robot)  # doctest: +SKIP
-    >>> measured.context.payload_kg.shape  # doctest: +SKIP
-    (200,)
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> measured.q.shape, measured.context.payload_kg.shape  # [rad, m], [kg]
+    ((200, 6), (200,))
     """
     path = Path(path)
     text = read_user_text(path, "measurement file")

@@ -405,14 +405,27 @@ def import_tracker(tracker_path, tracker_map: dict[str, str] | None = None, log_
     columns = [t for t, _ in tracker_cols]
     result = ImportResult(columns=[], n_tracker_rows=len(tracker.rows), tracker=tracker)
 
+    # the tracker's time and session labels travel into the measurement CSV: without them a drift is
+    # fitted on the row order and every station shares one tracker frame (the diagnosis reads both)
+    time_col = tracker.column(mapping[TIME] if TIME in mapping else auto[TIME]) if TIME in mapping or TIME in auto \
+        else None
+    session_col = _session_column(tracker, set(mapping.values()))
+    carried = ([TIME] if time_col is not None else []) + (["session"] if session_col is not None else [])
+    clock = _Unwrapped()
+
+    def context(r: int) -> list[str]:
+        cells = [] if time_col is None else [_seconds(clock(*parse_time(tracker, r, time_col)))]
+        return cells + ([] if session_col is None else [_label(tracker, r, session_col)])
+
     if log_path is None:  # joint and context columns of the tracker file itself pass through
         used = set(mapping.values())
         first = {h: i for i, h in reversed(list(enumerate(tracker.header)))}  # header.index(h), once per column
         tracker_cols += [(t, first[h]) for t, h in _auto_log_map(tracker.header).items()
                          if t != TIME and t not in mapping and h not in used and t.split("_")[0] not in AXES]
         columns = [t for t, _ in tracker_cols]
-        result.columns = columns
-        result.rows = [[_cell(tracker, r, c, t) for t, c in tracker_cols] for r in range(len(tracker.rows))]
+        result.columns = columns + carried
+        result.rows = [[_cell(tracker, r, c, t) for t, c in tracker_cols] + context(r)
+                       for r in range(len(tracker.rows))]
         return result
 
     log_wanted = list(log_map.values()) if log_map else None
@@ -444,7 +457,7 @@ def import_tracker(tracker_path, tracker_map: dict[str, str] | None = None, log_
     # times of day without a date (hh:mm:ss) wrap at midnight: 23:59:59.99 is 20 ms before 00:00:00.01
     wraps = kinds == {"clock"} and all(0.0 <= x < DAY_S for x in times)
     tracker_time_col = tracker.column(mapping[TIME])
-    result.columns = [t for t, _ in log_cols] + columns
+    result.columns = [t for t, _ in log_cols] + columns + carried
     for r in range(len(tracker.rows)):
         t, kind = parse_time(tracker, r, tracker_time_col)
         if kinds and kind not in kinds:
@@ -457,5 +470,38 @@ def import_tracker(tracker_path, tracker_map: dict[str, str] | None = None, log_
             continue
         log_row = order[best]
         result.rows.append([_cell(log, log_row, c, t_) for t_, c in log_cols]
-                           + [_cell(tracker, r, c, t_) for t_, c in tracker_cols])
+                           + [_cell(tracker, r, c, t_) for t_, c in tracker_cols] + context(r))
     return result
+
+
+class _Unwrapped:
+    """Times of day read in row order, carried past midnight (23:59:59 then 00:00:01 is 2 s later)."""
+
+    def __init__(self) -> None:
+        self.last, self.days = None, 0
+
+    def __call__(self, t: float, kind: str) -> float:
+        if kind == "clock" and 0.0 <= t < DAY_S:
+            if self.last is not None and t + self.days * DAY_S < self.last - DAY_S / 2:
+                self.days += 1
+            t += self.days * DAY_S
+            self.last = t
+        return t
+
+
+def _seconds(t: float) -> str:
+    return f"{t:.6f}".rstrip("0").rstrip(".")
+
+
+def _session_column(table: Table, used: set[str]) -> int | None:
+    """The column of the rows' session labels (a header ``session``, any case), unless a map took it."""
+    hits = [i for i, h in enumerate(table.header) if h.strip().lower() == "session" and h not in used]
+    return hits[0] if hits else None
+
+
+def _label(table: Table, row: int, col: int) -> str:
+    cell = table.rows[row][col].strip()
+    if not cell or not cell.isprintable() or any(c in cell for c in ',"\''):
+        raise InputError(f"{table.path}: row {table.lines[row]}, column {table.header[col]!r}: a session label is "
+                         f"printable text without commas or quotes, got {cell!r}")
+    return cell

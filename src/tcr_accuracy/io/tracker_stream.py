@@ -83,6 +83,18 @@ def read_tracker_stream(path: str | Path) -> TrackerStream:
     ------
     InputError
         Naming the file, row and column at fault.
+
+    Examples
+    --------
+    >>> import pathlib
+    >>> import tempfile
+    >>> import tcr_accuracy as tcr
+    >>> path = tempfile.mkdtemp() + "/stream.csv"
+    >>> rows = [f"{0.001 * k:.3f},{1000 + 0.1 * k:.3f},200.000,300.000" for k in range(100)]
+    >>> _ = pathlib.Path(path).write_text("time_s,x_mm,y_mm,z_mm\\n" + "\\n".join(rows) + "\\n")
+    >>> stream = tcr.read_tracker_stream(path)
+    >>> len(stream.time_s), float(stream.position[1, 0])  # [s], [m]
+    (100, 1.0001)
     """
     path = Path(path)
     source = str(path)

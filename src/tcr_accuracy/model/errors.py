@@ -33,6 +33,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..exceptions import InputError
+from ..random_state import renamed_keyword
 from .robot import PRISMATIC, REVOLUTE, RobotModel
 
 PLACEMENT_COMPONENTS = ("dx", "dy", "dz", "rx", "ry", "rz")
@@ -57,6 +58,13 @@ class ErrorModel:
     ----------
     robot : RobotModel
         The nominal robot. It is never modified.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> em = tcr.ErrorModel(tcr.load_robot("ur5"))
+    >>> em.size, em.names[0]
+    (54, 'shoulder_pan_joint.dx')
     """
 
     def __repr__(self) -> str:
@@ -241,8 +249,21 @@ class ErrorSource:
         a, b = (self.low - self.mean) / self.std, (self.high - self.mean) / self.std
         return float(stats.truncnorm.mean(a, b, loc=self.mean, scale=self.std))
 
-    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        """(n,) random values of the source."""
+    @renamed_keyword("rng", "random_state")
+    def sample(self, n: int, random_state=None) -> np.ndarray:
+        """(n,) random values of the source.
+
+        Parameters
+        ----------
+        n : int
+        random_state : int, numpy.random.Generator or None, default=None
+            Drawn from (a Generator: its stream goes on; formerly ``rng``).
+
+        Returns
+        -------
+        ndarray of shape (n,)
+        """
+        rng = np.random.default_rng(random_state)
         if self.distribution == "normal":
             return self.mean + self.std * rng.standard_normal(n)
         if self.distribution == "uniform":
@@ -276,6 +297,13 @@ class ErrorBudget:
         The independent sources (distribution, spread [SI], the parameters they move).
     name : str
         Label for reports (``table1``, a budget file's name).
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> budget = tcr.seed_budget(tcr.load_robot(), "table2")
+    >>> budget.sample(3, random_state=0).shape  # three as-built robots' error vectors
+    (3, 54)
     """
 
     error_model: ErrorModel
@@ -298,15 +326,40 @@ class ErrorBudget:
     def source_names(self) -> list[str]:
         return [s.name for s in self.sources]
 
-    def sample_sources(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        """(n, n_sources) independent draws, one column per source."""
+    @renamed_keyword("rng", "random_state")
+    def sample_sources(self, n: int, random_state=None) -> np.ndarray:
+        """(n, n_sources) independent draws, one column per source.
+
+        Parameters
+        ----------
+        n : int
+        random_state : int, numpy.random.Generator or None, default=None
+            Drawn from (a Generator: its stream goes on; formerly ``rng``).
+
+        Returns
+        -------
+        ndarray of shape (n, n_sources)
+        """
         if not self.sources:
             return np.zeros((n, 0))
+        rng = np.random.default_rng(random_state)
         return np.stack([s.sample(n, rng) for s in self.sources], axis=1)
 
-    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        """(n, n_params) error parameter vectors."""
-        return self.sample_sources(n, rng) @ self.matrix.T
+    @renamed_keyword("rng", "random_state")
+    def sample(self, n: int, random_state=None) -> np.ndarray:
+        """(n, n_params) error parameter vectors.
+
+        Parameters
+        ----------
+        n : int
+        random_state : int, numpy.random.Generator or None, default=None
+            Drawn from (a Generator: its stream goes on; formerly ``rng``).
+
+        Returns
+        -------
+        ndarray of shape (n, n_params)
+        """
+        return self.sample_sources(n, random_state) @ self.matrix.T
 
     def parameter_mean(self) -> np.ndarray:
         """(n_params,) expectation of x."""

@@ -81,6 +81,14 @@ def gravity_torque(robot: RobotModel, q: np.ndarray, payload_kg=0.0, link_mass_f
     -----
     Gravity torque is linear in the payload mass, so two Pinocchio models (arm, arm +
     1 kg) serve every row.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot("ur5")
+    >>> tau = tcr.gravity_torque(robot, robot.working_pose[None], payload_kg=2.0)  # [Nm]
+    >>> tau.shape
+    (1, 6)
     """
     return -_gravity(robot, q, payload_kg, link_mass_factors, outside_q, wrench=False)
 

@@ -73,6 +73,14 @@ def error_jacobian(robot: RobotModel, q: np.ndarray, error_model: ErrorModel | N
     -------
     ndarray of shape (6, n_params)
         d(TCP displacement [m], rotation vector [rad]) / dx.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot("ur5")
+    >>> tcr.error_jacobian(robot, robot.working_pose).shape  # (6, n_params): twist per error parameter
+    (6, 54)
     """
     q = robot.check_joint_values(np.asarray(q, dtype=float), source="q")
     return error_jacobians(robot, q[None], None, error_model)[1][0]
@@ -105,6 +113,15 @@ def error_jacobians(robot: RobotModel, q, x=None, error_model: ErrorModel | None
     Rows: TCP displacement in base-frame axes, then rotation vector, as Pinocchio's
     LOCAL_WORLD_ALIGNED. From Pinocchio's frame Jacobian and frame kinematic regressor
     of the perturbed model, chained with the derivative of ``exp6`` (``pin.Jexp6``) at x.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot("ur5")
+    >>> poses, jacobians = tcr.error_jacobians(robot, np.zeros((4, 6)))
+    >>> jacobians.shape
+    (4, 6, 54)
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     em = error_model or ErrorModel(robot)

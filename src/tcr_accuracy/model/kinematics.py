@@ -240,6 +240,18 @@ def pose_error(nominal: TcpPoses, actual: TcpPoses) -> PoseError:
     -------
     PoseError
         Position error (N, 3) [m] and rotation error (N, 3) [rad] in the base frame.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot("ur5")
+    >>> q = np.zeros((1, 6))
+    >>> x = tcr.ErrorModel(robot).zeros()
+    >>> x[0] = 1e-4  # shoulder_pan_joint.dx: 0.1 mm
+    >>> error = tcr.pose_error(tcr.tcp_poses(robot, q), tcr.tcp_poses(robot, q, x))
+    >>> round(float(error.position_norm[0]) * 1e3, 3)  # [mm]
+    0.1
     """
     dp = actual.position - nominal.position
     relative = np.einsum("nij,nkj->nik", actual.rotation, np.broadcast_to(nominal.rotation, actual.rotation.shape))

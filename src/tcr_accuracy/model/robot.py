@@ -112,6 +112,10 @@ class RobotModel:
     payload_kg : float or None
         The payload an analysis assumes by default [kg] (the 150 kg disc cutter of the
         tool-changer); None: a fifth of the moving links' mass (:attr:`typical_payload_kg`).
+    robot_source : str or None
+        How :func:`load_robot` loads this robot again: ``tool_changer``, an example-robot-data
+        name (``ur5``) or the URDF's absolute path; None for a robot built otherwise (from URDF
+        text, or a perturbed copy), which a result file cannot name.
     mounting_plane_z : float or None
         The plane the robot stands on [m], base frame z: random poses keep the TCP and the joints on
         or above it (0: an arm bolted to a floor or a table by its base); None for the tool-changer,
@@ -121,6 +125,15 @@ class RobotModel:
         file's name, its format and SHA-256, and the joint and TCP-frame placements it gave
         (``file``, ``format``, ``sha256``, ``placements``; :mod:`tcr_accuracy.asbuilt.factory_kinematics`).
         None: the URDF's own (the catalogue's) kinematics.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot("ur5")
+    >>> robot.n_joints, robot.tool_frame, robot.robot_source
+    (6, 'tool0', 'ur5')
+    >>> robot.joint_names[:2]
+    ['shoulder_pan_joint', 'shoulder_lift_joint']
     """
 
     model: pin.Model
@@ -136,6 +149,7 @@ class RobotModel:
     tool_frame_id: int = -1
     mimic: dict = field(default_factory=dict)
     payload_kg: float | None = None
+    robot_source: str | None = None
     mounting_plane_z: float | None = 0.0
     kinematics: dict | None = None
 
@@ -573,6 +587,7 @@ def load_robot(source: str | Path | None = None, tool: str | None = None, *,
         working_pose = WORKING_POSE.copy()
         payload_kg = DISC_CUTTER_MASS
         label = "built-in tool_changer"
+        loaded_from = BUILTIN_NAME
     elif Path(source).is_file():
         urdf_path = Path(source).resolve()
         text = read_urdf_text(urdf_path)
@@ -583,6 +598,7 @@ def load_robot(source: str | Path | None = None, tool: str | None = None, *,
             # that package is installed with this tool (example-robot-data), so it resolves here
             package_dirs.append(str(example_robot_data_dir()))
         label = str(source)
+        loaded_from = str(urdf_path)
         if urdf_path.stem == BUILTIN_NAME or name.startswith(BUILTIN_NAME):  # a variant, its as-built model
             working_pose = WORKING_POSE.copy()
             payload_kg = DISC_CUTTER_MASS
@@ -595,6 +611,7 @@ def load_robot(source: str | Path | None = None, tool: str | None = None, *,
         tool = tool or default_tool
         package_dirs = given + [str(share)]
         label = f"{name} ({urdf_path})"
+        loaded_from = name
     elif Path(source).exists():
         what = "a folder" if Path(source).is_dir() else "not a regular file (a device or a pipe)"
         raise InputError(f"source={source}: {what}; give a URDF file or a known robot name "
@@ -608,6 +625,7 @@ def load_robot(source: str | Path | None = None, tool: str | None = None, *,
         text, tool, name=name, source=label, urdf_path=urdf_path,
         package_dirs=package_dirs, working_pose=working_pose, payload_kg=payload_kg,
     )
+    robot.robot_source = loaded_from
     if urdf_path is not None and "package://" in text:
         names = {package_of(place.name) for place in robot.mesh_places()} - {None}
         robot.packages = {name: str(folder) for name, folder in

@@ -181,8 +181,9 @@ class DiagnosisCalibration(MultiOutputMixin, RegressorMixin, BaseEstimator):
         X = validate_data(self, X, reset=False)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", JointLimitWarning)
-            # the diagnosis predicts in the frame of the positions it was given: here the base frame
-            return self.diagnosis_.predict(self.robot, X, context) - tcp_poses(self.robot, X).position
+            # the "tracker" frame of the diagnosis is the frame of the positions it was given: here the
+            # base frame, so a constant offset of the errors (which the diagnosis puts in its frame) is kept
+            return self.diagnosis_.tracker_positions(self.robot, X, context) - tcp_poses(self.robot, X).position
 
 
 def _measured_context(context) -> dict:

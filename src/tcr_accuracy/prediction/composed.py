@@ -21,6 +21,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ..exceptions import InputError
 from ..model.kinematics import tcp_poses
+from .bayesian import BayesianCalibration
 from .gaussian_process import JointGaussianProcess
 from .kriging import JointKriging
 from .local_gp import LocalGaussianProcess
@@ -174,12 +175,15 @@ def uncertainty_kind(estimator) -> str | None:
     """What ``predict(X, return_std=True)`` of a fitted estimator gives, or None.
 
     "kriging standard deviation", "Gaussian process predictive standard deviation",
-    the residual model's (for :class:`ResidualCorrected`) or None.
+    "Bayesian posterior predictive standard deviation", the residual model's (for
+    :class:`ResidualCorrected`) or None.
     """
     if isinstance(estimator, JointKriging):
         return "kriging standard deviation"
     if isinstance(estimator, (JointGaussianProcess, LocalGaussianProcess)):
         return "Gaussian process predictive standard deviation"
+    if isinstance(estimator, BayesianCalibration):
+        return "Bayesian posterior predictive standard deviation"
     if isinstance(estimator, ResidualCorrected):
         model = getattr(estimator, "residual_", estimator.residual)
         return uncertainty_kind(model)
@@ -230,9 +234,11 @@ class MeasuredErrorModel(BaseEstimator):
     --------
     >>> import tcr_accuracy as tcr
     >>> robot = tcr.load_robot()
-    >>> model = tcr.MeasuredErrorModel(robot=robot, estimator=tcr.make_predictor("gp", robot, random_state=0))
-    >>> model.fit(train.q, train.position, context=train.context)  # doctest: +SKIP
-    >>> model.predict(test.q, context=test.context).shape  # doctest: +SKIP
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> train, test = measured.subset(slice(0, 160)), measured.subset(slice(160, 200))
+    >>> model = tcr.MeasuredErrorModel(robot=robot, estimator=tcr.make_predictor("kriging", robot))
+    >>> model = model.fit(train.q, train.position, context=train.context)
+    >>> model.predict(test.q, context=test.context).shape
     (40, 3)
     """
 

@@ -35,6 +35,17 @@ class ErrorPrediction:
         What ``std`` is (:func:`~tcr_accuracy.prediction.composed.uncertainty_kind`), None without one.
     held_out : HeldOutError or None
         Measured minus predicted error, for poses with measured positions.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> model = tcr.MeasuredErrorModel(robot=robot, estimator=tcr.make_predictor("kriging", robot))
+    >>> model = model.fit(measured.q[:150], measured.position[:150])
+    >>> prediction = tcr.predict_errors(model, measured.q[150:])
+    >>> isinstance(prediction, tcr.ErrorPrediction), prediction.predicted_error.shape
+    (True, (50, 3))
     """
 
     predicted_error: np.ndarray
@@ -85,12 +96,14 @@ def predict_errors(model, q, *, context=None, measured=None, label: str = "the p
     Examples
     --------
     >>> import tcr_accuracy as tcr
-    >>> robot = tcr.load_robot("ur5")
-    >>> model = tcr.MeasuredErrorModel(robot=robot, estimator=tcr.make_predictor("gp", robot, random_state=0))
-    >>> model.fit(train.q, train.position, context=train.context)  # doctest: +SKIP
-    >>> result = tcr.predict_errors(model, test.q, context=test.context, measured=test.position)  # doctest: +SKIP
-    >>> result.held_out.rms  # doctest: +SKIP
-    3.1e-05
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> train, test = measured.subset(slice(0, 160)), measured.subset(slice(160, 200))
+    >>> model = tcr.MeasuredErrorModel(robot=robot, estimator=tcr.make_predictor("kriging", robot))
+    >>> model = model.fit(train.q, train.position, context=train.context)
+    >>> result = tcr.predict_errors(model, test.q, context=test.context, measured=test.position)
+    >>> result.predicted_error.shape, result.held_out.residual.shape  # [m]
+    ((40, 3), (40, 3))
     """
     q = np.asarray(q, dtype=float)
     predicted, std = finite_prediction(model.predict_error, q, context, label)

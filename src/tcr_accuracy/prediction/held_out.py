@@ -27,6 +27,17 @@ class HeldOutError:
         the nominal TCP [m]; the TCP offset of the measured point included.
     std : ndarray of shape (N, 3) or None
         The predictor's standard deviation at these poses [m], where it gives one.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> model = tcr.MeasuredErrorModel(robot=robot, estimator=tcr.make_predictor("kriging", robot))
+    >>> model = model.fit(measured.q[:150], measured.position[:150])
+    >>> score = tcr.held_out_error(model, measured.q[150:], measured.position[150:])
+    >>> isinstance(score, tcr.HeldOutError), score.residual.shape
+    (True, (50, 3))
     """
 
     residual: np.ndarray
@@ -96,6 +107,17 @@ def held_out_error(model, q, measured, *, context=None, predicted=None, std=None
     -------
     HeldOutError
         ``residual = R^T (measured - t) - FK(q) - predicted error`` [m], base frame.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> model = tcr.MeasuredErrorModel(robot=robot, estimator=tcr.make_predictor("kriging", robot))
+    >>> model = model.fit(measured.q[:150], measured.position[:150])
+    >>> score = tcr.held_out_error(model, measured.q[150:], measured.position[150:])
+    >>> isinstance(score, tcr.HeldOutError), score.residual.shape
+    (True, (50, 3))
     """
     q = np.asarray(q, dtype=float)
     measured_error = model.registration_.to_base(np.asarray(measured, dtype=float)) - tcp_poses(model.robot, q).position

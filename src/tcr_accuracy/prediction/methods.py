@@ -14,7 +14,7 @@ from __future__ import annotations
 from ..exceptions import InputError
 
 METHODS = ("kriging", "kriging-pf", "gp", "local-gp", "idw-joint", "idw-cartesian", "mlp-cartesian", "calibration",
-           "calibration+gp", "calibration+local-gp", "diagnosis", "diagnosis+gp")
+           "calibration+gp", "calibration+local-gp", "diagnosis", "diagnosis+gp", "bayes")
 
 #: the diagnosis' fitted effect model plus a Gaussian process of what it leaves
 DEFAULT_METHOD = "diagnosis+gp"
@@ -46,6 +46,7 @@ def make_predictor(method: str, robot, *, random_state=None):
     0
     """
     from .baselines import InverseDistanceWeighting, make_cartesian_idw, make_cartesian_mlp
+    from .bayesian import BayesianCalibration
     from .calibration import DiagnosisCalibration, GeometricCalibration
     from .composed import ResidualCorrected
     from .gaussian_process import make_gaussian_process
@@ -79,4 +80,6 @@ def make_predictor(method: str, robot, *, random_state=None):
     if method == "diagnosis+gp":
         return ResidualCorrected(base=DiagnosisCalibration(robot=robot, random_state=random_state),
                                  residual=make_gaussian_process(robot.n_joints, random_state=random_state))
+    if method == "bayes":
+        return BayesianCalibration(robot=robot)
     raise InputError(f"unknown prediction method {method!r}; choose one of {', '.join(METHODS)}")

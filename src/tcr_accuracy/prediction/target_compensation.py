@@ -45,6 +45,17 @@ class TargetCompensation:
         For targets measured at their uncompensated command: measured minus predicted error there.
     measured_before : ndarray of shape (S,) or None
         For measured targets: |measured point - target| at the uncompensated command [m].
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> model = tcr.MeasuredErrorModel(robot=robot, estimator=tcr.make_predictor("kriging", robot))
+    >>> model = model.fit(measured.q[:150], measured.position[:150])
+    >>> result = tcr.compensate_targets(model, measured.q[150:155])
+    >>> isinstance(result, tcr.TargetCompensation), result.q_compensated.shape
+    (True, (5, 6))
     """
 
     result: CompensationResult
@@ -109,11 +120,14 @@ def compensate_targets(model, q_targets, *, threshold: float = 1e-6, max_iter: i
 
     Examples
     --------
-    With ``model`` fitted as in :func:`~tcr_accuracy.prediction.error_prediction.predict_errors`:
-
-    >>> done = tcr.compensate_targets(model, targets.q, threshold=1e-6)  # doctest: +SKIP
-    >>> done.error_before.mean(), done.miss_after.max()  # doctest: +SKIP
-    (0.00049, 9.4e-07)
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> model = tcr.MeasuredErrorModel(robot=robot, estimator=tcr.make_predictor("kriging", robot))
+    >>> model = model.fit(measured.q[:160], measured.position[:160])
+    >>> done = tcr.compensate_targets(model, measured.q[160:165], threshold=1e-6)
+    >>> done.q_compensated.shape
+    (5, 6)
     """
     q_all = np.atleast_2d(np.asarray(q_targets, dtype=float))
     frame_robot = model.frame_robot_  # its TCP is the measured point

@@ -138,7 +138,7 @@ def reach_of(d, export) -> float | None:
     diagnosis' measured points (their box's corners mapped by its ``trackerMbase``)."""
     if export is not None and export.reach is not None:
         return export.reach
-    points, transform = (d or {}).get("measured_points"), (d or {}).get("tracker_transform")
+    points, transform = (d or {}).get("measured_points"), (d or {}).get("trackerMbase")
     if points is None or transform is None:
         return None
     m = np.asarray(transform, dtype=float)

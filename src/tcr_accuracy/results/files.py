@@ -28,6 +28,9 @@ from ..input_files import control_character, read_json_file
 MAX_MM = 1e6
 #: The most measurements, readings or poses a result may count.
 MAX_COUNT = 10**9
+#: The most parameters of one effect a diagnosis may hold (a cyclic error of order 200 on 50 joints
+#: has 20,000).
+MAX_PARAMETERS = 100_000
 
 _TEXT = {"type": "string", "maxLength": 100_000}
 _NAME = {"type": "string", "minLength": 1, "maxLength": 1000}
@@ -43,6 +46,8 @@ _INTERVAL = {"type": "array", "items": _NUMBER_OR_NULL, "minItems": 2, "maxItems
 _MM_INTERVAL = {"type": "array", "items": _SIGNED_MM, "minItems": 2, "maxItems": 2}
 _TRANSFORM = {"type": "array", "minItems": 4, "maxItems": 4,
               "items": {"type": "array", "minItems": 4, "maxItems": 4, "items": _NUMBER}}
+#: Mean, RMS and max of error norms over ``count`` points.
+_STATS = {"type": "object", "properties": {"mean_mm": _MM, "rms_mm": _MM, "max_mm": _MM, "count": _COUNT}}
 
 
 _VECTOR_MM = {"type": "array", "items": _SIGNED_MM, "minItems": 3, "maxItems": 3}
@@ -61,7 +66,7 @@ def _by_effect(value: dict, names) -> dict:
 
 def _by_parameter(value: dict) -> dict:
     return {"type": "object", "propertyNames": {"maxLength": 200}, "additionalProperties": value,
-            "maxProperties": 1_000_000}
+            "maxProperties": MAX_PARAMETERS}
 
 
 def _options_schema(names) -> dict:
@@ -79,6 +84,7 @@ def _diagnosis_schema(names) -> dict:
                            "train_rms_mm": _MM, "heldout_rms_mm": _MM, "heldout_mean_mm": _MM, "heldout_max_mm": _MM,
                            "gain_heldout_rms_mm": {"anyOf": [_SIGNED_MM, {"type": "null"}]},
                            "gain_interval_mm": {"anyOf": [{"type": "null"}, _MM_INTERVAL]},
+                           "heldout_count": _COUNT,
                            "z_vs_previous": _NUMBER_OR_NULL}}
     # an effect tried alone with frames: its figures; one not tried: why
     candidate = {"type": "object", "required": ["tried"],
@@ -98,7 +104,7 @@ def _diagnosis_schema(names) -> dict:
             "noise_floor_mm": _NOISE, "tracker_noise_mm": {"anyOf": [_NOISE, {"type": "null"}]},
             "final_heldout_rms_mm": _MM,
             "final_over_noise": _NUMBER_OR_NULL,
-            "gap": {"type": "object", "properties": {"mean_mm": _MM, "rms_mm": _MM, "max_mm": _MM, "count": _COUNT}},
+            "gap": _STATS,
             "noise": {"type": "object", "properties": {"per_axis_mm": _MM_OR_NULL, "source": _TEXT,
                                                        "independent": {"type": "boolean"}, "detail": _TEXT}},
             "steps": {"type": "array", "minItems": 1, "maxItems": 10_000, "items": step},
@@ -112,13 +118,16 @@ def _diagnosis_schema(names) -> dict:
             "physical": _by_effect({"type": "object", "properties": {
                 "plausible": {"type": "boolean"}, "range": _by_parameter(_INTERVAL),
                 "fit_range": _by_parameter(_INTERVAL),
-                "pinned": {"type": "array", "maxItems": 1_000_000, "items": {
+                "pinned": {"type": "array", "maxItems": MAX_PARAMETERS, "items": {
                     "type": "object", "required": ["parameter", "bound"],
                     "properties": {"parameter": _NAME, "bound": {"enum": ["lower", "upper"]}}}},
                 "reason": _TEXT}}, names),
             "effect_parameters": _by_effect(_by_parameter(_NUMBER), names),
             "effect_options": _options_schema(names),
-            "tracker_transform": _TRANSFORM,
+            "trackerMbase": _TRANSFORM,
+            "joint_names": {"type": "array", "items": _NAME, "maxItems": 1000},
+            "fold_assignments": {"type": "integer", "minimum": 1, "maximum": 1000},
+            "heldout_by_frame": {"type": "object", "maxProperties": 1000, "additionalProperties": _STATS},
             "sessions": {"type": "array", "maxItems": 100_000},
             "notes": _TEXTS, "ambiguous": {"type": "array", "items": {"type": "object"}},
             "outside_physics": {"type": "array", "items": {"type": "object"}},
@@ -281,44 +290,166 @@ def schema_of(kind: str) -> dict:
 FIT_KEYS = ("parameter_std", "parameter_units")
 #: What a diagnosis must hold for the report's first page.
 PAGE_KEYS = ("n_measurements", "folds", "steps", "selected_effects", "noise_floor_mm", "candidates", *FIT_KEYS)
-#: What a diagnosis must hold to be exported (``diagnose --json`` writes them; a Python
-#: ``Diagnosis.to_dict()`` without the robot has not got them).
-MODEL_KEYS = ("robot_source", "tool_frame", "effect_parameters", "tracker_transform")
+#: What a diagnosis must hold to be exported (``diagnose --json`` and ``Diagnosis.to_json`` write them).
+MODEL_KEYS = ("robot_source", "tool_frame", "effect_parameters", "trackerMbase")
 #: The keys each kind must hold (a diagnosis: :data:`PAGE_KEYS` too where a report reads it).
 REQUIRED = {"diagnosis": PAGE_KEYS, "iso9283": ("robot",), "comparison": (), "export": ()}  # robot: the one-robot check
+#: Keys a result of 0.1 wrote under another name: old name -> the name read (compatibility until 0.2).
+RENAMED_KEYS = {"tracker_transform": "trackerMbase"}
+#: A container with more elements than this is not handed to the Python validator for its message.
+_LARGE = 10_000
 
 
 def validate_result(doc, kind: str, source, required=()) -> dict:
-    """``doc`` checked against the schema of ``kind`` (with the keys ``required`` besides those of
-    every such result) and for the cross-references a schema cannot say (every parameter with a
-    standard error and a unit, named after its effect; a rigid tracker transform); returns it.
-    InputError naming ``source`` and the key at fault."""
-    import jsonschema
+    """``doc`` checked whole: against the schema of ``kind`` (with the keys ``required`` besides
+    those of every such result), for the cross-references a schema cannot say (every parameter
+    with a standard error and a unit, named after its effect; a rigid tracker transform), and for
+    its figures against each other and its copies of one number against each other
+    (:mod:`tcr_accuracy.results.consistency`); returns it. InputError naming ``source`` and the
+    key at fault.
+
+    The schema is checked by ``jsonschema-rs`` (compiled: a 60 MB diagnosis in well under a
+    second); where it fails, the ``jsonschema`` library words the error on the part at fault (its
+    best match among the errors there, as it always did). ``jsonschema`` alone walks every element
+    of a large array or mapping in Python at about 100 us each: a 60 MB file took minutes.
+    """
+    from .consistency import check_consistency
 
     schema = schema_of(kind)
-    schema["required"] = [*schema["required"], *required]
-    validator = jsonschema.Draft202012Validator(schema)
-    error = jsonschema.exceptions.best_match(validator.iter_errors(doc))
+    schema["required"] = list(dict.fromkeys([*schema["required"], *required]))
+    error = _schema_error(schema, doc)
     if error is not None:
-        where = error.json_path if error.json_path != "$" else "the top level"
         article = "an" if kind[0] in "aeiou" else "a"
-        raise InputError(f"{source}: {where}: {_said(error)}; not {article} {kind} result as tcr-accuracy writes it")
-    _check_text(doc, source, "$")
+        raise InputError(f"{source}: {error}; not {article} {kind} result as tcr-accuracy writes it")
+    _check_text(doc, source)
     if kind == "diagnosis":
         _check_diagnosis_references(doc, source)
+    check_consistency(doc, kind, source)
     return doc
 
 
-def _check_text(value, source, where: str) -> None:
+def _schema_error(schema: dict, doc) -> str | None:
+    """``where: what`` of the first part of ``doc`` the schema refuses, or None when it holds."""
+    import jsonschema
+    import jsonschema_rs
+
+    fast = jsonschema_rs.Draft202012Validator(schema)
+    if fast.is_valid(doc):
+        return None
+    first = next(iter(fast.iter_errors(doc)))
+    path = list(first.instance_path)
+    sub_schema, instance = _at(schema, doc, path)
+    if sub_schema is not None and _size(instance) <= _LARGE:  # worded by jsonschema on the part at fault
+        validator = jsonschema.Draft202012Validator(sub_schema)
+        error = jsonschema.exceptions.best_match(validator.iter_errors(instance))
+        if error is not None:
+            error.path.extendleft(reversed(path))
+            where = error.json_path if error.json_path != "$" else "the top level"
+            return f"{where}: {_said(error)}"
+    where = _json_path(path)
+    return f"{where if where != '$' else 'the top level'}: {_rs_said(first, instance)}"
+
+
+def _rs_said(error, instance) -> str:
+    """What jsonschema-rs found wrong with a large container, in jsonschema's words where the kind of
+    error has them (its own message quotes the whole container: megabytes)."""
+    kind = type(error.kind).__name__
+    limit = getattr(error.kind, "limit", None)
+    size = len(instance) if isinstance(instance, (dict, list)) else None
+    said = {"MaxProperties": f"{size} properties, more than the {limit} allowed",
+            "MaxItems": f"{size} items, more than the {limit} allowed",
+            "MinItems": f"{size} items, fewer than the {limit} needed",
+            "MinProperties": f"{size} properties, fewer than the {limit} needed"}.get(kind)
+    if said is None:
+        message = " ".join(error.message.split())
+        said = f"{kind}: {message[:200]}..." if len(message) > 200 else message
+    return said
+
+
+def _at(schema: dict, doc, path: list):
+    """(the schema that applies at ``path`` of ``doc``, the value there); schema None where the path
+    runs through a keyword this walk does not follow."""
+    node = doc
+    for key in path:
+        schema = _branch(schema, node)
+        if isinstance(node, dict) and isinstance(schema, dict):
+            schema = schema.get("properties", {}).get(key, schema.get("additionalProperties"))
+        elif isinstance(node, list) and isinstance(schema, dict):
+            schema = schema.get("items")
+        else:
+            return None, node
+        if not isinstance(schema, dict):
+            return None, node
+        node = node[key]
+    return schema, node
+
+
+def _branch(schema: dict, node) -> dict:
+    """The ``anyOf`` branch of ``schema`` for a container ``node`` (its type's), else ``schema``."""
+    for option in schema.get("anyOf", ()):
+        if option.get("type") == ("object" if isinstance(node, dict) else "array"):
+            return option
+    return schema
+
+
+def _size(value) -> int:
+    """How many elements a value holds, counted until :data:`_LARGE` is passed."""
+    count, todo = 0, [value]
+    while todo and count <= _LARGE:
+        item = todo.pop()
+        count += 1
+        if isinstance(item, dict):
+            todo.extend(item.values())
+        elif isinstance(item, list):
+            todo.extend(item)
+    return count
+
+
+def _json_path(path: list) -> str:
+    """``$.key[3]['dotted.key']`` as jsonschema writes a path."""
+    out = "$"
+    for key in path:
+        if isinstance(key, int):
+            out += f"[{key}]"
+        elif key.isidentifier():
+            out += f".{key}"
+        else:
+            out += f"[{key!r}]"
+    return out
+
+
+def _check_text(doc, source) -> None:
     """No control or bidirectional-override character in a key or text of a result (a NUL went
-    into the report's HTML and Markdown as it was); line breaks and tabs pass."""
+    into the report's HTML and Markdown as it was); line breaks and tabs pass. One scan of the
+    document's JSON text finds whether there is any (:func:`_suspect_text`); only then is the
+    document walked to name the key."""
+    if _suspect_text(doc):
+        _walk_text(doc, source, "$")
+
+
+def _suspect_text(doc) -> bool:
+    """True when the JSON text of ``doc`` holds a character :func:`_walk_text` may refuse: an escape
+    of a C0 control other than a line break or tab (``\\u0000``-``\\u001f``, ``\\b``, ``\\f``; a
+    literal backslash before b or f is a false alarm the walk clears), or a character beyond ASCII
+    that :func:`~tcr_accuracy.input_files.control_character` refuses (each distinct character is
+    looked at once: a 60 MB result holds a few hundred)."""
+    import json
+    import re
+
+    text = json.dumps(doc, ensure_ascii=False)
+    if re.search(r"\\(?:u00[01][0-9a-fA-F]|[bf])", text):
+        return True
+    return any(control_character(c) is not None for c in set(text) if ord(c) >= 0x7F)
+
+
+def _walk_text(value, source, where: str) -> None:
     if isinstance(value, dict):
         for key, item in value.items():
-            _check_text(key, source, f"{where} (a key)")
-            _check_text(item, source, f"{where}.{key}")
+            _walk_text(key, source, f"{where} (a key)")
+            _walk_text(item, source, f"{where}.{key}")
     elif isinstance(value, list):
         for i, item in enumerate(value):
-            _check_text(item, source, f"{where}[{i}]")
+            _walk_text(item, source, f"{where}[{i}]")
     elif isinstance(value, str):
         bad = control_character(value, allowed="\n\t\r")
         if bad is not None:
@@ -358,12 +489,12 @@ def _check_diagnosis_references(doc: dict, source) -> None:
             if bad is not None:
                 raise InputError(f"{source}: $.{key}.{effect}: parameter {bad!r} is not one of {effect}'s")
     for effect, info in (doc.get("physical") or {}).items():
-        bad = next((p["parameter"] for p in info.get("pinned", []) if p["parameter"] not in doc["parameters"].get(
-            effect, {})), None)
+        fitted = doc["parameters"].get(effect, {})
+        bad = next((p["parameter"] for p in info.get("pinned", []) if p["parameter"] not in fitted), None)
         if bad is not None:
             raise InputError(f"{source}: $.physical.{effect}.pinned: {bad!r} is not a fitted parameter of {effect}")
-    if "tracker_transform" in doc:
-        _check_rigid(doc["tracker_transform"], f"{source}: $.tracker_transform")
+    if "trackerMbase" in doc:
+        _check_rigid(doc["trackerMbase"], f"{source}: $.trackerMbase")
 
 
 def _check_rigid(matrix, where: str) -> None:
@@ -380,13 +511,43 @@ def _check_rigid(matrix, where: str) -> None:
                          "a last row 0 0 0 1)")
 
 
-def read_result(path, kind: str | None = None, *, hint: str = "", required=()) -> tuple[str, dict]:
-    """(kind, validated document) of the JSON result ``path``; ``kind``: the one expected (any
-    of the three when None); ``required``: keys the caller needs besides (:data:`MODEL_KEYS`).
-    InputError naming the file and key at fault."""
+def renamed_keys(doc, source) -> None:
+    """Keys a result of 0.1 wrote under another name (:data:`RENAMED_KEYS`) read under today's, in
+    place; a file with both is refused unless they agree (one copy of each number)."""
+    if not isinstance(doc, dict):
+        return
+    for old, new in RENAMED_KEYS.items():
+        if old in doc:
+            value = doc.pop(old)
+            if new in doc and doc[new] != value:
+                raise InputError(f"{source}: $.{old} and $.{new} differ: one base-to-tracker transform, written "
+                                 f"once ({new}; {old} is its name before 0.2)")
+            doc[new] = value
+
+
+def read_result_document(path, kind: str | None = None, *, hint: str = "", required=()) -> tuple[str, dict]:
+    """(kind, checked document) of the JSON result file ``path``: opened by the one opener
+    (:func:`tcr_accuracy.input_files.read_json_file`: a regular file within its size bound, no NaN)
+    and checked whole (:func:`validate_result`). ``kind``: the one expected (any of
+    :data:`~tcr_accuracy.results.kinds.KINDS` when None); ``required``: keys the caller needs
+    besides (:data:`MODEL_KEYS`). InputError naming the file and key at fault.
+
+    Parameters
+    ----------
+    path : str or Path
+    kind : str, optional
+    hint : str
+        What to give instead, said when the file is no JSON.
+    required : tuple of str
+
+    Returns
+    -------
+    tuple of (str, dict)
+    """
     from .kinds import kind_of
 
     doc = read_json_file(path, f"{kind or 'JSON'} result", hint=hint)
+    renamed_keys(doc, path)
     found = kind_of(doc, str(path)) if kind is None else kind
     if kind is not None and not isinstance(doc, dict):
         raise InputError(f"{path}: not a {kind} result (a JSON object was expected)")

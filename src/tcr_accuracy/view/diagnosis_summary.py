@@ -26,8 +26,11 @@ def diagnosis_summary(diagnosis, source: str | None = None) -> str:
     Examples
     --------
     >>> import tcr_accuracy as tcr
-    >>> result = tcr.diagnose(robot, measured)  # doctest: +SKIP
-    >>> print(tcr.diagnosis_summary(result))  # doctest: +SKIP
+    >>> robot = tcr.load_robot()
+    >>> measured = tcr.read_measurements("examples/measured.csv", robot)
+    >>> d = tcr.diagnose(robot, measured, effects=["joint_offsets", "compliance"], folds=3)
+    >>> print(tcr.diagnosis_summary(d))  # doctest: +ELLIPSIS
+    Diagnosis of examples/measured.csv: 200 measurements of tool_changer, 3-fold cross-validation...
     """
     return format_summary(None, diagnosis, diagnosis.source if source is None else source)
 
@@ -54,7 +57,7 @@ def format_summary(robot, d, source: str) -> str:
     robot_name = d.robot_name if robot is None else robot.name
     joint_names = list(d.joint_names if robot is None else robot.joint_names)
     mm = 1e3
-    repeats = len(d.stages.residual.heldout_repeats)
+    repeats = d.fold_assignments or 1  # None: a file of 0.1 does not say
     out = [f"Diagnosis of {source}: {d.n_measurements} measurements of {robot_name}, "
            f"{d.folds}-fold cross-validation" + (f" over {repeats} fold assignments" if repeats > 1 else "")]
     start = getattr(robot, "kinematics", None)
@@ -257,9 +260,9 @@ def parameter_lines(d, per_effect: int = 4) -> list[str]:
             out.append("       held on a physical bound: " + ", ".join(
                 f"{p['parameter']} ({p['bound']})" for p in table["pinned"][:6])
                 + (f" and {len(table['pinned']) - 6} more" if len(table["pinned"]) > 6 else ""))
-    tolerance = d.stages.parameters.tolerance
+    tolerance = d.geometry_tolerance  # a view: a diagnosis read from its file has it too
     if d.geometry_checks and tolerance is not None:
-        out.append(f"   the fitted geometry against what an {tolerance.robot_class} allows (plausibility.py):")
+        out.append(f"   the fitted geometry against what an {tolerance['robot_class']} allows (plausibility.py):")
         out += [f"     {'FLAG: ' if c['flagged'] else ''}{c['text']}" for c in d.geometry_checks]
     return out
 
@@ -269,8 +272,8 @@ def answer_lines(d) -> list[str]:
     largest share of the gap, what mechanism each chosen effect's sign and size fit (and what its fit
     assumed), and the fitted geometry beyond what the robot's class allows."""
     out = ["Answer: " + family_answer(d.families, d.primary_family, d.primary_effect, d.primary_group)]
-    for c in d.stages.attribute.confounding:
-        out.append(f"  mind the order of measurement: {c.to_dict()['why']}; tcr-accuracy plan-poses writes an order "
+    for c in d.confounding:
+        out.append(f"  mind the order of measurement: {c['why']}; tcr-accuracy plan-poses writes an order "
                    "that separates them")
     for m in d.mechanisms:
         if m["effect"] == "frames":

@@ -138,6 +138,15 @@ class Scene:
         segments, trajectories; without far outliers: :func:`framed_box`) and the robots
         drawn among them, so that far frames (a tracker's triad metres away) or a few far-out
         points do not shrink them to a speck.
+
+    Examples
+    --------
+    >>> import tcr_accuracy as tcr
+    >>> robot = tcr.load_robot("ur5")
+    >>> scene = tcr.Scene("UR5 at its working pose")
+    >>> scene.add_robot(robot, robot.working_pose)
+    >>> scene.title
+    'UR5 at its working pose'
     """
 
     def __init__(self, title: str = "tcr-accuracy", *, grid: bool = True, frame: str = "all"):
