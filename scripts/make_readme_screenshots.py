@@ -7,7 +7,9 @@ Writes docs/img/viewer.png (the built-in tool-changer at the seed's working pose
 TCP error cloud of the seed's Table 2 errors), and docs/img/demo.png and docs/img/report.png:
 the index and the diagnosis report that ``tcr-accuracy demo`` writes, and the demo's plots
 under docs/img/figures/, and docs/img/calibration_report.png: page 1 of the printed report of the
-README's "The report" commands (diagnosis, ISO 9283 test, export, report), at 120 dpi. Needs
+README's "The report" commands (diagnosis, ISO 9283 test, export, report), at 120 dpi, and
+docs/img/export.png and docs/img/iso9283.png: the figures of the README's export and ISO 9283
+commands. Needs
 Chromium (``apt-get install -y chromium``) and poppler's pdftoppm (``apt-get install -y poppler-utils``).
 """
 
@@ -87,6 +89,7 @@ def main() -> None:
                 shutil.copyfile(png, figures / f"demo-{part}-{png.name}")
                 print(f"wrote {figures / f'demo-{part}-{png.name}'}")
         calibration_report_page(work, args.out / "calibration_report.png")
+        task_figures(work, args.out)
 
 
 #: The README's "The report" commands (the report's page 1 is the README's image).
@@ -103,29 +106,55 @@ REPORT_COMMANDS = [
 ]
 
 
-def calibration_report_page(work: Path, png: Path) -> None:
-    """Page 1 of the README's calibration report, printed by Chromium, rasterised by pdftoppm."""
+def run_in_copy(folder: Path, commands) -> Path:
+    """Run the README's commands (``tcr-accuracy`` argument lists) in ``folder``, holding a copy of
+    the repository's examples, as the README's reader would; exit on the first that fails."""
     import contextlib
     import io
     import os
 
     from tcr_accuracy.cli import main as cli_main
 
-    repo = Path(__file__).resolve().parents[1]
-    folder = work / "readme-report"
-    shutil.copytree(repo / "examples", folder / "examples")
+    shutil.copytree(Path(__file__).resolve().parents[1] / "examples", folder / "examples")
     here = os.getcwd()
     os.chdir(folder)
     try:
-        for argv in REPORT_COMMANDS:
+        for argv in commands:
             with contextlib.redirect_stdout(io.StringIO()):
                 if cli_main([*argv, "--quiet"]) != 0:
                     sys.exit(f"tcr-accuracy {' '.join(argv)} failed")
     finally:
         os.chdir(here)
+    return folder
+
+
+def calibration_report_page(work: Path, png: Path) -> None:
+    """Page 1 of the README's calibration report, printed by Chromium, rasterised by pdftoppm."""
+    folder = run_in_copy(work / "readme-report", REPORT_COMMANDS)
     subprocess.run(["pdftoppm", "-r", "120", "-f", "1", "-l", "1", "-singlefile", "-png",
                     str(folder / "calibration-report" / "report.pdf"), str(png.with_suffix(""))], check=True)
     print(f"wrote {png}")
+
+
+#: The README's "Export to the controller" and "ISO 9283" commands, and the figure each screen shows.
+TASK_COMMANDS = [
+    ["simulate", "--robot", "ur5", "--scenario", "examples/scenario_ur5_reflector.yaml", "--n", "300", "--seed", "1",
+     "--out", "ur5.csv"],
+    ["diagnose", "ur5.csv", "--robot", "ur5", "--json", "ur5.json"],
+    ["export", "ur5.json", "--to", "ur5_calibration", "--targets", "examples/ur5_targets.csv"],
+    ["iso9283", "plan", "--robot", "ur10", "--out", "plan.csv"],
+    ["simulate", "--robot", "ur10", "--poses", "plan.csv", "--random", "--seed", "1", "--out", "iso.csv"],
+    ["iso9283", "evaluate", "iso.csv", "--robot", "ur10", "--out", "iso-report"],
+]
+TASK_FIGURES = {"ur5_calibration/accuracy.png": "export.png", "iso-report/figure-1.png": "iso9283.png"}
+
+
+def task_figures(work: Path, out: Path) -> None:
+    """The figures of the README's export and ISO 9283 screens, from the README's own commands."""
+    folder = run_in_copy(work / "readme-tasks", TASK_COMMANDS)
+    for source, name in TASK_FIGURES.items():
+        shutil.copyfile(folder / source, out / name)
+        print(f"wrote {out / name}")
 
 
 if __name__ == "__main__":

@@ -1,13 +1,14 @@
 #!/usr/bin/env python3
-"""Rewrite the README's quoted outputs (``<!-- test: prints -->`` and ``<!-- test: output of ... -->``
-blocks) with what the commands print now, for the blocks tests/test_readme.py finds out of date.
+"""Rewrite the quoted outputs (``<!-- test: prints -->`` and ``<!-- test: output of ... -->`` blocks) of
+README.md and every docs/*.md page with what the commands print now, for the blocks
+tests/test_readme.py finds out of date.
 
-Runs every marked block as the README test does (its own machinery, imported from tests/), and for
-each quoted block whose lines no longer appear: finds where its first line's words (the text before
+Runs every marked block of every page as the README test does (its own machinery, imported from
+tests/; two at a time), and for each quoted block whose lines no longer appear: finds where its first line's words (the text before
 the first figure) start in the new output and quotes as many lines from there. Look at the diff
 before committing: the figures are the code's, the README's sentences around them are not.
 
-usage: python scripts/update_readme_outputs.py [--dry-run]
+usage: python scripts/update_readme_outputs.py [--dry-run] [PAGE.md ...]   (default: every page)
 """
 
 from __future__ import annotations
@@ -48,32 +49,36 @@ def _replacement(expected: list[str], printed: list[str]) -> list[str] | None:
 
 
 def main() -> int:
+    args = [a for a in sys.argv[1:] if a != "--dry-run"]
     dry = "--dry-run" in sys.argv
-    readme = machinery.README.read_text(encoding="utf-8").splitlines()
-    blocks = machinery.readme_blocks()
-    quoted = [b for b in blocks if b.kind in ("prints", "output")]
-    runs = {}
+    pages = [Path(a).resolve() for a in args] if args else machinery.PAGES
+    blocks = [b for page in pages for b in machinery.readme_blocks(page)]
     with tempfile.TemporaryDirectory() as tmp:
-        for b in blocks:
-            if b.kind in ("runs", "output"):
-                runs[b.line] = machinery._execute(b, Path(tmp) / f"line{b.line}")
-    edits = []
-    for b in quoted:
-        run = runs[b.source or b.line]
+        runs = machinery.run_blocks(blocks, Path(tmp))
+    for b in blocks:  # a block that fails is the page's to mend, not a quote to re-take
+        if b.key in runs and runs[b.key].returncode != 0:
+            print(f"{b.where}: the block exits {runs[b.key].returncode}: {runs[b.key].stderr.strip()[-300:]}")
+    edits: dict[Path, list] = {}
+    for b in blocks:
+        if b.kind not in ("prints", "output"):
+            continue
+        run = runs[b.source_key]
         expected, printed = machinery._lines(b.text), machinery._lines(run.stdout)
         if machinery._contains_in_order(expected, printed):
             continue
         new = _replacement(expected, printed)
         if new is None:
-            print(f"README.md:{b.line}: no line of the new output starts like {expected[0]!r}; edit it by hand")
+            print(f"{b.where}: no line of the new output starts like {expected[0]!r}; edit it by hand")
             continue
-        edits.append((b.line, len(expected), new))
-        print(f"README.md:{b.line}: {len(expected)} lines re-quoted")
-    for line, count, new in sorted(edits, reverse=True):  # the marker is at line; the text starts 2 lines below
-        start = line + 1
-        readme[start:start + count] = new
-    if edits and not dry:
-        machinery.README.write_text("\n".join(readme) + "\n", encoding="utf-8")
+        edits.setdefault(b.page, []).append((b.line, len(expected), new))
+        print(f"{b.where}: {len(expected)} lines re-quoted")
+    for page, page_edits in edits.items():
+        text = page.read_text(encoding="utf-8").splitlines()
+        for line, count, new in sorted(page_edits, reverse=True):  # the marker is at line; the text 2 lines below
+            start = line + 1
+            text[start:start + count] = new
+        if not dry:
+            page.write_text("\n".join(text) + "\n", encoding="utf-8")
     return 0
 
 

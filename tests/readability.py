@@ -52,7 +52,7 @@ def _renderer(fig):
 def _drawn_tick_labels(axis):
     lo, hi = sorted(axis.get_view_interval())
     span = (hi - lo) * 1e-9
-    return [t.label1 for t in axis.get_major_ticks()
+    return [t.label1 for t in [*axis.get_major_ticks(), *axis.get_minor_ticks()]
             if t.label1.get_visible() and t.label1.get_text() and lo - span <= t.get_loc() <= hi + span]
 
 

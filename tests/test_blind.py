@@ -3,7 +3,7 @@
 ``scripts/blind_benchmark.py`` runs as a user runs it, in its own interpreter: it draws
 each scenario's hidden effects, writes the measurements to a CSV, diagnoses that file
 alone, and only then reads the truth. The test judges its JSON by what the benchmark
-promises (README "Benchmarks"): the hidden dominant effect is named and the fitted model
+promises (docs/diagnosis.md and docs/benchmarks.md): the hidden dominant effect is named and the fitted model
 reaches the noise floor when every hidden effect is in the vocabulary; structure is
 flagged when an effect outside the vocabulary is hidden.
 """

@@ -477,9 +477,12 @@ def test_next_steps_name_what_to_check_on_the_robot(campaign, monkeypatch):
                              "heldout_rms_mm": 0.03, "heldout_rms_bounded_mm": 0.0369}]
     html_fragment, markdown = first_page(Campaign(RobotFacts.from_documents([("d.json", d)]), [("d.json", d)]),
                                          "2023-11-14 22:13:20 UTC")
-    assert "to tell apart what these measurements cannot: {compliance, lateral_compliance}" in markdown
-    assert "`tcr-accuracy plan-poses measured.csv -k 30 --out next_poses.csv`" in markdown
-    assert "Check on the robot which of compliance, lateral_compliance it is" in markdown
+    assert ("Measure the 30 poses `tcr-accuracy plan-poses measured.csv -k 30 --out next_poses.csv` chooses to "
+            "tell joints giving way under gravity from what fits as well, into next_poses_measured.csv; then run "
+            "`tcr-accuracy diagnose measured.csv next_poses_measured.csv`.") in markdown  # effects in words
+    assert "{compliance" not in markdown
+    assert ("check on the robot which of these it is: joints giving way under gravity or joints tilting under "
+            "gravity") in markdown
     assert "Check compliance.j5 on the robot: the fit holds it on its physical bound (lower)" in markdown
     assert "Check backlash on the robot: the data fit it only outside physics" in markdown
     assert "backlash fits only with a negative gap" in markdown  # what remains

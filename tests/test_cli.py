@@ -169,7 +169,7 @@ def test_console_entry_point_runs_as_a_module():
 
 #: The seed's Table 2, typed in from the paper: link length spreads l1..l6 [mm] and drive
 #: spreads of joints 1..6 [deg, deg, deg, mm, deg, deg]; joint 6's 0.5 deg is our choice
-#: (the paper leaves it out; README "Error model").
+#: (the paper leaves it out; docs/tool-changer.md, "Error model").
 TABLE2_LINK_STD_MM = [0.17, 0.15, 0.2, 0.25, 0.15, 0.15]
 TABLE2_DRIVE_STD = [0.3, 0.3, 0.1548, 0.25, 0.5, 0.5]
 

@@ -246,6 +246,9 @@ def test_leave_one_out_own_share_increase_is_the_rise_of_the_held_out_rms_by_han
         def identify(self, effects):
             return {e: np.ones(1, bool) for e in effects}, {}
 
+        def kept(self, effects):  # identify's columns without its report
+            return self.identify(effects)[0]
+
     current, loo, eliminated = _backward(Engine(), ["frames", "geometry"], lambda _: None, selection_z=-np.inf)
     assert current == ["frames", "geometry"] and eliminated == [] and [r.effect for r in loo] == ["geometry"]
     rms = {k: np.sqrt(np.mean(np.sum(v**2, axis=1))) for k, v in errors.items()}

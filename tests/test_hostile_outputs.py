@@ -148,11 +148,15 @@ def test_12_03_a_failed_simulate_leaves_no_csv(tmp_path, capsys, monkeypatch):
 @pytest.mark.parametrize("argv", [
     ["diagnose", "M", "--effects", "joint_offsets", "--json", "/dev/full", "--as-built-urdf", "T/ab.urdf"],
     ["diagnose", "M", "--effects", "joint_offsets", "--out", "T/rep", "--json", "/dev/full"],
-    ["predict", "--train", "M", "--query", "M", "--method", "kriging", "--csv", "T/p.csv", "--json", "/dev/full"],
+    ["predict", "--train", "M", "--query", "P", "--method", "kriging", "--csv", "T/p.csv", "--json", "/dev/full"],
     ["simulate", "--n", "5", "--out", "/dev/full", "--truth", "T/t.yaml"],
 ])
 def test_22_03_19_a_full_device_fails_before_any_regular_file_lands(argv, m60, tmp_path, capsys):
-    code, out, err = run([str(m60) if a == "M" else a.replace("T/", f"{tmp_path}/") for a in argv], capsys)
+    from conftest import REPO
+
+    poses = REPO / "examples" / "poses.csv"  # commanded joints only: a query, not a training pose re-measured
+    code, out, err = run([str(m60) if a == "M" else str(poses) if a == "P" else a.replace("T/", f"{tmp_path}/")
+                          for a in argv], capsys)
     assert code == 2 and out == ""
     assert_one_line(err, "/dev/full: cannot write (No space left on device)")  # no "written to" line first
     assert list(tmp_path.iterdir()) == []

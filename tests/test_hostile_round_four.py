@@ -271,7 +271,7 @@ def test_37_15_compare_and_iso_model_with_clearance(with_clearance):
 # ---------------------------------------------------------------------------------------
 @pytest.mark.parametrize("effect, options, said", [
     ("cyclic", "{max_order: 1000000}", "effects.cyclic.options.max_order: 1000000 is greater than the maximum of 200"),
-    ("angle_table", "{intervals: 1000}", "effects.angle_table.options.intervals: 1000 is greater than the maximum"),
+    ("angle_table", "{intervals: 1001}", "effects.angle_table.options.intervals: 1001 is greater than the maximum"),
     ("transmission", "{harmonics: [1000]}", "effects.transmission.options.harmonics[0]: 1000 is greater"),
     ("compliance", "{link_mass_factors: [1, 2]}", "effects.compliance.options: link_mass_factors: 2 values for the 6"),
     ("cyclic", "[3]", "effects.cyclic.options: a mapping"),

@@ -220,7 +220,13 @@ _CASES = {
     ("diagnose", "--campaign"): ["diagnose", "M", "--out", "DIR", "--campaign", "@.yaml"],
     ("compare", "--campaign"): ["compare", "D", "D2", "--out", "DIR", "--campaign", "@.yaml"],
     ("iso9283 evaluate", "--campaign"): ["iso9283", "evaluate", "M", "--out", "DIR", "--campaign", "@.yaml"],
+    ("export", "--program"): ["export", "D", "--to", "DIR", "--program", "@.script"],
+    ("plan-poses", "--targets"): ["plan-poses", "M", "-k", "3", "--out", "OUT", "--targets", "@"],
 }
+# every command that loads a robot takes its own kinematics (--kinematics FILE) where it takes --robot
+_CASES.update({(command, "--kinematics"): [("--kinematics" if w == "--robot" else "@.yaml" if w == "@" else w)
+                                           for w in argv]
+               for (command, option), argv in list(_CASES.items()) if option == "--robot"})
 
 
 def test_every_input_option_has_a_case():

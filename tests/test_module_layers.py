@@ -21,7 +21,7 @@ import tcr_accuracy
 PACKAGE = Path(tcr_accuracy.__file__).resolve().parent
 SRC = str(PACKAGE.parent)
 
-#: Layers, bottom first (the README's Architecture section); a module may import from its own
+#: Layers, bottom first (docs/architecture.md); a module may import from its own
 #: layer and those before it.
 LAYERS = ["base", "model", "io", "effects", "frames", "analysis", "diagnosis", "prediction", "asbuilt", "iso9283", "results",
           "view",

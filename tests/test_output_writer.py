@@ -231,7 +231,9 @@ def _commands(parser=None, prefix=()):
 _WRITES = ("write", "report folder", "folder to write", "the test to run")
 #: Options that write nothing though their help says "write", and why.
 _NOT_OUTPUTS = {"--targets": "an input (target joints); its help says export then writes compensation.csv",
-                "--path": "iso9283 evaluate's input (the commanded path); its help names the command that writes it"}
+                "--path": "iso9283 evaluate's input (the commanded path); its help names the command that writes it",
+                "--kinematics": "an input (the robot's own kinematics); its help names the files export writes",
+                "--program": "export's input (robot programs); the filtered copies go under --to, an output"}
 
 
 def test_every_output_option_of_every_command_is_registered_with_the_writer():
@@ -339,6 +341,13 @@ def _tilted(diagnosis: Path, tmp_path: Path) -> Path:
     admit no plain DH table; Hayati's beta carries them in both DH and MDH."""
     doc = json.loads(diagnosis.read_text())
     doc["effect_parameters"]["geometry"] = {"geometry.j3.ry": 2e-4, "geometry.j3.rz": 2e-4}
+    doc["parameters"]["geometry"] = dict(doc["effect_parameters"]["geometry"])  # one fit, its two copies alike
+    for key in ("parameter_std", "parameter_units", "parameter_interval_95"):
+        if key in doc:
+            doc[key]["geometry"] = {"parameter_std": {n: 1e-6 for n in doc["parameters"]["geometry"]},
+                                    "parameter_units": {n: "rad" for n in doc["parameters"]["geometry"]},
+                                    "parameter_interval_95": {n: [v - 2e-6, v + 2e-6] for n, v in
+                                                              doc["parameters"]["geometry"].items()}}[key]
     doc["effect_options"]["geometry"] = {}
     path = tmp_path / "tilted.json"
     path.write_text(json.dumps(doc))

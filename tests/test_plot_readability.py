@@ -149,6 +149,19 @@ def test_gravity_torques_in_thousands_get_ticks_that_stand_apart(figures, tmp_pa
     assert len(values) >= 3 and min(values) <= -4000  # thinned, not emptied
 
 
+def test_a_ladder_within_a_decade_labels_its_log_axis_apart(figures, tmp_path):
+    """The real UR5's ladder, 0.63 mm down to 0.05 mm: matplotlib labels the minor ticks of a log axis
+    spanning about a decade ("2x10^-1 3x10^-1 4x10^-1", run together); the labels stand apart, in plain
+    numbers, and still mark both ends of the data."""
+    effects = ["frames", "geometry", "transmission", "cyclic", "joint_offsets", "drift"]
+    plots_diagnose.plot_ladder(effects, [0.70, 0.165, 0.10, 0.072, 0.060, 0.056],
+                               [0.629, 0.148, 0.091, 0.063, 0.054, 0.051], 0.0368, tmp_path / "ladder.png")
+    (fig,) = figures
+    assert not check.overlapping_tick_labels(fig)
+    values = [float(t.get_text().replace("\u2212", "-")) for t in check._drawn_tick_labels(fig.axes[0].xaxis)]
+    assert len(values) >= 3 and min(values) <= 0.05 and max(values) >= 0.5
+
+
 def test_region_names_are_level_and_large_enough(figures, tmp_path):
     plots_diagnose.plot_regions(_diagnosis(np.random.default_rng(4)), tmp_path / "regions.png")
     (fig,) = figures

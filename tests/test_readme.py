@@ -1,6 +1,7 @@
-"""The README's commands run as written and print what the README says they print.
+"""The README's and the docs pages' commands run as written and print what they say they print.
 
-The README marks what this test runs with an HTML comment on the line before a code block:
+README.md and every ``docs/*.md`` page mark what this test runs with an HTML comment on the line
+before a code block (the same rules on every page; a page's quotes refer to its own blocks):
 
 - ``<!-- test: runs -->`` before a ```` ```bash ```` block: the block runs in bash (``-e``: every
   command must exit 0); before a ```` ```python ```` block, in this Python, in a fresh directory holding the repository's ``examples/``, ``scripts/``
@@ -14,8 +15,8 @@ The README marks what this test runs with an HTML comment on the line before a c
 - ``<!-- test: console -->`` before a ```` ```console ```` block: each ``$ command`` prints
   exactly the lines below it.
 
-The figures quoted in the README are what the code printed when the README was written; the
-test reads them from the README, never from the code under test. Long benchmarks
+The figures quoted in a page are what the code printed when the page was written; the test reads
+them from the page, never from the code under test. Long benchmarks
 (``scripts/*_benchmark.py``) are not marked and not run. The blocks run two at a time.
 """
 
@@ -34,6 +35,8 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 README = REPO / "README.md"
+#: Every page whose marked blocks run: the README and each docs page.
+PAGES = [README, *sorted((REPO / "docs").glob("*.md"))]
 MARKER = re.compile(r"^<!-- test: (?P<kind>runs|prints|console|output of (?P<command>.+?)) -->$")
 FENCE = re.compile(r"^```(?P<lang>\w*)$")
 LINKED = ("examples", "scripts", "robots")
@@ -42,16 +45,40 @@ LINKED = ("examples", "scripts", "robots")
 @dataclass
 class Block:
     kind: str            # runs | prints | console | output
-    line: int            # README line of the marker (1-based)
+    line: int            # the page's line of the marker (1-based)
     text: str            # the code block's contents
     command: str = ""    # for kind 'output'
-    source: int = 0      # for kind 'prints': README line of the runs block it quotes
+    source: int = 0      # for kind 'prints': the page's line of the runs block it quotes
     lang: str = ""
+    page: Path = README  # the page the block is on
+
+    @property
+    def where(self) -> str:
+        """``README.md:12``, ``docs/diagnosis.md:40``: the block's place, as an error names it."""
+        return f"{_page_name(self.page)}:{self.line}"
+
+    @property
+    def key(self) -> tuple[str, int]:
+        """The block's page and line: what its run is stored under."""
+        return (_page_name(self.page), self.line)
+
+    @property
+    def source_key(self) -> tuple[str, int]:
+        """The key of the run whose output this block quotes (its own for 'output')."""
+        return (_page_name(self.page), self.source or self.line)
+
+
+def _page_name(page: Path) -> str:
+    try:
+        return page.relative_to(REPO).as_posix()
+    except ValueError:
+        return page.name
 
 
 def readme_blocks(path: Path = README) -> list[Block]:
-    """Every marked code block of the README, in order."""
+    """Every marked code block of a page (the README by default), in order."""
     lines = path.read_text(encoding="utf-8").splitlines()
+    name = _page_name(path)
     blocks: list[Block] = []
     last_runs = 0
     i = 0
@@ -61,17 +88,17 @@ def readme_blocks(path: Path = README) -> list[Block]:
             i += 1
             continue
         fence = FENCE.match(lines[i + 1]) if i + 1 < len(lines) else None
-        assert fence is not None, f"README.md:{i + 1}: a test marker must sit right above a ``` line"
+        assert fence is not None, f"{name}:{i + 1}: a test marker must sit right above a ``` line"
         end = next((k for k in range(i + 2, len(lines)) if lines[k] == "```"), None)
-        assert end is not None, f"README.md:{i + 1}: code block without its closing ```"
+        assert end is not None, f"{name}:{i + 1}: code block without its closing ```"
         kind = marker["kind"]
         block = Block("output" if marker["command"] else kind, i + 1, "\n".join(lines[i + 2:end]),
-                      command=marker["command"] or "", lang=fence["lang"])
+                      command=marker["command"] or "", lang=fence["lang"], page=path)
         if kind == "runs":
-            assert block.lang in ("bash", "sh", "python"), f"README.md:{i + 1}: 'runs' marks a bash or python block"
+            assert block.lang in ("bash", "sh", "python"), f"{name}:{i + 1}: 'runs' marks a bash or python block"
             last_runs = block.line
         elif kind == "prints":
-            assert last_runs, f"README.md:{i + 1}: 'prints' with no 'runs' block above it"
+            assert last_runs, f"{name}:{i + 1}: 'prints' with no 'runs' block above it"
             block.source = last_runs
         blocks.append(block)
         i = end + 1
@@ -133,20 +160,29 @@ def _execute(block: Block, tmp: Path) -> Run:
     return run
 
 
-BLOCKS = readme_blocks()
+def all_blocks() -> list[Block]:
+    """Every marked block of every page (README first, then docs/ in name order)."""
+    return [b for page in PAGES for b in readme_blocks(page)]
+
+
+BLOCKS = all_blocks()
 EXECUTED = [b for b in BLOCKS if b.kind in ("runs", "output", "console")]
+
+
+def run_blocks(blocks: list[Block], base: Path, workers: int = 2) -> dict:
+    """Run every executed block, ``workers`` at a time, each in its own fresh folder under ``base``;
+    the runs by the block's key, the longest-running pages' blocks started first."""
+    executed = sorted((b for b in blocks if b.kind in ("runs", "output", "console")),
+                      key=lambda b: b.page == README)   # the docs' long blocks (seed reproduction) first
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        futures = {b.key: pool.submit(_execute, b, base / f"{b.page.stem}-line{b.line}") for b in executed}
+        return {key: future.result() for key, future in futures.items()}
 
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory) -> dict:
-    """Every executed block, by the README line of its marker, and the docs' command blocks, by
-    (file name, line): two at a time in one pool, the docs' long block first."""
-    base = tmp_path_factory.mktemp("readme")
-    with ThreadPoolExecutor(max_workers=2) as pool:
-        futures = {(doc.name, b.line): pool.submit(_execute, b, base / f"{doc.stem}-line{b.line}")
-                   for doc, b in DOC_BLOCKS}
-        futures.update({b.line: pool.submit(_execute, b, base / f"line{b.line}") for b in EXECUTED})
-        return {key: future.result() for key, future in futures.items()}
+    """Every executed block of every page, by (page, line of its marker): two at a time in one pool."""
+    return run_blocks(BLOCKS, tmp_path_factory.mktemp("readme"))
 
 
 def _contains_in_order(expected: list[str], printed: list[str]) -> bool:
@@ -166,49 +202,46 @@ def _lines(text: str) -> list[str]:
     return [line.rstrip() for line in text.splitlines()]
 
 
+def _ids(block: Block) -> str:
+    return f"{block.page.stem}-line{block.line}"
+
+
 def test_readme_has_marked_blocks():
-    kinds = [b.kind for b in BLOCKS]
-    # the Quickstart's demo summary, the montecarlo, simulate, diagnose and predict examples at least
-    assert kinds.count("runs") >= 5 and "prints" in kinds and "output" in kinds and "console" in kinds
+    kinds = [b.kind for b in BLOCKS if b.page == README]
+    # the Quickstart's demo summary and one command block per task at least
+    assert kinds.count("runs") >= 4 and "prints" in kinds and "output" in kinds
+
+
+def test_docs_have_their_commands_marked():
+    """Every docs page that shows a command's output has it checked (a quote moved out of the README
+    stays checked): the pages with marked blocks, and every kind of block somewhere in docs/."""
+    docs = [b for b in BLOCKS if b.page != README]
+    pages = {b.page.name for b in docs}
+    assert {"seed-reproduction.md", "programs.md"} <= pages
+    assert {"runs", "prints", "console"} <= {b.kind for b in docs}
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("block", EXECUTED, ids=lambda b: f"line{b.line}")
-def test_readme_block_runs(block, runs):
-    run = runs[block.line]
-    assert run.returncode == 0, (f"README.md:{block.line}: the block exits {run.returncode}:\n"
-                                 f"{run.stderr[-3000:]}")
-
-
-DOCS = sorted((REPO / "docs").glob("*.md"))
-DOC_BLOCKS = [(doc, b) for doc in DOCS for b in readme_blocks(doc) if b.kind == "runs"]
-
-
-def test_docs_have_their_regeneration_commands_marked():
-    assert any(doc.name == "seed-reproduction.md" for doc, _ in DOC_BLOCKS)
+@pytest.mark.parametrize("block", EXECUTED, ids=_ids)
+def test_block_runs(block, runs):
+    run = runs[block.key]
+    assert run.returncode == 0, f"{block.where}: the block exits {run.returncode}:\n{run.stderr[-3000:]}"
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("doc,block", DOC_BLOCKS, ids=lambda v: v.name if isinstance(v, Path) else f"line{v.line}")
-def test_docs_commands_run_as_written(doc, block, runs):
-    run = runs[(doc.name, block.line)]
-    assert run.returncode == 0, f"docs/{doc.name}:{block.line}: the block exits {run.returncode}:\n{run.stderr[-3000:]}"
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("block", [b for b in BLOCKS if b.kind in ("prints", "output")], ids=lambda b: f"line{b.line}")
-def test_readme_quoted_output_is_printed(block, runs):
-    run = runs[block.source or block.line]
+@pytest.mark.parametrize("block", [b for b in BLOCKS if b.kind in ("prints", "output")], ids=_ids)
+def test_quoted_output_is_printed(block, runs):
+    run = runs[block.source_key]
     expected = _lines(block.text)
     assert _contains_in_order(expected, _lines(run.stdout)), (
-        f"README.md:{block.line}: these lines are not what the commands print now:\n{block.text}\n"
+        f"{block.where}: these lines are not what the commands print now:\n{block.text}\n"
         f"--- printed ---\n{run.stdout[-6000:]}")
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("block", [b for b in BLOCKS if b.kind == "console"], ids=lambda b: f"line{b.line}")
-def test_readme_console_session_prints_exactly(block, runs):
-    run = runs[block.line]
+@pytest.mark.parametrize("block", [b for b in BLOCKS if b.kind == "console"], ids=_ids)
+def test_console_session_prints_exactly(block, runs):
+    run = runs[block.key]
     expected: dict[str, list[str]] = {}
     command = None
     for line in block.text.splitlines():
@@ -218,8 +251,7 @@ def test_readme_console_session_prints_exactly(block, runs):
         elif command is not None:
             expected[command].append(line.rstrip())
     for command, lines in expected.items():
-        assert _lines(run.outputs[command]) == lines, (f"README.md:{block.line}: `{command}` prints\n"
-                                                        f"{run.outputs[command]}")
+        assert _lines(run.outputs[command]) == lines, f"{block.where}: `{command}` prints\n{run.outputs[command]}"
 
 
 def test_matcher_rejects_what_is_not_there():
@@ -238,6 +270,19 @@ def test_marker_parser_ties_prints_to_the_runs_block_above(tmp_path):
     blocks = readme_blocks(readme)
     assert [(b.kind, b.line, b.source, b.command) for b in blocks] == [
         ("runs", 2, 0, ""), ("prints", 7, 2, ""), ("output", 11, 0, "echo x")]
+
+
+def test_a_page_quotes_its_own_blocks(tmp_path):
+    """Two pages with a runs block on the same line: each page's quote is tied to its own run."""
+    first, second = tmp_path / "a.md", tmp_path / "b.md"
+    for page, word in ((first, "one"), (second, "two")):
+        page.write_text(f"<!-- test: runs -->\n```bash\necho {word}\n```\n<!-- test: prints -->\n```\n{word}\n```\n")
+    blocks = readme_blocks(first) + readme_blocks(second)
+    runs = run_blocks(blocks, tmp_path / "runs")
+    assert set(runs) == {("a.md", 1), ("b.md", 1)}
+    for quote in (b for b in blocks if b.kind == "prints"):
+        assert _contains_in_order(_lines(quote.text), _lines(runs[quote.source_key].stdout))
+    assert not _contains_in_order(["two"], _lines(runs[("a.md", 1)].stdout))
 
 
 def test_scripts_with_a_shebang_can_be_run_directly():

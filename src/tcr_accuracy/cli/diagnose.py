@@ -37,7 +37,7 @@ def add_parsers(sub) -> None:
                     "is printed, SI in the YAML.",
     )
     p.add_argument("measurements", metavar="MEASUREMENTS.csv", nargs="+",
-                   help="measurement CSV (see README); several files are several sessions of one robot (each "
+                   help="measurement CSV (see docs/measurements.md); several files are several sessions of one robot (each "
                         "its own tracker frame, the robot's parameters shared), as is a session column")
     add_robot_arguments(p)
     p.add_argument("--effects", default=None, metavar="LIST",
@@ -208,7 +208,24 @@ def _run_diagnose(args) -> int:
         written += [("calibration URDF", urdf), ("the whole model (tcr_accuracy.load_as_built)", side)]
     if out.report is not None:
         _calibration_page(out.report, args, robot, payload, written)
-    return out.finish(payload, lambda: print(format_summary(robot, result, source)))
+    steps = _next_steps(args, robot, payload, files)
+    return out.finish(payload, lambda: print(format_summary(robot, result, source) + "\n\n" + steps))
+
+
+def _next_steps(args, robot, payload: dict, files) -> str:
+    """What to do next, one sentence a step, with the commands as this run's options need them."""
+    import shlex
+
+    from ..view.next_steps import export_step, next_steps, next_steps_lines
+
+    options = ""
+    if args.robot is not None:
+        options += f" --robot {shlex.quote(str(args.robot))} --tool {shlex.quote(robot.tool_frame)}"
+    if getattr(args, "kinematics", None):
+        options += f" --kinematics {shlex.quote(str(args.kinematics))}"
+    json_file = args.json if args.json not in (None, "-") else None
+    steps = next_steps(payload, measurements=[str(f) for f in files], robot_options=options)
+    return "\n".join(next_steps_lines(steps + [export_step(None if json_file is None else str(json_file))]))
 
 
 def _calibration_page(report, args, robot, payload: dict, written: list) -> None:

@@ -24,6 +24,10 @@ ALIASES = {
     "preset": ("error_preset",),         # seed_budget(robot, preset): view's --error-preset
     "n_steps": ("steps",),               # tool_change_motion(robot, n_steps)
     "tracker_map": ("map",),             # import_tracker(tracker_path, tracker_map, ...)
+    "tool_rotation": ("tool_rpy",),      # plan_iso_cube(..., tool_rotation=R): iso9283 plan's --tool-rpy [deg]
+    "tracker": ("tracker_mm",),          # plan_iso_cube(..., tracker=p): --tracker-mm [mm]
+    "size": ("cube_size_mm",),           # plan_iso_cube(..., size=s): --cube-size-mm [mm]
+    "tcp_offset": ("tcp_mm",),           # GapDiagnosis(tcp_offset=...): diagnose's --tcp-mm [mm]
 }
 
 

@@ -38,7 +38,7 @@ def add_parsers(sub) -> None:
                     "each) as a measurement CSV without positions: joint columns, payload_kg (when the rated load "
                     "is known), pose_id, cycle, load_pct, speed_pct, target_x_mm, target_y_mm, target_z_mm "
                     "(commanded TCP, base frame). With --path: the standard's test paths in the cube's plane "
-                    "instead (see README, ISO 9283).")
+                    "instead (see docs/iso9283.md).")
     add_robot_arguments(plan)
     plan.add_argument("--cycles", type=integer(low=1, high=100_000), default=None,
                       help="cycles (default 30 for the pose test, 10 for --path, as the standard)")
@@ -95,9 +95,9 @@ def add_parsers(sub) -> None:
                     "of the session), --frame base, or found (readings within 5 mm of it); else the frame is "
                     "fitted to the poses' barycentres (Kabsch, TCP offset where identifiable) and AP is relative "
                     "to it, said on every line. With --path "
-                    "COMMANDED.csv, MEAS.csv is the tracker's stream of a path test (see README, ISO 9283).")
+                    "COMMANDED.csv, MEAS.csv is the tracker's stream of a path test (see docs/iso9283.md).")
     evaluate.add_argument("measurements", metavar="MEAS.csv",
-                          help="the measured pose test, or with --path the tracker's stream (see README)")
+                          help="the measured pose test, or with --path the tracker's stream (see docs/iso9283.md)")
     add_robot_arguments(evaluate)
     evaluate.add_argument("--frame", choices=("fit", "base"), default=None,
                           help="fit: register the instrument's frame to the test's poses (AP then relative to it, "

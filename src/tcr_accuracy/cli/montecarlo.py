@@ -34,7 +34,7 @@ def add_parsers(sub) -> None:
                         help="the seed's error distributions: table1, table2 or clearance (Table 4); default table2 "
                              "for the tool-changer and table1 (built from the robot's own joints) for any other robot")
     source.add_argument("--config", default=None, metavar="FILE",
-                        help="TOML or YAML file of error distributions (see README, 'Monte Carlo')")
+                        help="TOML or YAML file of error distributions (see docs/monte-carlo.md)")
     p.add_argument("--samples", type=integer(low=2, high=MAX_COUNT), default=20_000,
                    help="Monte Carlo samples (default 20000)")
     p.add_argument("--seed", type=seed_value, default=0, help="random seed (default 0)")
@@ -54,7 +54,7 @@ def add_parsers(sub) -> None:
                    help="importance samples per tolerance for the tail P(|dP| > T) (default 20000; 0: skip)")
     p.add_argument("--chunk", type=integer(low=1, high=MAX_COUNT), default=None, metavar="N",
                    help="samples per chunk (default 20000; part of the random stream)")
-    add_output_arguments(p, view=True, json_help="write JSON (keys in README, 'Monte Carlo') to FILE, or to "
+    add_output_arguments(p, view=True, json_help="write JSON (keys in docs/monte-carlo.md) to FILE, or to "
                                                  "stdout without FILE")
     p.add_argument("--view-samples", type=integer(low=1, high=MAX_COUNT), default=2000, metavar="N",
                    help="how many of the samples the 3D view's TCP error cloud shows (the first N of the run's; "

@@ -32,7 +32,7 @@ def add_parsers(sub) -> None:
                     "(deg, mm).",
     )
     p.add_argument("measurements", metavar="MEASUREMENTS.csv", nargs="*",
-                   help="the measurements so far (see README; several files share one tracker frame); none: a "
+                   help="the measurements so far (see docs/measurements.md; several files share one tracker frame); none: a "
                         "first campaign, designed for the effect vocabulary at typical sizes")
     add_robot_arguments(p)
     p.add_argument("-k", "--poses", type=integer(low=1, high=100_000), default=30,

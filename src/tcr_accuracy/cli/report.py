@@ -38,7 +38,7 @@ def add_campaign_arguments(parser) -> None:
     """``--campaign FILE`` and the flags that fill or override it: what the first page identifies
     (customer, robot serial, instrument certificate, operator, title) and the limits it judges by."""
     group = parser.add_argument_group(
-        "the calibration report's first page (with --out; see README, 'The report')")
+        "the calibration report's first page (with --out; see docs/report.md)")
     group.add_argument("--campaign", default=None, metavar="FILE",
                        help="a campaign file (YAML or TOML): title, customer, robot model and serial, instrument "
                             "name, serial and certificate, temperature range, date, operator, limits_mm, names "

@@ -178,6 +178,7 @@ class AngleTable(JointColumnsEffect):
     """
 
     name = "angle_table"
+    in_words = "errors that follow each joint's absolute angle"
     summary = ("joint errors as smooth tables of each joint's absolute angle (gear and encoder errors beyond the "
                "Fourier series' orders, cable wind-up, multi-turn encoders)")
     physics = ("gear, encoder and cable errors over a joint's travel are a few hundred microradians; a mode "

@@ -44,6 +44,7 @@ class Backlash(PerJointEffect):
     """
 
     name = "backlash"
+    in_words = "backlash"
     summary = "dead band per joint, on the side of gravity or of the approach"
     context_columns = ("payload_kg", "<joint>_dir")
     non_negative = True

@@ -20,6 +20,7 @@ physics (class attribute)   meaning
 ==========================  ===========================================================
 ``name``                    the vocabulary word (``compliance``); parameters are ``<name>.*``
 ``summary``                 one line for reports and ``--help``
+``in_words``                a few plain words naming it in a sentence ("joints giving way under gravity")
 ``physics``                 one line: why the parameters lie where :meth:`Effect.physical_range`
                             says (the diagnosis fits inside that range and reports it)
 ``family``                  the family of mechanisms (:data:`~tcr_accuracy.effects.mechanisms.FAMILIES`):
@@ -130,6 +131,9 @@ class Effect(abc.ABC):
 
     name: ClassVar[str]
     summary: ClassVar[str] = ""
+    #: the effect named in a few plain words, for a sentence a person acts on ("joints giving way under
+    #: gravity"); empty: the summary stands in
+    in_words: ClassVar[str] = ""
     #: why the parameters lie in :meth:`physical_range` (reports print it next to the range)
     physics: ClassVar[str] = ""
     #: the family of mechanisms it belongs to (``geometric``, ``gravity``, ``direction``, ``periodic`` (a

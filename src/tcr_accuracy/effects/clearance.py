@@ -27,6 +27,7 @@ class Clearance(Effect):
     """
 
     name = "clearance"
+    in_words = "random joint play"
     summary = "random joint play (scatter, not bias)"
     non_negative = True
     stochastic = True

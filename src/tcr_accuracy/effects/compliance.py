@@ -43,6 +43,7 @@ class Compliance(PerJointEffect):
     """
 
     name = "compliance"
+    in_words = "joints giving way under gravity"
     summary = "joint elasticity about each axis under gravity and payload"
     context_columns = ("payload_kg",)
     non_negative = True

@@ -50,6 +50,7 @@ class CyclicError(JointColumnsEffect):
     """
 
     name = "cyclic"
+    in_words = "cyclic gear and encoder errors"
     summary = "cyclic joint errors of high order (gear tooth mesh, encoder), smoothness-penalised"
     physics = ("strain-wave gear and encoder cyclic errors are a few hundred microradians in all; one harmonic "
                "above 1 mrad (3.4 arc-min) is a damaged gear, not a cyclic error")

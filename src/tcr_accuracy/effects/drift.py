@@ -47,6 +47,7 @@ class Drift(LinearEffect):
     """
 
     name = "drift"
+    in_words = "drift over the campaign"
     summary = "encoder zeros and the base drifting over the campaign (warm-up, a moving base)"
     context_columns = ("time_s",)
     family = "time"

@@ -30,6 +30,7 @@ class EncoderScale(PerJointEffect):
     """Gear ratio (scale) error: ``dq_j = s_j q_j``. Parameters ``encoder_scale.<joint>`` [1]."""
 
     name = "encoder_scale"
+    in_words = "a gear-ratio error"
     summary = "gear ratio (scale) error per joint"
     family = "scale"
     physics = "a gear ratio the controller has wrong by more than 1 % would be seen as a joint that misses its end stops"

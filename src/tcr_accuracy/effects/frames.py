@@ -24,6 +24,7 @@ class Frames(ErrorVectorEffect):
     """
 
     name = "frames"
+    in_words = "the tracker's frame and the TCP offset"
     summary = "tracker frame and TCP offset"
     geometric = True
     family = "setup"

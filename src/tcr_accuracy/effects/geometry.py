@@ -23,6 +23,7 @@ class Geometry(ErrorVectorEffect):
     """
 
     name = "geometry"
+    in_words = "link lengths and axis tilts off the drawing"
     summary = "error screws on the joint placements"
     geometric = True
     family = "geometric"

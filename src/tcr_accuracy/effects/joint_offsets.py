@@ -15,6 +15,7 @@ class JointOffsets(PerJointEffect):
     """Encoder zero offsets: ``dq_j = offset_j`` [rad or m]. Parameters ``joint_offsets.<joint>``."""
 
     name = "joint_offsets"
+    in_words = "encoder zero offsets"
     summary = "encoder zero offsets"
     geometric = True
     family = "geometric"

@@ -36,6 +36,7 @@ class LateralCompliance(LinearEffect):
     """
 
     name = "lateral_compliance"
+    in_words = "joints tilting under gravity"
     summary = "joint tilt across each axis under the gravity wrench it carries"
     context_columns = ("payload_kg",)
     non_negative = True

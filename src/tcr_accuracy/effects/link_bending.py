@@ -21,6 +21,7 @@ class LinkBending(Effect):
     """
 
     name = "link_bending"
+    in_words = "a link bending under gravity"
     summary = "the longest link sagging as a beam (simulate only)"
     family = "gravity"
     fit_policy = FitPolicy(order=210.0, in_vocabulary=False)

@@ -53,6 +53,7 @@ class Thermal(LinearEffect):
     """
 
     name = "thermal"
+    in_words = "links growing with temperature"
     summary = "links growing with temperature"
     context_columns = ("temperature_c",)
     family = "thermal"  # (not non_negative: the base may move either way; alpha's own lower bound is 0)

@@ -34,6 +34,7 @@ class Transmission(LinearEffect):
     """
 
     name = "transmission"
+    in_words = "periodic gear errors"
     summary = "periodic gear error (harmonics of each joint angle)"
     family = "periodic"
     physics = ("cyclic gear and encoder errors are arc-minutes; more than 0.25 deg (15 arc-min) per harmonic is a "

@@ -32,6 +32,7 @@ class Unmodelled(Effect):
     """
 
     name = "unmodelled"
+    in_words = "a distortion no effect expresses"
     summary = "a smooth distortion of one link driven by three joints (simulate only)"
     fit_policy = FitPolicy(order=200.0, in_vocabulary=False)
 

@@ -35,14 +35,12 @@ from ..units import display_value
 from .accuracy_verdict import TCP_KEYS, accuracy_figures, file_name, form_verdicts, iso_blocks
 from .uncertainty_words import budget_blocks, budget_index, export_table, exports_of
 from .diagnosis_summary import family_answer
+from .next_steps import next_steps
 from .page_blocks import PAGE_LINES, Code, Droppable, fit_page, to_html, to_markdown
 
 #: Who signs the report (one column each, with name, signature and date), and the campaign
 #: file's key for the name printed there.
 SIGNATURES = (("Prepared by", "prepared_by"), ("Checked by", "checked_by"))
-
-#: The command a campaign's next poses come from, and how many it suggests.
-NEXT_POSES = 30
 
 #: The significant changes of a comparison page 1 lists at most (all in the technical detail).
 FIRST_PAGE_CHANGES = 5
@@ -389,33 +387,13 @@ def _changes(cmp) -> list:
 # What to do next
 # ---------------------------------------------------------------------------------------
 def _next_steps(c: Campaign, d, comparisons) -> list:
+    """One sentence a step (view/next_steps.py): the next poses, the checks on the robot (left out
+    first when the page is full), loading the calibration."""
     items = []
     if d is not None:
-        command = plan_poses_command(c.robot, d)
-        groups = [g["effects"] for g in d.get("ambiguous") or []]
-        verdict_ = d.get("structure_verdict") or ("yes" if d.get("structure_remains") else "no")
-        if groups:
-            why = ("to tell apart what these measurements cannot: "
-                   + "; ".join("{" + ", ".join(g) + "}" for g in groups))
-        elif verdict_ in ("yes", "cannot tell"):
-            why = "to find or rule out what the model may still lack (more poses where the model is least known)"
-        else:
-            why = "to confirm the calibration on poses where it informs the model most, or after a change to the robot"
-        items.append(("Measure the next poses, " + why + ": ", Code(command),
-                      " (then diagnose all the measurements together)."))
-        for g in groups:
-            items.append(Droppable(f"Check on the robot which of {', '.join(g)} it is (they explain the data "
-                                   "equally well).", "check"))
-        for e, info in (d.get("physical") or {}).items():
-            for p in info.get("pinned", []):
-                items.append(Droppable(f"Check {p.get('parameter')} on the robot: the fit holds it on its physical "
-                                       f"bound ({p.get('bound')}).", "check"))
-            if not info.get("plausible", True):
-                items.append(Droppable(f"Check {e} on the robot: its fitted values lie outside physics "
-                                       f"({info.get('reason', '')}).", "check"))
-        for finding in d.get("outside_physics") or []:
-            items.append(Droppable(f"Check {finding.get('effect')} on the robot: the data fit it only outside physics.",
-                                   "check"))
+        files = [file_name(f) for f in str(d.get("measurements", "MEASUREMENTS.csv")).split(",") if f.strip()]
+        for step in next_steps(d, measurements=files, robot_options=_robot_options(c.robot)):
+            items.append(Droppable(step.parts, "check") if step.kind == "check" else step.parts)
     else:
         items.append(("To calibrate, measure the robot at 100 or more poses spread over the joint ranges and run ",
                       Code(f"tcr-accuracy diagnose MEASUREMENTS.csv{_robot_options(c.robot)} --json diagnosis.json"),
@@ -453,9 +431,3 @@ def _robot_options(robot: RobotFacts) -> str:
         return ""
     return f" --robot {shlex.quote(file_name(robot.source))} --tool {shlex.quote(robot.tool_frame)}"
 
-
-def plan_poses_command(robot: RobotFacts, d) -> str:
-    """The ``plan-poses`` command line for the measurements of a diagnosis (its first session's file)."""
-    files = [file_name(f) for f in str(d.get("measurements", "MEASUREMENTS.csv")).split(",") if f.strip()]
-    return (f"tcr-accuracy plan-poses {shlex.quote(files[0] if files else 'MEASUREMENTS.csv')}"
-            f"{_robot_options(robot)} -k {NEXT_POSES} --out next_poses.csv")

@@ -60,11 +60,27 @@ def whole_numbers():
 
 
 def _tick_labels(axis, renderer):
-    """The drawn major tick labels of an axis (those inside its view interval, with text)."""
+    """The drawn tick labels of an axis, major and minor (those inside its view interval, with text:
+    a log axis spanning less than a decade labels its minor ticks, "2x10^-1 3x10^-1 4x10^-1")."""
     lo, hi = sorted(axis.get_view_interval())
     span = (hi - lo) * 1e-9
-    return [t.label1 for t in axis.get_major_ticks()
+    return [t.label1 for t in [*axis.get_major_ticks(), *axis.get_minor_ticks()]
             if t.label1.get_visible() and t.label1.get_text() and lo - span <= t.get_loc() <= hi + span]
+
+
+#: The mantissas a log axis labels, fewest last: each tried until the labels stand apart.
+LOG_LABELS = ((1, 2, 5), (1, 3), (1,))
+
+
+def _plain_log_ticks(axis, subs) -> None:
+    """Label a log axis at ``subs`` x 10^k in plain numbers (0.05, 0.1, 0.2), its other ticks unlabelled:
+    matplotlib's own minor labels on a short log axis are "2x10^-1"-style and run into each other."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    axis.set_major_locator(LogLocator(base=10.0, subs=subs))
+    axis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    axis.set_minor_locator(LogLocator(base=10.0, subs=tuple(s for s in range(1, 10) if s not in subs)))
+    axis.set_minor_formatter(NullFormatter())
 
 
 def tick_labels_overlap(axis, renderer) -> bool:
@@ -77,20 +93,33 @@ def tick_labels_overlap(axis, renderer) -> bool:
 
 
 def _thin_ticks(fig) -> None:
-    """Fewer ticks on every numeric linear axis whose tick labels run into each other.
+    """Fewer ticks on every numeric axis whose tick labels run into each other.
 
     matplotlib picks the number of ticks from the axis length without measuring the labels
     ("-5000-4000-3000" on a narrow panel): draw, measure, and ask its MaxNLocator for fewer
-    ticks until the labels stand apart. Axes with fixed (named) ticks are left alone.
+    ticks until the labels stand apart. A log axis is labelled in plain numbers at 1, 2 and 5 x 10^k,
+    then fewer (:data:`LOG_LABELS`). Axes with fixed (named) ticks are left alone.
     """
     from matplotlib.ticker import AutoLocator, MaxNLocator
 
+    log_labels = {}  # log axis -> index into LOG_LABELS
+    for ax in fig.axes:
+        for axis in _axes_of(ax):
+            if axis.get_scale() == "log":
+                log_labels[axis] = 0
+                _plain_log_ticks(axis, LOG_LABELS[0])
     for _ in range(6):
         fig.canvas.draw()
         renderer = fig.canvas.get_renderer()
         crowded = False
         for ax in fig.axes:
             for axis in _axes_of(ax):
+                if axis in log_labels and log_labels[axis] + 1 < len(LOG_LABELS) \
+                        and tick_labels_overlap(axis, renderer):
+                    log_labels[axis] += 1
+                    _plain_log_ticks(axis, LOG_LABELS[log_labels[axis]])
+                    crowded = True
+                    continue
                 if axis.get_scale() != "linear" or not tick_labels_overlap(axis, renderer):
                     continue
                 locator = axis.get_major_locator()
