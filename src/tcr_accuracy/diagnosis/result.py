@@ -30,6 +30,7 @@ from .stages.parameters import FittedParameters
 from .stages.register import RegisteredMeasurements
 from .stages.residual import ResidualAnalysis
 from .stages.select import Selection
+from .stages.setup import SessionSetup
 from .stages.candidates import CandidateSet
 
 __all__ = ["Diagnosis", "DiagnosisStages", "ErrorStats", "Step"]
@@ -55,6 +56,7 @@ class DiagnosisStages:
     residual: ResidualAnalysis
     parameters: FittedParameters
     first_order: FirstOrder
+    setup: SessionSetup | None = None
 
 
 @dataclass(frozen=True, repr=False, eq=False)

@@ -132,9 +132,11 @@ class CandidateSet:
         return self.engine.bases
 
 
-def build_bases(parts: list[Part], names, measured, notes: list, session_labels=()) -> tuple[dict, list, list]:
+def build_bases(parts: list[Part], names, measured, notes: list, session_labels=(),
+                frames_options: dict | None = None) -> tuple[dict, list, list]:
     """Each effect of ``names`` linearised on every part: (bases, the untried candidates, the
-    stochastic effects)."""
+    stochastic effects). ``frames_options``: what each session owns (``session_frames``,
+    ``session_tools``, see :class:`~tcr_accuracy.effects.frames.Frames`) where there are sessions."""
     bases, rejected, stochastic = {}, [], []
     jacobians = {}  # per part, the error Jacobians at the nominal model: the same for every effect
     for name in names:
@@ -153,6 +155,7 @@ def build_bases(parts: list[Part], names, measured, notes: list, session_labels=
                 options = {"tool_rotation": True} if name == "frames" and part.target_rotation is not None else {}
                 if name == "frames" and len(session_labels) > 1:
                     options["sessions"] = tuple(session_labels)
+                    options.update(frames_options or {})
                 options.update(cls.fit_policy.options_for_data(part.robot, part.q, part.context))
                 effect = make_effect(name, part.robot, **options)
                 if effect.n_params == 0:  # e.g. a gear's cyclic error on a robot of prismatic joints only
@@ -200,7 +203,7 @@ NOT_IDENTIFIABLE = "no identifiable parameter on these data (beyond frames)"
 
 def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, rank_tol: float,
                      tracker_noise: float | None, rng: np.random.Generator, fold_repeats: int = 1,
-                     instrument=None) -> CandidateSet:
+                     instrument=None, frames_options: dict | None = None) -> CandidateSet:
     """Stage 2 of the diagnosis.
 
     Parameters
@@ -221,6 +224,9 @@ def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, r
         The instrument's per-axis noise [m] when given (then not estimated).
     rng : numpy.random.Generator
         Draws the fold split, then the structure test's neighbours and permutations.
+    frames_options : dict or None
+        What each session owns (:mod:`.setup`); None: a tracker frame each (the default of
+        :class:`~tcr_accuracy.effects.frames.Frames`).
     """
     from sklearn.model_selection import RepeatedKFold
 
@@ -230,7 +236,8 @@ def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, r
     # an effect of last resort is built only if it is tried (its maps are the largest: tens of MB per 10^4 poses)
     late_names = [e for e in names if effect_class(e).fit_policy.last_resort]
     bases, rejected, stochastic = build_bases(parts, [e for e in names if e not in late_names],
-                                              registered.measured_context, notes, registered.session_labels)
+                                              registered.measured_context, notes, registered.session_labels,
+                                              frames_options)
     if "frames" not in bases:
         raise AnalysisError("the frames effect could not be built")
     order = ordered(bases)
