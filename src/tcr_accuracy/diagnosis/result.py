@@ -359,6 +359,13 @@ class Diagnosis(JsonForm):
         return self._view("sessions", lambda s: [x.to_dict() for x in s.residual.sessions])
 
     @property
+    def session_setup(self) -> dict | None:
+        """What each session owns (a tracker frame, a TCP offset, both or neither), the setups
+        compared and each session's sizes (JSON form, :mod:`~tcr_accuracy.diagnosis.stages.setup`);
+        None for one session."""
+        return self._view("session_setup", lambda s: None if s.setup is None else s.setup.to_dict())
+
+    @property
     def drift(self) -> list:
         """Per session: the tracker's drift seen by base references (JSON form)."""
         return self._view("drift", lambda s: list(s.register.drift))

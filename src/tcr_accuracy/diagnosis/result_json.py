@@ -84,6 +84,7 @@ def diagnosis_document(d) -> dict:
         "confounding": d.confounding,
         "instrument": d.instrument,
         "sessions": list(d.sessions),
+        "session_setup": d.session_setup,
         "drift": list(d.drift),
         "effect_options": d.effect_options,
         "joint_functions": d.joint_function_bands,
@@ -220,6 +221,7 @@ STORED_VIEWS = {
     "heldout_by_frame": lambda doc: {f: _stats(s) for f, s in (doc.get("heldout_by_frame") or {}).items()},
     "orientation": lambda doc: dict(doc.get("orientation") or {}),
     "sessions": lambda doc: list(doc["sessions"]),
+    "session_setup": lambda doc: doc.get("session_setup"),  # None: one session, or a file of before 0.1.x
     "drift": lambda doc: list(doc["drift"]),
     "selection": lambda doc: {**doc["selection"], "frequency": dict(doc["selection_frequency"])},
     "mechanisms": lambda doc: list(doc["mechanisms"]),

@@ -88,31 +88,6 @@ class SessionSetup:
             out["forced"] = self.forced
         return out
 
-    def summary(self) -> list[str]:
-        """The lines the summary prints: the choice, what it was judged against, each session's sizes."""
-        tried = "; ".join(f"{c['setup']} {c['heldout_rms'] * 1e3:.4f} mm ({c['n_parameters']} parameters)"
-                          for c in self.compared)
-        lines = [f"what each session owns: {self.chosen} (held-out RMS with {' + '.join(self.judged_with)}: "
-                 f"{tried}; the simplest within one standard error of the best)"]
-        if self.forced:
-            lines.append(f"  {self.forced}")
-        for s in self.sizes:
-            parts = []
-            if "translation" in s:
-                parts.append(f"tracker frame moved {s['translation'] * 1e3:.3f} +- {s['translation_std'] * 1e3:.3f} mm, "
-                             f"turned {s['rotation'] * 1e3:.3f} +- {s['rotation_std'] * 1e3:.3f} mrad")
-            if "tool_offset" in s:
-                offset = ", ".join(f"{v * 1e3:+.3f}" for v in s["tool_offset"])
-                spread = max(s["tool_offset_std"]) * 1e3
-                parts.append(f"TCP offset ({offset}) mm +- {spread:.3f} mm "
-                             f"(|{np.linalg.norm(s['tool_offset']) * 1e3:.3f}| mm)")
-            lines.append(f"  {s['session']} against {self.first}: " + "; ".join(parts))
-        return lines
-
-    @property
-    def first(self) -> str:
-        return self.sizes[0]["first"] if self.sizes else ""
-
 
 def _size_dict(size: dict) -> dict:
     out = {"session": size["session"], "against": size["first"]}
