@@ -159,7 +159,7 @@ def register_measurements(frames: list[MeasuredFrame], references=(), orientatio
         if turn <= SHARED_FRAME_REACH:
             stations = [shared] * len(sessions)
         else:
-            own_frames = (f"the sessions' own tracker frames turn by up to {np.degrees(turn):.3g} deg against one "
+            own_frames = (f"a session's own tracker frame turns by up to {np.degrees(turn):.3g} deg against one "
                           f"frame for all (more than {np.degrees(SHARED_FRAME_REACH):.3g} deg): the tracker moved, "
                           "each session is registered on its own")
     weight = orientation_weight

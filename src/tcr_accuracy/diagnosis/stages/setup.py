@@ -186,7 +186,7 @@ def _sizes(registered: RegisteredMeasurements, engine: FitEngine, result: dict, 
     for label in labels[1:]:
         size = {"session": label, "first": labels[0]}
         base = [f"frames.base.{label}.{c}" for c in ("dx", "dy", "dz", "rx", "ry", "rz")]
-        if all(n in value for n in base):
+        if all(n in value for n in base) and not registered.own_frames:  # else each its own registration's
             size.update(_norm("translation", [value[n] for n in base[:3]], [spread[n] for n in base[:3]]))
             size.update(_norm("rotation", [value[n] for n in base[3:]], [spread[n] for n in base[3:]]))
         tool = [f"{prefix}.{label}.{c}" for c in ("dx", "dy", "dz")]
