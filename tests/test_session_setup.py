@@ -121,3 +121,25 @@ def test_sessions_that_share_frame_and_offset_are_given_one_frame(ur5_robot, tmp
     setup = d.session_setup
     assert setup["chosen"] == "one frame" and setup["sessions"] == []
     assert d.primary_family == "gravity"
+
+
+def test_the_share_a_drift_reproduces_is_the_projection_of_the_signature_beyond_the_frame():
+    """reproduced_share against a signature built with known parts by QR on raw numpy: a part u that
+    the drift's columns make (orthogonal to the frame's), a part v neither makes, a part the frame
+    makes (which counts for neither): the share is |u|^2 / (|u|^2 + |v|^2)."""
+    from tcr_accuracy.diagnosis.confounding import reproduced_share
+
+    rng = np.random.default_rng(4)
+    n = 200
+    basis, _ = np.linalg.qr(rng.standard_normal((3 * n, 12)))  # orthonormal columns
+    frames, drift, outside = basis[:, :6], basis[:, 6:10], basis[:, 10]
+    mixed_drift = drift @ rng.standard_normal((4, 4)) + frames @ rng.standard_normal((6, 4))  # not orthogonal
+    u = drift @ np.array([1.0, -2.0, 0.5, 0.0]) * 1e-4
+    v = outside * 3e-4
+    signature = u + v + frames @ rng.standard_normal(6) * 1e-3
+    share = reproduced_share(signature.reshape(n, 3), mixed_drift.reshape(n, 3, 4), frames.reshape(n, 3, 6))
+    assert share == pytest.approx(float(u @ u) / float(u @ u + v @ v), rel=1e-9)
+    assert reproduced_share(u.reshape(n, 3), mixed_drift.reshape(n, 3, 4), frames.reshape(n, 3, 6)) == \
+        pytest.approx(1.0, abs=1e-9)
+    assert reproduced_share(v.reshape(n, 3), mixed_drift.reshape(n, 3, 4), frames.reshape(n, 3, 6)) == \
+        pytest.approx(0.0, abs=1e-9)

@@ -408,13 +408,14 @@ class GapDiagnosis(BaseEstimator):
             if setup is None:
                 return candidates, selection, None
             engine = candidates.engine
+            # judged with the chosen effects; the second time, the setup the selection ran with is kept
             judged = compare_setups(registered, engine.repeats, rank_tol=engine.rank_tol, min_motion=engine.min_motion,
-                                    effects=selection.selected, bases=engine.bases,
-                                    jacobians=candidates.linearised())
-            if judged.chosen == setup.chosen or attempt == 1:
+                                    effects=selection.selected, bases=engine.bases, jacobians=candidates.linearised(),
+                                    keep=setup.chosen if attempt else None)
+            if judged.chosen == setup.chosen:
                 return candidates, selection, dataclasses.replace(judged, reselected=attempt == 1)
             setup = judged
-        raise AssertionError("unreachable")
+        raise AssertionError("unreachable: the second judgement keeps the setup")
 
     def _tcp_offset(self) -> np.ndarray | None:
         """The given TCP offset (3,) [m], checked: three finite numbers within 10 m."""

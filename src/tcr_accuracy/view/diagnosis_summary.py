@@ -287,6 +287,10 @@ def session_setup_lines(setup: dict) -> list[str]:
            f"(held-out RMS with {' + '.join(setup['judged_with'])}: {tried})"]
     if setup.get("forced"):
         out.append(f"     {setup['forced']}")
+    if setup.get("reselected"):
+        out.append("     (the setup chosen with frames alone differed: the selection ran again with this one"
+                   + (f"; with its effects the comparison prefers {setup['preferred']}" if setup.get("preferred")
+                      else "") + ")")
     for s in setup["sessions"]:
         parts = []
         if "translation_mm" in s:

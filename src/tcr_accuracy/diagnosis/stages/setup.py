@@ -61,6 +61,9 @@ class SessionSetup:
         offset ``tool_offset`` (3,) [m] and ``tool_offset_std`` (3,) [m].
     reselected : bool
         Whether the selection ran again with this setup (the one chosen with frames alone differed).
+    preferred : str
+        The setup the comparison itself prefers, where another was kept (the selection had run with
+        it twice); empty otherwise.
     """
 
     chosen: str
@@ -71,6 +74,7 @@ class SessionSetup:
     judged_with: tuple
     sizes: tuple = ()
     reselected: bool = False
+    preferred: str = ""
 
     @property
     def options(self) -> dict:
@@ -86,6 +90,8 @@ class SessionSetup:
                "sessions": [_size_dict(s) for s in self.sizes]}
         if self.forced:
             out["forced"] = self.forced
+        if self.preferred:
+            out["preferred"] = self.preferred
         return out
 
 
@@ -125,7 +131,7 @@ def _frames_basis(registered: RegisteredMeasurements, session_frames: bool, sess
 
 
 def compare_setups(registered: RegisteredMeasurements, folds, *, rank_tol: float, min_motion: float,
-                   effects=("frames",), bases: dict | None = None, jacobians=None, forced_from=None) -> SessionSetup:
+                   effects=("frames",), bases: dict | None = None, jacobians=None, keep: str | None = None) -> SessionSetup:
     """Each setup's held-out error in one model, and the one the data choose.
 
     Parameters
@@ -142,6 +148,8 @@ def compare_setups(registered: RegisteredMeasurements, folds, *, rank_tol: float
     jacobians : list of ndarray or None
         Per part, the error Jacobians the frames are linearised at (None: each setup's own
         frames-only fit).
+    keep : str or None
+        A setup to keep whatever the comparison prefers (then said in ``preferred``).
     """
     effects = ordered(set(effects) | {"frames"})
     rows = []
@@ -155,7 +163,9 @@ def compare_setups(registered: RegisteredMeasurements, folds, *, rank_tol: float
         rows.append({"setup": name, "flags": (session_frames, session_tools), "n_parameters": int(r["n_parameters"]),
                      "heldout_rms": float(r["heldout_stats"].rms), "_squares": row_squares(r["heldout_squares"]),
                      "size_over_physics": 0.0})
-    chosen = one_standard_error_choice(rows)
+    chosen = preferred = one_standard_error_choice(rows)
+    if keep is not None:
+        chosen = next(c for c in rows if c["setup"] == keep)
     best = min(rows, key=lambda c: c["_squares"].mean())
     for c in rows:
         d = c["_squares"] - best["_squares"]
@@ -165,7 +175,8 @@ def compare_setups(registered: RegisteredMeasurements, folds, *, rank_tol: float
                         forced=registered.own_frames, judged_with=tuple(effects),
                         compared=tuple({k: v for k, v in c.items() if not k.startswith("_") and k != "flags"}
                                        for c in rows),
-                        sizes=tuple(_sizes(registered, engine, r, effects)))
+                        sizes=tuple(_sizes(registered, engine, r, effects)),
+                        preferred="" if preferred is chosen else preferred["setup"])
 
 
 def _sizes(registered: RegisteredMeasurements, engine: FitEngine, result: dict, effects) -> list[dict]:
