@@ -79,9 +79,13 @@ def _diagnose(robot, tmp_path, name, **campaign):
     return d, truth
 
 
-def test_a_reflector_reseated_per_payload_run_is_a_tcp_offset_per_session_and_compliance_is_named(
-        ur5_robot, tmp_path):
-    d, truth = _diagnose(ur5_robot, tmp_path, "reseated", reseat=True, moves=False)
+@pytest.fixture(scope="module")
+def reseated(ur5_robot, tmp_path_factory):
+    return _diagnose(ur5_robot, tmp_path_factory.mktemp("reseated"), "reseated", reseat=True, moves=False)
+
+
+def test_a_reflector_reseated_per_payload_run_is_a_tcp_offset_per_session_and_compliance_is_named(reseated):
+    d, truth = reseated
     setup = d.session_setup
     assert setup["chosen"] == "tool offset per session"
     for s, hidden in zip(setup["sessions"], truth["tool"][1:]):
@@ -99,6 +103,17 @@ def test_a_reflector_reseated_per_payload_run_is_a_tcp_offset_per_session_and_co
     assert fitted["compliance.elbow_joint"] == pytest.approx(COMPLIANCE[2], rel=0.05)
     floor = NOISE * np.sqrt(3.0)  # RMS of the 3-D noise of one point, tracker noise per axis
     assert d.steps[-1].heldout.rms <= 1.1 * floor
+
+
+def test_the_as_built_robot_of_a_reseated_campaign_carries_the_first_sessions_tcp_offset(ur5_robot, reseated):
+    """The as-built model keeps the first session's TCP offset (the later ones are the setup's): the
+    hidden first run's within 0.05 mm, the later sessions' offsets left out."""
+    from tcr_accuracy.asbuilt.model import AsBuiltModel
+
+    d, truth = reseated
+    model = AsBuiltModel.from_diagnosis(ur5_robot, d)
+    assert np.abs(model.tcp_offset() - truth["tool"][0]).max() <= 5e-5
+    assert not any(".run" in name for name in model.parameters["frames"])
 
 
 def test_a_tracker_moved_between_runs_is_a_frame_per_session(ur5_robot, tmp_path):
