@@ -187,6 +187,19 @@ def relinearise(bases: dict, jacobians) -> None:
         b.restack()
 
 
+def frames_fit_point(parts, frames) -> list:
+    """Per part, the error vector (p_em,) of the frames-only fit: where the effects are linearised
+    (the sessions' frames and TCP offsets differ a little: their mean)."""
+    pre = FitEngine(parts, {"frames": frames}, [], rank_tol=0.0)
+    columns = pre.columns(["frames"])
+    phi, _ = pre.fit(columns, np.arange(parts[0].q.shape[0]))
+    out = []
+    for p in range(len(parts)):
+        basis, _, idx = columns.per_part[p]
+        out.append(basis.errors(phi[idx] * columns.scale[idx]).mean(axis=0))
+    return out
+
+
 def frames_jacobians(parts, x_frames) -> list:
     """Per part, the error Jacobians (N, r, p_em) at its error vector x_frames[p] (p_em,)."""
     return [position_jacobians(part.robot, part.q, x, part.orientation_weight if part.target_rotation is not None
@@ -243,14 +256,7 @@ def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, r
     order = ordered(bases)
     # a TCP offset of centimetres changes which directions duplicate one another:
     # linearise about the frames-only fit, not the nominal model
-    pre = FitEngine(parts, {"frames": bases["frames"]}, [], rank_tol=0.0)
-    frames_cols = pre.columns(["frames"])
-    phi, _ = pre.fit(frames_cols, np.arange(n))
-    linearised_at = []  # per part, the error vector of the frames-only fit
-    for p, part in enumerate(parts):
-        basis, _, idx = frames_cols.per_part[p]
-        # the sessions' base twists differ a little after their own registrations: their mean
-        linearised_at.append(basis.errors(phi[idx] * frames_cols.scale[idx]).mean(axis=0))
+    linearised_at = frames_fit_point(parts, bases["frames"])
     relinearise(bases, frames_jacobians(parts, linearised_at))
     kfold = RepeatedKFold(n_splits=folds, n_repeats=fold_repeats, random_state=int(rng.integers(2**31 - 1)))
     every = [(np.asarray(a), np.asarray(b)) for a, b in kfold.split(np.arange(n))]

@@ -29,7 +29,7 @@ from ..ambiguity import one_standard_error_choice
 from ..bases import ordered
 from ..fitting import FitEngine
 from ..paired import row_squares
-from .candidates import build_bases, frames_jacobians, relinearise
+from .candidates import build_bases, frames_fit_point, frames_jacobians, relinearise
 from .register import RegisteredMeasurements
 
 #: The setups, simplest first: (name, a tracker frame per session, a TCP offset per session).
@@ -118,14 +118,7 @@ def _frames_basis(registered: RegisteredMeasurements, session_frames: bool, sess
     bases, _, _ = build_bases(parts, ["frames"], registered.measured_context, [], registered.session_labels,
                               {"session_frames": session_frames, "session_tools": session_tools})
     if jacobians is None:
-        pre = FitEngine(parts, bases, [], rank_tol=0.0)
-        columns = pre.columns(["frames"])
-        phi, _ = pre.fit(columns, np.arange(registered.n_rows))
-        at = []
-        for p in range(len(parts)):
-            basis, _, idx = columns.per_part[p]
-            at.append(basis.errors(phi[idx] * columns.scale[idx]).mean(axis=0))
-        jacobians = frames_jacobians(parts, at)
+        jacobians = frames_jacobians(parts, frames_fit_point(parts, bases["frames"]))
     relinearise(bases, jacobians)
     return bases["frames"]
 
@@ -175,11 +168,11 @@ def compare_setups(registered: RegisteredMeasurements, folds, *, rank_tol: float
                         forced=registered.own_frames, judged_with=tuple(effects),
                         compared=tuple({k: v for k, v in c.items() if not k.startswith("_") and k != "flags"}
                                        for c in rows),
-                        sizes=tuple(_sizes(registered, engine, r, effects)),
+                        sizes=tuple(_sizes(registered, engine, r)),
                         preferred="" if preferred is chosen else preferred["setup"])
 
 
-def _sizes(registered: RegisteredMeasurements, engine: FitEngine, result: dict, effects) -> list[dict]:
+def _sizes(registered: RegisteredMeasurements, engine: FitEngine, result: dict) -> list[dict]:
     """Per session after the first: its frame's and TCP offset's difference from the first's, with
     standard errors from the fit's (the main measured frame's parameters)."""
     basis = engine.bases["frames"]
@@ -197,11 +190,12 @@ def _sizes(registered: RegisteredMeasurements, engine: FitEngine, result: dict, 
     for label in labels[1:]:
         size = {"session": label, "first": labels[0]}
         base = [f"frames.base.{label}.{c}" for c in ("dx", "dy", "dz", "rx", "ry", "rz")]
-        if all(n in value for n in base) and not registered.own_frames:  # else each its own registration's
+        # a move kept whole by identifiability (else not said), against the shared registration's frame
+        if all(np.isfinite(value.get(n, np.nan)) for n in base) and not registered.own_frames:
             size.update(_norm("translation", [value[n] for n in base[:3]], [spread[n] for n in base[:3]]))
             size.update(_norm("rotation", [value[n] for n in base[3:]], [spread[n] for n in base[3:]]))
         tool = [f"{prefix}.{label}.{c}" for c in ("dx", "dy", "dz")]
-        if all(n in value for n in tool):
+        if all(np.isfinite(value.get(n, np.nan)) for n in tool):
             size["tool_offset"] = tuple(float(value[n]) for n in tool)
             size["tool_offset_std"] = tuple(float(spread[n]) for n in tool)
         if len(size) > 2:
@@ -211,7 +205,7 @@ def _sizes(registered: RegisteredMeasurements, engine: FitEngine, result: dict, 
 
 def _norm(key: str, values, stds) -> dict:
     """A vector's length and its standard error (first order: the components' errors along it)."""
-    v, s = np.nan_to_num(np.asarray(values, dtype=float)), np.nan_to_num(np.asarray(stds, dtype=float))
+    v, s = np.asarray(values, dtype=float), np.asarray(stds, dtype=float)
     length = float(np.linalg.norm(v))
     se = float(np.sqrt(np.sum((v / length) ** 2 * s**2))) if length > 0 else float(np.linalg.norm(s))
     return {key: length, f"{key}_std": se}
