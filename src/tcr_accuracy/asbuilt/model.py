@@ -21,6 +21,10 @@ import numpy as np
 
 from ..effects import effect_class, predict_poses, total_perturbation
 from ..effects.file_values import checked_effect, parameter_vector
+
+#: The frames effect's options about the measurement sessions (each session's tracker frame and TCP
+#: offset belong to that session's setup): the as-built robot carries the first session's
+SESSION_OPTIONS = ("sessions", "session_frames", "session_tools")
 from ..exceptions import InputError
 from ..model.context import MeasurementContext
 from ..model.errors import ErrorModel
@@ -79,14 +83,16 @@ class AsBuiltModel:
                              "(an example-robot-data name, tool_changer or a URDF path)", parameter="robot_source")
         if not isinstance(self.parameters, dict) or not isinstance(self.options or {}, dict):
             raise InputError(f"{self.source}: parameters and options must map effect names to mappings")
-        self.options = {e: {k: v for k, v in (o or {}).items() if not (e == "frames" and k == "sessions")}
+        self.options = {e: {k: v for k, v in (o or {}).items() if not (e == "frames" and k in SESSION_OPTIONS)}
                         for e, o in (self.options or {}).items()}
         self.effects, vectors = [], []
         for name, values in self.parameters.items():
             parameters_key, options_key = self.source_keys
             effect = checked_effect(name, self.robot, self.options.get(name), f"{self.source}: {options_key}")
-            if name == "frames" and isinstance(values, dict):  # the tracker frames are the setup's, not the robot's
-                values = {n: v for n, v in values.items() if not str(n).startswith("frames.base.")}
+            if name == "frames" and isinstance(values, dict):  # the tracker frames are the setup's, not the robot's,
+                # and so are the later sessions' TCP offsets (frames.tool.<session>.dx): the first session's is kept
+                values = {n: v for n, v in values.items() if not str(n).startswith("frames.base.") and
+                          not (str(n).startswith("frames.tool.") and str(n).count(".") > 2)}
             vectors.append(parameter_vector(effect, values, f"{self.source}: {parameters_key}.{name}"))
             self.effects.append(effect)
         self._vectors = vectors
@@ -126,8 +132,14 @@ class AsBuiltModel:
         options = {e: dict(o) for e, o in diagnosis.effect_options.items()}
         parameters = {}
         for e, vector in diagnosis.effect_parameters.items():
-            effect = make_effect(e, robot, **{k: v for k, v in options.get(e, {}).items() if k != "sessions"})
+            effect = make_effect(e, robot, **{k: v for k, v in options.get(e, {}).items()
+                                              if not (e == "frames" and k in SESSION_OPTIONS)})
             names = effect.parameter_names()
+            if e == "frames" and "sessions" in options.get(e, {}):  # the first session's frame and TCP offset
+                fitted = make_effect(e, robot, **options[e]).parameter_names()
+                if len(fitted) == len(vector):
+                    by_name = dict(zip(fitted, vector))
+                    vector = [by_name.get(n, 0.0) for n in names]
             if len(names) != len(vector):
                 raise InputError(f"{diagnosis.file or 'diagnosis'}: {e} has {len(vector)} parameters, {e} of "
                                  f"{robot.name} has {len(names)}: a diagnosis of another robot", parameter="robot")

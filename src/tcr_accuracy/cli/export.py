@@ -93,6 +93,10 @@ def _run_export(args) -> int:
 
         programs = read_programs(args, model.robot)
     measured = read_calibration_measurements(args, data, model.robot)
+    if (data.get("session_setup") or {}).get("session_tools") and measured.session is not None:
+        # each session had its own TCP offset (the reflector re-seated): the model carries the first
+        # session's, and is measured on that session's rows
+        measured = measured.subset(measured.session_index() == 0)
     check_fitted_to(data, _model_rms(model, measured), measured.source, args.diagnosis)
     held_out = None
     if args.check is not None:

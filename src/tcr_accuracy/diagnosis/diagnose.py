@@ -47,6 +47,7 @@ suffixed keys. Nothing here prints or plots.
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from numbers import Integral, Real
 
@@ -71,6 +72,7 @@ from .stages.parameters import collect_parameters
 from .stages.register import MeasuredFrame, register_measurements
 from .stages.residual import analyse_residual
 from .stages.select import select_effects
+from .stages.setup import compare_setups
 
 
 # ---------------------------------------------------------------------------------------
@@ -357,12 +359,7 @@ class GapDiagnosis(BaseEstimator):
         say("building effect models")
         repeats = self.fold_repeats if self.fold_repeats is not None else \
             int(np.clip(round(10_000 / registered.n_rows), 1, 5))
-        candidates = build_candidates(registered, names, folds=self.folds, rank_tol=self.rank_tol,
-                                      tracker_noise=self.tracker_noise, rng=rng, fold_repeats=repeats,
-                                      instrument=self.instrument)
-        say("fitting frames")
-        selection = select_effects(registered, candidates, selection_z=self.selection_z,
-                                   min_relative_gain=self.min_relative_gain, rng=rng, say=say)
+        candidates, selection, setup = self._select(registered, names, repeats, rng, seed, say)
         attribution = attribute_effects(registered, candidates, selection, selection_z=self.selection_z,
                                         min_relative_gain=self.min_relative_gain,
                                         stability_replays=self.stability_replays, seed=seed, say=say)
@@ -375,7 +372,7 @@ class GapDiagnosis(BaseEstimator):
                                         registered.nominal[0].position, residual.noise_floor)
         stages = DiagnosisStages(register=registered, candidates=candidates, select=selection,
                                  attribute=attribution, residual=residual, parameters=parameters,
-                                 first_order=first_order)
+                                 first_order=first_order, setup=setup)
         self.result_ = Diagnosis(robot_name=registered.robot.name, n_measurements=registered.n_rows,
                                  folds=self.folds, stages=stages, n_fits=candidates.engine.n_fits,
                                  joint_names=list(registered.robot.joint_names), source=_source_of(measurements))
@@ -386,6 +383,39 @@ class GapDiagnosis(BaseEstimator):
         self.parameters_ = parameters.values
         self.noise_ = residual.noise
         return self
+
+    def _select(self, registered, names, repeats: int, rng, seed: int, say) -> tuple:
+        """Stages 2 and 3 (the candidates, the selection) and, with several sessions, what each owns
+        (:mod:`.stages.setup`): chosen with frames alone for the selection, judged again with the
+        selection's effects, and the selection run once more where that judgement differs."""
+        setup = None
+        if len(registered.session_labels) > 1:
+            say("choosing what each session owns")
+            from sklearn.model_selection import RepeatedKFold
+
+            kfold = RepeatedKFold(n_splits=self.folds, n_repeats=repeats, random_state=int(seed) + 5)
+            every = [(np.asarray(a), np.asarray(b)) for a, b in kfold.split(np.arange(registered.n_rows))]
+            setup = compare_setups(registered, [every[r * self.folds:(r + 1) * self.folds] for r in range(repeats)],
+                                   rank_tol=self.rank_tol, min_motion=0.0)
+        for attempt in range(2):
+            candidates = build_candidates(registered, names, folds=self.folds, rank_tol=self.rank_tol,
+                                          tracker_noise=self.tracker_noise, rng=rng, fold_repeats=repeats,
+                                          instrument=self.instrument,
+                                          frames_options=setup.options if setup is not None else None)
+            say("fitting frames")
+            selection = select_effects(registered, candidates, selection_z=self.selection_z,
+                                       min_relative_gain=self.min_relative_gain, rng=rng, say=say)
+            if setup is None:
+                return candidates, selection, None
+            engine = candidates.engine
+            # judged with the chosen effects; the second time, the setup the selection ran with is kept
+            judged = compare_setups(registered, engine.repeats, rank_tol=engine.rank_tol, min_motion=engine.min_motion,
+                                    effects=selection.selected, bases=engine.bases, jacobians=candidates.linearised(),
+                                    keep=setup.chosen if attempt else None)
+            if judged.chosen == setup.chosen:
+                return candidates, selection, dataclasses.replace(judged, reselected=attempt == 1)
+            setup = judged
+        raise AssertionError("unreachable: the second judgement keeps the setup")
 
     def _tcp_offset(self) -> np.ndarray | None:
         """The given TCP offset (3,) [m], checked: three finite numbers within 10 m."""

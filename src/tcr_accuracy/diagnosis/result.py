@@ -30,6 +30,7 @@ from .stages.parameters import FittedParameters
 from .stages.register import RegisteredMeasurements
 from .stages.residual import ResidualAnalysis
 from .stages.select import Selection
+from .stages.setup import SessionSetup
 from .stages.candidates import CandidateSet
 
 __all__ = ["Diagnosis", "DiagnosisStages", "ErrorStats", "Step"]
@@ -55,6 +56,7 @@ class DiagnosisStages:
     residual: ResidualAnalysis
     parameters: FittedParameters
     first_order: FirstOrder
+    setup: SessionSetup | None = None
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -210,6 +212,12 @@ class Diagnosis(JsonForm):
         return self._view("swaps", lambda s: list(s.select.swaps))
 
     @property
+    def search(self) -> dict:
+        """The search beyond the greedy path: sets fitted, where each path ended, the best set on
+        another path and whether the chosen set beats it by more than a standard error."""
+        return self._view("search", lambda s: s.select.search.to_dict())
+
+    @property
     def ambiguous(self) -> list:
         """Groups of effects the data cannot tell apart."""
         return self._view("ambiguous", lambda s: list(s.select.ambiguous))
@@ -349,6 +357,13 @@ class Diagnosis(JsonForm):
     def sessions(self) -> list:
         """Per session: label, rows, gap and held-out stats, temperature (JSON form)."""
         return self._view("sessions", lambda s: [x.to_dict() for x in s.residual.sessions])
+
+    @property
+    def session_setup(self) -> dict | None:
+        """What each session owns (a tracker frame, a TCP offset, both or neither), the setups
+        compared and each session's sizes (JSON form, :mod:`~tcr_accuracy.diagnosis.stages.setup`);
+        None for one session."""
+        return self._view("session_setup", lambda s: None if s.setup is None else s.setup.to_dict())
 
     @property
     def drift(self) -> list:

@@ -129,6 +129,7 @@ def _diagnosis_schema(names) -> dict:
             "fold_assignments": {"type": "integer", "minimum": 1, "maximum": 1000},
             "heldout_by_frame": {"type": "object", "maxProperties": 1000, "additionalProperties": _STATS},
             "sessions": {"type": "array", "maxItems": 100_000},
+            "session_setup": {"type": ["object", "null"], "properties": {"chosen": _TEXT}},
             "notes": _TEXTS, "ambiguous": {"type": "array", "items": {"type": "object"}},
             "outside_physics": {"type": "array", "items": {"type": "object"}},
             "structure_remains": {"type": "boolean"}, "structure_verdict": _TEXT,

@@ -288,8 +288,9 @@ def _found(d, comparisons) -> list:
                                d.get("primary_group") or [])
         out.append(("p", _sentence(answer) + "."))
         items += _effect_items(d)
-        items += [f"Mind the order of measurement: {c['why']}; tcr-accuracy plan-poses writes an order that "
-                  "separates them." for c in d.get("confounding") or []]
+        items += [f"The order of measurement: {c['why']}." if c.get("drift_reproduces") and not
+                  c.get("confounded_effects") else f"Mind the order of measurement: {c['why']}; tcr-accuracy "
+                  "plan-poses writes an order that separates them." for c in d.get("confounding") or []]
         items += [f"Flag: {_sentence(c['text'])}." for c in (d.get("plausibility") or {}).get("checks") or []
                   if c.get("flagged")]
         items += _remains(d)

@@ -68,11 +68,15 @@ def format_summary(robot, d, source: str) -> str:
     out.append(f"\n1. Gap after fitting the tracker frame and TCP offset (frames): "
                f"mean {d.gap.mean * mm:.4f} mm, RMS {d.gap.rms * mm:.4f} mm, max {d.gap.max * mm:.4f} mm")
     if d.sessions:
-        out.append(f"   {len(d.sessions)} sessions, each with its own tracker frame (the robot's parameters shared):")
+        setup = d.session_setup
+        owns = "each with its own tracker frame" if setup is None else SESSION_OWNS.get(setup["chosen"], setup["chosen"])
+        out.append(f"   {len(d.sessions)} sessions, {owns} (the robot's parameters shared):")
         for s in d.sessions:
             t = s["temperature_c"]
             out.append(f"     {s['session']:20s} {s['n_measurements']:6d} rows, gap RMS {s['gap']['rms_mm']:.4f} mm, "
                        f"final held-out RMS {s['heldout']['rms_mm']:.4f} mm, temperature {t[0]:.1f} to {t[1]:.1f} degC")
+    if d.sessions and d.session_setup is not None:
+        out += session_setup_lines(d.session_setup)
     for drift in d.drift:
         if not drift.get("fitted", True):
             out.append(f"   tracker drift: session {drift['session']} not fitted ({drift['why']})")
@@ -267,12 +271,49 @@ def parameter_lines(d, per_effect: int = 4) -> list[str]:
     return out
 
 
+#: What each session owns, in the words of the sessions' line, by the setup's name
+SESSION_OWNS = {"one frame": "one tracker frame and one TCP offset for all",
+                "tool offset per session": "one tracker frame, each with its own TCP offset",
+                "frame per session": "each with its own tracker frame",
+                "frame and tool offset per session": "each with its own tracker frame and TCP offset"}
+
+
+def session_setup_lines(setup: dict) -> list[str]:
+    """What each session owns: the setups compared (held-out RMS, parameters), the one chosen, and
+    each later session's frame and TCP offset against the first's (mm, mrad, standard errors)."""
+    tried = "; ".join(f"{c['setup']} {c['heldout_rms_mm']:.4f} mm ({c['n_parameters']} parameters)"
+                      for c in setup["compared"])
+    out = [f"   what each session owns: {setup['chosen']}, the simplest within one standard error of the best "
+           f"(held-out RMS with {' + '.join(setup['judged_with'])}: {tried})"]
+    if setup.get("forced"):
+        out.append(f"     {setup['forced']}")
+    if setup.get("reselected"):
+        out.append("     (the setup chosen with frames alone differed: the selection ran again with this one"
+                   + (f"; with its effects the comparison prefers {setup['preferred']}" if setup.get("preferred")
+                      else "") + ")")
+    for s in setup["sessions"]:
+        parts = []
+        if "translation_mm" in s:
+            parts.append(f"tracker frame moved {s['translation_mm']:.3f} +- {s['translation_std_mm']:.3f} mm, turned "
+                         f"{s['rotation_mrad']:.3f} +- {s['rotation_std_mrad']:.3f} mrad")
+        if "tool_offset_mm" in s:
+            offset = ", ".join(f"{v:+.3f}" for v in s["tool_offset_mm"])
+            length = sum(v * v for v in s["tool_offset_mm"]) ** 0.5
+            parts.append(f"TCP offset moved ({offset}) mm +- {max(s['tool_offset_std_mm']):.3f} mm, "
+                         f"{length:.3f} mm in all")
+        out.append(f"     {s['session']} against {s['against']}: " + "; ".join(parts))
+    return out
+
+
 def answer_lines(d) -> list[str]:
     """The answer first: the family and, where the data resolve it, the effect that causes the
     largest share of the gap, what mechanism each chosen effect's sign and size fit (and what its fit
     assumed), and the fitted geometry beyond what the robot's class allows."""
     out = ["Answer: " + family_answer(d.families, d.primary_family, d.primary_effect, d.primary_group)]
     for c in d.confounding:
+        if c.get("drift_reproduces") and not c.get("confounded_effects"):  # judged on signatures: told apart
+            out.append(f"  the order of measurement: {c['why']}")
+            continue
         out.append(f"  mind the order of measurement: {c['why']}; tcr-accuracy plan-poses writes an order "
                    "that separates them")
     for m in d.mechanisms:

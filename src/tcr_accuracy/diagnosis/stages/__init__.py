@@ -10,7 +10,9 @@ run and inspected on its own (``diagnosis.stages`` keeps every stage's result):
    (:class:`~.candidates.CandidateSet`);
 3. :mod:`.select` -- forward selection on held-out error, the effects of last resort, the
    one-standard-error swaps, backward elimination, what the data cannot tell apart
-   (:class:`~.select.Selection`);
+   (:class:`~.select.Selection`); with several sessions, :mod:`.setup` chooses what each owns
+   (a tracker frame, a TCP offset, both or neither) before it and judges it again after
+   (:class:`~.setup.SessionSetup`);
 4. :mod:`.attribute` -- the primary effect or group, the shrink table in the order of
    explanation, the selection's stability, what the data fit only outside physics
    (:class:`~.attribute.Attribution`), and where the first-order effect models end;

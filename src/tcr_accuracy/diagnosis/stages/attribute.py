@@ -13,15 +13,16 @@ import numpy as np
 
 from ...effects.mechanisms import FAMILIES, MechanismReading, read_mechanism
 from ..attribution import ShareComparison, contributions, fixed_point_check, rank_largest
-from ..confounding import confounded_variables
+from ..confounding import confounded_variables, reproduced_share
 from ..error_map import column_rms
 from ..fitting import FitEngine
 from ..bases import ordered
 from ..paired import paired_z
 from ..records import ErrorStats, Step
 from ..uncertainty import PoseBootstrap, bootstrap_for, selection_frequency
-from .candidates import CandidateSet
+from .candidates import CandidateSet, build_bases, relinearise
 from .register import RegisteredMeasurements, measured_context
+from .search import explanation_order
 from .select import Selection
 
 
@@ -141,6 +142,7 @@ def attribute_effects(registered: RegisteredMeasurements, candidate_set: Candida
     notes: list = []
     confounding = confounded_variables(registered.robot.joint_names, registered.measurements.q,
                                        registered.parts[0].context, measured_context(registered.measurements))
+    confounding = judged_on_signatures(registered, candidate_set, current, confounding)
     mechanisms = tuple(_with_assumptions(_with_confounding(m, confounding), engine, registered.measurements.time_s)
                        for m in fitted_mechanisms(engine, current))
     notes += [f"{m.effect}: {assumed}" for m in mechanisms for assumed in m.assumed]
@@ -196,12 +198,51 @@ def attribute_effects(registered: RegisteredMeasurements, candidate_set: Candida
                        interval_method=bootstrap.method)
 
 
+def judged_on_signatures(registered: RegisteredMeasurements, candidate_set: CandidateSet, current,
+                         confounding) -> list:
+    """Each variable that follows the measurement order, with the share of every chosen effect's
+    signature it may confound that the drift model reproduces on these poses
+    (:func:`~tcr_accuracy.diagnosis.confounding.reproduced_share`: the effect's fitted TCP errors fitted
+    by the drift's and the tracker frame's columns, least squares over the poses)."""
+    chosen = [e for c in confounding for e in c.effects if e in current]
+    if not chosen:
+        return list(confounding)
+    engine = candidate_set.engine
+    drift = engine.bases.get("drift")
+    if drift is None:  # not in the vocabulary asked for: linearised here, as the other effects were
+        built, _, _ = build_bases(list(registered.parts), ["drift"], registered.measured_context, [],
+                                  registered.session_labels)
+        if "drift" not in built:
+            return list(confounding)
+        relinearise(built, candidate_set.linearised())
+        drift = built["drift"]
+    final = engine.evaluate(ordered(current), exact=True)
+    theta = final["phi"] * final["scale"]
+    signatures, offset = {}, 0
+    for e in ordered(current):
+        kept = final["keep"][e]
+        basis = engine.bases[e]
+        full = np.zeros(len(basis.names))
+        full[kept] = theta[offset:offset + kept.size]
+        offset += kept.size
+        if e in chosen:  # the main measured frame's TCP errors this effect's fitted values make
+            part = basis.per_part[0]
+            signatures[e] = np.einsum("nrk,k->nr", part.g[0:part.g.shape[0]][:, :3], full[basis.index[0]])
+    frames_g = engine.bases["frames"].per_part[0].g
+    frames_g = frames_g[0:frames_g.shape[0]][:, :3]
+    drift_g = drift.per_part[0].g
+    drift_g = drift_g[0:drift_g.shape[0]][:, :3]
+    return [dataclasses.replace(c, reproduced={e: reproduced_share(signatures[e], drift_g, frames_g)
+                                               for e in c.effects if e in signatures}) for c in confounding]
+
+
 def _with_confounding(reading: MechanismReading, confounding) -> MechanismReading:
     """The reading, said to be indistinguishable from a drift in time where a variable its
-    resolved parameters grow with follows the measurement order."""
+    resolved parameters grow with follows the measurement order and the drift model reproduces
+    most of its signature (:meth:`~tcr_accuracy.diagnosis.confounding.Confounding.confounds`)."""
     why = []
     for c in confounding:
-        if reading.effect not in c.effects:
+        if not c.confounds(reading.effect):
             continue
         if c.variable.startswith("joint ") and not any(
                 p["parameter"].split(".")[1] == c.variable[len("joint "):] for p in reading.parameters):
@@ -383,20 +424,15 @@ def first_order_reach(part, bases: dict, chosen, full_parameters: dict, nominal:
 
 
 def explanation_ladder(engine: FitEngine, selected, first: Step, bootstrap: PoseBootstrap | None = None) -> list[Step]:
-    """The shrink table in the order of explanation: from frames, each step adds the chosen
-    effect that lowers the held-out error most given those before it (on the engine's linear
-    model), with its figures on the exact kinematics, its gain and the gain's 95 % interval
-    (``bootstrap``'s; None: a pose bootstrap of the engine's rows, seed 0)."""
+    """The shrink table in the order of explanation (:func:`~.search.explanation_order`: from frames,
+    each step adds the chosen effect that lowers the held-out error most given those before it, on
+    the engine's linear model), with its figures on the exact kinematics, its gain and the gain's
+    95 % interval (``bootstrap``'s; None: a pose bootstrap of the engine's rows, seed 0)."""
     bootstrap = bootstrap or bootstrap_for(engine, 0)
-    chain, current = [(first, engine.evaluate(["frames"], exact=True))], ["frames"]
-    remaining = [e for e in selected if e != "frames"]
-    while remaining:
-        trials = {e: engine.evaluate(ordered(current + [e])) for e in remaining}
-        best = min(trials, key=lambda e: ErrorStats.heldout(trials[e]).rms)
-        r = engine.evaluate(ordered(current + [best]), exact=True)
-        current.append(best)
-        remaining.remove(best)
-        chain.append((Step(best, tuple(ordered(current)), r["n_parameters"], r["train_stats"].rms,
+    rungs = explanation_order(engine, selected)
+    chain = [(first, rungs[0][1])]
+    for effect, r in rungs[1:]:
+        chain.append((Step(effect, tuple(r["effects"]), r["n_parameters"], r["train_stats"].rms,
                            ErrorStats.heldout(r), paired_z(chain[-1][1]["heldout_squares"], r["heldout_squares"])),
                       r))
     table = bootstrap.read({k: r["heldout_squares"] for k, (_, r) in enumerate(chain)})

@@ -132,9 +132,11 @@ class CandidateSet:
         return self.engine.bases
 
 
-def build_bases(parts: list[Part], names, measured, notes: list, session_labels=()) -> tuple[dict, list, list]:
+def build_bases(parts: list[Part], names, measured, notes: list, session_labels=(),
+                frames_options: dict | None = None) -> tuple[dict, list, list]:
     """Each effect of ``names`` linearised on every part: (bases, the untried candidates, the
-    stochastic effects)."""
+    stochastic effects). ``frames_options``: what each session owns (``session_frames``,
+    ``session_tools``, see :class:`~tcr_accuracy.effects.frames.Frames`) where there are sessions."""
     bases, rejected, stochastic = {}, [], []
     jacobians = {}  # per part, the error Jacobians at the nominal model: the same for every effect
     for name in names:
@@ -153,6 +155,7 @@ def build_bases(parts: list[Part], names, measured, notes: list, session_labels=
                 options = {"tool_rotation": True} if name == "frames" and part.target_rotation is not None else {}
                 if name == "frames" and len(session_labels) > 1:
                     options["sessions"] = tuple(session_labels)
+                    options.update(frames_options or {})
                 options.update(cls.fit_policy.options_for_data(part.robot, part.q, part.context))
                 effect = make_effect(name, part.robot, **options)
                 if effect.n_params == 0:  # e.g. a gear's cyclic error on a robot of prismatic joints only
@@ -184,6 +187,19 @@ def relinearise(bases: dict, jacobians) -> None:
         b.restack()
 
 
+def frames_fit_point(parts, frames) -> list:
+    """Per part, the error vector (p_em,) of the frames-only fit: where the effects are linearised
+    (the sessions' frames and TCP offsets differ a little: their mean)."""
+    pre = FitEngine(parts, {"frames": frames}, [], rank_tol=0.0)
+    columns = pre.columns(["frames"])
+    phi, _ = pre.fit(columns, np.arange(parts[0].q.shape[0]))
+    out = []
+    for p in range(len(parts)):
+        basis, _, idx = columns.per_part[p]
+        out.append(basis.errors(phi[idx] * columns.scale[idx]).mean(axis=0))
+    return out
+
+
 def frames_jacobians(parts, x_frames) -> list:
     """Per part, the error Jacobians (N, r, p_em) at its error vector x_frames[p] (p_em,)."""
     return [position_jacobians(part.robot, part.q, x, part.orientation_weight if part.target_rotation is not None
@@ -200,7 +216,7 @@ NOT_IDENTIFIABLE = "no identifiable parameter on these data (beyond frames)"
 
 def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, rank_tol: float,
                      tracker_noise: float | None, rng: np.random.Generator, fold_repeats: int = 1,
-                     instrument=None) -> CandidateSet:
+                     instrument=None, frames_options: dict | None = None) -> CandidateSet:
     """Stage 2 of the diagnosis.
 
     Parameters
@@ -221,6 +237,9 @@ def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, r
         The instrument's per-axis noise [m] when given (then not estimated).
     rng : numpy.random.Generator
         Draws the fold split, then the structure test's neighbours and permutations.
+    frames_options : dict or None
+        What each session owns (:mod:`.setup`); None: a tracker frame each (the default of
+        :class:`~tcr_accuracy.effects.frames.Frames`).
     """
     from sklearn.model_selection import RepeatedKFold
 
@@ -230,20 +249,14 @@ def build_candidates(registered: RegisteredMeasurements, names, *, folds: int, r
     # an effect of last resort is built only if it is tried (its maps are the largest: tens of MB per 10^4 poses)
     late_names = [e for e in names if effect_class(e).fit_policy.last_resort]
     bases, rejected, stochastic = build_bases(parts, [e for e in names if e not in late_names],
-                                              registered.measured_context, notes, registered.session_labels)
+                                              registered.measured_context, notes, registered.session_labels,
+                                              frames_options)
     if "frames" not in bases:
         raise AnalysisError("the frames effect could not be built")
     order = ordered(bases)
     # a TCP offset of centimetres changes which directions duplicate one another:
     # linearise about the frames-only fit, not the nominal model
-    pre = FitEngine(parts, {"frames": bases["frames"]}, [], rank_tol=0.0)
-    frames_cols = pre.columns(["frames"])
-    phi, _ = pre.fit(frames_cols, np.arange(n))
-    linearised_at = []  # per part, the error vector of the frames-only fit
-    for p, part in enumerate(parts):
-        basis, _, idx = frames_cols.per_part[p]
-        # the sessions' base twists differ a little after their own registrations: their mean
-        linearised_at.append(basis.errors(phi[idx] * frames_cols.scale[idx]).mean(axis=0))
+    linearised_at = frames_fit_point(parts, bases["frames"])
     relinearise(bases, frames_jacobians(parts, linearised_at))
     kfold = RepeatedKFold(n_splits=folds, n_repeats=fold_repeats, random_state=int(rng.integers(2**31 - 1)))
     every = [(np.asarray(a), np.asarray(b)) for a, b in kfold.split(np.arange(n))]

@@ -19,6 +19,13 @@ from ...model.kinematics import tcp_poses
 from ...model.robot import RobotModel
 from ..bases import Part
 
+#: [rad] how far a session's own closed-form tracker frame may turn against one frame registered on
+#: every session's rows for that one frame to map them all: within it the sessions' frames are a
+#: question for the fit (:mod:`.setup` chooses whether each session has its own), beyond it the
+#: tracker moved and each session is registered on its own. 3 deg: the base twist's columns, taken at
+#: the shared frame, are then within 5 % of a session's own, which Gauss-Newton's steps absorb.
+SHARED_FRAME_REACH = 0.05
+
 #: the context fields a MeasurementSet may have measured (the others take defaults)
 MEASURED_CONTEXT = ("payload_kg", "temperature_c", "direction")
 
@@ -52,7 +59,8 @@ class RegisteredMeasurements:
     nominal : tuple of TcpPoses
         Each frame's nominal poses at the commanded joints.
     stations : tuple of (ndarray (3, 3), ndarray (3,))
-        Each session's closed-form tracker frame: ``p_tracker = R p_base + t`` [m].
+        Each session's closed-form tracker frame: ``p_tracker = R p_base + t`` [m] (the same for
+        every session when one frame maps them all, see :attr:`own_frames`).
     session_labels : tuple of str
         The sessions' labels (empty for one session).
     session_of : ndarray of shape (N,)
@@ -72,6 +80,10 @@ class RegisteredMeasurements:
     instrument : Instrument or None
         The instrument's specification the points are weighed by.
     notes : tuple of str
+    own_frames : str
+        Why each session was registered on its own (the tracker moved beyond
+        :data:`SHARED_FRAME_REACH`: a frame per session, not the data's choice); empty when one frame
+        registered on every row maps them all (then the fit chooses what each session owns).
     """
 
     frames: tuple
@@ -88,6 +100,7 @@ class RegisteredMeasurements:
     measured_context: frozenset
     notes: tuple
     instrument: object = None
+    own_frames: str = ""
 
     @property
     def robot(self) -> RobotModel:
@@ -138,6 +151,17 @@ def register_measurements(frames: list[MeasuredFrame], references=(), orientatio
         references = [(f, place, measured - drift, t) for f, place, measured, t in references]
     stations = register_sessions([p.position for p in nominal], [f.measurements.position for f in frames],
                                  session_of, sessions, references)
+    own_frames = ""
+    if sessions:
+        shared = register_sessions([p.position for p in nominal], [f.measurements.position for f in frames],
+                                   np.zeros(n, dtype=int), [], references)[0]
+        turn = max(float(np.linalg.norm(Rotation.from_matrix(shared[0].T @ r).as_rotvec())) for r, _ in stations)
+        if turn <= SHARED_FRAME_REACH:
+            stations = [shared] * len(sessions)
+        else:
+            own_frames = (f"a session's own tracker frame turns by up to {np.degrees(turn):.3g} deg against one "
+                          f"frame for all (more than {np.degrees(SHARED_FRAME_REACH):.3g} deg): the tracker moved, "
+                          "each session is registered on its own")
     weight = orientation_weight
     if weight is None:
         points = np.concatenate([f.measurements.position for f in frames])
@@ -169,4 +193,5 @@ def register_measurements(frames: list[MeasuredFrame], references=(), orientatio
         frames=tuple(frames), parts=tuple(parts), nominal=tuple(nominal), stations=tuple(stations),
         session_labels=tuple(sessions), session_of=session_of, drift=tuple(drift_report),
         reference_noise=reference_noise, references=tuple(references), orientation_weight=weight,
-        gravity_torque=tau, measured_context=measured, notes=tuple(notes), instrument=instrument)
+        gravity_torque=tau, measured_context=measured, notes=tuple(notes), instrument=instrument,
+        own_frames=own_frames)

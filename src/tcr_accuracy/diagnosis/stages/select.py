@@ -19,6 +19,7 @@ from ..bases import position_jacobians
 from .candidates import NOT_IDENTIFIABLE, Candidate, CandidateSet, build_bases, identifiable_alone, relinearise, \
     untried
 from .register import RegisteredMeasurements
+from .search import SearchReport, harmful_effect, search_sets
 
 
 @dataclass(frozen=True)
@@ -98,6 +99,8 @@ class Selection:
         Chosen effect -> its stand-ins (rows of :func:`~tcr_accuracy.diagnosis.ambiguity.swap_alternatives`).
     ambiguous : tuple of dict
         The groups of effects the data cannot tell apart (JSON form, mm keys).
+    search : SearchReport
+        The search beyond the greedy path: what it tried, the best set on another path.
     gap_residual : ndarray of shape (N, 3) or (n_parts, N, 3)
         The residual after frames alone [m] (the gap), as fitted before anything else.
     notes : tuple of str
@@ -114,12 +117,13 @@ class Selection:
     eliminated: tuple
     groups: dict
     ambiguous: tuple
+    search: SearchReport
     gap_residual: np.ndarray
     notes: tuple
 
     def decision_notes(self) -> list[str]:
-        """Notes on what the selection undid: backward eliminations and swaps."""
-        notes = []
+        """Notes on what the selection undid: backward eliminations and swaps; what the search tried."""
+        notes = [self.search.note()]
         if self.eliminated:
             notes.append("dropped again after forward selection (no significant held-out loss without them): "
                          + ", ".join(f"{e.effect} (z = {e.z:.1f})" for e in self.eliminated))
@@ -197,15 +201,31 @@ def select_effects(registered: RegisteredMeasurements, candidate_set: CandidateS
             break
         seen.add(frozenset(grown))
         current, loo, swaps, eliminated = grown, grown_loo, swaps + more_swaps, eliminated + more_eliminated
+    # sets the greedy path cannot reach (geometry once transmission has taken its place), on the Gram blocks
+    searched, search = search_sets(
+        engine, current, steps[1].effect if len(steps) > 1 else None,
+        [e for e in testable if e in current or e not in late], selection_z=selection_z, min_relative_gain=min_relative_gain, say=say,
+        forward=lambda pool, start: _forward(engine, pool, [], candidates, say, selection_z, min_relative_gain, start),
+        prune=lambda effects: _backward(engine, list(effects), say, selection_z)[0])
+    if set(searched) != set(current):
+        current, loo, more_eliminated = _backward(engine, [e for e in current if e in searched] +
+                                                  [e for e in searched if e not in current], say, selection_z)
+        eliminated = eliminated + more_eliminated
     relinearised = _relinearise_at_fit(engine, current, registered, candidate_set, notes)
     if relinearised:  # the chosen set judged again at the new linearisation
         current, loo, more_eliminated = _backward(engine, current, say, selection_z)
+        eliminated = eliminated + more_eliminated
+    # every step helps: no chosen effect whose own held-out share, or rung of the ladder, is a loss
+    while (harmful := harmful_effect(engine, current, loo)) is not None:
+        row = next((r for r in loo if r.effect == harmful), None)
+        eliminated = eliminated + [Elimination(harmful, row.z if row else 0.0, row.increase if row else 0.0)]
+        current, loo, more_eliminated = _backward(engine, [e for e in current if e != harmful], say, selection_z)
         eliminated = eliminated + more_eliminated
     groups = swap_alternatives(engine, current, rivals, selection_z)
     return Selection(selected=tuple(current), forward_steps=tuple(steps), candidates=tuple(candidates.values()),
                      testable=tuple(testable), late=tuple(late), rivals=tuple(rivals), swaps=tuple(swaps),
                      leave_one_out=tuple(loo), eliminated=tuple(eliminated), groups=groups,
-                     ambiguous=tuple(ambiguity_report(groups)), gap_residual=result["train_residual"],
+                     ambiguous=tuple(ambiguity_report(groups)), search=search, gap_residual=result["train_residual"],
                      notes=tuple(notes))
 
 
