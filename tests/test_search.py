@@ -100,3 +100,26 @@ def test_the_search_says_what_it_tried(transmission_first):
         assert search["beats_alternative"] == (search["alternative_margin_mm2"] > search["alternative_margin_se_mm2"])
     assert math.isfinite(chosen["heldout_rms_mm"])
     assert any(n.startswith("search beyond the greedy path") for n in result.notes)
+
+
+@pytest.mark.parametrize("hidden", ["noise", "geometry"])
+def test_a_robot_with_nothing_beyond_its_frames_and_geometry_invents_nothing(ur5, hidden):
+    """Null scenarios (the blind benchmark's ``--null``), written on Pinocchio: the nominal UR5 seen
+    from an unknown tracker frame with an unknown TCP offset and the tracker's noise, and the same
+    with joint placement errors and encoder offsets. Every effect chosen beyond those is invented:
+    none may be, and the final held-out error is at the noise floor (within 10 %)."""
+    rng = np.random.default_rng(7)
+    tcp = ur5.tool_frame
+    offsets, placements = (np.zeros(ur5.n_joints), {}) if hidden == "noise" else geometric_errors(
+        ur5, rng, offset_deg=0.03, offset_mm=0.01, placement_mm=0.3, placement_deg=0.02)
+    robot = HiddenRobot(ur5, placements, {tcp: rng.normal(0.0, 1.0 * MM, 3)})
+    q = random_poses(ur5, 200, rng)
+    measured = in_tracker(tracker_frame(rng), robot.positions(q + offsets, [tcp])[tcp]) \
+        + NOISE * rng.standard_normal((q.shape[0], 3))
+    result = diagnose(ur5, parse_measurements(measurement_csv(ur5, q, {tcp: measured}, {}, per_frame=False), ur5),
+                      random_state=0, tracker_noise=NOISE)
+    allowed = {"frames"} | ({"geometry", "joint_offsets"} if hidden == "geometry" else set())
+    assert set(result.selected_effects) <= allowed, result.selected_effects
+    assert result.steps[-1].heldout.rms <= 1.1 * result.noise_floor
+    if hidden == "geometry":  # there was geometry to find beyond what the frames absorb, and it was found
+        assert result.steps[0].heldout.rms > 3.0 * result.noise_floor and "geometry" in result.selected_effects
