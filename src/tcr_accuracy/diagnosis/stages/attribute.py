@@ -490,8 +490,10 @@ def motion_sizes(engine: FitEngine, current, groups: dict) -> MotionSizes:
     frames = spans.get("frames", np.zeros(0, dtype=int))
     rest = np.setdiff1d(np.arange(index.size), frames)
     # S = G_rr - G_rf G_ff^+ G_fr: the Gram matrix of the columns after the frames are fitted out
-    schur = gram[np.ix_(rest, rest)] - gram[np.ix_(rest, frames)] @ np.linalg.pinv(
-        gram[np.ix_(frames, frames)]) @ gram[np.ix_(frames, rest)]
+    schur = gram[np.ix_(rest, rest)]
+    if frames.size:
+        schur = schur - gram[np.ix_(rest, frames)] @ np.linalg.pinv(gram[np.ix_(frames, frames)],
+                                                                   hermitian=True) @ gram[np.ix_(frames, rest)]
     variance = fit["cost"] / max(fit["n_observations"] - index.size, 1)
     covariance = variance * np.linalg.pinv(gram, hermitian=True)
     where = {c: i for i, c in enumerate(rest)}
