@@ -170,8 +170,11 @@ def attribute_effects(registered: RegisteredMeasurements, candidate_set: Candida
     tied = [own_share_ranking[0].larger] + [c.smaller for c in own_share_ranking if not c.ranked] \
         if own_share_ranking else members[:1]
     primary = tied[0] if tied else None
-    if primary is not None:  # and those whose fitted motion is larger than the primary's, beyond doubt
-        larger = [e for e in larger_motion(sizes, primary, members, selection_z) if e not in tied]
+    if primary is not None:  # and those of another family whose fitted motion is larger, beyond doubt (within
+        # a family, how the motion is split between its members is the identifiable columns' partition: a
+        # joint placement's turn about its axis is a joint offset)
+        others = [e for e in members if _family(engine, e) != _family(engine, primary)]
+        larger = [e for e in larger_motion(sizes, primary, others, selection_z) if e not in tied]
         if larger:
             notes.append(_motion_note(sizes, primary, larger, "effect"))
             tied += larger
