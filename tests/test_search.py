@@ -100,3 +100,81 @@ def test_the_search_says_what_it_tried(transmission_first):
         assert search["beats_alternative"] == (search["alternative_margin_mm2"] > search["alternative_margin_se_mm2"])
     assert math.isfinite(chosen["heldout_rms_mm"])
     assert any(n.startswith("search beyond the greedy path") for n in result.notes)
+
+
+@pytest.mark.parametrize("hidden", ["noise", "geometry"])
+def test_a_robot_with_nothing_beyond_its_frames_and_geometry_invents_nothing(ur5, hidden):
+    """Null scenarios (the blind benchmark's ``--null``), written on Pinocchio: the nominal UR5 seen
+    from an unknown tracker frame with an unknown TCP offset and the tracker's noise, and the same
+    with joint placement errors and encoder offsets. Every effect chosen beyond those is invented:
+    none may be, and the final held-out error is at the noise floor (within 10 %)."""
+    rng = np.random.default_rng(7)
+    tcp = ur5.tool_frame
+    offsets, placements = (np.zeros(ur5.n_joints), {}) if hidden == "noise" else geometric_errors(
+        ur5, rng, offset_deg=0.03, offset_mm=0.01, placement_mm=0.3, placement_deg=0.02)
+    robot = HiddenRobot(ur5, placements, {tcp: rng.normal(0.0, 1.0 * MM, 3)})
+    q = random_poses(ur5, 200, rng)
+    measured = in_tracker(tracker_frame(rng), robot.positions(q + offsets, [tcp])[tcp]) \
+        + NOISE * rng.standard_normal((q.shape[0], 3))
+    result = diagnose(ur5, parse_measurements(measurement_csv(ur5, q, {tcp: measured}, {}, per_frame=False), ur5),
+                      random_state=0, tracker_noise=NOISE)
+    allowed = {"frames"} | ({"geometry", "joint_offsets"} if hidden == "geometry" else set())
+    assert set(result.selected_effects) <= allowed, result.selected_effects
+    assert result.steps[-1].heldout.rms <= 1.1 * result.noise_floor
+    if hidden == "geometry":  # there was geometry to find beyond what the frames absorb, and it was found
+        assert result.steps[0].heldout.rms > 3.0 * result.noise_floor and "geometry" in result.selected_effects
+
+
+def test_motion_sizes_and_their_standard_error_against_least_squares_and_noise_draws():
+    """The fitted motion beyond the frames that names a primary effect apart (or not): on a linear
+    model written here (random columns: 6 of frames, 3 of joint offsets, 2 of compliance), each size is the RMS per row
+    of the effect's columns times its parameters less their least-squares fit by the frames' columns
+    (numpy), and the standard error of the difference of two sizes is the spread of that difference
+    over 3000 noise draws refitted by numpy's least squares (within 10 %)."""
+    from tcr_accuracy.diagnosis.stages.attribute import motion_sizes
+
+    rng = np.random.default_rng(3)
+    n, sigma = 60, 0.2
+    spans = {"frames": np.arange(6), "joint_offsets": np.arange(6, 9), "compliance": np.arange(9, 11)}
+    jac = rng.standard_normal((3 * n, 11))
+    jac[:, 9] += 0.8 * jac[:, 6]  # compliance's columns overlap the offsets' and the frames'
+    jac[:, 10] += 0.5 * jac[:, 0]
+    truth = rng.normal(0.0, 1.0, 11)
+
+    class Store:
+        total = jac.T @ jac
+
+        class layout:  # noqa: N801  (the engine's ColumnLayout, its one method used here)
+            @staticmethod
+            def indices(effects, keep):
+                return np.concatenate([spans[e][keep[e]] for e in effects])
+
+    class Engine:
+        n_rows, parts = n, [None]
+
+        @staticmethod
+        def evaluate(effects):
+            return {"keep": {e: np.arange(spans[e].size) for e in spans}, "phi": truth,
+                    "cost": sigma**2 * (3 * n - 11), "n_observations": 3 * n}
+
+        @staticmethod
+        def grams():
+            return Store()
+
+    def by_hand(phi, effect):
+        motion = jac[:, spans[effect]] @ phi[spans[effect]]
+        frames = jac[:, spans["frames"]]
+        left = motion - frames @ np.linalg.lstsq(frames, motion, rcond=None)[0]
+        return np.sqrt(np.sum(left**2) / n)
+
+    sizes = motion_sizes(Engine(), ["frames", "joint_offsets", "compliance"], {"joint_offsets": ["joint_offsets"], "compliance": ["compliance"]})
+    assert sizes.size["joint_offsets"] == pytest.approx(by_hand(truth, "joint_offsets"), rel=1e-9)
+    assert sizes.size["compliance"] == pytest.approx(by_hand(truth, "compliance"), rel=1e-9)
+    draws = []
+    for _ in range(3000):
+        y = jac @ truth + sigma * rng.standard_normal(3 * n)
+        phi = np.linalg.lstsq(jac, y, rcond=None)[0]
+        draws.append(by_hand(phi, "joint_offsets") - by_hand(phi, "compliance"))
+    difference, se = sizes.difference("joint_offsets", "compliance")
+    assert difference == pytest.approx(by_hand(truth, "joint_offsets") - by_hand(truth, "compliance"), rel=1e-9)
+    assert se == pytest.approx(np.std(draws), rel=0.1)

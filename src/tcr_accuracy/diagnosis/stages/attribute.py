@@ -154,6 +154,13 @@ def attribute_effects(registered: RegisteredMeasurements, candidate_set: Candida
     families = _family_table(engine, current, stand_ins, bootstrap, selection_z)
     top_families = [f.family for f in families if f.below_largest is None or not f.below_largest.ranked]
     primary_family = top_families[0] if len(top_families) == 1 else None
+    sizes = motion_sizes(engine, current, {**{e: [e] for e in current if e != "frames"},
+                                           **{_FAMILY + f.family: list(f.effects) for f in families}})
+    if primary_family is not None:
+        larger = larger_motion(sizes, _FAMILY + primary_family, [_FAMILY + f.family for f in families], selection_z)
+        if larger:
+            notes.append(_motion_note(sizes, _FAMILY + primary_family, larger, "family"))
+            primary_family = None
     own_table, own_shares = _own_shares(engine, current, bootstrap)
     # within the primary family (or among every chosen effect when no family stands out): the member
     # with the largest own share and those the held-out rows do not rank below it
@@ -164,6 +171,14 @@ def attribute_effects(registered: RegisteredMeasurements, candidate_set: Candida
     tied = [own_share_ranking[0].larger] + [c.smaller for c in own_share_ranking if not c.ranked] \
         if own_share_ranking else members[:1]
     primary = tied[0] if tied else None
+    if primary is not None:  # and those of another family whose fitted motion is larger, beyond doubt (within
+        # a family, how the motion is split between its members is the identifiable columns' partition: a
+        # joint placement's turn about its axis is a joint offset)
+        others = [e for e in members if _family(engine, e) != _family(engine, primary)]
+        larger = [e for e in larger_motion(sizes, primary, others, selection_z) if e not in tied]
+        if larger:
+            notes.append(_motion_note(sizes, primary, larger, "effect"))
+            tied += larger
     primary_group = group_members(selection.groups, primary)
     primary_group += [e for e in tied[1:] if e not in primary_group]
     if primary is not None and any(_family(engine, e) != primary_family for e in primary_group) and \
@@ -438,3 +453,106 @@ def explanation_ladder(engine: FitEngine, selected, first: Step, bootstrap: Pose
     table = bootstrap.read({k: r["heldout_squares"] for k, (_, r) in enumerate(chain)})
     return [first] + [dataclasses.replace(step, gain=tuple(table.difference(k - 1, k)))
                       for k, (step, _) in enumerate(chain) if k > 0]
+
+
+_FAMILY = "family "  # the key of a family's motion in :func:`motion_sizes`, beside the effects'
+
+
+def larger_motion(sizes: "MotionSizes", name: str, others, threshold: float) -> list:
+    """Those of ``others`` whose motion is larger than ``name``'s by more than ``threshold`` standard
+    errors of the difference: the held-out share ranked ``name`` first, the TCP motion its fitted
+    parameters cause does not, and the data cannot say which of the two is the larger cause."""
+    out = []
+    for other in others:
+        if other != name:
+            difference, se = sizes.difference(other, name)
+            if difference > threshold * se:
+                out.append(other)
+    return out
+
+
+def _motion_note(sizes: "MotionSizes", name: str, larger: list, level: str) -> str:
+    """The note that the held-out share and the fitted motion rank ``name`` and ``larger`` differently."""
+    def label(key):
+        return key[len(_FAMILY):] if key.startswith(_FAMILY) else key
+
+    others = "; ".join(f"{label(o)} {sizes.size[o] * 1e3:.4g} mm (larger by {sizes.difference(o, name)[0] * 1e3:.3g} "
+                       f"+- {sizes.difference(o, name)[1] * 1e3:.2g} mm)" for o in larger)
+    return (f"the {level} with the largest held-out share, {label(name)}, moves the TCP by {sizes.size[name] * 1e3:.4g} mm "
+            f"RMS beyond the frames, less than {others}: the share and the motion rank them apart in opposite "
+            f"orders, so the {level} is not named apart from {', '.join(label(o) for o in larger)}")
+
+
+@dataclass(frozen=True)
+class MotionSizes:
+    """How large the TCP motion of groups of a model's parameters is beyond what a change of the
+    frames could absorb, on the fit's own rows and metric (SI units), with the delta method's
+    covariance of those sizes.
+
+    Attributes
+    ----------
+    size : dict
+        name -> RMS per row of the group's motion after the frames' best fit to it [m].
+    gradient : dict
+        name -> (k,) the size's derivative in the model's scaled parameters phi.
+    covariance : numpy.ndarray
+        (k, k) the covariance of phi (the training residual's variance times the inverse of the
+        Gram matrix).
+    """
+
+    size: dict
+    gradient: dict
+    covariance: np.ndarray
+
+    def difference(self, larger: str, smaller: str) -> tuple[float, float]:
+        """(size of ``larger`` less size of ``smaller``, its standard error) [m]."""
+        g = self.gradient[larger] - self.gradient[smaller]
+        return self.size[larger] - self.size[smaller], float(np.sqrt(max(g @ self.covariance @ g, 0.0)))
+
+
+def motion_sizes(engine: FitEngine, current, groups: dict) -> MotionSizes:
+    """The size of each group's motion (``groups``: name -> effects of ``current``) in the chosen
+    model's linear fit, after the frames (the Schur complement of the frames' columns in the Gram
+    matrix: what the frames can fit is taken out, as the benchmark and the contribution table take
+    a rigid frame change out), and what the data say of it: its gradient and the parameters'
+    covariance, so that two sizes can be compared with the standard error of their difference.
+
+    Every number here comes from the engine's total Gram matrix (no per-row array is made).
+    """
+    effects = ordered(current)
+    fit = engine.evaluate(effects)
+    keep = fit["keep"]
+    store = engine.grams()
+    index = store.layout.indices(effects, keep)
+    gram = store.total[np.ix_(index, index)]
+    phi = np.asarray(fit["phi"], dtype=float)
+    at, spans = 0, {}
+    for e in effects:
+        spans[e] = np.arange(at, at + len(keep[e]))
+        at += len(keep[e])
+    frames = spans.get("frames", np.zeros(0, dtype=int))
+    rest = np.setdiff1d(np.arange(index.size), frames)
+    # S = G_rr - G_rf G_ff^+ G_fr: the Gram matrix of the columns after the frames are fitted out
+    schur = gram[np.ix_(rest, rest)]
+    if frames.size:
+        schur = schur - gram[np.ix_(rest, frames)] @ np.linalg.pinv(gram[np.ix_(frames, frames)],
+                                                                   hermitian=True) @ gram[np.ix_(frames, rest)]
+    variance = fit["cost"] / max(fit["n_observations"] - index.size, 1)
+    covariance = variance * np.linalg.pinv(gram, hermitian=True)
+    where = {c: i for i, c in enumerate(rest)}
+    n_rows = engine.n_rows * len(engine.parts)  # every measured frame's rows
+    size, gradient = {}, {}
+    for name, members in groups.items():
+        cols = np.concatenate([spans[e] for e in members if e in spans and e != "frames"] or [np.zeros(0, int)])
+        local = np.array([where[c] for c in cols], dtype=int)
+        v = np.zeros(rest.size)
+        v[local] = phi[cols]
+        sv = schur @ v
+        square = float(v @ sv) / n_rows
+        size[name] = float(np.sqrt(max(square, 0.0)))
+        g = np.zeros(index.size)
+        mask = np.zeros(rest.size, dtype=bool)
+        mask[local] = True
+        g[rest[mask]] = sv[mask] / (n_rows * max(size[name], 1e-300))
+        gradient[name] = g
+    return MotionSizes(size, gradient, covariance)
