@@ -326,3 +326,25 @@ def test_a_stand_in_shape_is_its_columns_times_a_draw_at_the_typical_size():
     assert list(shapes) == ["joint_offsets"]
     np.testing.assert_allclose(shapes["joint_offsets"], expected, rtol=1e-12)
     assert 1e-5 < np.sqrt(np.mean(expected**2)) < 1e-3  # tenths of a millimetre, as the draw's sizes
+
+
+def test_normal_planes_of_a_coarse_corner_take_each_edge_own_direction():
+    """An L path sampled only at its start, its corner and its end (0.2 m along x, then 0.2 m along y):
+    every plane's tangent is its own edge's direction, not the chord across the corner, and its centre
+    lies on that edge at its arc length. Planes within 5 % of the length of the corner are left out.
+    Catches the neighbour beyond a corner taken (``seg + 2`` for ``seg + 1`` as the chord's end, or
+    ``seg - 1`` for ``seg`` as its start after the corner)."""
+    from tcr_accuracy.iso9283.path import CORNER_ZONE, normal_planes
+
+    points = np.array([[0.0, 0.0, 0.0], [0.2, 0.0, 0.0], [0.2, 0.2, 0.0]])
+    s = np.array([0.0, 0.2, 0.4])
+    s_i, centres, tangents = normal_planes(points, s, 10, corners=[1])
+    expected_s = 0.4 * (np.arange(10) + 0.5) / 10
+    expected_s = expected_s[np.abs(expected_s - 0.2) >= CORNER_ZONE * 0.4]
+    np.testing.assert_allclose(s_i, expected_s, rtol=1e-12)
+    on_x = s_i < 0.2
+    assert on_x.any() and (~on_x).any()
+    np.testing.assert_allclose(tangents[on_x], np.tile([1.0, 0.0, 0.0], (on_x.sum(), 1)), atol=1e-12)
+    np.testing.assert_allclose(tangents[~on_x], np.tile([0.0, 1.0, 0.0], ((~on_x).sum(), 1)), atol=1e-12)
+    np.testing.assert_allclose(centres[on_x, 0], s_i[on_x], atol=1e-12)
+    np.testing.assert_allclose(centres[~on_x, 1], s_i[~on_x] - 0.2, atol=1e-12)
