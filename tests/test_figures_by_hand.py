@@ -348,3 +348,55 @@ def test_normal_planes_of_a_coarse_corner_take_each_edge_own_direction():
     np.testing.assert_allclose(tangents[~on_x], np.tile([0.0, 1.0, 0.0], ((~on_x).sum(), 1)), atol=1e-12)
     np.testing.assert_allclose(centres[on_x, 0], s_i[on_x], atol=1e-12)
     np.testing.assert_allclose(centres[~on_x, 1], s_i[~on_x] - 0.2, atol=1e-12)
+
+
+def test_error_stats_of_norms_and_their_millimetre_form_by_hand():
+    """Three error vectors of norms 5, 4 and 12 mm (3-4-0, 0-0-4, 12-0-0): mean 7, RMS
+    sqrt(185/3), max 12 mm, the dict in mm. Catches a mean, RMS or max not scaled by 1e3 (or
+    raised to its power) in ``to_dict``, and the RMS taken over norms not squared."""
+    from tcr_accuracy.diagnosis.records import ErrorStats
+
+    errors = np.array([[3.0, 4.0, 0.0], [0.0, 0.0, 4.0], [12.0, 0.0, 0.0]]) * MM
+    stats = ErrorStats.of(errors)
+    got = stats.to_dict()
+    assert got["count"] == 3
+    assert got["mean_mm"] == pytest.approx(7.0, rel=1e-12)
+    assert got["rms_mm"] == pytest.approx(np.sqrt((25.0 + 16.0 + 144.0) / 3.0), rel=1e-12)
+    assert got["max_mm"] == pytest.approx(12.0, rel=1e-12)
+
+
+def test_registration_keeps_the_columns_not_spanned_by_earlier_ones_whatever_their_scale():
+    """Five columns over 40 rows: a unit column, one 1e-9 as long and independent (kept: the test is
+    relative to each column's own norm), a copy of the first scaled by 7 (dropped), a zero column
+    (dropped) and a 10-long independent one (kept). Judged here by least squares on the earlier
+    columns, the part of each column they leave against 1e-6 of its own norm. Catches the norms
+    taken over rows instead of columns and the tolerance's scale."""
+    from tcr_accuracy.frames.registration import IDENTIFIABILITY_TOL, _identifiable
+
+    rng = np.random.default_rng(3)
+    a, b, c = rng.standard_normal((3, 40))
+    columns = np.column_stack([a, 1e-9 * b, 7.0 * a, np.zeros(40), 10.0 * c])
+    expected = []
+    for k in range(columns.shape[1]):
+        column, earlier = columns[:, k], columns[:, :k]
+        left = column - earlier @ np.linalg.lstsq(earlier, column, rcond=None)[0] if k else column
+        if np.linalg.norm(column) > 0 and np.linalg.norm(left) > IDENTIFIABILITY_TOL * np.linalg.norm(column):
+            expected.append(k)
+    assert expected == [0, 1, 4]
+    assert _identifiable(columns) == expected
+
+
+def test_a_variable_whose_quantile_bins_collapse_to_one_has_no_spread():
+    """95 rows at 0 and six at 1..6 (more distinct values than bins): the quantile edges collapse to
+    0 and 6, one bin holds every row, its mean residual is the rows' mean, and a single bin has no
+    spread between bins (0, not 1). Written out by hand."""
+    from tcr_accuracy.diagnosis.residuals import _binned
+
+    values = np.r_[np.zeros(95), np.arange(1.0, 7.0)]
+    residual = np.random.default_rng(2).normal(0.0, 1e-4, (values.size, 3))
+    got = _binned(values, residual, n_bins=5)
+    assert len(got["bins"]) == 1 and got["spread_mm"] == 0.0
+    (only,) = got["bins"]
+    assert only["count"] == values.size and (only["low"], only["high"]) == (0.0, 6.0)
+    np.testing.assert_allclose(only["mean_mm"], residual.mean(axis=0) * 1e3, rtol=1e-12)
+    assert only["rms_mm"] == pytest.approx(np.sqrt(np.mean(np.sum(residual**2, axis=1))) * 1e3, rel=1e-12)
