@@ -400,3 +400,30 @@ def test_a_variable_whose_quantile_bins_collapse_to_one_has_no_spread():
     assert only["count"] == values.size and (only["low"], only["high"]) == (0.0, 6.0)
     np.testing.assert_allclose(only["mean_mm"], residual.mean(axis=0) * 1e3, rtol=1e-12)
     assert only["rms_mm"] == pytest.approx(np.sqrt(np.mean(np.sum(residual**2, axis=1))) * 1e3, rel=1e-12)
+
+
+def test_a_fitted_tcp_offset_against_the_given_one_by_hand():
+    """The tool twist's translation fitted at (30, 1, 2) mm with no turn, the given offset (31, 0, 0)
+    mm: 2.449 mm apart (sqrt(1 + 1 + 4)), its standard error the difference's unit vector times the
+    per-axis errors (0.01, 0.02, 0.03 mm) in quadrature, written out here; beyond a 2 mm tolerance
+    and said in mm with that error. Catches the error's squares, the mm scale of the words and of
+    the figures written beside them."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.diagnosis.plausibility import _tcp_check
+
+    x = np.zeros(9)
+    x[3:6] = [0.030, 0.001, 0.002]  # the tool slice's twist: translation first, no rotation
+    given = np.array([0.031, 0.0, 0.0])
+    sigma = np.array([0.01, 0.02, 0.03]) * MM
+    std_of = {f"tcp.{c}": s for c, s in zip(("dx", "dy", "dz"), sigma)}
+    check = _tcp_check(x, SimpleNamespace(tool_slice=slice(3, 9)), std_of, "tcp", given,
+                       SimpleNamespace(tcp_offset=2.0 * MM), "tool0")
+    difference = np.array([-1.0, 1.0, 2.0]) * MM
+    size = np.sqrt(6.0) * MM
+    std = np.sqrt(np.sum((difference / size) ** 2 * sigma**2))
+    assert check.value == pytest.approx(size, rel=1e-9) and check.std == pytest.approx(std, rel=1e-9)
+    assert check.flagged
+    assert f"{size / MM:.3g} mm apart (+- {std / MM:.2g})" in check.text
+    np.testing.assert_allclose(check.detail["difference_mm"], difference / MM, rtol=1e-9)
+    np.testing.assert_allclose(check.detail["fitted_mm"], [30.0, 1.0, 2.0], rtol=1e-9)
