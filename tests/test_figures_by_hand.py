@@ -427,3 +427,24 @@ def test_a_fitted_tcp_offset_against_the_given_one_by_hand():
     assert f"{size / MM:.3g} mm apart (+- {std / MM:.2g})" in check.text
     np.testing.assert_allclose(check.detail["difference_mm"], difference / MM, rtol=1e-9)
     np.testing.assert_allclose(check.detail["fitted_mm"], [30.0, 1.0, 2.0], rtol=1e-9)
+
+
+@pytest.mark.parametrize("step_share, first_order_enough", [(0.24, True), (0.26, False)])
+def test_first_order_is_enough_while_a_fixed_point_step_is_within_a_quarter_of_the_noise_floor(
+        monkeypatch, step_share, first_order_enough):
+    """A fixed-point step of the deflections planted at 0.24 and 0.26 of a 0.04 mm noise floor (the
+    step's own computation has its tests): within range only below a quarter, its ratio to the floor
+    and its millimetre figures as planted. Catches the quarter changed and the ratio inverted."""
+    from tcr_accuracy.diagnosis.stages import attribute
+
+    floor = 0.04 * MM
+    rms, largest = step_share * floor, 3.0 * step_share * floor
+    monkeypatch.setattr(attribute, "contributions", lambda *args: {"compliance": 0.5 * MM})
+    monkeypatch.setattr(attribute, "fixed_point_check", lambda *args: (rms, largest, None))
+    reach = attribute.first_order_reach(None, {}, ["compliance"], {}, np.zeros((3, 3)), floor)
+    assert reach.within_range is first_order_enough
+    assert reach.over_noise_floor == pytest.approx(step_share, rel=1e-12)
+    assert reach.to_dict() == pytest.approx({"fixed_point_step_rms_mm": rms / MM,
+                                             "fixed_point_step_max_mm": largest / MM,
+                                             "over_noise_floor": step_share, "within_range": first_order_enough})
+    assert reach.notes == () and reach.contribution == {"compliance": 0.5 * MM}
