@@ -147,3 +147,44 @@ def test_the_chance_note_counts_the_two_sided_normal_tail(robot, pair):
         note = compare_models(robot, old, new, q, z=z).notes[-1]
         assert note == (f"by chance alone, 9 unchanged parameters would give {9 * 2 * norm.sf(z):.2g} flags at "
                         f"z = {z:g} on average (two-sided normal tail)")
+
+
+def test_common_basis_is_the_least_squares_fit_of_the_tcp_with_the_common_parameters_and_a_rigid_motion(robot):
+    """A fit that kept all six joint offsets, read on the common j2, j3, j5 only: their values reproduce its
+    TCP positions over 30 poses best, with a rigid motion of the frame free, as scipy's ``least_squares``
+    finds it on Pinocchio's forward kinematics (rotation vector and translation), to 1e-3 of the largest
+    shift. Seen failing on the cross-product matrix's ``-start[:, 2]`` turned to ``start[:, 2]``, on
+    ``(target - start)`` turned to ``+`` and on ``flat[i] + step[k]`` turned to ``-``."""
+    from scipy.optimize import least_squares
+    from scipy.spatial.transform import Rotation
+
+    from tcr_accuracy.diagnosis.compare import on_common_basis
+
+    values = np.array([4e-4, -3e-4, 2e-4, 1e-4, 5e-4, -2e-4])
+    fit = _fit(robot, values, np.full(6, 1e-5), "old", tool=np.zeros(3))
+    common = {"joint_offsets.j2", "joint_offsets.j3", "joint_offsets.j5"}
+    q = _poses_for(robot, 30)
+    got = on_common_basis(robot, fit, common, q)
+    assert set(got) == common
+    target = _tcp(robot, q + values, np.zeros(3))
+    columns = [1, 2, 4]
+
+    def misfit(x):
+        offsets = np.zeros(6)
+        offsets[columns] = x[:3]
+        moved = _tcp(robot, q + offsets, np.zeros(3)) @ Rotation.from_rotvec(x[3:6]).as_matrix().T + x[6:]
+        return (moved - target).ravel()
+
+    start = np.r_[values[columns], np.zeros(6)]
+    best = least_squares(misfit, start, x_scale=np.r_[np.full(3, 1e-4), np.full(3, 1e-4), np.full(3, 1e-4)],
+                         xtol=1e-15, ftol=1e-15, gtol=1e-15).x
+    expected = {f"joint_offsets.j{c + 1}": best[i] for i, c in enumerate(columns)}
+    shift = max(abs(expected[n] - values[int(n[-1]) - 1]) for n in common)
+    assert shift > 1e-5  # the others' share moved the common ones: something to get right
+    for name in common:
+        assert got[name] == pytest.approx(expected[name], abs=1e-3 * shift), name
+
+
+def _poses_for(robot, n):
+    low, high = robot.joint_bounds()
+    return np.random.default_rng(17).uniform(low, high, size=(n, robot.n_joints))
