@@ -50,6 +50,13 @@ def _residual(engine, cols, rows):
     return flat
 
 
+def _exact_fit(engine):
+    """The engine's exact fit of MODEL, its residual function over every row and its optimum."""
+    result = engine.evaluate(MODEL, exact=True)
+    fun = _residual(engine, engine.columns(MODEL), np.arange(N_POSES))
+    return result, fun, result["phi"]
+
+
 def _jacobian(fun, phi, step=1e-6):
     columns = []
     for i in range(phi.size):
@@ -60,21 +67,17 @@ def _jacobian(fun, phi, step=1e-6):
 
 
 def test_the_exact_fit_its_standard_errors_and_its_figures_are_least_squares_written_out(engine):
-    """The optimum as scipy finds it (each parameter to 0.3 % of its standard error); the cost its sum of squares; the
-    standard errors from the finite-difference Jacobian at the optimum and s^2 = cost / (3N - k) (to
+    """The optimum as scipy finds it (each parameter to 0.3 % of its standard error); the cost its sum of
+    squares; the standard errors from the finite-difference Jacobian at the optimum and s^2 = cost / (3N - k) (to
     0.3 %: the engine's Jacobian is the linearised one); the counts; the training statistics' RMS and
     mean of the rows' norms. Seen failing on ``cost / max(fields["n_observations"] - k, 1)`` turned to
     ``+ k``, on the ``n_observations`` ``self.n_rows * p.rows_per_pose`` turned to ``+`` and on
     ``DampedSolver.standard_errors``' ``np.sqrt(variance * diag)`` turned to ``variance + diag``."""
     engine, _ = engine
-    result = engine.evaluate(MODEL, exact=True)
-    cols = engine.columns(MODEL)
-    every = np.arange(N_POSES)
-    fun = _residual(engine, cols, every)
+    result, fun, phi = _exact_fit(engine)
     k = result["n_parameters"]
-    assert k == len(cols.names) == len(result["names"]) and 10 <= k < 15
+    assert k == len(engine.columns(MODEL).names) == len(result["names"]) and 10 <= k < 15
     assert result["n_observations"] == 3 * N_POSES
-    phi = result["phi"]
     jac = _jacobian(fun, phi)
     reference = least_squares(fun, phi + 0.01, jac=lambda p: _jacobian(fun, p), xtol=1e-15, ftol=1e-15,
                               gtol=1e-15, method="lm").x
@@ -97,11 +100,7 @@ def test_each_fold_is_one_gauss_newton_step_on_its_training_rows_and_scored_on_i
     Seen failing on ``total_gradient - held_gradient`` turned to ``+``, on ``gram - store.held_blocks()``
     turned to ``+``, and on the held-out squares' mean over the fold assignments turned to twice their sum."""
     engine, folds = engine
-    result = engine.evaluate(MODEL, exact=True)
-    cols = engine.columns(MODEL)
-    every = np.arange(N_POSES)
-    fun = _residual(engine, cols, every)
-    phi = result["phi"]
+    result, fun, phi = _exact_fit(engine)
     jac = _jacobian(fun, phi).reshape(N_POSES, 3, -1)
     residual = fun(phi).reshape(N_POSES, 3)
     held = np.empty((N_POSES, 3))
