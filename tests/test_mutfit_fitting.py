@@ -22,9 +22,9 @@ N_POSES = 14
 
 
 @pytest.fixture(scope="module")
-def engine():
-    """An engine over 14 poses of a tool-changer whose joints are off by a few hundredths of a degree
-    (the hidden truth, through Pinocchio), 30 um noise per axis, three folds chosen here."""
+def diagnosis():
+    """A diagnosis of 14 poses of a tool-changer whose joints are off by a few hundredths of a degree
+    (the hidden truth, through Pinocchio), 30 um noise per axis."""
     robot = load_robot()
     rng = np.random.default_rng(36)
     low, high = robot.joint_bounds()
@@ -38,7 +38,13 @@ def engine():
         position[i] = data.oMf[robot.tool_frame_id].translation
     position += 3e-5 * rng.standard_normal(position.shape)
     measured = MeasurementSet(joint_names=robot.joint_names, q=q, position=position)
-    fitted = GapDiagnosis(robot=robot, effects=["joint_offsets"], folds=2, stability_replays=2).fit(measured).engine_
+    return GapDiagnosis(robot=robot, effects=["joint_offsets"], folds=2, stability_replays=2).fit(measured)
+
+
+@pytest.fixture(scope="module")
+def engine(diagnosis):
+    """A new engine on the diagnosis' rows and columns, with three folds chosen here."""
+    fitted = diagnosis.engine_
     tests = np.array_split(np.random.default_rng(1).permutation(N_POSES), 3)
     folds = [(np.setdiff1d(np.arange(N_POSES), t), np.sort(t)) for t in tests]
     return FitEngine(fitted.parts, fitted.bases, folds, rank_tol=fitted.rank_tol, min_motion=fitted.min_motion), folds
@@ -174,3 +180,29 @@ def test_orientation_errors_are_given_in_radians_at_the_noise_drawn():
         assert errors.shape == (n, 3)
         rms = np.sqrt(np.mean(errors**2))
         assert 0.75 * noise < rms < 1.25 * noise, (key, rms)
+
+
+def test_a_ladder_step_is_its_models_exact_fit_and_the_paired_z_against_the_step_before(diagnosis):
+    """``GapDiagnosis.ladder``: one step per effect added, each naming the effects fitted so far, its
+    parameter count and training RMS those of its model's exact fit, its held-out RMS, mean and max of
+    the rows' norms, and the z of the paired mean cut in per-row squared held-out errors against the step
+    before (mean over its standard error, ``ddof=1``, written out). Seen failing on the step's
+    ``sequence[:k + 1]`` turned to ``[:k + 2]``."""
+    steps = diagnosis.ladder(["joint_offsets"])
+    assert [(s.effect, s.effects) for s in steps] == [("frames", ("frames",)),
+                                                       ("joint_offsets", ("frames", "joint_offsets"))]
+    previous = None
+    for step in steps:
+        fit = diagnosis.engine_.evaluate(list(step.effects), exact=True)
+        assert step.n_parameters == fit["n_parameters"]
+        assert step.train_rms == pytest.approx(np.sqrt(np.mean(np.sum(fit["train_residual"] ** 2, axis=1))), rel=1e-9)
+        norms = np.linalg.norm(fit["heldout_residual"], axis=1)
+        assert (step.heldout.rms, step.heldout.mean, step.heldout.max) == pytest.approx(
+            (np.sqrt(np.mean(norms**2)), norms.mean(), norms.max()), rel=1e-9)
+        if previous is None:
+            assert step.z_statistic is None
+        else:
+            d = np.sum(previous**2, axis=1) - norms**2
+            assert step.z_statistic == pytest.approx(d.mean() / (d.std(ddof=1) / np.sqrt(d.size)), rel=1e-9)
+        previous = fit["heldout_residual"]
+    assert steps[1].z_statistic > 3 and steps[1].heldout.rms < 0.5 * steps[0].heldout.rms  # the offsets explain
