@@ -186,8 +186,10 @@ def test_a_ladder_step_is_its_models_exact_fit_and_the_paired_z_against_the_step
     """``GapDiagnosis.ladder``: one step per effect added, each naming the effects fitted so far, its
     parameter count and training RMS those of its model's exact fit, its held-out RMS, mean and max of
     the rows' norms, and the z of the paired mean cut in per-row squared held-out errors against the step
-    before (mean over its standard error, ``ddof=1``, written out). Seen failing on the step's
-    ``sequence[:k + 1]`` turned to ``[:k + 2]``."""
+    before (mean over its standard error, ``ddof=1``, written out); the fold assignments, none asked
+    for: min(5, round(10 000 / 14 rows)) = 5. Seen failing on the step's ``sequence[:k + 1]`` turned to
+    ``[:k + 2]`` and on the repeats' ``np.clip(..., 1, 5)`` turned to ``(..., 1, 6)``."""
+    assert len(diagnosis.engine_.repeats) == 5
     steps = diagnosis.ladder(["joint_offsets"])
     assert [(s.effect, s.effects) for s in steps] == [("frames", ("frames",)),
                                                        ("joint_offsets", ("frames", "joint_offsets"))]
