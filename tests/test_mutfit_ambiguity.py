@@ -70,3 +70,12 @@ def test_a_swap_is_within_reach_below_the_paired_z_and_within_two_percent_of_the
     t = ttest_rel(squares, reference).statistic
     assert 0 < t < 3
     assert within_reach(squares, reference, t * 1.001) and not within_reach(squares, reference, t * 0.999)
+
+
+def test_with_one_row_the_rule_keeps_only_what_is_no_worse():
+    """One held-out row: no standard error of the difference (0), so a member is within reach of the best
+    only when its squared error is not above the best's. Seen failing on the one-row ``else 0.0`` turned to
+    ``1.0``."""
+    best = _row("best", np.array([1.0]), 9)
+    assert one_standard_error_choice([best, _row("worse", np.array([1.5]), 2)])["effect"] == "best"
+    assert one_standard_error_choice([best, _row("tied", np.array([1.0]), 2)])["effect"] == "tied"

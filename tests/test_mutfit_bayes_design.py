@@ -82,3 +82,22 @@ def test_a_learning_curve_needs_twenty_poses():
     curve = learning_curve(DesignColumns(g, owner, ["frames", "compliance"]), errors, prior, np.random.default_rng(1),
                            n_sizes=2, repeats=2, n_boot=5)
     assert curve.sizes.tolist() == [10, 16]
+
+
+def test_a_posterior_information_indefinite_in_rounding_is_factored_with_a_growing_jitter():
+    """An information matrix whose smallest eigenvalue is -5e-12 of its mean diagonal (two columns alike
+    but for rounding): the jitter grows from 1e-13 of the mean diagonal a hundredfold a try until the
+    Cholesky factor exists, and the factor is that of the matrix to 1e-10. Seen failing on ``jitter /
+    scale * 100`` turned to ``jitter / scale ** 100`` (the jitter falls back to 0 and never grows)."""
+    from scipy import linalg
+
+    from tcr_accuracy.diagnosis.bayes_design import _cholesky
+
+    information = np.array([[1.0, 1.0, 0.0], [1.0, 1.0 - 1e-11, 0.0], [0.0, 0.0, 1.0]])
+    assert np.linalg.eigvalsh(information)[0] < 0
+    with pytest.raises(linalg.LinAlgError):
+        linalg.cho_factor(information + 1e-13 * np.mean(np.diag(information)) * np.eye(3))
+    factor, lower = _cholesky(information)
+    triangle = np.tril(factor) if lower else np.triu(factor)
+    rebuilt = triangle @ triangle.T if lower else triangle.T @ triangle
+    np.testing.assert_allclose(rebuilt, information, rtol=0, atol=1e-10)

@@ -42,7 +42,8 @@ def test_plan_poses_is_the_greedy_log_det_written_out(robot, separate):
     its gain, the plan's log det gain, and the combinations resolved above noise^2 before and after, as
     computed here. Seen failing on ``ridge = 1e-6 * ...`` turned to ``1e-5``, on ``(whole -
     tracker.gains(...)) / size`` turned to ``* size``, on ``- start_logdet`` turned to ``+`` and on
-    ``> noise_m**2`` turned to ``noise_m**3``."""
+    ``> noise_m**2`` turned to ``noise_m**3``; one pose asked for is planned (seen failing on ``k < 1``
+    turned to ``k < 2``)."""
     effects = ["frames", "joint_offsets", "encoder_scale"]
     measured, candidates = _poses(robot, 3, 1), _poses(robot, 60, 2)
     noise = 2e-5
@@ -81,6 +82,8 @@ def test_plan_poses_is_the_greedy_log_det_written_out(robot, separate):
     resolved = [int(np.sum(np.linalg.eigvalsh(m - ridge * np.eye(p)) > noise**2)) for m in (start, info)]
     assert (plan.resolved_before, plan.resolved_after) == tuple(resolved)
     assert resolved[0] < resolved[1] < p + 1
+    one = plan_poses(robot, measured, effects, 1, separate=separate, candidates=candidates, noise_m=noise)
+    np.testing.assert_array_equal(one.q, candidates[picked[:1]])  # one pose asked: the first pick
 
 
 def test_a_rival_refit_leaves_the_discrepancy_least_squares_leaves(robot):
