@@ -5,11 +5,14 @@ reference's). Each test names a planted change it was seen to catch (issue 36)."
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from scipy.stats import ttest_rel
 
-from tcr_accuracy.diagnosis.ambiguity import one_standard_error_choice, within_reach
+from tcr_accuracy.diagnosis.ambiguity import one_standard_error_choice, settle_swaps, within_reach
+from tcr_accuracy.diagnosis.records import ErrorStats
 
 
 def _standardised(rng, n: int) -> np.ndarray:
@@ -79,3 +82,57 @@ def test_with_one_row_the_rule_keeps_only_what_is_no_worse():
     best = _row("best", np.array([1.0]), 9)
     assert one_standard_error_choice([best, _row("worse", np.array([1.5]), 2)])["effect"] == "best"
     assert one_standard_error_choice([best, _row("tied", np.array([1.0]), 2)])["effect"] == "tied"
+
+
+class _Engine:
+    """A stand-in for the fit engine: each set of effects' per-row held-out squared errors and parameter
+    count, set by the test (what ``settle_swaps`` reads of a fit); the effects unbounded."""
+
+    def __init__(self, squares: dict, counts: dict):
+        self.squares, self.counts = squares, counts
+        self.bases = {e: SimpleNamespace(lower=np.full(1, -np.inf), upper=np.full(1, np.inf))
+                      for e in ("frames", "joint_offsets", "encoder_scale")}
+
+    def evaluate(self, effects):
+        key = frozenset(effects)
+        squares = self.squares[key]
+        norms = np.sqrt(squares)
+        return {"heldout_squares": squares, "n_parameters": self.counts[key], "phi": np.zeros(len(effects)),
+                "scale": np.ones(len(effects)), "effects": tuple(effects),
+                "keep": {e: np.zeros(1, dtype=int) for e in effects},
+                "heldout_stats": ErrorStats(float(norms.mean()), float(np.sqrt(np.mean(squares))), float(norms.max()),
+                                            norms.size)}
+
+
+def test_a_swap_is_made_only_within_one_standard_error_of_the_best_model_seen():
+    """joint_offsets (15 parameters) against encoder_scale (12), as good within noise: swapped for the
+    fewer parameters when the best model seen is the chosen one (the swap's record in mm written out here),
+    kept when the best seen is better and the swap's paired z against it (scipy's ``ttest_rel``) lies
+    between 1 and 2. Seen failing on ``within_reach(..., reference, 1.0)`` turned to ``2.0`` and on the
+    row's ``held.rms * 1e3`` turned to ``1e2``."""
+    rng = np.random.default_rng(8)
+    n = 400
+    chosen = rng.chisquare(3, n) + 2.0
+    swapped = chosen + 0.05 * _standardised(rng, n)  # neither better nor worse
+    without = chosen + 3.0 + rng.chisquare(2, n)
+    squares = {frozenset(["frames"]): without, frozenset(["frames", "joint_offsets"]): chosen,
+               frozenset(["frames", "encoder_scale"]): swapped,
+               frozenset(["frames", "joint_offsets", "encoder_scale"]): chosen - 0.01}
+    counts = {frozenset(["frames"]): 9, frozenset(["frames", "joint_offsets"]): 15,
+              frozenset(["frames", "encoder_scale"]): 12, frozenset(["frames", "joint_offsets", "encoder_scale"]): 18}
+    engine = _Engine(squares, counts)
+    pool = ["frames", "joint_offsets", "encoder_scale"]
+    current, swaps = settle_swaps(engine, ["frames", "joint_offsets"], pool, 2.0, lambda message: None,
+                                  reference=chosen)
+    assert current == ["frames", "encoder_scale"]
+    assert swaps == [{"out": "joint_offsets", "in": "encoder_scale",
+                      "heldout_rms_mm": {"joint_offsets": pytest.approx(np.sqrt(np.mean(chosen)) * 1e3, rel=1e-12),
+                                         "encoder_scale": pytest.approx(np.sqrt(np.mean(swapped)) * 1e3, rel=1e-12)},
+                      "n_parameters": {"joint_offsets": 15, "encoder_scale": 12}}]
+    # the best model seen a little better: the swap's z against it between 1 and 2
+    better = swapped - 1.5 * 0.05 / np.sqrt(n) - 0.05 * _standardised(rng, n)  # paired z 1.5
+    t = ttest_rel(swapped, better).statistic
+    assert 1.0 < t < 2.0
+    current, swaps = settle_swaps(engine, ["frames", "joint_offsets"], pool, 2.0, lambda message: None,
+                                  reference=better)
+    assert current == ["frames", "joint_offsets"] and swaps == []
