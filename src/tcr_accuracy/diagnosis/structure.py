@@ -23,7 +23,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from ..analysis.semivariogram import empirical_semivariogram, fit_gaussian_variogram, standardize
+from ..analysis.semivariogram import empirical_semivariogram, fit_gaussian_variogram, nearest_neighbours, standardize
 from .paired import stacked
 
 #: Amplitudes [x the per-axis noise, RMS per axis] at which the power probe injects a
@@ -85,7 +85,7 @@ class StructureDetector:
     Two predictors, each judged out of sample:
 
     * local: each residual predicted by the mean of its k nearest neighbours in
-      standardised joint space (scikit-learn), over all joints, each joint and each pair
+      standardised joint space (scipy's k-d tree), over all joints, each joint and each pair
       of joints, compared with the same statistic after shuffling residuals over poses (z
       against the permutation distribution, Bonferroni over the subsets);
     * global: ridge regression (scikit-learn ``RidgeCV``) on smooth joint features
@@ -106,7 +106,6 @@ class StructureDetector:
                  n_permutations: int = 100, alpha: float = 1e-3, min_explained: float = 0.05, folds: int = 5,
                  max_poses: int | None = None):
         from sklearn.model_selection import KFold
-        from sklearn.neighbors import NearestNeighbors
 
         max_poses = self.MAX_POSES if max_poses is None else max_poses
         self.n_total, self.rows = len(q), None
@@ -124,8 +123,7 @@ class StructureDetector:
         self.neighbours = []  # (subset, sparse (N, N) matrix averaging each pose's k neighbours)
         self._banded = []  # per subset, the poses renumbered and its matrix in their order (_banded)
         for subset in subsets:
-            nn = NearestNeighbors(n_neighbors=min(k + 1, len(q))).fit(qs[:, subset])
-            self.neighbours.append((subset, _averaging(nn.kneighbors(qs[:, subset], return_distance=False)[:, 1:])))
+            self.neighbours.append((subset, _averaging(nearest_neighbours(qs[:, subset], min(k, len(q) - 1)))))
             self._banded.append(_banded(self.neighbours[-1][1]))
         self.perms = [rng.permutation(len(q)) for _ in range(n_permutations)]
         kinds = kinds if kinds is not None else ["revolute"] * q.shape[1]
