@@ -68,7 +68,8 @@ class EffectBasis:
     rows, then weighted orientation rows when the part measures orientation.
     """
 
-    def __init__(self, effect, part: Part, em: ErrorModel, jac_x: np.ndarray, names: list[str] | None = None):
+    def __init__(self, effect, part: Part, em: ErrorModel, jac_x: np.ndarray, names: list[str] | None = None,
+                 jac_q: np.ndarray | None = None):
         self.effect = effect
         self.name = effect.name
         self.names = list(names if names is not None else effect.parameter_names())
@@ -90,7 +91,7 @@ class EffectBasis:
         else:
             maps = effect.parameter_jacobian(np.zeros(k), part.q, part.context)
             self.basis = ErrorMap.of(n, em.size, em.drive_slice, maps.x, maps.dq, k)
-        self.relinearise(jac_x)
+        self.relinearise(jac_x, jac_q)
         self.nonlinearity = 0.0
         if type(effect).perturb is LinearEffect.perturb:
             return  # perturb is this very map: nothing to check
@@ -105,10 +106,14 @@ class EffectBasis:
         size = max(float(np.abs(total).max()), 1e-300)
         self.nonlinearity = float(np.abs(total - self.basis.errors(probe)).max() / size)
 
-    def relinearise(self, jac_x: np.ndarray) -> None:
-        """TCP sensitivity (N, r, P) for error Jacobians jac_x (N, r, p_em) (its factors, a
-        :class:`~tcr_accuracy.diagnosis.error_map.JointColumnsSensitivity`, for a per-joint series)."""
-        self.g = self.basis.joint_sensitivity(jac_x) if self.factored else self.basis.sensitivity(jac_x)
+    def relinearise(self, jac_x: np.ndarray, jac_q: np.ndarray | None = None) -> None:
+        """TCP sensitivity (N, r, P) for error Jacobians jac_x (N, r, p_em): its factors (a
+        :class:`~tcr_accuracy.diagnosis.error_map.JointColumnsSensitivity`) where every column moves
+        one joint's drive only (a per-joint series, joint offsets, compliance, backlash, gear errors:
+        at 10^5 poses those effects' dense (N, r, P) arrays were 150 MB, their factors a sixth of it
+        with the drive columns of jac_x shared, ``jac_q`` (N, r, n_joints) or None), else the
+        dense array."""
+        self.g = self.basis.joint_sensitivity(jac_x, jac_q)
 
 
 class UnionBasis:

@@ -153,15 +153,17 @@ class ErrorMap:
             g[:, :, self.drive_columns] += jac_x[:, :, self.drive_slice] @ self.drive
         return g
 
-    def joint_sensitivity(self, jac_x: np.ndarray):
+    def joint_sensitivity(self, jac_x: np.ndarray, jac_q: np.ndarray | None = None):
         """The TCP sensitivity as :meth:`sensitivity`, left as its two factors
         (:class:`JointColumnsSensitivity`) when every column moves one joint and nothing else (a
         cyclic series: its (N, r, k) product was 806 MB at 10^5 poses, the factors n_joints x
-        r + k floats a pose); else the dense array."""
+        r + k floats a pose); else the dense array. ``jac_q``: the drive columns of jac_x (N, r,
+        n_joints), contiguous, when the caller shares one copy of them among several effects."""
         if self.drive is None or self.drive_joint is None or self.per_pose is not None or np.any(self.fixed):
             return self.sensitivity(jac_x)
-        return JointColumnsSensitivity(np.ascontiguousarray(jac_x[:, :, self.drive_slice]), self.drive,
-                                       self.drive_joint, self.drive_columns, self.n_columns)
+        if jac_q is None:
+            jac_q = np.ascontiguousarray(jac_x[:, :, self.drive_slice])
+        return JointColumnsSensitivity(jac_q, self.drive, self.drive_joint, self.drive_columns, self.n_columns)
 
     def take(self, columns) -> "ErrorMap":
         """The map of some of its columns, in the given order."""
