@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from tcr_accuracy.analysis.semivariogram import nearest_neighbours
+from tcr_accuracy.diagnosis.error_map import SensitivityWhenRead
 from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.io.measurements import parse_measurements
 from tcr_accuracy.units import parse_number, parse_number_table
@@ -93,3 +94,42 @@ def test_nearest_neighbours_are_the_k_closest_other_points_by_a_full_sort(d):
     np.fill_diagonal(distance, np.inf)  # a point is not its own neighbour
     expected = np.argsort(distance, axis=1, kind="stable")[:, :7]
     np.testing.assert_array_equal(got, expected)
+
+
+@pytest.mark.parametrize("name", ["geometry", "lateral_compliance", "thermal", "drift", "joint_offsets",
+                                  "compliance", "transmission"])
+def test_a_sensitivity_made_when_read_or_held_as_factors_is_the_chained_dense_jacobian(ur5, monkeypatch, name):
+    """Every effect's TCP sensitivity, however the basis holds it (made when read, forced here; factors;
+    dense), against the error Jacobian times the effect's dense parameter Jacobian chained by hand."""
+    from tcr_accuracy.diagnosis import bases as bases_module
+    from tcr_accuracy.diagnosis.bases import EffectBasis, Part, position_jacobians
+    from tcr_accuracy.effects.base import make_effect
+    from tcr_accuracy.model.context import MeasurementContext
+    from tcr_accuracy.model.errors import ErrorModel
+
+    rng = np.random.default_rng(3)
+    n = 150
+    q = rng.uniform(-2.5, 2.5, (n, ur5.n_joints))
+    context = MeasurementContext(np.full(n, 2.0), 20.0 + rng.uniform(-5, 5, n), np.sign(rng.standard_normal((n, 6))),
+                                 time_s=np.sort(rng.uniform(0, 3600, n)))
+    part = Part(ur5, q, np.zeros((n, 3)), context, "tool0")
+    effect = make_effect(name, ur5, **make_effect(name, ur5).fit_policy.options_for_data(ur5, q, context))
+    em = ErrorModel(ur5)
+    jac_x = position_jacobians(ur5, q)
+    maps = effect.parameter_jacobian(np.zeros(effect.n_params), q, context)
+    expected = np.zeros((n, 3, effect.n_params))
+    if maps.x is not None:
+        expected += np.einsum("nrp,npk->nrk", jac_x, np.broadcast_to(maps.x, (n,) + maps.x.shape[-2:]))
+    if maps.dq is not None:
+        expected += np.einsum("nrj,njk->nrk", jac_x[:, :, em.drive_slice], maps.dq)
+    for limit in (0.0, 1e12):  # made when read / held
+        monkeypatch.setattr(bases_module, "DENSE_BYTES", limit)
+        g = EffectBasis(effect, part, em, jac_x).g
+        if limit == 0.0 and name in ("geometry", "lateral_compliance", "thermal", "drift"):
+            assert isinstance(g, SensitivityWhenRead)  # the path under test, not the dense array
+        assert g.shape == expected.shape
+        np.testing.assert_allclose(np.asarray(g), expected, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(g[20:57], expected[20:57], rtol=1e-12, atol=1e-15)
+        picked = np.array([140, 3, 77, 3])
+        np.testing.assert_allclose(g[picked], expected[picked], rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(g[5], expected[5], rtol=1e-12, atol=1e-15)

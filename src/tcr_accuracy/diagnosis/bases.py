@@ -21,7 +21,10 @@ from ..model.context import MeasurementContext
 from ..model.errors import ErrorModel
 from ..model.jacobians import error_jacobians
 from ..model.robot import JointLimitWarning, RobotModel
-from .error_map import ErrorMap
+from .error_map import ErrorMap, SensitivityWhenRead
+
+#: an effect's dense TCP sensitivity (N, r, P) is held up to this many bytes, made when read beyond
+DENSE_BYTES = 32e6
 
 
 def ordered(effects) -> list:
@@ -112,8 +115,13 @@ class EffectBasis:
         one joint's drive only (a per-joint series, joint offsets, compliance, backlash, gear errors:
         at 10^5 poses those effects' dense (N, r, P) arrays were 150 MB, their factors a sixth of it
         with the drive columns of jac_x shared, ``jac_q`` (N, r, n_joints) or None), else the
-        dense array."""
-        self.g = self.basis.joint_sensitivity(jac_x, jac_q)
+        dense array, made when read (:class:`~tcr_accuracy.diagnosis.error_map.SensitivityWhenRead`, holding
+        jac_x, which the caller shares among the effects) where it would be over :data:`DENSE_BYTES`."""
+        n, r, _ = jac_x.shape
+        if not self.basis.factors_only() and n * r * self.basis.n_columns * 8 > DENSE_BYTES:
+            self.g = SensitivityWhenRead(self.basis, jac_x)
+        else:
+            self.g = self.basis.joint_sensitivity(jac_x, jac_q)
 
 
 class UnionBasis:
