@@ -23,8 +23,9 @@ from ..model.jacobians import error_jacobians
 from ..model.robot import JointLimitWarning, RobotModel
 from .error_map import ErrorMap, SensitivityWhenRead
 
-#: an effect's dense TCP sensitivity (N, r, P) is held up to this many bytes, made when read beyond
-DENSE_BYTES = 32e6
+#: an effect's dense TCP sensitivity (N, r, P) is held up to this many bytes (the largest, lateral compliance's,
+#: is 14 MB at 10^4 poses), held as factors or made when read beyond
+DENSE_BYTES = 16e6
 
 
 def ordered(effects) -> list:
@@ -110,18 +111,22 @@ class EffectBasis:
         self.nonlinearity = float(np.abs(total - self.basis.errors(probe)).max() / size)
 
     def relinearise(self, jac_x: np.ndarray, jac_q: np.ndarray | None = None) -> None:
-        """TCP sensitivity (N, r, P) for error Jacobians jac_x (N, r, p_em): its factors (a
+        """TCP sensitivity (N, r, P) for error Jacobians jac_x (N, r, p_em): the dense array while it is
+        at most :data:`DENSE_BYTES` (read faster so), beyond that its factors (a
         :class:`~tcr_accuracy.diagnosis.error_map.JointColumnsSensitivity`) where every column moves
-        one joint's drive only (a per-joint series, joint offsets, compliance, backlash, gear errors:
-        at 10^5 poses those effects' dense (N, r, P) arrays were 150 MB, their factors a sixth of it
-        with the drive columns of jac_x shared, ``jac_q`` (N, r, n_joints) or None), else the
-        dense array, made when read (:class:`~tcr_accuracy.diagnosis.error_map.SensitivityWhenRead`, holding
-        jac_x, which the caller shares among the effects) where it would be over :data:`DENSE_BYTES`."""
+        one joint's drive only (joint offsets, compliance, backlash, gear errors: at 10^5 poses their
+        dense arrays were 150 MB, their factors a sixth of it with the drive columns of jac_x shared,
+        ``jac_q`` (N, r, n_joints) or None), else made when read
+        (:class:`~tcr_accuracy.diagnosis.error_map.SensitivityWhenRead`, holding jac_x, which the caller
+        shares among the effects). A per-joint series (``factored``) is held as factors at any size."""
         n, r, _ = jac_x.shape
-        if not self.basis.factors_only() and n * r * self.basis.n_columns * 8 > DENSE_BYTES:
+        large = n * r * self.basis.n_columns * 8 > DENSE_BYTES  # small ones are read faster dense
+        if self.basis.factors_only() and (self.factored or large):
+            self.g = self.basis.joint_sensitivity(jac_x, jac_q)
+        elif large:
             self.g = SensitivityWhenRead(self.basis, jac_x)
         else:
-            self.g = self.basis.joint_sensitivity(jac_x, jac_q)
+            self.g = self.basis.sensitivity(jac_x)
 
 
 class UnionBasis:
