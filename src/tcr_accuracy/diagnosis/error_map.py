@@ -240,16 +240,28 @@ class JoinedMaps:
         return out
 
 
-class SensitivityWhenRead:
+class _SensitivityRows:
+    """A TCP sensitivity (N, r, k) that makes its rows when indexed: ``g[rows]``, ``g[rows, ...]``, ``g[i]``
+    (subclasses give :meth:`rows` for a slice or an index array)."""
+
+    ndim = 3
+    dtype = np.dtype(float)
+
+    def __getitem__(self, key):
+        if not isinstance(key, tuple):
+            key = (key,)
+        if isinstance(key[0], (int, np.integer)):
+            return self.rows([key[0]])[0][key[1:]]
+        return self.rows(key[0])[(slice(None),) + key[1:]]
+
+
+class SensitivityWhenRead(_SensitivityRows):
     """A TCP sensitivity (N, r, k) made when its rows are read, from the effect's error map (compact:
     what is the same for every pose, its per-pose entries, its drive values) and the error Jacobians
     (N, r, p_em), which every effect held so shares: ``g[rows]`` is :meth:`ErrorMap.sensitivity` of
     those rows (the same floats as the whole array's rows). At 10^5 poses geometry, lateral compliance,
     thermal growth and drift held 350 MB of dense sensitivities, the shared Jacobians are 130 MB.
     ``np.asarray`` of it is the whole dense array."""
-
-    ndim = 3
-    dtype = np.dtype(float)
 
     def __init__(self, basis: ErrorMap, jac_x: np.ndarray):
         self.basis, self.jac_x = basis, jac_x
@@ -259,13 +271,6 @@ class SensitivityWhenRead:
         """g[rows] (len(rows), r, k) for a slice or an index array."""
         return self.basis.sensitivity(self.jac_x[rows], rows)
 
-    def __getitem__(self, key):
-        if not isinstance(key, tuple):
-            key = (key,)
-        if isinstance(key[0], (int, np.integer)):
-            return self.rows([key[0]])[0][key[1:]]
-        return self.rows(key[0])[(slice(None),) + key[1:]]
-
     def __array__(self, dtype=None, copy=None):
         out = np.empty(self.shape)
         for start in range(0, self.shape[0], ErrorMap.CHUNK):
@@ -274,15 +279,12 @@ class SensitivityWhenRead:
         return out if dtype is None else out.astype(dtype)
 
 
-class JointColumnsSensitivity:
+class JointColumnsSensitivity(_SensitivityRows):
     """A TCP sensitivity (N, r, k) whose every column moves one joint, held as its two factors:
     g[n, :, c] = jac_q[n, :, joint[c]] * values[n, c] (the joints' columns of the error Jacobian times
     each parameter's joint offset per unit). Rows are made on demand (``g[rows]``, ``g[rows, ...]``:
     the same floats as the dense product), and the products the fit takes are formed from the
     factors (:meth:`transposed_times`). ``np.asarray`` of it is the whole dense array."""
-
-    ndim = 3
-    dtype = np.dtype(float)
 
     def __init__(self, jac_q: np.ndarray, values: np.ndarray, joint: np.ndarray, columns: np.ndarray, k: int):
         """jac_q (N, r, n_joints), values (N, k_drive), joint (k_drive,), columns (k_drive,) of the k."""
@@ -299,13 +301,6 @@ class JointColumnsSensitivity:
         out = np.zeros((jac_q.shape[0], self.shape[1], self.shape[2]))
         out[:, :, self.columns] = product
         return out
-
-    def __getitem__(self, key):
-        if not isinstance(key, tuple):
-            key = (key,)
-        if isinstance(key[0], (int, np.integer)):
-            return self.rows([key[0]])[0][key[1:]]
-        return self.rows(key[0])[(slice(None),) + key[1:]]
 
     def __array__(self, dtype=None, copy=None):
         out = self.rows(slice(None))
