@@ -21,7 +21,11 @@ from ..model.context import MeasurementContext
 from ..model.errors import ErrorModel
 from ..model.jacobians import error_jacobians
 from ..model.robot import JointLimitWarning, RobotModel
-from .error_map import ErrorMap
+from .error_map import ErrorMap, SensitivityWhenRead
+
+#: an effect's dense TCP sensitivity (N, r, P) is held up to this many bytes (the largest, lateral compliance's,
+#: is 14 MB at 10^4 poses), held as factors or made when read beyond
+DENSE_BYTES = 16e6
 
 
 def ordered(effects) -> list:
@@ -68,7 +72,8 @@ class EffectBasis:
     rows, then weighted orientation rows when the part measures orientation.
     """
 
-    def __init__(self, effect, part: Part, em: ErrorModel, jac_x: np.ndarray, names: list[str] | None = None):
+    def __init__(self, effect, part: Part, em: ErrorModel, jac_x: np.ndarray, names: list[str] | None = None,
+                 jac_q: np.ndarray | None = None):
         self.effect = effect
         self.name = effect.name
         self.names = list(names if names is not None else effect.parameter_names())
@@ -90,7 +95,7 @@ class EffectBasis:
         else:
             maps = effect.parameter_jacobian(np.zeros(k), part.q, part.context)
             self.basis = ErrorMap.of(n, em.size, em.drive_slice, maps.x, maps.dq, k)
-        self.relinearise(jac_x)
+        self.relinearise(jac_x, jac_q)
         self.nonlinearity = 0.0
         if type(effect).perturb is LinearEffect.perturb:
             return  # perturb is this very map: nothing to check
@@ -105,10 +110,23 @@ class EffectBasis:
         size = max(float(np.abs(total).max()), 1e-300)
         self.nonlinearity = float(np.abs(total - self.basis.errors(probe)).max() / size)
 
-    def relinearise(self, jac_x: np.ndarray) -> None:
-        """TCP sensitivity (N, r, P) for error Jacobians jac_x (N, r, p_em) (its factors, a
-        :class:`~tcr_accuracy.diagnosis.error_map.JointColumnsSensitivity`, for a per-joint series)."""
-        self.g = self.basis.joint_sensitivity(jac_x) if self.factored else self.basis.sensitivity(jac_x)
+    def relinearise(self, jac_x: np.ndarray, jac_q: np.ndarray | None = None) -> None:
+        """TCP sensitivity (N, r, P) for error Jacobians jac_x (N, r, p_em): the dense array while it is
+        at most :data:`DENSE_BYTES` (read faster so), beyond that its factors (a
+        :class:`~tcr_accuracy.diagnosis.error_map.JointColumnsSensitivity`) where every column moves
+        one joint's drive only (joint offsets, compliance, backlash, gear errors: at 10^5 poses their
+        dense arrays were 150 MB, their factors a sixth of it with the drive columns of jac_x shared,
+        ``jac_q`` (N, r, n_joints) or None), else made when read
+        (:class:`~tcr_accuracy.diagnosis.error_map.SensitivityWhenRead`, holding jac_x, which the caller
+        shares among the effects). A per-joint series (``factored``) is held as factors at any size."""
+        n, r, _ = jac_x.shape
+        large = n * r * self.basis.n_columns * 8 > DENSE_BYTES  # small ones are read faster dense
+        if self.basis.factors_only() and (self.factored or large):
+            self.g = self.basis.joint_sensitivity(jac_x, jac_q)
+        elif large:
+            self.g = SensitivityWhenRead(self.basis, jac_x)
+        else:
+            self.g = self.basis.sensitivity(jac_x)
 
 
 class UnionBasis:

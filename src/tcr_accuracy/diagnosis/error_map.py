@@ -137,31 +137,43 @@ class ErrorMap:
             out[:, self.drive_slice] += _rows(self.drive @ theta[self.drive_columns], rows)
         return out
 
-    def sensitivity(self, jac_x: np.ndarray) -> np.ndarray:
-        """The TCP sensitivity (N, r, k) for error Jacobians jac_x (N, r, p_em)."""
+    def sensitivity(self, jac_x: np.ndarray, rows=None) -> np.ndarray:
+        """The TCP sensitivity (N, r, k) for error Jacobians jac_x (N, r, p_em); with ``rows`` (a slice
+        or an index array of the N poses) that of those poses, for jac_x of those rows."""
         g = jac_x @ self.fixed
         if self.per_pose is not None:
-            g[:, :, self.pose_columns] += jac_x[:, :, self.pose_entries] @ self.per_pose  # batched over poses
+            per_pose = self.per_pose if rows is None else self.per_pose[rows]
+            g[:, :, self.pose_columns] += jac_x[:, :, self.pose_entries] @ per_pose  # batched over poses
         if self.drive is not None and self.drive_joint is not None:
             # a chunk of poses at a time: whole, the gathered Jacobian columns and their product were two
             # more (N, r, k) arrays, 80 MB each for a cyclic series of 336 terms at 10^4 poses
+            drive = self.drive if rows is None else self.drive[rows]
             for start in range(0, g.shape[0], self.CHUNK):
-                rows = slice(start, start + self.CHUNK)
-                g[rows, :, self.drive_columns] += (jac_x[rows][:, :, self.drive_slice][:, :, self.drive_joint]
-                                                   * self.drive[rows][:, None, :])
+                at = slice(start, start + self.CHUNK)
+                g[at, :, self.drive_columns] += (jac_x[at][:, :, self.drive_slice][:, :, self.drive_joint]
+                                                 * np.asarray(drive[at])[:, None, :])
         elif self.drive is not None:
-            g[:, :, self.drive_columns] += jac_x[:, :, self.drive_slice] @ self.drive
+            g[:, :, self.drive_columns] += jac_x[:, :, self.drive_slice] @ (self.drive if rows is None
+                                                                             else self.drive[rows])
         return g
 
-    def joint_sensitivity(self, jac_x: np.ndarray):
+    def factors_only(self) -> bool:
+        """Whether every column moves one joint's drive and nothing else (:meth:`joint_sensitivity`
+        then gives the sensitivity as its factors)."""
+        return not (self.drive is None or self.drive_joint is None or self.per_pose is not None
+                    or np.any(self.fixed))
+
+    def joint_sensitivity(self, jac_x: np.ndarray, jac_q: np.ndarray | None = None):
         """The TCP sensitivity as :meth:`sensitivity`, left as its two factors
         (:class:`JointColumnsSensitivity`) when every column moves one joint and nothing else (a
         cyclic series: its (N, r, k) product was 806 MB at 10^5 poses, the factors n_joints x
-        r + k floats a pose); else the dense array."""
-        if self.drive is None or self.drive_joint is None or self.per_pose is not None or np.any(self.fixed):
+        r + k floats a pose); else the dense array. ``jac_q``: the drive columns of jac_x (N, r,
+        n_joints), contiguous, when the caller shares one copy of them among several effects."""
+        if not self.factors_only():
             return self.sensitivity(jac_x)
-        return JointColumnsSensitivity(np.ascontiguousarray(jac_x[:, :, self.drive_slice]), self.drive,
-                                       self.drive_joint, self.drive_columns, self.n_columns)
+        if jac_q is None:
+            jac_q = np.ascontiguousarray(jac_x[:, :, self.drive_slice])
+        return JointColumnsSensitivity(jac_q, self.drive, self.drive_joint, self.drive_columns, self.n_columns)
 
     def take(self, columns) -> "ErrorMap":
         """The map of some of its columns, in the given order."""
@@ -228,15 +240,51 @@ class JoinedMaps:
         return out
 
 
-class JointColumnsSensitivity:
+class _SensitivityRows:
+    """A TCP sensitivity (N, r, k) that makes its rows when indexed: ``g[rows]``, ``g[rows, ...]``, ``g[i]``
+    (subclasses give :meth:`rows` for a slice or an index array)."""
+
+    ndim = 3
+    dtype = np.dtype(float)
+
+    def __getitem__(self, key):
+        if not isinstance(key, tuple):
+            key = (key,)
+        if isinstance(key[0], (int, np.integer)):
+            return self.rows([key[0]])[0][key[1:]]
+        return self.rows(key[0])[(slice(None),) + key[1:]]
+
+
+class SensitivityWhenRead(_SensitivityRows):
+    """A TCP sensitivity (N, r, k) made when its rows are read, from the effect's error map (compact:
+    what is the same for every pose, its per-pose entries, its drive values) and the error Jacobians
+    (N, r, p_em), which every effect held so shares: ``g[rows]`` is :meth:`ErrorMap.sensitivity` of
+    those rows (the same floats as the whole array's rows). At 10^5 poses geometry, lateral compliance,
+    thermal growth and drift held 350 MB of dense sensitivities, the shared Jacobians are 130 MB.
+    ``np.asarray`` of it is the whole dense array."""
+
+    def __init__(self, basis: ErrorMap, jac_x: np.ndarray):
+        self.basis, self.jac_x = basis, jac_x
+        self.shape = (jac_x.shape[0], jac_x.shape[1], basis.n_columns)
+
+    def rows(self, rows) -> np.ndarray:
+        """g[rows] (len(rows), r, k) for a slice or an index array."""
+        return self.basis.sensitivity(self.jac_x[rows], rows)
+
+    def __array__(self, dtype=None, copy=None):
+        out = np.empty(self.shape)
+        for start in range(0, self.shape[0], ErrorMap.CHUNK):
+            at = slice(start, start + ErrorMap.CHUNK)
+            out[at] = self.rows(at)
+        return out if dtype is None else out.astype(dtype)
+
+
+class JointColumnsSensitivity(_SensitivityRows):
     """A TCP sensitivity (N, r, k) whose every column moves one joint, held as its two factors:
     g[n, :, c] = jac_q[n, :, joint[c]] * values[n, c] (the joints' columns of the error Jacobian times
     each parameter's joint offset per unit). Rows are made on demand (``g[rows]``, ``g[rows, ...]``:
     the same floats as the dense product), and the products the fit takes are formed from the
     factors (:meth:`transposed_times`). ``np.asarray`` of it is the whole dense array."""
-
-    ndim = 3
-    dtype = np.dtype(float)
 
     def __init__(self, jac_q: np.ndarray, values: np.ndarray, joint: np.ndarray, columns: np.ndarray, k: int):
         """jac_q (N, r, n_joints), values (N, k_drive), joint (k_drive,), columns (k_drive,) of the k."""
@@ -253,13 +301,6 @@ class JointColumnsSensitivity:
         out = np.zeros((jac_q.shape[0], self.shape[1], self.shape[2]))
         out[:, :, self.columns] = product
         return out
-
-    def __getitem__(self, key):
-        if not isinstance(key, tuple):
-            key = (key,)
-        if isinstance(key[0], (int, np.integer)):
-            return self.rows([key[0]])[0][key[1:]]
-        return self.rows(key[0])[(slice(None),) + key[1:]]
 
     def __array__(self, dtype=None, copy=None):
         out = self.rows(slice(None))

@@ -19,6 +19,7 @@ from ..analysis.semivariogram import (
     EmpiricalSemivariogram,
     empirical_semivariogram,
     fit_gaussian_variogram,
+    nearest_neighbours,
     per_joint_semivariograms,
     standardize,
 )
@@ -115,8 +116,6 @@ def where_analysis(robot: RobotModel, q: np.ndarray, nominal: np.ndarray, residu
     # along which joints does the error vary? Per-joint semivariograms (standardised:
     # 1 = no similarity) at short lag, and the share of the residual variance that the
     # k nearest neighbours along that joint alone predict (out of sample: self excluded)
-    from sklearn.neighbors import NearestNeighbors
-
     semis = per_joint_semivariograms(q, residual, n_bins=12, rng=rng)
     centred = residual - residual.mean(axis=0)
     total = float(np.sum(centred**2)) or 1.0
@@ -128,7 +127,7 @@ def where_analysis(robot: RobotModel, q: np.ndarray, nominal: np.ndarray, residu
         short = s.lags <= np.quantile(s.lags, 0.25)
         gamma_short = (s.semivariance[short] * s.counts[short, None]).sum(axis=0) / s.counts[short].sum()
         k = min(10, q.shape[0] - 1)
-        idx = NearestNeighbors(n_neighbors=k + 1).fit(q[:, [j]]).kneighbors(q[:, [j]], return_distance=False)[:, 1:]
+        idx = nearest_neighbours(q[:, [j]], k)
         share = 1.0 - float(np.sum((centred - centred[idx].mean(axis=1)) ** 2)) / total
         along[name] = {"short_lag_semivariance_xyz": gamma_short.tolist(), "knn_explained_share": share}
     where["along_joints"] = along
@@ -141,8 +140,7 @@ def where_analysis(robot: RobotModel, q: np.ndarray, nominal: np.ndarray, residu
         for b in range(a + 1, len(names)):
             cols = [robot.joint_names.index(names[a]), robot.joint_names.index(names[b])]
             k = min(10, q.shape[0] - 1)
-            idx = NearestNeighbors(n_neighbors=k + 1).fit(qs[:, cols]).kneighbors(
-                qs[:, cols], return_distance=False)[:, 1:]
+            idx = nearest_neighbours(qs[:, cols], k)
             share = 1.0 - float(np.sum((centred - centred[idx].mean(axis=1)) ** 2)) / total
             pairs.append({"joints": [names[a], names[b]], "knn_explained_share": share})
     pairs.sort(key=lambda r: -r["knn_explained_share"])

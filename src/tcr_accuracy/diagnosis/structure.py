@@ -23,7 +23,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from ..analysis.semivariogram import empirical_semivariogram, fit_gaussian_variogram, standardize
+from ..analysis.semivariogram import empirical_semivariogram, fit_gaussian_variogram, nearest_neighbours, standardize
 from .paired import stacked
 
 #: Amplitudes [x the per-axis noise, RMS per axis] at which the power probe injects a
@@ -85,7 +85,7 @@ class StructureDetector:
     Two predictors, each judged out of sample:
 
     * local: each residual predicted by the mean of its k nearest neighbours in
-      standardised joint space (scikit-learn), over all joints, each joint and each pair
+      standardised joint space (scipy's k-d tree), over all joints, each joint and each pair
       of joints, compared with the same statistic after shuffling residuals over poses (z
       against the permutation distribution, Bonferroni over the subsets);
     * global: ridge regression (scikit-learn ``RidgeCV``) on smooth joint features
@@ -94,7 +94,8 @@ class StructureDetector:
 
     Structure remains when either predictor explains more than ``min_explained`` of the
     residual variance beyond chance (p < alpha, resp. z above the matching quantile).
-    The neighbours, permutations and folds are drawn once (from ``rng``, in that order).
+    The permutations and folds are drawn once (from ``rng``, in that order) when it is set up; the
+    neighbours, which draw nothing, are found when it first tests.
     """
 
     #: above this many poses the test runs on a random subset of this size: its cost is
@@ -106,7 +107,6 @@ class StructureDetector:
                  n_permutations: int = 100, alpha: float = 1e-3, min_explained: float = 0.05, folds: int = 5,
                  max_poses: int | None = None):
         from sklearn.model_selection import KFold
-        from sklearn.neighbors import NearestNeighbors
 
         max_poses = self.MAX_POSES if max_poses is None else max_poses
         self.n_total, self.rows = len(q), None
@@ -114,31 +114,52 @@ class StructureDetector:
             self.rows = np.sort(rng.choice(len(q), max_poses, replace=False))
             q = q[self.rows]
         self.q, self.k, self.alpha, self.min_explained = q, k, alpha, min_explained
-        qs, _, _ = standardize(q)
-        # an unmodelled effect often depends on a few joints: in all of joint space 6-D
-        # neighbours are far apart, along one joint or a pair they are close. Test all
-        # joints, each joint and each pair; Bonferroni over the subsets.
-        moving = [j for j in range(q.shape[1]) if np.std(q[:, j]) > 0]
-        subsets = [tuple(moving)] + [(j,) for j in moving]
-        subsets += [(a, b) for i, a in enumerate(moving) for b in moving[i + 1:]]
-        self.neighbours = []  # (subset, sparse (N, N) matrix averaging each pose's k neighbours)
-        self._banded = []  # per subset, the poses renumbered and its matrix in their order (_banded)
-        for subset in subsets:
-            nn = NearestNeighbors(n_neighbors=min(k + 1, len(q))).fit(qs[:, subset])
-            self.neighbours.append((subset, _averaging(nn.kneighbors(qs[:, subset], return_distance=False)[:, 1:])))
-            self._banded.append(_banded(self.neighbours[-1][1]))
+        self.kinds = kinds if kinds is not None else ["revolute"] * q.shape[1]
         self.perms = [rng.permutation(len(q)) for _ in range(n_permutations)]
-        kinds = kinds if kinds is not None else ["revolute"] * q.shape[1]
-        self.features = _smooth_features(q, kinds)
         self.split = KFold(n_splits=folds, shuffle=True, random_state=int(rng.integers(2**31 - 1)))
+        # the neighbours, features and ridge folds are made when first tested: set up with the candidates,
+        # the test runs after the selection, whose peak memory they joined (0.2 GB at 10^5 poses)
+        self._made = None  # (subsets, their neighbours, features)
         self._ridge = None  # the ridge's folds, decomposed when first tested
+
+    def _make(self) -> tuple:
+        if self._made is None:
+            qs, _, _ = standardize(self.q)
+            # an unmodelled effect often depends on a few joints: in all of joint space 6-D
+            # neighbours are far apart, along one joint or a pair they are close. Test all
+            # joints, each joint and each pair; Bonferroni over the subsets.
+            moving = [j for j in range(self.q.shape[1]) if np.std(self.q[:, j]) > 0]
+            subsets = [tuple(moving)] + [(j,) for j in moving]
+            subsets += [(a, b) for i, a in enumerate(moving) for b in moving[i + 1:]]
+            banded = []  # per subset, the poses renumbered and the matrix averaging each one's k neighbours
+            for subset in subsets:
+                banded.append(_banded(_averaging(nearest_neighbours(qs[:, subset], min(self.k, len(self.q) - 1)))))
+            self._made = (subsets, banded, _smooth_features(self.q, self.kinds))
+        return self._made
+
+    @property
+    def subsets(self) -> list:
+        """The joint subsets tested (all moving joints, each, each pair), as tuples of joint indices."""
+        return self._make()[0]
+
+    @property
+    def neighbours(self) -> list:
+        """Per subset tested, (order (N,), A): the poses renumbered so that neighbours sit together, and
+        the sparse (N, N) matrix whose row i averages the k nearest neighbours of pose order[i] along the
+        subset, in that numbering (:func:`_banded`): ``A @ x[order]`` is each pose's neighbours' mean."""
+        return self._make()[1]
+
+    @property
+    def features(self) -> np.ndarray:
+        """(N, F) the smooth joint features of the global predictor (:func:`_smooth_features`)."""
+        return self._make()[2]
 
     def _local(self, centred: np.ndarray, total: float, perms=None) -> dict:
         perms = self.perms if perms is None else perms
         # the residual and its shuffles side by side: one sparse product per subset
         stack = np.concatenate([centred] + [centred[perm] for perm in perms], axis=1)
         best = None
-        for (subset, _), (order, average) in zip(self.neighbours, self._banded):
+        for subset, (order, average) in zip(self.subsets, self.neighbours):
             ordered = stack[order]
             error = average @ ordered
             np.subtract(ordered, error, out=error)
@@ -374,8 +395,9 @@ def predictable_leftover(detector: StructureDetector, residual: np.ndarray) -> f
     residual = detector.restrict(residual)
     centred = residual - residual.mean(axis=0)
     best = float(np.mean(centred**2))
-    for _, averaging in detector.neighbours:  # leave-one-out: a pose's own value is not among its neighbours
-        best = min(best, float(np.mean((centred - averaging @ centred) ** 2)))
+    for order, averaging in detector.neighbours:  # leave-one-out: a pose's own value is not among its neighbours
+        ordered = centred[order]
+        best = min(best, float(np.mean((ordered - averaging @ ordered) ** 2)))
     ridge = cross_val_predict(RidgeCV(alphas=np.logspace(-6, 3, 10)), detector.features, centred, cv=detector.split)
     best = min(best, float(np.mean((centred - ridge) ** 2)))
     return math.sqrt(best)

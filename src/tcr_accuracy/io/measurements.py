@@ -51,7 +51,7 @@ from .measurement_text import format_measurements, measurement_columns
 from ..model.robot import RobotModel
 from ..units import JOINT_COLUMN_UNITS as _JOINT_UNITS
 from ..units import POSITION_UNITS as _POSITION_UNITS
-from ..units import REVOLUTE, parse_number
+from ..units import REVOLUTE, parse_number_table, parse_number
 
 #: Largest |quaternion norm - 1| accepted before normalising.
 QUATERNION_TOLERANCE = 1e-3
@@ -259,29 +259,8 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
     shown, header = header, logical  # messages name the file's columns; the reading uses their meaning
 
     n_cols = len(header)
-    values = np.empty((len(lines) - 1, n_cols))
-    rows = np.empty(len(lines) - 1, dtype=int)
     label_columns = {c: name for c, name in enumerate(header) if name in LABEL_COLUMNS + TEXT_ANNOTATIONS}
-    labels = {name: [] for name in label_columns.values()}
-    codes = {name: {} for name in label_columns.values()}
-    for k, (line_no, line) in enumerate(lines[1:]):
-        cells = csv_cells(line, source, line_no)
-        if len(cells) != n_cols:
-            raise InputError(f"{source}: row {line_no}: {len(cells)} cells, the header has {n_cols} columns")
-        for c, cell in enumerate(cells):
-            cell = cell.strip()
-            if c in label_columns:
-                name = label_columns[c]
-                if name in LABEL_COLUMNS:
-                    labels[name].append(label_cell(cell, source, line_no, shown[c], "session label", canonical=False))
-                    values[k, c] = 0.0
-                    continue
-                labels[name].append(label_cell(cell, source, line_no, shown[c]))
-                # a text annotation's number: its label's index, so that rows differing only in it differ
-                values[k, c] = float(codes[name].setdefault(labels[name][-1], len(codes[name])))
-                continue
-            values[k, c] = number_cell(cell, source, line_no, shown[c])
-        rows[k] = line_no
+    values, rows, labels = _cells(lines, source, shown, label_columns)
     if len(rows) < min_rows:
         raise InputError(f"{source}: {len(rows)} measurement rows, at least {min_rows} are needed")
 
@@ -381,6 +360,44 @@ def parse_measurements(text: str, robot: RobotModel, *, source: str = "<text>", 
     if check_units and position is not None:
         check_position_units(mset, robot, columns, source)
     return mset
+
+
+def _cells(lines, source: str, shown: list, label_columns: dict) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The body's cells: (values (n_rows, n_cols) [as written], the rows' line numbers (n_rows,), the label
+    columns' labels by name). A label column's value is 0 (a session) or its label's index (a text
+    annotation, so that rows differing only in it differ).
+
+    Numbers only (no label column): read whole (:func:`~tcr_accuracy.units.parse_number_table`,
+    which takes no text the csv module would read otherwise: no quote, no NUL). Otherwise, or where
+    that finds a line of the wrong length or a cell that is no finite number, the lines are read one
+    cell at a time, whose messages name the file, row and column of the first bad cell."""
+    body = lines[1:]
+    n_cols = len(shown)
+    rows = np.array([line_no for line_no, _ in body], dtype=int)
+    values = None if label_columns else parse_number_table([line for _, line in body], n_cols)
+    if values is not None:
+        return values, rows, {}
+    values = np.empty((len(body), n_cols))
+    labels = {name: [] for name in label_columns.values()}
+    codes = {name: {} for name in label_columns.values()}
+    for k, (line_no, line) in enumerate(body):
+        cells = csv_cells(line, source, line_no)
+        if len(cells) != n_cols:
+            raise InputError(f"{source}: row {line_no}: {len(cells)} cells, the header has {n_cols} columns")
+        for c, cell in enumerate(cells):
+            cell = cell.strip()
+            if c in label_columns:
+                name = label_columns[c]
+                if name in LABEL_COLUMNS:
+                    labels[name].append(label_cell(cell, source, line_no, shown[c], "session label", canonical=False))
+                    values[k, c] = 0.0
+                    continue
+                labels[name].append(label_cell(cell, source, line_no, shown[c]))
+                # a text annotation's number: its label's index, so that rows differing only in it differ
+                values[k, c] = float(codes[name].setdefault(labels[name][-1], len(codes[name])))
+                continue
+            values[k, c] = number_cell(cell, source, line_no, shown[c])
+    return values, rows, labels
 
 
 def _resolve_columns(header, robot, source, line_no, require_position, logical):

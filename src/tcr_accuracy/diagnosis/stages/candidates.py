@@ -138,7 +138,7 @@ def build_bases(parts: list[Part], names, measured, notes: list, session_labels=
     stochastic effects). ``frames_options``: what each session owns (``session_frames``,
     ``session_tools``, see :class:`~tcr_accuracy.effects.frames.Frames`) where there are sessions."""
     bases, rejected, stochastic = {}, [], []
-    jacobians = {}  # per part, the error Jacobians at the nominal model: the same for every effect
+    jacobians = {}  # per part, the error Jacobians at the nominal model and their drive columns: the same for every effect
     for name in names:
         cls = effect_class(name)
         if cls.stochastic:
@@ -163,10 +163,10 @@ def build_bases(parts: list[Part], names, measured, notes: list, session_labels=
                 labels = _part_names(effect, part, len(parts))
                 em = ErrorModel(part.robot)
                 if p not in jacobians:
-                    jacobians[p] = position_jacobians(
-                        part.robot, part.q, None,
-                        part.orientation_weight if part.target_rotation is not None else None)
-                per_part.append(EffectBasis(effect, part, em, jacobians[p], labels))
+                    jac_x = position_jacobians(part.robot, part.q, None,
+                                               part.orientation_weight if part.target_rotation is not None else None)
+                    jacobians[p] = (jac_x, np.ascontiguousarray(jac_x[:, :, em.drive_slice]))
+                per_part.append(EffectBasis(effect, part, em, jacobians[p][0], labels, jac_q=jacobians[p][1]))
             basis = UnionBasis(per_part)
         except InputError as exc:
             rejected.append(untried(name, f"not testable on these data: {exc}"))
@@ -181,8 +181,11 @@ def build_bases(parts: list[Part], names, measured, notes: list, session_labels=
 def relinearise(bases: dict, jacobians) -> None:
     """Every effect's TCP sensitivity at the per-part error Jacobians (the frames-only fit's)."""
     for p, jac_x in enumerate(jacobians):
+        jac_q = None  # the drive columns of jac_x, one copy shared by the effects held as factors
         for b in bases.values():
-            b.per_part[p].relinearise(jac_x)
+            if jac_q is None:
+                jac_q = np.ascontiguousarray(jac_x[:, :, b.per_part[p].basis.drive_slice])
+            b.per_part[p].relinearise(jac_x, jac_q)
     for b in bases.values():
         b.restack()
 
