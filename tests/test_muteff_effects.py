@@ -46,8 +46,8 @@ def test_unmodelled_shifts_the_longest_link_by_its_three_joint_formula_on_pinocc
     its own frame by A (sin(2 q1 + q2), sin(q2 - 2 q3 + 0.5), cos(3 q1 - q3)); on the tool changer
     the 0.796 m link (j3). The TCP by Pinocchio on a model so moved; the one parameter [m] and its
     typical size 0.3 mm; its (finite-difference) Jacobian is the shift per metre of amplitude.
-    Seen failing on ``cos(3 * q[:, a] - q[:, c])`` turned to ``cos(4 * ...)``, ``+ 0.5`` to ``+ 1.5``,
-    ``np.array([3e-4])`` to ``[1.0003]``, and ``lengths[0] = -1.0`` to ``0.0`` (the pedestal chosen)."""
+    Seen failing on ``cos(3 * q[:, a] - q[:, c])`` turned to ``cos(4 * ...)``, ``+ 0.5`` to ``+ 1.5``
+    and ``np.array([3e-4])`` to ``[1.0003]``."""
     for robot, longest in ((ur5, "elbow_joint"), (tool_changer, "j3")):
         rng = np.random.default_rng(11)
         q = random_joint_values(robot, 5, rng)
@@ -317,3 +317,32 @@ def test_compliance_turns_each_joint_by_a_hundredth_of_a_degree_under_its_rms_gr
         np.testing.assert_allclose(effect.fit_range()[0], -200 * expected, rtol=1e-9)
         assert effect.parameter_units() == ["rad/Nm" if k == "revolute" else "m/N" for k in robot.joint_kinds]
         assert not loaded[0] and loaded[1:3].all()  # both first axes are vertical: gravity never loads them
+
+
+def _pedestal_urdf(lengths):
+    """A chain of revolute joints (axes alternating y and x) whose placements rise by ``lengths`` [m]."""
+    links = "".join(f'<link name="l{k}"/>' for k in range(len(lengths) + 1))
+    joints = "".join(f'<joint name="q{k}" type="revolute"><parent link="l{k}"/><child link="l{k + 1}"/>'
+                     f'<origin xyz="0 0 {length}"/><axis xyz="{k % 2} {(k + 1) % 2} 0"/>'
+                     f'<limit lower="-3" upper="3" effort="1" velocity="1"/></joint>' for k, length in enumerate(lengths))
+    return f'<?xml version="1.0"?><robot name="pedestal">{links}{joints}</robot>'
+
+
+def test_the_longest_link_is_an_arm_link_even_below_a_taller_pedestal():
+    """On a chain whose first placement (a 1.2 m pedestal, which trades with the base frame) is the longest,
+    0.5, 0.7 and 0.3 m after it: the distorted link is the 0.7 m one (the third placement), as unmodelled
+    and link_bending move it; a single joint's pedestal is its only link. Seen failing on
+    ``lengths[0] = -1.0`` turned to ``lengths[-1] = -1.0`` and ``len(lengths) > 1`` to ``> 2`` (on a
+    two-joint chain)."""
+    from tcr_accuracy.effects.unmodelled import longest_link
+    from tcr_accuracy.model.robot import robot_from_urdf_text
+
+    robot = robot_from_urdf_text(_pedestal_urdf([1.2, 0.5, 0.7, 0.3]), "l4", name="pedestal")
+    assert longest_link(robot) == 2
+    x = make_effect("unmodelled", robot).perturb([1e-3], np.full((1, 4), 0.3), None).x
+    em = make_effect("unmodelled", robot).error_model
+    assert np.flatnonzero(x[0]).tolist() == [em.index("q2.dx"), em.index("q2.dy"), em.index("q2.dz")]
+    two = robot_from_urdf_text(_pedestal_urdf([1.2, 0.5]), "l2", name="two")
+    assert longest_link(two) == 1
+    one = robot_from_urdf_text(_pedestal_urdf([1.2]), "l1", name="one")
+    assert longest_link(one) == 0
