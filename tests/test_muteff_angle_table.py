@@ -143,3 +143,32 @@ def test_cycles_per_turn_count_each_modes_roots_and_the_table_turns_the_joints_o
     np.testing.assert_allclose(got, expected_tcp, atol=1e-12)
     np.testing.assert_allclose(effect.fit_policy.penalty_weights(effect),
                                np.concatenate([effect.table(j).weights for j in range(6)]), rtol=1e-12)
+
+
+def test_a_table_needs_four_intervals_and_inner_knots_strictly_inside_its_travel(ur5):
+    """At least CONSTRAINED - DEGREE + 1 = 4 knot intervals (3 refused, naming 4); given knots, intervals - 1
+    strictly increasing angles inside the travel (widened to 0.2 rad), else refused naming the joint, the
+    count and the travel; a travel ending below its start refused; lists of the wrong length refused.
+    Seen failing on ``intervals < CONSTRAINED - DEGREE + 1`` turned to ``+ 2`` and ``values.size !=
+    self.intervals - 1`` to ``- 2``."""
+    assert make_effect("angle_table", ur5, intervals=4).modes_per_joint == 1
+    with pytest.raises(ValueError, match="at least 4 knot intervals, got 3"):
+        make_effect("angle_table", ur5, intervals=3)
+    low, high = [-1.0] * 6, [1.0] * 6
+    good = [[-0.5, 0.0, 0.5]] + [None] * 5
+    effect = make_effect("angle_table", ur5, intervals=4, lower=low, upper=high, knots=good)
+    np.testing.assert_allclose(effect.table(0).knots, [-1, -1, -1, -1, -0.5, 0, 0.5, 1, 1, 1, 1])
+    for bad in ([[-0.5, 0.5]] + [None] * 5, [[-0.5, 0.0, 0.0]] + [None] * 5, [[-1.0, 0.0, 0.5]] + [None] * 5,
+                [[-0.5, 0.0, 0.5, 0.7]] + [None] * 5):
+        with pytest.raises(ValueError, match=r"knots\[0\]: 3 increasing angles \[rad\] strictly inside the travel -1 "
+                                             r"to 1 rad"):
+            make_effect("angle_table", ur5, intervals=4, lower=low, upper=high, knots=bad)
+    with pytest.raises(ValueError, match=r"knots\[2\]: .* inside the travel 0\.4 to 0\.6 rad"):  # widened to 0.2 rad
+        make_effect("angle_table", ur5, intervals=4, lower=[0.5] * 6, upper=[0.5] * 6,
+                    knots=[None, None, [0.45, 0.5, 0.65]] + [None] * 3)
+    with pytest.raises(ValueError, match="travel of shoulder_lift_joint ends below where it starts"):
+        make_effect("angle_table", ur5, lower=low, upper=[1.0, -2.0] + [1.0] * 4)
+    with pytest.raises(ValueError, match="lower: 5 values for 6 joints"):
+        make_effect("angle_table", ur5, lower=low[:5])
+    with pytest.raises(ValueError, match="knots: 2 lists for 6 joints"):
+        make_effect("angle_table", ur5, intervals=4, knots=good[:2])
