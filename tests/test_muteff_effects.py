@@ -372,3 +372,53 @@ def test_a_dominant_compliance_and_backlash_are_drawn_about_their_typical_sizes(
                       for _ in range(2000)])
     assert np.all((0.01 <= bands.min(axis=0)) & (bands.min(axis=0) <= 0.0104))
     assert np.all((0.0496 <= bands.max(axis=0)) & (bands.max(axis=0) <= 0.05))
+
+
+def test_an_effect_without_its_own_jacobian_ranges_or_mechanisms_gets_the_base_classes(tool_changer):
+    """A toy effect (each joint turned by p_j^3, one parameter per joint of typical size 0.2) written here with
+    none of the hooks: its Jacobian is the central difference at a step of 1e-3 of the typical size, so
+    3 p^2 + h^2 exactly for a cube (h = 2e-4); its fit range ten times the largest bound of its physics' range
+    (-0.1 .. 0.3: +-3), its one mechanism that range; a magnitude's default range 0 .. inf. Seen failing on
+    ``steps = 1e-3 * self.parameter_scales()`` turned to ``1.001 *``, ``/ (2 * h)`` to ``/ (3 * h)`` and
+    ``bound = 10.0 * ...`` to ``11.0 *``."""
+    from tcr_accuracy.effects.base import Effect, EffectOutput, plugged_in
+
+    class Cube(Effect):
+        name = "toy_cube"
+
+        def parameter_names(self):
+            return [f"toy_cube.{j}" for j in self.robot.joint_names]
+
+        def parameter_units(self):
+            return ["1"] * self.robot.n_joints
+
+        def parameter_scales(self):
+            return np.full(self.robot.n_joints, 0.2)
+
+        def physical_range(self):
+            return np.full(self.n_params, -0.1), np.full(self.n_params, 0.3)
+
+        def perturb(self, params, q, context):
+            params = self.check_params(params)
+            return EffectOutput(dq=np.broadcast_to(params**3, np.atleast_2d(q).shape).copy())
+
+    class Magnitude(Cube):
+        name = "toy_magnitude"
+        non_negative = True
+        physical_range = Effect.physical_range
+
+    with plugged_in(Cube), plugged_in(Magnitude):
+        effect = make_effect("toy_cube", tool_changer)
+        assert not effect.analytic_jacobian
+        params = np.array([0.1, -0.2, 0.3, 0.05, -0.15, 0.25])
+        jac = effect.parameter_jacobian(params, np.zeros((2, 6)), None)
+        h = 1e-3 * 0.2
+        np.testing.assert_allclose(jac.dq[0], np.diag(3 * params**2 + h**2), rtol=1e-9, atol=1e-15)
+        assert not jac.x.any()
+        low, high = effect.fit_range()
+        np.testing.assert_allclose([low, high], [np.full(6, -3.0), np.full(6, 3.0)], rtol=1e-12)
+        (own,) = effect.mechanisms()
+        assert own.key == "toy_cube" and own.textbook
+        np.testing.assert_allclose([own.lower, own.upper], [np.full(6, -0.1), np.full(6, 0.3)])
+        low, high = make_effect("toy_magnitude", tool_changer).physical_range()
+        assert np.all(low == 0.0) and np.all(np.isposinf(high))
