@@ -324,7 +324,8 @@ def _pedestal_urdf(lengths):
     links = "".join(f'<link name="l{k}"/>' for k in range(len(lengths) + 1))
     joints = "".join(f'<joint name="q{k}" type="revolute"><parent link="l{k}"/><child link="l{k + 1}"/>'
                      f'<origin xyz="0 0 {length}"/><axis xyz="{k % 2} {(k + 1) % 2} 0"/>'
-                     f'<limit lower="-3" upper="3" effort="1" velocity="1"/></joint>' for k, length in enumerate(lengths))
+                     f'<limit lower="-3" upper="3" effort="1" velocity="1"/></joint>'
+                     for k, length in enumerate(lengths))
     return f'<?xml version="1.0"?><robot name="pedestal">{links}{joints}</robot>'
 
 

@@ -74,7 +74,7 @@ def test_a_files_whole_numbers_reals_and_texts_are_held_to_their_sizes_before_th
     with pytest.raises(InputError, match=r"^d.json: effect_options.clearance.joints\[0\]: 'j{201}' is not a number$"):
         effect_options("clearance", {"joints": ["j" * 201]}, f"{WHERE}.clearance")
     with pytest.raises(InputError, match=r"^d.json: effect_options.angle_table.lower\[0\]: 1001 is greater than the "
-                                         r"maximum of 1000"):  # a whole number beyond 1000: read as a real, then bounded
+                                         r"maximum of 1000"):  # a whole number beyond 1000: a real, then bounded
         effect_options("angle_table", {"lower": [1001]}, where)
 
 

@@ -59,5 +59,6 @@ def test_the_figures_written_in_mm_come_back_in_metres():
     assert table["std"] == {"j1.dx": 1e-5, "j1.dy": math.inf}
     assert table["interval"] == {"j1.dx": [0.8e-4, 1.2e-4], "j1.dy": [-math.inf, 0.0]}
     assert table["range"] == {"j1.dx": [-0.02, 0.02]} and table["fit_range"] == {"j1.dx": [-math.inf, 0.1]}
-    _, low, high = STORED_VIEWS["steps"]({**doc, "steps": [{**doc["steps"][1], "gain_interval_mm": [None, 2.0]}]})[0].gain
+    one_sided = {**doc, "steps": [{**doc["steps"][1], "gain_interval_mm": [None, 2.0]}]}
+    _, low, high = STORED_VIEWS["steps"](one_sided)[0].gain
     assert low == -math.inf and high == pytest.approx(2e-3, rel=1e-12)
