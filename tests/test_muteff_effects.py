@@ -423,3 +423,36 @@ def test_an_effect_without_its_own_jacobian_ranges_or_mechanisms_gets_the_base_c
         np.testing.assert_allclose([own.lower, own.upper], [np.full(6, -0.1), np.full(6, 0.3)])
         low, high = make_effect("toy_magnitude", tool_changer).physical_range()
         assert np.all(low == 0.0) and np.all(np.isposinf(high))
+
+
+def test_lateral_compliance_tilts_each_axis_by_a_hundredth_of_a_degree_under_its_rms_moment(ur5):
+    """Each joint's two tilt compliances turn it by 0.01 deg under the RMS, over the 64 reference poses (seed
+    20240501, uniform inside the limits), of the gravity moment it carries across that axis with the
+    typical payload: the moments from Pinocchio's RNEA at rest on a model whose tool body carries the
+    payload as a point mass at tool0 (the joint's force ``data.f``, turned into its placement frame by
+    exp3(a q)); an axis gravity never loads across gets the median of the others'. Physics 0 .. 200 x.
+    Seen failing on the revolute target ``math.radians(0.01)`` turned to ``radians(1.01)``,
+    ``np.sqrt(np.mean((moment[:, j] @ e) ** 2))`` turned to ``** 3`` and ``200.0 *`` to ``201.0 *``."""
+    robot = ur5
+    lo, hi = robot.joint_bounds()
+    q_ref = lo + (hi - lo) * np.random.default_rng(20240501).uniform(size=(64, robot.n_joints))
+    model = robot.model.copy()
+    tool = model.frames[model.getFrameId(robot.tool_frame)]
+    model.inertias[tool.parentJoint] = model.inertias[tool.parentJoint] + pin.Inertia(
+        robot.typical_payload_kg, tool.placement.translation, np.zeros((3, 3)))
+    data = model.createData()
+    ids = [model.getJointId(name) for name in robot.joint_names]
+    across = np.zeros((64, robot.n_joints, 2))
+    for i, row in enumerate(q_ref):
+        pin.rnea(model, data, robot.to_pinocchio_q(row), np.zeros(model.nv), np.zeros(model.nv))
+        for j, jid in enumerate(ids):
+            placed = pin.exp3(robot.joint_axis(j) * row[j]) @ data.f[jid].angular
+            across[i, j] = [placed @ e for e in robot.axis_perpendiculars(j)]
+    rms = np.sqrt(np.mean(across**2, axis=0))  # (n_joints, 2)
+    loaded = rms > 1e-6 * rms.max()
+    expected = np.where(loaded, math.radians(0.01) / np.where(loaded, rms, 1.0), np.nan)
+    expected[~loaded] = np.median(expected[loaded])
+    effect = make_effect("lateral_compliance", robot)
+    np.testing.assert_allclose(effect.parameter_scales(), expected.ravel(), rtol=1e-9)
+    np.testing.assert_allclose(effect.physical_range()[1], 200 * expected.ravel(), rtol=1e-9)
+    assert effect.parameter_units() == ["rad/Nm"] * 12
