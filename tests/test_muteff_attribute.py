@@ -87,3 +87,18 @@ def test_the_note_of_a_larger_motion_gives_both_sizes_and_the_difference_in_mm()
                     f"frames, less than geometry 0.8 mm (larger by 0.3 +- {se_mm:.2g} mm): the share and the motion "
                     f"rank them apart in opposite orders, so the family is not named apart from geometry")
     assert f"{se_mm:.2g}" == "0.063"
+
+
+def test_what_stands_in_for_a_chosen_effect_is_every_alternative_after_it_once():
+    """The selection's groups list the chosen effect first, then the swaps the held-out rows do not rank
+    below it: its stand-ins are their effects in order, each once, never itself; its group adds them to it.
+    Seen failing on ``rows[1:]`` turned to ``rows[2:]``."""
+    from tcr_accuracy.diagnosis.stages.attribute import group_members, stand_ins_of
+
+    groups = {"compliance": [{"effects": ["compliance"]}, {"effects": ["lateral_compliance", "joint_offsets"]},
+                             {"effects": ["backlash", "compliance"]}, {"effects": ["backlash"]}],
+              "geometry": [{"effects": ["geometry"]}]}
+    assert stand_ins_of(groups) == {"compliance": ("lateral_compliance", "joint_offsets", "backlash"),
+                                    "geometry": ()}
+    assert group_members(groups, "compliance") == ["compliance", "lateral_compliance", "joint_offsets", "backlash"]
+    assert group_members(groups, None) == [] and group_members(groups, "drift") == ["drift"]
