@@ -522,3 +522,32 @@ def test_each_session_adds_its_own_tracker_frame_and_tcp_offset_to_its_rows(ur5)
         expected.append(pin.exp6(pin.Motion(twist[:3], twist[3:])).act(pose.act(offset)))
     got = predict_positions(ur5, [effect], [params], q, context)
     np.testing.assert_allclose(got, np.array(expected), atol=1e-12)
+
+
+def test_joint_scales_fill_only_the_joints_below_a_millionth_of_the_largest_load(tool_changer):
+    """loaded_joint_scales on loads chosen here (a light arm: 0.02 Nm at most): a joint turned by the target under
+    its load, 0.01 deg (0.05 mm on the prismatic j4); a load of 5e-8 Nm (above a millionth of the largest)
+    still loaded, an exact 0 (and 1e-8 Nm, below it) given the median of the loaded joints' scales. Seen
+    failing on ``rms_load > 1e-6 * max(...)`` turned to ``1e-6 % max(...)`` (an absolute 1e-6 Nm)."""
+    from tcr_accuracy.effects.base import loaded_joint_scales
+
+    load = np.array([0.0, 5e-8, 0.02, 0.01, 1e-8, 0.004])
+    target = np.array([0.01 * DEG] * 3 + [5e-5] + [0.01 * DEG] * 2)
+    loaded = np.array([False, True, True, True, False, True])
+    scales = target[loaded] / load[loaded]
+    expected = np.full(6, np.median(scales))
+    expected[loaded] = scales
+    np.testing.assert_allclose(loaded_joint_scales(tool_changer, load, 0.01 * DEG, 5e-5), expected, rtol=1e-12)
+
+
+def test_a_prismatic_joint_has_no_cyclic_terms(tool_changer):
+    """The tool changer's sliding j4 has no Fourier series of its angle: no parameters, a basis of no columns
+    at every position asked, and no error. Seen failing on ``np.zeros((len(angles), 0))`` turned to
+    ``(len(angles), 1)``."""
+    effect = make_effect("cyclic", tool_changer, max_order=5)
+    positions = np.linspace(-0.1, 0.3, 7)
+    names, basis = effect.joint_basis("j4", positions)
+    assert names == [] and basis.shape == (7, 0)
+    assert not any(".j4." in n for n in effect.parameter_names())
+    values = effect.joint_function(np.ones(effect.n_params) * 1e-4, "j4", positions)
+    assert values.shape == (7,) and not values.any()
