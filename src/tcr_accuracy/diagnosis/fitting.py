@@ -174,7 +174,8 @@ class FitEngine:
         key = tuple(effects)
         if key not in self._keep_cache:
             order, borrowed = self._identify_order(effects)
-            keep, report = identifiability(self._compressed_bases(), order, self.rank_tol, self._thresholds(order))
+            keep, report = identifiability(self._compressed_bases(), order, self.rank_tol, self._thresholds(order),
+                                           prefixes=self._prefixes)
             if self.size_factors:
                 report["fitted_size_factors"] = dict(self.size_factors)
             if borrowed:
