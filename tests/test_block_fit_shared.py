@@ -67,19 +67,20 @@ def test_penalised_fits_of_several_models_with_their_factors_kept_are_the_ridges
         shared = SharedBlock(cache, tuple(range(1000, 1000 + k_p)), positions)
         fit = fit_blocks(total, held, -np.full(k, 1e3), np.full(k, 1e3), weights, np.zeros(k), shared=shared)
         grid = np.median(np.diag(total.gram)[positions]) * PENALTY_GRID
-
-        def fold_step(rows, lam):
-            train = np.setdiff1d(np.arange(n), rows)
-            return np.linalg.solve(x[train].T @ x[train] + lam * np.diag(weights), x[train].T @ y[train])
-
-        scores = [sum(np.sum((y[rows] - x[rows] @ fold_step(rows, lam)) ** 2) for rows in folds) for lam in grid]
-        best = int(np.argmin(scores))
-        assert fit.grid_index == best and fit.penalty == grid[best]
-        for d, rows in zip(fit.fold_steps[0], folds):
-            expected = fold_step(rows, grid[best])
-            np.testing.assert_allclose(d, expected, rtol=0, atol=1e-9 * np.abs(expected).max())
-        whole = np.linalg.solve(total.gram + grid[best] * np.diag(weights), x.T @ y)
-        np.testing.assert_allclose(fit.step, whole, rtol=0, atol=1e-9 * np.abs(whole).max())
+        # each fold's ridge as least squares on its training rows and sqrt(lambda w) rows below them
+        train = [np.setdiff1d(np.arange(n), rows) for rows in folds]
+        steps = {(i, f): np.linalg.lstsq(np.vstack([x[t], np.diag(np.sqrt(lam * weights))]),
+                                         np.concatenate([y[t], np.zeros(k)]), rcond=None)[0]
+                 for i, lam in enumerate(grid) for f, t in enumerate(train)}
+        score = [sum(float(np.sum((y[rows] - x[rows] @ steps[i, f]) ** 2)) for f, rows in enumerate(folds))
+                 for i in range(grid.size)]
+        chosen = int(np.argmin(score))
+        assert (fit.grid_index, fit.penalty) == (chosen, grid[chosen])
+        for f, d in enumerate(fit.fold_steps[0]):
+            np.testing.assert_allclose(d, steps[chosen, f], rtol=0, atol=1e-8 * np.abs(steps[chosen, f]).max())
+        whole = np.linalg.lstsq(np.vstack([x, np.diag(np.sqrt(grid[chosen] * weights))]),
+                                np.concatenate([y, np.zeros(k)]), rcond=None)[0]
+        np.testing.assert_allclose(fit.step, whole, rtol=0, atol=1e-8 * np.abs(whole).max())
 
 
 def test_the_factor_cache_keeps_the_most_recently_used_within_its_bytes():
