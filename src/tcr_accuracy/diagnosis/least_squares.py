@@ -133,7 +133,7 @@ class FactorCache:
     kept columns (1,231 at 10^4 poses, a 12 MB factor) change with nearly every model around them
     (which of its modes the other effects take), so that its factors were never asked for again."""
 
-    def __init__(self, max_bytes: int = 48 * 2**20, max_columns: int = 640):
+    def __init__(self, max_bytes: int = 24 * 2**20, max_columns: int = 640):
         self.max_bytes, self.max_columns = max_bytes, max_columns
         self._factors: OrderedDict = OrderedDict()
         self._bytes = 0
