@@ -167,7 +167,7 @@ class FoldGrams:
         self.curvature: float | None = None
         self.gradients = None  # (total (K,), per assignment per fold (K,)) at the anchor
         self.constants = None  # (total, per assignment per fold)
-        #: the penalised columns' factors the fits keep (:class:`~tcr_accuracy.diagnosis.block_fit.FactorCache`):
+        #: the penalised columns' factors the fits keep (:class:`~tcr_accuracy.diagnosis.least_squares.FactorCache`):
         #: they hold these blocks' numbers, and go when the blocks change
         self.factors = FactorCache()
 
