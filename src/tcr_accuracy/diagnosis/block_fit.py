@@ -25,40 +25,108 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import linalg
 
 from .gram import Quadratic
-from .least_squares import DampedSolver, cholesky_solve
+from .least_squares import DampedSolver, FactorCache, cholesky_solve
 
 #: lambdas tried for a smoothness penalty, times the penalised columns' median Gram diagonal
 PENALTY_GRID = np.logspace(-5, 3, 9)
 
 
-def box_step(system: np.ndarray, gradient: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+class SharedBlock:
+    """The penalised columns of the models fitted from one store of Gram blocks, and the Cholesky
+    factors of their unit-diagonal systems (their Gram block on some rows plus lambda W), kept for
+    the next model with the same penalised columns: models that differ in a few other columns (every
+    candidate added to a model with a fine angle table or the cyclic effect) reach their fit through
+    the Schur complement on those few (:func:`free_step`), where each was one Cholesky factorisation
+    of the whole system (a thousand columns and more with an angle table).
+
+    Parameters
+    ----------
+    factors : FactorCache
+        Where the factors are kept (one per store of Gram blocks: they hold its numbers).
+    columns : tuple of int
+        The penalised columns' places in the store's layout (what the factors are of).
+    positions : (p,) int array
+        Their places among the model's columns.
+    """
+
+    def __init__(self, factors: FactorCache, columns: tuple, positions: np.ndarray):
+        self.factors, self.columns, self.positions = factors, columns, positions
+
+    def key(self, rows, lam: float) -> tuple:
+        """The cache key of the factor on ``rows`` (a label: all rows, or a fold's training rows) at lambda."""
+        return (rows, float(lam), self.columns)
+
+
+def box_step(system: np.ndarray, gradient: np.ndarray, low: np.ndarray, high: np.ndarray,
+             shared: SharedBlock | None = None, key=None) -> np.ndarray:
     """argmin d^T A d + 2 b^T d over low <= d <= high, for A = ``system`` (k, k) positive
     semi-definite and b = ``gradient``: a Cholesky solve of the unit-diagonal system where it is
     well posed and its step inside the box, else the damped solver's pseudo-inverse with the
-    box-constrained active-set step."""
+    box-constrained active-set step. ``shared``, ``key``: see :func:`free_step`."""
     if not gradient.size:
         return np.zeros(0)
     origin = np.clip(0.0, low, high)  # a feasible point to start the box-constrained step from
     if np.any(origin):
         gradient = gradient + system @ origin
         low, high = low - origin, high - origin
-    step = free_step(system, gradient)
+    step = free_step(system, gradient, shared, key)
     if step is not None and np.all(step >= low) and np.all(step <= high):
         return origin + step
     step, _ = DampedSolver(system).step(gradient, 0.0, low, high)
     return origin + np.clip(step, low, high)
 
 
-def free_step(system: np.ndarray, gradient: np.ndarray) -> np.ndarray | None:
+def free_step(system: np.ndarray, gradient: np.ndarray, shared: SharedBlock | None = None, key=None) \
+        -> np.ndarray | None:
     """argmin d^T A d + 2 b^T d without bounds: a Cholesky solve of the unit-diagonal system, or None
-    where it is not well posed (not positive definite, or near singular)."""
+    where it is not well posed (not positive definite, or near singular: a factor's diagonal below
+    1e-7 of its largest).
+
+    With ``shared`` (and its ``key``, the factor's rows and lambda), the same solve with the shared
+    penalised columns P first: their block's factor L_P is the one kept under ``key`` (made once), the
+    other columns O take the Schur complement S = A_OO - Y^T Y, Y = L_P^-1 A_PO, and the step is the
+    two triangular solves of the block factor [[L_P, 0], [Y^T, L_S]]: the Cholesky factor of the
+    system with its columns in that order."""
     norms = np.sqrt(np.clip(np.diag(system), 1e-300, None))
-    try:
-        step = cholesky_solve(system / np.outer(norms, norms), -gradient / norms, strict=True) / norms
-    except np.linalg.LinAlgError:
+    if shared is None or not 0 < shared.positions.size < system.shape[0]:
+        try:
+            step = cholesky_solve(system / np.outer(norms, norms), -gradient / norms, strict=True) / norms
+        except np.linalg.LinAlgError:
+            return None
+        return step if np.all(np.isfinite(step)) else None
+    p = shared.positions
+    o = np.setdiff1d(np.arange(system.shape[0]), p)
+
+    def unit(rows, cols):
+        return system[np.ix_(rows, cols)] / np.outer(norms[rows], norms[cols])
+
+    def made():
+        try:
+            return linalg.cholesky(unit(p, p), lower=True, check_finite=False)
+        except linalg.LinAlgError:
+            return None
+
+    factor_p = shared.factors.get(key, made)
+    if factor_p is None:
         return None
+    y = linalg.solve_triangular(factor_p, unit(p, o), lower=True, check_finite=False)
+    try:
+        factor_s = linalg.cholesky(unit(o, o) - y.T @ y, lower=True, check_finite=False)
+    except linalg.LinAlgError:
+        return None
+    diagonal = np.abs(np.concatenate([np.diag(factor_p), np.diag(factor_s)]))
+    if diagonal.min() <= 1e-7 * diagonal.max():
+        return None
+    rhs = -gradient / norms
+    z_p = linalg.solve_triangular(factor_p, rhs[p], lower=True, check_finite=False)
+    x_o = linalg.cho_solve((factor_s, True), rhs[o] - y.T @ z_p, check_finite=False)
+    x_p = linalg.solve_triangular(factor_p, z_p - y @ x_o, lower=True, trans="T", check_finite=False)
+    step = np.empty_like(rhs)
+    step[p], step[o] = x_p, x_o
+    step /= norms
     return step if np.all(np.isfinite(step)) else None
 
 
@@ -99,7 +167,8 @@ class BlockFit:
 
 
 def fit_blocks(total: Quadratic, held: list, low: np.ndarray, high: np.ndarray, weights: np.ndarray,
-               center: np.ndarray, start_index: int | None = None, chosen_index: int | None = None) -> BlockFit:
+               center: np.ndarray, start_index: int | None = None, chosen_index: int | None = None,
+               shared: SharedBlock | None = None) -> BlockFit:
     """Fit a model from its quadratics.
 
     Parameters
@@ -120,6 +189,9 @@ def fit_blocks(total: Quadratic, held: list, low: np.ndarray, high: np.ndarray, 
         Where on the lambda grid to start the search (the last choice for these penalised effects).
     chosen_index : int or None
         Lambda's place on the grid when it is chosen already (no search).
+    shared : SharedBlock or None
+        The penalised columns, whose systems' factors are kept for the next model with them
+        (:func:`free_step`): the same fits, fewer factorisations.
     """
     penalised = np.any(weights > 0)
     lam, index, searched = 0.0, None, {}
@@ -127,9 +199,10 @@ def fit_blocks(total: Quadratic, held: list, low: np.ndarray, high: np.ndarray, 
         index, lam = chosen_index, float(penalty_grid(total, weights)[chosen_index])
     elif penalised:
         index, lam, searched = choose_penalty(total, held[0] if held else [], weights, center, start_index,
-                                              steps=True)
+                                              steps=True, shared=shared)
     w = lam * weights
-    step = box_step(*_system(total, None, w, center), low, high)
+    shared = shared if penalised else None
+    step = box_step(*_system(total, None, w, center), low, high, shared, shared and shared.key("all", lam))
     inside = not np.any(np.clip(0.0, low, high))  # the box holds the anchor: a free step is box_step's own
     fold_steps, ssq = [], []
     for r, folds in enumerate(held):
@@ -140,7 +213,8 @@ def fit_blocks(total: Quadratic, held: list, low: np.ndarray, high: np.ndarray, 
             if free is not None and np.all(free >= low) and np.all(free <= high):
                 d = free  # the search's solve at the chosen lambda: what box_step would solve again
             else:
-                d = box_step(*_system(total, fold, w, center), low, high)
+                d = box_step(*_system(total, fold, w, center), low, high, shared,
+                             shared and shared.key(("train", r, f), lam))
             steps.append(d)
             scores.append(fold.value(d))
         fold_steps.append(steps)
@@ -155,7 +229,7 @@ def penalty_grid(total: Quadratic, weights: np.ndarray) -> np.ndarray:
 
 
 def choose_penalty(total: Quadratic, folds: list, weights: np.ndarray, center: np.ndarray,
-                   start_index: int | None, steps: bool = False) -> tuple:
+                   start_index: int | None, steps: bool = False, shared: SharedBlock | None = None) -> tuple:
     """(grid index, lambda): the penalty whose fits to each fold's training rows predict its held-out
     rows best (summed over ``folds``, one assignment: functions giving each fold's held-out
     Quadratic), walking :data:`PENALTY_GRID` from ``start_index`` (default its middle) to the nearest
@@ -164,7 +238,8 @@ def choose_penalty(total: Quadratic, folds: list, weights: np.ndarray, center: n
     posed, with a ridge of 1e-12 times the largest diagonal), as the bounds rarely act at the
     penalty's scale. With fewer than two folds, the grid's middle. With ``steps``, also each fold's
     free step at the chosen lambda ({fold: (k,) or None where the ridge was needed}): the fold fits
-    at that lambda are those steps where they lie in the box, no second solve."""
+    at that lambda are those steps where they lie in the box, no second solve. ``shared``: the
+    penalised columns' factors kept (:func:`free_step`)."""
     diagonal = np.diag(total.gram)
     grid = penalty_grid(total, weights)
     middle = len(grid) // 2
@@ -183,7 +258,7 @@ def choose_penalty(total: Quadratic, folds: list, weights: np.ndarray, center: n
             fold = get()
             for i in todo:
                 system, gradient = _system(total, fold, grid[i] * weights, center)
-                d = free_step(system, gradient)
+                d = free_step(system, gradient, shared, shared and shared.key(("train", 0, f), grid[i]))
                 solved[i, f] = d
                 if d is None:
                     system[np.diag_indices_from(system)] += ridge
@@ -205,4 +280,5 @@ def choose_penalty(total: Quadratic, folds: list, weights: np.ndarray, center: n
     return i, float(grid[i])
 
 
-__all__ = ["BlockFit", "PENALTY_GRID", "box_step", "choose_penalty", "fit_blocks", "free_step", "penalty_grid"]
+__all__ = ["BlockFit", "FactorCache", "PENALTY_GRID", "SharedBlock", "box_step", "choose_penalty", "fit_blocks",
+           "free_step", "penalty_grid"]

@@ -37,7 +37,7 @@ from .bases import Part, ordered
 from .error_map import JoinedMaps
 from .identifiability import compressed, gram_factor, identifiability
 from .least_squares import DampedSolver
-from .block_fit import PENALTY_GRID, box_step, fit_blocks, penalty_grid
+from .block_fit import PENALTY_GRID, SharedBlock, box_step, fit_blocks, penalty_grid
 from .fit_columns import ChainedJacobian, Columns, Sensitivity, gradient_vector, gram_matrix
 from .gram import Anchor, FoldGrams, moved_rows
 from .fit_result import FitResult
@@ -174,7 +174,8 @@ class FitEngine:
         key = tuple(effects)
         if key not in self._keep_cache:
             order, borrowed = self._identify_order(effects)
-            keep, report = identifiability(self._compressed_bases(), order, self.rank_tol, self._thresholds(order))
+            keep, report = identifiability(self._compressed_bases(), order, self.rank_tol, self._thresholds(order),
+                                           prefixes=self._prefixes)
             if self.size_factors:
                 report["fitted_size_factors"] = dict(self.size_factors)
             if borrowed:
@@ -490,8 +491,11 @@ class FitEngine:
         penalised = tuple(e for e in effects if np.any(layout.penalty[layout.columns_of([e])] > 0))
         low, high = layout.lower[index] - center, layout.upper[index] - center
         reuse = index.size > self.LARGE_MODEL and penalised in self._penalty_start
+        positions = np.flatnonzero(weights > 0)
+        shared = SharedBlock(store.factors, tuple(index[positions].tolist()), positions) \
+            if positions.size and store.factors.keeps(positions.size) else None
         solution = fit_blocks(total, held, low, high, weights, center, self._penalty_start.get(penalised),
-                              chosen_index=self._penalty_start[penalised] if reuse else None)
+                              chosen_index=self._penalty_start[penalised] if reuse else None, shared=shared)
         if solution.grid_index is not None:
             self._penalty_start[penalised] = solution.grid_index
         second_order = None
@@ -504,7 +508,8 @@ class FitEngine:
             total = store.quadratic(index, fixed, products=products)
             held = [[partial(store.quadratic, index, fixed, r, f, products=products) for f in range(len(tests))]
                     for r, tests in enumerate(store.tests)]
-            solution = fit_blocks(total, held, low, high, weights, center, chosen_index=solution.grid_index)
+            solution = fit_blocks(total, held, low, high, weights, center, chosen_index=solution.grid_index,
+                                  shared=shared)
         phi = center + solution.step
         fold_steps = [[center + d for d in steps] for steps in solution.fold_steps]
         penalty = None if solution.grid_index is None else {

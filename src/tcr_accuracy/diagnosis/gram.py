@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .error_map import JointColumnsSensitivity
+from .least_squares import FactorCache
 
 #: poses whose Jacobian rows are gathered at once (n x r x K floats: ~12 MB at 500 columns)
 CHUNK = 512
@@ -166,6 +167,9 @@ class FoldGrams:
         self.curvature: float | None = None
         self.gradients = None  # (total (K,), per assignment per fold (K,)) at the anchor
         self.constants = None  # (total, per assignment per fold)
+        #: the penalised columns' factors the fits keep (:class:`~tcr_accuracy.diagnosis.least_squares.FactorCache`):
+        #: they hold these blocks' numbers, and go when the blocks change
+        self.factors = FactorCache()
 
     # -- the products, a chunk of poses at a time -----------------------------------------
     def _block(self, p: int, rows: slice, effects) -> np.ndarray:
@@ -378,6 +382,7 @@ class FoldGrams:
         if not effects:
             return
         old = (self.total, self.held_blocks())
+        self.factors.clear()
         self.total, self.held = None, None  # the old blocks are copied into the new ones as they are made
         self.layout = ColumnLayout(self.bases, list(self.layout.effects) + effects)
         self.total, self.held = self._grams(effects, old)
@@ -488,6 +493,7 @@ class FoldGrams:
         them again. The diagnosis calls it once its models are fitted, before its residual tests
         (5 blocks of 25 MB with a fine angle table at 10^4 poses)."""
         self.held = None
+        self.factors.clear()  # the blocks made again may differ in round-off
 
     def nbytes(self) -> int:
         held = self.held or []

@@ -102,6 +102,8 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
     With ``report=False`` only the kept columns (the report, what each dropped column duplicates
     and the condition number, is most of the cost): (keep, None); then ``prefixes`` (a dict the
     caller keeps for these bases) lets orders that start alike share their leading effects' work.
+    With or without the report, ``prefixes`` also keeps the large blocks' own Gram matrices
+    (:func:`_block_pivots`).
     """
     if not report:
         return _kept_columns(bases, order, rank_tol, min_motion, prefixes), None
@@ -111,10 +113,11 @@ def identifiability(bases: dict, order, rank_tol: float = 1e-6, min_motion: floa
     thresholds = min_motion if isinstance(min_motion, dict) else dict.fromkeys(order, min_motion)
     report: dict = {"rank_tol": rank_tol, "min_motion_mm": max(thresholds.values(), default=0.0) * 1e3,
                     "effects": {}}
+    own_grams = _own_grams(bases, prefixes)
     for name in order:
         b = bases[name]
         threshold = thresholds.get(name, 0.0)
-        n_pose, cols, norms, piv, diag, basis = _block_pivots(b, kept_q)
+        n_pose, cols, norms, piv, diag, basis = _block_pivots(b, kept_q, own_grams, name)
         removed, kept_local = [], []
         independent = np.zeros(len(b.names))
         independent[piv[:diag.size]] = diag
@@ -184,10 +187,8 @@ def _kept_columns(bases: dict, order, rank_tol: float, min_motion, prefixes: dic
     thresholds = min_motion if isinstance(min_motion, dict) else dict.fromkeys(order, min_motion)
     key = [rank_tol]
     start = 0
+    own_grams = _own_grams(bases, prefixes)
     if prefixes is not None:
-        if prefixes.get("bases") is not bases:
-            prefixes.clear()
-            prefixes["bases"] = bases
         for i in range(len(order) - 1, 0, -1):  # the longest stored run of leading effects
             leading = tuple(key + [(n, thresholds.get(n, 0.0)) for n in order[:i]])
             if leading in prefixes:
@@ -198,7 +199,7 @@ def _kept_columns(bases: dict, order, rank_tol: float, min_motion, prefixes: dic
     for name in order[start:]:
         b = bases[name]
         threshold = thresholds.get(name, 0.0)
-        n_pose, _, norms, piv, diag, basis = _block_pivots(b, kept_q)
+        n_pose, _, norms, piv, diag, basis = _block_pivots(b, kept_q, own_grams, name)
         rank = 0
         for k in range(diag.size):
             if diag[k] / math.sqrt(n_pose) > threshold and diag[k] > rank_tol * norms[piv[k]]:
@@ -211,23 +212,62 @@ def _kept_columns(bases: dict, order, rank_tol: float, min_motion, prefixes: dic
         if prefixes is not None and name != order[-1]:
             key.append((name, threshold))
             prefixes[tuple(key)] = (kept_q, dict(keep))
-            while len(prefixes) > PREFIXES + 1:  # the least recently used go ("bases" stays first)
-                prefixes.pop(next(k for k in prefixes if k != "bases"))
+            while len(prefixes) > PREFIXES + len(_KEPT_ENTRIES):  # the least recently used go (not those)
+                prefixes.pop(next(k for k in prefixes if k not in _KEPT_ENTRIES))
     return keep
 
 
-def _block_pivots(b, kept_q: np.ndarray | None) -> tuple:
+#: the entries of ``prefixes`` that are not leading runs: the bases they belong to and the large blocks' own
+#: Gram matrices (:func:`_block_pivots`)
+_KEPT_ENTRIES = ("bases", "own_grams")
+
+
+def _own_grams(bases: dict, prefixes: dict | None) -> dict:
+    """The large blocks' own Gram matrices kept for these bases in ``prefixes`` (a new dict without it);
+    ``prefixes`` is emptied when it was kept for other bases."""
+    if prefixes is None:
+        return {}
+    if prefixes.get("bases") is not bases:
+        prefixes.clear()
+        prefixes["bases"] = bases
+        prefixes["own_grams"] = {}
+    return prefixes.setdefault("own_grams", {})
+
+
+def _block_pivots(b, kept_q: np.ndarray | None, own_grams: dict | None = None, name=None) -> tuple:
     """One effect's block projected off the kept span ``kept_q`` (3N, r) and pivoted: (poses, its
-    scaled columns (3N, P), their norms (P,), and :func:`_pivoted`'s pivots, diagonal and basis)."""
+    scaled columns (3N, P), their norms (P,), and :func:`_pivoted`'s pivots, diagonal and basis).
+
+    A block of more than :data:`GRAM_PIVOTING` columns is pivoted through the Gram matrix of its
+    projected columns, taken as its own Gram matrix (made once per bases and kept in ``own_grams``
+    under ``name``) less X^T X, X = kept_q^T A the block's coordinates in the kept span: the projected
+    columns themselves (3N x P, and their product) are never made, a third of the work of projecting
+    them on a fine angle table. Its round-off is that of the own Gram matrix, eps times a column's
+    norm squared, so a column that only duplicates the kept span keeps ~1e-8 of its norm, well below
+    the rank tolerance (tests/test_identifiability_gram.py checks both against projecting the columns)."""
     n_pose = b.n_poses if getattr(b, "n_poses", None) else max(b.g.shape[0], 1)
     cols = (b.g * b.scales).reshape(-1, len(b.names))
     norms = np.linalg.norm(cols, axis=0)
-    proj = cols if kept_q is None else cols - kept_q @ (kept_q.T @ cols)
     # columns of equal independent motion (two placement translations along one axis) tie: the
     # pivoting would then follow round-off, which differs between BLAS builds; weights within
     # 1e-9 of one make the earlier column win every exact tie and change nothing else
     tie_break = 1.0 + 1e-9 * np.arange(len(b.names), 0, -1) / max(len(b.names), 1)
-    return (n_pose, cols, norms) + _pivoted(proj, tie_break)
+    if own_grams is None or len(b.names) <= GRAM_PIVOTING:
+        proj = cols if kept_q is None else cols - kept_q @ (kept_q.T @ cols)
+        return (n_pose, cols, norms) + _pivoted(proj, tie_break)
+    scaled = cols * tie_break
+    if name not in own_grams:
+        own_grams[name] = scaled.T @ scaled
+    gram = own_grams[name]
+    if kept_q is not None:
+        coordinates = kept_q.T @ scaled
+        gram = gram - coordinates.T @ coordinates
+
+    def projected(which: np.ndarray) -> np.ndarray:  # the scaled projected columns ``which`` (3N, len(which))
+        chosen = scaled[:, which]
+        return chosen if kept_q is None else chosen - kept_q @ (kept_q.T @ chosen)
+
+    return (n_pose, cols, norms) + _gram_pivoted(gram, tie_break, projected)
 
 
 #: an effect of more columns than this (a fine angle table) is pivoted through the Gram matrix of its
@@ -248,17 +288,21 @@ def _pivoted(proj: np.ndarray, tie_break: np.ndarray):
     if proj.shape[1] <= GRAM_PIVOTING:
         qmat, rmat, piv = linalg.qr(proj * tie_break, mode="economic", pivoting=True)
         return piv, np.abs(np.diag(rmat)) / tie_break[piv[:min(proj.shape)]], lambda rank: qmat[:, :rank]
+    scaled = proj * tie_break
+    return _gram_pivoted(scaled.T @ scaled, tie_break, lambda which: scaled[:, which])
+
+
+def _gram_pivoted(gram: np.ndarray, tie_break: np.ndarray, columns):
+    """:func:`_pivoted` from the Gram matrix (P, P) of the scaled projected columns; ``columns(which)``
+    gives those columns (rows, len(which)) for the basis."""
     from scipy.linalg import lapack
 
-    scaled = proj * tie_break
-    gram = scaled.T @ scaled
     top = float(np.max(np.diag(gram))) if gram.size else 0.0
     factor, piv, rank_c, _ = lapack.dpstrf(gram, tol=float(np.finfo(float).eps * gram.shape[0] * top), lower=0)
     piv = piv - 1
     diag = np.abs(np.diag(factor))[:rank_c] / tie_break[piv[:rank_c]]
 
     def basis(rank: int) -> np.ndarray:  # Q = A_k R_k^-1 for the first rank pivots' columns A_k
-        return linalg.solve_triangular(np.triu(factor[:rank, :rank]), scaled[:, piv[:rank]].T, trans="T").T
+        return linalg.solve_triangular(np.triu(factor[:rank, :rank]), columns(piv[:rank]).T, trans="T").T
 
     return piv, diag, basis
-
