@@ -1,0 +1,52 @@
+"""Edge cases of two figures a person reads, each checked against a computation written out here.
+
+Written after the seed-23 mutation sample (so they do not count towards that sample's kill rate):
+an instrument's MPE of two zeros, and the multidirectional orientation variation vAP_a, vAP_b, vAP_c.
+"""
+
+from itertools import combinations
+
+import numpy as np
+import pytest
+
+from tcr_accuracy.exceptions import InputError
+from tcr_accuracy.frames.instrument import instrument_from
+from tcr_accuracy.iso9283.formulas import iso_figures
+
+
+@pytest.mark.parametrize("label", ["mpe", "radial_mpe"])
+def test_an_mpe_of_two_zeros_is_refused_naming_its_flag(label):
+    """An instrument with no error at all (a = 0 m and b = 0 m/m) would weight its readings infinitely:
+    refused, naming the flag. Planted bug caught: ``values.sum() <= 0`` -> ``<= -1``."""
+    kwargs = {"mpe": (15e-6, 6e-6)}
+    kwargs[label] = (0.0, 0.0)
+    with pytest.raises(InputError, match=f"instrument_{label} \\[0.0, 0.0\\]: need two numbers"):
+        instrument_from(**kwargs)
+    # one of the two may be zero
+    kwargs[label] = (0.0, 6e-6)
+    assert instrument_from(**kwargs) is not None
+
+
+def test_multidirectional_orientation_variation_per_axis_over_every_pair_of_approaches():
+    """vAP_a, vAP_b, vAP_c of ISO 9283 clause 7.2.3: for each orientation axis, the largest difference
+    between the mean deviations reached from two approach directions, over every pair of directions.
+    Three approaches with mean deviations chosen so that each axis has its largest difference in a
+    different pair (a per-pair maximum over the axes, or one pair's differences, gives other numbers).
+    Planted bug caught: ``axis=0`` -> ``axis=1`` (a (pairs,) array of per-pair maxima)."""
+    rng = np.random.default_rng(5)
+    means = {"A": np.array([0.0, 0.0, 0.0]), "B": np.array([3e-4, -1e-4, 0.5e-4]),
+             "C": np.array([1e-4, 2e-4, -4e-4])}
+    pose_id, labels, positions, deviations = [], [], [], []
+    for label, mean in means.items():
+        spread = rng.normal(0.0, 1e-5, (30, 3))
+        spread -= spread.mean(axis=0)  # each approach's mean deviation exactly as chosen
+        deviations.append(mean + spread)
+        positions.append(np.array([0.5, 0.1, 0.4]) + rng.normal(0.0, 1e-5, (30, 3)))
+        pose_id += ["P1"] * 30
+        labels += [label] * 30
+    figures = iso_figures(np.array(pose_id), np.vstack(positions), np.tile([0.5, 0.1, 0.4], (90, 1)),
+                          deviations=np.vstack(deviations), approach=np.array(labels))
+    (variation,) = figures.directional
+    expected = np.max([np.abs(means[a] - means[b]) for a, b in combinations("ABC", 2)], axis=0)
+    np.testing.assert_allclose(expected, [3e-4, 3e-4, 4.5e-4], rtol=1e-12)  # a different pair for each axis
+    np.testing.assert_allclose(variation.vap_abc, expected, rtol=1e-9, atol=1e-15)
