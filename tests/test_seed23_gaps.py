@@ -1,7 +1,8 @@
 """Edge cases of two figures a person reads, each checked against a computation written out here.
 
 Written after the seed-23 mutation sample (so they do not count towards that sample's kill rate):
-an instrument's MPE of two zeros, and the multidirectional orientation variation vAP_a, vAP_b, vAP_c.
+an instrument's MPE of two zeros, the multidirectional orientation variation vAP_a, vAP_b, vAP_c,
+drift's time axis where nothing varies, a path point's foot on the segment before its nearest sample.
 """
 
 from itertools import combinations
@@ -50,3 +51,36 @@ def test_multidirectional_orientation_variation_per_axis_over_every_pair_of_appr
     expected = np.max([np.abs(means[a] - means[b]) for a, b in combinations("ABC", 2)], axis=0)
     np.testing.assert_allclose(expected, [3e-4, 3e-4, 4.5e-4], rtol=1e-12)  # a different pair for each axis
     np.testing.assert_allclose(variation.vap_abc, expected, rtol=1e-9, atol=1e-15)
+
+
+def test_drift_has_no_time_axis_where_neither_time_nor_order_varies():
+    """Drift is fitted along ``time_s`` where it varies, else the measurement order where that varies,
+    else along nothing (its columns would be 0/0). Start and span written out by hand.
+    Planted bug caught: the order's ``np.ptp(order) > 0`` -> ``> -1`` (a constant order taken as an axis
+    of span 0)."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.effects.drift import DriftFitPolicy
+
+    policy = DriftFitPolicy()
+    constant = SimpleNamespace(time_s=None, order=np.full(12, 7.0))
+    assert policy.options_for_data(None, None, constant) == {}
+    assert policy.options_for_data(None, None, None) == {}
+    ordered_rows = SimpleNamespace(time_s=np.full(12, 3.0), order=np.arange(3.0, 15.0))
+    assert policy.options_for_data(None, None, ordered_rows) == {"time_axis": "order", "start": 3.0, "span": 11.0}
+    timed = SimpleNamespace(time_s=np.array([40.0, 10.0, 25.0]), order=np.arange(3.0))
+    assert policy.options_for_data(None, None, timed) == {"time_axis": "time_s", "start": 10.0, "span": 30.0}
+
+
+def test_a_point_nearest_the_second_sample_projects_on_the_first_segment():
+    """A measured point nearest the path's second sample whose foot lies on the segment before it:
+    its foot and arc length, by hand on a straight path of 1 m samples. Planted bug caught: the segment
+    before the nearest sample taken from ``max(k - 1, 1)`` (the first segment never looked at)."""
+    from tcr_accuracy.iso9283.path_evaluate import project_on_path
+
+    path = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [3.0, 0.0, 0.0]])
+    s = np.array([0.0, 1.0, 2.0, 3.0])
+    points = np.array([[0.6, 0.1, 0.0], [2.3, -0.2, 0.05], [0.2, 0.0, 0.3]])
+    foot, arc = project_on_path(points, path, s)
+    np.testing.assert_allclose(foot, [[0.6, 0.0, 0.0], [2.3, 0.0, 0.0], [0.2, 0.0, 0.0]], atol=1e-15)
+    np.testing.assert_allclose(arc, [0.6, 2.3, 0.2], atol=1e-15)
