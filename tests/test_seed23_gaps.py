@@ -2,7 +2,8 @@
 
 Written after the seed-23 mutation sample (so they do not count towards that sample's kill rate):
 an instrument's MPE of two zeros, the multidirectional orientation variation vAP_a, vAP_b, vAP_c,
-drift's time axis where nothing varies, a path point's foot on the segment before its nearest sample.
+drift's time axis where nothing varies, a path point's foot on the segment before its nearest sample,
+the approach-direction split where a joint did not move.
 """
 
 from itertools import combinations
@@ -84,3 +85,32 @@ def test_a_point_nearest_the_second_sample_projects_on_the_first_segment():
     foot, arc = project_on_path(points, path, s)
     np.testing.assert_allclose(foot, [[0.6, 0.0, 0.0], [2.3, 0.0, 0.0], [0.2, 0.0, 0.0]], atol=1e-15)
     np.testing.assert_allclose(arc, [0.6, 2.3, 0.2], atol=1e-15)
+
+
+def test_approach_direction_leaves_out_the_rows_of_a_joint_that_did_not_move():
+    """The mean error with a joint approached from above minus from below, by hand, on a direction
+    column holding +1, -1 and 0 (a joint that did not move before the reading): the rows of 0 belong to
+    neither side. Planted bug caught: ``minus = d < 0`` -> ``d < 1`` (the still rows counted as from
+    below)."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.diagnosis.residuals import where_analysis
+
+    rng = np.random.default_rng(11)
+    n = 60
+    q = rng.uniform(-1.5, 1.5, (n, 2))
+    nominal = rng.normal(size=(n, 3)) * 0.3 + [0.3, 0.0, 0.6]
+    residual = rng.normal(0.0, 5e-5, (n, 3))
+    direction = np.column_stack([np.resize([1.0, -1.0, 0.0], n), np.resize([0.0, 0.0, 1.0, -1.0], n)])
+    residual[direction[:, 0] == 0] += 4e-4  # the still rows far off: counted on a side, they move its mean
+    robot = SimpleNamespace(joint_names=["a", "b"], joint_kinds=["revolute", "revolute"])
+    tau = np.zeros((n, 2))
+    where, _ = where_analysis(robot, q, nominal, residual, tau, {"direction": direction},
+                              rng=np.random.default_rng(0))
+    for j, name in enumerate("ab"):
+        plus, minus = direction[:, j] == 1.0, direction[:, j] == -1.0
+        diff = residual[plus].mean(axis=0) - residual[minus].mean(axis=0)
+        got = where["approach_direction"][name]
+        assert (got["count_plus"], got["count_minus"]) == (plus.sum(), minus.sum())
+        np.testing.assert_allclose(got["mean_plus_minus_minus_mm"], diff * 1e3, rtol=1e-12)
+        assert got["difference_norm_mm"] == pytest.approx(np.linalg.norm(diff) * 1e3, rel=1e-12)
