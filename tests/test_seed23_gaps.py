@@ -1,4 +1,4 @@
-"""Edge cases of two figures a person reads, each checked against a computation written out here.
+"""Edge cases of figures a person reads, each checked against a computation written out here.
 
 Written after the seed-23 mutation sample (so they do not count towards that sample's kill rate):
 an instrument's MPE of two zeros, the multidirectional orientation variation vAP_a, vAP_b, vAP_c,
