@@ -3,7 +3,7 @@
 Written after the seed-23 mutation sample (so they do not count towards that sample's kill rate):
 an instrument's MPE of two zeros, the multidirectional orientation variation vAP_a, vAP_b, vAP_c,
 drift's time axis where nothing varies, a path point's foot on the segment before its nearest sample,
-the approach-direction split where a joint did not move.
+the approach-direction split where a joint did not move, two whole turns back within a joint's limits.
 """
 
 from itertools import combinations
@@ -114,3 +114,16 @@ def test_approach_direction_leaves_out_the_rows_of_a_joint_that_did_not_move():
         assert (got["count_plus"], got["count_minus"]) == (plus.sum(), minus.sum())
         np.testing.assert_allclose(got["mean_plus_minus_minus_mm"], diff * 1e3, rtol=1e-12)
         assert got["difference_norm_mm"] == pytest.approx(np.linalg.norm(diff) * 1e3, rel=1e-12)
+
+
+def test_two_whole_turns_bring_a_joint_two_turns_away_back_within_its_limits(ur5):
+    """A UR5 shoulder (limits +-2 pi) read two turns up, at 1 + 4 pi rad, with home 0: a turn down
+    (1 + 2 pi) is still beyond its limit, two turns down (1.0 rad) are within and nearest home; the
+    same two turns up for a joint read at -(1 + 4 pi). Planted bug caught: the turns tried
+    ``(-2, -1, 1, 2)`` -> ``(2, -1, 1, 2)`` (the joint left two turns up)."""
+    from tcr_accuracy.iso9283.reach import Reach, Workspace
+
+    reach = Reach(ur5, None, Workspace(), np.zeros(6), "exact")
+    q = np.array([[1.0 + 4 * np.pi, 0.1, 0.2, -(1.0 + 4 * np.pi), 0.3, 0.4]])
+    got = reach.nearest_home(q)
+    np.testing.assert_allclose(got, [[1.0, 0.1, 0.2, -1.0, 0.3, 0.4]], atol=1e-12)
