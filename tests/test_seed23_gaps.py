@@ -3,7 +3,8 @@
 Written after the seed-23 mutation sample (so they do not count towards that sample's kill rate):
 an instrument's MPE of two zeros, the multidirectional orientation variation vAP_a, vAP_b, vAP_c,
 drift's time axis where nothing varies, a path point's foot on the segment before its nearest sample,
-the approach-direction split where a joint did not move, two whole turns back within a joint's limits.
+the approach-direction split where a joint did not move, two whole turns back within a joint's limits,
+the scatter notes' millimetres.
 """
 
 from itertools import combinations
@@ -127,3 +128,25 @@ def test_two_whole_turns_bring_a_joint_two_turns_away_back_within_its_limits(ur5
     q = np.array([[1.0 + 4 * np.pi, 0.1, 0.2, -(1.0 + 4 * np.pi), 0.3, 0.4]])
     got = reach.nearest_home(q)
     np.testing.assert_allclose(got, [[1.0, 0.1, 0.2, -1.0, 0.3, 0.4]], atol=1e-12)
+
+
+@pytest.mark.parametrize("verdict, clearance_effect, named, words", [
+    ("no", [], "random scatter", "0.3000 mm per axis vs 0.0200 mm, without spatial structure"),
+    ("no", ["clearance"], "clearance", "0.3000 mm per axis vs 0.0200 mm, without spatial structure"),
+    ("cannot tell", [], None, "0.3000 mm per axis left against 0.0200 mm of noise: whether it is structure"),
+])
+def test_scatter_is_said_in_millimetres_against_the_instruments_noise(verdict, clearance_effect, named, words):
+    """Scatter of 0.3 mm per axis against an instrument's 0.02 mm, with no detector to ask: named
+    random scatter (or clearance where the vocabulary holds it) when the structure test says no, left
+    unnamed when it cannot tell; both notes quote both figures in mm to 4 decimals, written out here.
+    Planted bug caught: the noise's ``per_axis * 1e3`` -> ``per_axis / 1e3`` in the first note."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.diagnosis.structure import name_scatter
+
+    scatter = {"detected": True, "estimated_noise_per_axis_mm": 0.3}
+    notes = []
+    name_scatter(scatter, {"verdict": verdict, "reason": "too few poses"}, clearance_effect,
+                 SimpleNamespace(per_axis=0.02e-3), notes)
+    assert scatter.get("named") == named
+    assert len(notes) == 1 and words in notes[0]
