@@ -35,8 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import qr
-from scipy.spatial import cKDTree
 
+from ..analysis.semivariogram import nearest_neighbours
 from ..exceptions import InputError
 from ..model.context import MeasurementContext
 from ..model.errors import ErrorModel
@@ -94,8 +94,7 @@ def workspace_sample(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     span = np.ptp(q, axis=0)
     span[span <= 0] = 1.0
     k = min(NEIGHBOURS, q.shape[0] - 1)
-    _, neighbours = cKDTree(q / span).query(q / span, k=k + 1)
-    neighbours = np.asarray(neighbours).reshape(q.shape[0], k + 1)[:, 1:]
+    neighbours = nearest_neighbours(q / span, k)
     origin = np.repeat(np.arange(q.shape[0]), k)
     return 0.5 * (q[origin] + q[neighbours.reshape(-1)]), origin
 
