@@ -84,6 +84,7 @@ class FitEngine:
         self.anchor_effects: tuple = ("frames",)
         self._grams: FoldGrams | None = None
         self._penalty_start: dict = {}  # penalised effects -> where the last lambda search ended
+        self._last_penalty_index: int | None = None  # where the last lambda search of any penalised effects ended
 
     def add_bases(self, bases: dict) -> None:
         """Effects joining after the engine was built (an effect of last resort, tried late):
@@ -494,17 +495,22 @@ class FitEngine:
         positions = np.flatnonzero(weights > 0)
         shared = SharedBlock(store.factors, tuple(index[positions].tolist()), positions) \
             if positions.size and store.factors.keeps(positions.size) else None
-        solution = fit_blocks(total, held, low, high, weights, center, self._penalty_start.get(penalised),
+        # the walk to the nearest minimum of the held-out score starts where it ended last for these penalised
+        # effects, else where it ended last for any (the score has one minimum: the start sets the cost, not
+        # the answer; a fine angle table's search from the grid's middle was 6 lambdas of 11 solves each, and
+        # its lambda sits at the grid's end with the cyclic effect's)
+        start = self._penalty_start.get(penalised, self._last_penalty_index)
+        solution = fit_blocks(total, held, low, high, weights, center, start,
                               chosen_index=self._penalty_start[penalised] if reuse else None, shared=shared)
         if solution.grid_index is not None:
-            self._penalty_start[penalised] = solution.grid_index
-        second_order = None
+            self._penalty_start[penalised] = self._last_penalty_index = solution.grid_index
+        second_order = corrected = None
         if self._curved():
             # one Gauss-Newton step on the exact kinematics: the anchor's residual replaced by the exact
             # residual at the linear fit less J times the fit's step (what the linear model misses there)
             second_order = center + solution.step
-            products = store.residual_products(self._corrected_residual(effects, keep, index, second_order),
-                                               ordered(set(effects) | set(store.anchor.effects)))
+            corrected = self._corrected_residual(effects, keep, index, second_order)
+            products = store.residual_products(corrected, ordered(set(effects) | set(store.anchor.effects)))
             total = store.quadratic(index, fixed, products=products)
             held = [[partial(store.quadratic, index, fixed, r, f, products=products) for f in range(len(tests))]
                     for r, tests in enumerate(store.tests)]
@@ -518,7 +524,7 @@ class FitEngine:
             "chosen_on": "k-fold held-out error of the first fold assignment; every fold's fit takes it"}
         names = [layout.names[i] for i in index]
         fields, arrays = self._fields(effects, keep, index, phi, fold_steps, solution.cost, penalty, names,
-                                      exact=False, second_order=second_order)
+                                      exact=False, base=corrected, second_order=second_order)
         fields["heldout_ssq"] = solution.heldout_ssq
         return fields, arrays, self._uncertainty(index, solution.penalty * weights, solution.cost, fields)
 
@@ -602,12 +608,13 @@ class FitEngine:
             fold_steps.append(steps)
         flat = _flat(self._weighted(train, None))
         fields, arrays = self._fields(effects, keep, index, phi, fold_steps, float(flat @ flat), linear["penalty"],
-                                      cols.names, exact=True, train=train)
+                                      cols.names, exact=True, base=train)
         return fields, arrays, self._uncertainty(index, lam * cols.penalty, fields["cost"], fields)
 
-    def _fields(self, effects, keep, index, phi, fold_steps, cost, penalty, names, exact, train=None,
+    def _fields(self, effects, keep, index, phi, fold_steps, cost, penalty, names, exact, base=None,
                 second_order=None) -> tuple:
-        """A fit's figures (the dict :meth:`evaluate` returns) and its per-row arrays."""
+        """A fit's figures (the dict :meth:`evaluate` returns) and its per-row arrays (``base``: see
+        :meth:`_arrays`)."""
         layout = self.grams().layout
         lower, upper, scale = layout.lower[index], layout.upper[index], layout.scale[index]
         fields = {"effects": tuple(effects), "phi": phi, "scale": scale, "names": names, "keep": keep,
@@ -618,7 +625,7 @@ class FitEngine:
                   "second_order_at": second_order}
         span = np.maximum(np.abs(phi), 1.0) * 1e-9
         fields["at_bound"] = (phi <= lower + span) | (phi >= upper - span)
-        arrays = self._arrays(fields, train)
+        arrays = self._arrays(fields, base)
         heldout_repeats = arrays["heldout_repeats"]
         fields["heldout_squares"] = np.mean([row_squares(h) for h in heldout_repeats], axis=0) if heldout_repeats \
             else np.zeros(self.n_rows)
@@ -644,23 +651,27 @@ class FitEngine:
                 "phi_cov": (lambda: damped().covariance(variance)) if k and np.any(weights) else (lambda: None)}
         return lazy
 
-    def _arrays(self, result, train=None) -> dict:
+    def _arrays(self, result, base=None) -> dict:
         """The per-row arrays of a fit (:data:`~tcr_accuracy.diagnosis.fit_result.RESIDUAL_KEYS`): its
         training residual per part and each fold assignment's held-out rows at its folds' fits. On
-        the linear model, the anchor's residual moved by J times each fit's step from the anchor; on
-        the exact kinematics, the exact residual at phi (``train``, or made again) moved by J times
-        each fold's step from phi."""
+        the linear model, the anchor's residual (or with the Gauss-Newton step, the corrected residual
+        at it) moved by J times each fit's step from the anchor; on the exact kinematics, the exact
+        residual at phi moved by J times each fold's step from phi. ``base``: that residual per part
+        when the fit has it (made again when not: the exact kinematics at 500 poses cost as much as
+        the rest of a fit)."""
         store = self.grams()
         layout = store.layout
         index, phi = result["index"], result["phi"]
         columns = [np.zeros(layout.n_columns)]
         if result["exact"]:
-            base = train if train is not None else self.predict_residual(
+            base = base if base is not None else self.predict_residual(
                 self.columns(list(result["effects"]), result["keep"]), phi, np.arange(self.n_rows))
             origin = phi
         else:
-            base = store.anchor.residual if result["second_order_at"] is None else self._corrected_residual(
-                result["effects"], result["keep"], index, result["second_order_at"])
+            if result["second_order_at"] is None:
+                base = store.anchor.residual
+            elif base is None:
+                base = self._corrected_residual(result["effects"], result["keep"], index, result["second_order_at"])
             origin = store.anchor.phi[index]
             columns[0] = -store.anchor.phi
             columns[0][index] = phi - origin
