@@ -3,8 +3,8 @@ asked for with the set's own columns, the fits that stand after identifiability 
 sizes, the fits put back after a trial linearisation) against the linear model's least squares written
 out here on explicit matrices: the identification Jacobian's columns (N, 3, k) as numpy arrays, the fit
 to all rows and each fold's fit to its training rows by ``numpy.linalg.lstsq``, each row's held-out
-squared error from its own fold's fit, averaged over two fold assignments. The data: joint offsets
-hidden in a Pinocchio model of the tool changer, noise drawn here."""
+squared error from its own fold's fit, averaged over two fold assignments. The data: joint placements
+and offsets hidden in a Pinocchio model of the tool changer, noise drawn here."""
 
 from __future__ import annotations
 
@@ -26,19 +26,19 @@ WITHOUT_GEOMETRY = ["frames", "joint_offsets", "compliance"]
 @pytest.fixture(scope="module")
 def built():
     """The diagnosis' parts and bases (frames, joint offsets, geometry, compliance) over 40 poses of a
-    tool changer whose joints are off by hundredths of a degree, 30 um noise per axis; the bases
+    tool changer whose joint placements and joint readings are off (Pinocchio), 30 um noise per axis; the bases
     linearised at the frames-only fit (that point returned too), and two fold assignments chosen here."""
     robot = load_robot()
     rng = np.random.default_rng(39)
     low, high = robot.joint_bounds()
     q = rng.uniform(low, high, size=(N_POSES, robot.n_joints))
-    offsets = np.radians([0.05, -0.03, 0.04, 0.0, 0.06, 0.02])
-    offsets[3] = 3e-4  # the prismatic joint [m]
-    model, data = robot.model, robot.model.createData()
-    position = np.empty((N_POSES, 3))
-    for i, row in enumerate(q + offsets):
-        pin.framesForwardKinematics(model, data, robot.to_pinocchio_q(row))
-        position[i] = data.oMf[robot.tool_frame_id].translation
+    hidden = robot.model.copy()  # the truth: each joint placement moved by some 30 um and
+    for joint in range(1, hidden.njoints):  # 30 urad, the joints read 0.01 deg short
+        hidden.jointPlacements[joint] = hidden.jointPlacements[joint] * pin.exp6(3e-5 * rng.standard_normal(6))
+    truth = hidden.createData()
+    turned = q + np.where(np.array(robot.joint_kinds) == "revolute", np.radians(0.01), 5e-5)
+    position = np.stack([pin.framesForwardKinematics(hidden, truth, robot.to_pinocchio_q(row)) or
+                         truth.oMf[robot.tool_frame_id].translation.copy() for row in turned])
     position += 3e-5 * rng.standard_normal(position.shape)
     measured = MeasurementSet(joint_names=robot.joint_names, q=q, position=position)
     fitted = GapDiagnosis(robot=robot, effects=["joint_offsets", "geometry", "compliance"], folds=2,
