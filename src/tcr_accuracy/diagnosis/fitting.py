@@ -72,6 +72,8 @@ class FitEngine:
         self.rank_tol, self.min_motion = rank_tol, min_motion
         self.n_rows = parts[0].q.shape[0]
         self._full_cache: dict = {}
+        #: the fits made before identifiability was last re-judged (:meth:`resize`), for :meth:`_still_valid`
+        self._judged_before: dict = {}
         self._materialised = None  # (a cached fit, its remade per-row arrays): the last ones read
         self._keep_cache: dict = {}
         self._kept_cache: dict = {}  # the kept columns alone, without identifiability's report
@@ -84,6 +86,7 @@ class FitEngine:
         self.anchor_effects: tuple = ("frames",)
         self._grams: FoldGrams | None = None
         self._penalty_start: dict = {}  # penalised effects -> where the last lambda search ended
+        self._last_penalty_index: int | None = None  # where the last lambda search of any penalised effects ended
 
     def add_bases(self, bases: dict) -> None:
         """Effects joining after the engine was built (an effect of last resort, tried late):
@@ -104,10 +107,31 @@ class FitEngine:
         self._keep_cache.clear()
         self._kept_cache.clear()
         self._full_cache.clear()
+        self._judged_before.clear()
         self._materialised = None
         self._grams = None
         if anchor is not None:
             self.anchor_effects = tuple(anchor)
+
+    def checkpoint(self) -> tuple:
+        """What the fits so far rest on (their cache, identifiability's judgements, the Gram blocks and
+        their anchor), for :meth:`restore` after a trial linearisation the selection does not keep
+        (:meth:`reset` forgets them). The held-out rows' blocks are let go meanwhile (the trial makes
+        its own; a fit after :meth:`restore` makes them again)."""
+        if self._grams is not None:
+            self._grams.release()
+        return (self._grams, self.anchor_effects, dict(self._full_cache), dict(self._judged_before),
+                dict(self._keep_cache), dict(self._kept_cache), self._compressed)
+
+    def restore(self, state: tuple) -> None:
+        """Back to a :meth:`checkpoint`, the bases linearised again as they were then: its fits stand
+        (refitted on Gram blocks made again about an anchor fitted again, they came out the same to
+        within the fits' tolerance, at a sixth of the diagnosis of Justin's 500 poses)."""
+        grams, self.anchor_effects, full, before, keep, kept, self._compressed = state
+        self._grams = grams
+        self._full_cache, self._judged_before = full, before
+        self._keep_cache, self._kept_cache = keep, kept
+        self._materialised = None
 
     def resize(self, factors: dict) -> bool:
         """Judge identifiability at fitted sizes: an effect fitted at f times its typical size
@@ -119,9 +143,29 @@ class FitEngine:
         self.size_factors = factors
         self._keep_cache.clear()
         self._kept_cache.clear()
+        self._judged_before.update(self._full_cache)
         self._full_cache.clear()
         self._materialised = None
         return True
+
+    def _judged(self, effects, keep: dict) -> bool:
+        """Whether ``keep`` is the set's own identifiable columns, as judged already (not judged yet: False)."""
+        key = tuple(effects)
+        own = self._keep_cache[key][0] if key in self._keep_cache else self._kept_cache.get(key)
+        return own is not None and _same_columns(own, keep)
+
+    def _still_valid(self, key: tuple) -> FitResult | None:
+        """The fit of ``key`` made before identifiability was re-judged, if its columns are still the set's
+        and refitting it would give the same floats: a linear fit without a smoothness penalty (a function
+        of its columns and the Gram blocks alone; a penalised fit's lambda search starts where the last one
+        ended, an exact fit from the nested exact fits made so far). Sets whose effects were not resized,
+        or whose columns the new thresholds leave as they were, are not fitted again."""
+        old = self._judged_before.pop(key, None)
+        if old is None or key[0] or old["penalty"] is not None:
+            return None
+        if key[2] is None and not _same_columns(self.kept(key[1]), old["keep"]):  # its own columns, judged again
+            return None
+        return old
 
     # -- identifiability -------------------------------------------------------------
     def kept(self, effects) -> dict:
@@ -397,6 +441,7 @@ class FitEngine:
         (:meth:`~tcr_accuracy.diagnosis.gram.FoldGrams.release`); a later new fit makes them again."""
         if self._grams is not None:
             self._grams.release()
+        self._judged_before.clear()
 
     def _fold_grams(self) -> FoldGrams:
         """The Gram blocks, made when first asked for (not yet anchored)."""
@@ -463,8 +508,12 @@ class FitEngine:
         per-row residual arrays, which are made again when read
         (:class:`~tcr_accuracy.diagnosis.fit_result.FitResult`).
         """
+        if keep is not None and self._judged(effects, keep):
+            keep = None  # the set's own columns: its own fit (a leave-one-out's own share often asks for them)
         keep_key = None if keep is None else tuple((e, tuple(v)) for e, v in keep.items())
         key = (bool(exact), tuple(effects), keep_key)
+        if key not in self._full_cache and (valid := self._still_valid(key)) is not None:
+            self._full_cache[key] = valid
         if key not in self._full_cache:
             keep = keep if keep is not None else self.kept(effects)
             fields, arrays, lazy = self._exact(effects, keep) if exact else self._linear(effects, keep)
@@ -494,17 +543,22 @@ class FitEngine:
         positions = np.flatnonzero(weights > 0)
         shared = SharedBlock(store.factors, tuple(index[positions].tolist()), positions) \
             if positions.size and store.factors.keeps(positions.size) else None
-        solution = fit_blocks(total, held, low, high, weights, center, self._penalty_start.get(penalised),
+        # the walk to the nearest minimum of the held-out score starts where it ended last for these penalised
+        # effects, else where it ended last for any (the score has one minimum: the start sets the cost, not
+        # the answer; a fine angle table's search from the grid's middle was 6 lambdas of 11 solves each, and
+        # its lambda sits at the grid's end with the cyclic effect's)
+        start = self._penalty_start.get(penalised, self._last_penalty_index)
+        solution = fit_blocks(total, held, low, high, weights, center, start,
                               chosen_index=self._penalty_start[penalised] if reuse else None, shared=shared)
         if solution.grid_index is not None:
-            self._penalty_start[penalised] = solution.grid_index
-        second_order = None
+            self._penalty_start[penalised] = self._last_penalty_index = solution.grid_index
+        second_order = corrected = None
         if self._curved():
             # one Gauss-Newton step on the exact kinematics: the anchor's residual replaced by the exact
             # residual at the linear fit less J times the fit's step (what the linear model misses there)
             second_order = center + solution.step
-            products = store.residual_products(self._corrected_residual(effects, keep, index, second_order),
-                                               ordered(set(effects) | set(store.anchor.effects)))
+            corrected = self._corrected_residual(effects, keep, index, second_order)
+            products = store.residual_products(corrected, ordered(set(effects) | set(store.anchor.effects)))
             total = store.quadratic(index, fixed, products=products)
             held = [[partial(store.quadratic, index, fixed, r, f, products=products) for f in range(len(tests))]
                     for r, tests in enumerate(store.tests)]
@@ -518,7 +572,7 @@ class FitEngine:
             "chosen_on": "k-fold held-out error of the first fold assignment; every fold's fit takes it"}
         names = [layout.names[i] for i in index]
         fields, arrays = self._fields(effects, keep, index, phi, fold_steps, solution.cost, penalty, names,
-                                      exact=False, second_order=second_order)
+                                      exact=False, base=corrected, second_order=second_order)
         fields["heldout_ssq"] = solution.heldout_ssq
         return fields, arrays, self._uncertainty(index, solution.penalty * weights, solution.cost, fields)
 
@@ -602,12 +656,13 @@ class FitEngine:
             fold_steps.append(steps)
         flat = _flat(self._weighted(train, None))
         fields, arrays = self._fields(effects, keep, index, phi, fold_steps, float(flat @ flat), linear["penalty"],
-                                      cols.names, exact=True, train=train)
+                                      cols.names, exact=True, base=train)
         return fields, arrays, self._uncertainty(index, lam * cols.penalty, fields["cost"], fields)
 
-    def _fields(self, effects, keep, index, phi, fold_steps, cost, penalty, names, exact, train=None,
+    def _fields(self, effects, keep, index, phi, fold_steps, cost, penalty, names, exact, base=None,
                 second_order=None) -> tuple:
-        """A fit's figures (the dict :meth:`evaluate` returns) and its per-row arrays."""
+        """A fit's figures (the dict :meth:`evaluate` returns) and its per-row arrays (``base``: see
+        :meth:`_arrays`)."""
         layout = self.grams().layout
         lower, upper, scale = layout.lower[index], layout.upper[index], layout.scale[index]
         fields = {"effects": tuple(effects), "phi": phi, "scale": scale, "names": names, "keep": keep,
@@ -618,7 +673,7 @@ class FitEngine:
                   "second_order_at": second_order}
         span = np.maximum(np.abs(phi), 1.0) * 1e-9
         fields["at_bound"] = (phi <= lower + span) | (phi >= upper - span)
-        arrays = self._arrays(fields, train)
+        arrays = self._arrays(fields, base)
         heldout_repeats = arrays["heldout_repeats"]
         fields["heldout_squares"] = np.mean([row_squares(h) for h in heldout_repeats], axis=0) if heldout_repeats \
             else np.zeros(self.n_rows)
@@ -644,23 +699,27 @@ class FitEngine:
                 "phi_cov": (lambda: damped().covariance(variance)) if k and np.any(weights) else (lambda: None)}
         return lazy
 
-    def _arrays(self, result, train=None) -> dict:
+    def _arrays(self, result, base=None) -> dict:
         """The per-row arrays of a fit (:data:`~tcr_accuracy.diagnosis.fit_result.RESIDUAL_KEYS`): its
         training residual per part and each fold assignment's held-out rows at its folds' fits. On
-        the linear model, the anchor's residual moved by J times each fit's step from the anchor; on
-        the exact kinematics, the exact residual at phi (``train``, or made again) moved by J times
-        each fold's step from phi."""
+        the linear model, the anchor's residual (or with the Gauss-Newton step, the corrected residual
+        at it) moved by J times each fit's step from the anchor; on the exact kinematics, the exact
+        residual at phi moved by J times each fold's step from phi. ``base``: that residual per part
+        when the fit has it (made again when not: the exact kinematics at 500 poses cost as much as
+        the rest of a fit)."""
         store = self.grams()
         layout = store.layout
         index, phi = result["index"], result["phi"]
         columns = [np.zeros(layout.n_columns)]
         if result["exact"]:
-            base = train if train is not None else self.predict_residual(
+            base = base if base is not None else self.predict_residual(
                 self.columns(list(result["effects"]), result["keep"]), phi, np.arange(self.n_rows))
             origin = phi
         else:
-            base = store.anchor.residual if result["second_order_at"] is None else self._corrected_residual(
-                result["effects"], result["keep"], index, result["second_order_at"])
+            if result["second_order_at"] is None:
+                base = store.anchor.residual
+            elif base is None:
+                base = self._corrected_residual(result["effects"], result["keep"], index, result["second_order_at"])
             origin = store.anchor.phi[index]
             columns[0] = -store.anchor.phi
             columns[0][index] = phi - origin
@@ -707,6 +766,11 @@ class FitEngine:
         if not rot:
             return None
         return rot[0] if len(rot) == 1 else np.concatenate(rot)
+
+
+def _same_columns(keep: dict, other: dict) -> bool:
+    """Whether two partitions of kept columns (effect -> (k_e,) column positions) are the same."""
+    return set(keep) == set(other) and all(np.array_equal(keep[e], other[e]) for e in keep)
 
 
 def _whitened(part: Part, residual: np.ndarray) -> np.ndarray:

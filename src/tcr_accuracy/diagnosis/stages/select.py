@@ -334,6 +334,7 @@ def _relinearise_at_fit(engine: FitEngine, current, registered: RegisteredMeasur
         jacobians.append(position_jacobians(part.robot, q_fitted, x, part.orientation_weight
                                             if part.target_rotation is not None else None))
     before = final["cost"]
+    state = engine.checkpoint()
     relinearise(engine.bases, jacobians)
     engine.reset(anchor=ordered(current))  # the linear model taken at the fitted robot
     after = engine.evaluate(ordered(current), exact=True)["cost"]
@@ -343,7 +344,7 @@ def _relinearise_at_fit(engine: FitEngine, current, registered: RegisteredMeasur
                      f"{np.sqrt(after / final['n_observations']) * 1e3:.4g} mm per coordinate")
         return True
     relinearise(engine.bases, candidate_set.linearised())  # no better: back to the frames-only linearisation
-    engine.reset(anchor=("frames",))
+    engine.restore(state)  # and to the fits made on it
     return False
 
 
