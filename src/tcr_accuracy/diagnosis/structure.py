@@ -7,6 +7,8 @@ there scatter beyond the instrument's?
 * :func:`smallest_detectable_structure` -- its power: the smallest leftover of a given
   shape that the test flags when added to the residual, found by injection. A test that
   finds nothing says little unless it could have found something of the size in question.
+  :class:`ProbeLine` gives the test's verdict along noise + a x shape for every amplitude a
+  from one pass of sparse products (the k-NN sums of squares are quadratic in a).
 * :func:`structure_verdict` -- "yes", "no" or "cannot tell with N poses" from the test, its
   power and the scatter test.
 * :func:`scatter_test` -- chi-square of the residual against a known instrument noise;
