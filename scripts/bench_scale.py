@@ -123,7 +123,9 @@ def _diagnose(train: Path, out_json: Path, source: Path | None) -> dict:
                     "final_over_noise": d["final_over_noise"], "n_fits": d["n_fits"],
                     "ladder": [(s["effect"], s["heldout_rms_mm"], s["train_rms_mm"]) for s in d["steps"]],
                     "n_parameters": d["steps"][-1]["n_parameters"],
-                    "table_parameters": d["candidates"].get("angle_table", {}).get("n_parameters")})
+                    "table_parameters": d["candidates"].get("angle_table", {}).get("n_parameters"),
+                    "structure": [d.get("structure", {}).get(k) for k in ("verdict", "remains", "local", "global")]
+                    + [d.get("structure", {}).get("power", {}).get("per_shape_mm")]})
     else:
         row["error"] = diag["last_line"]
     return row
@@ -229,7 +231,18 @@ def same_answers(ours: dict, previous: dict) -> str:
     worst = max(abs(a / b - 1.0) for x, y in zip(ours["ladder"], previous["ladder"]) for a, b in zip(x[1:], y[1:]))
     return (f"  same answers: selection {'the same' if ours['selected'] == previous['selected'] else 'DIFFERENT'}, "
             f"ladder {' > '.join(s[0] for s in ours['ladder'])} the same; its held-out and training RMS agree to "
-            f"{worst:.1e} relative ({'within' if worst <= SAME else 'NOT within'} {SAME:g})")
+            f"{worst:.1e} relative ({'within' if worst <= SAME else 'NOT within'} {SAME:g}); the structure verdict "
+            + (f"the same ({ours['structure'][0]!r}, its power per shape to 1e-9)"
+               if _same_structure(ours["structure"], previous["structure"]) else
+               f"DIFFERENT: {ours['structure']} against {previous['structure']}"))
+
+
+def _same_structure(ours: list, previous: list) -> bool:
+    """The structure test's verdict, its flags and the smallest leftover per shape it sees (mm, or None)."""
+    if ours[:4] != previous[:4] or set(ours[4] or {}) != set(previous[4] or {}):
+        return False
+    return all((a is None) == (b is None) and (a is None or abs(a - b) <= 1e-9 * abs(b))
+               for a, b in ((ours[4][k], previous[4][k]) for k in ours[4] or {}))
 
 
 def report_table(r: dict, previous: str | None) -> None:

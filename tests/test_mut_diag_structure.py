@@ -159,6 +159,9 @@ class _ThresholdDetector:
     def remains(self, residual):
         return float(np.sqrt(np.mean(residual**2))) > self.threshold
 
+    def probe(self, noise, shape):  # the verdict along noise + a * shape, as StructureDetector.probe
+        return lambda amplitude: self.remains(noise + amplitude * shape)
+
 
 def test_power_probe_finds_the_smallest_flagged_amplitude_of_the_ladder():
     """Shapes scaled to a x noise RMS per axis (a = 0.5, 1, 2, ... 64) on top of the probe's own noise (drawn

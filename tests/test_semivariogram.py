@@ -68,3 +68,39 @@ def test_gaussian_fit_recovers_known_parameters():
 def test_too_few_points_is_an_input_error():
     with pytest.raises(InputError, match="at least 3"):
         empirical_semivariogram(np.zeros((2, 3)), np.zeros((2, 1)))
+
+
+@pytest.mark.parametrize("joint", [None, 1])
+def test_sampled_pairs_give_the_brute_force_semivariogram_of_those_pairs(joint):
+    """Above ``max_pairs`` pairs the semivariogram is taken over pairs drawn at random (i uniform over
+    the points, then k uniform over the others, from the generator in that order): against the same
+    pairs' distances (np.linalg.norm of the standardised rows' differences), bins and half squared
+    differences written out here. Seen failing when the distance kept only the last coordinate
+    (``distance = difference`` for every column instead of summing them)."""
+    rng = np.random.default_rng(5)
+    n, pairs, n_bins = 400, 5000, 9
+    q = rng.uniform(-1, 1, (n, 4)) * np.array([0.3, 2.0, 40.0, 1e-3]) + np.array([1.0, -2.0, 0.0, 5.0])
+    e = np.column_stack([np.sin(3 * q[:, 0]), q[:, 1] ** 2, rng.normal(size=n)]) * np.array([1e-4, 2e-3, 1.0])
+    emp = empirical_semivariogram(q, e, n_bins=n_bins, joint=joint, max_pairs=pairs, rng=np.random.default_rng(9))
+    draw = np.random.default_rng(9)
+    i = draw.integers(0, n, pairs)
+    k = draw.integers(0, n - 1, pairs)
+    k = np.where(k >= i, k + 1, k)
+    qs = (q - q.mean(axis=0)) / q.std(axis=0)
+    es = (e - e.mean(axis=0)) / e.std(axis=0)
+    if joint is not None:
+        qs = qs[:, [joint]]
+    h = np.linalg.norm(qs[i] - qs[k], axis=1)
+    half = 0.5 * (es[i] - es[k]) ** 2
+    edges = np.linspace(h.min(), h.max(), n_bins + 1)
+    lags, gamma, counts = [], [], []
+    for b in range(n_bins):
+        inside = (h >= edges[b]) & ((h < edges[b + 1]) if b < n_bins - 1 else (h <= edges[b + 1]))
+        if inside.any():
+            lags.append(h[inside].mean())
+            gamma.append(half[inside].mean(axis=0))
+            counts.append(inside.sum())
+    assert emp.counts.sum() == pairs
+    np.testing.assert_array_equal(emp.counts, counts)
+    np.testing.assert_allclose(emp.lags, lags, rtol=1e-12)
+    np.testing.assert_allclose(emp.semivariance, gamma, rtol=1e-12)

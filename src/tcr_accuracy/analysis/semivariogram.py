@@ -30,10 +30,6 @@ from scipy.spatial.distance import pdist
 from ..exceptions import InputError
 
 
-#: pairs whose differences are taken at once (a few hundred kB: they stay in cache)
-PAIR_CHUNK = 32768
-
-
 def nearest_neighbours(points: np.ndarray, k: int) -> np.ndarray:
     """(n, k) indices of each point's k nearest other points among points (n, d), nearest first.
 
@@ -89,7 +85,8 @@ def empirical_semivariogram(q: np.ndarray, errors: np.ndarray, n_bins: int = 20,
     n_bins : equal-width distance bins between the smallest and largest distance
     joint : distance along this joint only, or over all joints (None)
     standardise : standardise q and errors column-wise first
-    max_pairs : above this many pairs, this many pairs drawn at random (rng) are used
+    max_pairs : above this many pairs, this many pairs drawn at random are used: i uniform over the
+        points, then k uniform over the others (rng, in that order)
     """
     q = np.asarray(q, dtype=float)
     errors = np.asarray(errors, dtype=float)
@@ -113,21 +110,26 @@ def empirical_semivariogram(q: np.ndarray, errors: np.ndarray, n_bins: int = 20,
         i = rng.integers(0, n, max_pairs)
         k = rng.integers(0, n - 1, max_pairs)
         k += k >= i  # a pose other than i, uniformly
-        distance = np.empty(max_pairs)
-        squared = np.empty((max_pairs, errors.shape[1]))
-        # the pairs' differences a chunk at a time, in cache (whole, (max_pairs, n_joints) arrays of 96 MB
-        # at 2 x 10^6 pairs went through memory four times: five times slower, the same floats)
-        for start in range(0, max_pairs, PAIR_CHUNK):
-            at = slice(start, start + PAIR_CHUNK)
-            difference = q[i[at]]
-            difference -= q[k[at]]
+        # one coordinate at a time, as 1-D takes (numpy's fast gather; the rows of a (n, d) array were
+        # gathered five times slower), the squares summed in the order np.sum(axis=1) adds a row's: the same
+        # floats as the (pairs, d) differences summed per row
+        distance = None
+        for column in q.T:
+            difference = column.take(i)
+            difference -= column.take(k)
             np.square(difference, out=difference)
-            np.sqrt(np.sum(difference, axis=1), out=distance[at])
-            half = errors[i[at]]
-            half -= errors[k[at]]
+            if distance is None:
+                distance = difference
+            else:
+                distance += difference
+        np.sqrt(distance, out=distance)
+        halves = []
+        for column in errors.T:
+            half = column.take(i)
+            half -= column.take(k)
             np.square(half, out=half)
             half *= 0.5
-            squared[at] = half
+            halves.append(half)
     else:
         distance = pdist(q)
         i, k = np.triu_indices(n, 1)
@@ -135,12 +137,14 @@ def empirical_semivariogram(q: np.ndarray, errors: np.ndarray, n_bins: int = 20,
         squared -= errors[k]
         np.square(squared, out=squared)
         squared *= 0.5
+        halves = [squared[:, c] for c in range(errors.shape[1])]
     edges = np.linspace(distance.min(), distance.max(), n_bins + 1)
-    which = np.clip(np.searchsorted(edges, distance, side="right") - 1, 0, n_bins - 1)
+    which = np.searchsorted(edges, distance, side="right")  # >= 1: the first edge is the smallest distance
+    which -= 1
+    np.minimum(which, n_bins - 1, out=which)
     counts = np.bincount(which, minlength=n_bins)
     lag_sum = np.bincount(which, weights=distance, minlength=n_bins)
-    gamma = np.stack([np.bincount(which, weights=squared[:, c], minlength=n_bins)
-                      for c in range(errors.shape[1])], axis=1)
+    gamma = np.stack([np.bincount(which, weights=half, minlength=n_bins) for half in halves], axis=1)
     used = counts > 0
     return EmpiricalSemivariogram(
         lags=lag_sum[used] / counts[used],

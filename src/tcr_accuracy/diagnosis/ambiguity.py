@@ -29,6 +29,7 @@ from ..effects import effect_class
 from .fitting import FitEngine
 from .bases import ordered
 from .fit_columns import ChainedJacobian
+from .gram import sensitivity_times
 from .identifiability import QR_CHUNK
 from .paired import entry_z, paired_z, row_squares
 from .records import ErrorStats
@@ -167,8 +168,7 @@ def stand_in_shapes(engine: FitEngine, current: list, pool, rng: np.random.Gener
         b = engine.bases[u]
         g_u = b.per_part[0].g  # (N, r, k) per unit of the union parameters' local columns
         draw = rng.standard_normal(g_u.shape[2]) * b.scales[b.index[0]]
-        motions[u] = np.concatenate([g_u[start:start + QR_CHUNK][:, :3, :] @ draw
-                                     for start in range(0, g_u.shape[0], QR_CHUNK)])
+        motions[u] = sensitivity_times(g_u, draw[:, None])[:, :3, 0]  # its factors' product: no (N, r, k) rows
     if g.shape[2] and motions:
         model = ChainedJacobian(g, np.arange(g.shape[2]), final_cols.scale[idx])
         left = _least_squares_residual(model, np.stack(list(motions.values()), axis=2))

@@ -320,9 +320,36 @@ class JointColumnsSensitivity(_SensitivityRows):
     def times(self, theta: np.ndarray) -> np.ndarray:
         """g @ theta (N, r, m) for parameter vectors theta (k, m): per joint, its columns' values times
         their parameters (N, m), times the joint's column of the error Jacobian; a chunk of poses at
-        a time."""
+        a time. The values are read in place (:func:`_pieces`): a model's kept terms of a cyclic series
+        were gathered (copied) at every product, most of its time."""
         n, r, _ = self.shape
         theta = np.asarray(theta)[self.columns]
+        pieces = _pieces(self.values)
+        if pieces is None:  # values whose rows are made when read
+            return self._gathered_times(theta)
+        # per stored array and joint, the run of the array's columns the joint's columns occupy and their
+        # parameters spread over it (zero on the columns not kept)
+        runs = []
+        for array, stored, own in pieces:
+            for j in np.unique(self.joint[own]):
+                mine = self.joint[own] == j
+                if not np.any(theta[own[mine]]):
+                    continue
+                lo, hi = int(stored[mine].min()), int(stored[mine].max()) + 1
+                weights = np.zeros((hi - lo, theta.shape[1]))
+                np.add.at(weights, stored[mine] - lo, theta[own[mine]])
+                runs.append((array, slice(lo, hi), weights, j))
+        out = np.zeros((n, r, theta.shape[1]))
+        for start in range(0, n, ErrorMap.CHUNK):
+            at = slice(start, start + ErrorMap.CHUNK)
+            for array, columns, weights, j in runs:
+                out[at] += self.jac_q[at, :, j, None] * (array[at, columns] @ weights)[:, None, :]
+        return out
+
+    def _gathered_times(self, theta: np.ndarray) -> np.ndarray:
+        """:meth:`times` for theta (k_drive, m) already of the stored columns, the values' rows read a
+        chunk at a time."""
+        n, r, _ = self.shape
         out = np.zeros((n, r, theta.shape[1]))
         joints = [(j, np.flatnonzero(self.joint == j)) for j in np.unique(self.joint)]
         joints = [(j, _run(c)) for j, c in joints if np.any(theta[c])]
@@ -332,6 +359,37 @@ class JointColumnsSensitivity(_SensitivityRows):
             for j, columns in joints:
                 out[at] += self.jac_q[at, :, j, None] * (values[:, columns] @ theta[columns])[:, None, :]
         return out
+
+
+def _pieces(values) -> list | None:
+    """Where the columns of compact drive values (N, k) are stored: [(array (N, k_a), its columns (c,),
+    the values' columns they are (c,))], through :class:`ColumnSubset` and :class:`ColumnBlocks`; None
+    when some are rows made when read."""
+    if isinstance(values, np.ndarray):
+        every = np.arange(values.shape[1])
+        return [(values, every, every)]
+    if isinstance(values, ColumnSubset):
+        inner = _pieces(values.values)
+        if inner is None or np.unique(values.positions).size < values.positions.size:
+            return None
+        place = np.full(values.values.shape[1], -1)
+        place[values.positions] = np.arange(values.positions.size)
+        out = []
+        for array, stored, own in inner:
+            kept = place[own] >= 0
+            if np.any(kept):
+                out.append((array, stored[kept], place[own[kept]]))
+        return out
+    if isinstance(values, ColumnBlocks):
+        out, offset = [], 0
+        for block in values.blocks:
+            inner = _pieces(block)
+            if inner is None:
+                return None
+            out += [(array, stored, own + offset) for array, stored, own in inner]
+            offset += block.shape[1]
+        return out
+    return None
 
 
 class ColumnBlocks:

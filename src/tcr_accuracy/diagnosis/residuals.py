@@ -67,8 +67,13 @@ def _correlations(values: np.ndarray, residual: np.ndarray) -> list:
 
 
 def where_analysis(robot: RobotModel, q: np.ndarray, nominal: np.ndarray, residual: np.ndarray,
-                   tau: np.ndarray, context: dict, n_bins: int = 5, rng=None):
-    """Breakdown of the residual (N, 3) [m]; returns (JSON-able dict, semivariograms)."""
+                   tau: np.ndarray, context: dict, n_bins: int = 5, rng=None, knn_shares=None):
+    """Breakdown of the residual (N, 3) [m]; returns (JSON-able dict, semivariograms).
+
+    ``knn_shares``: optional callable, residual (N, 3) -> {joint indices (tuple): share of its variance the
+    k = 10 nearest neighbours along those joints (standardised) predict out of sample}, for every moving
+    joint and pair (the structure test's :meth:`~tcr_accuracy.diagnosis.structure.StructureDetector.shares`,
+    whose neighbours are found once for the diagnosis); without it the neighbours are found here."""
     norm = np.linalg.norm(residual, axis=1)
     where: dict = {}
     where["per_axis"] = {ax: {"mean_mm": float(residual[:, c].mean() * 1e3),
@@ -120,15 +125,17 @@ def where_analysis(robot: RobotModel, q: np.ndarray, nominal: np.ndarray, residu
     centred = residual - residual.mean(axis=0)
     total = float(np.sum(centred**2)) or 1.0
     along = {}
+    known = knn_shares(residual) if knn_shares is not None else {}
     for j, name in enumerate(robot.joint_names):
         if np.std(q[:, j]) == 0:
             continue
         s = semis[j]
         short = s.lags <= np.quantile(s.lags, 0.25)
         gamma_short = (s.semivariance[short] * s.counts[short, None]).sum(axis=0) / s.counts[short].sum()
-        k = min(10, q.shape[0] - 1)
-        idx = nearest_neighbours(q[:, [j]], k)
-        share = 1.0 - float(np.sum((centred - centred[idx].mean(axis=1)) ** 2)) / total
+        share = known.get((j,))
+        if share is None:
+            idx = nearest_neighbours(q[:, [j]], min(10, q.shape[0] - 1))
+            share = 1.0 - float(np.sum((centred - centred[idx].mean(axis=1)) ** 2)) / total
         along[name] = {"short_lag_semivariance_xyz": gamma_short.tolist(), "knn_explained_share": share}
     where["along_joints"] = along
     where["varies_along"] = [n for n in sorted(along, key=lambda n: -along[n]["knn_explained_share"])
@@ -139,9 +146,10 @@ def where_analysis(robot: RobotModel, q: np.ndarray, nominal: np.ndarray, residu
     for a in range(len(names)):
         for b in range(a + 1, len(names)):
             cols = [robot.joint_names.index(names[a]), robot.joint_names.index(names[b])]
-            k = min(10, q.shape[0] - 1)
-            idx = nearest_neighbours(qs[:, cols], k)
-            share = 1.0 - float(np.sum((centred - centred[idx].mean(axis=1)) ** 2)) / total
+            share = known.get(tuple(cols))
+            if share is None:
+                idx = nearest_neighbours(qs[:, cols], min(10, q.shape[0] - 1))
+                share = 1.0 - float(np.sum((centred - centred[idx].mean(axis=1)) ** 2)) / total
             pairs.append({"joints": [names[a], names[b]], "knn_explained_share": share})
     pairs.sort(key=lambda r: -r["knn_explained_share"])
     where["along_joint_pairs"] = pairs

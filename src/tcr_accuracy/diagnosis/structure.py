@@ -7,6 +7,8 @@ there scatter beyond the instrument's?
 * :func:`smallest_detectable_structure` -- its power: the smallest leftover of a given
   shape that the test flags when added to the residual, found by injection. A test that
   finds nothing says little unless it could have found something of the size in question.
+  :class:`ProbeLine` gives the test's verdict along noise + a x shape for every amplitude a
+  from one pass of sparse products (the k-NN sums of squares are quadratic in a).
 * :func:`structure_verdict` -- "yes", "no" or "cannot tell with N poses" from the test, its
   power and the scatter test.
 * :func:`scatter_test` -- chi-square of the residual against a known instrument noise;
@@ -154,17 +156,23 @@ class StructureDetector:
         """(N, F) the smooth joint features of the global predictor (:func:`_smooth_features`)."""
         return self._make()[2]
 
-    def _local(self, centred: np.ndarray, total: float, perms=None) -> dict:
-        perms = self.perms if perms is None else perms
-        # the residual and its shuffles side by side: one sparse product per subset
-        stack = np.concatenate([centred] + [centred[perm] for perm in perms], axis=1)
-        best = None
-        for subset, (order, average) in zip(self.subsets, self.neighbours):
+    def _leftovers(self, stack: np.ndarray):
+        """Per subset tested, x - A x (N, C) for the columns x of stack (N, C): what each pose's k nearest
+        neighbours along the subset leave of its value, in the subset's numbering of the poses (one sparse
+        product per subset for all the columns)."""
+        for order, average in self.neighbours:
             ordered = stack[order]
             error = average @ ordered
             np.subtract(ordered, error, out=error)
-            np.square(error, out=error)
-            shares = 1.0 - error.sum(axis=0).reshape(-1, 3).sum(axis=1) / total
+            yield error
+
+    def _best(self, errors, total: float) -> dict:
+        """The subset whose residual's k-NN share stands highest above its shuffles' (z), from the sums of
+        squares ``errors``: per subset (1 + n_perms,) of the residual then of each shuffle, over the poses
+        and the three axes."""
+        best = None
+        for subset, error in zip(self.subsets, errors):
+            shares = 1.0 - error / total
             actual, null = float(shares[0]), shares[1:]
             gain = float(actual - null.mean())
             # a few hundred permutations cannot resolve small p by counting: use their spread
@@ -173,6 +181,32 @@ class StructureDetector:
                 best = {"joints": list(subset), "explained_share": actual, "null_mean": float(null.mean()),
                         "null_std": float(null.std(ddof=1)), "gain": gain, "z": z_sub}
         return best
+
+    def shares(self, residual: np.ndarray) -> dict:
+        """Subset tested (tuple of joint indices) -> the share of the residual's (N, 3) variance that each
+        pose's k nearest neighbours along it predict, out of sample (a pose is not its own neighbour): the
+        test's statistic without its shuffles, on the poses the test runs on."""
+        centred = self.restrict(residual)
+        centred = centred - centred.mean(axis=0)
+        total = float(np.sum(centred**2)) or 1.0
+        return {subset: 1.0 - float(np.sum(left**2)) / total
+                for subset, left in zip(self.subsets, self._leftovers(centred))}
+
+    #: shuffles whose columns go through the sparse products at once: (N, 3 x 34) blocks, 16 MB at the
+    #: test's 2 x 10^4 poses (the 101 side by side were three arrays of 48 MB); the same sums, column by column
+    SHUFFLES_AT_ONCE = 34
+
+    def _local(self, centred: np.ndarray, total: float, perms=None) -> dict:
+        shuffles = [None] + list(self.perms if perms is None else perms)  # None: the residual itself
+        errors = [[] for _ in self.neighbours]
+        # the residual and its shuffles side by side, a block at a time: one sparse product per subset and block
+        for start in range(0, len(shuffles), self.SHUFFLES_AT_ONCE):
+            stack = np.concatenate([centred if perm is None else centred[perm]
+                                    for perm in shuffles[start:start + self.SHUFFLES_AT_ONCE]], axis=1)
+            for sums, error in zip(errors, self._leftovers(stack)):
+                np.square(error, out=error)
+                sums.append(error.sum(axis=0).reshape(-1, 3).sum(axis=1))
+        return self._best([np.concatenate(sums) for sums in errors], total)
 
     def _global(self, centred: np.ndarray, total: float) -> tuple[float, float]:
         if self._ridge is None:
@@ -190,6 +224,12 @@ class StructureDetector:
     def remains(self, residual: np.ndarray) -> bool:
         """Only the verdict (no semivariogram, fewer permutations): what the power probe needs."""
         return self.test(residual, rng=None, perms=self.perms[:self.PROBE_PERMUTATIONS])["remains"]
+
+    def probe(self, noise: np.ndarray, shape: np.ndarray) -> "ProbeLine":
+        """:meth:`remains` of ``noise + a * shape`` (N, 3) [m] for any amplitude a, as a callable of a
+        (:class:`ProbeLine`): the k-NN sums of squares are quadratic in a, so the sparse products are
+        taken once for the line instead of once per amplitude tried."""
+        return ProbeLine(self, self.restrict(noise), self.restrict(shape))
 
     def restrict(self, values: np.ndarray) -> np.ndarray:
         """Rows of all N poses -> the rows of the poses the test runs on."""
@@ -221,6 +261,60 @@ class StructureDetector:
             semi = empirical_semivariogram(self.q, residual, n_bins=12, rng=rng)
             out["semivariogram_nugget_ratio_xyz"] = [_nugget_ratio(semi, c) for c in range(3)]
         return out
+
+
+class ProbeLine:
+    """The structure test's verdict along a line of residuals, noise + a * shape (N, 3) [m], as
+    :meth:`StructureDetector.remains` gives it at each amplitude a: the k-NN test with the probe's
+    permutations and the ridge.
+
+    With x = P(c_n + a c_s) (c the centred noise and shape, P a shuffle or none) the k-NN sum of
+    squares ||x - A x||^2 = ||u||^2 + 2 a u.v + a^2 ||v||^2 with u = (I - A) P c_n, v = (I - A) P c_s;
+    the three sums per subset and shuffle come from one sparse product per subset with the noise's and
+    the shape's columns side by side, and each amplitude costs a few hundred multiplications: the
+    power probe's bisection tried three or four amplitudes per shape, each a product as wide as the
+    noise's alone. The ridge is refitted at each amplitude (its penalty is chosen per amplitude).
+    """
+
+    def __init__(self, detector: StructureDetector, noise: np.ndarray, shape: np.ndarray):
+        self.detector = detector
+        self.noise, self.shape = noise, shape
+        self.centred_noise = noise - noise.mean(axis=0)
+        self.centred_shape = shape - shape.mean(axis=0)
+        shuffles = [None] + list(detector.perms[:detector.PROBE_PERMUTATIONS])  # None: unshuffled
+        sums = [([], [], []) for _ in detector.neighbours]
+        for start in range(0, len(shuffles), detector.SHUFFLES_AT_ONCE):
+            block = shuffles[start:start + detector.SHUFFLES_AT_ONCE]
+            columns = [c if perm is None else c[perm] for c in (self.centred_noise, self.centred_shape)
+                       for perm in block]
+            width = 3 * len(block)
+            for sum_, left in zip(sums, detector._leftovers(np.concatenate(columns, axis=1))):
+                u, v = left[:, :width], left[:, width:]
+                for into, (a, b) in zip(sum_, ((u, u), (u, v), (v, v))):
+                    into.append(np.einsum("ij,ij->j", a, b).reshape(-1, 3).sum(axis=1))
+        # per subset, (||u||^2, u.v, ||v||^2) per shuffle (1 + n_perms,), summed over the axes
+        self.sums = [tuple(np.concatenate(part) for part in sum_) for sum_ in sums]
+        self.totals = (float(np.sum(self.centred_noise**2)), float(np.sum(self.centred_noise * self.centred_shape)),
+                       float(np.sum(self.centred_shape**2)))
+
+    def local(self, amplitude: float) -> dict:
+        """The k-NN test's best subset (as the structure test reports it) at noise + amplitude * shape."""
+        a = float(amplitude)
+        nn, ns, ss = self.totals
+        total = (nn + 2 * a * ns + a * a * ss) or 1e-300
+        return self.detector._best([uu + 2 * a * uv + a * a * vv for uu, uv, vv in self.sums], total)
+
+    def __call__(self, amplitude: float) -> bool:
+        """Whether structure remains in noise + amplitude * shape (the k-NN test, else the ridge)."""
+        d = self.detector
+        best = self.local(amplitude)
+        p_knn = float(min(1.0, stats.norm.sf(best["z"]) * len(self.sums)))
+        if p_knn < d.alpha and best["gain"] > d.min_explained:
+            return True
+        centred = self.centred_noise + amplitude * self.centred_shape
+        total = float(np.sum(centred**2)) or 1e-300
+        share, z = d._global(centred, total)
+        return bool(z > float(stats.norm.isf(d.alpha)) and share > d.min_explained)
 
 
 #: the ridge penalties the global predictor chooses among (on standardised features)
@@ -261,18 +355,19 @@ class RidgeFolds:
     def predict(self, y: np.ndarray) -> np.ndarray:
         """(N, m) out-of-fold predictions of y (N, m)."""
         out = np.empty_like(y, dtype=float)
+        n_alphas = self.alphas.size
         for train, test, projected, inverse, hat, projected_test in self.folds:
             target = y[train]
             offset = target.mean(axis=0)
             centred = target - offset
             moment = projected.T @ centred  # (F, m)
-            best, best_score = 0, None
-            for a in range(self.alphas.size):
-                fitted = projected @ (moment * inverse[:, a, None])
-                looe = (centred - fitted) / (1.0 - hat[:, a, None])
-                score = -float(np.mean(looe**2))
-                if best_score is None or score > best_score:
-                    best, best_score = a, score
+            # every penalty's fit in one product (n_train, n_alphas * m): thirteen products of m columns were
+            # most of the test's ridge time
+            fitted = projected @ (inverse[:, :, None] * moment[:, None, :]).reshape(moment.shape[0], -1)
+            looe = centred[:, None, :] - fitted.reshape(-1, n_alphas, centred.shape[1])
+            looe /= 1.0 - hat[:, :, None]
+            scores = -np.mean(looe**2, axis=(0, 2))
+            best = int(np.argmax(scores))  # the first of the best, as RidgeCV takes it
             out[test] = offset + projected_test @ (moment * inverse[:, best, None])
         return out
 
@@ -307,11 +402,12 @@ def smallest_detectable_structure(detector: StructureDetector, shapes: dict, noi
         rms = math.sqrt(float(np.mean(shape**2)))
         if rms == 0:
             continue
+        seen_at = detector.probe(noise, shape * (noise_per_axis / rms))  # a -> the verdict at a x the noise
         # detection grows with the amplitude: bisect over the ladder (3 tests for 8 levels)
         lo, hi = -1, len(PROBE_AMPLITUDES)  # not seen at lo (or below the ladder), seen at hi (or never)
         while hi - lo > 1:
             mid = (lo + hi) // 2
-            if detector.remains(noise + shape * (PROBE_AMPLITUDES[mid] * noise_per_axis / rms)):
+            if seen_at(PROBE_AMPLITUDES[mid]):
                 hi = mid
             else:
                 lo = mid

@@ -1,8 +1,9 @@
 """The one home of the TCP's Jacobians: in the joints (:func:`tcp_jacobian`, what IK and
 compensation step with) and in the error parameters (the error Jacobian).
 
-The error Jacobian comes from Pinocchio's frame Jacobian (joint side) and frame kinematic
-regressor (placement side), chained with the derivative of ``exp6`` at the current error vector;
+The error Jacobian comes from Pinocchio's frame kinematic regressor (the placements; a joint's own
+column is its placement's block along its motion axis), chained with the derivative of ``exp6`` at
+the current error vector;
 batched over poses (:func:`error_jacobians`), one pose at x = 0 (:func:`error_jacobian`).
 """
 
@@ -111,8 +112,9 @@ def error_jacobians(robot: RobotModel, q, x=None, error_model: ErrorModel | None
     -------
     jq : (N, 6, n_joints) d(TCP)/d(q), jx : (N, 6, n_error_params) d(TCP)/d(x).
     Rows: TCP displacement in base-frame axes, then rotation vector, as Pinocchio's
-    LOCAL_WORLD_ALIGNED. From Pinocchio's frame Jacobian and frame kinematic regressor
-    of the perturbed model, chained with the derivative of ``exp6`` (``pin.Jexp6``) at x.
+    LOCAL_WORLD_ALIGNED. From Pinocchio's frame kinematic regressor of the perturbed model
+    (each joint's column is its placement's block along the joint's motion axis), chained with
+    the derivative of ``exp6`` (``pin.Jexp6``) at x.
 
     Examples
     --------
@@ -136,17 +138,15 @@ def error_jacobians(robot: RobotModel, q, x=None, error_model: ErrorModel | None
         # one model copy, its placements rewritten per row
         model = pin.Model(robot.model)
         rows = [([i], model, _exp6_chains(robot, em, xs[i]), xs[i]) for i in range(n)]
-    jq = np.empty((n, 6, nj))
-    jx = np.zeros((n, 6, p))
+    jx = np.empty((n, 6, p))
     frame_id = robot.tool_frame_id
     plain_q = robot.model.nq == nj
-    idx_v = [robot.model.joints[j].idx_v for j in range(1, robot.model.njoints)]
-    regressors = np.empty((n, 6, 6 * nj))
+    regressors = np.empty((n, 6, nj, 6))  # per pose and joint placement: base-frame axes, at the TCP
     rotations = np.empty((n, 3, 3))
     positions = np.empty((n, 3))
-    chains = np.empty((n, nj, 6, 6))
-    base_chains = np.empty((n, 6, 6))
-    tool_chains = np.empty((n, 6, 6))
+    chains = np.empty((n, nj, 6, 6)) if per_row else None
+    base_chains = np.empty((n, 6, 6)) if per_row else None
+    tool_chains = np.empty((n, 6, 6)) if per_row else None
     data = None
     for block in rows:
         indices, model, (chain, base_chain, tool_chain) = block[:3]
@@ -159,32 +159,35 @@ def error_jacobians(robot: RobotModel, q, x=None, error_model: ErrorModel | None
             model.frames[frame_id] = frame
         if data is None or not per_row:
             data = model.createData()
-        for i in indices:
-            qp = q[i] if plain_q else robot.to_pinocchio_q(q[i])
-            pin.computeJointJacobians(model, data, qp)
-            pin.updateFramePlacements(model, data)
-            rotations[i] = data.oMf[frame_id].rotation
-            positions[i] = data.oMf[frame_id].translation
-            regressors[i] = pin.computeFrameKinematicRegressor(model, data, frame_id, pin.LOCAL)
-            jq[i] = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)[:, idx_v]
-            chains[i], base_chains[i], tool_chains[i] = chain, base_chain, tool_chain
-    # LOCAL (TCP frame) -> base-frame axes, then chain each placement block with its exp6 derivative
-    aligned = (rotations[:, None] @ regressors.reshape(n, 2, 3, 6 * nj)).reshape(n, 6, nj, 6)
+        flat = regressors.reshape(n, 6, 6 * nj)
+        for i in indices:  # the per-pose Pinocchio calls, nothing else: a third of the time went to the rest
+            pin.forwardKinematics(model, data, q[i] if plain_q else robot.to_pinocchio_q(q[i]))
+            pose = pin.updateFramePlacement(model, data, frame_id)
+            rotations[i] = pose.rotation
+            positions[i] = pose.translation
+            flat[i] = pin.computeFrameKinematicRegressor(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)
+        if per_row:
+            chains[indices], base_chains[indices], tool_chains[indices] = chain, base_chain, tool_chain
+    # the joint's own velocity moves the TCP as a twist along its motion axis at its placement (the joint's
+    # motion commutes with that axis): the frame Jacobian's column, without asking for it pose by pose
+    jq = np.einsum("nrjk,jk->nrj", regressors, robot.motion_axes)
+    # then chain each placement block with its exp6 derivative
+    placement = jx[:, :, em.placement_slice].reshape(n, 6, nj, 6)
     if per_row:
-        placement = np.einsum("nijk,njkl->nijl", aligned, chains)
+        placement[:] = np.einsum("nijk,njkl->nijl", regressors, chains)
     else:
-        placement = (aligned.transpose(0, 2, 1, 3) @ chains[0]).transpose(0, 2, 1, 3)
-    jx[:, :, em.placement_slice] = placement.reshape(n, 6, 6 * nj)
+        for j in range(nj):
+            placement[:, :, j] = regressors[:, :, j] @ chain[j]
     jx[:, :, em.drive_slice] = jq
     base = np.zeros((n, 6, 6))
     base[:, :3, :3] = np.eye(3)
     base[:, :3, 3:] = -np.einsum("nk,ikj->nij", positions, _LEVI_CIVITA)  # -skew(p)
     base[:, 3:, 3:] = np.eye(3)
-    jx[:, :, em.base_slice] = base @ (base_chains if per_row else base_chains[0])
+    jx[:, :, em.base_slice] = base @ (base_chains if per_row else base_chain)
     tool = np.zeros((n, 6, 6))
     tool[:, :3, :3] = rotations
     tool[:, 3:, 3:] = rotations
-    jx[:, :, em.tool_slice] = tool @ (tool_chains if per_row else tool_chains[0])
+    jx[:, :, em.tool_slice] = tool @ (tool_chains if per_row else tool_chain)
     return jq, jx
 
 

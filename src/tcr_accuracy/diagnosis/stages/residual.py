@@ -136,7 +136,8 @@ def analyse_residual(registered: RegisteredMeasurements, candidate_set: Candidat
     context_values = {k: np.asarray(getattr(registered.parts[0].context, k), dtype=float)
                       for k in measured_context(measurements)}
     where, semis = where_analysis(robot, measurements.q, registered.nominal[0].position, gap_residual,
-                                  registered.gravity_torque, context_values, rng=rng)
+                                  registered.gravity_torque, context_values, rng=rng,
+                                  knn_shares=detector.shares if detector.rows is None else None)
     say("testing the final residual")
     final_train = _first_frame(final["train_residual"])
     structure = detector.test(final_train, rng)
