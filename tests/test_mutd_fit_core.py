@@ -1,0 +1,82 @@
+"""The fit core's thresholds and defaults (``diagnosis/least_squares.py``, ``diagnosis/fitting.py``) at their
+boundaries, against figures written out here: numpy's pseudo-inverse at the documented cut-off, the engine's
+identifiability report with its default thresholds. Each test names a planted change it was seen to catch
+(issue 36)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from tcr_accuracy.diagnosis.diagnose import GapDiagnosis
+from tcr_accuracy.diagnosis.fitting import FitEngine
+from tcr_accuracy.diagnosis.least_squares import DampedSolver
+from tcr_accuracy.io.measurements import MeasurementSet
+from tcr_accuracy.model.robot import load_robot
+
+EPS = np.finfo(float).eps
+
+
+def _near_twins(k: int, factor: float) -> np.ndarray:
+    """A (k, k) Gram matrix with unit diagonal: the identity but for two columns whose correlation leaves
+    the smallest eigenvalue 1 - c = ``factor`` times the cut-off k * eps * 10 * (largest eigenvalue, 1 + c)."""
+    small = factor * 2.0 * k * EPS * 10  # 1 + c = 2 to 1e-12
+    gram = np.eye(k)
+    gram[0, 1] = gram[1, 0] = 1.0 - small
+    return gram
+
+
+@pytest.mark.parametrize("factor", [0.92, 1.08])
+def test_the_smallest_eigenvalue_kept_is_ten_times_size_times_eps_of_the_largest(factor):
+    """An eigenvalue of the scaled Gram matrix is information when it exceeds 10 k eps times the largest
+    (k the parameters): numpy's ``pinv`` with ``rcond = 10 k eps`` cuts at the same place. At 0.92 of the
+    cut-off the twin direction is dropped (both twins' standard errors infinite, the covariance the
+    pseudo-inverse); at 1.08 it is kept (standard errors of the plain inverse). Seen failing on ``eps * 10``
+    turned to ``eps // 10`` (every round-off eigenvalue kept) and to ``eps * 11`` and ``eps * 9``."""
+    k = 100
+    gram = _near_twins(k, factor)
+    solver = DampedSolver(gram)
+    pinv = np.linalg.pinv(gram, rcond=10 * k * EPS, hermitian=True)
+    np.testing.assert_allclose(solver.covariance(2.0), 2.0 * pinv, rtol=1e-9, atol=1e-9)
+    errors = solver.standard_errors(2.0)
+    if factor < 1:
+        assert solver.kept.sum() == k - 1
+        assert np.isinf(errors[:2]).all()
+        np.testing.assert_allclose(errors[2:], np.sqrt(2.0), rtol=1e-12)
+    else:
+        assert solver.kept.all()
+        np.testing.assert_allclose(errors, np.sqrt(2.0 * np.diag(np.linalg.inv(gram))), rtol=1e-6)
+
+
+N_POSES = 14
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    """The engine of a diagnosis of 14 poses of the tool-changer with joint offsets hidden through Pinocchio
+    (30 um noise per axis)."""
+    robot = load_robot()
+    rng = np.random.default_rng(1036)
+    low, high = robot.joint_bounds()
+    q = rng.uniform(low, high, size=(N_POSES, robot.n_joints))
+    offsets = np.radians([0.05, -0.03, 0.04, 0.0, 0.06, 0.02])
+    offsets[3] = 3e-4  # the prismatic joint [m]
+    model, data = robot.model, robot.model.createData()
+    position = np.empty((N_POSES, 3))
+    for i, row in enumerate(q + offsets):
+        pin.framesForwardKinematics(model, data, robot.to_pinocchio_q(row))
+        position[i] = data.oMf[robot.tool_frame_id].translation
+    position += 3e-5 * rng.standard_normal(position.shape)
+    measured = MeasurementSet(joint_names=robot.joint_names, q=q, position=position)
+    return GapDiagnosis(robot=robot, effects=["joint_offsets"], folds=2, stability_replays=2).fit(measured).engine_
+
+
+def test_an_engine_judges_identifiability_with_no_motion_threshold_by_default(fitted):
+    """Built without thresholds, the engine keeps every column its rank test keeps and says so: the report's
+    ``min_motion_mm`` is 0 and its ``rank_tol`` 1e-6. Seen failing on the default ``min_motion=0.0`` turned to
+    ``-1.0`` (a report of -1000 mm) and ``rank_tol=1e-6`` turned to ``2e-06``."""
+    engine = FitEngine(fitted.parts, fitted.bases, fitted.folds)
+    _, report = engine.identify(["frames", "joint_offsets"])
+    assert report["min_motion_mm"] == 0.0
+    assert report["rank_tol"] == 1e-6
