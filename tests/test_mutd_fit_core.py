@@ -80,3 +80,23 @@ def test_an_engine_judges_identifiability_with_no_motion_threshold_by_default(fi
     _, report = engine.identify(["frames", "joint_offsets"])
     assert report["min_motion_mm"] == 0.0
     assert report["rank_tol"] == 1e-6
+
+
+def test_column_views_read_the_rows_and_columns_numpy_indexing_reads():
+    """A model's columns read without copying (``error_map.ColumnSubset``, ``ColumnBlocks``): their shapes and
+    rows those of numpy's fancy indexing and concatenation of a (7, 5) array (rows and columns of different
+    counts, so that no axis stands in for the other). Seen failing on ``ColumnSubset``'s ``(values.shape[0],
+    ...)`` turned to ``values.shape[-1]`` and ``ColumnBlocks``' ``self.blocks[0].shape[0]`` turned to ``[1]``."""
+    from tcr_accuracy.diagnosis.error_map import ColumnBlocks, ColumnSubset
+
+    values = np.arange(35.0).reshape(7, 5)
+    positions = np.array([4, 1])
+    subset = ColumnSubset.of(values, positions)
+    assert subset.shape == (7, 2)
+    np.testing.assert_array_equal(subset[[0, 6]], values[[0, 6]][:, positions])
+    np.testing.assert_array_equal(np.asarray(subset), values[:, positions])
+    assert ColumnSubset.of(values, np.arange(5)) is values
+    blocks = ColumnBlocks([values[:, :2], ColumnBlocks([values[:, 2:3], values[:, 3:]])])
+    assert blocks.shape == (7, 5) and len(blocks.blocks) == 3
+    np.testing.assert_array_equal(blocks[2:5], values[2:5])
+    np.testing.assert_array_equal(np.asarray(blocks), values)
