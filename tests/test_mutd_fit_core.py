@@ -100,3 +100,36 @@ def test_column_views_read_the_rows_and_columns_numpy_indexing_reads():
     assert blocks.shape == (7, 5) and len(blocks.blocks) == 3
     np.testing.assert_array_equal(blocks[2:5], values[2:5])
     np.testing.assert_array_equal(np.asarray(blocks), values)
+
+
+def test_joint_columns_sensitivity_is_its_dense_product_over_chunks():
+    """A sensitivity held as its factors (``error_map.JointColumnsSensitivity``: g[n, :, c] = jac_q[n, :,
+    joint[c]] values[n, c] on 6 of 9 columns, each joint's columns a run that does not start at 0) against the
+    product written out with numpy: its rows, g^T residual and g @ theta, on 2100 poses (two chunks of 2048)
+    and on some rows. Seen failing on ``_run``'s ``slice(int(index[0]), ...)`` turned to ``index[1]``, on the
+    chunk's ``start + ErrorMap.CHUNK`` turned to ``- ErrorMap.CHUNK`` and on the shape's ``jac_q.shape[1]``
+    turned to ``[2]``."""
+    from tcr_accuracy.diagnosis.error_map import JointColumnsSensitivity
+
+    rng = np.random.default_rng(1042)
+    n, k = 2100, 9
+    jac_q = rng.standard_normal((n, 3, 4))
+    columns = np.array([1, 2, 4, 5, 6, 8])
+    joint = np.array([0, 0, 2, 2, 2, 3])
+    values = rng.standard_normal((n, columns.size))
+    dense = np.zeros((n, 3, k))
+    for i, (c, j) in enumerate(zip(columns, joint)):
+        dense[:, :, c] = jac_q[:, :, j] * values[:, i, None]
+    g = JointColumnsSensitivity(jac_q, values, joint, columns, k)
+    assert g.shape == (n, 3, k)
+    np.testing.assert_allclose(np.asarray(g), dense, rtol=1e-14, atol=0)
+    rows = np.array([5, 2099, 0, 2048, 77])
+    np.testing.assert_allclose(g.rows(rows), dense[rows], rtol=1e-14, atol=0)
+    residual = rng.standard_normal((n, 3))
+    np.testing.assert_allclose(g.transposed_times(residual, None), np.einsum("nrk,nr->k", dense, residual),
+                               rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(g.transposed_times(residual[rows], rows),
+                               np.einsum("nrk,nr->k", dense[rows], residual[rows]), rtol=1e-12, atol=1e-12)
+    theta = rng.standard_normal((k, 2))
+    theta[4] = 0.0  # a joint's run with one column at zero still counts the others
+    np.testing.assert_allclose(g.times(theta), np.einsum("nrk,km->nrm", dense, theta), rtol=1e-10, atol=1e-12)
