@@ -89,8 +89,9 @@ def test_error_stats_step_and_selection_records_in_mm():
 
 def test_search_report_margin_in_square_mm_and_beaten_by_more_than_one_standard_error():
     """The alternative's margin per row is in mm^2 (m^2 times 10^6); the chosen set beats the alternative when
-    the margin exceeds its standard error, not when equal, and always without an alternative. Seen failing on
-    ``self.margin * 1e6`` turned to ``* 1000001.0`` and ``self.margin > self.margin_se`` turned to ``>=``."""
+    the margin exceeds its standard error, not when equal, and always without an alternative; its sentence names
+    the alternative's held-out RMS in mm. Seen failing on ``self.margin * 1e6`` turned to ``* 1000001.0``, on
+    ``self.margin > self.margin_se`` turned to ``>=`` and on the note's ``heldout.rms * 1e3`` turned to ``/ 1e3``."""
     greedy = SearchPath("greedy", ("frames", "joint_offsets"), STATS, 12)
     beam = SearchPath("beam", ("frames", "drift"), OTHER, 9)
     report = SearchReport(n_sets=31, paths=(greedy, beam), chosen_path="greedy", chosen=("frames", "joint_offsets"),
@@ -103,6 +104,11 @@ def test_search_report_margin_in_square_mm_and_beaten_by_more_than_one_standard_
     tie = SearchReport(31, (greedy, beam), "greedy", ("frames", "joint_offsets"), beam, 1.25e-9, 1.25e-9)
     assert not tie.beats_alternative
     assert SearchReport(31, (greedy,), "greedy", ("frames",), None, 0.0, 0.0).beats_alternative
+    head = "search beyond the greedy path: 31 models fitted, 2 paths compared; chosen [frames, joint_offsets] from the "
+    other = "the best set on another path, [frames, drift] (beam), held-out RMS 0.25 mm"
+    assert report.note() == head + f"greedy path; it beats {other}, by more than one standard error"
+    assert tie.note() == head + (f"greedy path; a tie with {other}: within one standard error, the held-out rows "
+                                 "cannot rank them")
 
 
 def test_family_share_and_share_comparison_in_mm_ranked_only_above_the_threshold_and_zero():
