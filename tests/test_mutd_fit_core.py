@@ -133,3 +133,44 @@ def test_joint_columns_sensitivity_is_its_dense_product_over_chunks():
     theta = rng.standard_normal((k, 2))
     theta[4] = 0.0  # a joint's run with one column at zero still counts the others
     np.testing.assert_allclose(g.times(theta), np.einsum("nrk,km->nrm", dense, theta), rtol=1e-10, atol=1e-12)
+
+
+def test_an_effects_nonlinearity_is_read_at_scales_times_minus_one_to_one(tool_changer):
+    """A toy effect that turns each joint by p_j - w_j p_j^2 (w = 1 on the first joint, 2 on the last, 0 between;
+    typical size 0.2): its basis is linearised at 0 (the map p_j exactly), and its nonlinearity is read at the
+    probe p = 0.2 x (-1, -0.6, ..., 1): max |w p^2| / max |p - w p^2| = 0.08 / 0.24, written out here. Seen
+    failing on the probe's ``np.linspace(-1.0, 1.0, k)`` turned to ``linspace(- 0.0, 1.0, k)``, to
+    ``linspace(1.0, 1.0, k)`` (the minus removed) and to ``linspace(-1.0, 0.0, k)``."""
+    from tcr_accuracy.diagnosis.bases import EffectBasis, Part, position_jacobians
+    from tcr_accuracy.effects.base import Effect, EffectOutput, make_effect, plugged_in
+    from tcr_accuracy.model.context import MeasurementContext
+    from tcr_accuracy.model.errors import ErrorModel
+
+    weights = np.array([1.0, 0.0, 0.0, 0.0, 0.0, 2.0])
+
+    class Bowed(Effect):
+        name = "toy_bowed"
+
+        def parameter_names(self):
+            return [f"toy_bowed.{j}" for j in self.robot.joint_names]
+
+        def parameter_units(self):
+            return ["1"] * self.robot.n_joints
+
+        def parameter_scales(self):
+            return np.full(self.robot.n_joints, 0.2)
+
+        def perturb(self, params, q, context):
+            params = self.check_params(params)
+            return EffectOutput(dq=np.broadcast_to(params - weights * params**2, np.atleast_2d(q).shape).copy())
+
+    robot = tool_changer
+    q = np.random.default_rng(1103).uniform(*robot.joint_bounds(), size=(5, robot.n_joints))
+    context = MeasurementContext(np.zeros(5), np.full(5, 20.0), np.zeros((5, robot.n_joints)))
+    part = Part(robot, q, np.zeros((5, 3)), context, "tool")
+    with plugged_in(Bowed):
+        basis = EffectBasis(make_effect("toy_bowed", robot), part, ErrorModel(robot), position_jacobians(robot, q))
+    probe = 0.2 * np.array([-1.0, -0.6, -0.2, 0.2, 0.6, 1.0])
+    expected = np.max(np.abs(weights * probe**2)) / np.max(np.abs(probe - weights * probe**2))
+    assert expected == pytest.approx(1 / 3, rel=1e-12)
+    assert basis.nonlinearity == pytest.approx(expected, rel=1e-9)
