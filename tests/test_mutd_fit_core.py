@@ -6,14 +6,12 @@ identifiability report with its default thresholds. Each test names a planted ch
 from __future__ import annotations
 
 import numpy as np
-import pinocchio as pin
 import pytest
+from mutd_truth import offset_measurements
 
 from tcr_accuracy.diagnosis.diagnose import GapDiagnosis
 from tcr_accuracy.diagnosis.fitting import FitEngine
 from tcr_accuracy.diagnosis.least_squares import DampedSolver
-from tcr_accuracy.io.measurements import MeasurementSet
-from tcr_accuracy.model.robot import load_robot
 
 EPS = np.finfo(float).eps
 
@@ -56,19 +54,7 @@ N_POSES = 14
 def fitted():
     """The engine of a diagnosis of 14 poses of the tool-changer with joint offsets hidden through Pinocchio
     (30 um noise per axis)."""
-    robot = load_robot()
-    rng = np.random.default_rng(1036)
-    low, high = robot.joint_bounds()
-    q = rng.uniform(low, high, size=(N_POSES, robot.n_joints))
-    offsets = np.radians([0.05, -0.03, 0.04, 0.0, 0.06, 0.02])
-    offsets[3] = 3e-4  # the prismatic joint [m]
-    model, data = robot.model, robot.model.createData()
-    position = np.empty((N_POSES, 3))
-    for i, row in enumerate(q + offsets):
-        pin.framesForwardKinematics(model, data, robot.to_pinocchio_q(row))
-        position[i] = data.oMf[robot.tool_frame_id].translation
-    position += 3e-5 * rng.standard_normal(position.shape)
-    measured = MeasurementSet(joint_names=robot.joint_names, q=q, position=position)
+    robot, measured = offset_measurements(N_POSES, 1036)
     return GapDiagnosis(robot=robot, effects=["joint_offsets"], folds=2, stability_replays=2).fit(measured).engine_
 
 
