@@ -160,3 +160,16 @@ def test_an_effects_nonlinearity_is_read_at_scales_times_minus_one_to_one(tool_c
     expected = np.max(np.abs(weights * probe**2)) / np.max(np.abs(probe - weights * probe**2))
     assert expected == pytest.approx(1 / 3, rel=1e-12)
     assert basis.nonlinearity == pytest.approx(expected, rel=1e-9)
+
+
+def test_selection_replays_say_every_tenth_replay_counted_from_one(fitted):
+    """The stability replays report progress at replays 1, 11, 21 of 21 (counted from one), and on this
+    campaign, where the hidden joint offsets dominate, every replay keeps them. Seen failing on the message's
+    ``replay + 1`` turned to ``replay * 1`` and on ``replay % 10 == 0`` turned to ``% 11``."""
+    from tcr_accuracy.diagnosis.uncertainty import selection_frequency
+
+    said = []
+    out = selection_frequency(fitted, ["joint_offsets"], 3.0, 0.0, 21, np.random.default_rng(5), say=said.append)
+    assert said == [f"selection stability: replay {k} of 21" for k in (1, 11, 21)]
+    assert out["frequency"] == {"joint_offsets": 1.0} and out["sets"] == {"frames, joint_offsets": 1.0}
+    assert out["n_replays"] == 21
