@@ -51,11 +51,17 @@ N_POSES = 14
 
 
 @pytest.fixture(scope="module")
-def fitted():
-    """The engine of a diagnosis of 14 poses of the tool-changer with joint offsets hidden through Pinocchio
-    (30 um noise per axis)."""
+def diagnosed():
+    """A diagnosis of 14 poses of the tool-changer with joint offsets hidden through Pinocchio (30 um noise per
+    axis)."""
     robot, measured = offset_measurements(N_POSES, 1036)
-    return GapDiagnosis(robot=robot, effects=["joint_offsets"], folds=2, stability_replays=2).fit(measured).engine_
+    return GapDiagnosis(robot=robot, effects=["joint_offsets"], folds=2, stability_replays=2).fit(measured)
+
+
+@pytest.fixture(scope="module")
+def fitted(diagnosed):
+    """That diagnosis' fit engine."""
+    return diagnosed.engine_
 
 
 def test_an_engine_judges_identifiability_with_no_motion_threshold_by_default(fitted):
@@ -173,3 +179,17 @@ def test_selection_replays_say_every_tenth_replay_counted_from_one(fitted):
     assert said == [f"selection stability: replay {k} of 21" for k in (1, 11, 21)]
     assert out["frequency"] == {"joint_offsets": 1.0} and out["sets"] == {"frames, joint_offsets": 1.0}
     assert out["n_replays"] == 21
+
+
+def test_leave_one_out_rows_carry_each_effects_own_share_and_interval_in_mm(diagnosed):
+    """The result's leave-one-out rows add stage 4's own share of each effect and its 95 % interval, in mm (the
+    stage's metres times 1000), the interval holding its point. Seen failing on ``own[r.effect][2] * 1e3``
+    turned to ``/ 1e3`` and ``own[r.effect][0] * 1e3`` turned to ``1001.0``."""
+    result = diagnosed.result_
+    own = result.stages.attribute.own_shares
+    rows = {r["dropped"]: r for r in result.leave_one_out}
+    assert set(rows) == {"joint_offsets"} and set(own) >= {"joint_offsets"}
+    share, low, high = own["joint_offsets"]
+    assert low <= share <= high
+    assert rows["joint_offsets"]["own_share_increase_mm"] == pytest.approx(share * 1e3, rel=1e-12)
+    assert rows["joint_offsets"]["own_share_interval_mm"] == pytest.approx([low * 1e3, high * 1e3], rel=1e-12)
