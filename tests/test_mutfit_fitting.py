@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from mutd_truth import offset_measurements
 from scipy.optimize import least_squares
 
 from tcr_accuracy.diagnosis.diagnose import GapDiagnosis
@@ -25,19 +26,7 @@ N_POSES = 14
 def diagnosis():
     """A diagnosis of 14 poses of a tool-changer whose joints are off by a few hundredths of a degree
     (the hidden truth, through Pinocchio), 30 um noise per axis."""
-    robot = load_robot()
-    rng = np.random.default_rng(36)
-    low, high = robot.joint_bounds()
-    q = rng.uniform(low, high, size=(N_POSES, robot.n_joints))
-    offsets = np.radians([0.05, -0.03, 0.04, 0.0, 0.06, 0.02])
-    offsets[3] = 3e-4  # the prismatic joint [m]
-    model, data = robot.model, robot.model.createData()
-    position = np.empty((N_POSES, 3))
-    for i, row in enumerate(q + offsets):
-        pin.framesForwardKinematics(model, data, robot.to_pinocchio_q(row))
-        position[i] = data.oMf[robot.tool_frame_id].translation
-    position += 3e-5 * rng.standard_normal(position.shape)
-    measured = MeasurementSet(joint_names=robot.joint_names, q=q, position=position)
+    robot, measured = offset_measurements(N_POSES, 36)
     return GapDiagnosis(robot=robot, effects=["joint_offsets"], folds=2, stability_replays=2).fit(measured)
 
 
