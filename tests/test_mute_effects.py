@@ -69,3 +69,22 @@ def test_physical_when_the_unexplained_share_of_the_motion_is_under_half(ur5, un
     assert reading.keys == (("ratio_error", "unexplained") if unexplained_motion < 1.0 else
                             ("unexplained", "ratio_error"))
     assert reading.physical is physical
+
+
+def test_lateral_compliance_moments_are_pinocchios_joint_moments_turned_into_the_placement_frame(ur5):
+    """The gravity moment each UR5 joint carries (no payload), in its placement frame: minus the angular part
+    of Pinocchio's RNEA joint force ``data.f[j]`` (zero velocity and acceleration, the joint's moving frame)
+    turned by ``pin.exp3(axis q_j)`` into the frame before the joint, at random joint values; the along-axis
+    part too (the gravity torque). Seen failing on the Rodrigues term ``+ np.outer(m @ a, a) * (1.0 - c)``
+    turned to ``-`` and ``(1.0 - c)`` to ``(2.0 - c)``."""
+    import pinocchio as pin
+
+    rng = np.random.default_rng(11)
+    q = rng.uniform(-3.0, 3.0, (5, 6))
+    got = make_effect("lateral_compliance", ur5).moments(q, None)
+    data = ur5.model.createData()
+    for k, row in enumerate(q):
+        pin.rnea(ur5.model, data, row, np.zeros(6), np.zeros(6))
+        for j in range(6):
+            expected = pin.exp3(ur5.joint_axis(j) * row[j]) @ (-data.f[j + 1].angular)
+            np.testing.assert_allclose(got[k, j], expected, rtol=0, atol=1e-12)

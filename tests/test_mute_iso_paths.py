@@ -1,0 +1,47 @@
+"""The ISO 9283 test paths' refusals and the cube search's rank (``iso9283/path_plan.py``,
+``plan.py``) against what is written out here: the first sample of a hand-made path outside a cell
+box, named by its arc length and position in mm; the generic rank of Jacobian spectra written by
+hand. Each test names a planted change it was seen to catch (issue 36)."""
+
+import numpy as np
+import pytest
+
+from tcr_accuracy import load_robot
+from tcr_accuracy.exceptions import InputError
+from tcr_accuracy.iso9283.path_plan import TestPath, arc_length, solve_path
+from tcr_accuracy.iso9283.plan import _generic_rank
+from tcr_accuracy.iso9283.reach import Reach, Workspace
+from tcr_accuracy.model.kinematics import tcp_poses
+
+Q_START = np.array([0.0, -1.2, 1.5, -1.9, -1.57, 0.0])
+
+
+def test_a_path_leaving_the_box_is_refused_at_its_first_sample_outside_in_mm():
+    """Eleven samples 4 mm apart along +x from the TCP of a UR5 start pose (rounded to the mm), the box's +x
+    wall 21.5 mm out: samples 0..5 inside, sample 6 (24 mm along the path) the first outside, named by its
+    arc length and its position in mm. Seen failing on ``path.s[k] * 1e3`` turned to ``- 1e3`` and the
+    position's ``v * 1e3`` changed."""
+    ur5 = load_robot("ur5")
+    pose = tcp_poses(ur5, Q_START[None])
+    start = np.round(pose.position[0], 3)
+    points = start + np.outer(np.arange(11) * 0.004, [1.0, 0.0, 0.0])
+    path = TestPath("line", points, arc_length(points))
+    box = Workspace(box=[start - 1.0, start + [0.0215, 1.0, 1.0]])
+    reach = Reach(ur5, None, box, Q_START, "exact")
+    with pytest.raises(InputError) as refused:
+        solve_path(reach, path, pose.rotation[0], Q_START)
+    at = ", ".join(f"{v:.1f}" for v in (points[6] * 1000.0))
+    assert str(refused.value) == (f"ur5: the line test path at 24.0 mm from its start ({at} mm): outside the "
+                                  "workspace; plan a smaller cube")
+
+
+def test_the_generic_rank_counts_singular_values_above_a_millionth_of_the_largest():
+    """Spectra (rows, largest first) written out: [1000, 10, 2e-3] has two above 1e-6 x 1000 = 1e-3, [1, 0.5,
+    2e-6] three (2e-6 > 1e-6), [1, 0.5, 5e-7] two; the rank is the largest count over the rows. Seen failing
+    on ``1e-6 * spectra[:, :1]`` turned to ``1e-6 / spectra[:, :1]``, the 1e-6 turned to 1.000001 and
+    ``spectra[:, :1]`` to ``spectra[:, :2]``."""
+    assert _generic_rank(np.array([[1000.0, 10.0, 2e-3], [1.0, 0.5, 5e-7]])) == 3
+    assert _generic_rank(np.array([[1000.0, 10.0, 5e-4], [1.0, 0.5, 5e-7]])) == 2
+    assert _generic_rank(np.array([[1000.0, 10.0, 5e-4], [1.0, 0.5, 2e-6]])) == 3
+    assert _generic_rank(np.array([[1.0, 0.5, 5e-7]])) == 2
+    assert _generic_rank(np.array([[4.0, 2e-6, 1e-9]])) == 1
