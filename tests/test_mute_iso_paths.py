@@ -45,3 +45,26 @@ def test_the_generic_rank_counts_singular_values_above_a_millionth_of_the_larges
     assert _generic_rank(np.array([[1000.0, 10.0, 5e-4], [1.0, 0.5, 2e-6]])) == 3
     assert _generic_rank(np.array([[1.0, 0.5, 5e-7]])) == 2
     assert _generic_rank(np.array([[4.0, 2e-6, 1e-9]])) == 1
+
+
+def test_the_floor_holds_the_joint_origins_below_the_mounting_plane_or_a_lower_floor():
+    """A UR5 without collision geometry, its forearm folded down (q = 0, -0.3, 2.4, 0, 0, 0): Pinocchio puts
+    the wrist_1 and wrist_2 origins at z = -124 mm and wrist_3's at -76 mm. A floor 100 mm above the
+    mounting plane holds the arm to the mounting plane (z = 0: all three below); a floor at -100 mm (a
+    pedestal) to itself (wrist_1 and wrist_2 below); at -300 mm none; the words give the plane in mm.
+    Seen failing on ``min(self.floor, 0.0)`` turned to ``min(self.floor, 1.0)`` or ``-1.0`` and the
+    words' ``lowest * 1e3`` changed."""
+    import pinocchio as pin
+
+    ur5 = load_robot("ur5")
+    q = np.array([0.0, -0.3, 2.4, 0.0, 0.0, 0.0])
+    data = ur5.model.createData()
+    pin.forwardKinematics(ur5.model, data, q)
+    z = {ur5.model.names[j]: data.oMi[j].translation[2] for j in range(1, ur5.model.njoints)}
+    for floor, plane in ((0.1, 0.0), (-0.1, -0.1), (-0.3, -0.3)):
+        workspace = Workspace(floor=floor)
+        assert workspace.lowest == plane
+        reach = Reach(ur5, None, workspace, np.zeros(6), "exact")
+        assert reach.below(q) == [name for name in ur5.joint_names if z[name] < plane]
+        assert reach.floor_words() == f"the robot's joint origins above z = {plane * 1e3:g} mm (not held: none)"
+    assert len(Reach(ur5, None, Workspace(floor=-0.1), np.zeros(6), "exact").below(q)) == 2
