@@ -67,3 +67,39 @@ def test_a_given_cube_outside_the_box_is_refused_with_its_centre_edge_and_corner
         + "; the test must be reachable collision-free within the joint limits at one orientation, above z = 0 mm "
         "(the mounting plane), inside the cell box [-400, 645] x [-900, 1100] x [-700, 1300] mm: give a smaller "
         "cube or omit the centre and size to search the largest")
+
+
+def test_a_given_cube_that_fits_is_planned_as_given_with_its_joints_reaching_the_points(ur5_and_rotation):
+    """The same 100 mm cube with no box: planned as given (not searched, one centre tried), its five poses
+    P1..P5 and eight corners reached by the joints written (Pinocchio's forward kinematics at them, to
+    1e-6 m), the tool held as given, the largest swing from home the largest |q - home| of a revolute
+    joint over all 13, the tracker's distances None (no tracker). Seen failing on the given cube's
+    ``n_centres=1`` turned to 2."""
+    import pinocchio as pin
+
+    ur5, rotation = ur5_and_rotation
+    plan = plan_iso_cube(ur5, 0, centre=CENTRE, size=SIZE, home=Q_START, tool_rotation=rotation)
+    assert plan.searched is False and plan.n_centres == 1 and plan.size == SIZE
+    np.testing.assert_allclose(plan.centre, CENTRE, rtol=0, atol=0)
+    corners = np.array([CENTRE + SIZE / 2 * np.array(s) for s in itertools.product((-1, 1), repeat=3)])
+    points = np.vstack([CENTRE, CENTRE + 0.8 * SIZE / 2 * np.array([[-1, -1, -1], [1, -1, -1], [1, 1, 1],
+                                                                      [-1, 1, 1]]), corners])
+    data = ur5.model.createData()
+    frame = ur5.model.getFrameId(ur5.tool_frame)
+    for q, target in zip(np.vstack([plan.q, plan.corner_q]), points):
+        pin.framesForwardKinematics(ur5.model, data, ur5.to_pinocchio_q(q))
+        np.testing.assert_allclose(data.oMf[frame].translation, target, rtol=0, atol=1e-6)
+        np.testing.assert_allclose(data.oMf[frame].rotation, rotation, rtol=0, atol=1e-6)
+    swing = np.abs(np.vstack([plan.q, plan.corner_q]) - Q_START).max()
+    assert plan.max_swing == pytest.approx(swing, rel=1e-12)
+    assert plan.tracker is None and plan.tracker_distance is None
+
+
+def test_the_ready_poses_are_the_makers_home_poses():
+    """Every UR arm's home on its teach pendant: 0, -90, 0, -90, 0, 0 deg; Franka's ready pose 0, -45, 0, -135,
+    0, 90, 45 deg. Seen failing on the UR10's ``-90.0`` at wrist 1 turned to ``90.0``."""
+    from tcr_accuracy.iso9283.plan import READY_POSE_DEG
+
+    assert READY_POSE_DEG == {"ur3": (0.0, -90.0, 0.0, -90.0, 0.0, 0.0), "ur5": (0.0, -90.0, 0.0, -90.0, 0.0, 0.0),
+                              "ur10": (0.0, -90.0, 0.0, -90.0, 0.0, 0.0),
+                              "panda": (0.0, -45.0, 0.0, -135.0, 0.0, 90.0, 45.0)}
