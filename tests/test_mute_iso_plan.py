@@ -103,3 +103,25 @@ def test_the_ready_poses_are_the_makers_home_poses():
     assert READY_POSE_DEG == {"ur3": (0.0, -90.0, 0.0, -90.0, 0.0, 0.0), "ur5": (0.0, -90.0, 0.0, -90.0, 0.0, 0.0),
                               "ur10": (0.0, -90.0, 0.0, -90.0, 0.0, 0.0),
                               "panda": (0.0, -45.0, 0.0, -135.0, 0.0, 90.0, 45.0)}
+
+
+def test_the_search_keeps_the_largest_cube_its_candidate_centres_allow(ur5_and_rotation, monkeypatch):
+    """Two candidate configurations put in place of the random ones (the tool pointing down, TCP at z = 120
+    mm, then at z = 170 mm): above the mounting plane a cube about a centre at height z has an edge of at
+    most 2 z (240 and 340 mm; a little less where the tool's collision body meets the floor). The search
+    keeps the second, centred on its TCP, with an edge above 300 mm (more than the first centre allows) and
+    at most 340 mm: a later centre that allows a cube 1.4 times the best so far is tried, not skipped.
+    Seen failing on the skip test's ``low * 1.01`` turned to ``low * 2.01``."""
+    import tcr_accuracy.iso9283.plan as plan_module
+    from tcr_accuracy.analysis.sampling import inverse_kinematics
+
+    ur5, rotation = ur5_and_rotation
+    centres = np.array([[0.45, 0.1, 0.12], [0.45, -0.1, 0.17]])
+    ik = inverse_kinematics(ur5, centres, np.broadcast_to(rotation, (2, 3, 3)), Q_START, orientation="exact")
+    assert ik.success.all()
+    monkeypatch.setattr(plan_module, "_candidate_configurations",
+                        lambda reach, rng, n_samples, n_centres: ik.q)
+    plan = plan_iso_cube(ur5, 0, home=Q_START, bisections=8)
+    assert plan.searched and plan.n_centres == 2
+    np.testing.assert_allclose(plan.centre, centres[1], rtol=0, atol=1e-6)
+    assert 0.3 < plan.size <= 2 * 0.17
