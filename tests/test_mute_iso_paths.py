@@ -68,3 +68,24 @@ def test_the_floor_holds_the_joint_origins_below_the_mounting_plane_or_a_lower_f
         assert reach.below(q) == [name for name in ur5.joint_names if z[name] < plane]
         assert reach.floor_words() == f"the robot's joint origins above z = {plane * 1e3:g} mm (not held: none)"
     assert len(Reach(ur5, None, Workspace(floor=-0.1), np.zeros(6), "exact").below(q)) == 2
+
+
+def test_a_path_whose_first_sample_is_out_of_reach_is_refused_at_its_start():
+    """A planned UR5 cube moved to a centre 2 m out (beyond its 0.85 m reach): the line's first sample, P2 of
+    that cube, is refused at 0.0 mm from its start with its position in mm. Seen failing on the refusal's
+    sample ``0`` turned to ``1``."""
+    import dataclasses
+
+    from tcr_accuracy.iso9283.path_plan import plan_test_paths
+    from tcr_accuracy.iso9283.plan import iso_points, plan_iso_cube
+
+    ur5 = load_robot("ur5")
+    rotation = tcp_poses(ur5, Q_START[None]).rotation[0]
+    cube = plan_iso_cube(ur5, 0, centre=[0.6, 0.1, 0.3], size=0.1, home=Q_START, tool_rotation=rotation)
+    far = dataclasses.replace(cube, centre=np.array([2.0, 0.0, 0.5]))
+    reach = Reach(ur5, None, Workspace(), Q_START, "exact")
+    with pytest.raises(InputError) as refused:
+        plan_test_paths(reach, far)
+    p2 = iso_points(far.centre, far.size)[1] * 1000.0
+    assert str(refused.value) == (f"ur5: the line test path at 0.0 mm from its start ({p2[0]:.1f}, {p2[1]:.1f}, "
+                                  f"{p2[2]:.1f} mm): not reachable at the test's orientation; plan a smaller cube")
