@@ -125,3 +125,40 @@ def test_the_search_keeps_the_largest_cube_its_candidate_centres_allow(ur5_and_r
     assert plan.searched and plan.n_centres == 2
     np.testing.assert_allclose(plan.centre, centres[1], rtol=0, atol=1e-6)
     assert 0.3 < plan.size <= 2 * 0.17
+
+
+def test_test_conditions_cycles_and_rated_load_at_their_bounds(ur5_and_rotation):
+    """A condition's load is 0-100 % (both ends taken, -0.5 and 100.5 refused), its speed in (0, 100] % (0 and
+    100.5 refused, 0.5 and 100 taken); a rated load must be positive (0 refused, 0.5 kg taken: 50 % of it is
+    0.25 kg); cycles a whole number from 1 (0 refused, 1 taken); each refusal word for word. Seen failing on
+    the bounds' ``0 <= load``, ``load <= 100``, ``0 < speed``, ``speed <= 100``, ``rated_load_kg > 0`` and
+    ``cycles < 1`` with their numbers moved by one."""
+    from tcr_accuracy.iso9283.plan import cycle_order, plan_conditions
+
+    ur5, _ = ur5_and_rotation
+    for load, speed in ((0.0, 100.0), (100.0, 0.5), (50.0, 100.0)):
+        (condition,), _ = plan_conditions(ur5, [(load, speed)])
+        assert (condition.load_pct, condition.speed_pct) == (load, speed)
+    for load, speed in ((-0.5, 50.0), (100.5, 50.0), (50.0, 0.0), (50.0, 100.5)):
+        with pytest.raises(InputError) as refused:
+            plan_conditions(ur5, [(load, speed)])
+        assert str(refused.value) == (f"test condition {load:g} % load, {speed:g} % speed: want a load of 0-100 % "
+                                      "and a speed of (0, 100] % of the rated ones")
+    (half,), source = plan_conditions(ur5, [(50.0, 100.0)], rated_load_kg=0.5)
+    assert half.payload_kg == pytest.approx(0.25, rel=1e-12) and source == "rated load 0.5 kg (given)"
+    with pytest.raises(InputError, match=r"^rated load 0\.0 kg: want a positive load$"):
+        plan_conditions(ur5, [(50.0, 100.0)], rated_load_kg=0.0)
+    pose, cycle = cycle_order(1)
+    assert pose.tolist() == [5, 4, 3, 2, 1] and cycle.tolist() == [1] * 5
+    with pytest.raises(InputError, match=r"^cycles=0: need a whole number of at least 1 \(the standard uses 30\)$"):
+        cycle_order(0)
+
+
+def test_a_given_cube_needs_an_edge_of_at_least_10_mm(ur5_and_rotation):
+    """A 10 mm cube is planned; 9.9 mm is refused before any search, naming the 10 mm and the size given.
+    Seen failing on ``MIN_CUBE_SIZE = 0.01`` turned to 1.01 or -0.99 and its ``* 1e3`` in the words."""
+    ur5, rotation = ur5_and_rotation
+    assert plan_iso_cube(ur5, 0, centre=CENTRE, size=0.01, home=Q_START, tool_rotation=rotation).size == 0.01
+    with pytest.raises(InputError) as refused:
+        plan_iso_cube(ur5, 0, centre=CENTRE, size=0.0099, home=Q_START, tool_rotation=rotation)
+    assert str(refused.value) == "a given cube needs its centre and an edge of at least 10 mm (got size=0.0099 m)"
