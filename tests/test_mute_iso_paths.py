@@ -89,3 +89,17 @@ def test_a_path_whose_first_sample_is_out_of_reach_is_refused_at_its_start():
     p2 = iso_points(far.centre, far.size)[1] * 1000.0
     assert str(refused.value) == (f"ur5: the line test path at 0.0 mm from its start ({p2[0]:.1f}, {p2[1]:.1f}, "
                                   f"{p2[2]:.1f} mm): not reachable at the test's orientation; plan a smaller cube")
+
+
+def test_a_path_test_runs_on_100_normal_planes_unless_told_in_the_api_as_in_the_command():
+    """The API's default number of normal planes, in the figures and the evaluation, is the command's: 100.
+    Seen failing on ``planes: int = 100`` turned to 101 in ``evaluate_path_test``."""
+    import inspect
+
+    from tcr_accuracy.cli.iso9283_path import PATH_PLANES
+    from tcr_accuracy.iso9283.path import path_figures
+    from tcr_accuracy.iso9283.path_evaluate import evaluate_path_test
+
+    assert PATH_PLANES == 100
+    for function in (evaluate_path_test, path_figures):
+        assert inspect.signature(function).parameters["planes"].default == PATH_PLANES
