@@ -103,3 +103,24 @@ def test_a_path_test_runs_on_100_normal_planes_unless_told_in_the_api_as_in_the_
     assert PATH_PLANES == 100
     for function in (evaluate_path_test, path_figures):
         assert inspect.signature(function).parameters["planes"].default == PATH_PLANES
+
+
+@pytest.mark.parametrize("ratio, words", [(300.0, "the times look like s where the commanded file's are ms"),
+                                          (299.5, "check the unit of time_s here and in the commanded file"),
+                                          (3000.0, "the times look like s where the commanded file's are ms"),
+                                          (3000.5, "check the unit of time_s here and in the commanded file"),
+                                          (0.3e-3, "the times look like ms: give time_s in seconds"),
+                                          (0.2995e-3, "check the unit of time_s here and in the commanded file")])
+def test_the_time_unit_hint_at_the_ends_of_its_ranges(ratio, words):
+    """A stream measured moving ``ratio`` times the commanded speed: s against ms from 300 to 3000 times (both
+    ends in), ms from 0.3e-3; just outside, no unit named. Seen failing on the hint's ``0.3e3 <= ratio``
+    turned to ``301`` or ``299`` and ``ratio <= 3e3`` to ``3001``."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.iso9283.path_evaluate import CommandedRun, _check_speed
+
+    run = CommandedRun("line", 50.0, np.zeros((2, 3)), np.zeros(2), np.zeros((2, 6)), None, 0.1, ())
+    with pytest.raises(InputError) as refused:
+        _check_speed(SimpleNamespace(source="stream.csv"), run, SimpleNamespace(v_mean=0.1 * ratio, speed=0.1))
+    assert str(refused.value).endswith(f"({ratio:.3g} times); {words}" + ("" if "look like" in words else
+                                                                          " (seconds)"))
