@@ -104,3 +104,19 @@ def test_geometry_keeps_the_components_asked_for_in_joint_order_and_refuses_unkn
 
     with pytest.raises(InputError, match=r"^geometry: unknown components \['geometry\.elbow_joint\.rw'\]$"):
         make_effect("geometry", ur5, components=["elbow_joint.rw", "elbow_joint.rz"]).parameter_names()
+
+
+def test_an_error_vector_effect_sets_its_entries_on_every_row(ur5):
+    """Geometry with two components perturbed on four rows: every row's error vector holds the two values at
+    the error model's ``shoulder_pan_joint.dx`` and ``elbow_joint.rz`` entries and zero elsewhere, one row
+    per pose (a pose-independent error broadcast over the poses); no joint turned. Seen failing on
+    ``x.ndim == 1`` turned to ``x.ndim == 0`` (one row for all)."""
+    effect = make_effect("geometry", ur5, components=["shoulder_pan_joint.dx", "elbow_joint.rz"])
+    q = np.random.default_rng(2).uniform(-1.0, 1.0, (4, 6))
+    out = effect.perturb(np.array([1e-3, -2e-3]), q, None)
+    em = effect.error_model
+    expected = np.zeros(em.size)
+    expected[em.index("shoulder_pan_joint.dx")], expected[em.index("elbow_joint.rz")] = 1e-3, -2e-3
+    assert out.x.shape == (4, em.size)
+    np.testing.assert_array_equal(out.x, np.tile(expected, (4, 1)))
+    assert out.dq is None
