@@ -42,6 +42,21 @@ def test_rigid_frame_noise_pools_only_the_pairs_a_rigid_body_holds_apart():
     assert got.source == "rigid frames" and got.independent
 
 
+
+def test_rigid_frame_noise_needs_six_rows_and_two_frames():
+    """Two reflectors 100 mm apart on one body: six rows give the estimate (sigma from the one pair, by hand),
+    five rows or a single frame give none. Seen failing on ``min_rows: int = 6`` turned to 7 or 5 and
+    ``len(nominal) < 2`` turned to ``< 3``."""
+    rng = np.random.default_rng(9)
+    a = rng.uniform(-0.5, 0.5, (6, 3))
+    nominal = [a, a + [0.0, 0.1, 0.0]]
+    measured = [p + rng.normal(0.0, 20e-6, p.shape) for p in nominal]
+    got = noise_from_rigid_frames(nominal, measured, ["A", "B"])
+    distance = np.linalg.norm(measured[0] - measured[1], axis=1)
+    assert got.per_axis == pytest.approx(np.sqrt(np.var(distance, ddof=1) / 2.0), rel=1e-12)
+    assert noise_from_rigid_frames([p[:5] for p in nominal], [p[:5] for p in measured], ["A", "B"]) is None
+    assert noise_from_rigid_frames(nominal[:1], measured[:1], ["A"]) is None
+
 def test_an_iso_test_too_small_for_the_unit_check_gives_its_spread_and_the_checks_need_in_mm(tmp_path, capsys):
     """Five UR10 poses within about a millimetre, four cycles, positions in mm: the note gives the RMS distance
     of the readings' nominal TCPs (Pinocchio's, at the poses' joints) from their centre in mm (3
