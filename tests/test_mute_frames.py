@@ -86,3 +86,25 @@ def test_an_iso_test_too_small_for_the_unit_check_gives_its_spread_and_the_check
             "reader's unit check (it needs 1 mm), which did not run; make sure the position columns' unit is the "
             "file's")
     assert note in json.loads(out)["notes"]
+
+
+def test_a_given_mpe_at_its_bounds_and_each_refusal_word_for_word():
+    """An MPE a + b L: a up to 10 mm and b up to 1e-3 m/m taken, just beyond refused; a + b down to 1e-9 m taken,
+    half of it refused; (0, 0) and a negative figure refused as not two numbers, not both 0 (the radial
+    one named as such). Seen failing on ``values.sum() <= 0`` turned to ``<= -1`` (0, 0 refused by the
+    range check instead), ``values < 0`` to ``< -1``, and ``MPE_MAX`` / ``MPE_MIN_M`` moved."""
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.frames.instrument import instrument_from
+
+    for mpe in ((1e-2, 0.0), (0.0, 1e-3), (1e-9, 0.0), (0.5e-9, 0.5e-9)):
+        assert instrument_from(mpe=mpe).transverse == mpe
+    for pair in ((0.0, 0.0), (-0.5e-6, 1e-6)):
+        with pytest.raises(InputError) as refused:
+            instrument_from(mpe=pair)
+        assert str(refused.value) == (f"instrument_mpe {list(pair)}: need two numbers a >= 0 [m] and b >= 0 [m/m], "
+                                      "not both 0")
+    for pair in ((1.0001e-2, 0.0), (0.0, 1.0001e-3), (0.5e-9, 0.0)):
+        with pytest.raises(InputError) as refused:
+            instrument_from(mpe=(1e-5, 1e-6), radial_mpe=pair)
+        assert str(refused.value) == (f"instrument_radial_mpe {list(pair)}: want a <= 0.01 m and b <= 0.001 m/m, "
+                                      "a + b >= 1e-09 (no measuring instrument lies outside)")
