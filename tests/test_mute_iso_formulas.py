@@ -1,0 +1,46 @@
+"""ISO 9283 pose-test bookkeeping by hand (``iso9283/formulas.py``, ``evaluate.py``): the notes on
+poses read fewer times than the standard asks, word for word at the counts' bounds, and the grouping of
+readings into poses by their joint values at the grouping tolerance and just past it. Each test names
+a planted change it was seen to catch (issue 36)."""
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from tcr_accuracy.iso9283.evaluate import group_by_joints
+from tcr_accuracy.iso9283.formulas import cycle_notes
+
+
+def _poses(counts):
+    return [SimpleNamespace(pose_id=str(k + 1), approach="a", n=n) for k, n in enumerate(counts)]
+
+
+def test_cycle_notes_name_the_poses_read_once_or_twice_and_count_those_short_of_30():
+    """Seven poses read once (five named, "and 2 more"), one twice, one 29 times, two 30 times: the once- and
+    twice-read poses each said with what they lack (RP needs 3 readings), 9 of 11 read fewer times than
+    the standard's 30 cycles (1-29 readings); all read 30 times: no note; three read 5 times: "5 readings
+    each". Seen failing on ``STANDARD_CYCLES = 30`` turned to 31 or 29, ``MIN_REPEATS`` changed, the
+    names' ``few[:5]`` turned to ``[:6]`` and ``len(few) - 5`` to ``- 6``."""
+    notes = cycle_notes(_poses([1] * 7 + [2, 29, 30, 30]))
+    assert notes == ["7 pose(s) read once: AP only (RP needs at least 3 readings): P1, P2, P3, P4, P5 and 2 more",
+                     "1 pose(s) read twice: AP, l̄ and S_l, no RP (RP needs at least 3 readings): P8",
+                     "9 of 11 pose(s) read fewer times than the standard's 30 cycles (1-29 readings): evaluated, "
+                     "their figures less certain than the standard's"]
+    assert cycle_notes(_poses([30, 30, 31])) == []
+    assert cycle_notes(_poses([5, 5, 5]), labelled=True) == [
+        "3 of 3 pose(s) read fewer times than the standard's 30 cycles (5 readings each): evaluated, their figures "
+        "less certain than the standard's"]
+    assert cycle_notes(_poses([1, 2]), labelled=True)[0].endswith("readings): P1 (a)")
+
+
+def test_readings_are_grouped_into_poses_within_a_milliradian_of_a_poses_first_reading():
+    """Readings 0.999 mrad from a pose's first reading on one joint belong to it, 1.001 mrad
+    away start a new pose; a reading near the second pose's first joins it, numbered in order of first
+    visit. Seen failing on ``POSE_GROUP_TOL = 1e-3`` turned to 1.001 or -0.999 and ``out[i] = k + 1``
+    turned to ``k + 2``."""
+    first = np.array([0.1, -1.2, 1.5, -1.9, -1.57, 0.0])
+    step = np.zeros(6)
+    step[2] = 1.0
+    q = np.array([first, first + 0.999e-3 * step, first - 1.001e-3 * step, first + 0.5e-3 * step,
+                  first - 1.001e-3 * step - 0.9e-3 * step, first - 1e-3 * step * 3])
+    assert group_by_joints(q).tolist() == [1, 1, 2, 1, 2, 3]
