@@ -167,3 +167,22 @@ def test_a_given_cube_needs_an_edge_of_at_least_10_mm(ur5_and_rotation):
     with pytest.raises(InputError) as refused:
         plan_iso_cube(ur5, 0, centre=CENTRE, size=0.0099, home=Q_START, tool_rotation=rotation)
     assert str(refused.value) == "a given cube needs its centre and an edge of at least 10 mm (got size=0.0099 m)"
+
+
+def test_a_search_that_finds_no_cube_of_10_mm_says_so(ur5_and_rotation, monkeypatch):
+    """One candidate configuration, its TCP 4 mm above the mounting plane: no cube of 10 mm or more fits there
+    (a cube about a centre at height z has an edge of at most 2 z = 8 mm), so the search is refused naming
+    the 10 mm, the one centre tried and the room. Seen failing on the words' ``MIN_CUBE_SIZE * 1e3`` turned
+    to ``** 1e3``."""
+    import tcr_accuracy.iso9283.plan as plan_module
+    from tcr_accuracy.analysis.sampling import inverse_kinematics
+
+    ur5, rotation = ur5_and_rotation
+    ik = inverse_kinematics(ur5, np.array([[0.45, 0.1, 0.004]]), rotation[None], Q_START, orientation="exact")
+    assert ik.success.all()
+    monkeypatch.setattr(plan_module, "_candidate_configurations", lambda reach, rng, n_samples, n_centres: ik.q)
+    with pytest.raises(InputError) as refused:
+        plan_iso_cube(ur5, 0, home=Q_START, bisections=4)
+    assert str(refused.value) == (
+        "ur5: no ISO test cube of 10 mm or more found among 1 candidate centres above z = 0 mm (the mounting plane); "
+        "give one with the cube's centre and size, or another floor, box, home, orientation or tracker position")
