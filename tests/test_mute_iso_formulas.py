@@ -44,3 +44,28 @@ def test_readings_are_grouped_into_poses_within_a_milliradian_of_a_poses_first_r
     q = np.array([first, first + 0.999e-3 * step, first - 1.001e-3 * step, first + 0.5e-3 * step,
                   first - 1.001e-3 * step - 0.9e-3 * step, first - 1e-3 * step * 3])
     assert group_by_joints(q).tolist() == [1, 1, 2, 1, 2, 3]
+
+
+def test_a_poses_joints_are_its_readings_mean_and_a_reading_off_by_more_names_its_joint():
+    """Pose 1 read three times within 0.9 mrad of its first reading (encoder scatter): its joints are the mean
+    of the three; pose 2's second reading 20 mrad off on wrist_1 (the fourth joint) only: refused naming
+    that row and column and the pose's first row. Seen failing on the column's ``np.abs(mset.q[r] -
+    q[0])`` turned to ``** q[0]`` and ``rows[np.argmax(far)]`` picking another row."""
+    import pytest
+
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.iso9283.evaluate import pose_joints
+
+    names = ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"]
+    base = np.array([0.3, -1.2, 1.5, -1.9, -1.57, 0.2])
+    scatter = np.array([[0.0] * 6, [0.9e-3, 0, 0, 0, 0, -0.5e-3], [0, 0.4e-3, 0, 0, 0, 0.9e-3]])
+    q = np.vstack([base + scatter, base + 0.5, base + 0.5 + [0, 0, 0, 0.02, 0, 0]])
+    mset = SimpleNamespace(q=q, rows=np.arange(2, 7), joint_names=names, source="test.csv")
+    pose_id = np.array(["1", "1", "1", "2", "2"])
+    good = pose_joints(SimpleNamespace(q=q[:4], rows=mset.rows[:4], joint_names=names, source="test.csv"),
+                       pose_id[:4])
+    np.testing.assert_allclose(good["1"], base + scatter.mean(axis=0), rtol=0, atol=1e-15)
+    with pytest.raises(InputError) as refused:
+        pose_joints(mset, pose_id)
+    assert str(refused.value) == ("test.csv: row 6, column wrist_1: pose 2 is commanded with other joint values than "
+                                  "in row 5; one pose_id is one commanded pose")
