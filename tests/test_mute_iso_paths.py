@@ -124,3 +124,24 @@ def test_the_time_unit_hint_at_the_ends_of_its_ranges(ratio, words):
         _check_speed(SimpleNamespace(source="stream.csv"), run, SimpleNamespace(v_mean=0.1 * ratio, speed=0.1))
     assert str(refused.value).endswith(f"({ratio:.3g} times); {words}" + ("" if "look like" in words else
                                                                           " (seconds)"))
+
+
+def test_corner_deviations_of_a_cycle_that_cuts_the_corner_and_one_that_overshoots():
+    """An L path, 0.2 m along x then 0.2 m along y, its corner at (0.2, 0, 0). A cycle that cuts the corner
+    on the chord from (0.15, 0, 0) to (0.2, 0.05, 0): CR the corner's distance to that chord, 0.05 / sqrt 2,
+    and CO 0 (nothing beyond x = 0.2); one that runs 0.4 mm past the corner along x, then turns: CR 0, CO
+    0.4 mm; one that stops at the corner (no reading past it along the second edge): CR 0 and CO 0. Seen
+    failing on CO's ``else 0.0`` (no reading past the corner) turned to ``else -1.0``."""
+    from tcr_accuracy.iso9283.path import corner_deviations
+
+    n = 201
+    first = np.column_stack([np.linspace(0.0, 0.2, n), np.zeros(n), np.zeros(n)])
+    second = np.column_stack([np.full(n - 1, 0.2), np.linspace(0.0, 0.2, n)[1:], np.zeros(n - 1)])
+    points = np.vstack([first, second])
+    t = np.linspace(0.0, 1.0, 101)[:, None]
+    cut = np.vstack([first[:150], (1 - t) * [0.15, 0.0, 0.0] + t * [0.2, 0.05, 0.0], second[50:]])
+    over = np.vstack([first, [[0.2002, 0.0, 0.0], [0.2004, 0.0, 0.0], [0.2004, 0.001, 0.0]], second[5:]])
+    (corner,) = corner_deviations(points, [n - 1], [cut, over, first])
+    np.testing.assert_allclose(corner.point, [0.2, 0.0, 0.0])
+    np.testing.assert_allclose(corner.cr, [0.05 / np.sqrt(2.0), 0.0, 0.0], rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(corner.co, [0.0, 0.4e-3, 0.0], rtol=1e-9, atol=0)
