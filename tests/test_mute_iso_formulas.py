@@ -11,6 +11,13 @@ from tcr_accuracy.iso9283.evaluate import group_by_joints
 from tcr_accuracy.iso9283.formulas import cycle_notes
 
 
+class _Readings(SimpleNamespace):
+    """A measurement set's times, file rows and source, as many readings long as it has times."""
+
+    def __len__(self):
+        return len(self.time_s)
+
+
 def _poses(counts):
     return [SimpleNamespace(pose_id=str(k + 1), approach="a", n=n) for k, n in enumerate(counts)]
 
@@ -69,3 +76,23 @@ def test_a_poses_joints_are_its_readings_mean_and_a_reading_off_by_more_names_it
         pose_joints(mset, pose_id)
     assert str(refused.value) == ("test.csv: row 6, column wrist_1: pose 2 is commanded with other joint values than "
                                   "in row 5; one pose_id is one commanded pose")
+
+
+def test_a_streamed_visit_whose_time_repeats_is_refused_at_the_second_reading():
+    """Pose 1, cycle 1 streamed at 0.0, 0.5, 0.5 s (rows 2, 3, 4 of the file): refused at row 4, the reading
+    that repeats the time before it; a visit read in order gives its rows in time order, the last its
+    attained reading. Seen failing on ``rows[same[0] + 1]`` turned to ``+ 0`` (row 3 named)."""
+    import pytest
+
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.iso9283.evaluate import PoseLabels, visits_of
+
+    labels = PoseLabels(np.array(["1", "1", "1"], dtype=object), np.array(["1", "1", "1"], dtype=object), None)
+    mset = _Readings(time_s=np.array([0.0, 0.5, 0.5]), rows=np.array([2, 3, 4]), source="stream.csv")
+    ordered_visit = _Readings(time_s=np.array([0.2, 0.0, 0.5]), rows=np.array([2, 3, 4]), source="stream.csv")
+    visits = visits_of(ordered_visit, labels)
+    assert [rows.tolist() for rows in visits.streams] == [[1, 0, 2]] and visits.attained.tolist() == [2]
+    with pytest.raises(InputError) as refused:
+        visits_of(mset, labels)
+    assert str(refused.value) == ("stream.csv: row 4, column time_s: 0.5 s repeats a time of the same visit (pose 1, "
+                                  "cycle 1); the readings of one visit are a stream in time")
