@@ -6,6 +6,7 @@ a planted change it was seen to catch (issue 36)."""
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from tcr_accuracy.iso9283.evaluate import group_by_joints
 from tcr_accuracy.iso9283.formulas import cycle_notes
@@ -58,8 +59,6 @@ def test_a_poses_joints_are_its_readings_mean_and_a_reading_off_by_more_names_it
     of the three; pose 2's second reading 20 mrad off on wrist_1 (the fourth joint) only: refused naming
     that row and column and the pose's first row. Seen failing on the column's ``np.abs(mset.q[r] -
     q[0])`` turned to ``** q[0]`` and ``rows[np.argmax(far)]`` picking another row."""
-    import pytest
-
     from tcr_accuracy.exceptions import InputError
     from tcr_accuracy.iso9283.evaluate import pose_joints
 
@@ -82,8 +81,6 @@ def test_a_streamed_visit_whose_time_repeats_is_refused_at_the_second_reading():
     """Pose 1, cycle 1 streamed at 0.0, 0.5, 0.5 s (rows 2, 3, 4 of the file): refused at row 4, the reading
     that repeats the time before it; a visit read in order gives its rows in time order, the last its
     attained reading. Seen failing on ``rows[same[0] + 1]`` turned to ``+ 0`` (row 3 named)."""
-    import pytest
-
     from tcr_accuracy.exceptions import InputError
     from tcr_accuracy.iso9283.evaluate import PoseLabels, visits_of
 
