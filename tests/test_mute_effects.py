@@ -120,3 +120,21 @@ def test_an_error_vector_effect_sets_its_entries_on_every_row(ur5):
     assert out.x.shape == (4, em.size)
     np.testing.assert_array_equal(out.x, np.tile(expected, (4, 1)))
     assert out.dq is None
+
+
+def test_by_default_each_parameter_weighs_by_its_value_over_its_typical_size(ur5):
+    """Drift read without motions: the first joint's linear drift at 0.02 deg (typical 0.01 deg: weight 2) and
+    the base's dx linear drift at 0.6 mm (typical 0.05 mm: weight 12; beyond the 0.5 mm of a warm-up, a
+    slip), both resolved: the two mechanisms share the motion as 12 : 2, by hand. Seen failing on ``1.0 /
+    np.maximum(...)`` turned to ``1.0 % np.maximum(...)``."""
+    effect = make_effect("drift", ur5)
+    values = np.zeros(effect.n_params)
+    std = np.full(effect.n_params, 1e-9)
+    values[0] = math.radians(0.02)
+    values[12] = 0.6e-3
+    reading = read_mechanism(effect, values, std)
+    warm, slip = effect.mechanisms()
+    assert reading.keys == ("slip", "warm_up")
+    joint = ur5.joint_names[0]
+    assert reading.mechanism == (f"{slip.words} (base, {12 / 14:.0%} of its TCP motion); {warm.words} ({joint}, "
+                                 f"{2 / 14:.0%} of its TCP motion)")
