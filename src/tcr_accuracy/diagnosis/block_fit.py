@@ -70,20 +70,25 @@ class SharedBlock:
 
 
 def box_step(system: np.ndarray, gradient: np.ndarray, low: np.ndarray, high: np.ndarray,
-             shared: SharedBlock | None = None, key=None) -> np.ndarray:
+             shared: SharedBlock | None = None, key=None, overwrite: bool = False) -> np.ndarray:
     """argmin d^T A d + 2 b^T d over low <= d <= high, for A = ``system`` (k, k) positive
     semi-definite and b = ``gradient``: a Cholesky solve where it is well posed and its step inside
     the box, else the damped solver's pseudo-inverse with the box-constrained active-set step.
-    ``shared``, ``key``: see :func:`free_step`."""
+    ``shared``, ``key``: see :func:`free_step`; ``overwrite``: the system is the caller's to lose (the
+    Cholesky factor is made in its memory)."""
     if not gradient.size:
         return np.zeros(0)
     origin = np.clip(0.0, low, high)  # a feasible point to start the box-constrained step from
     if np.any(origin):
         gradient = gradient + system @ origin
         low, high = low - origin, high - origin
-    step = free_step(system, gradient, shared, key)
+    diagonal = np.diag(system).copy() if overwrite else None
+    step = free_step(system, gradient, shared, key, overwrite)
     if step is not None and np.all(step >= low) and np.all(step <= high):
         return origin + step
+    if overwrite:  # the factor took the lower triangle and the diagonal; the upper triangle is the system's
+        np.copyto(system, system.T, where=np.tri(*system.shape, k=-1, dtype=bool))
+        system[np.diag_indices_from(system)] = diagonal
     step, _ = DampedSolver(system).step(gradient, 0.0, low, high)
     return origin + np.clip(step, low, high)
 
@@ -212,7 +217,9 @@ def fit_blocks(total: Quadratic, held: list, low: np.ndarray, high: np.ndarray, 
                                               steps=True, shared=shared)
     w = lam * weights
     shared = shared if penalised else None
-    step = box_step(*_system(total, None, w, center), low, high, shared, shared and shared.key("all", lam))
+    system, gradient = _system(total, None, w, center)
+    step = box_step(system, gradient, low, high, shared, shared and shared.key("all", lam),
+                    overwrite=system is not total.gram)
     inside = not np.any(np.clip(0.0, low, high))  # the box holds the anchor: a free step is box_step's own
     fold_steps, ssq = [], []
     for r, folds in enumerate(held):
@@ -224,7 +231,7 @@ def fit_blocks(total: Quadratic, held: list, low: np.ndarray, high: np.ndarray, 
                 d = free  # the search's solve at the chosen lambda: what box_step would solve again
             else:
                 d = box_step(*_system(total, fold, w, center), low, high, shared,
-                             shared and shared.key(("train", r, f), lam))
+                             shared and shared.key(("train", r, f), lam), overwrite=True)
             steps.append(d)
             scores.append(fold.value(d))
         fold_steps.append(steps)

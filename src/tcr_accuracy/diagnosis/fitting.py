@@ -84,6 +84,10 @@ class FitEngine:
         self.anchor_effects: tuple = ("frames",)
         self._grams: FoldGrams | None = None
         self._penalty_start: dict = {}  # penalised effects -> where the last lambda search ended
+        #: where the last search for any penalised effects ended: the start for effects not searched yet (the
+        #: grid is relative to the penalised columns' Gram diagonal, so its minimum sits near the same place;
+        #: a fine angle table's search walked 6 lambdas from the middle to it, 5 factorisations each)
+        self._penalty_last: int | None = None
 
     def add_bases(self, bases: dict) -> None:
         """Effects joining after the engine was built (an effect of last resort, tried late):
@@ -494,10 +498,11 @@ class FitEngine:
         positions = np.flatnonzero(weights > 0)
         shared = SharedBlock(store.factors, tuple(index[positions].tolist()), positions) \
             if positions.size and store.factors.keeps(positions.size) else None
-        solution = fit_blocks(total, held, low, high, weights, center, self._penalty_start.get(penalised),
+        solution = fit_blocks(total, held, low, high, weights, center,
+                              self._penalty_start.get(penalised, self._penalty_last),
                               chosen_index=self._penalty_start[penalised] if reuse else None, shared=shared)
         if solution.grid_index is not None:
-            self._penalty_start[penalised] = solution.grid_index
+            self._penalty_start[penalised] = self._penalty_last = solution.grid_index
         second_order = None
         if self._curved():
             # one Gauss-Newton step on the exact kinematics: the anchor's residual replaced by the exact
