@@ -270,9 +270,9 @@ def test_a_models_quadratic_with_other_columns_stepped_is_the_sum_of_squares_of_
     """FoldGrams.quadratic on a model's columns (scattered over three effects, an angle table's among
     them), the other columns stepped by ``fixed``: its value at a step d is |W r + J_model d + J_other
     fixed|^2 summed here on all rows and on each fold's held-out rows, its Gram and gradient the dense
-    products. Seen failing on the stepped columns' term added with the wrong sign (``b + rows[:, moved]
-    @ step`` turned to ``b - ...``) and on the model's columns taken as rows twice (``rows.take(index,
-    axis=1)`` turned to ``gram.take(index, axis=0)[:, :index.size]``)."""
+    products. Seen failing on the stepped columns' term added with the wrong sign (``b + gram[np.ix_(index,
+    moved)] @ step`` turned to ``b - ...``) and on the model's block taken in layout order
+    (``gram[np.ix_(index, index)]`` turned to ``gram[np.ix_(np.sort(index), np.sort(index))]``)."""
     from tcr_accuracy.diagnosis.gram import FoldGrams
 
     rng = np.random.default_rng(7)
