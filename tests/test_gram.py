@@ -264,3 +264,37 @@ def test_maps_side_by_side_give_the_dense_jacobians_errors():
     rows = np.array([3, 7, 41])
     np.testing.assert_allclose(JoinedMaps(maps).errors(theta), expected, rtol=0, atol=1e-12)
     np.testing.assert_allclose(JoinedMaps(maps).errors(theta, rows), expected[rows], rtol=0, atol=1e-12)
+
+
+def test_a_models_quadratic_with_other_columns_stepped_is_the_sum_of_squares_of_its_rows():
+    """FoldGrams.quadratic on a model's columns (scattered over three effects, an angle table's among
+    them), the other columns stepped by ``fixed``: its value at a step d is |W r + J_model d + J_other
+    fixed|^2 summed here on all rows and on each fold's held-out rows, its Gram and gradient the dense
+    products. Seen failing on the stepped columns' term added with the wrong sign (``b + gram[np.ix_(index,
+    moved)] @ step`` turned to ``b - ...``) and on the model's block taken in layout order
+    (``gram[np.ix_(index, index)]`` turned to ``gram[np.ix_(np.sort(index), np.sort(index))]``)."""
+    from tcr_accuracy.diagnosis.gram import FoldGrams
+
+    rng = np.random.default_rng(7)
+    part, bases, repeats, jacobian = _table_grams_case(rng, n=300)
+    store = FoldGrams([part], bases, repeats)
+    residual = rng.standard_normal((part.q.shape[0], 3))
+    whitened = np.einsum("nij,nj->ni", part.whitening, residual)
+    products = store.residual_products([residual], store.layout.effects)
+    n_columns = jacobian.shape[2]
+    index = np.sort(rng.choice(n_columns, n_columns // 2, replace=False))[::-1].copy()  # not in layout order
+    fixed = np.zeros(n_columns)
+    others = np.setdiff1d(np.arange(n_columns), index)
+    fixed[others[::2]] = rng.standard_normal(others[::2].size)
+    d = rng.standard_normal(index.size)
+    for repeat, fold, rows in [(None, None, np.arange(part.q.shape[0]))] + \
+            [(r, f, test) for r, folds in enumerate(repeats) for f, (_, test) in enumerate(folds)]:
+        quad = store.quadratic(index, fixed, repeat, fold, products=products)
+        j = jacobian[rows].reshape(-1, n_columns)
+        moved = whitened[rows].ravel() + j @ fixed
+        expected = np.sum((moved + j[:, index] @ d) ** 2)
+        assert abs(quad.value(d) - expected) < 1e-10 * expected
+        scale = np.abs(j[:, index].T @ j[:, index]).max()
+        np.testing.assert_allclose(quad.gram, j[:, index].T @ j[:, index], rtol=0, atol=1e-11 * scale)
+        np.testing.assert_allclose(quad.gradient, j[:, index].T @ moved, rtol=0,
+                                   atol=1e-11 * np.abs(j[:, index].T @ moved).max())

@@ -28,7 +28,7 @@ import numpy as np
 from scipy import linalg
 
 from .gram import Quadratic
-from .least_squares import DampedSolver, FactorCache, cholesky_solve
+from .least_squares import DampedSolver, FactorCache, cholesky_factor, cholesky_solve
 
 #: lambdas tried for a smoothness penalty, times the penalised columns' median Gram diagonal
 PENALTY_GRID = np.logspace(-5, 3, 9)
@@ -36,11 +36,11 @@ PENALTY_GRID = np.logspace(-5, 3, 9)
 
 class SharedBlock:
     """The penalised columns of the models fitted from one store of Gram blocks, and the Cholesky
-    factors of their unit-diagonal systems (their Gram block on some rows plus lambda W), kept for
-    the next model with the same penalised columns: models that differ in a few other columns (every
-    candidate added to a model with a fine angle table or the cyclic effect) reach their fit through
-    the Schur complement on those few (:func:`free_step`), where each was one Cholesky factorisation
-    of the whole system (a thousand columns and more with an angle table).
+    factors of their systems (their Gram block on some rows plus lambda W), kept for the next model
+    with the same penalised columns: models that differ in a few other columns (every candidate added
+    to a model with a fine angle table or the cyclic effect) reach their fit through the Schur
+    complement on those few (:func:`free_step`), where each was one Cholesky factorisation of the
+    whole system (a thousand columns and more with an angle table).
 
     Parameters
     ----------
@@ -54,36 +54,57 @@ class SharedBlock:
 
     def __init__(self, factors: FactorCache, columns: tuple, positions: np.ndarray):
         self.factors, self.columns, self.positions = factors, columns, positions
+        self._others: dict = {}
 
     def key(self, rows, lam: float) -> tuple:
         """The cache key of the factor on ``rows`` (a label: all rows, or a fold's training rows) at lambda."""
         return (rows, float(lam), self.columns)
 
+    def others(self, k: int) -> np.ndarray:
+        """The model's other columns (not penalised), among its k."""
+        if k not in self._others:
+            mask = np.ones(k, dtype=bool)
+            mask[self.positions] = False
+            self._others[k] = np.flatnonzero(mask)
+        return self._others[k]
+
 
 def box_step(system: np.ndarray, gradient: np.ndarray, low: np.ndarray, high: np.ndarray,
-             shared: SharedBlock | None = None, key=None) -> np.ndarray:
+             shared: SharedBlock | None = None, key=None, overwrite: bool = False) -> np.ndarray:
     """argmin d^T A d + 2 b^T d over low <= d <= high, for A = ``system`` (k, k) positive
-    semi-definite and b = ``gradient``: a Cholesky solve of the unit-diagonal system where it is
-    well posed and its step inside the box, else the damped solver's pseudo-inverse with the
-    box-constrained active-set step. ``shared``, ``key``: see :func:`free_step`."""
+    semi-definite and b = ``gradient``: a Cholesky solve where it is well posed and its step inside
+    the box, else the damped solver's pseudo-inverse with the box-constrained active-set step.
+    ``shared``, ``key``: see :func:`free_step`; ``overwrite``: the system is the caller's to lose (the
+    Cholesky factor is made in its memory)."""
     if not gradient.size:
         return np.zeros(0)
     origin = np.clip(0.0, low, high)  # a feasible point to start the box-constrained step from
     if np.any(origin):
         gradient = gradient + system @ origin
         low, high = low - origin, high - origin
-    step = free_step(system, gradient, shared, key)
+    diagonal = np.diag(system).copy() if overwrite else None
+    step = free_step(system, gradient, shared, key, overwrite)
     if step is not None and np.all(step >= low) and np.all(step <= high):
         return origin + step
+    if overwrite:  # the factor took the lower triangle and the diagonal; the upper triangle is the system's
+        np.copyto(system, system.T, where=np.tri(*system.shape, k=-1, dtype=bool))
+        system[np.diag_indices_from(system)] = diagonal
     step, _ = DampedSolver(system).step(gradient, 0.0, low, high)
     return origin + np.clip(step, low, high)
 
 
-def free_step(system: np.ndarray, gradient: np.ndarray, shared: SharedBlock | None = None, key=None) \
-        -> np.ndarray | None:
-    """argmin d^T A d + 2 b^T d without bounds: a Cholesky solve of the unit-diagonal system, or None
-    where it is not well posed (not positive definite, or near singular: a factor's diagonal below
-    1e-7 of its largest).
+#: a system is near singular where a pivot of its unit-diagonal form's Cholesky factor is below this
+#: share of the largest
+PIVOT_FLOOR = 1e-7
+
+
+def free_step(system: np.ndarray, gradient: np.ndarray, shared: SharedBlock | None = None, key=None,
+              overwrite: bool = False) -> np.ndarray | None:
+    """argmin d^T A d + 2 b^T d without bounds: a Cholesky solve, or None where it is not well posed
+    (not positive definite, or near singular: a pivot of the factor of the unit-diagonal system
+    D^-1 A D^-1, D = sqrt(diag A), below :data:`PIVOT_FLOOR` of the largest). The factor is taken of A
+    itself (Cholesky's rounding does not depend on a diagonal scaling; its pivots are the unit system's
+    times D), ``system``'s memory overwritten with ``overwrite``.
 
     With ``shared`` (and its ``key``, the factor's rows and lambda), the same solve with the shared
     penalised columns P first: their block's factor L_P is the one kept under ``key`` (made once), the
@@ -92,53 +113,47 @@ def free_step(system: np.ndarray, gradient: np.ndarray, shared: SharedBlock | No
     system with its columns in that order."""
     norms = np.sqrt(np.clip(np.diag(system), 1e-300, None))
     if shared is None or not 0 < shared.positions.size < system.shape[0]:
-        try:
-            step = cholesky_solve(system / np.outer(norms, norms), -gradient / norms, strict=True) / norms
-        except np.linalg.LinAlgError:
+        factor = cholesky_factor(system, overwrite)
+        if factor is None or not _well_posed(np.diagonal(factor) / norms):
             return None
+        step = linalg.cho_solve((factor, False), -gradient, check_finite=False)
         return step if np.all(np.isfinite(step)) else None
     p = shared.positions
-    o = np.setdiff1d(np.arange(system.shape[0]), p)
-
-    def unit(rows, cols):
-        return system[np.ix_(rows, cols)] / np.outer(norms[rows], norms[cols])
-
-    def made():
-        try:
-            return linalg.cholesky(unit(p, p), lower=True, check_finite=False)
-        except linalg.LinAlgError:
-            return None
-
-    factor_p = shared.factors.get(key, made)
+    o = shared.others(system.shape[0])
+    factor_p = shared.factors.get(key, lambda: cholesky_factor(system[np.ix_(p, p)], overwrite=True))
     if factor_p is None:
         return None
-    y = linalg.solve_triangular(factor_p, unit(p, o), lower=True, check_finite=False)
-    try:
-        factor_s = linalg.cholesky(unit(o, o) - y.T @ y, lower=True, check_finite=False)
-    except linalg.LinAlgError:
+    # Y = L_P^-1 A_PO = U_P^-T A_PO
+    y = linalg.solve_triangular(factor_p, system[np.ix_(p, o)], trans="T", check_finite=False)
+    factor_s = cholesky_factor(system[np.ix_(o, o)] - y.T @ y, overwrite=True)
+    if factor_s is None or not _well_posed(np.concatenate([np.diagonal(factor_p) / norms[p],
+                                                           np.diagonal(factor_s) / norms[o]])):
         return None
-    diagonal = np.abs(np.concatenate([np.diag(factor_p), np.diag(factor_s)]))
-    if diagonal.min() <= 1e-7 * diagonal.max():
-        return None
-    rhs = -gradient / norms
-    z_p = linalg.solve_triangular(factor_p, rhs[p], lower=True, check_finite=False)
-    x_o = linalg.cho_solve((factor_s, True), rhs[o] - y.T @ z_p, check_finite=False)
-    x_p = linalg.solve_triangular(factor_p, z_p - y @ x_o, lower=True, trans="T", check_finite=False)
+    rhs = -gradient
+    z_p = linalg.solve_triangular(factor_p, rhs[p], trans="T", check_finite=False)
+    x_o = linalg.cho_solve((factor_s, False), rhs[o] - y.T @ z_p, check_finite=False)
+    x_p = linalg.solve_triangular(factor_p, z_p - y @ x_o, check_finite=False)
     step = np.empty_like(rhs)
     step[p], step[o] = x_p, x_o
-    step /= norms
     return step if np.all(np.isfinite(step)) else None
 
 
-def _system(total: Quadratic, fold: Quadratic | None, weights: np.ndarray, center: np.ndarray) \
-        -> tuple[np.ndarray, np.ndarray]:
+def _well_posed(pivots: np.ndarray) -> bool:
+    """Whether the unit-diagonal system's Cholesky pivots (all positive) are none near zero."""
+    return bool(pivots.min() > PIVOT_FLOOR * pivots.max())
+
+
+def _system(total: Quadratic, fold: Quadratic | None, weights: np.ndarray, center: np.ndarray,
+            training: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(A + diag(w), b + w * center) of the training rows' quadratic (``total`` less the held-out
-    ``fold``, or all rows): the penalty sum w (center + d)^2 added, in one new matrix."""
+    ``fold``, or all rows): the penalty sum w (center + d)^2 added, in one new matrix (``total`` itself
+    when all rows are taken without a penalty). ``training``: the training rows' Gram block when made
+    already (total less fold), copied."""
     if fold is None:
         system = total.gram.copy() if np.any(weights) else total.gram
         gradient = total.gradient
     else:
-        system = np.subtract(total.gram, fold.gram)
+        system = training.copy() if training is not None else np.subtract(total.gram, fold.gram)
         gradient = total.gradient - fold.gradient
     if np.any(weights):
         system[np.diag_indices_from(system)] += weights
@@ -202,7 +217,9 @@ def fit_blocks(total: Quadratic, held: list, low: np.ndarray, high: np.ndarray, 
                                               steps=True, shared=shared)
     w = lam * weights
     shared = shared if penalised else None
-    step = box_step(*_system(total, None, w, center), low, high, shared, shared and shared.key("all", lam))
+    system, gradient = _system(total, None, w, center)
+    step = box_step(system, gradient, low, high, shared, shared and shared.key("all", lam),
+                    overwrite=system is not total.gram)
     inside = not np.any(np.clip(0.0, low, high))  # the box holds the anchor: a free step is box_step's own
     fold_steps, ssq = [], []
     for r, folds in enumerate(held):
@@ -214,7 +231,7 @@ def fit_blocks(total: Quadratic, held: list, low: np.ndarray, high: np.ndarray, 
                 d = free  # the search's solve at the chosen lambda: what box_step would solve again
             else:
                 d = box_step(*_system(total, fold, w, center), low, high, shared,
-                             shared and shared.key(("train", r, f), lam))
+                             shared and shared.key(("train", r, f), lam), overwrite=True)
             steps.append(d)
             scores.append(fold.value(d))
         fold_steps.append(steps)
@@ -256,11 +273,14 @@ def choose_penalty(total: Quadratic, folds: list, weights: np.ndarray, center: n
         partial = dict.fromkeys(todo, 0.0)
         for f, get in enumerate(folds):
             fold = get()
+            training = np.subtract(total.gram, fold.gram) if len(todo) > 1 else None  # made once for them
             for i in todo:
-                system, gradient = _system(total, fold, grid[i] * weights, center)
-                d = free_step(system, gradient, shared, shared and shared.key(("train", 0, f), grid[i]))
+                system, gradient = _system(total, fold, grid[i] * weights, center, training)
+                d = free_step(system, gradient, shared, shared and shared.key(("train", 0, f), grid[i]),
+                              overwrite=True)
                 solved[i, f] = d
                 if d is None:
+                    system, gradient = _system(total, fold, grid[i] * weights, center, training)
                     system[np.diag_indices_from(system)] += ridge
                     d = cholesky_solve(system, -gradient)
                 partial[i] += float(2.0 * fold.gradient @ d + d @ fold.gram @ d)  # less the constant

@@ -125,6 +125,25 @@ def cholesky_solve(matrix: np.ndarray, rhs: np.ndarray, strict: bool = False) ->
         return np.linalg.solve(matrix, rhs)
 
 
+def cholesky_factor(matrix: np.ndarray, overwrite: bool = False) -> np.ndarray | None:
+    """The upper Cholesky factor U (A = U^T U) of a symmetric (k, k) matrix, or None where it is not
+    positive definite: LAPACK's potrf straight on the matrix's memory (a C-ordered array is the
+    Fortran-ordered transpose of itself), in place with ``overwrite``, else in one copy. Only U's
+    triangle is meaningful (the other keeps what the matrix held there); pass it as
+    ``(factor, False)`` to scipy's ``cho_solve``, or to ``solve_triangular`` with ``lower=False``.
+
+    Hand-written around LAPACK: scipy's ``cholesky`` and ``cho_factor`` copy a C-ordered matrix into
+    Fortran order first, a second pass over a thousand-column system that the fits of a fine angle
+    table make a hundred times."""
+    from scipy.linalg import get_lapack_funcs
+
+    work = matrix if overwrite and matrix.flags.c_contiguous and matrix.dtype == np.float64 \
+        else np.array(matrix, dtype=float, order="C")
+    potrf, = get_lapack_funcs(("potrf",), (work,))
+    factor, info = potrf(work.T, lower=False, overwrite_a=True, clean=False)
+    return factor if info == 0 else None
+
+
 class FactorCache:
     """Factors of small systems kept under keys (the fit engine's penalised blocks,
     :class:`~tcr_accuracy.diagnosis.block_fit.SharedBlock`), the least recently used going first beyond
