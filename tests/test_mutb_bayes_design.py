@@ -1,0 +1,185 @@
+"""``diagnosis/bayes_design.py``'s remaining figures against computations written out here on raw numpy:
+the leave-one-pose-out residuals against a refit without each pose, the predictive spread against
+``g S g^T + sigma^2`` with S a plain inverse, a long greedy design whose prediction variance falls by
+orders of magnitude (its recomputation rule then decides whether the gains are right) against plain
+inverses, the stop advice's every millimetre figure from a bootstrap whose interval ends differ from
+its point, and the learning curve's JSON in mm. Each test names a planted change it was seen to catch
+(issue 36)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tcr_accuracy.diagnosis.bayes_design import (BayesianErrorModel, Design, DesignColumns, EffectPrior,
+                                                 LearningCurve, plan_design, stop_advice, task_variance)
+
+EFFECTS = ["frames", "compliance", "transmission"]
+
+
+def _owner(n_frames, n_compliance, n_transmission):
+    return np.array(["frames"] * n_frames + ["compliance"] * n_compliance + ["transmission"] * n_transmission)
+
+
+def _precision(owner, tau):
+    """The prior written out: 1e-6 for the flat (setup) columns, 1 / tau_e^2 for the others."""
+    return np.array([1e-6 if e == "frames" else 1.0 / tau[e] ** 2 for e in owner])
+
+
+def _problem(seed, n=14, scale=1e-3):
+    rng = np.random.default_rng(seed)
+    owner = _owner(3, 4, 4)
+    g = rng.normal(size=(n, 3, owner.size)) * scale
+    theta = np.concatenate([rng.normal(0, 5.0, 3), rng.normal(0, 1.0, 8)])
+    errors = g @ theta + rng.normal(0, 4e-5, (n, 3))
+    prior = EffectPrior({"compliance": 1.5, "transmission": 0.6}, 4e-5)
+    return DesignColumns(g, owner, EFFECTS), errors, prior
+
+
+def test_leave_one_out_residuals_are_those_of_refits_without_each_pose():
+    """Pose i's leave-one-out residual: its error minus what the posterior mean fitted on the other poses
+    (np.linalg.solve on their information here, the prior held) predicts there, for every pose, to 1e-8
+    of the largest residual. Fourteen poses of 11 parameters: each pose's hat block is far from zero, so
+    ``(I - H_ii)^-1`` matters. Seen failing on ``np.eye(3) - hat`` turned to ``np.eye(3) + hat`` and on
+    ``/ self.prior.noise_m**2`` turned to ``** 3`` (planted by hand)."""
+    columns, errors, prior = _problem(21)
+    g, owner = columns.g, columns.owner
+    model = BayesianErrorModel(prior).fit(columns, errors)
+    loo = model.leave_one_out(columns, errors)
+    expected = np.empty_like(errors)
+    for i in range(len(g)):
+        keep = np.arange(len(g)) != i
+        flat = g[keep].reshape(-1, owner.size)
+        information = flat.T @ flat / prior.noise_m**2 + np.diag(_precision(owner, prior.tau))
+        theta = np.linalg.solve(information, flat.T @ errors[keep].ravel() / prior.noise_m**2)
+        expected[i] = errors[i] - g[i] @ theta
+    fitted_residual = errors - g @ model.theta_
+    assert np.max(np.abs(expected - fitted_residual)) > 0.2 * np.max(np.abs(expected))  # the hat matters here
+    np.testing.assert_allclose(loo, expected, rtol=0, atol=1e-8 * np.max(np.abs(expected)))
+
+
+def test_predictive_mean_and_spread_against_plain_inverses_in_several_chunks():
+    """predict(): g theta with theta = A^-1 G^T y / s^2, and the spread sqrt(diag(g S g^T) + s^2) per axis with
+    S = A^-1 (np.linalg.inv here), over 7 poses predicted in chunks of 3 (the last one short); the
+    covariance_ is that S. Seen failing on ``np.sqrt(variance + self.prior.noise_m**2)`` turned to ``- ...``
+    and on the chunk's ``start:start + chunk`` turned to ``start:start - chunk`` (planted by hand)."""
+    columns, errors, prior = _problem(22)
+    g, owner = columns.g, columns.owner
+    model = BayesianErrorModel(prior).fit(columns, errors)
+    flat = g.reshape(-1, owner.size)
+    information = flat.T @ flat / prior.noise_m**2 + np.diag(_precision(owner, prior.tau))
+    covariance = np.linalg.inv(information)
+    theta = covariance @ flat.T @ errors.ravel() / prior.noise_m**2
+    new = DesignColumns(np.random.default_rng(5).normal(size=(7, 3, owner.size)) * 1e-3, owner, EFFECTS)
+    mean, std = model.predict(new, return_std=True, chunk=3)
+    np.testing.assert_allclose(mean, new.g @ theta, rtol=1e-8, atol=1e-12)
+    spread = np.array([np.sqrt(np.diag(gi @ covariance @ gi.T) + prior.noise_m**2) for gi in new.g])
+    np.testing.assert_allclose(std, spread, rtol=1e-8)
+    np.testing.assert_allclose(model.covariance_, covariance, rtol=1e-7, atol=1e-9 * np.abs(covariance).max())
+    np.testing.assert_array_equal(model.predict(new), mean)
+
+
+def test_an_empty_measured_set_is_the_prior_alone():
+    """Measured poses given as columns with no rows: the task variance and the design are those of the prior
+    alone (None), and one measured pose (written out here) lowers the task variance by what np.linalg.inv
+    says. Seen failing on ``information += (flat.T @ flat) / prior.noise_m**2`` turned to ``-=``."""
+    rng = np.random.default_rng(7)
+    owner = _owner(2, 3, 3)
+    task = DesignColumns(rng.normal(size=(9, 3, owner.size)) * 1e-4, owner, EFFECTS)
+    empty = DesignColumns(np.zeros((0, 3, owner.size)), owner, EFFECTS)
+    prior = EffectPrior({"compliance": 1.5, "transmission": 0.7}, 4e-5)
+    precision = np.diag(_precision(owner, prior.tau))
+    alone = np.mean([np.trace(g @ np.linalg.inv(precision) @ g.T) for g in task.g])
+    assert task_variance(empty, task, prior) == pytest.approx(alone, rel=1e-7)
+    one = DesignColumns(rng.normal(size=(1, 3, owner.size)) * 1e-4, owner, EFFECTS)
+    grown = np.linalg.inv(precision + one.g[0].T @ one.g[0] / prior.noise_m**2)
+    assert task_variance(one, task, prior) == pytest.approx(np.mean([np.trace(g @ grown @ g.T) for g in task.g]),
+                                                            rel=1e-7)
+    a = plan_design(empty, task, task, prior, 3)
+    b = plan_design(None, task, task, prior, 3)
+    assert a.picked.tolist() == b.picked.tolist()
+    assert a.task_std_before_m == pytest.approx(np.sqrt(alone), rel=1e-9)
+    np.testing.assert_allclose(a.gain_per_pose, b.gain_per_pose, rtol=1e-12)
+
+
+def test_a_long_design_recomputes_its_products_and_keeps_every_gain_right():
+    """Thirty picks from sixty candidates whose columns are 1 mm per typical size (the flat prior's variance
+    falls by some twelve orders of magnitude): each pick's gain (the task's mean prediction variance
+    removed) against plain inverses to 1e-6. Without the recomputation from the information (REFRESH), the
+    rank-3 downdates' rounding makes the late gains wrong by orders of magnitude. Seen failing on
+    ``if float(np.sum(weight * s)) < REFRESH * refreshed_at`` turned to ``>`` (never refreshed) and on
+    ``REFRESH = 0.1`` turned to ``-0.9``."""
+    rng = np.random.default_rng(3)
+    owner = _owner(3, 4, 5)
+    prior = EffectPrior({"compliance": 2.0, "transmission": 0.5}, 3e-5)
+    candidates = DesignColumns(rng.normal(size=(60, 3, owner.size)) * 1e-3, owner, EFFECTS)
+    task = DesignColumns(rng.normal(size=(40, 3, owner.size)) * 1e-3, owner, EFFECTS)
+    design = plan_design(None, candidates, task, prior, 30, criterion="I")
+    beta = 1 / prior.noise_m**2
+    information = np.diag(_precision(owner, prior.tau))
+    weight = sum(g.T @ g for g in task.g) / len(task.g)
+    gains = []
+    for best in design.picked:
+        grown = information + beta * candidates.g[best].T @ candidates.g[best]
+        gains.append(np.trace(weight @ (np.linalg.inv(information) - np.linalg.inv(grown))))
+        information = grown
+    assert gains[-1] < 1e-10 * gains[0]
+    np.testing.assert_allclose(design.gain_per_pose, gains, rtol=1e-6)
+
+
+def _curve(boot, floor_m):
+    one = np.array([1e-4])
+    return LearningCurve(sizes=np.array([10]), rms_m=one, low_m=one, high_m=one, expected_rms_m=one,
+                         noise_weight=1.0, variance_weight=1.0, boot=boot, noise_floor_m=floor_m)
+
+
+def test_stop_advice_words_with_an_interval_apart_from_its_point():
+    """The reason word for word, each figure written out here: the point sqrt(floor^2 + v) and the 5 and
+    95 % quantiles of sqrt(a floor^2 + b v) over a bootstrap of (a, b) spread around 1, in mm to four
+    places, for the held-out error after and the gain; the errors are millimetres, so a factor 1001 for
+    1000 shows. Seen failing on ``(gain {gain[0] * 1e3:.4f} mm`` turned to ``gain[1]`` and to ``1001.0``,
+    and on ``{then[2] * 1e3:.4f}`` turned to ``then[1]``."""
+    rng = np.random.default_rng(17)
+    boot = np.column_stack([rng.uniform(0.6, 1.4, 300), rng.uniform(0.5, 1.8, 300)])
+    floor = 3e-5
+    curve = _curve(boot, floor)
+    std_before, std_after = 2.1e-3, 0.7e-3
+    design = Design(picked=np.arange(9), criterion="I", gain_per_pose=np.ones(9), task_std_before_m=std_before,
+                    task_std_after_m=std_after, task_worst_std_before_m=std_before,
+                    task_worst_std_after_m=std_after, log_det_gain=1.0)
+
+    def spread(v):
+        return np.sqrt(boot[:, 0] * floor**2 + boot[:, 1] * v)
+
+    now = np.sqrt(floor**2 + std_before**2)
+    then = np.sqrt(floor**2 + std_after**2)
+    then_low, then_high = np.quantile(spread(std_after**2), [0.05, 0.95])
+    gain_low, gain_high = np.quantile(spread(std_before**2) - spread(std_after**2), [0.05, 0.95])
+    gain = now - then
+    assert then_low < then < then_high and gain_low < gain < gain_high  # the ends differ from the points
+    mm = [x * 1e3 for x in (now, then, then_low, then_high, gain, gain_low, gain_high)]
+    words = ("measuring the 9 poses would take the held-out RMS error over the task from {:.4f} mm to {:.4f} mm "
+             "[{:.4f}, {:.4f}] (gain {:.4f} mm [{:.4f}, {:.4f}], 90 % interval)").format(*mm)
+    advice = stop_advice(curve, design, min_gain_m=None)
+    assert advice.reason == f"expected: {words} (no limit given to stop at)" and not advice.stop
+    assert advice.now_m[0] == pytest.approx(now, rel=1e-12)
+    assert advice.then_m == pytest.approx((then, then_low, then_high), rel=1e-12)
+    assert advice.gain_m == pytest.approx((gain, gain_low, gain_high), rel=1e-12)
+    advice = stop_advice(curve, design, min_gain_m=2e-3)
+    assert advice.stop and advice.reason == f"stop: {words}, below the limit of 2 mm"
+
+
+def test_learning_curve_json_in_mm():
+    """to_dict(): every figure in mm (x 1000 of its metres) and the two weights as they are. Seen failing on
+    ``"floor_mm": self.floor_m * 1e3`` turned to ``* 1001.0`` (a survivor of seed 1 by the lead)."""
+    curve = LearningCurve(sizes=np.array([10, 14]), rms_m=np.array([1e-4, 8e-5]), low_m=np.array([9e-5, 7e-5]),
+                          high_m=np.array([1.2e-4, 9e-5]), expected_rms_m=np.array([1.1e-4, 8.5e-5]),
+                          noise_weight=0.9, variance_weight=1.3, boot=np.ones((3, 2)), noise_floor_m=3.1e-5)
+    doc = curve.to_dict()
+    assert doc["sizes"] == [10, 14]
+    assert doc["heldout_rms_mm"] == pytest.approx([0.1, 0.08], rel=1e-12)
+    assert doc["heldout_rms_5_mm"] == pytest.approx([0.09, 0.07], rel=1e-12)
+    assert doc["heldout_rms_95_mm"] == pytest.approx([0.12, 0.09], rel=1e-12)
+    assert doc["expected_rms_mm"] == pytest.approx([0.11, 0.085], rel=1e-12)
+    assert doc["floor_mm"] == doc["noise_floor_mm"] == pytest.approx(0.031, rel=1e-12)
+    assert (doc["noise_weight"], doc["variance_weight"]) == (0.9, 1.3)
