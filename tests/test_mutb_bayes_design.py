@@ -183,3 +183,94 @@ def test_learning_curve_json_in_mm():
     assert doc["expected_rms_mm"] == pytest.approx([0.11, 0.085], rel=1e-12)
     assert doc["floor_mm"] == doc["noise_floor_mm"] == pytest.approx(0.031, rel=1e-12)
     assert (doc["noise_weight"], doc["variance_weight"]) == (0.9, 1.3)
+
+
+def test_a_g_optimal_design_follows_at_most_two_thousand_task_poses():
+    """A G-optimal design over a task of 2000 poses uses them all (the generator is never drawn from:
+    two generators give the same design, that over the task as given); over 2001 poses it follows the 2000
+    that ``rng.choice(2001, 2000, replace=False)`` picks (sorted), as a design over that subset does.
+    The progress callback is called once per pose chosen. Seen failing on ``G_TASK_MAX = 2000`` turned to
+    2001 and 1999, and on ``progress(1)`` turned to ``progress(2)``."""
+    from tcr_accuracy.diagnosis.bayes_design import G_TASK_MAX
+
+    assert G_TASK_MAX == 2000
+    rng = np.random.default_rng(31)
+    owner = _owner(2, 2, 2)
+    prior = EffectPrior({"compliance": 1.0, "transmission": 0.5}, 3e-5)
+    candidates = DesignColumns(rng.normal(size=(12, 3, owner.size)) * 1e-4, owner, EFFECTS)
+    task = DesignColumns(rng.normal(size=(2001, 3, owner.size)) * 1e-4, owner, EFFECTS)
+    subset = DesignColumns(task.g[:2000], owner, EFFECTS)
+    ticks = []
+    a = plan_design(None, candidates, subset, prior, 3, criterion="G", rng=np.random.default_rng(1),
+                    progress=ticks.append)
+    b = plan_design(None, candidates, subset, prior, 3, criterion="G", rng=np.random.default_rng(2))
+    assert ticks == [1, 1, 1]
+    assert a.picked.tolist() == b.picked.tolist()
+    np.testing.assert_array_equal(a.gain_per_pose, b.gain_per_pose)
+    drawn = np.sort(np.random.default_rng(5).choice(2001, 2000, replace=False))
+    c = plan_design(None, candidates, task, prior, 3, criterion="G", rng=np.random.default_rng(5))
+    d = plan_design(None, candidates, DesignColumns(task.g[drawn], owner, EFFECTS), prior, 3, criterion="G")
+    assert c.picked.tolist() == d.picked.tolist()
+    np.testing.assert_allclose(c.gain_per_pose, d.gain_per_pose, rtol=1e-12)
+    assert c.task_std_before_m == pytest.approx(d.task_std_before_m, rel=1e-12)
+
+
+def test_a_design_refuses_an_unknown_criterion_and_k_outside_the_candidates():
+    """The refusals word for word: criterion "A"; k of 0 and of M + 1 (M = 5 candidates), while k = M and
+    k = 1 are designed. Seen failing on ``1 <= k <= m`` turned to ``2 <= k`` and ``k <= m`` to ``k < m``."""
+    from tcr_accuracy.exceptions import InputError
+
+    rng = np.random.default_rng(9)
+    owner = _owner(1, 1, 1)
+    prior = EffectPrior({"compliance": 1.0, "transmission": 1.0}, 3e-5)
+    candidates = DesignColumns(rng.normal(size=(5, 3, owner.size)) * 1e-4, owner, EFFECTS)
+    with pytest.raises(InputError, match=r"^criterion 'A': choose I, G or D$"):
+        plan_design(None, candidates, candidates, prior, 2, criterion="A")
+    for k in (0, 6):
+        with pytest.raises(InputError, match=rf"^-k {k}: choose between 1 and the 5 candidates$"):
+            plan_design(None, candidates, candidates, prior, k)
+    assert sorted(plan_design(None, candidates, candidates, prior, 5).picked.tolist()) == [0, 1, 2, 3, 4]
+    assert len(plan_design(None, candidates, candidates, prior, 1).picked) == 1
+
+
+def test_a_prior_fitted_to_noise_alone_rests_on_its_bounds():
+    """Errors of pure noise (1e-4 m) on columns of 1e-3 m per typical size: the evidence falls as tau
+    grows, so every non-geometric tau rests on TAU_BOUNDS' lower end, 1e-2 typical sizes, exactly; errors
+    of nothing (all zero) drive the noise to NOISE_BOUNDS_M's lower end, 1e-7 m. Errors of the wrong shape
+    are refused naming both shapes; no effect to fit with the noise held gives the noise back. Seen failing on
+    ``TAU_BOUNDS = (1e-2, 1e2)`` turned to ``(1.01, ...)`` and ``NOISE_BOUNDS_M = (1e-7, ...)`` to
+    ``(1.0000001, ...)`` (planted by hand)."""
+    from tcr_accuracy.diagnosis.bayes_design import fit_prior
+    from tcr_accuracy.exceptions import InputError
+
+    rng = np.random.default_rng(13)
+    owner = _owner(2, 4, 4)
+    columns = DesignColumns(rng.normal(size=(30, 3, owner.size)) * 1e-3, owner, EFFECTS)
+    noise = fit_prior(columns, rng.normal(0, 1e-4, (30, 3)))
+    assert noise.tau == pytest.approx({"compliance": 1e-2, "transmission": 1e-2}, rel=1e-12)
+    assert noise.noise_m == pytest.approx(1e-4, rel=0.2)
+    nothing = fit_prior(columns, np.zeros((30, 3)))
+    assert nothing.noise_m == pytest.approx(1e-7, rel=1e-12)
+    with pytest.raises(InputError, match=r"^fit_prior: errors of shape \(29, 3\), expected \(30, 3\)$"):
+        fit_prior(columns, np.zeros((29, 3)))
+    frames_only = DesignColumns(columns.g[:, :, :2], owner[:2], ["frames"])
+    held = fit_prior(frames_only, np.zeros((30, 3)), noise_m=3e-5)
+    assert (held.tau, held.noise_m, held.fitted, held.n_poses) == ({}, 3e-5, True, 30)
+
+
+def test_a_campaign_of_fewer_than_three_poses_by_hand():
+    """One pose: the reference alone, measured n_references times (once for 0); none: no rows. Two poses
+    (both equally central, up to rounding): the reference at places round(linspace(0, 1, 3)) = 0, 0, 1
+    of the one other, so rows ref, ref, other, ref. Seen failing on ``if len(q) < 2`` turned to ``< 3``
+    and on ``max(int(n_references), 1) if len(q) else 0`` turned to ``else 1``."""
+    from tcr_accuracy.diagnosis.bayes_design import campaign_order
+
+    q = np.array([[0.1, 0.2], [0.3, -0.1]])
+    rows, reference, r = campaign_order(q[:1], 3, np.random.default_rng(0))
+    assert rows.tolist() == [0, 0, 0] and reference == 0 and r == 0.0
+    assert campaign_order(q[:1], 0, np.random.default_rng(0))[0].tolist() == [0]
+    assert campaign_order(q[:0], 3, np.random.default_rng(0))[0].tolist() == []
+    rows, reference, r = campaign_order(q, 3, np.random.default_rng(0))
+    centre = int(np.argmin(np.sum(((q - q.mean(axis=0)) / q.std(axis=0)) ** 2, axis=1)))
+    assert reference == centre and r == 0.0
+    assert rows.tolist() == [centre, centre, 1 - centre, centre]
