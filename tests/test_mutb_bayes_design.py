@@ -274,3 +274,36 @@ def test_a_campaign_of_fewer_than_three_poses_by_hand():
     centre = int(np.argmin(np.sum(((q - q.mean(axis=0)) / q.std(axis=0)) ** 2, axis=1)))
     assert reference == centre and r == 0.0
     assert rows.tolist() == [centre, centre, 1 - centre, centre]
+
+
+def test_the_jitter_added_is_exactly_the_second_try():
+    """An information matrix whose smallest eigenvalue is -5e-12 of its mean diagonal: the first try
+    (1e-13 of the mean diagonal) fails, the second (100 times more, 1e-11) succeeds, so the factor is that
+    of the matrix plus exactly 1e-11 x its mean diagonal on the diagonal (to 1e-4 of the jitter). Seen
+    failing on ``jitter / scale * 100`` turned to ``* 101`` and on ``1e-13`` turned to ``1.0000000000001``."""
+    from tcr_accuracy.diagnosis.bayes_design import _cholesky
+
+    information = np.array([[2.0, 2.0, 0.0], [2.0, 2.0 - 2e-11, 0.0], [0.0, 0.0, 2.0]])
+    scale = np.mean(np.diag(information))
+    factor, lower = _cholesky(information)
+    triangle = np.tril(factor) if lower else np.triu(factor)
+    rebuilt = triangle @ triangle.T if lower else triangle.T @ triangle
+    added = np.diag(rebuilt - information)
+    np.testing.assert_allclose(added, np.full(3, 1e-11 * scale), rtol=1e-4)
+    np.testing.assert_allclose(rebuilt - np.diag(np.diag(rebuilt)), information - np.diag(np.diag(information)),
+                               atol=1e-15)
+
+
+def test_a_prior_fitted_to_no_poses_stays_where_it_started():
+    """No measured poses: the evidence is flat in every scale (no data), so the fit stays at its start:
+    tau = 1 typical size for every non-geometric effect and the noise at twice NOISE_BOUNDS_M's lower end
+    (2e-7 m: the start sqrt(y^T y / max(rows, 1)) / 3 = 0 raised to it). Seen failing on ``max(gram.rows,
+    1)`` turned to ``max(gram.rows, 0)`` (0 / 0) and on ``2 * NOISE_BOUNDS_M[0]`` turned to ``3 * ...``."""
+    from tcr_accuracy.diagnosis.bayes_design import fit_prior
+
+    owner = _owner(2, 2, 2)
+    with np.errstate(all="ignore"):
+        prior = fit_prior(DesignColumns(np.zeros((0, 3, owner.size)), owner, EFFECTS), np.zeros((0, 3)))
+    assert prior.noise_m == pytest.approx(2e-7, rel=1e-12)
+    assert prior.tau == pytest.approx({"compliance": 1.0, "transmission": 1.0}, rel=1e-12)
+    assert prior.n_poses == 0 and prior.fitted

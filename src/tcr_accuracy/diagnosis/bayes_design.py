@@ -636,9 +636,8 @@ def learning_curve(columns: DesignColumns, errors: np.ndarray, prior: EffectPrio
         for r in range(repeats):
             test = np.sort(rng.choice(n, n - size, replace=False))
             left_out = _Gram(columns.g[test], errors[test])  # the fit's statistics: all minus the left-out
-            gram = _Gram.__new__(_Gram)
+            gram = _Gram.__new__(_Gram)  # the posterior mean reads G^T G and G^T y only
             gram.gtg, gram.gty = full.gtg - left_out.gtg, full.gty - left_out.gty
-            gram.yty, gram.rows = full.yty - left_out.yty, full.rows - left_out.rows
             theta, factor = _posterior_mean(gram, precision, prior.noise_m)
             g_test = columns.g[test].reshape(-1, p)
             miss = errors[test] - g_test.dot(theta).reshape(-1, 3)
