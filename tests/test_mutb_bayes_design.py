@@ -307,3 +307,20 @@ def test_a_prior_fitted_to_no_poses_stays_where_it_started():
     assert prior.noise_m == pytest.approx(2e-7, rel=1e-12)
     assert prior.tau == pytest.approx({"compliance": 1.0, "transmission": 1.0}, rel=1e-12)
     assert prior.n_poses == 0 and prior.fitted
+
+
+def test_a_joint_that_never_moves_does_not_choose_the_reference():
+    """Poses whose third joint is the same everywhere: the reference is the pose nearest the mean of the two
+    joints that move, each over its standard deviation (written out here: pose 5), the still joint left out
+    rather than divided by its zero spread. Seen failing on ``spread[spread == 0] = 1.0`` turned to ``0.0``
+    and ``spread == 0`` turned to ``spread == -1`` (0 / 0: every distance NaN, the first pose taken)."""
+    from tcr_accuracy.diagnosis.bayes_design import campaign_order
+
+    rng = np.random.default_rng(4)
+    q = np.column_stack([rng.uniform(-1, 1, 9), rng.uniform(-2, 2, 9), np.full(9, 0.7)])
+    q[5, :2] = q[:, :2].mean(axis=0) + [0.01, -0.01]
+    moving = q[:, :2]
+    centre = int(np.argmin(np.sum(((moving - moving.mean(axis=0)) / moving.std(axis=0)) ** 2, axis=1)))
+    assert centre == 5
+    rows, reference, _ = campaign_order(q, 2, np.random.default_rng(0))
+    assert reference == 5 and rows[0] == rows[-1] == 5 and len(rows) == 10

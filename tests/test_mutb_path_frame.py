@@ -61,7 +61,8 @@ def test_the_closest_point_frame_of_readings_on_the_paths_is_the_hidden_frame():
     the fitted frame is the hidden one to 1e-9 (rad, m), the residual RMS under 1 nm, and every reading
     counted. Before the fix a reading 2.4 mm past the square's start put its foot on the corner and the
     frame 10 um off. Seen failing on the fix undone, on the ICP stop ``moved < 1e-10`` turned to ``moved >
-    1e-10`` and to ``< 1.0000000001`` (one iteration), and on ``ICP_ITERATIONS = 50`` turned to 5."""
+    1e-10`` and to ``< 1.0000000001`` (one iteration), on ``moved = norm(...) + norm(...)`` turned to ``-``,
+    ``*`` and ``//`` (too few iterations), and on ``ICP_ITERATIONS = 50`` turned to 5."""
     u = np.linspace(0, 1, 400)
     helix = np.column_stack([0.2 * np.cos(4 * u), 0.2 * np.sin(4 * u), 0.3 * u]) + [0.5, -0.2, 0.4]
     runs = [SimpleNamespace(points=p, s=arc_length(p)) for p in (helix, _square())]
