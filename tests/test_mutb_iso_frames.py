@@ -63,6 +63,33 @@ def test_a_streamed_visit_of_one_reading_settles_at_once():
         assert (s.overshoot_mean, s.overshoot_max) == pytest.approx((1.5 * band * share, 1.5 * band), rel=1e-9)
 
 
+def test_without_a_band_each_pose_settles_into_its_own_rp_and_a_pose_of_rp_zero_is_said():
+    """No band given: each pose's band is its RP (clause 7.2, written out here on the attained readings:
+    mean distance to the barycentre + 3 standard deviations, n - 1); P2's attained readings all alike (RP
+    0) leave it out, said in a note. Seen failing on ``radius <= 0`` turned to ``radius <= -1`` (P2 settled
+    into a band of 0) and to ``<= 1`` (every pose left out)."""
+    robot = tcr.load_robot("ur5")
+    series = tcr.plan_iso_cube(robot, random_state=0, centre=[-0.13, -0.44, 0.32], size=0.2).series(cycles=4)
+    nominal = tcr.tcp_poses(robot, series.q).position
+    pose_id = np.asarray(series.annotations["pose_id"])
+    rng = np.random.default_rng(8)
+    attained = nominal + rng.normal(0, 0.02 * MM, nominal.shape)
+    attained[pose_id == "P2"] = nominal[pose_id == "P2"]
+    steps = np.array([0.3, 0.05, 0.0]) * MM
+    rows = np.repeat(np.arange(len(series)), 3)
+    stream = dataclasses.replace(series.subset(rows),
+                                 position=attained[rows] + np.tile(steps, len(series))[:, None] * [1.0, 0.0, 0.0],
+                                 time_s=np.arange(len(rows)) * 0.05 + rows * 1.0)
+    result = evaluate_pose_test(robot, stream, frame="base")
+    got = {s.pose_id: s for s in result.figures.stabilisation}
+    assert sorted(got) == ["P1", "P3", "P4", "P5"]
+    assert "no stabilisation time for 1 pose(s) without RP to take as the limit band (give one)" in result.figures.notes
+    for pid, s in got.items():
+        readings = attained[pose_id == pid]
+        distance = np.linalg.norm(readings - readings.mean(axis=0), axis=1)
+        assert s.band == pytest.approx(distance.mean() + 3 * distance.std(ddof=1), rel=1e-9)
+
+
 def test_commanded_targets_warn_past_ten_micrometres_naming_the_row():
     """A commanded file whose target columns sit 1 % inside TARGET_TOL (10 um) of the nominal TCP at its
     joints: no warning; one row 1 % past it: a warning naming that row (CSV row) and its distance in mm.
