@@ -94,7 +94,7 @@ def test_commanded_targets_warn_past_ten_micrometres_naming_the_row():
     """A commanded file whose target columns sit 1 % inside TARGET_TOL (10 um) of the nominal TCP at its
     joints: no warning; one row 1 % past it: a warning naming that row (CSV row) and its distance in mm.
     Seen failing on ``TARGET_TOL = 1e-5`` turned to ``1.00001`` and to ``-0.99999`` (and on ``gap.max() >
-    TARGET_TOL`` turned to ``<``)."""
+    TARGET_TOL`` turned to ``<``, and on ``stacklevel=3`` turned to 2 or 4)."""
     ur5 = tcr.load_robot("ur5")
     q = Q_START + np.outer(np.arange(6), [0.02, 0.01, -0.01, 0.0, 0.0, 0.0])
     tcp = tcp_poses(ur5, q).position
@@ -116,7 +116,7 @@ def test_commanded_targets_warn_past_ten_micrometres_naming_the_row():
     past[3] = tcp[3] + 1.01e-5 * direction
     with pytest.warns(UserWarning) as caught:
         commanded_runs(ur5, file(past))
-    assert len(caught) == 1
+    assert len(caught) == 1 and caught[0].filename == __file__  # said where commanded_runs was called
     gap = np.linalg.norm(past[3] * 1e3 * 1e-3 - tcp[3])
     assert str(caught[0].message) == (f"c.csv: row 5, columns target_x_mm..target_z_mm: {gap * 1e3:.4g} mm from the "
                                       "robot's nominal TCP at the commanded joints (another robot or tool?); the "
