@@ -34,7 +34,8 @@ def test_a_streamed_visit_of_one_reading_settles_at_once():
     bands (0.05 mm) from its attained reading, but P1's first cycle read once: that visit settles at once
     (time 0, overshoot 0), so P1's mean time is 3 x 0.1 / 4 s and its mean overshoot 3 x 1.5 / 4 bands
     (largest 0.1 s and 1.5 bands); the other poses 0.1 s and 1.5 bands. Seen failing on ``r = rows[-1]``
-    turned to ``rows[-2]`` in ``_stabilisation`` (a visit of one reading has no second-to-last)."""
+    turned to ``rows[-2]`` in ``_stabilisation`` (a visit of one reading has no second-to-last), and on
+    ``visits_of``'s ``rows[-1]`` (the sort key, the attained reading) turned to ``rows[-2]``."""
     robot = tcr.load_robot("ur5")
     series = tcr.plan_iso_cube(robot, random_state=0, centre=[-0.13, -0.44, 0.32], size=0.2).series(cycles=4)
     nominal = tcr.tcp_poses(robot, series.q).position
