@@ -312,8 +312,11 @@ def test_a_prior_fitted_to_no_poses_stays_where_it_started():
 def test_a_joint_that_never_moves_does_not_choose_the_reference():
     """Poses whose third joint is the same everywhere: the reference is the pose nearest the mean of the two
     joints that move, each over its standard deviation (written out here: pose 5), the still joint left out
-    rather than divided by its zero spread. Seen failing on ``spread[spread == 0] = 1.0`` turned to ``0.0``
-    and ``spread == 0`` turned to ``spread == -1`` (0 / 0: every distance NaN, the first pose taken)."""
+    rather than divided by its zero spread; the order's largest |correlation| that of the moving joints (by
+    np.corrcoef here), found among the permutations. Before the fix, the still joint's std was rounding
+    (1.1e-16) over all the joints but 0 over the moving ones' copy: 0 / 0, a NaN correlation, no permutation
+    ever better than it, and NaN reported. Seen failing on the fix undone (``np.std(q, axis=0) > 0``), on
+    ``spread[...] = 1.0`` turned to ``0.0`` and on ``np.ptp(q, axis=0) > 0`` turned to ``> -1``."""
     from tcr_accuracy.diagnosis.bayes_design import campaign_order
 
     rng = np.random.default_rng(4)
@@ -322,5 +325,8 @@ def test_a_joint_that_never_moves_does_not_choose_the_reference():
     moving = q[:, :2]
     centre = int(np.argmin(np.sum(((moving - moving.mean(axis=0)) / moving.std(axis=0)) ** 2, axis=1)))
     assert centre == 5
-    rows, reference, _ = campaign_order(q, 2, np.random.default_rng(0))
+    rows, reference, largest_r = campaign_order(q, 2, np.random.default_rng(0))
     assert reference == 5 and rows[0] == rows[-1] == 5 and len(rows) == 10
+    others = rows[1:-1]
+    r = max(abs(np.corrcoef(np.arange(8), q[others][:, j])[0, 1]) for j in range(2))
+    assert largest_r == pytest.approx(r, abs=1e-12) and largest_r < 0.5

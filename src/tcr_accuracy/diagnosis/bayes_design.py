@@ -737,7 +737,7 @@ def campaign_order(q: np.ndarray, n_references: int, rng: np.random.Generator) -
     if len(q) < 2:
         return np.zeros(max(int(n_references), 1) if len(q) else 0, dtype=int), 0, 0.0
     spread = np.std(q, axis=0)
-    spread[spread == 0] = 1.0
+    spread[np.ptp(q, axis=0) == 0] = 1.0  # a joint that never moves: its std is rounding (1e-17), not 0
     reference = int(np.argmin(np.sum(((q - q.mean(axis=0)) / spread) ** 2, axis=1)))
     others = np.array([i for i in range(len(q)) if i != reference], dtype=int)
     order, largest_r = separating_order(q[others], rng)
@@ -769,7 +769,7 @@ def separating_order(q: np.ndarray, rng: np.random.Generator, tries: int = 256) 
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     n = q.shape[0]
-    moving = np.std(q, axis=0) > 0
+    moving = np.ptp(q, axis=0) > 0  # not std > 0: a still joint's std is rounding, and 0 again on its copy
     if n < 3 or not moving.any():
         return np.arange(n), 0.0
     centred = (q[:, moving] - q[:, moving].mean(axis=0)) / q[:, moving].std(axis=0)
