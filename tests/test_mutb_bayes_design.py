@@ -316,7 +316,8 @@ def test_a_joint_that_never_moves_does_not_choose_the_reference():
     np.corrcoef here), found among the permutations. Before the fix, the still joint's std was rounding
     (1.1e-16) over all the joints but 0 over the moving ones' copy: 0 / 0, a NaN correlation, no permutation
     ever better than it, and NaN reported. Seen failing on the fix undone (``np.std(q, axis=0) > 0``), on
-    ``spread[...] = 1.0`` turned to ``0.0`` and on ``np.ptp(q, axis=0) > 0`` turned to ``> -1``."""
+    ``spread[...] = 1.0`` turned to ``0.0``, its ``np.ptp(q,
+    axis=0) == 0`` turned to ``== -1`` (a still joint at 0.5), and on ``np.ptp(q, axis=0) > 0`` turned to ``> -1``."""
     from tcr_accuracy.diagnosis.bayes_design import campaign_order
 
     rng = np.random.default_rng(4)
@@ -330,3 +331,6 @@ def test_a_joint_that_never_moves_does_not_choose_the_reference():
     others = rows[1:-1]
     r = max(abs(np.corrcoef(np.arange(8), q[others][:, j])[0, 1]) for j in range(2))
     assert largest_r == pytest.approx(r, abs=1e-12) and largest_r < 0.5
+    q[:, 2] = 0.5  # a still joint whose std is exactly 0 (0.5 sums exactly): not divided by it either
+    assert np.std(q, axis=0)[2] == 0.0
+    assert campaign_order(q, 2, np.random.default_rng(0))[1] == 5
