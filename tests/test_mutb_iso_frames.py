@@ -208,8 +208,8 @@ def test_the_sight_mask_covers_every_target_whatever_the_measured_count():
 def test_a_drift_whose_kept_readings_share_one_time_is_no_drift():
     """Two base references read at t = 0 s on five rows and at t = 10 s on a sixth, where reference A's
     reading is 5 mm off one way and B's the other: the shared drift is then near nil, both sixth readings
-    some 4 mm from the fit are left out, and the readings kept all share t = 0: no time spread, so no drift (0 mm/h, not NaN), z 0, not
-    corrected, and the scatter that of the kept readings about each reference's mean with 3 (10 - 2 - 1)
+    some 4 mm from the fit are left out, and the readings kept all share t = 0: no time spread, so no drift
+    (0 mm/h, not NaN), z 0, not corrected, and the scatter that of the kept readings about each reference's mean with 3 (10 - 2 - 1)
     degrees of freedom. Seen failing on ``velocity = cross / spread if spread > 0`` turned to ``> -1``
     (0 / 0) and on ``std = sigma / math.sqrt(spread) if spread > 0`` turned to ``> -1``."""
     rng = np.random.default_rng(3)
