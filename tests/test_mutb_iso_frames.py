@@ -235,3 +235,24 @@ def test_a_drift_whose_kept_readings_share_one_time_is_no_drift():
         [np.linalg.norm(a[5] - a[:5].mean(axis=0)) * 1e3, np.linalg.norm(b[5] - b[:5].mean(axis=0)) * 1e3],
         rel=1e-9)
     np.testing.assert_array_equal(correction, np.zeros((6, 3)))
+
+
+def test_references_read_exactly_alike_have_no_robust_scale_and_nothing_left_out():
+    """Two references read alike on five rows (no noise), A's middle reading 1 mm off in x: the drift over
+    the measurement order is exactly 0 (the bump sits at the middle of the order), and every residual but
+    the bump's is exactly 0 about its reference's median, so the robust scale is 0: nothing can be judged
+    an outlier and nothing is left out. The scatter is then that of all readings about each reference's
+    mean, sqrt(0.8 b^2 / 21) (21 = 3 (10 - 2 - 1)). Seen failing on ``if scale <= 0`` turned to
+    ``scale <= -1`` (the bump then left out as 6 robust sigmas of 0)."""
+    bump = 1e-3
+    a = np.tile([1.0, 0.2, 0.3], (5, 1))
+    b = np.tile([-0.4, 1.1, 0.3], (5, 1))
+    a[2, 0] += bump
+    refs = [("A", np.zeros(3), a, None), ("B", np.zeros(3), b, None)]
+    _, report, estimate = tracker_drift(refs, np.zeros(5, dtype=int), 1, [])
+    got = report[0]
+    assert got["time_axis"] == "measurement order" and got["outliers"] == []
+    assert got["drift_mm_per_100_rows"] == [0.0, 0.0, 0.0]
+    sigma = math.sqrt(0.8 * bump**2 / 21)
+    assert got["scatter_per_axis_mm"] == pytest.approx(sigma * 1e3, rel=1e-9)
+    assert estimate.per_axis == pytest.approx(sigma, rel=1e-9)
