@@ -636,9 +636,8 @@ def learning_curve(columns: DesignColumns, errors: np.ndarray, prior: EffectPrio
         for r in range(repeats):
             test = np.sort(rng.choice(n, n - size, replace=False))
             left_out = _Gram(columns.g[test], errors[test])  # the fit's statistics: all minus the left-out
-            gram = _Gram.__new__(_Gram)
+            gram = _Gram.__new__(_Gram)  # the posterior mean reads G^T G and G^T y only
             gram.gtg, gram.gty = full.gtg - left_out.gtg, full.gty - left_out.gty
-            gram.yty, gram.rows = full.yty - left_out.yty, full.rows - left_out.rows
             theta, factor = _posterior_mean(gram, precision, prior.noise_m)
             g_test = columns.g[test].reshape(-1, p)
             miss = errors[test] - g_test.dot(theta).reshape(-1, 3)
@@ -738,7 +737,7 @@ def campaign_order(q: np.ndarray, n_references: int, rng: np.random.Generator) -
     if len(q) < 2:
         return np.zeros(max(int(n_references), 1) if len(q) else 0, dtype=int), 0, 0.0
     spread = np.std(q, axis=0)
-    spread[spread == 0] = 1.0
+    spread[np.ptp(q, axis=0) == 0] = 1.0  # a joint that never moves: its std is rounding (1e-17), not 0
     reference = int(np.argmin(np.sum(((q - q.mean(axis=0)) / spread) ** 2, axis=1)))
     others = np.array([i for i in range(len(q)) if i != reference], dtype=int)
     order, largest_r = separating_order(q[others], rng)
@@ -770,7 +769,7 @@ def separating_order(q: np.ndarray, rng: np.random.Generator, tries: int = 256) 
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     n = q.shape[0]
-    moving = np.std(q, axis=0) > 0
+    moving = np.ptp(q, axis=0) > 0  # not std > 0: a still joint's std is rounding, and 0 again on its copy
     if n < 3 or not moving.any():
         return np.arange(n), 0.0
     centred = (q[:, moving] - q[:, moving].mean(axis=0)) / q[:, moving].std(axis=0)

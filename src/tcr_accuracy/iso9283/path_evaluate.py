@@ -237,11 +237,12 @@ def _check_speed(stream: TrackerStream, run: CommandedRun, figures) -> None:
 
 def project_on_path(points, path_points, s, tree: cKDTree | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Foot points (N, 3) [m] of points (N, 3) on a sampled path (M, 3), and their arc lengths (N,)
-    [m]: the nearest sample, then the nearer of its two neighbouring segments."""
+    [m]: the two nearest samples, then the nearest of their neighbouring segments (two: a closed path's
+    last sample is its first, and a reading just past the start is on the first segment, not the last)."""
     tree = tree or cKDTree(path_points)
-    _, k = tree.query(points)
+    _, nearest = tree.query(points, k=2)
     best_foot, best_s, best_d = None, None, None
-    for a in (np.maximum(k - 1, 0), k):
+    for a in (np.maximum(nearest[:, 0] - 1, 0), nearest[:, 0], np.maximum(nearest[:, 1] - 1, 0), nearest[:, 1]):
         b = np.minimum(a + 1, len(path_points) - 1)
         ab = path_points[b] - path_points[a]
         w = np.clip(np.einsum("nc,nc->n", points - path_points[a], ab) /
