@@ -86,3 +86,14 @@ def test_the_closest_point_frame_of_readings_on_the_paths_is_the_hidden_frame():
     assert frame.residual_rms < 1e-9 and frame.n_points == 1200
     base = frame.to_base(np.vstack(positions))
     assert np.abs(base - (np.vstack(positions) - translation) @ rotation).max() == pytest.approx(0.0, abs=1e-8)
+
+
+def test_a_path_of_one_sample_is_every_readings_foot():
+    """A path sampled once (a degenerate command: a stop) has one nearest sample, not two: every reading's
+    foot is that sample at arc length 0, its distance the reading's own. Seen failing (IndexError) when the
+    two nearest samples were asked of a one-sample path."""
+    sample = np.array([[0.4, 0.1, 0.3]])
+    readings = sample + np.array([[0.002, 0.0, 0.0], [0.0, -0.001, 0.003]])
+    feet, arc = project_on_path(readings, sample, np.zeros(1))
+    np.testing.assert_array_equal(feet, np.repeat(sample, 2, axis=0))
+    np.testing.assert_array_equal(arc, [0.0, 0.0])

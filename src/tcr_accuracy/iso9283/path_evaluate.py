@@ -240,9 +240,10 @@ def project_on_path(points, path_points, s, tree: cKDTree | None = None) -> tupl
     [m]: the two nearest samples, then the nearest of their neighbouring segments (two: a closed path's
     last sample is its first, and a reading just past the start is on the first segment, not the last)."""
     tree = tree or cKDTree(path_points)
-    _, nearest = tree.query(points, k=2)
+    _, nearest = tree.query(points, k=min(2, len(path_points)))
+    nearest = np.asarray(nearest).reshape(len(points), -1)  # a path of one sample has one nearest
     best_foot, best_s, best_d = None, None, None
-    for a in (np.maximum(nearest[:, 0] - 1, 0), nearest[:, 0], np.maximum(nearest[:, 1] - 1, 0), nearest[:, 1]):
+    for a in [start for k in nearest.T for start in (np.maximum(k - 1, 0), k)]:
         b = np.minimum(a + 1, len(path_points) - 1)
         ab = path_points[b] - path_points[a]
         w = np.clip(np.einsum("nc,nc->n", points - path_points[a], ab) /
