@@ -11,6 +11,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from knn_brute import knn_mean
 from scipy import stats
 from sklearn.linear_model import RidgeCV
 from sklearn.model_selection import cross_val_predict
@@ -41,15 +42,6 @@ def _features_by_hand(q, kinds):
             cols += [u * w for u in first[a] for w in first[b]]
     return np.column_stack(cols)
 
-
-def _knn_mean(points, k):
-    """(N, N) averaging matrix of each point's k nearest other points, by brute-force distances."""
-    d = np.linalg.norm(points[:, None, :] - points[None, :, :], axis=2)
-    np.fill_diagonal(d, np.inf)
-    out = np.zeros_like(d)
-    for i, row in enumerate(d):
-        out[i, np.argsort(row)[:k]] = 1.0 / k
-    return out
 
 
 def _case(seed=3, n=70):
@@ -90,7 +82,7 @@ def test_structure_statistics_against_brute_force_neighbours_and_scikit_learn_ri
     subsets = [(0, 1, 2), (0,), (1,), (2,), (0, 1), (0, 2), (1, 2)]
     best = None
     for subset in subsets:
-        average = _knn_mean(qs[:, subset], 10)
+        average = knn_mean(qs[:, subset], 10)
 
         def share(r):
             return 1.0 - np.sum((r - average @ r) ** 2) / total
@@ -260,7 +252,7 @@ def test_predictable_leftover_is_the_best_of_neighbours_and_ridge_out_of_sample(
         centred = residual - residual.mean(axis=0)
         candidates = [np.mean(centred**2)]
         for subset in [(0, 1, 2), (0,), (1,), (2,), (0, 1), (0, 2), (1, 2)]:
-            candidates.append(np.mean((centred - _knn_mean(qs[:, subset], 10) @ centred) ** 2))
+            candidates.append(np.mean((centred - knn_mean(qs[:, subset], 10) @ centred) ** 2))
         ridge = cross_val_predict(RidgeCV(alphas=np.logspace(-6, 3, 10)), _features_by_hand(q, ["revolute"] * 3),
                                   centred, cv=detector.split)
         candidates.append(np.mean((centred - ridge) ** 2))

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from knn_brute import knn_mean
 from scipy import stats
 from sklearn.linear_model import RidgeCV
 from sklearn.model_selection import cross_val_predict
@@ -21,15 +22,6 @@ from tcr_accuracy.model.robot import load_robot
 
 SUBSETS = [(0, 1, 2), (0,), (1,), (2,), (0, 1), (0, 2), (1, 2)]
 
-
-def _knn_mean(points: np.ndarray, k: int) -> np.ndarray:
-    """(N, N) dense matrix averaging each point's k nearest other points, by brute-force distances."""
-    d = np.linalg.norm(points[:, None, :] - points[None, :, :], axis=2)
-    np.fill_diagonal(d, np.inf)
-    out = np.zeros_like(d)
-    for i, row in enumerate(d):
-        out[i, np.argsort(row)[:k]] = 1.0 / k
-    return out
 
 
 def _harmonics(q: np.ndarray) -> np.ndarray:
@@ -52,7 +44,7 @@ def _verdict_by_hand(q, residual, perms, split, alpha=1e-3, min_explained=0.05):
     total = np.sum(centred**2)
     best = None
     for subset in SUBSETS:
-        average = _knn_mean(qs[:, subset], 10)
+        average = knn_mean(qs[:, subset], 10)
         shares = np.array([1.0 - np.sum((r - average @ r) ** 2) / total
                            for r in [centred] + [centred[p] for p in perms]])
         null = shares[1:]
@@ -111,7 +103,7 @@ def test_knn_shares_and_the_where_analysis_are_brute_force_neighbour_shares():
     moving = q[:, :3]
     qs = (moving - moving.mean(axis=0)) / moving.std(axis=0)
     centred = residual - residual.mean(axis=0)
-    expected = {s: 1.0 - np.sum((centred - _knn_mean(qs[:, s], 10) @ centred) ** 2) / np.sum(centred**2)
+    expected = {s: 1.0 - np.sum((centred - knn_mean(qs[:, s], 10) @ centred) ** 2) / np.sum(centred**2)
                 for s in SUBSETS}
     shares = detector.shares(residual)
     assert set(shares) == set(expected)
