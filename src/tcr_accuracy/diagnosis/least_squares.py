@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections import OrderedDict
 
 import numpy as np
+from scipy.linalg import get_lapack_funcs
 
 
 class DampedSolver:
@@ -135,8 +136,6 @@ def cholesky_factor(matrix: np.ndarray, overwrite: bool = False) -> np.ndarray |
     Hand-written around LAPACK: scipy's ``cholesky`` and ``cho_factor`` copy a C-ordered matrix into
     Fortran order first, a second pass over a thousand-column system that the fits of a fine angle
     table make a hundred times."""
-    from scipy.linalg import get_lapack_funcs
-
     work = matrix if overwrite and matrix.flags.c_contiguous and matrix.dtype == np.float64 \
         else np.array(matrix, dtype=float, order="C")
     potrf, = get_lapack_funcs(("potrf",), (work,))

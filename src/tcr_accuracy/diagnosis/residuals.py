@@ -126,6 +126,12 @@ def where_analysis(robot: RobotModel, q: np.ndarray, nominal: np.ndarray, residu
     total = float(np.sum(centred**2)) or 1.0
     along = {}
     known = knn_shares(residual) if knn_shares is not None else {}
+
+    def knn_share(points):
+        """The residual's variance share its k = 10 nearest neighbours among ``points`` predict."""
+        idx = nearest_neighbours(points, min(10, q.shape[0] - 1))
+        return 1.0 - float(np.sum((centred - centred[idx].mean(axis=1)) ** 2)) / total
+
     for j, name in enumerate(robot.joint_names):
         if np.std(q[:, j]) == 0:
             continue
@@ -134,8 +140,7 @@ def where_analysis(robot: RobotModel, q: np.ndarray, nominal: np.ndarray, residu
         gamma_short = (s.semivariance[short] * s.counts[short, None]).sum(axis=0) / s.counts[short].sum()
         share = known.get((j,))
         if share is None:
-            idx = nearest_neighbours(q[:, [j]], min(10, q.shape[0] - 1))
-            share = 1.0 - float(np.sum((centred - centred[idx].mean(axis=1)) ** 2)) / total
+            share = knn_share(q[:, [j]])
         along[name] = {"short_lag_semivariance_xyz": gamma_short.tolist(), "knn_explained_share": share}
     where["along_joints"] = along
     where["varies_along"] = [n for n in sorted(along, key=lambda n: -along[n]["knn_explained_share"])
@@ -148,8 +153,7 @@ def where_analysis(robot: RobotModel, q: np.ndarray, nominal: np.ndarray, residu
             cols = [robot.joint_names.index(names[a]), robot.joint_names.index(names[b])]
             share = known.get(tuple(cols))
             if share is None:
-                idx = nearest_neighbours(qs[:, cols], min(10, q.shape[0] - 1))
-                share = 1.0 - float(np.sum((centred - centred[idx].mean(axis=1)) ** 2)) / total
+                share = knn_share(qs[:, cols])
             pairs.append({"joints": [names[a], names[b]], "knn_explained_share": share})
     pairs.sort(key=lambda r: -r["knn_explained_share"])
     where["along_joint_pairs"] = pairs
