@@ -21,6 +21,9 @@ usage (from the repository root, on a clean working tree; cosmic-ray and pytest-
         --durations=0 tests/test_new.py > cov.new.log
     python scripts/mutation_run.py --rerun --coverage .coverage .coverage.new --durations cov.log cov.new.log
     python scripts/mutation_run.py --report-only    # the counts again, after judging equivalents
+    # a map made on an older source (a full coverage run takes an hour), carried to today's source,
+    # with the coverage of the tests written since
+    python scripts/mutation_run.py --map old/map.json@COMMIT --coverage .coverage.new --durations cov.new.log ...
 
 Writes ``OUT/session.sqlite`` (cosmic-ray's), ``OUT/report.json`` and prints the counts and each
 survivor's diff. A survivor is either a gap in the tests or an equivalent mutant (one that
@@ -86,6 +89,66 @@ def coverage_map(coverage_files, durations_logs, packages) -> dict:
                                  re.MULTILINE):
             durations[match.group(2)] = durations.get(match.group(2), 0.0) + float(match.group(1))
     return {"tests": names, "lines": lines, "durations": durations, "failing": sorted(failing)}
+
+
+def merge_maps(maps: list) -> dict:
+    """One coverage map from several (each from :func:`coverage_map`): a line is covered by every
+    test any of them names for it; a test's duration is the largest any of them measured."""
+    tests: dict[str, int] = {}
+    lines: dict = {}
+    durations: dict = {}
+    failing: set = set()
+    for cm in maps:
+        names = cm["tests"]
+        for relative, by_line in cm["lines"].items():
+            into = lines.setdefault(relative, {})
+            for line, indices in by_line.items():
+                merged = set(into.get(line, [])) | {tests.setdefault(names[i], len(tests)) for i in indices}
+                into[line] = sorted(merged)
+        for name, seconds in cm["durations"].items():
+            durations[name] = max(durations.get(name, 0.0), seconds)
+        failing.update(cm.get("failing", []))
+    return {"tests": list(tests), "lines": lines, "durations": durations, "failing": sorted(failing)}
+
+
+def carry_map(cm: dict, commit: str) -> dict:
+    """A coverage map made on the source at ``commit``, carried to the working tree's source.
+
+    A line equal in both (difflib's alignment of the two files) keeps its tests; a changed or new
+    line gets the tests of the nearest unchanged lines before and after it, which run the code
+    around it (an approximation: a survivor on such a line is to be checked by hand). Written here
+    because coverage data has no notion of a source that moved on."""
+    import bisect
+    import difflib
+
+    lines = {}
+    for relative, by_line in cm["lines"].items():
+        current = ROOT / relative
+        if not current.exists():
+            continue
+        old = subprocess.run(["git", "show", f"{commit}:{relative}"], cwd=ROOT, capture_output=True,
+                             text=True, check=True).stdout.splitlines()
+        new = current.read_text().splitlines()
+        if old == new:
+            lines[relative] = by_line
+            continue
+        anchors = {}  # new line -> old line (1-based), over the equal blocks
+        for tag, i1, i2, j1, _ in difflib.SequenceMatcher(None, old, new, autojunk=False).get_opcodes():
+            if tag == "equal":
+                anchors.update({j1 + k + 1: i1 + k + 1 for k in range(i2 - i1)})
+        anchored = sorted(anchors)
+        carried = {}
+        for line in range(1, len(new) + 1):
+            if line in anchors:
+                tests = by_line.get(str(anchors[line]), [])
+            else:
+                k = bisect.bisect_left(anchored, line)
+                tests = sorted({i for j in (k - 1, k) if 0 <= j < len(anchored)
+                                for i in by_line.get(str(anchors[anchored[j]]), [])})
+            if tests:
+                carried[str(line)] = tests
+        lines[relative] = carried
+    return {**cm, "lines": lines}
 
 
 def write_config(out: Path, budget: float) -> Path:
@@ -220,6 +283,9 @@ def main(argv=None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--coverage", type=Path, nargs="+", help="pytest-cov's .coverage file(s) with test contexts")
     parser.add_argument("--durations", type=Path, nargs="*", default=[], help="those runs' logs with --durations=0")
+    parser.add_argument("--map", nargs="+", default=[], metavar="MAP[@COMMIT]",
+                        help="coverage maps made before (an OUT/map.json), merged with --coverage's; @COMMIT: the "
+                        "map was made on the source at that commit and is carried to today's")
     parser.add_argument("--packages", nargs="+", default=list(PACKAGES), help="under src/tcr_accuracy/ (default: "
                         + " ".join(PACKAGES) + ")")
     parser.add_argument("--sample", type=int, default=150, help="number-changing mutants to run (default 150)")
@@ -243,8 +309,15 @@ def main(argv=None) -> int:
                           text=True).stdout.strip():
             print("the source tree has uncommitted changes: the mutants are found by git diff", file=sys.stderr)
             return 2
-        if args.coverage is not None:
-            (out / "map.json").write_text(json.dumps(coverage_map(args.coverage, args.durations, args.packages)))
+        if args.coverage is not None or args.map:
+            maps = []
+            for spec in args.map:
+                path, _, commit = spec.partition("@")
+                earlier = json.loads(Path(path).read_text())
+                maps.append(carry_map(earlier, commit) if commit else earlier)
+            if args.coverage is not None:
+                maps.append(coverage_map(args.coverage, args.durations, args.packages))
+            (out / "map.json").write_text(json.dumps(merge_maps(maps)))
         if not (out / "map.json").exists():
             print("--coverage is needed (no OUT/map.json yet)", file=sys.stderr)
             return 2
