@@ -33,6 +33,7 @@ changes no figure: ``x * 1.0`` -> ``x / 1.0``); read each.
 from __future__ import annotations
 
 import argparse
+import fnmatch
 import json
 import math
 import re
@@ -288,6 +289,9 @@ def main(argv=None) -> int:
                         "map was made on the source at that commit and is carried to today's")
     parser.add_argument("--packages", nargs="+", default=list(PACKAGES), help="under src/tcr_accuracy/ (default: "
                         + " ".join(PACKAGES) + ")")
+    parser.add_argument("--files", nargs="+", default=[], metavar="PATTERN",
+                        help="only the mutants of these modules (glob patterns under src/tcr_accuracy/, e.g. "
+                        "'iso9283/path*.py'): a sample of one area while its tests are written")
     parser.add_argument("--sample", type=int, default=150, help="number-changing mutants to run (default 150)")
     parser.add_argument("--seed", type=int, default=0, help="of the sample (default 0)")
     parser.add_argument("--budget", type=float, default=120.0, help="seconds a mutant's tests may take (default "
@@ -332,6 +336,14 @@ def main(argv=None) -> int:
             subprocess.run(["cosmic-ray", "exec", str(config), str(rerun)], cwd=ROOT, check=True)
         else:
             items = number_mutants(args.packages)
+            if args.files:
+                items = [item for item in items
+                         if any(fnmatch.fnmatch(str(item.mutations[0].module_path), f"src/tcr_accuracy/{pattern}")
+                                for pattern in args.files)]
+                if not items:
+                    print(f"--files: no number-changing mutant in {' '.join(args.files)} under "
+                          f"{' '.join(args.packages)}", file=sys.stderr)
+                    return 2
             population_file.write_text(str(len(items)))
             import random
             new_session(session, random.Random(args.seed).sample(items, min(args.sample, len(items))))
