@@ -87,3 +87,50 @@ def test_a_column_of_zero_scale_keeps_its_fit_range_as_it_is():
     assert (layout.offset, layout.size) == ({"a": 0, "b": 3}, {"a": 3, "b": 2})
     np.testing.assert_array_equal(layout.indices(["b", "a"], {"a": [2, 0], "b": [1]}), [4, 2, 0])
     np.testing.assert_array_equal(layout.columns_of(["b", "a"]), [3, 4, 0, 1, 2])
+
+
+def test_an_effect_joining_an_anchored_store_adds_its_blocks_and_products_as_a_store_made_with_it():
+    """Blocks made for effects a and b, anchored at a residual, then effect c joining (an effect of last
+    resort): the total and held-out Gram blocks, J^T W r of the anchor over all rows and each fold, and the
+    anchor's phi (zero on c's columns) are those of the dense whitened Jacobian of a, b and c written out
+    here; each effect's rows times steps (``moved_rows``, unweighted, 2100 poses: the dense products a chunk
+    of 2048 at a time) are the dense J s. Seen failing on ``extend``'s ``total[k_old:]`` turned to
+    ``total[k_old + 1:]``, on the folds' ``n[k_old:]`` turned to ``n[k_old - 1:]``, on
+    ``np.zeros(self.layout.n_columns - k_old)`` turned to ``+ k_old`` and on ``sensitivity_times``' chunk
+    ``start + 4 * CHUNK`` turned to ``start - 4 * CHUNK``."""
+    from tcr_accuracy.diagnosis.gram import Anchor, moved_rows
+
+    rng = np.random.default_rng(4303)
+    n, rows = 2100, 3
+    gs = {"a": rng.standard_normal((n, rows, 3)), "b": rng.standard_normal((n, rows, 2)),
+          "c": rng.standard_normal((n, rows, 4))}
+    bases = {e: _basis(rng, g, g.shape[2]) for e, g in gs.items()}
+    whitening = rng.standard_normal((n, 3, 3)) + 3 * np.eye(3)
+    part = SimpleNamespace(q=np.zeros((n, 6)), rows_per_pose=rows, whitening=whitening)
+    order = rng.permutation(n)
+    repeats = [[(np.setdiff1d(order, t), t) for t in np.array_split(order, 3)]]
+    store = FoldGrams([part], {"a": bases["a"], "b": bases["b"]}, repeats)
+    residual = 1e-3 * rng.standard_normal((n, rows))
+    anchor_phi = rng.standard_normal(5)
+    store.set_anchor(Anchor(("a",), anchor_phi, [residual]))
+    store.bases = bases
+    store.extend(["c"])
+    jacobian = np.concatenate([gs[e] * bases[e].scales for e in "abc"], axis=2)
+    jacobian = np.einsum("nij,njk->nik", whitening, jacobian)
+    whitened = np.einsum("nij,nj->ni", whitening, residual)
+    flat = jacobian.reshape(-1, 9)
+    scale = np.abs(flat.T @ flat).max()
+    np.testing.assert_allclose(store.total, flat.T @ flat, rtol=0, atol=1e-11 * scale)
+    np.testing.assert_array_equal(store.anchor.phi, np.r_[anchor_phi, np.zeros(4)])
+    total, held = store.gradients
+    expected = flat.T @ whitened.ravel()
+    np.testing.assert_allclose(total, expected, rtol=0, atol=1e-11 * np.abs(expected).max())
+    for block, gradient, (_, test) in zip(store.held_blocks()[0], held[0], repeats[0]):
+        j = jacobian[test].reshape(-1, 9)
+        np.testing.assert_allclose(block, j.T @ j, rtol=0, atol=1e-11 * scale)
+        np.testing.assert_allclose(gradient, j.T @ whitened[test].ravel(), rtol=0, atol=1e-11 * np.abs(expected).max())
+    steps = rng.standard_normal((9, 2))
+    steps[3:5] = 0.0  # b not moved
+    unweighted = np.concatenate([gs[e] * bases[e].scales for e in "abc"], axis=2)
+    np.testing.assert_allclose(moved_rows(bases, store.layout, 0, steps, n, rows),
+                               np.einsum("nrk,km->nrm", unweighted, steps), rtol=1e-12, atol=1e-12)
