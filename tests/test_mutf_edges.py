@@ -160,3 +160,37 @@ def test_rival_models_pair_the_chosen_model_with_each_stand_in_in_its_place():
     assert rival_models(estimator) == [
         (("frames", "joint_offsets", "compliance"), ("frames", "joint_offsets", "gear_errors")),
         (("frames", "joint_offsets", "compliance"), ("frames", "joint_offsets", "encoder_scale", "transmission"))]
+
+
+def test_a_stand_ins_shape_is_its_motion_less_what_the_models_columns_absorb():
+    """stand_in_shapes over 2100 poses (two chunks of the tall-skinny QR): each unchosen effect's TCP motion at
+    a draw of its typical sizes, less its least-squares fit by the chosen model's columns (scaled) on the
+    position rows, written out with numpy's lstsq; an effect the chosen model holds, or one driven by the
+    temperature, gives none. Seen failing on ``_least_squares_residual``'s chunk ``start + QR_CHUNK`` turned
+    to ``start - QR_CHUNK`` (in either loop), on the draw ``* b.scales[b.index[0]]`` turned to ``/``, on the
+    motion's position rows ``[:, :3, 0]`` turned to ``[:, :4, 0]`` and on the coefficients' ``r[:k, k:]``
+    turned to ``r[:k, k + 1:]``."""
+    from tcr_accuracy.diagnosis.ambiguity import stand_in_shapes
+    from tcr_accuracy.diagnosis.fit_columns import Sensitivity
+    from tcr_accuracy.diagnosis.identifiability import QR_CHUNK
+
+    rng = np.random.default_rng(4106)
+    n = 2100
+    assert QR_CHUNK < n
+    model_g = rng.standard_normal((n, 6, 3))  # the chosen model's columns (rotation rows not read)
+    model_scale = np.array([1e-3, 5e-4, 2e-3])
+    g = rng.standard_normal((n, 6, 2)) + model_g[:, :, :2] * 0.5  # partly absorbed by the model
+    scales = np.array([1e-4, 3e-4])
+    basis = SimpleNamespace(per_part=[SimpleNamespace(g=g)], scales=scales, index=[np.array([0, 1])])
+    columns = SimpleNamespace(per_part=[(None, Sensitivity([(model_g, np.arange(3))]), np.arange(3))],
+                              scale=model_scale)
+    engine = SimpleNamespace(bases={"joint_offsets": basis, "thermal": basis, "compliance": basis},
+                             columns=lambda effects: columns)
+    shapes = stand_in_shapes(engine, ["frames", "compliance"], ["frames", "compliance", "joint_offsets", "thermal"],
+                             np.random.default_rng(9))
+    draw = np.random.default_rng(9).standard_normal(2) * scales
+    motion = np.einsum("nrk,k->nr", g[:, :3], draw).ravel()
+    model = (model_g[:, :3] * model_scale).reshape(-1, 3)
+    left = motion - model @ np.linalg.lstsq(model, motion, rcond=None)[0]
+    assert list(shapes) == ["joint_offsets"]
+    np.testing.assert_allclose(shapes["joint_offsets"], left.reshape(n, 3), rtol=0, atol=1e-10 * np.abs(left).max())
