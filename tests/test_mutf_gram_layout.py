@@ -134,3 +134,29 @@ def test_an_effect_joining_an_anchored_store_adds_its_blocks_and_products_as_a_s
     unweighted = np.concatenate([gs[e] * bases[e].scales for e in "abc"], axis=2)
     np.testing.assert_allclose(moved_rows(bases, store.layout, 0, steps, n, rows),
                                np.einsum("nrk,km->nrm", unweighted, steps), rtol=1e-12, atol=1e-12)
+
+
+def test_a_parts_columns_out_of_the_unions_order_land_in_their_union_places_to_the_last_chunk():
+    """A part holding an effect's union columns 2, 0 (its own order, and not column 1) over 513 poses (a last
+    chunk of one pose): its Gram block and J^T r are those of the dense Jacobian with each column in its union
+    place and zero in column 1. Seen failing on ``_block``'s ``out[:, :values.shape[1], at + index]`` turned
+    to ``values.shape[0]`` and on ``at + index`` turned to ``at - index``."""
+    rng = np.random.default_rng(4304)
+    n = 513
+    g = rng.standard_normal((n, 3, 2))
+    basis = _basis(rng, g, 3)
+    basis.index = [np.array([2, 0])]
+    other = _basis(rng, rng.standard_normal((n, 3, 2)), 2)
+    part = SimpleNamespace(q=np.zeros((n, 6)), rows_per_pose=3, whitening=None)
+    order = rng.permutation(n)
+    repeats = [[(np.setdiff1d(order, t), t) for t in np.array_split(order, 2)]]
+    store = FoldGrams([part], {"other": other, "a": basis}, repeats)
+    dense = np.zeros((n, 3, 5))
+    dense[:, :, :2] = other.per_part[0].g * other.scales
+    dense[:, :, 2 + 2] = g[:, :, 0] * basis.scales[2]
+    dense[:, :, 2 + 0] = g[:, :, 1] * basis.scales[0]
+    flat = dense.reshape(-1, 5)
+    np.testing.assert_allclose(store.total, flat.T @ flat, rtol=0, atol=1e-11 * np.abs(flat.T @ flat).max())
+    residual = rng.standard_normal((n, 3))
+    (total, _), _ = store.residual_products([residual], store.layout.effects)
+    np.testing.assert_allclose(total, flat.T @ residual.ravel(), rtol=0, atol=1e-10)
