@@ -140,3 +140,31 @@ def test_a_parameter_is_at_its_bound_within_1e_9_of_the_larger_of_its_size_and_o
             assert fields["at_bound"].tolist() == [flagged] * k, factor
     finally:
         layout.lower[:], layout.upper[:] = saved
+
+
+def test_geometry_without_joint_offsets_is_judged_with_them_borrowed_and_its_condition_number_is_numpys():
+    """A set with geometry but not joint_offsets: identifiability takes the joint offsets first (rotations about
+    the joint axes are theirs) and leaves them out of the answer, says so in a note, and reports the rank and
+    the condition number and smallest singular value of the kept columns (each scaled to its typical size and
+    to unit norm), numpy's SVD of the dense columns here; every kept column is one of geometry's or the
+    frames'. Seen failing on ``sv[0] / sv[-1]`` turned to ``sv[1] / sv[-1]``, on ``float(sv[-1])`` turned to
+    ``sv[-2]``, on the compressed columns' ``g[:, 0, keep[e]]`` turned to ``g[:, 1, ...]`` and on the columns'
+    ``mat / np.linalg.norm(mat, axis=0)`` turned to ``axis=1``."""
+    robot, measured = offset_measurements(30, 4400)
+    engine = GapDiagnosis(robot=robot, effects=["joint_offsets", "geometry"], folds=2,
+                          stability_replays=2).fit(measured).engine_
+    keep, report = engine.identify(["frames", "geometry"])
+    assert set(keep) == {"frames", "geometry"} and set(report["effects"]) == {"frames", "geometry"}
+    assert report["note"] == "geometry excludes rotations about the joint axes (the joint_offsets effect)"
+    columns = []
+    for e in ("frames", "geometry"):
+        b = engine.bases[e]
+        dense = (np.asarray(b.g) * b.scales).reshape(-1, len(b.names))
+        columns.append(dense[:, keep[e]])
+    mat = np.concatenate(columns, axis=1)
+    mat = mat / np.linalg.norm(mat, axis=0)
+    sv = np.linalg.svd(mat, compute_uv=False)
+    assert report["rank"] == mat.shape[1] == sum(k.size for k in keep.values())
+    assert report["condition_number"] == pytest.approx(sv[0] / sv[-1], rel=1e-6)
+    assert report["smallest_singular_value"] == pytest.approx(sv[-1], rel=1e-6)
+    assert 0 < keep["geometry"].size < len(engine.bases["geometry"].names)  # some of geometry is the offsets'
