@@ -19,6 +19,7 @@ import pytest
 import pinocchio as pin
 from mutd_truth import OFFSETS
 from scipy.optimize import least_squares
+from test_mutfit_fitting import _jacobian  # the central finite differences of the one-frame tests
 
 from tcr_accuracy.diagnosis.bases import UnionBasis
 from tcr_accuracy.diagnosis.diagnose import GapDiagnosis
@@ -87,15 +88,6 @@ def _residual(engine, cols, whitening, weighted=True):
             first[:, :3] = np.einsum("nij,nj->ni", whitening, first[:, :3])
         return np.concatenate([first.ravel(), second.ravel()])
     return flat
-
-
-def _jacobian(fun, phi, step=1e-6):
-    columns = []
-    for i in range(phi.size):
-        e = np.zeros(phi.size)
-        e[i] = step
-        columns.append((fun(phi + e) - fun(phi - e)) / (2 * step))
-    return np.stack(columns, axis=1)
 
 
 def test_a_weighted_two_frame_exact_fit_is_weighted_least_squares_written_out(setup):
