@@ -194,3 +194,46 @@ def test_a_stand_ins_shape_is_its_motion_less_what_the_models_columns_absorb():
     left = motion - model @ np.linalg.lstsq(model, motion, rcond=None)[0]
     assert list(shapes) == ["joint_offsets"]
     np.testing.assert_allclose(shapes["joint_offsets"], left.reshape(n, 3), rtol=0, atol=1e-10 * np.abs(left).max())
+
+
+@pytest.mark.parametrize("n_params", [1, 2])
+def test_a_small_effects_nonlinearity_is_read_at_plus_its_scale_or_at_minus_and_plus(tool_changer, n_params):
+    """A toy effect turning the first joint by p - 3 p^2 and (with two parameters) the last by p: one parameter
+    is probed at +scale (0.1): |3 p^2| / |p - 3 p^2| = 0.03 / 0.07; two at (-scale, +scale): the first at
+    -0.1, 0.03 / 0.13. Seen failing on ``if k > 1`` turned to ``k > 0`` (one parameter probed at -scale) and
+    to ``k > 2`` (two probed at +scale), and on the size's floor ``1e-300`` turned to ``1.000000001``."""
+    from tcr_accuracy.diagnosis.bases import EffectBasis, Part, position_jacobians
+    from tcr_accuracy.effects.base import Effect, EffectOutput, make_effect, plugged_in
+    from tcr_accuracy.model.context import MeasurementContext
+    from tcr_accuracy.model.errors import ErrorModel
+
+    robot = tool_changer
+
+    class Bent(Effect):
+        name = "toy_bent"
+
+        def parameter_names(self):
+            return [f"toy_bent.{i}" for i in range(n_params)]
+
+        def parameter_units(self):
+            return ["1"] * n_params
+
+        def parameter_scales(self):
+            return np.full(n_params, 0.1)
+
+        def perturb(self, params, q, context):
+            params = self.check_params(params)
+            dq = np.zeros(np.atleast_2d(q).shape)
+            dq[:, 0] = params[0] - 3.0 * params[0] ** 2
+            if n_params > 1:
+                dq[:, -1] = params[1]
+            return EffectOutput(dq=dq)
+
+    q = np.random.default_rng(4107).uniform(*robot.joint_bounds(), size=(4, robot.n_joints))
+    context = MeasurementContext(np.zeros(4), np.full(4, 20.0), np.zeros((4, robot.n_joints)))
+    part = Part(robot, q, np.zeros((4, 3)), context, "tool")
+    with plugged_in(Bent):
+        basis = EffectBasis(make_effect("toy_bent", robot), part, ErrorModel(robot), position_jacobians(robot, q))
+    p = 0.1 if n_params == 1 else -0.1
+    expected = 3.0 * p**2 / max(abs(p - 3.0 * p**2), 0.1 if n_params > 1 else 0.0)
+    assert basis.nonlinearity == pytest.approx(expected, rel=1e-9)
