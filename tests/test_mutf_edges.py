@@ -237,3 +237,48 @@ def test_a_small_effects_nonlinearity_is_read_at_plus_its_scale_or_at_minus_and_
     p = 0.1 if n_params == 1 else -0.1
     expected = 3.0 * p**2 / max(abs(p - 3.0 * p**2), 0.1 if n_params > 1 else 0.0)
     assert basis.nonlinearity == pytest.approx(expected, rel=1e-9)
+
+
+def test_a_map_whose_column_moves_two_joints_and_its_sensitivity_made_when_read_are_the_dense_products():
+    """An error map (p_em = 9, drive entries 3..6) with a fixed part, one column moving two joints (so the
+    drive is stored (N, n_joints, k)) and one moving one, over 2100 poses: its errors, its sensitivity over all
+    poses and some, the drive written out densely, and its sensitivity made when read (whole over two chunks
+    of 2048, by rows, by one pose with a component) against the dense products here; each column's RMS
+    motion over the poses on two components. Seen failing on ``sensitivity``'s drive product taken of
+    ``self.drive`` for ``rows`` given (``rows is None`` turned to ``is not None``), on ``__array__``'s chunk
+    ``start + ErrorMap.CHUNK`` turned to ``-``, on ``column_rms``' ``total / max(g.shape[0], 1)`` turned to
+    ``g.shape[1]``, on one pose's row ``self.rows([key[0]])[0]`` turned to ``[1]`` and on ``dense_drive``'s
+    ``np.arange(self.drive.shape[1])`` turned to ``shape[0]``."""
+    from tcr_accuracy.diagnosis.error_map import SensitivityWhenRead, column_rms
+
+    rng = np.random.default_rng(4108)
+    n, size, drive = 2100, 9, slice(3, 7)
+    fixed = np.zeros((size, 3))
+    fixed[[0, 8], 0] = [0.5, -1.5]
+    dq = np.zeros((n, 4, 3))
+    dq[:, [0, 2], 1] = rng.standard_normal((n, 2))  # one column, two joints
+    dq[:, 3, 2] = rng.standard_normal(n)
+    m = ErrorMap.of(n, size, drive, fixed, dq, 3)
+    assert m.drive_joint is None and m.drive.shape == (n, 4, 2)
+    dense = np.broadcast_to(fixed, (n, size, 3)).copy()
+    dense[:, drive] += dq
+    theta = np.array([0.3, -2.0, 0.7])
+    rows = np.array([2099, 5, 2048, 17])
+    np.testing.assert_allclose(m.errors(theta), dense @ theta, rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(m.errors(theta, rows), dense[rows] @ theta, rtol=1e-13, atol=1e-15)
+    np.testing.assert_array_equal(m.dense_drive(), dq[:, :, 1:])
+    jac_x = rng.standard_normal((n, 3, size))
+    g = np.einsum("nrp,npk->nrk", jac_x, dense)
+    np.testing.assert_allclose(m.sensitivity(jac_x), g, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(m.sensitivity(jac_x[rows], rows), g[rows], rtol=1e-12, atol=1e-12)
+    read = SensitivityWhenRead(m, jac_x)
+    assert read.shape == (n, 3, 3)
+    scratch = np.full(g.shape, np.nan)  # memory a new array of g's size may be given: not g's values
+    del scratch
+    np.testing.assert_allclose(np.asarray(read), g, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(read[rows], g[rows], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(read[2050, 1], g[2050, 1], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(column_rms(read, slice(0, 2)), np.sqrt(np.mean(np.sum(g[:, :2] ** 2, axis=1), axis=0)),
+                               rtol=1e-12)
+    compact = ErrorMap.of_joint_columns(n, size, drive, dq[:, 3, 2:], np.array([3]))
+    np.testing.assert_array_equal(compact.dense_drive(), dq[:, :, 2:])
