@@ -179,3 +179,25 @@ def test_the_linear_fit_of_weighted_frames_is_the_exact_ones_and_its_sums_are_we
     row_ssq = weighted_squares(linear["heldout_residual"], linear["heldout_orientation"])
     for (_, test), value in zip(repeats[0], linear["heldout_ssq"][0]):
         assert value == pytest.approx(np.sum(row_ssq[test]), rel=1e-6)
+
+
+def test_two_unweighted_frames_keep_the_columns_identifiability_keeps_on_their_dense_columns(setup):
+    """Both frames unweighted (the engine then judges identifiability from a factor of its Gram matrix): at
+    motion thresholds from 1 um to 1 mm RMS, the columns kept are those ``identifiability`` keeps on the dense
+    stacked columns of the two frames (2N poses) written out here, and the thresholds do drop columns in that
+    range. Seen failing on the poses counted ``self.n_rows * len(self.parts)`` turned to ``+`` and on
+    ``gram_factor``'s ``f *= np.where(norms > 0, norms, 0.0)`` with the norms squared."""
+    from tcr_accuracy.diagnosis.identifiability import SensitivityColumns, identifiability
+
+    engine, _, repeats = setup
+    parts = [dataclasses.replace(p, whitening=None) for p in engine.parts]
+    dense = {e: SensitivityColumns(list(b.names), np.asarray(b.g), b.scales) for e, b in engine.bases.items()}
+    assert all(c.g.shape[0] == 2 * N for c in dense.values())
+    counts = []
+    for motion in np.logspace(-6, -3, 7):
+        plain = FitEngine(parts, engine.bases, repeats, rank_tol=engine.rank_tol, min_motion=motion)
+        keep = plain.kept(MODEL)
+        expected, _ = identifiability(dense, MODEL, engine.rank_tol, motion, report=False)
+        assert all(np.array_equal(keep[e], expected[e]) for e in MODEL), motion
+        counts.append(sum(k.size for k in keep.values()))
+    assert counts[0] > counts[-1]
