@@ -140,7 +140,8 @@ def test_a_parts_columns_out_of_the_unions_order_land_in_their_union_places_to_t
     """A part holding an effect's union columns 2, 0 (its own order, and not column 1) over 513 poses (a last
     chunk of one pose): its Gram block and J^T r are those of the dense Jacobian with each column in its union
     place and zero in column 1. Seen failing on ``_block``'s ``out[:, :values.shape[1], at + index]`` turned
-    to ``values.shape[0]`` and on ``at + index`` turned to ``at - index``."""
+    to ``values.shape[0]`` (and the same in its in-order branch's ``np.multiply(..., out=out[:,
+    :values.shape[1], ...])``) and on ``at + index`` turned to ``at - index``."""
     rng = np.random.default_rng(4304)
     n = 513
     g = rng.standard_normal((n, 3, 2))
