@@ -244,7 +244,6 @@ class _SensitivityRows:
     """A TCP sensitivity (N, r, k) that makes its rows when indexed: ``g[rows]``, ``g[rows, ...]``, ``g[i]``
     (subclasses give :meth:`rows` for a slice or an index array)."""
 
-    ndim = 3
     dtype = np.dtype(float)
 
     def __getitem__(self, key):
@@ -398,8 +397,6 @@ class ColumnBlocks:
     copied its 336 columns: 300 MB at 10^5 poses per model evaluated). ``blocks[rows]`` is the joined
     rows (the same floats as the joined array's)."""
 
-    ndim = 2
-
     def __init__(self, blocks: list):
         self.blocks = [b for block in blocks for b in (block.blocks if isinstance(block, ColumnBlocks) else [block])]
         self.shape = (self.blocks[0].shape[0], sum(b.shape[1] for b in self.blocks))
@@ -431,8 +428,6 @@ class ColumnSubset:
     never copied whole: a model's kept columns of an effect's compact drive values (copied, the kept
     terms of a cyclic series were 250 MB at 10^5 poses per model evaluated). ``subset[rows]`` is those
     rows of the chosen columns (the same floats as the copy's)."""
-
-    ndim = 2
 
     def __init__(self, values, positions: np.ndarray):
         self.values, self.positions = values, np.asarray(positions, dtype=int)

@@ -299,15 +299,6 @@ class FitEngine:
             out.append(res)
         return out
 
-    def _unweighted(self, p: int, rows, moved: np.ndarray) -> np.ndarray:
-        """Residual changes (len(rows), r) computed with the weighted Jacobian, back in metres."""
-        part = self.parts[p]
-        if part.whitening is None:
-            return moved
-        moved = moved.copy()
-        moved[:, :3] = np.linalg.solve(part.whitening[rows], moved[:, :3, None])[:, :, 0]
-        return moved
-
     def predict_residual(self, cols: "Columns", phi: np.ndarray, rows) -> list[np.ndarray]:
         """Residual rows of every part at scaled parameters phi (theta = phi * scale)."""
         theta = phi * cols.scale
