@@ -1,0 +1,177 @@
+"""The closed-form rigid fit and the per-session tracker frames (``frames/rigid.py``,
+``frames/sessions.py``), against computations written out here: a Kabsch fit on numpy's SVD
+(Arun, Huang and Blostein 1987), the collinearity test on the singular values of the centred
+points at the threshold and past it, a homogeneous matrix by hand, hidden tracker frames per
+session (issue 36: mutation kill rate). Each test names a planted change it was seen to catch.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tcr_accuracy.exceptions import InputError
+from tcr_accuracy.frames.rigid import homogeneous, rigid_fit
+from tcr_accuracy.frames.sessions import register_sessions, to_base_frame
+
+
+def _kabsch(nominal, measured):
+    """measured ~ R nominal + t by numpy's SVD of the cross-covariance, written out here."""
+    mn, mm = nominal.mean(axis=0), measured.mean(axis=0)
+    u, _, vt = np.linalg.svd((nominal - mn).T @ (measured - mm))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return r, mm - r @ mn
+
+
+def _rotation(axis_angle):
+    """Rodrigues' formula on raw numpy."""
+    w = np.asarray(axis_angle, dtype=float)
+    angle = np.linalg.norm(w)
+    k = w / angle
+    skew = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(angle) * skew + (1 - np.cos(angle)) * skew @ skew
+
+
+def test_a_noisy_fit_far_from_both_origins_is_the_svd_kabsch_fit():
+    """Twelve points 3 m from the base's origin, measured 5 m from the tracker's with 50 um of noise: the
+    rotation and translation equal numpy's SVD Kabsch fit of the same points (to 1e-10), not the
+    noise-free truth. Seen failing on ``measured - mm`` turned to ``measured + mm``, ``nominal - mn`` to
+    ``nominal * mn`` in the alignment, ``mm - r @ mn`` to ``mm + r @ mn``, and the measured mean's
+    ``axis=0`` to ``axis=1``."""
+    rng = np.random.default_rng(40)
+    nominal = rng.uniform(-0.6, 0.6, (12, 3)) + [3.0, -1.0, 0.5]
+    rotation = _rotation([0.3, -0.9, 1.7])
+    measured = nominal @ rotation.T + [5.0, 2.0, -1.0] + rng.normal(0.0, 50e-6, (12, 3))
+    r, t = rigid_fit(nominal, measured)
+    expected_r, expected_t = _kabsch(nominal, measured)
+    np.testing.assert_allclose(r, expected_r, atol=1e-10)
+    np.testing.assert_allclose(t, expected_t, atol=1e-10)
+    assert np.abs(r - rotation).max() > 1e-7  # the noise moved the fit: the least-squares one is asked for
+
+
+def test_three_points_are_enough_two_are_refused_and_shapes_must_be_n_by_3():
+    """Three points off a line give the frame exactly; two are refused naming the count; arrays that are not
+    (N, 3), or not the same shape, are refused naming both shapes. Seen failing on ``nominal.shape[0] < 3``
+    turned to ``< 4`` and to ``< 2``, the count in the words read from ``shape[-1]``, and the shape test's
+    ``ndim != 2`` turned to ``!= 3``, ``shape[1] != 3`` to ``!= 4`` and to ``shape[0] != 3``."""
+    nominal = np.array([[0.2, 0.0, 0.1], [0.0, 0.5, 0.0], [0.4, 0.3, 0.9]])
+    rotation = _rotation([0.0, 0.0, 0.5])
+    r, t = rigid_fit(nominal, nominal @ rotation.T + [1.0, 2.0, 3.0])
+    np.testing.assert_allclose(r, rotation, atol=1e-12)
+    np.testing.assert_allclose(t, [1.0, 2.0, 3.0], atol=1e-12)
+    four = np.vstack([nominal, [[1.0, -0.5, 0.2]]])
+    r, t = rigid_fit(four, four @ rotation.T)
+    np.testing.assert_allclose(r, rotation, atol=1e-12)
+    with pytest.raises(InputError) as refused:
+        rigid_fit(nominal[:2], nominal[:2])
+    assert str(refused.value) == "rigid fit: 2 points; a tracker frame needs at least 3 poses"
+    for a, b in ((np.zeros((5, 2)), np.zeros((5, 2))), (np.zeros((5, 4)), np.zeros((5, 4))),
+                 (np.zeros(3), np.zeros(3)), (np.zeros((2, 5, 3)), np.zeros((2, 5, 3))),
+                 (np.zeros((5, 3)), np.zeros((4, 3)))):
+        with pytest.raises(InputError) as refused:
+            rigid_fit(a, b)
+        assert str(refused.value) == (f"rigid fit: nominal and measured points must both be (N, 3), got {a.shape} "
+                                      f"and {b.shape}")
+
+
+def _cloud(spread0, spread1, offset=(2.0, -3.0, 1.5), n=7):
+    """n points whose centred singular values are (spread0, spread1, 0): orthonormal columns times them."""
+    basis = np.linalg.qr(np.random.default_rng(6).normal(size=(n, 2)) - 0.0)[0]
+    basis -= basis.mean(axis=0)  # centred columns ...
+    basis = np.linalg.qr(basis)[0]  # ... orthonormal again (still centred: the span of centred vectors)
+    directions = _rotation([0.4, 0.2, -0.7])[:, :2]
+    return basis @ np.diag([spread0, spread1]) @ directions.T + offset
+
+
+def test_points_on_a_line_far_from_the_origin_are_refused_and_the_threshold_is_a_millionth():
+    """The collinearity test on the centred points' singular values: points on a line 4 m from the origin
+    are refused; a cloud whose second singular value is 2e-6 of the first is fitted, 0.5e-6 refused (at
+    0.1 m and at 10 m, so the test is relative to the cloud's size, not to 1 m); points in a plane are
+    fitted (the third singular value is not looked at). Seen failing on ``nominal - mn`` turned to
+    ``nominal % mn`` and ``nominal + mn`` (a line off the origin spans two directions about it), ``1e-6``
+    turned to ``1.000001`` and ``-0.999999``, ``max(spread[0], 1e-300)`` to ``max(spread[0], 1.0)``,
+    ``spread[1]`` to ``spread[2]`` and to ``spread[0]``, and ``max(spread[1], ...)`` for spread[0]."""
+    t = np.linspace(0.0, 4.0, 5)[:, None]
+    line = np.array([0.5, 0.7, 2.0]) + t * [1.0, 1.0, 0.0]
+    with pytest.raises(InputError, match="lie on one line"):
+        rigid_fit(line, line + 1.0)
+    for size in (0.1, 10.0):
+        for ratio, refused in ((2e-6, False), (0.5e-6, True)):
+            cloud = _cloud(size, ratio * size)
+            singular = np.linalg.svd(cloud - cloud.mean(axis=0), compute_uv=False)
+            assert singular[1] / singular[0] == pytest.approx(ratio, rel=1e-6)
+            if refused:
+                with pytest.raises(InputError, match="lie on one line"):
+                    rigid_fit(cloud, cloud)
+            else:
+                r, _ = rigid_fit(cloud, cloud + [0.0, 0.0, 1.0])  # fitted (ill-conditioned about the line)
+                np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-12)
+
+
+def test_the_homogeneous_matrix_holds_rotation_and_translation_and_a_last_row_0_0_0_1():
+    """(4, 4): the rotation top left, the translation in the last column, (0, 0, 0, 1) below; it maps a point
+    as R p + t. Seen failing on ``np.eye(4)`` turned to ``np.eye(5)`` and ``np.eye(3)``, ``out[:3, :3]`` to
+    ``out[:2, :3]`` and ``out[:3, 3]`` to ``out[:3, 2]``."""
+    rotation = _rotation([0.1, 0.2, 0.3])
+    translation = np.array([0.4, -0.5, 0.6])
+    expected = np.zeros((4, 4))
+    expected[:3, :3], expected[:3, 3], expected[3, 3] = rotation, translation, 1.0
+    got = homogeneous(rotation, translation)
+    assert got.shape == (4, 4)
+    np.testing.assert_array_equal(got, expected)
+    np.testing.assert_allclose((got @ [1.0, 2.0, 3.0, 1.0])[:3], rotation @ [1.0, 2.0, 3.0] + translation)
+
+
+def test_each_session_gets_its_own_hidden_tracker_frame_and_points_map_back_to_the_base():
+    """Two sessions (rows alternating), each measured from its own hidden tracker frame with 20 um of noise,
+    two reflectors and one base reference (fixed at a known place in the base frame, its measured place
+    the session's mean): each session's frame is numpy's SVD Kabsch fit of that session's rows of both
+    reflectors plus the reference's one point; to_base_frame maps each row back by its own session's
+    frame, R^T (p - t). A session of two rows is refused naming it. Seen failing on the session loop's
+    ``max(len(labels), 1)`` turned to ``max(..., 2)`` on one session, the reference's mean over
+    ``axis=0`` turned to ``axis=1``, ``rows.size < 3`` turned to ``< 4`` and to ``< 2``, and the map's
+    ``points[rows] - translation`` turned to ``+``."""
+    rng = np.random.default_rng(12)
+    n = 10
+    session_of = np.arange(n) % 2
+    a = rng.uniform(-0.8, 0.8, (n, 3)) + [0.5, 0.0, 0.6]
+    b = a + rng.normal(0.0, 0.05, (n, 3))
+    place = np.array([0.3, -0.2, 0.0])
+    frames = [(_rotation([0.1, -0.2, 0.9]), np.array([3.0, 1.0, -0.5])),
+              (_rotation([-0.3, 0.1, 2.2]), np.array([-2.0, 4.0, 0.2]))]
+    measured = [np.empty((n, 3)), np.empty((n, 3))]
+    seen = np.empty((n, 3))
+    for s, (r, t) in enumerate(frames):
+        rows = session_of == s
+        for k, p in enumerate((a, b)):
+            measured[k][rows] = p[rows] @ r.T + t + rng.normal(0.0, 20e-6, (rows.sum(), 3))
+        seen[rows] = place @ r.T + t + rng.normal(0.0, 20e-6, (rows.sum(), 3))
+    references = [("base_ref", place, seen, None)]
+    stations = register_sessions([a, b], measured, session_of, ["S1", "S2"], references)
+    assert len(stations) == 2
+    for s, (r, t) in enumerate(stations):
+        rows = session_of == s
+        nominal = np.vstack([a[rows], b[rows], place[None]])
+        observed = np.vstack([measured[0][rows], measured[1][rows], seen[rows].mean(axis=0)[None]])
+        expected_r, expected_t = _kabsch(nominal, observed)
+        np.testing.assert_allclose(r, expected_r, atol=1e-10)
+        np.testing.assert_allclose(t, expected_t, atol=1e-10)
+        np.testing.assert_allclose(r, frames[s][0], atol=2e-4)
+    back = to_base_frame(measured[0], session_of, stations)
+    expected = np.empty((n, 3))
+    for s, (r, t) in enumerate(stations):
+        rows = session_of == s
+        expected[rows] = (measured[0][rows] - t) @ r
+    np.testing.assert_allclose(back, expected, atol=1e-12)
+    np.testing.assert_allclose(back, a, atol=2e-4)
+
+    one = register_sessions([a, b], [a @ frames[0][0].T + frames[0][1], b @ frames[0][0].T + frames[0][1]],
+                            np.zeros(n, dtype=int), [])
+    assert len(one) == 1
+    np.testing.assert_allclose(one[0][0], frames[0][0], atol=1e-10)
+    three = np.array([0, 0, 0, 1, 1, 1, 1, 1, 1, 1])
+    register_sessions([a, b], measured, three, ["S1", "S2"])  # three rows are enough
+    with pytest.raises(InputError) as refused:
+        register_sessions([a, b], measured, np.array([0, 0, 1, 1, 1, 1, 1, 1, 1, 1]), ["S1", "S2"])
+    assert str(refused.value) == "session S1: 2 measurements, a session's tracker frame needs at least 3"
