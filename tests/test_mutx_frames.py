@@ -90,12 +90,17 @@ def test_points_on_a_line_far_from_the_origin_are_refused_and_the_threshold_is_a
     0.1 m and at 10 m, so the test is relative to the cloud's size, not to 1 m); points in a plane are
     fitted (the third singular value is not looked at). Seen failing on ``nominal - mn`` turned to
     ``nominal % mn`` and ``nominal + mn`` (a line off the origin spans two directions about it), ``1e-6``
-    turned to ``1.000001`` and ``-0.999999``, ``max(spread[0], 1e-300)`` to ``max(spread[0], 1.0)``,
+    turned to ``1.000001`` and ``-0.999999``, ``max(spread[0], 1e-300)`` to ``max(spread[0], 1.0)`` and to ``-1.0`` (a cloud under 1e-300 m),
     ``spread[1]`` to ``spread[2]`` and to ``spread[0]``, and ``max(spread[1], ...)`` for spread[0]."""
     t = np.linspace(0.0, 4.0, 5)[:, None]
     line = np.array([0.5, 0.7, 2.0]) + t * [1.0, 1.0, 0.0]
     with pytest.raises(InputError, match="lie on one line"):
         rigid_fit(line, line + 1.0)
+    # a cloud under 1e-300 m: its second singular value (5e-307) is compared with 1e-6 x the floor 1e-300, not
+    # with 1e-6 x its first (1e-301)
+    tiny = np.array([[0.0, 0.0, 0.0], [1e-301, 0.0, 0.0], [0.0, 5e-307, 0.0], [1e-301, 5e-307, 0.0]])
+    with pytest.raises(InputError, match="lie on one line"):
+        rigid_fit(tiny, tiny)
     for size in (0.1, 10.0):
         for ratio, refused in ((2e-6, False), (0.5e-6, True)):
             cloud = _cloud(size, ratio * size)
