@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from tcr_accuracy.exceptions import InputError
+from tcr_accuracy.frames.registration import register_tracker
 from tcr_accuracy.frames.rigid import homogeneous, rigid_fit
 from tcr_accuracy.frames.sessions import register_sessions, to_base_frame
 
@@ -180,3 +181,139 @@ def test_each_session_gets_its_own_hidden_tracker_frame_and_points_map_back_to_t
     with pytest.raises(InputError) as refused:
         register_sessions([a, b], measured, np.array([0, 0, 1, 1, 1, 1, 1, 1, 1, 1]), ["S1", "S2"])
     assert str(refused.value) == "session S1: 2 measurements, a session's tracker frame needs at least 3"
+
+
+def _pinocchio_tcp(robot, q, offset):
+    """The UR5's TCP plus an offset in the TCP frame, by Pinocchio's forward kinematics here."""
+    import pinocchio as pin
+
+    data = robot.model.createData()
+    out = []
+    for row in q:
+        pin.framesForwardKinematics(robot.model, data, row)
+        placement = data.oMf[robot.tool_frame_id]
+        out.append(placement.translation + placement.rotation @ offset)
+    return np.array(out)
+
+
+@pytest.fixture(scope="module")
+def hidden_tracker():
+    """A UR5 read at 30 poses by a tracker 2.4 m away, turned 0.7 rad about a skew axis, the reflector
+    (5, -8, 25) mm off tool0 in its frame: noise-free readings made here on Pinocchio."""
+    from tcr_accuracy.model.robot import load_robot
+
+    robot = load_robot("ur5")
+    rng = np.random.default_rng(77)
+    q = rng.uniform(-2.5, 2.5, (30, 6))
+    offset = np.array([5.0, -8.0, 25.0]) * 1e-3
+    rotation = _rotation(np.array([0.2, 0.5, -0.4]) / np.linalg.norm([0.2, 0.5, -0.4]) * 0.7)
+    translation = np.array([2.0, -1.2, 0.5])
+    measured = _pinocchio_tcp(robot, q, offset) @ rotation.T + translation
+    return robot, q, offset, rotation, translation, measured
+
+
+def test_a_noise_free_registration_finds_the_hidden_frame_and_offset_to_a_micrometre(hidden_tracker):
+    """From noise-free readings the refinement lands on the hidden frame and offset (1e-9 m, 1e-9 rad),
+    the residual RMS is nil, and every view of the fit is the hidden frame's: trackerMbase (and its
+    older name ``matrix``) the homogeneous matrix, vectors turned by R^T, points mapped both ways, the
+    rotation vector in degrees (scipy's, here numpy's Rodrigues inverse), the tool parameters with the
+    base twist zeroed, the measured-frame robot's TCP at the reflector. Seen failing on the folded
+    twist's ``r0 @ twist.rotation`` turned to ``twist.rotation`` alone, ``rotation_vector_deg``'s
+    degrees, ``out[:3, 3] = ... translation`` moved, ``vectors_to_base`` and the measured-frame robot's
+    ``tool_slice.start + 3`` turned to ``+ 2``."""
+    robot, q, offset, rotation, translation, measured = hidden_tracker
+    fit = register_tracker(robot, q, measured)
+    np.testing.assert_allclose(fit.rotation, rotation, atol=1e-9)
+    np.testing.assert_allclose(fit.translation, translation, atol=1e-9)
+    np.testing.assert_allclose(fit.tool_offset, offset, atol=1e-9)
+    assert fit.residual_rms < 1e-9 and fit.n_points == 30
+    expected = np.eye(4)
+    expected[:3, :3], expected[:3, 3] = rotation, translation
+    np.testing.assert_allclose(fit.trackerMbase, expected, atol=1e-9)
+    np.testing.assert_allclose(fit.matrix, expected, atol=1e-9)
+    vectors = np.array([[1.0, 0.0, 0.0], [0.0, 2.0, -1.0]])
+    np.testing.assert_allclose(fit.vectors_to_base(vectors), vectors @ rotation, atol=1e-9)
+    points = np.array([[0.3, -0.2, 0.8]])
+    np.testing.assert_allclose(fit.to_tracker(points), points @ rotation.T + translation, atol=1e-9)
+    np.testing.assert_allclose(fit.to_base(measured), _pinocchio_tcp(robot, q, offset), atol=1e-9)
+    angle = np.arccos((np.trace(rotation) - 1.0) / 2.0)
+    axis = np.array([rotation[2, 1] - rotation[1, 2], rotation[0, 2] - rotation[2, 0],
+                     rotation[1, 0] - rotation[0, 1]]) / (2.0 * np.sin(angle))
+    doc = fit.to_dict()
+    np.testing.assert_allclose(doc["rotation_vector_deg"], np.degrees(angle * axis), atol=1e-7)
+    assert doc["rotation_angle_deg"] == pytest.approx(np.degrees(0.7), abs=1e-7)
+    np.testing.assert_allclose(doc["rotation_matrix"], rotation, atol=1e-9)
+    tool = fit.tool_parameters()
+    names = list(fit.parameter_names)
+    assert all(tool[i] == 0.0 for i, n in enumerate(names) if n.startswith("frames.base."))
+    np.testing.assert_allclose([tool[names.index(f"frames.tool.{c}")] for c in ("dx", "dy", "dz")], offset,
+                               atol=1e-9)
+    from tcr_accuracy.model.kinematics import tcp_poses
+
+    moved = fit.measured_frame_robot(robot)
+    np.testing.assert_allclose(tcp_poses(moved, q).position, _pinocchio_tcp(robot, q, offset), atol=1e-9)
+    np.testing.assert_allclose(fit.tcp_positions(robot, q), _pinocchio_tcp(robot, q, offset), atol=1e-9)
+
+
+def test_without_the_frame_or_without_the_offset_only_the_other_is_fitted(hidden_tracker):
+    """``fit_base=False``: the readings are taken as base-frame points (rotation I, translation 0) and only
+    the three offsets are fitted: on base-frame readings, the offset exactly; ``fit_tool=False``: the
+    offset held at zero, the frame fitted to the tool0 points, its residual RMS the RMS of the distances
+    between the readings and the frame's tool0 (written out here). Seen failing on the wanted columns'
+    ``fit_base and`` test and the RMS's ``** 2`` turned to ``** 3``."""
+    robot, q, offset, rotation, translation, measured = hidden_tracker
+    in_base = _pinocchio_tcp(robot, q, offset)
+    fit = register_tracker(robot, q, in_base, fit_base=False)
+    assert fit.fitted == ("frames.tool.dx", "frames.tool.dy", "frames.tool.dz")
+    np.testing.assert_array_equal(fit.closed_form_rotation, np.eye(3))
+    np.testing.assert_array_equal(fit.closed_form_translation, np.zeros(3))
+    np.testing.assert_allclose(fit.rotation, np.eye(3), atol=1e-12)
+    np.testing.assert_allclose(fit.tool_offset, offset, atol=1e-9)
+    fit = register_tracker(robot, q, measured, fit_tool=False)
+    assert fit.fitted == tuple(f"frames.base.{c}" for c in ("dx", "dy", "dz", "rx", "ry", "rz"))
+    np.testing.assert_array_equal(fit.tool_offset, np.zeros(3))
+    tool0 = _pinocchio_tcp(robot, q, np.zeros(3))
+    d = measured - (tool0 @ fit.rotation.T + fit.translation)
+    assert fit.residual_rms == pytest.approx(np.sqrt(np.mean(np.sum(d ** 2, axis=1))), rel=1e-9)
+    assert fit.residual_rms > 5e-3  # the 27 mm offset left unfitted
+
+
+def test_a_column_within_a_millionth_of_the_earlier_ones_is_not_identifiable():
+    """_identifiable keeps a column when the part of it the earlier ones do not span exceeds 1e-6 of its own
+    norm (numpy's least-squares residual of it on the earlier columns, here): a column 2e-6 off the span
+    kept, 0.5e-6 off dropped, a zero column dropped; no columns, none. Seen failing on
+    ``IDENTIFIABILITY_TOL = 1e-6`` turned to ``1.000001`` and to ``-0.999999`` and ``norms[k] > 0`` to
+    ``> 1``."""
+    from tcr_accuracy.frames.registration import IDENTIFIABILITY_TOL, _identifiable
+
+    assert IDENTIFIABILITY_TOL == 1e-6
+    rng = np.random.default_rng(8)
+    a, b, c, d = rng.normal(size=(4, 20)) * 0.3  # columns of norm ~1.3, under 1 after the scale below
+    c = c - np.linalg.lstsq(np.column_stack([a, b]), c, rcond=None)[0] @ np.vstack([a, b])
+    c /= np.linalg.norm(c)
+    columns = np.column_stack([a, b, a + b + 2e-6 * np.linalg.norm(a + b) * c, a - b + 0.5e-6 * np.linalg.norm(a - b) * c,
+                               np.zeros(20), 0.5 * d])
+    kept = _identifiable(columns)
+    for k in range(columns.shape[1]):
+        earlier = columns[:, [i for i in range(k)]]
+        rest = columns[:, k] - (earlier @ np.linalg.lstsq(earlier, columns[:, k], rcond=None)[0] if k else 0.0)
+        norm = np.linalg.norm(columns[:, k])
+        assert (k in kept) == bool(norm > 0 and np.linalg.norm(rest) > 1e-6 * norm)
+    assert kept == [0, 1, 2, 5]
+    assert _identifiable(np.zeros((20, 0))) == []
+
+
+def test_registration_refuses_mismatched_or_non_finite_readings_in_one_line(hidden_tracker):
+    """Joint values and positions of different lengths, positions not (N, 3), joints not (N, 6): one line
+    naming both shapes; a NaN: one line. Seen failing on ``measured.shape[1] != 3`` turned to ``!= 4`` and
+    ``q.shape[0] != measured.shape[0]`` read from ``q.shape[1]``."""
+    robot, q, _, _, _, measured = hidden_tracker
+    for joints, points in ((q, measured[:29]), (q, measured[:, :2]), (q[:, :5], measured)):
+        with pytest.raises(InputError) as refused:
+            register_tracker(robot, joints, points)
+        assert str(refused.value) == (f"registration: needs joint values (N, 6) and positions (N, 3), got "
+                                      f"{joints.shape} and {points.shape}")
+    bad = measured.copy()
+    bad[3, 1] = np.nan
+    with pytest.raises(InputError, match="^registration: joint values and positions must be finite$"):
+        register_tracker(robot, q, bad)
