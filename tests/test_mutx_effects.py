@@ -62,7 +62,7 @@ def test_the_compact_jacobian_is_held_whole_up_to_64_mb_and_made_row_by_row_beyo
     its values are exactly 64e6 bytes, held as the array; at 80 001, made when read: a row by its index
     equals that pose's own columns (the series written out here), a row and a column range, a slice of
     rows, and the whole array; the joints each column moves, the same either way. Seen failing on
-    ``HELD_BYTES = 64e6`` turned to ``63999999.0``, ``[0][0, columns]`` turned to ``[0][-1, columns]``
+    ``HELD_BYTES = 64e6`` turned to ``63999999.0``, ``[0][0, columns]`` turned to ``[0][1, columns]``
     and to ``[-1][0, columns]``, and the joints' ``[1]`` turned to ``[0]``."""
     effect = make_effect("cyclic", tool_changer, max_order=12)
     assert effect.n_params == 100
