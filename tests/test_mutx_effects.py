@@ -156,3 +156,29 @@ def test_a_files_table_knots_are_held_to_a_thousand_radians_either_way():
     assert check_options("angle_table", {"knots": [[-1e3, 0.0, 1e3]]}, where) == {"knots": [[-1e3, 0.0, 1e3]]}
     with pytest.raises(InputError, match=r"^d\.json: effect_options\.angle_table\.knots\[0\]\[0\]: "):
         check_options("angle_table", {"knots": [[-1000.001]]}, where)
+
+
+def test_clearance_without_a_draw_is_the_mean_robot_and_cyclic_terms_are_radians(ur5):
+    """Clearance is scatter: with no random generator (its own or the context's) it gives the mean robot, an
+    (N, error-vector) array of zeros, one row per pose, and still refuses a wrong parameter count; each
+    cyclic term is in rad, one unit per parameter. Seen failing on the zeros' ``q.shape[0]`` turned to
+    ``q.shape[1]`` and ``["rad"] * self.n_params`` turned to ``["rad"] * (self.n_params + 1)``."""
+    effect = make_effect("clearance", ur5)
+    q = np.zeros((4, 6))
+    out = effect.perturb([1e-5, 1e-5, 1e-5], q, None)
+    assert out.dq is None
+    np.testing.assert_array_equal(out.x, np.zeros((4, effect.error_model.size)))
+    with pytest.raises(InputError, match="^effect clearance: 4 parameter values given, it has 3 "):
+        effect.perturb(np.zeros(4), q, None)
+    cyclic = make_effect("cyclic", ur5, max_order=5)
+    assert cyclic.parameter_units() == ["rad"] * 36 and cyclic.n_params == 36
+
+
+def test_a_noise_estimate_is_written_in_mm():
+    """NoiseEstimate.to_dict: the per-axis figure in mm (x 1e3 of its m), its source, independence and detail
+    as they are. Seen failing on ``self.per_axis * 1e3`` turned to ``* 1001.0``."""
+    from tcr_accuracy.frames.noise import NoiseEstimate
+
+    doc = NoiseEstimate(2.5e-5, "rigid frames", True, "two reflectors").to_dict()
+    assert doc == {"per_axis_mm": pytest.approx(0.025, rel=1e-12), "source": "rigid frames", "independent": True,
+                   "detail": "two reflectors"}
