@@ -345,3 +345,26 @@ def test_above_20000_poses_the_frame_is_fitted_on_a_reproducible_subset_and_judg
     np.testing.assert_allclose(fit.tool_offset, offset, atol=1e-8)
     assert fit.n_points == 20_001
     assert fit.residual_rms == pytest.approx(1.0 / np.sqrt(20_001), rel=1e-6)
+
+
+def test_a_point_at_the_instruments_own_origin_has_no_line_of_sight_and_stays_finite():
+    """A reading at the tracker's origin (distance 0) and one 0.5 m away along y: at the origin the covariance
+    is (a_t / 2)^2 I (no line of sight: only the transverse MPE at distance 0) and the whitening
+    floor / (a_t / 2) I, both finite; the other point's as the specification gives (along y: (a_r + b_r 0.5) / 2,
+    across: (a_t + b_t 0.5) / 2). Seen failing on both ``np.maximum(distance, 1e-9)`` turned to
+    ``np.maximum(distance, -0.999999999)`` (0 / 0) and to ``1.000000001`` (a point under 1 m given a line
+    of sight shorter than 1)."""
+    from tcr_accuracy.frames.instrument import Instrument
+
+    um = 1e-6
+    tracker = Instrument("t", (10 * um, 0.3 * um), (15 * um, 6 * um))
+    points = np.array([[0.0, 0.0, 0.0], [0.0, 0.5, 0.0]])
+    s_t0 = 15 * um / 2
+    s_r, s_t = (10 * um + 0.15 * um) / 2, (15 * um + 3 * um) / 2
+    cov = tracker.covariances(points)
+    np.testing.assert_allclose(cov[0], s_t0 ** 2 * np.eye(3), rtol=1e-12, atol=0)
+    np.testing.assert_allclose(cov[1], np.diag([s_t ** 2, s_r ** 2, s_t ** 2]), rtol=1e-12, atol=0)
+    floor = np.sqrt(np.mean([3 * s_t0 ** 2, s_r ** 2 + 2 * s_t ** 2]) / 3.0)
+    w = tracker.whitening(points, np.eye(3))
+    np.testing.assert_allclose(w[0], floor / s_t0 * np.eye(3), rtol=1e-12)
+    np.testing.assert_allclose(w[1], floor * np.diag([1 / s_t, 1 / s_r, 1 / s_t]), rtol=1e-12)
