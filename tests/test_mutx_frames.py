@@ -1,8 +1,9 @@
-"""The closed-form rigid fit and the per-session tracker frames (``frames/rigid.py``,
-``frames/sessions.py``), against computations written out here: a Kabsch fit on numpy's SVD
-(Arun, Huang and Blostein 1987), the collinearity test on the singular values of the centred
-points at the threshold and past it, a homogeneous matrix by hand, hidden tracker frames per
-session (issue 36: mutation kill rate). Each test names a planted change it was seen to catch.
+"""The closed-form rigid fit, the per-session tracker frames, the tracker registration and the
+instrument at its own origin (``frames/rigid.py``, ``sessions.py``, ``registration.py``,
+``instrument.py``), against computations written out: a Kabsch fit on numpy's SVD (Arun, Huang
+and Blostein 1987), the collinearity and identifiability tests at their thresholds and past them,
+a homogeneous matrix by hand, hidden tracker frames read on Pinocchio, the instrument's
+specification (issue 36: mutation kill rate). Each test names a planted change it was seen to catch.
 """
 
 from __future__ import annotations
@@ -15,14 +16,7 @@ from tcr_accuracy.frames.registration import register_tracker
 from tcr_accuracy.frames.rigid import homogeneous, rigid_fit
 from tcr_accuracy.frames.sessions import register_sessions, to_base_frame
 
-
-def _kabsch(nominal, measured):
-    """measured ~ R nominal + t by numpy's SVD of the cross-covariance, written out here."""
-    mn, mm = nominal.mean(axis=0), measured.mean(axis=0)
-    u, _, vt = np.linalg.svd((nominal - mn).T @ (measured - mm))
-    d = np.sign(np.linalg.det(vt.T @ u.T))
-    r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
-    return r, mm - r @ mn
+from test_mut_iso_budget import _kabsch  # numpy's SVD Kabsch fit, written out there
 
 
 def _rotation(axis_angle):
