@@ -276,8 +276,8 @@ def test_a_column_within_a_millionth_of_the_earlier_ones_is_not_identifiable():
     """_identifiable keeps a column when the part of it the earlier ones do not span exceeds 1e-6 of its own
     norm (numpy's least-squares residual of it on the earlier columns, here): a column 2e-6 off the span
     kept, 0.5e-6 off dropped, a zero column dropped; no columns, none. Seen failing on
-    ``IDENTIFIABILITY_TOL = 1e-6`` turned to ``1.000001`` and to ``-0.999999`` and ``norms[k] > 0`` to
-    ``> 1``."""
+    ``IDENTIFIABILITY_TOL = 1e-6`` turned to ``1.000001`` and to ``-0.999999``, ``norms[k] > 0`` to
+    ``> 1`` and the empty block's ``columns.shape[1] == 0`` to ``== 1``."""
     from tcr_accuracy.frames.registration import IDENTIFIABILITY_TOL, _identifiable
 
     assert IDENTIFIABILITY_TOL == 1e-6
@@ -294,6 +294,7 @@ def test_a_column_within_a_millionth_of_the_earlier_ones_is_not_identifiable():
         norm = np.linalg.norm(columns[:, k])
         assert (k in kept) == bool(norm > 0 and np.linalg.norm(rest) > 1e-6 * norm)
     assert kept == [0, 1, 2, 5]
+    assert _identifiable(columns[:, :1]) == [0]  # one column of its own
     assert _identifiable(np.zeros((20, 0))) == []
 
 
