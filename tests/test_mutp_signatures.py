@@ -17,6 +17,7 @@ from tcr_accuracy.diagnosis.stages import candidates, search, select, setup
 SIGNATURES = [
     (bayes_design.design_columns, ["robot", "q", "effects"], "payload_kg"),
     (bayes_design.fit_prior, ["columns", "errors"], "noise_m"),
+    (bayes_design.plan_design, ["measured", "candidates", "task", "prior", "k"], "criterion"),
     (bayes_design.learning_curve, ["columns", "errors", "prior", "rng"], "n_sizes"),
     (bayes_design.stop_advice, ["curve", "design"], "min_gain_m"),
     (design.plan_poses, ["robot", "measured_q", "effects", "k"], "separate"),
