@@ -58,3 +58,30 @@ def test_the_jacobian_taken_again_at_the_fitted_robot_says_its_training_rms_befo
     offsets = estimator.result_.parameters["joint_offsets"]
     for joint in (2, 3, 5):
         assert offsets[f"joint_offsets.j{joint}"] == pytest.approx(OFFSETS[joint - 1], abs=5e-3)
+
+
+def test_the_decision_notes_name_each_elimination_with_its_z_and_each_swap_with_its_figures():
+    """Selection.decision_notes(): the search's sentence, then the effects backward elimination dropped with
+    their z to one decimal, then each swap with both held-out RMS [mm] and parameter counts, written out here.
+    Seen failing on ``"dropped again ...: " + ", ".join(...)`` turned to ``%`` (planted by hand: the note
+    was entered by no test)."""
+    from tcr_accuracy.diagnosis.records import ErrorStats
+    from tcr_accuracy.diagnosis.stages.search import SearchPath, SearchReport
+    from tcr_accuracy.diagnosis.stages.select import Elimination, Selection
+
+    stats = ErrorStats(1e-4, 1.5e-4, 3e-4, 20)
+    path = SearchPath("greedy", ("frames", "compliance"), stats, 12)
+    search = SearchReport(7, (path,), "greedy", ("frames", "compliance"), None, 0.0, 0.0)
+    swap = {"in": "compliance", "out": "transmission", "n_parameters": {"compliance": 6, "transmission": 12},
+            "heldout_rms_mm": {"compliance": 0.15124, "transmission": 0.14876}}
+    selection = Selection(selected=("frames", "compliance"), forward_steps=(), candidates=(), testable=(), late=(),
+                          rivals=(), swaps=(swap,), leave_one_out=(),
+                          eliminated=(Elimination("backlash", 1.26, 2e-6), Elimination("drift", -0.34, 0.0)),
+                          groups={}, ambiguous=(), search=search, gap_residual=np.zeros((20, 3)), notes=())
+    assert selection.decision_notes() == [
+        "search beyond the greedy path: 7 models fitted, 1 paths compared; chosen [frames, compliance] from the "
+        "greedy path; every path ended on it",
+        "dropped again after forward selection (no significant held-out loss without them): backlash (z = 1.3), "
+        "drift (z = -0.3)",
+        "compliance replaces transmission (one-standard-error rule: held-out RMS 0.1512 mm with 6 parameters "
+        "against 0.1488 mm with 12)"]
