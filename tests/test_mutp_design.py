@@ -1,0 +1,90 @@
+"""``diagnosis/design.py``'s T-optimal design between rival fitted models against the greedy written out here:
+each rival refitted (ridge least squares on the stacked rows, np.linalg.lstsq) to the other's predictions,
+the squared discrepancy it cannot absorb, each candidate's worth the sum over both directions of log(1 + its
+added discrepancy / the discrepancy so far, at least noise^2), the best taken pose by pose; and plan_poses'
+default candidates. Each test names a planted change it was seen to catch (issue 36)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tcr_accuracy.diagnosis.bayes_design import design_columns
+from tcr_accuracy.diagnosis.design import candidate_configurations, plan_discriminating_poses, plan_poses
+from tcr_accuracy.effects import make_effect, predict_positions
+from tcr_accuracy.model.context import MeasurementContext
+from tcr_accuracy.model.robot import load_robot
+
+NOISE_M = 2e-5
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return load_robot()
+
+
+def _poses(robot, n, seed):
+    low, high = robot.joint_bounds()
+    return np.random.default_rng(seed).uniform(low, high, size=(n, robot.n_joints))
+
+
+def _rivals(robot):
+    """A hidden encoder scale error against a transmission error (both with frames), their parameters [SI]."""
+    scale, transmission = make_effect("encoder_scale", robot), make_effect("transmission", robot)
+    rng = np.random.default_rng(8)
+    truth = ([make_effect("frames", robot), scale], [np.zeros(9), np.array([0.0, 4e-4, -3e-4, 0.0, 2e-4, 0.0])])
+    rival = ([make_effect("frames", robot), transmission],
+             [np.zeros(9), rng.normal(scale=1e-4, size=transmission.n_params)])
+    return truth, rival
+
+
+def _greedy_written_out(robot, measured, candidates, rivals, k, noise_m):
+    def context(n):
+        return MeasurementContext.defaults(n, robot.n_joints)
+
+    directions = []
+    for model_a, model_b in rivals:
+        for truth, refit in ((model_a, model_b), (model_b, model_a)):
+            names = [e.name for e in refit[0]]
+            d = [predict_positions(robot, *truth, q, context(len(q))) - predict_positions(robot, *refit, q, context(len(q)))
+                 for q in (measured, candidates)]
+            g = [design_columns(robot, q, names, context=context(len(q))).g for q in (measured, candidates)]
+            p = g[0].shape[2]
+            ridge = 1e-6 * max(float(np.sum(g[0] ** 2)) / p, 1e-300)
+            directions.append((g, d, ridge, p))
+
+    def objective(g, d, ridge, p, rows):
+        """min over theta of |d - G theta|^2 + ridge |theta|^2 on the rows (measured, then candidates), and theta."""
+        a = np.vstack([g[0].reshape(-1, p)] + [g[1][c] for c in rows] + [np.sqrt(ridge) * np.eye(p)])
+        b = np.concatenate([d[0].ravel()] + [d[1][c] for c in rows] + [np.zeros(p)])
+        theta = np.linalg.lstsq(a, b, rcond=None)[0]
+        return float(np.sum((b - a @ theta) ** 2)), theta
+
+    picked = []
+    for _ in range(k):
+        worth = np.zeros(len(candidates))
+        for g, d, ridge, p in directions:
+            start, theta0 = objective(g, d, ridge, p, [])
+            so_far = objective(g, d, ridge, p, picked)[0]
+            total = so_far - ridge * float(theta0 @ theta0)  # the measured rows' misfit, then each pose's rise
+            added = np.array([objective(g, d, ridge, p, picked + [c])[0] - so_far for c in range(len(candidates))])
+            worth += np.log1p(added / max(total, noise_m**2))
+        worth[picked] = -np.inf
+        picked.append(int(np.argmax(worth)))
+    return picked
+
+
+@pytest.mark.parametrize("n_measured", [3, 25])
+def test_discriminating_poses_are_the_greedy_t_optimal_written_out(robot, n_measured):
+    """Among 40 given candidates, 4 poses picked after 3 measured (the rivals absorb the measured rows: the
+    noise^2 floor decides the scale) and after 25 (the discrepancy so far decides): the same poses in the
+    same order as the greedy written out with lstsq refits. Seen failing on ``max(t.total, noise_m**2)``
+    turned to ``noise_m * 2``, on ``ridge = 1e-6 * ...`` turned to ``1.000001`` and its ``/ g_meas.shape[2]`` to ``*``,
+    on ``t.gains() / max(...)`` turned to ``*`` and on ``d_cand = (truth - refit)`` and ``d_meas`` turned to ``+``
+    (planted by hand)."""
+    measured, candidates = _poses(robot, n_measured, 1), _poses(robot, 40, 2)
+    rivals = [_rivals(robot)]
+    planned = plan_discriminating_poses(robot, measured, rivals, 4, candidates=candidates, noise_m=NOISE_M)
+    expected = _greedy_written_out(robot, measured, candidates, rivals, 4, NOISE_M)
+    np.testing.assert_array_equal(planned, candidates[expected])
+    assert len(set(expected)) == 4
