@@ -12,6 +12,7 @@ import pytest
 from tcr_accuracy.diagnosis.bayes_design import design_columns
 from tcr_accuracy.diagnosis.design import candidate_configurations, plan_discriminating_poses, plan_poses
 from tcr_accuracy.effects import make_effect, predict_positions
+from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.model.context import MeasurementContext
 from tcr_accuracy.model.robot import load_robot
 
@@ -88,3 +89,35 @@ def test_discriminating_poses_are_the_greedy_t_optimal_written_out(robot, n_meas
     expected = _greedy_written_out(robot, measured, candidates, rivals, 4, NOISE_M)
     np.testing.assert_array_equal(planned, candidates[expected])
     assert len(set(expected)) == 4
+
+
+def test_the_designs_default_candidates_and_noise_are_those_plan_poses_documents(robot):
+    """Without candidates, both designs draw the 3000 the ``plan-poses`` command documents (``--n-candidates``,
+    default 3000) from ``default_rng(0)`` unless given a generator, and count resolved combinations at a laser
+    tracker's 0.02 mm: the same poses and counts as with those given explicitly. Seen failing on
+    ``n_candidates: int = 3000`` turned to ``3001`` in plan_poses and in plan_discriminating_poses, on
+    ``np.random.default_rng(0)`` turned to ``(1)``, on ``noise_m: float = 2e-5`` turned to ``1.00002`` and
+    on ``if k < 1`` turned to ``k < 2`` (planted by hand; 3001 candidates were caught only by the count the
+    refusal of k = 3001 says)."""
+    measured = _poses(robot, 3, 3)
+    drawn = candidate_configurations(robot, 3000, np.random.default_rng(0))
+    default = plan_poses(robot, measured, ["joint_offsets"], 3)
+    given = plan_poses(robot, measured, ["joint_offsets"], 3, candidates=drawn, noise_m=2e-5, payload_kg=0.0)
+    np.testing.assert_array_equal(default.q, given.q)
+    assert (default.resolved_before, default.resolved_after) == (given.resolved_before, given.resolved_after)
+    assert given.resolved_after > given.resolved_before > 0
+    other = plan_poses(robot, measured, ["joint_offsets"], 3, rng=np.random.default_rng(9))
+    again = plan_poses(robot, measured, ["joint_offsets"], 3,
+                       candidates=candidate_configurations(robot, 3000, np.random.default_rng(9)))
+    np.testing.assert_array_equal(other.q, again.q)
+    rivals = [_rivals(robot)]
+    for design, between in ((plan_poses, ["joint_offsets"]), (plan_discriminating_poses, rivals)):
+        with pytest.raises(InputError, match=r"^3000 candidate configurations for -k 3001: need at least k$"):
+            design(robot, measured, between, 3001)
+        with pytest.raises(InputError, match=r"^-k 0: need at least one pose$"):
+            design(robot, measured, between, 0, candidates=drawn[:5])
+        assert len(design(robot, measured, between, 1, candidates=drawn[:5]).__getattribute__("q")
+                   if design is plan_poses else design(robot, measured, between, 1, candidates=drawn[:5])) == 1
+    np.testing.assert_array_equal(plan_discriminating_poses(robot, measured, rivals, 2),
+                                  plan_discriminating_poses(robot, measured, rivals, 2, candidates=drawn,
+                                                            noise_m=2e-5, payload_kg=0.0))
