@@ -121,3 +121,32 @@ def test_the_designs_default_candidates_and_noise_are_those_plan_poses_documents
     np.testing.assert_array_equal(plan_discriminating_poses(robot, measured, rivals, 2),
                                   plan_discriminating_poses(robot, measured, rivals, 2, candidates=drawn,
                                                             noise_m=2e-5, payload_kg=0.0))
+
+
+def test_with_more_measured_poses_than_candidates_the_ridge_is_the_measured_columns(robot):
+    """40 measured poses, 4 candidates: the ridge is 1e-6 x the measured rows' squared columns per parameter
+    (here 11 times the candidates' mean), which turns the gains of directions the measured poses barely move
+    by 2 %: each pick's gain log det(M + G_c^T G_c) - log det M (slogdet of the P x P information, written
+    out) and the plan's log det gain to 1e-7. Seen failing on ``np.sum(g_measured**2) / p`` turned to
+    ``g_measured ** 3`` and to ``* p`` (planted by hand; with fewer measured poses the candidates' term
+    decides and those changed nothing)."""
+    effects = ["frames", "joint_offsets", "encoder_scale"]
+    measured, candidates = _poses(robot, 40, 1), _poses(robot, 4, 2)
+    plan = plan_poses(robot, measured, effects, 2, candidates=candidates, noise_m=NOISE_M)
+    g_meas, g_cand = (design_columns(robot, q, effects, context=MeasurementContext.defaults(len(q), robot.n_joints)).g
+                      for q in (measured, candidates))
+    p = g_meas.shape[2]
+    by_measured, by_candidates = np.sum(g_meas**2) / p, np.mean(np.sum(g_cand**2, axis=(0, 1)))
+    assert by_measured > 10 * by_candidates
+    flat = g_meas.reshape(-1, p)
+    info = flat.T @ flat + 1e-6 * by_measured * np.eye(p)
+    start, picked, gains = info.copy(), [], []
+    for _ in range(2):
+        score = np.array([np.linalg.slogdet(info + g.T @ g)[1] - np.linalg.slogdet(info)[1] for g in g_cand])
+        score[picked] = -np.inf
+        picked.append(int(np.argmax(score)))
+        gains.append(score[picked[-1]])
+        info = info + g_cand[picked[-1]].T @ g_cand[picked[-1]]
+    np.testing.assert_array_equal(plan.q, candidates[picked])
+    np.testing.assert_allclose(plan.gain_per_pose, gains, rtol=1e-7)
+    assert plan.log_det_gain == pytest.approx(np.linalg.slogdet(info)[1] - np.linalg.slogdet(start)[1], rel=1e-7)
