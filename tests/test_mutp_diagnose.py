@@ -30,8 +30,9 @@ def _documented_defaults(function) -> dict:
 def test_every_numeric_default_is_the_one_the_docstring_states(function):
     """The signature's defaults (folds 5, selection_z 3.0, min_relative_gain 0.002, rank_tol 1e-6,
     stability_replays 50, ...) read against the ``default=`` of the docstring's parameter list (the
-    documentation a user reads, written independently of the signature). Seen failing on diagnose's ``folds: int = 5``
-    turned to ``6`` and on GapDiagnosis' ``stability_replays: int = 50`` turned to ``51`` (planted by hand)."""
+    documentation a user reads, written independently of the signature). The default folds also as the refusal of 14 rows says them.
+    Seen failing on diagnose's ``folds: int = 5`` turned to ``6`` and to ``4`` and on GapDiagnosis'
+    ``stability_replays: int = 50`` turned to ``51`` (planted by hand)."""
     documented = _documented_defaults(function)
     signature = inspect.signature(function)
     numeric = {name: p.default for name, p in signature.parameters.items()
@@ -44,6 +45,12 @@ def test_every_numeric_default_is_the_one_the_docstring_states(function):
         assert name in documented, name
         assert default == documented[name], (name, default, documented[name])
     assert (function is diagnose) or numeric["stability_replays"] == 50
+    # and the function passes them on: 14 rows are too few for the default 5 folds, said with them
+    robot, fewer = offset_measurements(14, 2036)
+    run = (lambda: diagnose(robot, fewer)) if function is diagnose else (lambda: GapDiagnosis(robot=robot).fit(fewer))
+    with pytest.raises(InputError, match=r"^14 measurements are too few to diagnose with 5-fold cross-validation "
+                                         r"\(need at least 15\)$"):
+        run()
 
 
 # (parameter, accepted values at or inside each bound, refused values at or just past each bound)
