@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_mutfit_design import _poses
 
 from tcr_accuracy.diagnosis.bayes_design import design_columns
 from tcr_accuracy.diagnosis.design import candidate_configurations, plan_discriminating_poses, plan_poses
@@ -22,11 +23,6 @@ NOISE_M = 2e-5
 @pytest.fixture(scope="module")
 def robot():
     return load_robot()
-
-
-def _poses(robot, n, seed):
-    low, high = robot.joint_bounds()
-    return np.random.default_rng(seed).uniform(low, high, size=(n, robot.n_joints))
 
 
 def _rivals(robot):
