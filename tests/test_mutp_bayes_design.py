@@ -1,6 +1,7 @@
 """``diagnosis/bayes_design.py``'s type-II maximum likelihood prior to a tight tolerance (issue 36): the noise
 and every tau_e where the log evidence of the errors, a multivariate normal written out here (covariance
-sigma^2 I + G Lambda^-1 G^T on the stacked rows), is largest, found here by Nelder-Mead to 1e-7 in log (its simplex about the fitted point);
+sigma^2 I + G Lambda^-1 G^T on the stacked rows), is largest, found here by Nelder-Mead to 1e-7 in log
+(its simplex about the fitted point);
 three campaigns whose effects are large, typical and small against the noise. Each test names a planted
 change it was seen to catch."""
 

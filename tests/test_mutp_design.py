@@ -43,7 +43,8 @@ def _greedy_written_out(robot, measured, candidates, rivals, k, noise_m):
     for model_a, model_b in rivals:
         for truth, refit in ((model_a, model_b), (model_b, model_a)):
             names = [e.name for e in refit[0]]
-            d = [predict_positions(robot, *truth, q, context(len(q))) - predict_positions(robot, *refit, q, context(len(q)))
+            d = [predict_positions(robot, *truth, q, context(len(q)))
+                 - predict_positions(robot, *refit, q, context(len(q)))
                  for q in (measured, candidates)]
             g = [design_columns(robot, q, names, context=context(len(q))).g for q in (measured, candidates)]
             p = g[0].shape[2]

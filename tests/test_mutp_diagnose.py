@@ -30,7 +30,8 @@ def _documented_defaults(function) -> dict:
 def test_every_numeric_default_is_the_one_the_docstring_states(function):
     """The signature's defaults (folds 5, selection_z 3.0, min_relative_gain 0.002, rank_tol 1e-6,
     stability_replays 50, ...) read against the ``default=`` of the docstring's parameter list (the
-    documentation a user reads, written independently of the signature). The default folds also as the refusal of 14 rows says them.
+    documentation a user reads, written independently of the signature). The default folds also as the
+    refusal of 14 rows says them.
     Seen failing on diagnose's ``folds: int = 5`` turned to ``6`` and to ``4`` and on GapDiagnosis'
     ``stability_replays: int = 50`` turned to ``51`` (planted by hand)."""
     documented = _documented_defaults(function)

@@ -61,10 +61,11 @@ def _largest_turn(base, tracker) -> float:
 def test_sessions_share_one_tracker_frame_within_the_reach_and_have_their_own_beyond(robot, angle):
     """Session B turned by 0.04 and 0.09 rad (each session's frame then within 0.026 and 0.0495 rad of the
     shared one, written out): both sessions get the frame fitted on all rows, no note; by 0.095 and 0.3 rad
-    (0.0519 and 0.153 rad, beyond 0.05): each its own frame, and the note says that turn and the 0.05 rad, both in degrees to three
-    digits. Seen failing on ``SHARED_FRAME_REACH = 0.05`` turned to ``1.05`` and to ``0.051``, on the note's
-    ``np.degrees(turn)`` and ``np.degrees(SHARED_FRAME_REACH)`` losing their conversions and on ``turn <=``
-    reading the shared frame's own rotation ``shared[0] @ r`` (planted by hand)."""
+    (0.0519 and 0.153 rad, beyond 0.05): each its own frame, and the note says that turn and the 0.05 rad,
+    both in degrees to three digits. Seen failing on ``SHARED_FRAME_REACH = 0.05`` turned to ``1.05`` and to
+    ``0.051``, on the note's ``np.degrees(turn)`` and ``np.degrees(SHARED_FRAME_REACH)`` losing their
+    conversions and on ``turn <=`` reading the shared frame's own rotation ``shared[0] @ r`` (planted by
+    hand)."""
     base, tracker, measured = _two_sessions(robot, angle)
     registered = register_measurements([MeasuredFrame(robot, measured, robot.tool_frame)])
     turn = _largest_turn(base, tracker)
