@@ -1,0 +1,56 @@
+"""ISO 9283 path velocity figures (``iso9283/path.py``) on an L path run at a known speed per cycle,
+against the closed form: on a straight edge every speed between neighbouring normal planes is the
+cycle's speed, so v̄, AV, RV and FV are written out from the cycles' speeds alone, and a pair of
+planes across a corner's left-out zone (whose chord is shorter than the path between) is no pair.
+Each test names a planted change it was seen to catch.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from tcr_accuracy.iso9283.path import path_figures
+
+#: The L: 0.2 m along x, then 0.2 m along y; its corner at sample 200.
+EDGE = 0.2
+
+
+def _l_path():
+    u = np.linspace(0.0, 2 * EDGE, 401)
+    points = np.column_stack([np.minimum(u, EDGE), np.maximum(u - EDGE, 0.0), np.zeros_like(u)])
+    return points, u
+
+
+def _cycle(speed, start, dt=0.002):
+    """Readings of one run along the L at ``speed`` [m/s], from 10 mm before its start to 10 mm past
+    its end, starting at time ``start``."""
+    t = np.arange(0.0, (2 * EDGE + 0.02) / speed, dt)
+    u = -0.01 + speed * t
+    x = np.column_stack([np.minimum(u, EDGE), np.maximum(u - EDGE, 0.0), np.zeros_like(u)])
+    return start + t, x
+
+
+def test_speeds_between_planes_across_a_corners_zone_are_left_out():
+    """Two cycles along the L at 0.10 and 0.11 m/s, a commanded speed of 0.1 m/s given without times
+    (the middle half of the path counted): of 20 planes, those at 190 and 210 mm lie within 5 % of the
+    length of the corner and are left out; the planes at 170 and 230 mm, on either side of the gap,
+    are no neighbours (their chord, 42 mm, would read 0.0707 of the speed's 0.1). So every v_ij is its
+    cycle's speed: v̄ = 0.105 m/s, AV = 5 %, RV = 3 S(0.10, 0.11) / 0.1, FV = 0. Catches the
+    neighbours' test ``np.diff(s_i) < 1.5 * np.min(np.diff(s_i))`` as ``1.5 / np.min(...)`` or with
+    1.5 changed to 3.5, and the middle half's lower bound 0.25 changed to 1.25."""
+    points, s = _l_path()
+    cycles = [_cycle(0.10, 0.0), _cycle(0.11, 10.0)]
+    got = path_figures(points, s, cycles, planes=20, corners=(200,), speed=0.1)
+    s_i = 0.4 * (np.arange(20) + 0.5) / 20
+    kept = s_i[np.abs(s_i - EDGE) >= 0.05 * 0.4]
+    np.testing.assert_allclose(got.s, kept, rtol=1e-12)
+    assert got.v_mean == pytest.approx(0.105, rel=1e-9)
+    assert got.av == pytest.approx(0.05, rel=1e-7)
+    assert got.rv == pytest.approx(3 * np.std([0.10, 0.11], ddof=1) / 0.1, rel=1e-7)
+    assert got.fv == pytest.approx(0.0, abs=1e-9)
+    # the counted pairs: neighbouring planes both strictly inside (0.1, 0.3) m, not across the gap
+    middle = kept[(kept > 0.1) & (kept < 0.3)]
+    assert middle.tolist() == pytest.approx([0.11, 0.13, 0.15, 0.17, 0.23, 0.25, 0.27, 0.29])
+    chord = math.hypot(EDGE - 0.17, 0.23 - EDGE)
+    assert chord / 0.06 == pytest.approx(0.7071, rel=1e-4)  # what a pair across the gap would read
