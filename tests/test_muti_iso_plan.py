@@ -37,11 +37,12 @@ def _search(monkeypatch, ur5, serves, **kwargs):
     """plan_iso_cube over the candidates Q with a reach that serves a cube about the candidate nearest
     its P1 up to the edge ``serves[k]``; the arguments the candidates were drawn with, recorded."""
     centres = tcp_poses(ur5, Q).position
-    asked = {}
+    asked = {"sighted": set()}
 
     class Oracle(Reach):
         def solve(self, targets, rotation, q_start, sighted=0):
             targets = np.atleast_2d(targets)
+            asked["sighted"].add((len(targets), sighted))
             if len(targets) > 1:
                 k = int(np.argmin(np.linalg.norm(centres - targets[0], axis=1)))
                 edge = float(np.ptp(targets[5:, 0]))
@@ -63,9 +64,11 @@ def test_the_search_bisects_between_the_best_cube_and_the_farthest_reach_ten_tim
     with far the farthest candidate TCP from the base + 1 mm; the first centre serves up to 0.8 of it,
     the second up to 1.15 times what the first found: the second is tried (1.01 times the best is
     served) and grown by ten steps (the default) from the first's edge. The candidates were drawn
-    from 1000 configurations, 60 centres. Catches ``2.0 * far / np.sqrt(3.0)`` with any number changed,
+    from 1000 configurations, 60 centres; every cube asked of the reach holds its five poses (not its
+    eight corners) to the tracker's sight, and a centre alone itself. Catches ``2.0 * far / np.sqrt(3.0)`` with any number changed,
     ``+ 1e-3`` changed, ``0.5 * (low + high)`` as ``1.5 *``, the defaults ``bisections=10``,
-    ``n_samples=1000`` and ``n_centres=60`` changed."""
+    ``n_samples=1000`` and ``n_centres=60`` changed, and any ``sighted=5`` (P1..P5 held to the
+    tracker's line of sight, not the corners) or ``sighted=1`` changed."""
     centres = tcp_poses(ur5, Q).position
     far = float(np.max(np.linalg.norm(centres, axis=1))) + 1e-3
     hi = 2 * far / math.sqrt(3)
@@ -73,7 +76,7 @@ def test_the_search_bisects_between_the_best_cube_and_the_farthest_reach_ten_tim
     serves = [0.8 * hi, 1.15 * first]
     plan, got_centres, asked = _search(monkeypatch, ur5, serves, workspace=Workspace(floor=-2.0))
     second = _bisected(first, hi, serves[1], 10)
-    assert asked == {"n_samples": 1000, "n_centres": 60}
+    assert asked == {"n_samples": 1000, "n_centres": 60, "sighted": {(13, 5), (1, 1)}}
     assert plan.searched and plan.n_centres == 2
     assert plan.size == pytest.approx(second, rel=1e-12)
     np.testing.assert_allclose(plan.centre, got_centres[1], atol=1e-15)
@@ -131,3 +134,15 @@ def test_candidates_are_the_best_conditioned_configurations_spread_over_the_work
         gap = [min(np.linalg.norm(p - positions[c]) for c in chosen) for p in positions]
         chosen.append(int(np.argmax(gap)))
     np.testing.assert_array_equal(got, top[chosen])
+
+
+def test_a_given_cube_holds_its_five_poses_to_the_line_of_sight_and_keeps_its_size(monkeypatch, ur5):
+    """A cube given by its centre (the first candidate's TCP) and a 150 mm edge, every cube served: it
+    is planned as given (not searched, one centre), and every cube asked of the reach holds its five
+    poses, not its corners, to the tracker's sight (the centre alone, itself). Catches ``sighted=5``
+    in the given cube's solve or the nearer-home solve, and ``sighted=1``, changed."""
+    centres = tcp_poses(ur5, Q).position
+    plan, _, asked = _search(monkeypatch, ur5, [10.0, 10.0], centre=centres[0], size=0.15)
+    assert not plan.searched and plan.n_centres == 1 and plan.size == 0.15
+    np.testing.assert_allclose(plan.centre, centres[0], atol=1e-15)
+    assert asked == {"sighted": {(13, 5), (1, 1)}}
