@@ -122,3 +122,23 @@ def test_every_path_starts_from_the_cubes_p1_joints_at_its_p1_orientation():
     for call, path in zip(singles, paths):
         np.testing.assert_array_equal(call[1], path.points[0])
         np.testing.assert_array_equal(call[2], [0.0, 1.0])  # P1's joints
+
+
+def test_the_circles_turn_about_the_test_planes_unit_normal():
+    """The circles' plane: its x direction U, its in-plane diagonal W = (0, 1, 1) / sqrt 2 and its
+    normal N = (0, -1, 1) / sqrt 2 are unit vectors, orthogonal, with U x W = N; the large circle of a
+    cube lies in the plane through P1 normal to N and turns counter-clockwise about it, each step's
+    turn (r_k x r_k+1) a multiple of N as long as the chord's. Catches ``/ np.sqrt(2.0)`` as
+    ``* np.sqrt(2.0)`` in N or W, and any of N's numbers changed."""
+    from tcr_accuracy.iso9283.path_plan import PLANE_NORMAL, PLANE_U, PLANE_W, standard_paths
+
+    for axis in (PLANE_U, PLANE_W, PLANE_NORMAL):
+        assert np.linalg.norm(axis) == pytest.approx(1.0, rel=1e-15)
+    np.testing.assert_allclose(np.cross(PLANE_U, PLANE_W), PLANE_NORMAL, atol=1e-15)
+    np.testing.assert_allclose(PLANE_NORMAL, [0.0, -1.0 / np.sqrt(2), 1.0 / np.sqrt(2)], atol=1e-15)
+    centre = np.array([0.4, 0.1, 0.5])
+    circle = {path.name: path for path in standard_paths(centre, 0.2)}["circle_large"]
+    r = circle.points - centre
+    np.testing.assert_allclose(r @ PLANE_NORMAL, 0.0, atol=1e-15)
+    turn = np.cross(r[:-1], r[1:])
+    np.testing.assert_allclose(turn, np.outer(np.linalg.norm(turn, axis=1), PLANE_NORMAL), atol=1e-15)

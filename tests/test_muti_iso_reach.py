@@ -5,14 +5,11 @@ the bodies are held to, and the plane's right-handed orthonormal axes. Each test
 change it was seen to catch.
 """
 
-import math
-
 import numpy as np
 import pytest
 
 from tcr_accuracy import load_robot
 from tcr_accuracy.analysis.reachable import BEAM_RADIUS_M, REFLECTOR_CLEARANCE_M
-from tcr_accuracy.iso9283.path_plan import PLANE_NORMAL, PLANE_U, PLANE_W
 from tcr_accuracy.iso9283.reach import Reach, Workspace
 
 
@@ -70,17 +67,6 @@ def test_without_a_tracker_or_geometry_nothing_is_hidden_and_nothing_asked():
     assert _reach(beams, None).hidden(np.zeros((2, 6)), np.ones((2, 3))).tolist() == [False, False]
     assert beams.beams == []
     assert _reach(None, np.array([2.0, 0.0, 0.0])).hidden(np.zeros((1, 6)), np.ones((1, 3))).tolist() == [False]
-
-
-def test_the_test_planes_axes_are_right_handed_and_orthonormal():
-    """The circles' plane: its x direction U, its in-plane diagonal W = (0, 1, 1) / sqrt 2 and its
-    normal N = (0, -1, 1) / sqrt 2 are unit vectors, orthogonal, with U x W = N (counter-clockwise
-    seen from N). Catches ``/ np.sqrt(2.0)`` as ``* np.sqrt(2.0)`` in either, and a sign of N."""
-    for axis in (PLANE_U, PLANE_W, PLANE_NORMAL):
-        assert np.linalg.norm(axis) == pytest.approx(1.0, rel=1e-15)
-    np.testing.assert_allclose(np.cross(PLANE_U, PLANE_W), PLANE_NORMAL, atol=1e-15)
-    np.testing.assert_allclose(PLANE_NORMAL, [0.0, -1.0 / math.sqrt(2), 1.0 / math.sqrt(2)], atol=1e-15)
-    assert PLANE_U @ PLANE_W == 0.0
 
 
 def test_the_floor_holds_the_joint_origins_and_says_so_in_mm():
