@@ -54,3 +54,23 @@ def test_speeds_between_planes_across_a_corners_zone_are_left_out():
     assert middle.tolist() == pytest.approx([0.11, 0.13, 0.15, 0.17, 0.23, 0.25, 0.27, 0.29])
     chord = math.hypot(EDGE - 0.17, 0.23 - EDGE)
     assert chord / 0.06 == pytest.approx(0.7071, rel=1e-4)  # what a pair across the gap would read
+
+
+def test_a_crossing_farther_than_a_tenth_of_the_path_from_its_point_is_none():
+    """A straight 0.4 m path along x, three cycles running parallel to it 35 mm, 39.9 mm and 40.1 mm off
+    in y (a tenth of the length is 40 mm): the first two cross every one of the 10 planes at their
+    offset, the third crosses none (10 missed, NaN). Catches the limit ``CROSSING_LIMIT * s[-1]`` as
+    ``+`` (0.5 m) and ``CROSSING_LIMIT`` 0.10 changed."""
+    s = np.linspace(0.0, 0.4, 401)
+    points = np.column_stack([s, np.zeros_like(s), np.zeros_like(s)])
+    cycles = []
+    for j, off in enumerate((0.035, 0.0399, 0.0401)):
+        t = np.linspace(0.0, 4.4, 221)
+        cycles.append((t + 10 * j, np.column_stack([-0.02 + 0.1 * t, np.full_like(t, off), np.zeros_like(t)])))
+    got = path_figures(points, s, cycles, planes=10)
+    s_i = 0.4 * (np.arange(10) + 0.5) / 10
+    np.testing.assert_allclose(got.attained[0], np.column_stack([s_i, np.full(10, 0.035), np.zeros(10)]), atol=1e-12)
+    np.testing.assert_allclose(got.attained[1, :, 1], 0.0399, atol=1e-12)
+    assert np.isnan(got.attained[2]).all() and np.isnan(got.times[2]).all()
+    assert got.missed == 10
+    assert got.at == pytest.approx(math.hypot(0.0, (0.035 + 0.0399) / 2), rel=1e-9)

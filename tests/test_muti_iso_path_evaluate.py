@@ -52,3 +52,24 @@ def test_a_long_run_is_fitted_on_2000_readings_and_its_residual_is_their_rms_dis
     distances = np.array([_distance_to_polyline(p, helix) for p in in_base])
     assert 20e-6 < frame.residual_rms < 50e-6
     assert frame.residual_rms == pytest.approx(np.sqrt(np.mean(distances ** 2)), rel=1e-9)
+
+
+def test_a_repeated_time_in_a_cycle_names_the_second_reading(tmp_path):
+    """A stream of two cycles of a path, cycle 2's third and fourth readings (file rows 8 and 9) both at
+    12.0 s: refused naming row 9, the time and the cycle. Catches ``rows[same[0] + 1]`` as ``+ 0``
+    (the first of the two named) or ``+ 2``."""
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.io.tracker_stream import read_tracker_stream
+    from tcr_accuracy.iso9283.path_evaluate import stream_cycles
+
+    lines = ["time_s,x_mm,y_mm,z_mm,path,cycle"]
+    times = [0.0, 1.0, 2.0, 3.0, 10.0, 11.0, 12.0, 12.0, 13.0]
+    for k, t in enumerate(times):
+        lines.append(f"{t},{400 + 10 * k},{-100 + 3 * k},{300 + k},line,{1 if t < 5 else 2}")
+    path = tmp_path / "stream.csv"
+    path.write_text("\n".join(lines) + "\n")
+    stream = read_tracker_stream(str(path))
+    run = SimpleNamespace(path="line", speed_pct=None, words=lambda: "line")
+    with pytest.raises(InputError) as refused:
+        stream_cycles(stream, [run])
+    assert str(refused.value) == (f"{path}: row 9, column time_s: 12 s repeats a time of the same cycle (line, cycle 2)")
