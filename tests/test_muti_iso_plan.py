@@ -51,7 +51,7 @@ def _search(monkeypatch, ur5, serves, **kwargs):
             return np.tile(np.asarray(q_start, dtype=float), (len(targets), 1))
 
     def candidates(reach, rng, n_samples, n_centres):
-        asked.update(n_samples=n_samples, n_centres=n_centres)
+        asked.update(n_samples=n_samples, n_centres=n_centres, mode=reach.mode, next_draws=rng.random(3))
         return Q.copy()
 
     monkeypatch.setattr(plan_module, "Reach", Oracle)
@@ -64,10 +64,11 @@ def test_the_search_bisects_between_the_best_cube_and_the_farthest_reach_ten_tim
     with far the farthest candidate TCP from the base + 1 mm; the first centre serves up to 0.8 of it,
     the second up to 1.15 times what the first found: the second is tried (1.01 times the best is
     served) and grown by ten steps (the default) from the first's edge. The candidates were drawn
-    from 1000 configurations, 60 centres; every cube asked of the reach holds its five poses (not its
+    from 1000 configurations, 60 centres, by the generator after the orientation mode's 20 draws (the
+    UR5's frame Jacobian has rank 6: exact); every cube asked of the reach holds its five poses (not its
     eight corners) to the tracker's sight, and a centre alone itself. Catches ``2.0 * far / np.sqrt(3.0)`` with any number changed,
     ``+ 1e-3`` changed, ``0.5 * (low + high)`` as ``1.5 *``, the defaults ``bisections=10``,
-    ``n_samples=1000`` and ``n_centres=60`` changed, and any ``sighted=5`` (P1..P5 held to the
+    ``n_samples=1000`` and ``n_centres=60`` changed, the mode's 20 configurations changed, and any ``sighted=5`` (P1..P5 held to the
     tracker's line of sight, not the corners) or ``sighted=1`` changed."""
     centres = tcp_poses(ur5, Q).position
     far = float(np.max(np.linalg.norm(centres, axis=1))) + 1e-3
@@ -76,7 +77,10 @@ def test_the_search_bisects_between_the_best_cube_and_the_farthest_reach_ten_tim
     serves = [0.8 * hi, 1.15 * first]
     plan, got_centres, asked = _search(monkeypatch, ur5, serves, workspace=Workspace(floor=-2.0))
     second = _bisected(first, hi, serves[1], 10)
-    assert asked == {"n_samples": 1000, "n_centres": 60, "sighted": {(13, 5), (1, 1)}}
+    after_mode = np.random.default_rng(0)
+    after_mode.uniform(*ur5.joint_bounds(math.pi), (20, 6))  # the orientation mode's 20 configurations
+    np.testing.assert_array_equal(asked.pop("next_draws"), after_mode.random(3))
+    assert asked == {"n_samples": 1000, "n_centres": 60, "mode": "exact", "sighted": {(13, 5), (1, 1)}}
     assert plan.searched and plan.n_centres == 2
     assert plan.size == pytest.approx(second, rel=1e-12)
     np.testing.assert_allclose(plan.centre, got_centres[1], atol=1e-15)
@@ -145,4 +149,4 @@ def test_a_given_cube_holds_its_five_poses_to_the_line_of_sight_and_keeps_its_si
     plan, _, asked = _search(monkeypatch, ur5, [10.0, 10.0], centre=centres[0], size=0.15)
     assert not plan.searched and plan.n_centres == 1 and plan.size == 0.15
     np.testing.assert_allclose(plan.centre, centres[0], atol=1e-15)
-    assert asked == {"sighted": {(13, 5), (1, 1)}}
+    assert asked == {"sighted": {(13, 5), (1, 1)}}  # the candidates were not drawn
