@@ -5,6 +5,8 @@ the bodies are held to, and the plane's right-handed orthonormal axes. Each test
 change it was seen to catch.
 """
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -83,3 +85,41 @@ def test_the_floor_holds_the_joint_origins_and_says_so_in_mm():
     assert high.inside([[0.0, 0.0, 0.08], [0.0, 0.0, 0.08 - 1e-12]]).tolist() == [True, False]
     assert high.words() == "above z = 80 mm"
     assert Workspace().words() == "above z = 0 mm (the mounting plane)"
+
+
+def test_without_geometry_only_the_first_joints_origin_below_the_floor_at_home_is_not_held():
+    """A UR5 without collision geometry whose joint origins below the floor at home (a stand-in for the
+    skeleton's forward kinematics) are its first and its third joints': the first (a base flange
+    turning on the floor) is not held to the floor, the third is, and the words say which. Catches
+    ``self.robot.joint_names[0]`` as ``[1]``."""
+    ur5 = load_robot("ur5")
+    first, third = ur5.joint_names[0], ur5.joint_names[2]
+
+    class AtHome(Reach):
+        def below(self, q, exempt=True):
+            names = [first, third]
+            return [n for n in names if not (exempt and n in self.floor_exempt)]
+
+    reach = AtHome(ur5, None, Workspace(), np.zeros(6), "exact")
+    assert reach.floor_exempt == {first}
+    assert reach.below(np.zeros(6)) == [third]
+    assert reach.floor_words() == f"the robot's joint origins above z = 0 mm (not held: {first})"
+
+
+def test_with_geometry_the_bases_bodies_and_the_first_joints_below_at_home_are_not_held():
+    """A stand-in collision geometry on the UR5: a body fixed to the base (parent joint 0), two on the
+    first joint (one below the floor at home, one not) and one on the second joint below at home: the
+    base's body and the first joint's body below at home are not held to the floor; the others are.
+    Catches ``body.parentJoint == 0`` changed to 1 and ``chain_joint_ids[0]`` changed to ``[1]``."""
+    ur5 = load_robot("ur5")
+    j1, j2 = ur5.chain_joint_ids[0], ur5.chain_joint_ids[1]
+    bodies = [SimpleNamespace(name="base_0", parentJoint=0), SimpleNamespace(name="flange_0", parentJoint=j1),
+              SimpleNamespace(name="shoulder_0", parentJoint=j1), SimpleNamespace(name="upper_arm_0", parentJoint=j2)]
+    below_at_home = ["base_0", "flange_0", "upper_arm_0"]
+    checker = SimpleNamespace(geometry=SimpleNamespace(geometryObjects=bodies),
+                              bodies_below=lambda q, lowest: list(below_at_home))
+    reach = Reach(ur5, checker, Workspace(), np.zeros(6), "exact")
+    assert reach.floor_exempt == {"base_0", "flange_0"}
+    assert reach.below(np.zeros(6)) == ["upper_arm_0"]
+    assert reach.floor_words() == ("the robot's collision bodies (coal half-space) above z = 0 mm (not held: base_0, "
+                                   "flange_0)")
