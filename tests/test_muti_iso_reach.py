@@ -1,8 +1,7 @@
-"""Where an ISO 9283 test may go (``iso9283/reach.py``) and the test plane's axes
-(``iso9283/path_plan.py``), against geometry written out here: the instrument's beam to a measured
-point stopped the reflector's clearance short of it, the checks' order and their words, the floor
-the bodies are held to, and the plane's right-handed orthonormal axes. Each test names a planted
-change it was seen to catch.
+"""Where an ISO 9283 test may go (``iso9283/reach.py``), against geometry written out here and
+stand-ins for the collision geometry: the instrument's beam to a measured point stopped the
+reflector's clearance short of it, the floor the bodies are held to and which bodies it does not
+hold. Each test names a planted change it was seen to catch.
 """
 
 from types import SimpleNamespace
