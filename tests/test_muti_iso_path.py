@@ -74,3 +74,25 @@ def test_a_crossing_farther_than_a_tenth_of_the_path_from_its_point_is_none():
     assert np.isnan(got.attained[2]).all() and np.isnan(got.times[2]).all()
     assert got.missed == 10
     assert got.at == pytest.approx(math.hypot(0.0, (0.035 + 0.0399) / 2), rel=1e-9)
+
+
+def test_corner_deviations_use_the_pass_by_the_corner_not_an_earlier_visit_near_it():
+    """A cycle first comes within 42 mm of the L's corner for two readings past it (60 mm beyond it
+    along x), leaves, then runs up the x edge and cuts the corner by a quarter circle of 10 mm radius:
+    its CR is the corner's distance to that arc (sqrt 2 - 1) x 10 mm and its CO 0, the earlier visit
+    left out (it would read a CO of 60 mm). Catches the runs' split ``np.flatnonzero(np.diff(near) >
+    1) + 1`` as ``** 1`` (the earlier visit's last reading joined to the pass)."""
+    from tcr_accuracy.iso9283.path import corner_deviations
+
+    points, _ = _l_path()
+    stray = np.array([[0.26, 0.02, 0.0], [0.26, 0.03, 0.0]])
+    away = np.array([[0.6, 0.6, 0.0], [0.0, 0.5, 0.0]])
+    x_edge = np.column_stack([np.linspace(0.0, 0.19, 191), np.zeros(191), np.zeros(191)])
+    angle = np.linspace(0.0, np.pi / 2, 91)[1:]
+    arc = np.column_stack([0.19 + 0.01 * np.sin(angle), 0.01 - 0.01 * np.cos(angle), np.zeros(90)])
+    y_edge = np.column_stack([np.full(190, EDGE), np.linspace(0.011, 0.2, 190), np.zeros(190)])
+    cycle = np.vstack([stray, away, x_edge, arc, y_edge])
+    (corner,) = corner_deviations(points, (200,), [cycle])
+    np.testing.assert_allclose(corner.point, [EDGE, 0.0, 0.0], atol=1e-15)
+    assert corner.cr[0] == pytest.approx((math.sqrt(2) - 1) * 0.01, rel=1e-3)
+    assert corner.co[0] == 0.0
