@@ -147,3 +147,19 @@ def test_compensated_readings_take_off_the_models_displacement_turned_into_the_t
     unturned = compensated_readings(robot, dataclasses.replace(mset, position=base), None, [JointOffsets(robot)],
                                     [offsets])
     np.testing.assert_allclose(unturned.position, base - shift, atol=1e-12)
+
+
+def test_the_column_unit_check_runs_from_four_points(setup):
+    """The nominal TCP of four poses of the plan mapped into a tracker frame, its z column divided by
+    1000 (metres under ``z_mm``): with four points refused naming ``z_mm``; with three not checked
+    (the check runs from four points; the same three are refused when it runs). Catches ``len(measured) < 4`` with its 4 changed to 3 or 5."""
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.iso9283.evaluate import check_column_units
+
+    robot, series, nominal, base, rotation, translation, _ = setup
+    points = np.unique(nominal.round(12), axis=0)[:4]
+    wrong = points @ rotation.T + translation
+    wrong[:, 2] *= 1e-3
+    with pytest.raises(InputError, match=r"^m\.csv: column z_mm: its values look like m "):
+        check_column_units(wrong, points, "m.csv")
+    check_column_units(wrong[:3], points[:3], "m.csv")
