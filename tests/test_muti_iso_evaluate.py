@@ -163,3 +163,37 @@ def test_the_column_unit_check_runs_from_four_points(setup):
     with pytest.raises(InputError, match=r"^m\.csv: column z_mm: its values look like m "):
         check_column_units(wrong, points, "m.csv")
     check_column_units(wrong[:3], points[:3], "m.csv")
+
+
+def test_orientations_read_in_a_tracker_frame_give_their_deviations_about_the_base_axes(setup):
+    """Readings and orientations in a tracker frame turned as the calibration set's, the reflector's
+    frame turned 0.2 rad from the TCP frame, each visit's orientation off by its own small rotation
+    about the base axes (0.5-2 mrad): brought into the base frame by the registration's rotation, the
+    offset is the mean rotation of R_commanded^T R_measured over the readings and AP_a.. / RP_a.. the
+    mean and three standard deviations (n - 1) of log(R_measured (R_commanded offset)^T), written out
+    on scipy here; the deviations drawn come back to within 0.5 mrad and the offset to 1 mrad.
+    Catches the transposes' axes ``(0, 2, 1)`` changed and the tracker frame not undone
+    (``registration.rotation.T @ measured`` without the transpose)."""
+    robot, series, nominal, base, rotation, translation, calibration = setup
+    registration = register_from(robot, calibration)
+    np.testing.assert_allclose(registration.rotation, rotation, atol=1e-4)
+    rng = np.random.default_rng(8)
+    commanded = tcr.tcp_poses(robot, series.q).rotation
+    reflector = Rotation.from_rotvec([0.1, -0.15, 0.05])
+    drawn = rng.uniform(0.5e-3, 2e-3, (len(series), 3)) * rng.choice([-1.0, 1.0], (len(series), 3))
+    in_base = Rotation.from_rotvec(drawn) * Rotation.from_matrix(commanded) * reflector
+    in_tracker = Rotation.from_matrix(rotation) * in_base
+    quaternion = in_tracker.as_quat()[:, [3, 0, 1, 2]]
+    mset = dataclasses.replace(series, position=base @ rotation.T + translation, quaternion=quaternion)
+    result = evaluate_pose_test(robot, mset, registration=registration)
+    measured = Rotation.from_matrix(registration.rotation.T @ in_tracker.as_matrix())
+    offset = (Rotation.from_matrix(commanded).inv() * measured).mean()
+    deviation = (measured * (Rotation.from_matrix(commanded) * offset).inv()).as_rotvec()
+    np.testing.assert_allclose(result.orientation_offset, offset.as_matrix(), atol=1e-12)
+    assert np.abs(offset.as_rotvec() - reflector.as_rotvec()).max() < 1e-3
+    assert np.abs(deviation - drawn).max() < 5e-4  # the registration's own error: 0.1 mrad
+    pose_id = series.annotations["pose_id"]
+    for f in result.figures.poses:
+        rows = pose_id == f.pose_id
+        np.testing.assert_allclose(f.ap_abc, deviation[rows].mean(axis=0), atol=1e-12)
+        np.testing.assert_allclose(f.rp_abc, 3 * deviation[rows].std(axis=0, ddof=1), rtol=1e-9)
