@@ -1,7 +1,8 @@
-"""The closest-point frame of a measured path (``iso9283/path_evaluate.py``) on a long stream: the
-readings it fits on (at most 2000 per run, drawn without replacement by a generator seeded 0) and
-its residual RMS, the distance of each reading, in the fitted frame, to the commanded polyline,
-found here by brute force over every segment. Each test names a planted change it was seen to catch.
+"""A measured path test's evaluation (``iso9283/path_evaluate.py``): the closest-point frame on a
+long stream (the readings it fits on, at most 2000 per run drawn by a generator seeded 0, and its
+residual RMS against a brute-force distance to the commanded polyline), the stream's runs and
+cycles where a label is missing or a time repeats, and the notes on planes missed and speeds not
+given. Each test names a planted change it was seen to catch.
 """
 
 from types import SimpleNamespace
@@ -73,3 +74,66 @@ def test_a_repeated_time_in_a_cycle_names_the_second_reading(tmp_path):
     with pytest.raises(InputError) as refused:
         stream_cycles(stream, [run])
     assert str(refused.value) == (f"{path}: row 9, column time_s: 12 s repeats a time of the same cycle (line, cycle 2)")
+
+
+def _stream(n=9, labels=None, speed=None):
+    from tcr_accuracy.io.tracker_stream import TrackerStream
+
+    return TrackerStream(time_s=np.arange(n, dtype=float), position=np.zeros((n, 3)), labels=labels or {},
+                         speed_pct=speed, rows=np.arange(n) + 2, source="s.csv", position_columns=((), "mm"))
+
+
+def _run(path, speed_pct):
+    return SimpleNamespace(path=path, speed_pct=speed_pct,
+                           words=lambda: path + ("" if speed_pct is None else f" at {speed_pct:g} %"))
+
+
+def test_a_stream_without_path_speed_or_cycle_columns_takes_what_the_commanded_file_leaves_one_of():
+    """No path, speed or cycle column: with one path at one speed in the commanded file every reading is
+    that run's, one cycle, said; with two paths refused naming both; without a speed column, a path at
+    two speeds is refused, two paths at a speed each are told apart by the path alone. Catches ``len(names)
+    > 1`` changed to 2 or 0, ``names[0]`` as ``[1]``, and ``len(v) > 1`` changed to 0 or 2."""
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.iso9283.path_evaluate import stream_cycles
+
+    cycles, notes = stream_cycles(_stream(), [_run("line", 50.0)])
+    assert list(cycles) == [0] and [rows.tolist() for rows in cycles[0]] == [list(range(9))]
+    assert notes == ["no cycle column: each run is one cycle (no RT, RV)"]
+    with pytest.raises(InputError, match=r"^s\.csv: no path column, and the commanded file holds 2 paths \(circle, "
+                                         r"line\); label each reading with its path$"):
+        stream_cycles(_stream(), [_run("line", 50.0), _run("circle", 50.0)])
+    path = np.array(["line"] * 5 + ["circle"] * 4, dtype=object)
+    cycle = np.array(["1"] * 9, dtype=object)
+    with pytest.raises(InputError, match=r"^s\.csv: no speed_pct column, and the commanded file runs its paths at 10, "
+                                         r"50 %; label each reading with its speed$"):
+        stream_cycles(_stream(labels={"path": path, "cycle": cycle}),
+                      [_run("line", 50.0), _run("line", 10.0), _run("circle", 10.0)])
+    cycles, notes = stream_cycles(_stream(labels={"path": path, "cycle": cycle}),
+                                  [_run("line", 50.0), _run("circle", 10.0)])
+    assert [rows.tolist() for rows in cycles[0]] == [[0, 1, 2, 3, 4]]
+    assert [rows.tolist() for rows in cycles[1]] == [[5, 6, 7, 8]] and notes == []
+
+
+def test_the_notes_count_the_planes_each_run_missed_and_name_runs_without_speed():
+    """A run along a 0.4 m line, two cycles: one along it, one that leaves 50 mm sideways for its last
+    three planes' stretch (beyond a tenth of the length from them): 3 planes missed, said with the run;
+    no commanded time or speed: no velocity figures, said. Catches the missed count's sum and the
+    note's concatenation changed."""
+    from tcr_accuracy.iso9283.path_evaluate import CommandedRun, _figures
+
+    s = np.linspace(0.0, 0.4, 401)
+    points = np.column_stack([s, np.zeros_like(s), np.zeros_like(s)])
+    run = CommandedRun("line", None, points, s, np.zeros((401, 6)), None, None, ())
+    t = np.linspace(0.0, 4.4, 441)
+    x = -0.02 + 0.1 * t
+    along = np.column_stack([x, np.zeros_like(t), np.zeros_like(t)])
+    away = along.copy()
+    away[x > 0.28, 1] = 0.05
+    position = np.vstack([along, away])
+    stream = SimpleNamespace(time_s=np.concatenate([t, t + 10.0]), source="s.csv")
+    cycles = {0: [np.arange(441), np.arange(441, 882)]}
+    got = _figures([run], [0], cycles, stream, position, 10, "base", "not fitted", ["a note"])
+    (_, figures), = got.runs
+    assert figures.missed == 3
+    assert got.notes == ["a note", "normal planes a cycle did not cross (left out of that plane's figures): line 3",
+                         "no commanded time or speed: no AV, RV, FV for line"]
