@@ -197,3 +197,23 @@ def test_orientations_read_in_a_tracker_frame_give_their_deviations_about_the_ba
         rows = pose_id == f.pose_id
         np.testing.assert_allclose(f.ap_abc, deviation[rows].mean(axis=0), atol=1e-12)
         np.testing.assert_allclose(f.rp_abc, 3 * deviation[rows].std(axis=0, ddof=1), rtol=1e-9)
+
+
+def test_the_fit_says_whether_the_measured_points_offset_from_the_tcp_was_fitted(setup):
+    """Six poses of six orientations, read three times each in the tracker frame, 30 mm off the TCP
+    along its tool axes: the frame fitted on them fits the offset on all three axes and says so;
+    the cube's five poses at one orientation cannot tell it from the frame: held at 0, said.
+    Catches ``len(tool) == 3`` with its 3 changed (three axes said as a partial fit)."""
+    robot, series, nominal, base, rotation, translation, _ = setup
+    q = np.repeat(np.random.default_rng(4).uniform(-1.4, 1.4, (6, 6)), 3, axis=0)
+    poses = tcr.tcp_poses(robot, q)
+    reflector = poses.position + np.einsum("nij,j->ni", poses.rotation, [0.01, -0.02, 0.03])
+    many = tcr.MeasurementSet(joint_names=list(robot.joint_names), q=q, position=reflector @ rotation.T + translation,
+                              annotations={"pose_id": np.repeat(np.arange(1, 7), 3).astype(str).astype(object)})
+    fitted = evaluate_pose_test(robot, many, frame="fit")
+    assert sorted(n for n in fitted.registration.fitted if n.startswith("frames.tool.")) == [
+        "frames.tool.dx", "frames.tool.dy", "frames.tool.dz"]
+    assert "; with the measured point's offset from the TCP frame fitted; fit residual RMS" in fitted.how
+    cube = evaluate_pose_test(robot, dataclasses.replace(series, position=base @ rotation.T + translation), frame="fit")
+    assert ("; the measured point's offset from the TCP frame is not identifiable from these poses (one orientation: "
+            "it moves the frame) and held at 0; fit residual RMS") in cube.how
