@@ -199,3 +199,17 @@ def test_a_structured_residuals_noise_is_the_nugget_of_its_twenty_bin_semivariog
     capped = noise_from_residual(q, flat, 300, structured=True)
     rss = math.sqrt(np.sum(flat**2) / 60)
     assert capped.per_axis <= rss * (1 + 1e-12)
+
+
+def test_a_residual_that_does_not_vary_is_wholly_predicted_along_every_joint():
+    """A constant residual (every pose off by the same vector): nothing left once centred, so the share every
+    joint's and pair's neighbours predict is 1 (no division by its zero variance), every correlation 0. Seen
+    failing on ``float(np.sum(centred**2)) or 1.0`` turned to ``or 0.0``."""
+    rng = np.random.default_rng(4)
+    q = rng.uniform(-2, 2, (30, 2))
+    residual = np.tile([2.0**-13, -(2.0**-12), 2.0**-14], (30, 1))  # sums exact: the spread exactly 0
+    where, _ = where_analysis(_robot("ab"), q, rng.normal(size=(30, 3)), residual, rng.normal(size=(30, 2)), {},
+                              rng=np.random.default_rng(0))
+    assert [where["along_joints"][n]["knn_explained_share"] for n in "ab"] == [1.0, 1.0]
+    assert where["along_joint_pairs"] == [{"joints": ["a", "b"], "knn_explained_share": 1.0}]
+    assert where["joints"]["a"]["correlation_xyz"] == [0.0, 0.0, 0.0]

@@ -211,3 +211,19 @@ def test_every_note_on_scatter_beyond_the_noise_says_its_millimetres(monkeypatch
                      "be told (a reason); measure more poses"]
     scatter, notes = _name(monkeypatch, "no", 0.2 * MM, 0.2 * MM, detected=False)
     assert notes == [] and "named" not in scatter
+
+
+def test_a_constant_residual_is_wholly_predicted_and_a_fixed_prismatic_joint_gives_zero_features():
+    """A residual that does not vary: every subset's share 1 (nothing left, no division by its zero variance);
+    a prismatic joint that does not move: its z-score and square are 0 (its spread read as 1). Seen failing on
+    ``float(np.sum(centred**2)) or 1.0`` in ``shares`` turned to ``or 0.0`` and on ``(v.std() or 1.0)``
+    turned to ``or 0.0`` (NaN features)."""
+    rng = np.random.default_rng(6)
+    q = np.column_stack([rng.uniform(-2, 2, 30), np.full(30, 0.25)])
+    detector = StructureDetector(q, np.random.default_rng(0), kinds=["revolute", "prismatic"], n_permutations=2)
+    assert detector.shares(np.tile([2.0**-13, 0.0, -(2.0**-14)], (30, 1))) == {(0,): 1.0}
+    features = detector.features
+    v = q[:, 0]
+    np.testing.assert_allclose(features, np.column_stack([np.sin(v), np.cos(v), np.sin(2 * v), np.cos(2 * v),
+                                                          np.zeros(30), np.zeros(30), np.zeros(30), np.zeros(30)]),
+                               rtol=1e-15, atol=0)
