@@ -367,3 +367,73 @@ def test_a_drift_fitted_on_the_measurement_order_says_so():
     flat = attribute._with_assumptions(reading, engine("order"), np.zeros(4))
     assert "a time_s column that does not vary (or has gaps)" in flat.assumed[1]
     assert attribute._with_assumptions(reading, engine("time_s"), None) is reading
+
+
+def _attribute(monkeypatch, ranked_families, ranked_own):
+    """Stage 4 on stand-ins: families geometric (joint offsets, geometry) above gravity (compliance), ranked
+    apart or not; own shares of the three effects, the largest (geometry) ranked above the others or not;
+    equal motions (no reversal). Returns the attribution and what the stand-ins were handed."""
+    from tcr_accuracy.diagnosis.attribution import ShareComparison
+
+    seen = {}
+    families = {"joint_offsets": "geometric", "geometry": "geometric", "compliance": "gravity"}
+    engine = SimpleNamespace(bases={e: SimpleNamespace(per_part=[SimpleNamespace(effect=SimpleNamespace(family=f))])
+                                    for e, f in families.items()})
+    stats = ErrorStats(0.0, 1e-4, 0.0, N)
+    below = ShareComparison("geometric", "gravity", 1e-4, (5e-5 if ranked_families else -1e-5, 2e-4), 4.0, 3.0)
+    table = [attribute.FamilyShare("geometric", ("joint_offsets", "geometry"), 3e-4, (2e-4, 4e-4), stats),
+             attribute.FamilyShare("gravity", ("compliance",), 2e-4, (1e-4, 3e-4), stats, (), below)]
+    monkeypatch.setattr(attribute, "confounded_variables", lambda *args: [])
+    monkeypatch.setattr(attribute, "judged_on_signatures", lambda registered, candidates, current, c: c)
+    monkeypatch.setattr(attribute, "fitted_mechanisms", lambda engine, current: [
+        MechanismReading(e, families[e], "m", (), True, True, "", ()) for e in current if e != "frames"])
+    monkeypatch.setattr(attribute, "bootstrap_for", lambda engine, rng: seen.setdefault("boot", rng.random()) and
+                        SimpleNamespace(method="the bootstrap"))
+    monkeypatch.setattr(attribute, "_family_table", lambda *args: table)
+    monkeypatch.setattr(attribute, "motion_sizes", lambda engine, current, groups: seen.setdefault("groups", groups)
+                        and attribute.MotionSizes({k: 5e-4 for k in groups}, {k: np.zeros(2) for k in groups},
+                                                  np.eye(2)))
+    monkeypatch.setattr(attribute, "_own_shares", lambda *args: (("table", "squares"), {
+        "joint_offsets": (1e-4, 0.0, 2e-4), "geometry": (3e-4, 2e-4, 4e-4), "compliance": (2e-4, 1e-4, 3e-4)}))
+
+    def rank(table_, squares, members, final, z):
+        seen["members"] = members
+        low = 1e-5 if ranked_own else -1e-5
+        return [ShareComparison("geometry", other, 1e-4, (low, 3e-4), 5.0, z) for other in members if other != "geometry"]
+
+    monkeypatch.setattr(attribute, "rank_largest", rank)
+    monkeypatch.setattr(attribute, "explanation_ladder", lambda *args: ["steps"])
+    monkeypatch.setattr(attribute, "selection_frequency", lambda *args, **kw: seen.setdefault("replays", (
+        args[4], args[5].random(), kw["late"])) and {"frequency": {}})
+    registered = SimpleNamespace(robot=SimpleNamespace(joint_names=["a", "b"]),
+                                 measurements=SimpleNamespace(q=np.zeros((N, 2)), time_s=None, payload_kg=None,
+                                                              temperature_c=None, direction=None),
+                                 parts=[SimpleNamespace(context=None)])
+    selection = SimpleNamespace(selected=["frames", "joint_offsets", "geometry", "compliance"], groups={},
+                                forward_steps=[None], testable=["joint_offsets", "geometry", "compliance", "drift"],
+                                late=["drift", "thermal"])
+    out = attribute.attribute_effects(registered, SimpleNamespace(engine=engine), selection, selection_z=3.0,
+                                      min_relative_gain=0.05, stability_replays=40, seed=123)
+    return out, seen
+
+
+def test_the_primary_family_and_effect_where_the_rows_rank_them_apart_and_where_they_do_not(monkeypatch):
+    """Families ranked apart: the primary family is the largest (geometric) and the primary effect is sought
+    among its members only; its largest own share (geometry) ranked above joint offsets: the primary effect,
+    alone in its group. Not ranked apart: no primary family (every member a candidate), and geometry tied with
+    those it is not ranked above: no primary effect, the group in the vocabulary's order. The bootstrap is
+    seeded [seed, 3] and the replays [seed, 2] with their count and the late effects testable. Seen failing on
+    ``len(top_families) == 1`` turned to ``== 2``, on ``top_families[0]`` turned to ``[1]``, on ``tied[0]``
+    turned to ``[1]``, on ``default_rng([seed, 3])`` turned to ``[seed, 4]`` and ``[seed, 2]`` to ``[seed,
+    3]``."""
+    out, seen = _attribute(monkeypatch, ranked_families=True, ranked_own=True)
+    assert out.primary_family == "geometric" and seen["members"] == ["joint_offsets", "geometry"]
+    assert out.primary_effect == "geometry" and out.primary_group == ("geometry",)
+    assert out.primary_tied == ("geometry",) and out.steps == ("steps",) and out.interval_method == "the bootstrap"
+    assert seen["boot"] == np.random.default_rng([123, 3]).random()
+    assert seen["replays"] == (40, np.random.default_rng([123, 2]).random(), ["drift"])
+    assert set(seen["groups"]) == {"joint_offsets", "geometry", "compliance", "family geometric", "family gravity"}
+    out, seen = _attribute(monkeypatch, ranked_families=False, ranked_own=False)
+    assert out.primary_family is None and seen["members"] == ["joint_offsets", "geometry", "compliance"]
+    assert out.primary_effect is None and out.primary_tied == ("geometry", "joint_offsets", "compliance")
+    assert out.primary_group == ("joint_offsets", "geometry", "compliance")
