@@ -227,3 +227,25 @@ def test_a_constant_residual_is_wholly_predicted_and_a_fixed_prismatic_joint_giv
     np.testing.assert_allclose(features, np.column_stack([np.sin(v), np.cos(v), np.sin(2 * v), np.cos(2 * v),
                                                           np.zeros(30), np.zeros(30), np.zeros(30), np.zeros(30)]),
                                rtol=1e-15, atol=0)
+
+
+def test_ridge_folds_with_a_feature_of_zeros_are_scikit_learns_pipeline():
+    """A feature that is 0 on every row (the sine of a joint held at 0): StandardScaler leaves it (its spread is
+    read as 1 below 10 machine epsilons of max(|mean|, 1)), so the out-of-fold predictions equal scikit-learn's
+    ``cross_val_predict(make_pipeline(StandardScaler(), RidgeCV(alphas)))``. Seen failing on
+    ``np.maximum(np.abs(mean), 1.0)`` turned to ``0.0`` (0 / 0)."""
+    from sklearn.linear_model import RidgeCV
+    from sklearn.model_selection import cross_val_predict
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import StandardScaler
+
+    from tcr_accuracy.diagnosis.structure import RIDGE_ALPHAS, RidgeFolds
+
+    rng = np.random.default_rng(3)
+    features = np.column_stack([rng.normal(size=(30, 4)), np.zeros(30)])
+    targets = features[:, :4] @ rng.normal(size=(4, 2)) + rng.normal(0, 0.5, (30, 2))
+    split = KFold(n_splits=5, shuffle=True, random_state=1)
+    theirs = cross_val_predict(make_pipeline(StandardScaler(), RidgeCV(alphas=RIDGE_ALPHAS)), features, targets,
+                               cv=split)
+    np.testing.assert_allclose(RidgeFolds(features, split, RIDGE_ALPHAS).predict(targets), theirs, rtol=1e-7,
+                               atol=1e-9)
