@@ -180,6 +180,12 @@ def test_the_shrink_table_gains_each_step_against_the_one_before(shares_case, mo
         assert step.gain == pytest.approx(_interval(boot, sq[k - 1], sq[k]), rel=1e-12)
 
 
+def _gram_store(jac, spans):
+    """The engine's Gram store: the total Gram matrix and the column layout's one method used here."""
+    return SimpleNamespace(total=jac.T @ jac, layout=SimpleNamespace(
+        indices=lambda effects, keep: np.concatenate([spans[e][keep[e]] for e in effects])))
+
+
 def _motion_case():
     rng = np.random.default_rng(3)
     n_points = 60
@@ -190,27 +196,11 @@ def _motion_case():
     phi = rng.normal(0.0, 1.0, 11)
     cost = 0.04 * (3 * n_points - 11)
 
-    class Store:
-        total = jac.T @ jac
-
-        class layout:  # noqa: N801  (the engine's ColumnLayout, its one method used here)
-            @staticmethod
-            def indices(effects, keep):
-                return np.concatenate([spans[e][keep[e]] for e in effects])
-
-    class Engine:
-        n_rows, parts = n_points // 2, [None, None]  # two measured frames of 30 rows: 60 points
-
-        @staticmethod
-        def evaluate(effects):
-            return {"keep": {e: np.arange(spans[e].size) for e in spans}, "phi": phi, "cost": cost,
-                    "n_observations": 3 * n_points}
-
-        @staticmethod
-        def grams():
-            return Store()
-
-    return Engine(), jac, phi, spans, cost, n_points
+    engine = SimpleNamespace(n_rows=n_points // 2, parts=[None, None],  # two measured frames of 30 rows: 60 points
+                             grams=lambda: _gram_store(jac, spans),
+                             evaluate=lambda effects: {"keep": {e: np.arange(spans[e].size) for e in spans},
+                                                       "phi": phi, "cost": cost, "n_observations": 3 * n_points})
+    return engine, jac, phi, spans, cost, n_points
 
 
 def test_motion_sizes_and_the_delta_methods_standard_error_with_a_finite_difference_gradient():
@@ -458,15 +448,7 @@ def test_motion_sizes_of_a_model_without_frames_take_nothing_out():
     phi = rng.normal(size=5)
     spans = {"joint_offsets": np.arange(3), "compliance": np.arange(3, 5)}
 
-    class Store:
-        total = jac.T @ jac
-
-        class layout:  # noqa: N801
-            @staticmethod
-            def indices(effects, keep):
-                return np.concatenate([spans[e][keep[e]] for e in effects])
-
-    engine = SimpleNamespace(n_rows=20, parts=[None], grams=lambda: Store(),
+    engine = SimpleNamespace(n_rows=20, parts=[None], grams=lambda: _gram_store(jac, spans),
                              evaluate=lambda effects: {"keep": {e: np.arange(spans[e].size) for e in spans},
                                                        "phi": phi, "cost": 1.0, "n_observations": 60})
     sizes = attribute.motion_sizes(engine, ["joint_offsets", "compliance"], {e: [e] for e in spans})

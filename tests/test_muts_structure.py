@@ -15,23 +15,12 @@ import numpy as np
 import pytest
 from knn_brute import knn_mean
 from sklearn.model_selection import KFold
+from test_structure_probe import _harmonics  # the ridge features written out by hand
 
 from tcr_accuracy.analysis.semivariogram import empirical_semivariogram, fit_gaussian_variogram
 from tcr_accuracy.diagnosis import structure
 from tcr_accuracy.diagnosis.structure import StructureDetector, scatter_test, smallest_detectable_structure, \
     smooth_shape
-
-
-def _harmonics(q):
-    """sin, cos of q and 2q per revolute joint, then the pairwise products of the first harmonics."""
-    cols, first = [], []
-    for v in q.T:
-        cols += [np.sin(v), np.cos(v), np.sin(2 * v), np.cos(2 * v)]
-        first.append([np.sin(v), np.cos(v)])
-    for a in range(len(first)):
-        for b in range(a + 1, len(first)):
-            cols += [u * w for u in first[a] for w in first[b]]
-    return np.column_stack(cols)
 
 
 @pytest.fixture(scope="module")
