@@ -144,3 +144,28 @@ def test_selection_replays_say_their_progress_every_tenth_and_a_perfect_cut_pass
     assert said == [f"selection stability: replay {k} of 25" for k in (1, 11, 21)]
     assert out["frequency"] == {"compliance": 1.0, "thermal": 0.0}
     assert out["sets"] == {"frames, compliance": 1.0}
+
+
+def _strata_draws(n, session, replicates, chunk, seed):
+    """The counts of poses drawn within each session, the replicates drawn a block of ``chunk`` at a time
+    (every session's draws for a block, then the next block), written out here."""
+    rng = np.random.default_rng(seed)
+    counts = np.zeros((replicates, n), dtype=int)
+    strata = [np.flatnonzero(session == s) for s in np.unique(session)]
+    for first in range(0, replicates, chunk):
+        b = min(chunk, replicates - first)
+        for members in strata:
+            picked = members[rng.integers(0, members.size, size=(b, members.size))]
+            np.add.at(counts[first:first + b], (np.arange(b)[:, None], picked), 1)
+    return counts
+
+
+@pytest.mark.parametrize("n, replicates", [(41, 97_561), (4000, 1100)])
+def test_strata_draw_their_replicates_in_blocks_of_four_million_cells(n, replicates):
+    """With sessions as strata the replicates are drawn in blocks of 4e6 // clusters (97,560 for 41 poses,
+    1000 for 4000), each block's draws session after session: the counts re-made here block by block from
+    the same seed. Seen failing on ``4_000_000`` turned to ``4000001`` (41 poses: one block of 97,561) and to
+    ``3999999`` (4000 poses: blocks of 999)."""
+    session = np.arange(n) % 2
+    boot = PoseBootstrap.draw(n, session_of=session, n_replicates=replicates, random_state=9)
+    np.testing.assert_array_equal(boot.counts, _strata_draws(n, session, replicates, 4_000_000 // n, 9))
