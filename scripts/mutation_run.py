@@ -128,7 +128,7 @@ def carry_map(cm: dict, commit: str) -> dict:
         if not current.exists():
             continue
         old = subprocess.run(["git", "show", f"{commit}:{relative}"], cwd=ROOT, capture_output=True,
-                             text=True, check=True).stdout.splitlines()
+                             text=True, check=True, timeout=60).stdout.splitlines()
         new = current.read_text().splitlines()
         if old == new:
             lines[relative] = by_line

@@ -45,14 +45,14 @@ def test_a_map_is_carried_over_an_edit(tmp_path, monkeypatch, mutation_run):
     the neighbours taken one line off."""
     repo = tmp_path / "repo"
     (repo / "src").mkdir(parents=True)
-    run = lambda *a: subprocess.run(["git", *a], cwd=repo, check=True, capture_output=True)  # noqa: E731
+    run = lambda *a: subprocess.run(["git", *a], cwd=repo, check=True, capture_output=True,  # noqa: E731
+                                    text=True, timeout=60)
     run("init", "-q")
     (repo / "src" / "m.py").write_text("a = 1\nb = 2\nc = 3\nd = 4\n")
     (repo / "src" / "same.py").write_text("x = 0\n")
     run("add", ".")
     run("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "old")
-    commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=repo, check=True, capture_output=True,
-                            text=True).stdout.strip()
+    commit = run("rev-parse", "HEAD").stdout.strip()
     # two lines inserted at the top, line c edited
     (repo / "src" / "m.py").write_text("import os\nimport sys\na = 1\nb = 2\nc = 30\nd = 4\n")
     old = {"tests": ["t::a", "t::b", "t::d", "t::x"],
