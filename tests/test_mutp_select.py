@@ -10,12 +10,12 @@ from __future__ import annotations
 import re
 
 import numpy as np
-import pinocchio as pin
 import pytest
 
 from tcr_accuracy.diagnosis.diagnose import GapDiagnosis
-from tcr_accuracy.io.measurements import MeasurementSet
 from tcr_accuracy.model.robot import load_robot
+
+from offset_truth import measured_with_offsets
 
 #: hidden joint offsets [rad; m for the prismatic fourth joint]: three joints turned by 11.5 degrees
 OFFSETS = np.array([0.0, 0.2, -0.2, 0.0, 0.2, 0.0])
@@ -26,16 +26,7 @@ NOISE_M = 1e-5
 def turned():
     """40 uniform poses of the tool changer measured with the joints at q + OFFSETS, 10 um of noise per axis."""
     robot = load_robot()
-    rng = np.random.default_rng(3)
-    low, high = robot.joint_bounds()
-    q = rng.uniform(low, high, (40, robot.n_joints))
-    data = robot.model.createData()
-    position = np.empty((len(q), 3))
-    for i, row in enumerate(q + OFFSETS):
-        pin.framesForwardKinematics(robot.model, data, robot.to_pinocchio_q(row))
-        position[i] = data.oMf[robot.tool_frame_id].translation
-    position += NOISE_M * rng.standard_normal(position.shape)
-    measured = MeasurementSet(joint_names=robot.joint_names, q=q, position=position)
+    q, position, measured = measured_with_offsets(robot, OFFSETS, 40, 3, NOISE_M)
     estimator = GapDiagnosis(robot=robot, effects=["joint_offsets"], folds=5, stability_replays=2).fit(measured)
     return q, position, estimator
 

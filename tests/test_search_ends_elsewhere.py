@@ -8,12 +8,12 @@ joint offsets, written out in the test and measured by Pinocchio) added to the s
 from __future__ import annotations
 
 import numpy as np
-import pinocchio as pin
 
 from tcr_accuracy.diagnosis.diagnose import GapDiagnosis
 from tcr_accuracy.diagnosis.stages import select
-from tcr_accuracy.io.measurements import MeasurementSet
 from tcr_accuracy.model.robot import load_robot
+
+from offset_truth import measured_with_offsets
 
 #: hidden joint offsets [rad; m for the prismatic fourth joint]
 OFFSETS = np.array([2e-3, -1.5e-3, 1e-3, 0.0, 2e-3, -1e-3])
@@ -28,16 +28,7 @@ def test_a_set_the_search_ends_on_is_pruned_and_its_drop_listed(monkeypatch):
     in no test before). With the branch's own backward step left out, the later check that every
     chosen effect helps drops compliance all the same: this test does not tell those apart."""
     robot = load_robot()
-    rng = np.random.default_rng(8)
-    low, high = robot.joint_bounds()
-    q = rng.uniform(low, high, (60, robot.n_joints))
-    data = robot.model.createData()
-    position = np.empty((len(q), 3))
-    for i, row in enumerate(q + OFFSETS):
-        pin.framesForwardKinematics(robot.model, data, robot.to_pinocchio_q(row))
-        position[i] = data.oMf[robot.tool_frame_id].translation
-    position += NOISE_M * rng.standard_normal(position.shape)
-    measured = MeasurementSet(joint_names=robot.joint_names, q=q, position=position)
+    _, _, measured = measured_with_offsets(robot, OFFSETS, 60, 8, NOISE_M)
 
     real_search = select.search_sets
     ended = []
