@@ -147,3 +147,14 @@ def test_with_more_measured_poses_than_candidates_the_ridge_is_the_measured_colu
     np.testing.assert_array_equal(plan.q, candidates[picked])
     np.testing.assert_allclose(plan.gain_per_pose, gains, rtol=1e-7)
     assert plan.log_det_gain == pytest.approx(np.linalg.slogdet(info)[1] - np.linalg.slogdet(start)[1], rel=1e-7)
+
+
+def test_a_discriminating_design_without_measured_poses_is_refused_in_one_line(robot):
+    """No measured pose: one line naming the argument, not an IndexError from the kinematic chain (as
+    it was before this test)."""
+    from tcr_accuracy.exceptions import InputError
+
+    with pytest.raises(InputError, match=r"^plan_discriminating_poses: measured_q holds no pose;") as refused:
+        plan_discriminating_poses(robot, np.empty((0, robot.n_joints)), [_rivals(robot)], 4,
+                                  candidates=_poses(robot, 40, 2), noise_m=NOISE_M)
+    assert refused.value.parameter == "measured_q"

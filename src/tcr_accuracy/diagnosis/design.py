@@ -251,6 +251,11 @@ def plan_discriminating_poses(robot: RobotModel, measured_q: np.ndarray, rivals,
     Returns (k, n_joints) joint values [rad, m].
     """
     candidates, context = _candidates_and_context(robot, k, candidates, n_candidates, payload_kg, rng)
+    measured_q = np.asarray(measured_q, dtype=float)
+    if measured_q.size == 0:
+        raise InputError("plan_discriminating_poses: measured_q holds no pose; the rival models are told apart "
+                         "beyond what refitting them on the measured poses absorbs: pass the poses they were "
+                         "fitted on", parameter="measured_q")
     trackers = []
     for model_a, model_b in rivals:
         for truth, refit in ((model_a, model_b), (model_b, model_a)):
