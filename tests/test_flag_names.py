@@ -25,7 +25,9 @@ PACKAGE = Path(tcr_accuracy.__file__).resolve().parent
 #: Library parameters that no option sets as it is (the command line checks its own option, in its
 #: own unit, before the library sees the value).
 PYTHON_ONLY = {"tolerance_s": "import checks --tolerance-ms [ms] itself; the library's is in s",
-               "robot_source": "AsBuiltModel.from_diagnosis's; the command line loads the robot from --robot"}
+               "robot_source": "AsBuiltModel.from_diagnosis's; the command line loads the robot from --robot",
+               "measured_q": "plan_discriminating_poses'; plan-poses passes the poses of its measurement files "
+                             "and refuses files with no row itself"}
 
 
 def _every_dest() -> set[str]:
