@@ -225,3 +225,46 @@ def test_a_g_optimal_design_over_a_large_task_without_a_generator_follows_seed_z
     assert default.picked.tolist() == seeded[0].picked.tolist()
     assert default.task_worst_std_before_m == seeded[0].task_worst_std_before_m
     assert any(default.task_worst_std_before_m != other.task_worst_std_before_m for other in seeded[1:])
+
+
+def _spread_curve(floor_m):
+    """A learning curve whose bootstrap (a, b) spread about 1: (0.5, 0.5), (1, 1) and (2, 2) in turn."""
+    from tcr_accuracy.diagnosis.bayes_design import LearningCurve
+
+    one = np.array([1e-4])
+    boot = np.repeat(np.array([[0.5, 0.5], [1.0, 1.0], [2.0, 2.0]]), 100, axis=0)
+    return LearningCurve(sizes=np.array([10]), rms_m=one, low_m=one, high_m=one, expected_rms_m=one,
+                         noise_weight=1.0, variance_weight=1.0, boot=boot, noise_floor_m=floor_m)
+
+
+def test_the_stop_rule_reads_the_expected_gain_not_its_interval():
+    """A curve whose bootstrap spreads a = b from 0.5 to 2: the expected gain sqrt(f^2 + v0) - sqrt(f^2 + v1)
+    (written out) lies inside its 5-95 % interval, which is sqrt(0.5) and sqrt(2) times it (np.quantile of the
+    bootstrap here). A limit just below the expected gain (but above the 5 % end) continues; just above it
+    (below the 95 % end) stops. Seen failing on ``gain[0] < min_gain_m`` -> ``gain[1]`` (seed 3701's
+    survivor) and -> ``gain[2]``."""
+    from tcr_accuracy.diagnosis.bayes_design import Design, stop_advice
+
+    floor = 1e-5
+    curve = _spread_curve(floor)
+    before, after = 2e-4, 5e-5
+    design = Design(picked=np.arange(5), criterion="I", gain_per_pose=np.ones(5), task_std_before_m=before,
+                    task_std_after_m=after, task_worst_std_before_m=before, task_worst_std_after_m=after,
+                    log_det_gain=1.0)
+    expected = np.hypot(floor, before) - np.hypot(floor, after)
+    low, high = np.quantile(np.sqrt([0.5, 1.0, 2.0]).repeat(100) * expected, [0.05, 0.95])
+    assert low == pytest.approx(np.sqrt(0.5) * expected, rel=1e-12) and high == pytest.approx(np.sqrt(2) * expected,
+                                                                                               rel=1e-12)
+    advice = stop_advice(curve, design, min_gain_m=expected * (1 - 1e-6))
+    assert not advice.stop
+    assert advice.gain_m == pytest.approx((expected, low, high), rel=1e-12)
+    assert stop_advice(curve, design, min_gain_m=expected * (1 + 1e-6)).stop
+
+
+def test_a_variance_negative_by_rounding_predicts_the_floor_not_nan():
+    """predict(v) for v a rounding below zero (-1e-30 m^2) on a curve with no noise floor: 0, not NaN (the root of
+    a negative); the gain between two such is 0. Seen failing on ``np.maximum(..., 0.0)`` -> ``-1.0`` (seed
+    3701's survivor)."""
+    curve = _spread_curve(0.0)
+    assert curve.predict(-1e-30) == (0.0, 0.0, 0.0)
+    assert curve.gain(-1e-30, -2e-30) == (0.0, 0.0, 0.0)
