@@ -186,3 +186,32 @@ def test_one_held_out_row_cannot_rank_two_sets_and_two_can():
     chosen, report = _search(StandInEngine({(J,): np.array([6.0, 7.0]), (C, B): np.array([2.0, 2.0])}))
     assert chosen == [F, C, B]
     assert report.margin == pytest.approx(4.5, rel=1e-12) and report.margin_se == pytest.approx(0.5, rel=1e-12)
+
+
+def test_the_ladder_takes_the_largest_cut_first():
+    """From frames (10): compliance (5) before joint offsets (6) and backlash (7); then backlash (with compliance:
+    2.5) before joint offsets (3); joint offsets last (2.8). Each rung the set up to it, fitted exactly."""
+    engine = StandInEngine()
+    rungs = search.explanation_order(engine, [F, J, C, B])
+    assert [e for e, _ in rungs] == [F, C, B, J]
+    assert [r["effects"] for _, r in rungs] == [[F], [F, C], [F, C, B], [F, J, C, B]]
+
+
+def _rows(*changes):
+    return [SimpleNamespace(effect=e, own_share_increase=own, increase=refit) for e, own, refit in changes]
+
+
+def test_a_harmful_effect_is_the_worst_negative_share_else_a_rung_that_raises_the_error():
+    """Leave-one-out rows: the effect whose smaller of its own share and its refitted increase is most negative
+    (backlash at -2e-6, below compliance's -1e-6); with every share positive, the ladder's rung that raises
+    the held-out RMS (joint offsets: sqrt(2.5) -> sqrt(2.8)); with every share positive and the ladder falling
+    throughout (joint offsets' set at 2.4), none. Seen failing on the start ``by = 0.0`` -> ``1.0`` (a positive
+    share then counts), on the rung's test ``change <= 0.0 and change < by`` turned to ``<= -1.0`` (a rung's rise
+    of 0.08 no longer counts; its first half, implied by the second, is since removed) and on ``min(own,
+    increase)`` read as one of them."""
+    engine = StandInEngine()
+    assert search.harmful_effect(engine, [F, J, C, B], _rows((J, 1e-6, 1e-6), (C, -1e-6, 3e-6), (B, 4e-6, -2e-6))) == B
+    positive = _rows((J, 1e-6, 2e-6), (C, 3e-6, 1e-6), (B, 4e-6, 5e-6))
+    assert search.harmful_effect(engine, [F, J, C, B], positive) == J
+    falling = StandInEngine({(J, C, B): 2.4 * (1.0 + PATTERN)})
+    assert search.harmful_effect(falling, [F, J, C, B], positive) is None
