@@ -268,3 +268,30 @@ def test_a_variance_negative_by_rounding_predicts_the_floor_not_nan():
     curve = _spread_curve(0.0)
     assert curve.predict(-1e-30) == (0.0, 0.0, 0.0)
     assert curve.gain(-1e-30, -2e-30) == (0.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize("fixed_noise", [None, 1e-4])
+def test_from_afar_the_fit_ends_where_the_evidence_is_flat(fixed_noise):
+    """One effect's columns, errors its columns times parameters of 3 typical sizes plus noise of 1e-4 m: the fit
+    starts far from the maximum (tau at 1, the noise at a third of the errors' RMS) and must end where the
+    closed-form slopes of the evidence in log sigma and log tau are zero, each within 3e-5 (the fit gets within
+    1e-5; one part in a million of the 30 rows' scale): L-BFGS-B's line search reads the evidence's value, its
+    steps the gradient. Seen failing on the evidence's ``0.5 * (...)`` -> ``0.5 % (...)`` (the slope in log
+    sigma then 9.4e-5: seed 3702's survivor), ``beta * residual`` -> ``beta % residual`` and ``gram.rows *
+    log(sigma^2)`` -> ``%``."""
+    from tcr_accuracy.diagnosis.bayes_design import DesignColumns, fit_prior
+
+    rng = np.random.default_rng(24)
+    g = rng.normal(size=(10, 3, 4)) * 1e-4
+    flat = g.reshape(-1, 4)
+    y = flat @ (3.0 * rng.normal(size=4)) + rng.normal(size=30) * 1e-4
+    fitted = fit_prior(DesignColumns(g, np.array(["compliance"] * 4), ["compliance"]), y.reshape(10, 3),
+                       noise_m=fixed_noise)
+    tau = fitted.tau["compliance"]
+    assert 1.5 < tau < 10  # far from where it started
+    slopes = _evidence_slopes(flat, y, fitted.noise_m**2, tau**2)
+    assert abs(slopes[1]) < 3e-5
+    if fixed_noise is None:
+        assert abs(slopes[0]) < 3e-5
+    else:
+        assert fitted.noise_m == fixed_noise
