@@ -773,7 +773,8 @@ def separating_order(q: np.ndarray, rng: np.random.Generator, tries: int = 256) 
     if n < 3 or not moving.any():
         return np.arange(n), 0.0
     centred = (q[:, moving] - q[:, moving].mean(axis=0)) / q[:, moving].std(axis=0)
-    place = (np.arange(n) - (n - 1) / 2.0) / np.std(np.arange(n))
+    # the place's mean needs no subtracting: each centred column sums to zero
+    place = np.arange(n) / np.std(np.arange(n))
     best, best_r = np.arange(n), float(np.max(np.abs(place @ centred / n)))
     for _ in range(tries):
         order = rng.permutation(n)

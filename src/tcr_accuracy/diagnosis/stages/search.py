@@ -272,6 +272,6 @@ def harmful_effect(engine: FitEngine, selected, leave_one_out) -> str | None:
     rungs = explanation_order(engine, selected)
     for (_, before), (effect, after) in zip(rungs, rungs[1:]):
         change = ErrorStats.heldout(before).rms - ErrorStats.heldout(after).rms
-        if change <= 0.0 and change < by:
+        if change < by:  # by is 0 here and falls: a rung that raised the error, the worst such
             worst, by = effect, change
     return worst
