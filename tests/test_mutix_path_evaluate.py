@@ -25,6 +25,8 @@ from tcr_accuracy.io.measurements import MeasurementSet
 from tcr_accuracy.io.tracker_stream import read_tracker_stream
 from tcr_accuracy.iso9283.path_evaluate import evaluate_path_test
 
+from test_muti_iso_path_evaluate import _distance_to_polyline
+
 #: Commanded line in joint space [rad], samples, seconds per run, the readings' offset across the path [m].
 Q_START = np.array([0.3, -1.3, 1.4, -1.6, -1.57, 0.2])
 Q_END = np.array([-0.5, -1.0, 1.1, -1.9, -1.3, 0.6])
@@ -65,12 +67,6 @@ def _across(points):
     ends = np.cross(steps[[0, -1]], [0.0, 0.0, 1.0])
     normal[[0, -1]] = ends
     return normal / np.linalg.norm(normal, axis=1, keepdims=True)
-
-
-def _distance_to_polyline(point, polyline):
-    a, b = polyline[:-1], polyline[1:]
-    w = np.clip(np.sum((point - a) * (b - a), axis=1) / np.sum((b - a) ** 2, axis=1), 0.0, 1.0)
-    return float(np.min(np.linalg.norm(a + w[:, None] * (b - a) - point, axis=1)))
 
 
 def _write_stream(path, times, positions_by_cycle):
