@@ -143,3 +143,23 @@ def test_compensation_with_the_robots_own_offsets_leaves_a_fraction_of_the_devia
     before, after = measured.runs[0][1].at, compensated.runs[0][1].at
     assert 0.5 * deviation.max() < before <= deviation.max() * (1 + 1e-6)
     assert after < 0.02 * before
+
+
+def test_of_two_repeated_times_in_a_cycle_the_first_is_named(tmp_path):
+    """Cycle 2 of a stream repeats a time twice (its readings at 12, 12, 13, 13 s; the second 12 s on
+    file row 9, the second 13 s on row 11): refused naming the first repeat, row 9 at 12 s. Seen failing
+    on ``rows[same[0] + 1]`` as ``same[-1]`` (row 11 named)."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.iso9283.path_evaluate import stream_cycles
+
+    times = [0.0, 1.0, 2.0, 3.0, 10.0, 11.0, 12.0, 12.0, 13.0, 13.0]
+    lines = ["time_s,x_mm,y_mm,z_mm,path,cycle"] + [
+        f"{t},{400 + 10 * k},{-100 + 3 * k},{300 + k},line,{1 if t < 5 else 2}" for k, t in enumerate(times)]
+    (tmp_path / "stream.csv").write_text("\n".join(lines) + "\n")
+    stream = read_tracker_stream(str(tmp_path / "stream.csv"))
+    run = SimpleNamespace(path="line", speed_pct=None, words=lambda: "line")
+    with pytest.raises(InputError) as refused:
+        stream_cycles(stream, [run])
+    assert str(refused.value) == (f"{tmp_path / 'stream.csv'}: row 9, column time_s: 12 s repeats a time of the same "
+                                  "cycle (line, cycle 2)")
