@@ -12,6 +12,8 @@ the path, and no rigid motion does better by symmetry. Each test names a planted
 to catch.
 """
 
+from types import SimpleNamespace
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -23,7 +25,7 @@ from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.frames.registration import register_tracker
 from tcr_accuracy.io.measurements import MeasurementSet
 from tcr_accuracy.io.tracker_stream import read_tracker_stream
-from tcr_accuracy.iso9283.path_evaluate import evaluate_path_test
+from tcr_accuracy.iso9283.path_evaluate import evaluate_path_test, stream_cycles
 
 from test_muti_iso_path_evaluate import _distance_to_polyline
 
@@ -76,6 +78,18 @@ def _write_stream(path, times, positions_by_cycle):
                  for t, (x, y, z) in zip(times, positions)]
     path.write_text("\n".join(rows) + "\n")
     return read_tracker_stream(str(path))
+
+
+def _labelled_stream(path, times):
+    """A stream of one path read at ``times`` [s], cycle 1 before 5 s and cycle 2 after; file rows from 2."""
+    lines = ["time_s,x_mm,y_mm,z_mm,path,cycle"] + [
+        f"{t},{400 + 10 * k},{-100 + 3 * k},{300 + k},line,{1 if t < 5 else 2}" for k, t in enumerate(times)]
+    path.write_text("\n".join(lines) + "\n")
+    return read_tracker_stream(str(path))
+
+
+#: The one run the labelled streams are matched to.
+LINE_RUN = SimpleNamespace(path="line", speed_pct=None, words=lambda: "line")
 
 
 def test_a_frame_fitted_to_the_path_says_its_readings_and_their_residual_rms_in_mm(line, tmp_path):
@@ -149,17 +163,23 @@ def test_of_two_repeated_times_in_a_cycle_the_first_is_named(tmp_path):
     """Cycle 2 of a stream repeats a time twice (its readings at 12, 12, 13, 13 s; the second 12 s on
     file row 9, the second 13 s on row 11): refused naming the first repeat, row 9 at 12 s. Seen failing
     on ``rows[same[0] + 1]`` as ``same[-1]`` (row 11 named)."""
-    from types import SimpleNamespace
-
-    from tcr_accuracy.iso9283.path_evaluate import stream_cycles
-
-    times = [0.0, 1.0, 2.0, 3.0, 10.0, 11.0, 12.0, 12.0, 13.0, 13.0]
-    lines = ["time_s,x_mm,y_mm,z_mm,path,cycle"] + [
-        f"{t},{400 + 10 * k},{-100 + 3 * k},{300 + k},line,{1 if t < 5 else 2}" for k, t in enumerate(times)]
-    (tmp_path / "stream.csv").write_text("\n".join(lines) + "\n")
-    stream = read_tracker_stream(str(tmp_path / "stream.csv"))
-    run = SimpleNamespace(path="line", speed_pct=None, words=lambda: "line")
+    stream = _labelled_stream(tmp_path / "stream.csv", [0.0, 1.0, 2.0, 3.0, 10.0, 11.0, 12.0, 12.0, 13.0, 13.0])
     with pytest.raises(InputError) as refused:
-        stream_cycles(stream, [run])
+        stream_cycles(stream, [LINE_RUN])
     assert str(refused.value) == (f"{tmp_path / 'stream.csv'}: row 9, column time_s: 12 s repeats a time of the same "
                                   "cycle (line, cycle 2)")
+
+
+def test_a_cycle_of_three_readings_is_taken_and_one_of_two_refused(tmp_path):
+    """A cycle is one run along the path, at least 3 readings: cycle 2 of three readings is taken,
+    of two (file rows 5 and 6) refused naming its first row and the count. Seen failing on
+    ``MIN_CYCLE_READINGS = 3`` turned to 4 (three refused) or 2 (two taken)."""
+    three = _labelled_stream(tmp_path / "three.csv", [0.0, 1.0, 2.0, 10.0, 11.0, 12.0])
+    cycles, _ = stream_cycles(three, [LINE_RUN])
+    assert [list(rows) for rows in cycles[0]] == [[0, 1, 2], [3, 4, 5]]
+    two = _labelled_stream(tmp_path / "stream.csv", [0.0, 1.0, 2.0, 10.0, 11.0])
+    with pytest.raises(InputError) as refused:
+        stream_cycles(two, [LINE_RUN])
+    assert str(refused.value) == (f"{tmp_path / 'stream.csv'}: row 5, column cycle: cycle 2 of the line holds 2 "
+                                  "reading(s); a cycle is one run along the path, its readings labelled alike (a "
+                                  "label per run, not per reading)")
