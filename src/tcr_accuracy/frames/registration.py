@@ -257,8 +257,10 @@ def register_tracker(robot: RobotModel, q, measured, *, context: MeasurementCont
             return jac.reshape(-1, len(names))[:, cols]
 
         if cols:
+            # Levenberg-Marquardt needs no fewer residuals than unknowns: the identifiable columns are
+            # independent columns of 3N rows, so never more than 3N
             sol = least_squares(residual, np.zeros(len(cols)), jac=jacobian, x_scale=scales[cols],
-                                max_nfev=max_nfev, method="lm" if 3 * q.shape[0] >= len(cols) else "trf")
+                                max_nfev=max_nfev, method="lm")
             params = full(sol.x)
     # fold the base twist into the rigid transform: p_cf = exp6(xi) p_model, p_tracker = R0 p_cf + t0
     base = np.array([params[names.index(f"frames.base.{c}")] for c in ("dx", "dy", "dz", "rx", "ry", "rz")])

@@ -36,8 +36,6 @@ from ..random_state import renamed_keyword
 from .plan import IsoPlan, cube_corners, iso_points, plan_iso_cube
 from .reach import Reach, Workspace
 
-#: The standard's path speeds [% of the rated path speed].
-PATH_SPEEDS = (100.0, 50.0, 10.0)
 #: The standard's cycles of a path test.
 PATH_CYCLES = 10
 #: Largest sample spacing along a path [m], and fewest samples per path.
@@ -308,5 +306,5 @@ def commanded_speed(s, t) -> np.ndarray:
     return np.gradient(np.asarray(s, dtype=float), np.asarray(t, dtype=float))
 
 
-__all__ = ["CORNER_ANGLE", "PATH_CYCLES", "PATH_SPEEDS", "PathPlan", "TestPath", "arc_length", "commanded_speed",
+__all__ = ["CORNER_ANGLE", "PATH_CYCLES", "PathPlan", "TestPath", "arc_length", "commanded_speed",
            "corners_of", "plan_path_test", "plan_test_paths", "solve_path", "standard_paths", "trapezoid_times"]
