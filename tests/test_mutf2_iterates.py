@@ -22,6 +22,8 @@ from tcr_accuracy.diagnosis.diagnose import GapDiagnosis
 from tcr_accuracy.diagnosis.fitting import FitEngine
 
 N = 14
+#: residual evaluations of the Levenberg-Marquardt path compared
+EVALUATIONS = 26
 #: the measurement frame: targets seen turned by this rotation vector [rad] and moved by this [m]
 TURN, SHIFT = np.array([0.1, -0.2, 0.3]), np.array([0.05, -0.02, 0.03])
 
@@ -78,13 +80,14 @@ def _levenberg_marquardt(residual, jacobian, start, evaluations, tolerance):
 
 
 def test_each_levenberg_marquardt_iterate_is_nielsens_update_written_out(diagnosed):
-    """The measurement frame's fit started 2.55 rad away about y, the Jacobian held at the nominal: after
-    each of its first 12 residual evaluations (the cap set to 1, 2, ..., 12) the engine's parameters are the
-    written-out Levenberg-Marquardt's to 1e-9 (they move by hundreds). Its path has four failed steps (the
-    damping set to its first value, then grown 4, 8, 16 times), then kept steps whose Nielsen factor runs
-    from 1.6 to the 1/3 floor. Seen failing on the floor ``1.0 / 3.0`` turned to ``1.0 / 2.0``, on
-    ``1.0 - (2.0 * gain ...`` turned to ``2.0 - ...``, on the first damping ``1e-3 * top`` turned to ``1e-2``
-    and on the growth's ``growth *= 2.0`` turned to ``growth *= 3.0``."""
+    """The measurement frame's fit started 3.4 rad away, the Jacobian held at the nominal: after each of its
+    first 26 residual evaluations (the cap set to 1, 2, ..., 26) the engine's parameters are the written-out
+    Levenberg-Marquardt's to 1e-9 (they move by hundreds). Its path: four failed steps (the damping set to
+    its first value, then grown 4, 8, 16 times), 13 kept ones whose Nielsen factor runs from above 1 to the
+    1/3 floor, five failed ones (the growth back at 2 after a kept step), four kept. Seen failing on the
+    floor ``1.0 / 3.0`` turned to ``1.0 / 2.0``, on ``1.0 - (2.0 * gain ...`` turned to ``2.0 - ...``, on the
+    first damping ``1e-3 * top`` turned to ``1e-2``, on the growth's ``growth *= 2.0`` turned to ``3.0`` and
+    on its reset after a kept step, ``growth = 2.0``, turned to ``3.0``."""
     engine = _engine(diagnosed[2])
     cols = engine.columns(["frames"])
     assert np.all(np.isinf(cols.lower)) and np.all(np.isinf(cols.upper))  # no bound: the plain LM steps
@@ -97,18 +100,21 @@ def test_each_levenberg_marquardt_iterate_is_nielsens_update_written_out(diagnos
         return np.concatenate([r.ravel() for r in engine.predict_residual(cols, phi, every)])
 
     start = np.zeros(k)
-    start[3:6] = [-109.0, 255.0, -17.0]  # the base frame's rotation [0.01 rad]
-    path, dampings = _levenberg_marquardt(residual, jacobian, start, 12, FitEngine.COST_TOLERANCE)
-    assert len(path) == 12 and np.all(path[3] == start)  # four failed steps first, the damping growing
+    start[:6] = [-2.33, 17.31, 3.52, -313.0, -134.2, -40.76]  # the base frame's twist [1 cm, 0.01 rad]
+    path, dampings = _levenberg_marquardt(residual, jacobian, start, EVALUATIONS, FitEngine.COST_TOLERANCE)
+    kept = "".join("s" if np.any(p != q) else "f" for p, q in zip(path, [start] + path[:-1]))
+    assert kept == "ffff" + 13 * "s" + 5 * "f" + 4 * "s"
+    # four failed steps first, the damping growing, five more later after it was reset
     np.testing.assert_allclose(np.array(dampings[1:4]) / dampings[:3], [4.0, 8.0, 16.0], rtol=1e-12)
-    factors = np.array(dampings[5:]) / np.array(dampings[4:-1])
+    np.testing.assert_allclose(np.array(dampings[17:22]) / dampings[16:21], [2.0, 4.0, 8.0, 16.0, 32.0], rtol=1e-12)
+    factors = np.array(dampings[5:17]) / np.array(dampings[4:16])
     assert factors.max() > 1.0 and np.isclose(factors.min(), 1.0 / 3.0, rtol=1e-12, atol=0)
-    for m in range(1, 13):
+    for m in range(1, EVALUATIONS + 1):
         engine.MAX_EVALUATIONS = m
         phi, _ = engine._minimise(cols, jacs, None, jacobian.T @ jacobian, start,
                                   engine.predict_residual(cols, start, every))
         np.testing.assert_allclose(phi, path[m - 1], rtol=0, atol=1e-9, err_msg=f"after {m} evaluations")
-    assert np.max(np.abs(path[-1] - start)) > 100
+    assert np.max(np.abs(path[-1] - start)) > 300
 
 
 def test_a_nested_models_exact_fit_starts_at_the_inner_optimum_with_the_new_parameters_at_zero(diagnosed):
