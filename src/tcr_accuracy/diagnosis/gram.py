@@ -89,7 +89,7 @@ class TableGroup:
 
 def _run(index: np.ndarray):
     """index as a slice when it is a run of consecutive integers, else itself."""
-    if index.size and index[-1] - index[0] == index.size - 1 and np.all(np.diff(index) == 1):
+    if index.size and np.all(np.diff(index) == 1):
         return slice(int(index[0]), int(index[-1]) + 1)
     return index
 

@@ -89,8 +89,8 @@ def box_quadratic(hessian: np.ndarray, gradient: np.ndarray, low: np.ndarray, hi
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = np.where(move < 0, (low - d) / move, np.where(move > 0, (high - d) / move, np.inf))
         ratio[fixed] = np.inf
-        blocking = int(np.argmin(ratio)) if ratio.size else 0
-        if ratio.size and ratio[blocking] < 1.0:
+        if ratio.size and ratio.min() < 1.0:
+            blocking = int(np.argmin(ratio))
             d = d + max(ratio[blocking], 0.0) * move
             d[blocking] = low[blocking] if move[blocking] < 0 else high[blocking]
             fixed[blocking] = True

@@ -176,3 +176,44 @@ def test_the_anchor_fit_starts_from_the_last_fitted_values_and_else_from_zero(di
     again = warm.grams().anchor
     index = warm.grams().layout.indices(["frames"], warm.kept(("frames",)))
     np.testing.assert_array_equal(again.phi[index], fit["phi"])
+
+
+def test_a_model_with_nothing_identifiable_has_no_standard_errors_and_the_nominals_residual(diagnosed):
+    """The measurement frame with none of its parameters kept, fitted exactly: no parameter, an empty array
+    of standard errors, and its training residual the nominal robot's (Pinocchio's tool positions less the
+    targets): RMS, mean and max of the norms. Seen failing on the empty standard errors' ``np.zeros(0)``
+    turned to ``np.zeros(-1)``."""
+    robot, measured, fitted = diagnosed
+    engine = _engine(fitted)
+    result = engine.evaluate(["frames"], keep={"frames": np.zeros(0, dtype=int)}, exact=True)
+    assert result["n_parameters"] == 0
+    std = result["phi_std"]
+    assert isinstance(std, np.ndarray) and std.shape == (0,)
+    model, data = robot.model, robot.model.createData()
+    norms = []
+    for q, target in zip(measured.q, fitted.parts[0].target):
+        pin.framesForwardKinematics(model, data, robot.to_pinocchio_q(q))
+        norms.append(np.linalg.norm(data.oMf[robot.tool_frame_id].translation - target))
+    norms = np.array(norms)
+    stats = result["train_stats"]
+    np.testing.assert_allclose([stats.rms, stats.mean, stats.max],
+                               [np.sqrt(np.mean(norms**2)), norms.mean(), norms.max()], rtol=1e-9)
+
+
+def test_an_ambiguity_rows_held_out_figures_are_its_per_row_squares_in_millimetres(diagnosed):
+    """The ambiguity check's row of the chosen effect (one fold assignment): its held-out RMS, mean and max
+    [mm] are 1000 sqrt(mean(e^2)), 1000 mean(e) and 1000 max(e) of the per-row held-out error norms e that
+    its squares carry, its parameter count the model's, its z against itself 0. Seen failing on
+    ``held.mean * 1e3`` turned to ``held.mean * 1001.0``."""
+    from tcr_accuracy.diagnosis.ambiguity import swap_alternatives
+
+    engine = _engine(diagnosed[2])
+    groups = swap_alternatives(engine, ["frames", "joint_offsets"], ["frames", "joint_offsets"], 2.0)
+    assert list(groups) == ["joint_offsets"] and len(groups["joint_offsets"]) == 1
+    row = groups["joint_offsets"][0]
+    norms = np.sqrt(row["_squares"])
+    assert norms.size == N and row["effects"] == ["joint_offsets"] and row["z_worse_than_chosen"] == 0.0
+    np.testing.assert_allclose([row["heldout_rms_mm"], row["heldout_mean_mm"], row["heldout_max_mm"]],
+                               [1e3 * np.sqrt(np.mean(norms**2)), 1e3 * norms.mean(), 1e3 * norms.max()],
+                               rtol=1e-12)
+    assert row["n_parameters"] == engine.evaluate(["frames", "joint_offsets"])["n_parameters"] == 12
