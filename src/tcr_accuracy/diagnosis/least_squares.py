@@ -26,7 +26,8 @@ class DampedSolver:
         # eigenvalues within round-off of zero carry no information (lstsq drops them too)
         self.kept = self.values > top * self.values.size * np.finfo(float).eps * 10
         self.top = top
-        self.first_damping = 1e-3 * top if top > 0 else 1.0
+        # (a zero Gram matrix keeps no eigenvalue: every step is zero and the damping never read)
+        self.first_damping = 1e-3 * top
 
     def step(self, gradient: np.ndarray, damping: float, room_low: np.ndarray | None = None,
              room_high: np.ndarray | None = None) -> tuple[np.ndarray, float]:
