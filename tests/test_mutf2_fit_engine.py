@@ -217,3 +217,17 @@ def test_an_ambiguity_rows_held_out_figures_are_its_per_row_squares_in_millimetr
                                [1e3 * np.sqrt(np.mean(norms**2)), 1e3 * norms.mean(), 1e3 * norms.max()],
                                rtol=1e-12)
     assert row["n_parameters"] == engine.evaluate(["frames", "joint_offsets"])["n_parameters"] == 12
+
+
+def test_identifiability_is_judged_again_only_for_effects_fitted_above_their_typical_size(diagnosed):
+    """Fitted sizes of at most once the typical one change nothing (no re-judging); one just above it does,
+    and an effect fitted at f times its typical size is judged with a motion threshold f times smaller
+    (min_motion / f), the others at min_motion. Seen failing on ``if f > 1.0`` turned to ``f > 2.0`` and on
+    ``self.min_motion / self.size_factors.get(e, 1.0)`` turned to ``* ...`` and to ``get(e, 2.0)``."""
+    fitted = diagnosed[2]
+    engine = FitEngine(fitted.parts, fitted.bases, [], rank_tol=fitted.rank_tol, min_motion=2e-5)
+    assert not engine.resize({"joint_offsets": 1.0, "frames": 0.5}) and engine.size_factors == {}
+    assert engine.resize({"joint_offsets": 1.5, "frames": 1.0})
+    assert engine.size_factors == {"joint_offsets": 1.5}
+    assert not engine.resize({"joint_offsets": 1.5})  # the same sizes: nothing to judge again
+    assert engine._thresholds(["frames", "joint_offsets"]) == {"frames": 2e-5, "joint_offsets": 2e-5 / 1.5}
