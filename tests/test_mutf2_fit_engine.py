@@ -10,6 +10,7 @@ Each test names a planted change it was seen to catch."""
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 
 import numpy as np
@@ -36,11 +37,11 @@ def diagnosed():
     return robot, measured, fitted.engine_
 
 
-def _engine(fitted, parts=None):
-    """A new engine (three folds chosen here) on the diagnosis' parts (or the given ones) and bases."""
+def _engine(fitted, parts=None, bases=None):
+    """A new engine (three folds chosen here) on the diagnosis' parts and bases (or the given ones)."""
     tests = np.array_split(np.random.default_rng(4201).permutation(N), 3)
     folds = [(np.setdiff1d(np.arange(N), t), np.sort(t)) for t in tests]
-    return FitEngine(parts or fitted.parts, fitted.bases, folds, rank_tol=fitted.rank_tol,
+    return FitEngine(parts or fitted.parts, bases or fitted.bases, folds, rank_tol=fitted.rank_tol,
                      min_motion=fitted.min_motion)
 
 
@@ -231,3 +232,27 @@ def test_identifiability_is_judged_again_only_for_effects_fitted_above_their_typ
     assert engine.size_factors == {"joint_offsets": 1.5}
     assert not engine.resize({"joint_offsets": 1.5})  # the same sizes: nothing to judge again
     assert engine._thresholds(["frames", "joint_offsets"]) == {"frames": 2e-5, "joint_offsets": 2e-5 / 1.5}
+
+
+def test_a_large_model_takes_lambda_chosen_last_for_the_same_penalised_effects(diagnosed):
+    """Joint offsets given a smoothness penalty (weights 0.5 to 2) and every model counted as large: the
+    joint offsets alone, fitted after frames + joint offsets, take that model's lambda without a search
+    (the same penalised effects, whatever else is in the model), where fitted first they find their own,
+    another point of the grid. Seen failing on the penalised effects' ``layout.penalty[...] > 0`` turned to
+    ``> -1`` (every effect of the model taken as penalised: no reuse)."""
+    fitted = diagnosed[2]
+    bases = dict(fitted.bases)
+    offsets = copy.copy(bases["joint_offsets"])
+    offsets.penalty = np.linspace(0.5, 2.0, len(offsets.names))
+    bases["joint_offsets"] = offsets
+
+    def engine():
+        made = _engine(fitted, bases=bases)
+        made.LARGE_MODEL = 0
+        return made
+
+    alone = engine().evaluate(["joint_offsets"])["penalty"]["full"]
+    after = engine()
+    larger = after.evaluate(["frames", "joint_offsets"])["penalty"]["full"]
+    assert after.evaluate(["joint_offsets"])["penalty"]["full"] == larger
+    assert max(alone, larger) > 5 * min(alone, larger)  # another grid point (a factor 10 apart)
