@@ -487,6 +487,6 @@ def _positions(stored: np.ndarray, wanted: np.ndarray) -> tuple[np.ndarray, np.n
 
 def _run(index: np.ndarray):
     """A slice for consecutive indices (a view when taken), else the index array itself."""
-    if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
-        return slice(int(index[0]), int(index[0]) + index.size)
+    if index.size and np.all(np.diff(index) == 1):
+        return slice(int(index[0]), int(index[-1]) + 1)
     return index
