@@ -256,3 +256,18 @@ def test_a_large_model_takes_lambda_chosen_last_for_the_same_penalised_effects(d
     larger = after.evaluate(["frames", "joint_offsets"])["penalty"]["full"]
     assert after.evaluate(["joint_offsets"])["penalty"]["full"] == larger
     assert max(alone, larger) > 5 * min(alone, larger)  # another grid point (a factor 10 apart)
+
+
+def test_rows_no_fold_holds_out_keep_the_full_fits_residual_as_their_held_out_error(diagnosed):
+    """Three folds holding out rows 0-11 of 14: rows 12 and 13 are in no fold, and their held-out error is
+    the full fit's training residual itself, where every other row's differs from it (its fold's fit).
+    Seen failing on the label of rows in no fold, ``np.full(self.n_rows, -1)``, turned to ``0`` and to
+    ``1``."""
+    fitted = diagnosed[2]
+    tests = np.array_split(np.arange(12), 3)
+    folds = [(np.setdiff1d(np.arange(N), t), t) for t in tests]
+    engine = FitEngine(fitted.parts, fitted.bases, folds, rank_tol=fitted.rank_tol, min_motion=fitted.min_motion)
+    result = engine.evaluate(["frames", "joint_offsets"])
+    train, held = result["train_residual"], result["heldout_residual"]
+    np.testing.assert_array_equal(held[12:], train[12:])
+    assert np.all(np.linalg.norm(held[:12] - train[:12], axis=1) > 1e-9)
