@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tcr_accuracy.diagnosis.block_fit import PENALTY_GRID, SharedBlock, fit_blocks
+from tcr_accuracy.diagnosis.block_fit import SharedBlock, fit_blocks
 from tcr_accuracy.diagnosis.gram import Quadratic
 from tcr_accuracy.diagnosis.least_squares import FactorCache
 
@@ -17,8 +17,9 @@ def test_each_fold_assignments_penalised_fits_are_ridges_on_its_own_training_row
     factors kept: lambda is chosen on the first assignment's folds (the grid's held-out argmin, solved here),
     and every fold of BOTH assignments is the ridge on its own training rows at that lambda, to 1e-8. The
     lambda search keeps its factors under the first assignment's labels; under the second's, the second
-    assignment's folds would take the first's factors. Seen failing on the search's key
-    ``("train", 0, f)`` turned to ``("train", 1, f)``."""
+    assignment's folds would take the first's factors. The grid: the penalised columns' median Gram diagonal
+    times the decades 1e-5 to 1e3. Seen failing on the search's key ``("train", 0, f)`` turned to
+    ``("train", 1, f)`` and on ``PENALTY_GRID = np.logspace(-5, 3, 9)`` turned to ``logspace(-4, 3, 9)``."""
     rng = np.random.default_rng(3500)
     n, k_p, k_o = 300, 16, 4
     x = rng.standard_normal((n, k_o + k_p)) * np.logspace(0, -2, k_o + k_p)
@@ -39,7 +40,7 @@ def test_each_fold_assignments_penalised_fits_are_ridges_on_its_own_training_row
         return np.linalg.lstsq(np.vstack([x[rows], np.diag(np.sqrt(lam * weights))]),
                                np.concatenate([y[rows], np.zeros(k)]), rcond=None)[0]
 
-    grid = np.median(np.diag(total.gram)[k_o:]) * PENALTY_GRID
+    grid = np.median(np.diag(total.gram)[k_o:]) * 10.0 ** np.arange(-5, 4)  # decades from 1e-5 to 1e3
     train = [[np.setdiff1d(np.arange(n), rows) for rows in folds] for folds in assignments]
     score = [sum(float(np.sum((y[rows] - x[rows] @ ridge(t, lam)) ** 2)) for rows, t in zip(assignments[0], train[0]))
              for lam in grid]
