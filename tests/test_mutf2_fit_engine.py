@@ -118,6 +118,30 @@ def test_each_levenberg_marquardt_iterate_is_nielsens_update_written_out(diagnos
     assert np.max(np.abs(path[-1] - start)) > 300
 
 
+
+def test_a_fit_that_has_not_converged_stops_after_40_residual_evaluations(diagnosed):
+    """The measurement frame's fit started where Levenberg-Marquardt crawls (the base turned by 4.2 rad, the
+    Jacobian held at the nominal; each step still moves it by 0.006): with the default cap the engine's
+    parameters are the written-out iterate after 40 evaluations, to 1e-9, not the 39th's or the 41st's.
+    Seen failing on ``MAX_EVALUATIONS = 40`` turned to ``39`` and to ``41``."""
+    engine = _engine(diagnosed[2])
+    cols = engine.columns(["frames"])
+    jacs = engine._jacobians(cols)
+    k = cols.scale.size
+    jacobian = np.concatenate([j.block(slice(None)).reshape(-1, k) for j in jacs])
+    every = np.arange(N)
+
+    def residual(phi):
+        return np.concatenate([r.ravel() for r in engine.predict_residual(cols, phi, every)])
+
+    start = np.zeros(k)
+    start[:6] = [-2.0, -12.0, -13.0, -311.0, 202.0, 187.0]
+    path, _ = _levenberg_marquardt(residual, jacobian, start, 41, FitEngine.COST_TOLERANCE)
+    assert len(path) == 41 and np.max(np.abs(path[39] - path[38])) > 1e-3 < np.max(np.abs(path[40] - path[39]))
+    phi, _ = engine._minimise(cols, jacs, None, jacobian.T @ jacobian, start,
+                              engine.predict_residual(cols, start, every))
+    np.testing.assert_allclose(phi, path[39], rtol=0, atol=1e-9)
+
 def test_a_nested_models_exact_fit_starts_at_the_inner_optimum_with_the_new_parameters_at_zero(diagnosed):
     """Nothing anchors the linear model (the nominal's residual) and the measurement frame is turned by
     0.37 rad: the linear fit of frames + joint offsets is far from its optimum, and the exact fit of frames
