@@ -295,3 +295,34 @@ def test_rows_no_fold_holds_out_keep_the_full_fits_residual_as_their_held_out_er
     train, held = result["train_residual"], result["heldout_residual"]
     np.testing.assert_array_equal(held[12:], train[12:])
     assert np.all(np.linalg.norm(held[:12] - train[:12], axis=1) > 1e-9)
+
+
+@pytest.mark.parametrize("turn, curved", [(5e-4, False), (1e-3, True)])
+def test_the_linear_model_takes_a_gauss_newton_step_where_it_misses_the_exact_residual_by_1e_4(
+        diagnosed, turn, curved):
+    """Nothing anchors the linear model (the nominal) and the measurement frame is turned by 0.5 or 1 mrad:
+    the curvature judged is |r(d) - r0 - J d|^2 / |r0 + J d|^2 for the least-squares step d of every effect
+    from the nominal (r0 the nominal residual, J the constant Jacobian), written out here with numpy, to
+    1e-6; it is 6e-5 and 4.5e-4, and only the second is above the tolerance 1e-4, where the linear fits take
+    the Gauss-Newton step on the exact kinematics (``second_order_at`` set). Seen failing on
+    ``CURVATURE_TOLERANCE = 1e-4`` turned to ``1.0001`` and to ``-0.9999``."""
+    fitted = diagnosed[2]
+    direction = np.array([1.0, -2.0, 3.0]) / np.sqrt(14.0)
+    rotation = Rotation.from_rotvec(turn * direction).as_matrix()
+    parts = [dataclasses.replace(p, target=p.target @ rotation.T) for p in fitted.parts]
+    engine = _engine(fitted, parts)
+    engine.reset(anchor=())
+    result = engine.evaluate(["frames", "joint_offsets"])
+    cols = engine.columns(["frames", "joint_offsets"])
+    k = cols.scale.size
+    jacobian = np.concatenate([j.block(slice(None)).reshape(-1, k) for j in engine._jacobians(cols)])
+    every = np.arange(N)
+
+    def residual(phi):
+        return np.concatenate([r.ravel() for r in engine.predict_residual(cols, phi, every)])
+
+    r0 = residual(np.zeros(k))
+    step = np.linalg.lstsq(jacobian, -r0, rcond=None)[0]
+    expected = np.sum((residual(step) - r0 - jacobian @ step) ** 2) / np.sum((r0 + jacobian @ step) ** 2)
+    assert engine.grams().curvature == pytest.approx(expected, rel=1e-6)
+    assert bool(expected > 1e-4) is curved and (result["second_order_at"] is not None) is curved
