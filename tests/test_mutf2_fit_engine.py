@@ -1,12 +1,15 @@
-"""The exact (nonlinear) refit's PATH, not only its optimum (``diagnosis/fitting.py``, issue 36): the
-iterates of ``FitEngine._minimise`` with its evaluation cap set low against a Levenberg-Marquardt with
-Nielsen's damping update written out here on numpy (the same constant Jacobian, damping on the columns'
-squared norms, the first damping 1e-3 of the largest eigenvalue of the column-scaled Gram matrix, the
-growth doubling after each failed step); the start points the refit is given (a nested model's optimum with
-the new parameters at zero, the anchor's warm start) read with the cap at zero, where the fit is its start.
-The data: joint offsets hidden in a Pinocchio model (tests/mutd_truth.py), seen through a measurement frame
-turned by up to 0.3 rad (far from the nominal, so that an undamped step fails and the damping matters).
-Each test names a planted change it was seen to catch."""
+"""The fit engine (``diagnosis/fitting.py``, issue 36): the exact (nonlinear) refit's PATH, not only its
+optimum — the iterates of ``FitEngine._minimise`` with its evaluation cap set low against a Levenberg-Marquardt
+with Nielsen's damping update written out here on numpy (the same constant Jacobian, damping on the columns'
+squared norms, the first damping 1e-3 of the largest eigenvalue of the column-scaled Gram matrix, the growth
+doubling after each failed step); the start points the refit is given (a nested model's optimum with the new
+parameters at zero, the anchor's warm start) read with the cap at zero, where the fit is its start; and the
+engine's rules few data sets reach (the exact fit's fold steps, the curvature that calls for a Gauss-Newton
+step, rows no fold holds out, a penalised lambda reused, identifiability re-judged at fitted sizes, a model
+with nothing kept, an ambiguity row's figures). The data: joint offsets hidden in a Pinocchio model
+(tests/mutd_truth.py), in some tests seen through a measurement frame turned by up to 0.37 rad (far from the
+nominal, so that an undamped step fails and the damping matters). Fast on purpose: a mutation run tries the
+fastest covering tests first. Each test names a planted change it was seen to catch."""
 
 from __future__ import annotations
 
