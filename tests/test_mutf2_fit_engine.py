@@ -54,6 +54,24 @@ def _turned(fitted):
     return [dataclasses.replace(p, target=p.target @ turn.T + SHIFT) for p in fitted.parts]
 
 
+def _frames_fit(fitted):
+    """(a new engine, the measurement frame's columns, their chained Jacobians, the Jacobian (3N, k) they
+    make, the residual (3N,) as a function of phi): nothing bounds these columns, so every step is the plain
+    Levenberg-Marquardt step."""
+    engine = _engine(fitted)
+    cols = engine.columns(["frames"])
+    assert np.all(np.isinf(cols.lower)) and np.all(np.isinf(cols.upper))
+    jacs = engine._jacobians(cols)
+    k = cols.scale.size
+    jacobian = np.concatenate([j.block(slice(None)).reshape(-1, k) for j in jacs])
+    every = np.arange(N)
+
+    def residual(phi):
+        return np.concatenate([r.ravel() for r in engine.predict_residual(cols, phi, every)])
+
+    return engine, cols, jacs, jacobian, residual
+
+
 def _levenberg_marquardt(residual, jacobian, start, evaluations, tolerance):
     """Levenberg-Marquardt written out: the steps d solving (J^T J + mu diag(J^T J)) d = -J^T r with J held
     constant, a step kept when the cost |r|^2 falls, mu then multiplied by max(1/3, 1 - (2 rho - 1)^3) for
@@ -92,18 +110,9 @@ def test_each_levenberg_marquardt_iterate_is_nielsens_update_written_out(diagnos
     floor ``1.0 / 3.0`` turned to ``1.0 / 2.0``, on ``1.0 - (2.0 * gain ...`` turned to ``2.0 - ...``, on the
     first damping ``1e-3 * top`` turned to ``1e-2``, on the growth's ``growth *= 2.0`` turned to ``3.0`` and
     on its reset after a kept step, ``growth = 2.0``, turned to ``3.0``."""
-    engine = _engine(diagnosed[2])
-    cols = engine.columns(["frames"])
-    assert np.all(np.isinf(cols.lower)) and np.all(np.isinf(cols.upper))  # no bound: the plain LM steps
-    jacs = engine._jacobians(cols)
-    k = cols.scale.size
-    jacobian = np.concatenate([j.block(slice(None)).reshape(-1, k) for j in jacs])
+    engine, cols, jacs, jacobian, residual = _frames_fit(diagnosed[2])
     every = np.arange(N)
-
-    def residual(phi):
-        return np.concatenate([r.ravel() for r in engine.predict_residual(cols, phi, every)])
-
-    start = np.zeros(k)
+    start = np.zeros(cols.scale.size)
     start[:6] = [-2.33, 17.31, 3.52, -313.0, -134.2, -40.76]  # the base frame's twist [1 cm, 0.01 rad]
     path, dampings = _levenberg_marquardt(residual, jacobian, start, EVALUATIONS, FitEngine.COST_TOLERANCE)
     kept = "".join("s" if np.any(p != q) else "f" for p, q in zip(path, [start] + path[:-1]))
@@ -121,23 +130,14 @@ def test_each_levenberg_marquardt_iterate_is_nielsens_update_written_out(diagnos
     assert np.max(np.abs(path[-1] - start)) > 300
 
 
-
 def test_a_fit_that_has_not_converged_stops_after_40_residual_evaluations(diagnosed):
     """The measurement frame's fit started where Levenberg-Marquardt crawls (the base turned by 4.2 rad, the
     Jacobian held at the nominal; each step still moves it by 0.006): with the default cap the engine's
     parameters are the written-out iterate after 40 evaluations, to 1e-9, not the 39th's or the 41st's.
     Seen failing on ``MAX_EVALUATIONS = 40`` turned to ``39`` and to ``41``."""
-    engine = _engine(diagnosed[2])
-    cols = engine.columns(["frames"])
-    jacs = engine._jacobians(cols)
-    k = cols.scale.size
-    jacobian = np.concatenate([j.block(slice(None)).reshape(-1, k) for j in jacs])
+    engine, cols, jacs, jacobian, residual = _frames_fit(diagnosed[2])
     every = np.arange(N)
-
-    def residual(phi):
-        return np.concatenate([r.ravel() for r in engine.predict_residual(cols, phi, every)])
-
-    start = np.zeros(k)
+    start = np.zeros(cols.scale.size)
     start[:6] = [-2.0, -12.0, -13.0, -311.0, 202.0, 187.0]
     path, _ = _levenberg_marquardt(residual, jacobian, start, 41, FitEngine.COST_TOLERANCE)
     assert len(path) == 41 and np.max(np.abs(path[39] - path[38])) > 1e-3 < np.max(np.abs(path[40] - path[39]))
