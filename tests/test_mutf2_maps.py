@@ -57,3 +57,25 @@ def test_a_dense_sensitivity_times_parameters_over_more_poses_than_a_chunk_is_th
         theta = rng.standard_normal((4, 2))
         np.testing.assert_allclose(sensitivity_times(g, theta), np.einsum("nrk,km->nrm", g, theta),
                                    rtol=1e-12, atol=1e-12)
+
+
+def test_a_map_from_pose_entries_with_a_part_the_same_for_every_pose_is_the_dense_product():
+    """ErrorMap.of_entries with a part the same for every pose (x (p_em, k)) and pose entries: one pair whose
+    value varies with the pose, one the same at every pose, one sharing its entry and column with x: its
+    errors at theta are the dense Jacobian's (x plus the entries placed per pose) times theta, written out
+    with numpy. Seen failing on ``np.zeros((size, k)) + x`` turned to ``% x``."""
+    from tcr_accuracy.diagnosis.error_map import ErrorMap
+    from tcr_accuracy.effects.pose_entries import PoseEntries
+
+    rng = np.random.default_rng(3504)
+    n, size, k = 6, 9, 3
+    x = np.zeros((size, k))
+    x[[0, 2, 8], [0, 1, 2]] = [0.5, -1.5, 2.0]
+    values = np.column_stack([rng.standard_normal(n), np.full(n, 0.25), rng.standard_normal(n)])
+    entries = PoseEntries(values=values, entry=np.array([1, 4, 2]), column=np.array([0, 2, 1]))
+    dense = np.broadcast_to(x, (n, size, k)).copy()
+    for i in range(3):
+        dense[:, entries.entry[i], entries.column[i]] += values[:, i]
+    built = ErrorMap.of_entries(n, size, slice(3, 7), x, None, entries, k)
+    theta = np.array([0.3, -2.0, 0.7])
+    np.testing.assert_allclose(built.errors(theta), dense @ theta, rtol=1e-13, atol=1e-15)
