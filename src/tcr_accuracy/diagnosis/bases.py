@@ -180,11 +180,6 @@ class UnionBasis:
             blocks.append(block)
         self.g = np.concatenate(blocks, axis=0)
 
-    @property
-    def basis(self) -> ErrorMap:
-        """The first part's error map: the robot of a single-frame diagnosis."""
-        return self.per_part[0].basis
-
 
 #: poses whose error Jacobians are taken at once (their temporaries, a few placement-chain arrays of
 #: (N, n_joints, 6, 6), were 1 GB at 10^5 poses taken whole)

@@ -224,10 +224,6 @@ class JoinedMaps:
         self.bounds = list(zip(np.concatenate([[0], ends[:-1]]).astype(int), ends.astype(int)))
         self.n_poses, self.size = self.maps[0].n_poses, self.maps[0].size
 
-    @property
-    def n_columns(self) -> int:
-        return int(self.bounds[-1][1]) if self.bounds else 0
-
     def errors(self, theta: np.ndarray, rows=None) -> np.ndarray:
         """Error vectors (len(rows) or N, p_em) at parameters theta (k,): the maps' errors summed."""
         out = None
@@ -491,6 +487,6 @@ def _positions(stored: np.ndarray, wanted: np.ndarray) -> tuple[np.ndarray, np.n
 
 def _run(index: np.ndarray):
     """A slice for consecutive indices (a view when taken), else the index array itself."""
-    if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
-        return slice(int(index[0]), int(index[0]) + index.size)
+    if index.size and np.all(np.diff(index) == 1):
+        return slice(int(index[0]), int(index[-1]) + 1)
     return index

@@ -20,15 +20,12 @@ class Sensitivity:
     CHUNK = 2048
 
     def __init__(self, sources: list):
-        self.sources = sources  # [(g (N, r, P_e) of one effect, the kept columns of it (k_e,))]
-        first = sources[0][0] if sources else None
-        k = sum(c.size for _, c in sources)
-        self.shape = (first.shape[0], first.shape[1], k) if first is not None else (0, 0, 0)
+        self.sources = sources  # [(g (N, r, P_e) of one effect, the kept columns of it (k_e,)), one or more]
+        first = sources[0][0]
+        self.shape = (first.shape[0], first.shape[1], sum(c.size for _, c in sources))
 
     def __getitem__(self, key) -> np.ndarray:
         """The gathered array (N, r, k), indexed (what a caller reading the columns needs)."""
-        if not self.sources:
-            return np.zeros(self.shape)[key]
         return np.concatenate([g[:, :, cols] for g, cols in self.sources], axis=2)[key]
 
 

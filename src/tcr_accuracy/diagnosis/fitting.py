@@ -250,10 +250,8 @@ class FitEngine:
             penalty.append(b.penalty[keep[e]])
             lower.append(b.fit_lower[keep[e]] / b.scales[keep[e]])
             upper.append(b.fit_upper[keep[e]] / b.scales[keep[e]])
-        scale = np.concatenate(scale) if scale else np.zeros(0)
-        lower = np.concatenate(lower) if lower else np.zeros(0)
-        upper = np.concatenate(upper) if upper else np.zeros(0)
-        penalty = np.concatenate(penalty) if penalty else np.zeros(0)
+        # (no effect at all has no columns to join: JoinedMaps below needs one map per effect)
+        scale, lower, upper, penalty = (np.concatenate(v) for v in (scale, lower, upper, penalty))
         per_part = []
         for p in range(len(self.parts)):
             bases, gs, idx = [], [], []
@@ -268,7 +266,7 @@ class FitEngine:
                 idx.append(offset + np.array([position[ub.index[p][c]] for c in cols], dtype=int))
                 offset += keep[e].size
             per_part.append((JoinedMaps(bases), Sensitivity(gs),
-                             np.concatenate(idx) if idx else np.zeros(0, dtype=int)))
+                             np.concatenate(idx)))
         return Columns(names=names, scale=scale, per_part=per_part, lower=lower, upper=upper, penalty=penalty)
 
     # -- fits --------------------------------------------------------------------------

@@ -89,7 +89,7 @@ class TableGroup:
 
 def _run(index: np.ndarray):
     """index as a slice when it is a run of consecutive integers, else itself."""
-    if index.size and index[-1] - index[0] == index.size - 1 and np.all(np.diff(index) == 1):
+    if index.size and np.all(np.diff(index) == 1):
         return slice(int(index[0]), int(index[-1]) + 1)
     return index
 
@@ -238,7 +238,6 @@ class FoldGrams:
         new_cols, old_cols = self.layout.columns_of(dense_new), self.layout.columns_of(dense_old)
         if not new_cols.size and not new_groups:
             return
-        both = dense_old + dense_new
         both_cols = np.concatenate([old_cols, new_cols])
         # per group: (its dense columns, accumulators (nb, width) for the total and per assignment per fold)
         crossing = [(grp, both_cols, len(dense_old)) for grp in new_groups] + \
@@ -494,10 +493,6 @@ class FoldGrams:
         (5 blocks of 25 MB with a fine angle table at 10^4 poses)."""
         self.held = None
         self.factors.clear()  # the blocks made again may differ in round-off
-
-    def nbytes(self) -> int:
-        held = self.held or []
-        return int(self.total.nbytes + sum(h.nbytes for hs in held for h in hs))
 
 
 def sensitivity_times(g, theta: np.ndarray) -> np.ndarray:

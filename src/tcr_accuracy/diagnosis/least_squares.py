@@ -26,7 +26,8 @@ class DampedSolver:
         # eigenvalues within round-off of zero carry no information (lstsq drops them too)
         self.kept = self.values > top * self.values.size * np.finfo(float).eps * 10
         self.top = top
-        self.first_damping = 1e-3 * top if top > 0 else 1.0
+        # (a zero Gram matrix keeps no eigenvalue: every step is zero and the damping never read)
+        self.first_damping = 1e-3 * top
 
     def step(self, gradient: np.ndarray, damping: float, room_low: np.ndarray | None = None,
              room_high: np.ndarray | None = None) -> tuple[np.ndarray, float]:
@@ -89,8 +90,8 @@ def box_quadratic(hessian: np.ndarray, gradient: np.ndarray, low: np.ndarray, hi
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = np.where(move < 0, (low - d) / move, np.where(move > 0, (high - d) / move, np.inf))
         ratio[fixed] = np.inf
-        blocking = int(np.argmin(ratio)) if ratio.size else 0
-        if ratio.size and ratio[blocking] < 1.0:
+        if ratio.size and ratio.min() < 1.0:
+            blocking = int(np.argmin(ratio))
             d = d + max(ratio[blocking], 0.0) * move
             d[blocking] = low[blocking] if move[blocking] < 0 else high[blocking]
             fixed[blocking] = True

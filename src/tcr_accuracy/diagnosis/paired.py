@@ -38,8 +38,9 @@ def signed_rank_z(before: np.ndarray, after: np.ndarray) -> float:
         return 0.0
     ranks = rankdata(np.abs(d))
     _, counts = np.unique(np.abs(d), return_counts=True)
+    # positive for n >= 1: the ties' term is at most (n^3 - n) / 48 = n (n + 1) (n - 1) / 48
     variance = n * (n + 1) * (2 * n + 1) / 24.0 - float(np.sum(counts**3 - counts)) / 48.0
-    return float((ranks[d > 0].sum() - n * (n + 1) / 4.0) / math.sqrt(variance)) if variance > 0 else 0.0
+    return float((ranks[d > 0].sum() - n * (n + 1) / 4.0) / math.sqrt(variance))
 
 
 def entry_z(before: np.ndarray, after: np.ndarray) -> float:
