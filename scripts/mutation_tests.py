@@ -11,8 +11,12 @@ non-zero: killed); 0 with "uncovered" printed when no test ran the line (a survi
 it killed, as cosmic-ray counts a timeout, would flatter the rate).
 
 A line is looked up as its whole statement (coverage records a multi-line statement on some of
-its lines only). Code run at import (module constants, default arguments) runs in no test's
-context: its mutant runs the tests that cover the enclosing function, else any line of the module.
+its lines only). Code run at import (module constants, class attributes, a ``def``'s signature)
+runs in the context of whichever test first imported the module, or of none: its mutant runs first
+the tests that run the code reading what the statement defines (every line of the package naming
+the constant or attribute; for a signature, its function's body), then the rest of the module's
+tests, each tier fastest first. (Run only by its own context, a constant was judged by one test
+that happened to import the module, and a refusal pinned elsewhere never ran.)
 
 usage (cosmic-ray runs it; by hand, with a mutant written into src/)::
 
@@ -50,25 +54,74 @@ def changed_lines() -> dict[str, set[int]]:
     return out
 
 
-def covering_tests(path: str, line: int, cover: dict) -> set[str]:
-    """The tests that ran ``line`` of ``path`` (its statement), else its function's, else its module's."""
+def _names_defined(statement: ast.stmt) -> set[str]:
+    """What a statement run at import defines for other code to read: a class's name (its bases,
+    decorators), an assignment's targets."""
+    if isinstance(statement, ast.ClassDef):
+        return {statement.name}
+    targets = statement.targets if isinstance(statement, ast.Assign) else \
+        [statement.target] if isinstance(statement, (ast.AnnAssign, ast.AugAssign)) else []
+    return {node.id for t in targets for node in ast.walk(t) if isinstance(node, ast.Name)}
+
+
+def _readers(names: set[str], skip: tuple[str, int, int]) -> dict[str, set[int]]:
+    """file -> lines of the package that name one of ``names`` (a Name or an attribute), other than the
+    defining statement's own lines ``skip`` (file, first, last)."""
+    out: dict[str, set[int]] = {}
+    for module in sorted((ROOT / "src" / "tcr_accuracy").rglob("*.py")):
+        relative = module.relative_to(ROOT).as_posix()
+        try:
+            tree = ast.parse(module.read_text())
+        except SyntaxError:  # a file that does not parse names nothing here (a mutant keeps the syntax)
+            continue
+        for node in ast.walk(tree):
+            named = node.id if isinstance(node, ast.Name) else node.attr if isinstance(node, ast.Attribute) else None
+            if named in names and not (relative == skip[0] and skip[1] <= node.lineno <= skip[2]):
+                out.setdefault(relative, set()).add(node.lineno)
+    return out
+
+
+def covering_tests(path: str, line: int, cover: dict) -> tuple[set[str], set[str]]:
+    """The tests to run on a mutant of ``line`` of ``path``, in two tiers (the first run first).
+
+    Code run in a test: the tests that ran the line (its statement), else its function's, else its
+    module's. Code run at import (outside every function's body): first the tests that ran its own
+    statement and any line reading what it defines (:func:`_names_defined`, :func:`_readers`; for a
+    signature, its function's body), then the rest of the module's tests."""
     by_line = cover["lines"].get(path, {})
     original = subprocess.run(["git", "show", f"HEAD:{path}"], cwd=ROOT, capture_output=True, text=True,
-                              check=True).stdout
-    enclosing = [node for node in ast.walk(ast.parse(original)) if isinstance(node, ast.stmt)
+                              check=True, timeout=60).stdout
+    tree = ast.parse(original)
+    enclosing = [node for node in ast.walk(tree) if isinstance(node, ast.stmt)
                  and node.lineno <= line <= node.end_lineno]
     statement = min(enclosing, key=lambda n: n.end_lineno - n.lineno, default=None)
     functions = [n for n in enclosing if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))]
-    spans = ([(statement.lineno, statement.end_lineno)] if statement is not None else [(line, line)])
-    if functions:
-        function = min(functions, key=lambda n: n.end_lineno - n.lineno)
-        spans.append((function.lineno, function.end_lineno))
-    spans.append((1, len(original.splitlines())))
-    for first, last in spans:
-        found = {cover["tests"][i] for n in range(first, last + 1) for i in by_line.get(str(n), ())}
-        if found:
-            return found
-    return set()
+    in_body = any(f.body[0].lineno <= line for f in functions)
+
+    def tests_of(file: str, lines) -> set[str]:
+        lines_of = cover["lines"].get(file, {})
+        return {cover["tests"][i] for n in lines for i in lines_of.get(str(n), ())}
+
+    module_tests = tests_of(path, range(1, len(original.splitlines()) + 1))
+    if in_body or statement is None:
+        spans = [(statement.lineno, statement.end_lineno)] if statement is not None else [(line, line)]
+        if functions:
+            function = min(functions, key=lambda n: n.end_lineno - n.lineno)
+            spans.append((function.lineno, function.end_lineno))
+        for first, last in spans:
+            found = tests_of(path, range(first, last + 1))
+            if found:
+                return found, set()
+        return module_tests, set()
+    first_tier = tests_of(path, range(statement.lineno, statement.end_lineno + 1))
+    if isinstance(statement, (ast.FunctionDef, ast.AsyncFunctionDef)):
+        first_tier |= tests_of(path, range(statement.body[0].lineno, statement.end_lineno + 1))
+    # a signature's defaults are read by its body (above); its name by every caller, too wide a tier
+    names = set() if isinstance(statement, (ast.FunctionDef, ast.AsyncFunctionDef)) else _names_defined(statement)
+    if names:
+        for file, lines in _readers(names, (path, statement.lineno, statement.end_lineno)).items():
+            first_tier |= tests_of(file, lines)
+    return first_tier, module_tests - first_tier
 
 
 def main(argv=None) -> int:
@@ -79,16 +132,22 @@ def main(argv=None) -> int:
                         "counts as surviving the tests run so far (printed: 'budget spent')")
     args = parser.parse_args(argv)
     cover = json.loads(Path(args.map).read_text())
-    tests: set[str] = set()
+    first_tier: set[str] = set()
+    second_tier: set[str] = set()
     for path, lines in changed_lines().items():
         for line in lines:
-            tests.update(covering_tests(path, line, cover))
+            first, second = covering_tests(path, line, cover)
+            first_tier |= first
+            second_tier |= second
+    second_tier -= first_tier
+    tests = first_tier | second_tier
     if not tests:
         print("uncovered: no test ran the mutated line")
         return 0
     seconds = cover["durations"]
     # a test the logs do not list ran faster than pytest's --durations threshold (5 ms): it goes first, not last
-    ordered = sorted(tests, key=lambda t: (seconds.get(t, 0.0), t))[:args.most]
+    ordered = [t for tier in (first_tier, second_tier)
+               for t in sorted(tier, key=lambda t: (seconds.get(t, 0.0), t))][:args.most]
     env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
     command = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *ordered]
     print(f"{len(ordered)} of {len(tests)} covering tests", flush=True)
