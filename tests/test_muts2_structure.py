@@ -71,3 +71,58 @@ def test_a_residual_below_the_noise_floor_leaves_no_excess():
                                 {"tested": True, "detected": True}, 0.3e-3, 0.2e-3)
     assert verdict == {"verdict": "cannot tell", "reason": "0 mm RMS are left beyond the noise, but with 12 poses "
                                                            "the test only sees structure from 0.05 mm"}
+
+
+def test_the_probes_noise_and_the_noise_floor_are_said_to_the_digits_they_print():
+    """Figures on the edge of their printed 3 digits, so that one read a thousandth too large or too small prints
+    otherwise: the power probe's noise 0.0999 mm per axis (0.1, 0.0998) in its method, and the 0.999 mm noise
+    floor (1, 0.998) a verdict names when the noise was estimated from the residual and the test only sees from
+    1.5 mm. The probe stands in for a detector that sees from 2 x the noise. Seen failing on the method's
+    ``noise_per_axis * 1e3`` turned to ``* 999.0`` and the verdict's ``noise_floor * 1e3`` turned to ``* 999.0``
+    and ``* 1001.0``."""
+    from types import SimpleNamespace
+
+    detector = SimpleNamespace(q=np.zeros((10, 2)), n_total=10, restrict=lambda values: values,
+                               probe=lambda noise, shape: (lambda amplitude: amplitude >= 2.0))
+    power = structure.smallest_detectable_structure(detector, {"ramp": np.ones((10, 3))}, 9.99e-5,
+                                                    np.random.default_rng(0))
+    assert power["method"] == ("each shape added to Gaussian noise of 0.0999 mm per axis at RMS 0.5, 1, 2, ... 64 x "
+                               "that and tested; the smallest flagged size, largest over the shapes")
+    verdict = structure_verdict({"remains": False}, {"smallest_detectable_mm": 1.5, "n_poses": 30}, {"tested": False},
+                                0.999e-3, 2e-3)
+    assert verdict == {"verdict": "cannot tell", "reason": "the noise was estimated from this residual, and with 30 "
+                                                           "poses the test only sees structure from 1.5 mm, above "
+                                                           "the 0.999 mm noise floor"}
+
+
+def test_the_context_that_could_predict_scatter_is_what_varies_however_little(monkeypatch):
+    """Scatter beyond the noise that the joints do not predict: the rows' context is offered to the ridge only
+    where it varies, a time of 0.5 s in all (spread 0.15, below one) and approach directions of which one column
+    varies, not a temperature held at 20 degC; the ridge is handed their (N, 3) columns side by side and the note
+    names them. Seen failing on ``np.any(np.std(v, axis=0) > 0)`` turned to ``> 1`` (the time left out) and to
+    ``> -1`` (the constant temperature named)."""
+    from types import SimpleNamespace
+
+    n = 12
+    handed = {}
+
+    def from_context(features, residual, split):
+        handed["features"] = features
+        return 0.2e-3
+
+    monkeypatch.setattr(structure, "predictable_leftover", lambda detector, residual: 0.6e-3)
+    monkeypatch.setattr(structure, "predictable_from_context", from_context)
+    time_s = np.linspace(0.0, 0.5, n)
+    directions = np.column_stack([np.ones(n), np.where(np.arange(n) % 2, 1.0, -1.0)])
+    scatter = {"detected": True, "estimated_noise_per_axis_mm": 0.6}
+    notes = []
+    structure.name_scatter(scatter, {"verdict": "no"}, [], SimpleNamespace(per_axis=0.1e-3), notes,
+                           detector=SimpleNamespace(restrict=lambda values: values, split=None),
+                           residual=np.zeros((n, 3)),
+                           context={"temperature_c": np.full(n, 20.0), "time_s": time_s,
+                                    "approach directions": directions})
+    np.testing.assert_array_equal(handed["features"], np.column_stack([time_s, directions]))
+    assert scatter["named"] is None
+    assert notes == ["0.6000 mm per axis is left against 0.1000 mm of noise, but predicted out of sample from the "
+                     "rows' time_s, approach directions it leaves 0.2000 mm: structure along them that the vocabulary "
+                     "does not express, not random scatter"]
