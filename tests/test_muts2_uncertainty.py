@@ -38,3 +38,14 @@ def test_two_replicates_over_two_million_poses_in_two_sessions_are_drawn_one_blo
     session = np.arange(n) % 2
     boot = PoseBootstrap.draw(n, session_of=session, n_replicates=2, random_state=8)
     np.testing.assert_array_equal(boot.counts, _strata_draws(n, session, 2, 1, 8))
+
+
+def test_by_default_a_row_is_one_measured_point():
+    """Without ``n_parts`` each row holds one measured frame: the held-out RMS of rows' squared errors (1, 4, 4)
+    mm^2 is sqrt(9 / 3) = sqrt(3) mm, on the rows and in every replicate (sqrt(sum w r^2 / sum w), written out).
+    Seen failing on ``n_parts: int = 1`` turned to ``2`` (every RMS a root two too small)."""
+    squares = np.array([1.0, 4.0, 4.0]) * 1e-6
+    boot = PoseBootstrap.draw(3, n_replicates=50, random_state=1)
+    assert boot.n_parts == 1 and boot.rms(squares) == pytest.approx(math.sqrt(3.0) * 1e-3, rel=1e-12)
+    w = boot.counts.astype(float)
+    np.testing.assert_allclose(boot.replicate_rms(squares), np.sqrt(w @ squares / w.sum(axis=1)), rtol=1e-12)
