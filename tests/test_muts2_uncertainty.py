@@ -49,3 +49,19 @@ def test_by_default_a_row_is_one_measured_point():
     assert boot.n_parts == 1 and boot.rms(squares) == pytest.approx(math.sqrt(3.0) * 1e-3, rel=1e-12)
     w = boot.counts.astype(float)
     np.testing.assert_allclose(boot.replicate_rms(squares), np.sqrt(w @ squares / w.sum(axis=1)), rtol=1e-12)
+
+
+def test_implausibility_of_small_bounds_reads_each_on_the_values_side():
+    """Physical bounds of a few mrad (an SI effect's usual size, below one): 0.5e-3 against the upper 1e-3 and
+    -1e-3 against the lower -2e-3 give sqrt((0.5^2 + 0.5^2) / 2) = 0.5; a one-sided range [0, 3e-3] read on its
+    own side for a negative value (-1.5e-3 / 3e-3). Seen failing on ``np.where(bound > 0, ...)`` turned to
+    ``bound > 1`` (every bound below a unit replaced by the wider side)."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.diagnosis.uncertainty import implausibility
+
+    result = {"phi": np.array([0.5e-3, -1e-3, -1.5e-3]), "scale": np.ones(3), "keep": {"compliance": np.arange(3)},
+              "effects": ["compliance"]}
+    bases = {"compliance": SimpleNamespace(lower=np.array([-2e-3, -2e-3, 0.0]), upper=np.array([1e-3, 1e-3, 3e-3]))}
+    assert implausibility(result, bases, "compliance") == pytest.approx(math.sqrt((0.25 + 0.25 + 0.25) / 3),
+                                                                        rel=1e-12)
