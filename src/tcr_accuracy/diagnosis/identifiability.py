@@ -81,7 +81,7 @@ def gram_factor(gram: np.ndarray, columns: dict, n_poses: int) -> dict:
     upper = np.triu(factor[:rank])  # (rank, K): the rows of the factor in pivoted column order
     f = np.zeros((rank, gram.shape[0]))
     f[:, piv[:gram.shape[0]] - 1] = upper
-    f *= np.where(norms > 0, norms, 0.0)
+    f *= norms  # back to the columns' own scale (a column of norm 0 stays 0)
     return {e: SensitivityColumns(list(names), f[:, None, cols], np.ones(len(cols)), n_poses)
             for e, (names, cols) in columns.items()}
 

@@ -239,8 +239,7 @@ class PoseBootstrap:
         """The models' held-out RMS on the rows and in every replicate, for comparing them:
         ``squares``: name -> per-row squared held-out errors (N,) (:func:`~.paired.row_squares`)."""
         names = list(squares)
-        matrix = np.stack([np.asarray(squares[k], dtype=float) for k in names], axis=1) if names else \
-            np.zeros((self.cluster_of.size, 0))
+        matrix = np.stack([np.asarray(squares[k], dtype=float) for k in names], axis=1)
         replicates = self.replicate_rms(matrix)
         return BootstrapTable({k: self.rms(squares[k]) for k in names},
                               {k: replicates[:, i] for i, k in enumerate(names)})
