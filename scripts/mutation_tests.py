@@ -88,7 +88,6 @@ def covering_tests(path: str, line: int, cover: dict) -> tuple[set[str], set[str
     module's. Code run at import (outside every function's body): first the tests that ran its own
     statement and any line reading what it defines (:func:`_names_defined`, :func:`_readers`; for a
     signature, its function's body), then the rest of the module's tests."""
-    by_line = cover["lines"].get(path, {})
     original = subprocess.run(["git", "show", f"HEAD:{path}"], cwd=ROOT, capture_output=True, text=True,
                               check=True, timeout=60).stdout
     tree = ast.parse(original)
