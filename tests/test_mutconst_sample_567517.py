@@ -3,7 +3,7 @@
 * ISO 9283's words for a fitted measurement frame name the TCP-offset axes the poses could fix
   ("along dx, dz"), not the separator of their parameter names (seen failing on
   ``n.rpartition(".")[2]`` turned to ``[1]``).
-* A joint of wide travel (+-13 rad, written here as URDF) is turned by whole turns to the value
+* A joint of wide travel (+-13 rad, a URDF arm of :mod:`small_arms`) is turned by whole turns to the value
   nearest home among those its limits allow, by brute force over -2..2 turns: from -2 - 2 pi with
   home 2, one turn up reaches -2 (4 from home), two turns 2 pi - 2 (2.28 from home); the second
   must win (seen failing on ``np.abs(shifted - self.home[j])`` turned to ``+`` where the best
@@ -23,18 +23,9 @@ from scipy.optimize import lsq_linear
 from tcr_accuracy.diagnosis import least_squares
 from tcr_accuracy.iso9283.evaluate import _fit_words
 from tcr_accuracy.iso9283.reach import Reach, Workspace
-from tcr_accuracy.model.robot import load_robot
 
-WIDE_ARM = """<?xml version="1.0"?>
-<robot name="wide_arm">
-  <link name="base"/><link name="upper"/><link name="fore"/><link name="tool"/>
-  <joint name="turn" type="revolute"><parent link="base"/><child link="upper"/>
-    <origin xyz="0 0 0.3"/><axis xyz="0 0 1"/><limit lower="-13" upper="13" effort="100" velocity="1"/></joint>
-  <joint name="lift" type="revolute"><parent link="upper"/><child link="fore"/>
-    <origin xyz="0.4 0 0"/><axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="100" velocity="1"/></joint>
-  <joint name="flange" type="fixed"><parent link="fore"/><child link="tool"/><origin xyz="0.3 0 0"/></joint>
-</robot>
-"""
+from small_arms import two_joint_arm
+
 
 
 def test_the_frame_fit_words_name_the_offset_axes_fitted():
@@ -48,10 +39,8 @@ def test_the_frame_fit_words_name_the_offset_axes_fitted():
     assert "is not identifiable from these poses (one orientation" in _fit_words(none, 3)
 
 
-def test_whole_turns_take_the_value_nearest_home_among_all_the_limits_allow(tmp_path):
-    path = tmp_path / "wide_arm.urdf"
-    path.write_text(WIDE_ARM)
-    robot = load_robot(path, tool="tool")
+def test_whole_turns_take_the_value_nearest_home_among_all_the_limits_allow():
+    robot = two_joint_arm(travel=13.0)
     home = np.array([2.0, 0.0])
     reach = Reach(robot, None, Workspace(), home, "exact")
     q = np.array([[-2.0 - 2 * np.pi, 0.1], [-2.5 - 2 * np.pi, -0.1]])
