@@ -76,7 +76,8 @@ def _engine_fit(m, residual):
 
     engine.predict_residual = predict_residual
     jacobian = ChainedJacobian(Sensitivity([((-m).reshape(N, 3, K), np.arange(K))]), np.arange(K), np.ones(K))
-    cols = Columns([f"p{i}" for i in range(K)], np.ones(K), [], np.full(K, -np.inf), np.full(K, np.inf), np.zeros(K))
+    # penalty weights carried, lambda left at its default: no penalty enters
+    cols = Columns([f"p{i}" for i in range(K)], np.ones(K), [], np.full(K, -np.inf), np.full(K, np.inf), np.ones(K))
     start = np.zeros(K)
     phi, _ = engine._minimise(cols, [jacobian], None, gram_matrix([jacobian], None), start,
                               [residual(start).reshape(N, 3)])
@@ -93,7 +94,8 @@ def test_the_fit_stops_where_the_written_out_iteration_stops(shape, rule, count,
     rule ends it, the written-out iteration with a tolerance ten times larger or smaller stops elsewhere.
     Seen failing on the gain ``cost - trial_cost`` turned to ``cost ** trial_cost`` (steep: Nielsen's
     factor always its floor), on ``gain <= self.COST_TOLERANCE * cost`` and on ``predicted <= ...`` turned
-    to ``%`` or ``/`` (a tolerance 1e-7 m^2 absolute) and on ``COST_TOLERANCE = 1e-7`` turned to ``1.0000001``."""
+    to ``%`` or ``/`` (a tolerance 1e-7 m^2 absolute), on ``COST_TOLERANCE = 1e-7`` turned to ``1.0000001`` and
+    on ``_minimise``'s default ``penalty: float = 0.0`` turned to ``-1.0`` (the columns carry penalty weights)."""
     assert FitEngine.COST_TOLERANCE == 1e-7 and FitEngine.MAX_EVALUATIONS == 40
     m, residual = _problem(shape)
     expected, evaluations, stopped, failures = _written_out(residual, -m)
