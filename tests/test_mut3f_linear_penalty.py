@@ -34,16 +34,23 @@ def engine():
 
 
 def test_a_penalised_linear_fits_covariance_is_s2_times_the_inverse_penalised_gram(engine):
-    """The linear fit of frames + joint offsets with their penalty: lambda chosen on the grid (> 0), and its
+    """The linear fit of frames + joint offsets with their penalty: its
     covariance cost / (3N - k) x (J^T J + lambda W)^-1, its standard errors that matrix's diagonal's roots.
-    Seen failing on ``solution.penalty * weights`` turned to ``solution.penalty - weights``."""
+    lambda is a point of the grid 1e-5 .. 1e3 times the penalised columns' median Gram diagonal, said so in the
+    result with each of the four folds' lambda. Seen failing on ``solution.penalty * weights`` turned to
+    ``solution.penalty - weights`` and on ``PENALTY_GRID[-1]`` turned to ``PENALTY_GRID[1]``."""
     result = engine.evaluate(MODEL)
     store = engine.grams()
     index = store.layout.indices(MODEL, engine.kept(MODEL))
     weights = store.layout.penalty[index]
     assert np.count_nonzero(weights) == 3 and result["penalty"] is not None  # the joint offsets kept beside frames
     lam = result["penalty"]["full"]
-    assert lam > 0
+    # lambda on the grid 1e-5 .. 1e3 (nine points a decade apart) times the penalised columns' median Gram diagonal
+    gram = store.total[np.ix_(index, index)]
+    relative = lam / np.median(np.diag(gram)[weights > 0])
+    assert np.min(np.abs(np.log10(relative) - np.arange(-5, 4))) < 1e-9
+    assert result["penalty"]["grid_relative"] == [1e-5, 1e3]
+    assert result["penalty"]["folds"] == [[lam] * 4]
     k = index.size
     covariance = result["cost"] / (3 * N - k) * np.linalg.inv(store.total[np.ix_(index, index)] + lam * np.diag(weights))
     np.testing.assert_allclose(result["phi_cov"], covariance, rtol=1e-8, atol=1e-12 * np.abs(covariance).max())
