@@ -174,3 +174,14 @@ def test_the_folded_columns_of_no_effect_are_none_and_of_one_pose_are_its_rows_r
     r = np.linalg.qr(g[0] * scales, mode="r")
     assert out["e"].n_poses == 1
     np.testing.assert_allclose(np.abs(out["e"].g[:, 0, :]), np.abs(r), rtol=1e-13, atol=1e-15)
+
+
+def test_the_report_of_no_effect_judged_states_a_threshold_of_zero():
+    """No effect in the order: nothing kept, and the report's threshold is 0 mm (the largest of no
+    thresholds), not negative. Seen failing on ``max(thresholds.values(), default=0.0)`` turned to
+    ``default=-1.0`` (-1000 mm)."""
+    from tcr_accuracy.diagnosis.identifiability import identifiability
+
+    for min_motion in (2e-5, {}):
+        keep, report = identifiability({}, [], min_motion=min_motion)
+        assert keep == {} and report == {"rank_tol": 1e-6, "min_motion_mm": 0.0, "effects": {}}
