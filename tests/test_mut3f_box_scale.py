@@ -53,17 +53,22 @@ def test_a_bound_held_at_the_start_is_let_go_at_any_scale_of_the_problem(size):
     np.testing.assert_allclose(d, _kkt_minimiser(hessian * size, gradient * size, low, high), rtol=0, atol=1e-12)
 
 
+def _random_problems(count: int):
+    """(H, g, low, high) of ``count`` random positive definite 4 x 4 problems (seed 3005), boxes around 0, a
+    bound at 0 with probability 0.3 (both, now and then: a coordinate whose bounds meet)."""
+    rng = np.random.default_rng(3005)
+    for _ in range(count):
+        a = rng.standard_normal((6, 4))
+        hessian, gradient = a.T @ a + 0.1 * np.eye(4), rng.standard_normal(4) * 3.0
+        low = -rng.uniform(0.0, 1.0, 4) * (rng.random(4) > 0.3)
+        yield hessian, gradient, low, rng.uniform(0.0, 1.0, 4) * (rng.random(4) > 0.3)
+
+
 def test_box_quadratics_of_many_sizes_and_active_sets_are_their_kkt_minimisers():
     """Random positive definite 4 x 4 problems with boxes around 0 (some touching it), each at scales 1 and
     1e-14: the brute-force KKT minimiser, to 1e-10 of its size. Seen failing on the multipliers' tolerance
     ``1e-300`` turned to ``1.0``."""
-    rng = np.random.default_rng(3005)
-    for _ in range(30):
-        a = rng.standard_normal((6, 4))
-        hessian = a.T @ a + 0.1 * np.eye(4)
-        gradient = rng.standard_normal(4) * 3.0
-        low = -rng.uniform(0.0, 1.0, 4) * (rng.random(4) > 0.3)
-        high = rng.uniform(0.0, 1.0, 4) * (rng.random(4) > 0.3)
+    for hessian, gradient, low, high in _random_problems(30):
         expected = _kkt_minimiser(hessian, gradient, low, high)
         for size in (1.0, 1e-14):
             d = box_quadratic(hessian * size, gradient * size, low, high)
@@ -77,13 +82,7 @@ def test_a_coordinate_whose_bounds_meet_stays_put_and_the_others_find_their_mini
     'wrong' multiplier), fixed it again at once, and ran out of iterations with d_3 never released: a point
     0.026 above the minimum (found by the random problems below, seed 3005, the 24th). Seen failing on the
     fix's ``-np.inf`` turned to ``np.inf`` (the unary minus removed)."""
-    rng = np.random.default_rng(3005)
-    for _ in range(24):
-        a = rng.standard_normal((6, 4))
-        hessian = a.T @ a + 0.1 * np.eye(4)
-        gradient = rng.standard_normal(4) * 3.0
-        low = -rng.uniform(0.0, 1.0, 4) * (rng.random(4) > 0.3)
-        high = rng.uniform(0.0, 1.0, 4) * (rng.random(4) > 0.3)
+    hessian, gradient, low, high = list(_random_problems(24))[-1]
     assert low[0] == high[0] == 0.0 and low[3] < 0.0 == high[3]
     expected = _kkt_minimiser(hessian, gradient, low, high)
     assert expected[0] == 0.0 and expected[3] == low[3]
