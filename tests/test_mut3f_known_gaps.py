@@ -185,3 +185,33 @@ def test_the_report_of_no_effect_judged_states_a_threshold_of_zero():
     for min_motion in (2e-5, {}):
         keep, report = identifiability({}, [], min_motion=min_motion)
         assert keep == {} and report == {"rank_tol": 1e-6, "min_motion_mm": 0.0, "effects": {}}
+
+
+def test_an_angle_table_of_one_mode_per_joint_has_its_gram_block_from_its_designs():
+    """The coarsest angle table (4 intervals: one mode per joint, each joint's group one column): the total
+    Gram block taken from its B-spline designs is that of its dense columns, J^T J written out with numpy.
+    Seen failing on the group's joint ``g.joint[positions[0]]`` turned to ``positions[1]`` (a group of one
+    column has no second)."""
+    from test_mutf_gram_layout import _basis
+
+    from tcr_accuracy.diagnosis.error_map import JointColumnsSensitivity
+    from tcr_accuracy.diagnosis.gram import FoldGrams
+    from tcr_accuracy.effects import make_effect
+    from tcr_accuracy.model.robot import load_robot
+
+    rng = np.random.default_rng(3008)
+    n = 60
+    robot = load_robot("ur10")
+    q = rng.uniform(*robot.joint_bounds(), (n, 6))
+    table = make_effect("angle_table", robot, intervals=4)
+    assert table.modes_per_joint == 1
+    values, joint = table.joint_column_values(q)
+    k = table.n_params
+    g = JointColumnsSensitivity(rng.standard_normal((n, 3, 6)), values, joint, np.arange(k), k)
+    basis = _basis(rng, g, k)
+    store = FoldGrams([SimpleNamespace(q=q, rows_per_pose=3, whitening=None)], {"angle_table": basis},
+                      [[(np.arange(30, n), np.arange(30)), (np.arange(30), np.arange(30, n))]])
+    assert store._structured(0, "angle_table") is g
+    jacobian = (np.asarray(g) * basis.scales).reshape(-1, k)
+    expected = jacobian.T @ jacobian
+    np.testing.assert_allclose(store.total, expected, rtol=0, atol=1e-11 * np.abs(expected).max())
