@@ -6,6 +6,9 @@ a planted change it was seen to catch (issue 36)."""
 
 from __future__ import annotations
 
+import contextlib
+import signal
+
 import numpy as np
 import pytest
 
@@ -38,6 +41,22 @@ def test_a_parameter_clear_of_a_null_direction_keeps_its_pseudo_inverse_standard
     np.testing.assert_allclose(solver.covariance(variance), covariance, rtol=1e-8, atol=1e-12 * np.abs(covariance).max())
 
 
+@contextlib.contextmanager
+def _ends_within(seconds: float):
+    """Fails (AssertionError) instead of hanging when the block runs on past ``seconds`` (an endless walk:
+    a planted change can make it one, and a hang would read as a pass to a mutation run's time budget)."""
+    def stop(signum, frame):
+        raise AssertionError(f"the penalty walk did not end within {seconds} s")
+
+    old = signal.signal(signal.SIGALRM, stop)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.signal(signal.SIGALRM, old)
+
+
 def _ridge_case(rng, truth_size: float, noise: float):
     """(rows x (n, k), targets y (n,), penalty weights (k,), five folds of rows)."""
     n, k = 120, 6
@@ -56,7 +75,8 @@ def test_the_penalty_walk_reaches_a_minimum_on_either_side_of_the_grids_middle(t
     held-out score of each lambda on the grid, ridge fits of each fold's training rows by numpy's lstsq on
     the rows stacked with sqrt(lambda w) rows, has its minimum below or above the grid's middle, and the walk
     from the middle (and from either end) ends on it; with one fold, nothing to score, lambda is the grid's middle. Seen failing on the walk's ``scores[i - 1] <=
-    scores[i]`` turned to ``scores[i + 1]`` and on the middle ``len(grid) // 2`` turned to ``// 3``."""
+    scores[i]`` turned to ``scores[i + 1]`` and on the step ``i -= 1`` turned to ``i -= 0`` (endless walks, failed
+    after 20 s rather than hung), on ``len(grid) - 1`` turned to ``- 2`` and on the middle ``len(grid) // 2`` turned to ``// 3``."""
     rng = np.random.default_rng(3007)
     x, y, weights, folds = _ridge_case(rng, truth_size, noise)
     n, k = x.shape
@@ -76,7 +96,8 @@ def test_the_penalty_walk_reaches_a_minimum_on_either_side_of_the_grids_middle(t
     assert (best < 4) if side == "low" else (best > 4)
     assert np.all(np.diff(scores[:best + 1]) < 0) and np.all(np.diff(scores[best:]) > 0)  # one minimum
     for start in (None, 0, len(grid) - 1):
-        index, lam = choose_penalty(total, held, weights, np.zeros(k), start)
+        with _ends_within(20.0):  # milliseconds when it ends
+            index, lam = choose_penalty(total, held, weights, np.zeros(k), start)
         assert (index, lam) == (best, pytest.approx(grid[best], rel=1e-12))
     # one fold scores nothing: the grid's middle, 1e-1 of the median diagonal
     assert choose_penalty(total, held[:1], weights, np.zeros(k), None) == (4, pytest.approx(grid[4], rel=1e-12))
