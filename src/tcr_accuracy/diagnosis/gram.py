@@ -147,7 +147,11 @@ class FoldGrams:
 
     def __init__(self, parts: list, bases: dict, repeats: list):
         self.parts, self.bases = parts, bases
-        self.n_rows = parts[0].q.shape[0]
+        # every frame is measured on the campaign's rows: a fold holds out the same rows of each
+        counts = {part.q.shape[0] for part in parts}
+        if len(counts) != 1:
+            raise ValueError(f"the measured frames hold different numbers of rows: {sorted(counts)}")
+        (self.n_rows,) = counts
         self.tests = [[np.sort(np.asarray(test, dtype=int)) for _, test in folds] for folds in repeats]
         #: per assignment, (N,) the fold whose held-out rows hold each row (-1: none)
         self.fold_of = []

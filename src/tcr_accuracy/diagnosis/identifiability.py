@@ -40,9 +40,11 @@ def compressed(bases: dict) -> dict:
     :func:`identifiability` takes is the same on R as on A, at a cost that no longer grows
     with the number of poses: one QR of the (rows x P) matrix instead of one per call.
     """
+    if not bases:
+        return {}
     names = list(bases)
     widths = [len(bases[e].names) for e in names]
-    n_all = max(bases[names[0]].g.shape[0], 1) if names else 1
+    n_all = max(bases[names[0]].g.shape[0], 1)
     n_poses = n_all
     # R of A = [R of the poses before; the next chunk of poses' rows], chunk by chunk (a tall-skinny
     # QR): A whole was held three times over (the scaled blocks, their concatenation, LAPACK's copy),

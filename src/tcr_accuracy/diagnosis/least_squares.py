@@ -102,6 +102,9 @@ def box_quadratic(hessian: np.ndarray, gradient: np.ndarray, low: np.ndarray, hi
         multiplier = hessian[fixed] @ d + gradient[fixed]  # > 0 holds a lower bound, < 0 an upper
         on_low = d[fixed] <= low[fixed]
         wrong = np.where(on_low, -multiplier, multiplier)
+        # a coordinate whose bounds meet (low == high) is held whatever its multiplier's sign (let go, it was
+        # fixed again at once, and the other bounds were never released)
+        wrong[on_low & (d[fixed] >= high[fixed])] = -np.inf
         if wrong.max() <= 1e-12 * max(float(np.abs(gradient).max()), 1e-300):
             return d
         fixed[np.flatnonzero(fixed)[int(np.argmax(wrong))]] = False
