@@ -26,3 +26,40 @@ def test_a_prior_fitted_to_errors_far_beyond_typical_sizes_rests_on_the_upper_bo
     prior = fit_prior(DesignColumns(g, owner, EFFECTS), errors)
     assert prior.tau == pytest.approx({"compliance": 100.0, "transmission": 100.0}, rel=1e-12)
     assert prior.noise_m == pytest.approx(1e-2, rel=1e-12)
+
+
+@pytest.mark.parametrize("criterion", ["I", "D"])
+def test_a_design_after_measured_poses_starts_from_their_information(criterion):
+    """Eight poses measured, four of twelve candidates to choose: the task's spread before the design is that of
+    the posterior after the measured poses, ``S = (Lambda + G^T G / sigma^2)^-1`` (a plain inverse here), after
+    it that of the posterior with the chosen poses added, and the log-determinant gain is the log-det of the
+    information with the chosen poses less that with the measured ones alone (numpy's slogdet), to 1e-9; the
+    measured poses lower the task's spread (the figures differ from the prior's alone). Seen failing on
+    ``information += beta * (flat.T @ flat)`` turned to ``beta ** (...)`` (a measuring sample's survivor,
+    seed 4200) and on ``beta = 1.0 / prior.noise_m**2`` turned to ``** 3`` (planted by hand)."""
+    from tcr_accuracy.diagnosis.bayes_design import EffectPrior, plan_design
+
+    rng = np.random.default_rng(17)
+    owner = np.array(["frames"] * 2 + ["compliance"] * 3 + ["transmission"] * 3)
+    p = owner.size
+    measured = DesignColumns(rng.normal(size=(8, 3, p)) * 1e-4, owner, EFFECTS)
+    candidates = DesignColumns(rng.normal(size=(12, 3, p)) * 1e-4, owner, EFFECTS)
+    prior = EffectPrior({"compliance": 2.0, "transmission": 0.5}, 3e-5)
+    precision = np.array([1e-6 if e == "frames" else 1.0 / prior.tau[e] ** 2 for e in owner])
+    design = plan_design(measured, candidates, candidates, prior, 4, criterion=criterion)
+    flat = measured.g.reshape(-1, p)
+    before = np.diag(precision) + flat.T @ flat / prior.noise_m**2
+    chosen = candidates.g[design.picked].reshape(-1, p)
+    after = before + chosen.T @ chosen / prior.noise_m**2
+
+    def spread(information):
+        s = np.linalg.inv(information)
+        return np.array([np.trace(g @ s @ g.T) for g in candidates.g])
+
+    prior_alone = spread(np.diag(precision))
+    assert np.sqrt(prior_alone.mean()) > 1.5 * np.sqrt(spread(before).mean())
+    assert design.task_std_before_m == pytest.approx(np.sqrt(spread(before).mean()), rel=1e-9)
+    assert design.task_worst_std_before_m == pytest.approx(np.sqrt(spread(before).max()), rel=1e-9)
+    assert design.task_std_after_m == pytest.approx(np.sqrt(spread(after).mean()), rel=1e-9)
+    assert design.task_worst_std_after_m == pytest.approx(np.sqrt(spread(after).max()), rel=1e-9)
+    assert design.log_det_gain == pytest.approx(np.linalg.slogdet(after)[1] - np.linalg.slogdet(before)[1], rel=1e-9)

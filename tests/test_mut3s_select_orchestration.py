@@ -1,0 +1,162 @@
+"""``diagnosis/stages/select.py``: what ``select_effects`` does with what its steps return, on stand-ins (issue 36,
+third pass). Only whole diagnoses reach the stepwise loop's later rounds, the search's other set, the
+relinearisation's second elimination and a harmful effect without a leave-one-out row, and a measuring sample's
+mutant there ran out of its time budget before a whole diagnosis caught it. Here each step of the selection
+(forward selection, the swaps, backward elimination, the search, the relinearisation, the harm test) is a
+stand-in that records its calls and returns marked results, on an engine that answers the three questions
+``select_effects`` asks itself; the selection must pass each result on, in order, as written out here.
+Each test names planted changes it was seen to catch."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from tcr_accuracy.diagnosis.records import ErrorStats
+from tcr_accuracy.diagnosis.stages import select
+from tcr_accuracy.diagnosis.stages.candidates import Candidate
+from tcr_accuracy.diagnosis.stages.select import Elimination, LeaveOneOut
+
+STATS = ErrorStats(1e-4, 2e-4, 5e-4, 30)
+
+
+class _Engine:
+    """Answers ``evaluate`` with one fixed result: the frames-only fit's figures and per-row squares."""
+
+    def __init__(self):
+        self.calls = []
+
+    def evaluate(self, effects, exact=False):
+        self.calls.append((tuple(effects), exact))
+        return {"n_parameters": 9, "train_stats": ErrorStats(1e-4, 1.5e-4, 4e-4, 30), "heldout_stats": STATS,
+                "train_residual": np.zeros((30, 3)), "heldout_squares": np.full(30, 4e-8)}
+
+
+def _candidate_set(engine, testable):
+    return SimpleNamespace(engine=engine, untried=(Candidate("backlash", False, why="no direction column"),),
+                           testable=tuple(testable), late_names=(), detector=None)
+
+
+def _row(effect, z, increase):
+    return LeaveOneOut(effect, STATS, increase, z, STATS, increase)
+
+
+class _Stand_ins:
+    """The selection's steps, recording their calls; ``grow`` lists what each stepwise round's forward step adds
+    (None: the set stands)."""
+
+    def __init__(self, monkeypatch, *, first_step, grow, searched, relinearised, harmful, z):
+        self.log = []
+        self.grow = list(grow)
+        self.harmful = list(harmful)
+        self.backward_calls = 0
+
+        def forward(engine, testable, steps, candidates, say, selection_z, min_relative_gain, start=None):
+            if start is None:  # the first forward selection: the shrink table grows
+                for e, value in z.items():
+                    candidates[e] = Candidate(e, True, heldout_rms=2e-4, gain=1e-5, z=value, n_parameters=3)
+                current = ["frames"]
+                if first_step:
+                    current.append(first_step)
+                    steps.append(select.Step(first_step, tuple(current), 12, 1e-4, STATS, 5.0))
+                self.log.append(("forward", tuple(current)))
+                return current
+            added = self.grow.pop(0) if self.grow else None
+            self.log.append(("stepwise", added))
+            return list(start) + ([added] if added else [])
+
+        def settle_swaps(engine, current, rivals, selection_z, say, reference):
+            self.log.append(("swaps", tuple(rivals)))
+            return list(current), [{"swap": len(self.log)}]
+
+        def backward(engine, current, say, selection_z, reference=None):
+            self.backward_calls += 1
+            k = self.backward_calls
+            self.log.append(("backward", tuple(current), reference is not None))
+            loo = [_row(e, 10.0 + k, 1e-5 * k) for e in current if e != "frames"]
+            return list(current), loo, [Elimination(f"dropped {k}", float(k), 1e-6 * k)]
+
+        def search_sets(engine, current, first, testable, *, selection_z, min_relative_gain, say, forward, prune):
+            self.log.append(("search", first))
+            return list(searched or current), "report"
+
+        def relinearise(engine, current, registered, candidate_set, notes):
+            return relinearised
+
+        def harmful_effect(engine, current, loo):
+            return self.harmful.pop(0) if self.harmful else None
+
+        monkeypatch.setattr(select, "_forward", forward)
+        monkeypatch.setattr(select, "settle_swaps", settle_swaps)
+        monkeypatch.setattr(select, "_backward", backward)
+        monkeypatch.setattr(select, "search_sets", search_sets)
+        monkeypatch.setattr(select, "_relinearise_at_fit", relinearise)
+        monkeypatch.setattr(select, "harmful_effect", harmful_effect)
+        monkeypatch.setattr(select, "_judge_at_fitted_sizes", lambda engine, current, notes: False)
+        monkeypatch.setattr(select, "swap_alternatives", lambda engine, current, rivals, selection_z: {})
+        monkeypatch.setattr(select, "ambiguity_report", lambda groups: [])
+
+
+def _select(stand_ins, testable, selection_z=0.5):
+    engine = _Engine()
+    selection = select.select_effects(None, _candidate_set(engine, testable), selection_z=selection_z,
+                                      min_relative_gain=0.002, rng=np.random.default_rng(0))
+    return engine, selection
+
+
+def test_the_stepwise_loop_runs_four_rounds_and_every_elimination_and_swap_is_kept_in_order(monkeypatch):
+    """Each stepwise round's forward step adds a new effect (never a set seen before), so the loop runs its four
+    rounds and stops; then the search ends on another set (pruned again), the relinearisation takes (judged
+    again), and the harm test drops first an effect with no leave-one-out row (z 0, no increase, exactly), then
+    one with a row (its z and increase). The eliminations are every backward elimination's and the harm test's,
+    in the order they happened; the swaps the first settlement's and each round's. The search is told the
+    effect forward selection took first; the rivals are the testable effects whose first trial's z exceeds
+    selection_z (0.5 here: an untried z counts as 0, not 1). Seen failing on ``for _ in range(4)`` turned to
+    ``range(5)`` and ``range(3)``, on ``eliminated + more_eliminated`` in the loop turned to ``*`` (a measuring
+    sample's survivor, seed 4200: budget spent) and after the search and the relinearisation turned to ``-``, on
+    ``row.z if row else 0.0`` turned to ``1.0``, on ``steps[1].effect`` turned to ``steps[0]``, and on
+    ``(candidates[e].z or 0.0)`` turned to ``1.0`` (planted by hand)."""
+    stand_ins = _Stand_ins(monkeypatch, first_step="joint_offsets",
+                           grow=["geometry", "compliance", "thermal", "drift", "encoder_scale"],
+                           searched=["frames", "joint_offsets", "geometry", "cyclic"], relinearised=True,
+                           harmful=["thermal", "geometry"],
+                           z={"joint_offsets": 6.0, "geometry": 0.3, "compliance": None, "thermal": 0.5})
+    testable = ["joint_offsets", "geometry", "compliance", "thermal"]
+    _, selection = _select(stand_ins, testable)
+    rounds = [entry for entry in stand_ins.log if entry[0] == "stepwise"]
+    assert [added for _, added in rounds] == ["geometry", "compliance", "thermal", "drift"]
+    assert ("search", "joint_offsets") in stand_ins.log
+    assert selection.rivals == ("joint_offsets",)
+    assert [entry for entry in stand_ins.log if entry[0] == "swaps"][0] == ("swaps", ("joint_offsets",))
+    # backward eliminations: 1 after the first swaps, 2-5 in the rounds, 6 after the search, 7 after the
+    # relinearisation, 8 and 9 after each harmful drop
+    assert stand_ins.backward_calls == 9
+    # thermal, harmful, has no row in the last leave-one-out table (the search's set has none of it);
+    # geometry has one: the eighth elimination's (z 18, increase 8e-5)
+    expected = [Elimination(f"dropped {k}", float(k), 1e-6 * k) for k in range(1, 8)]
+    expected += [Elimination("thermal", 0.0, 0.0), Elimination("dropped 8", 8.0, 8e-6),
+                 Elimination("geometry", 18.0, 8e-5), Elimination("dropped 9", 9.0, 9e-6)]
+    assert [(e.effect, e.z, e.increase) for e in selection.eliminated] == [
+        (e.effect, pytest.approx(e.z, abs=0), pytest.approx(e.increase, rel=1e-15)) for e in expected]
+    assert [s["swap"] for s in selection.swaps] == [k for k, entry in enumerate(stand_ins.log, 1)
+                                                    if entry[0] == "swaps"]
+    assert len(selection.swaps) == 5
+
+
+def test_without_a_first_step_the_search_is_told_none_and_a_standing_set_ends_the_loop(monkeypatch):
+    """Forward selection takes nothing (the shrink table is frames alone): the search is told no first effect;
+    the first stepwise round adds nothing, so the loop stops at once; the search ends on the same set, the
+    relinearisation does not take, nothing is harmful: the one elimination is the first backward elimination's.
+    Seen failing on ``if len(steps) > 1`` turned to ``> 0`` (an IndexError) and on ``for _ in range(4)`` turned
+    to ``range(0)`` (planted by hand)."""
+    stand_ins = _Stand_ins(monkeypatch, first_step=None, grow=[None], searched=None, relinearised=False, harmful=[],
+                           z={"joint_offsets": 0.2})
+    _, selection = _select(stand_ins, ["joint_offsets"])
+    assert ("search", None) in stand_ins.log
+    assert [entry for entry in stand_ins.log if entry[0] == "stepwise"] == [("stepwise", None)]
+    assert stand_ins.backward_calls == 1
+    assert [(e.effect, e.z) for e in selection.eliminated] == [("dropped 1", 1.0)]
+    assert selection.selected == ("frames",) and selection.rivals == ()
+    assert len(selection.forward_steps) == 1 and selection.forward_steps[0].effect == "frames"
