@@ -109,3 +109,32 @@ def test_measured_orientation_becomes_the_tool_rotation_in_the_base_frame_and_is
     assert registered.notes == (
         f"measured orientation enters the fit: rotation errors [rad] weighted by {weight:.4g} m/rad (an angle counts "
         "as the position error it makes at the measured points' RMS spread about their centre)",)
+
+
+def test_the_gravity_torque_is_the_first_measured_frames_at_its_own_payload(campaign):
+    """Two measured frames on the same rows, the first carrying 5 kg, the second's file saying none: the gravity
+    torque on each joint is the first frame's chain at 5 kg, which differs from the arm's own by the point
+    mass' ``J^T (0, 0, m g)`` at the tool frame (Pinocchio's frame Jacobian, world-aligned, written out; up to
+    the sign convention) and not at the second frame's 0 kg. Seen failing on ``context = parts[0].context``
+    turned to ``parts[-1]`` (a measuring sample's survivor, seed 4200: one measured frame makes them the same)
+    and on ``payload_kg`` read from ``main``'s context replaced by 0 (planted by hand)."""
+    robot, _, tracker, _, _, _ = campaign
+    q = campaign[5].measurements.q
+    loaded = MeasurementSet(joint_names=robot.joint_names, q=q, position=tracker, payload_kg=np.full(N, 5.0))
+    bare = MeasurementSet(joint_names=robot.joint_names, q=q, position=tracker + 0.05)
+    registered = register_measurements([MeasuredFrame(robot, loaded, robot.tool_frame),
+                                        MeasuredFrame(robot, bare, "second")])
+    alone = register_measurements([MeasuredFrame(robot, bare, robot.tool_frame)]).gravity_torque
+    model, data = robot.model, robot.model.createData()
+    g = np.linalg.norm(model.gravity.linear)
+    for i, row in enumerate(q):
+        configuration = robot.to_pinocchio_q(row)
+        pin.computeJointJacobians(model, data, configuration)
+        pin.updateFramePlacements(model, data)
+        jacobian = pin.getFrameJacobian(model, data, robot.tool_frame_id, pin.LOCAL_WORLD_ALIGNED)[:3]
+        columns = [model.joints[model.getJointId(name)].idx_v for name in robot.joint_names]
+        payload = jacobian[:, columns].T @ np.array([0.0, 0.0, 5.0 * g])
+        np.testing.assert_allclose(np.abs(registered.gravity_torque[i] - alone[i]), np.abs(payload), rtol=1e-9,
+                                   atol=1e-9)
+    assert np.max(np.abs(registered.gravity_torque - alone)) > 1.0
+    assert registered.measured_context == frozenset({"payload_kg"})
