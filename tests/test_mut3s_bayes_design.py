@@ -63,3 +63,22 @@ def test_a_design_after_measured_poses_starts_from_their_information(criterion):
     assert design.task_std_after_m == pytest.approx(np.sqrt(spread(after).mean()), rel=1e-9)
     assert design.task_worst_std_after_m == pytest.approx(np.sqrt(spread(after).max()), rel=1e-9)
     assert design.log_det_gain == pytest.approx(np.linalg.slogdet(after)[1] - np.linalg.slogdet(before)[1], rel=1e-9)
+
+
+def test_the_learning_curves_calibration_takes_one_ratio_only_for_one_variance():
+    """Misses made of 0.7 x the noise term and 1.6 x the posterior variance, exactly: with variances spread
+    over the rows (mean 3e-10 m^2, a spread as large) the non-negative least squares gives (0.7, 1.6) back; with
+    one variance on every row (2e-9 m^2) the two cannot be told apart and both weights are the one ratio
+    sum(observed) / sum(3 sigma^2 + v), written out. Seen failing on ``np.ptp(variance) <= 1e-9 * max(...)``
+    turned to ``1e-9 - max(...)`` (a measuring sample's survivor, seed 4201), to ``1e-9 / max(...)`` and to
+    ``1e-9 ** max(...)`` (planted by hand)."""
+    from tcr_accuracy.diagnosis.bayes_design import _calibration
+
+    noise3 = 3 * (1e-5) ** 2
+    spread = np.linspace(1.5e-10, 4.5e-10, 12)
+    a, b = _calibration(0.7 * noise3 + 1.6 * spread, spread, noise3)
+    assert (a, b) == pytest.approx((0.7, 1.6), rel=1e-9)
+    one = np.full(12, 2e-9)
+    observed = 0.7 * noise3 + 1.6 * one + np.linspace(-1e-11, 1e-11, 12)
+    ratio = observed.sum() / np.sum(noise3 + one)
+    assert _calibration(observed, one, noise3) == pytest.approx((ratio, ratio), rel=1e-12)
