@@ -160,3 +160,72 @@ def test_without_a_first_step_the_search_is_told_none_and_a_standing_set_ends_th
     assert [(e.effect, e.z) for e in selection.eliminated] == [("dropped 1", 1.0)]
     assert selection.selected == ("frames",) and selection.rivals == ()
     assert len(selection.forward_steps) == 1 and selection.forward_steps[0].effect == "frames"
+
+
+class _Fitted:
+    """A stand-in engine for the relinearisation: its final fit's training and held-out RMS, its cost before
+    and after the Jacobian is taken again, and one part's error vectors (two poses, a drive slice)."""
+
+    def __init__(self, train, heldout, before, after):
+        self.train, self.heldout, self.before, self.after = train, heldout, before, after
+        self.bases, self.calls, self.again = {"frames": None}, [], False
+        self.ems = [SimpleNamespace(drive_slice=slice(1, 3))]
+        x = np.array([[9.0, 0.1, 0.2, 7.0], [8.0, -0.3, 0.4, 6.0]])
+        basis = SimpleNamespace(errors=lambda theta: x.copy())
+        self.columns = lambda effects, keep: SimpleNamespace(per_part=[(basis, None, slice(0, 2))])
+
+    def evaluate(self, effects, exact=False):
+        return {"train_stats": ErrorStats(0.0, self.train, 0.0, 4), "heldout_stats": ErrorStats(0.0, self.heldout, 0.0, 4),
+                "phi": np.ones(2), "scale": np.ones(2), "keep": {}, "n_observations": 12,
+                "cost": self.after if self.again else self.before}
+
+    def checkpoint(self):
+        self.calls.append("checkpoint")
+        return "state"
+
+    def reset(self, anchor):
+        self.calls.append("reset")
+        self.again = True
+
+    def restore(self, state):
+        self.calls.append(("restore", state))
+
+
+@pytest.mark.parametrize("train_over_heldout, after_over_before, taken", [
+    (1.05, 0.5, None), (1.06, 0.99, False), (1.06, 0.9899, True)])
+def test_the_jacobian_is_taken_again_past_five_percent_and_kept_past_one_percent(monkeypatch, train_over_heldout,
+                                                                                  after_over_before, taken):
+    """A final fit whose training RMS is 1.05 x its held-out RMS is left as it is (nothing linearised again); at
+    1.06 x the Jacobian is taken at each pose's fitted joints (commanded plus the fitted drive errors, which
+    are then zeroed, written out) and kept only where the cost falls below 0.99 x what it was (at 0.99 x
+    exactly: back to the frames-only linearisation and the saved fits); kept, the note gives the training
+    RMS per coordinate before and after, sqrt(cost / observations) in mm. Seen failing on ``tolerance: float =
+    1.05`` turned to ``2.05`` and ``0.05``, on ``after < before * 0.99`` turned to ``* 1.99`` and ``* 0.0``, on
+    ``x[:, em.drive_slice] = 0.0`` turned to ``1.0`` and on ``np.sqrt(before / final['n_observations']) * 1e3``
+    turned to ``* 1001.0`` (planted by hand)."""
+    handed, linearised = [], []
+    monkeypatch.setattr(select, "position_jacobians", lambda robot, q, x, weight: handed.append((q, x, weight)) or "J")
+    monkeypatch.setattr(select, "relinearise", lambda bases, jacobians: linearised.append(list(jacobians)))
+    engine = _Fitted(train_over_heldout * 2e-5, 2e-5, 3e-8, after_over_before * 3e-8)
+    q = np.array([[0.5, 1.0], [0.25, -1.0]])
+    registered = SimpleNamespace(parts=[SimpleNamespace(robot="robot", q=q, target_rotation=None,
+                                                        orientation_weight=0.8)])
+    candidate_set = SimpleNamespace(linearised=lambda: ["frames-only"])
+    notes = []
+    result = select._relinearise_at_fit(engine, ["frames", "joint_offsets"], registered, candidate_set, notes)
+    if taken is None:
+        assert result is False and handed == [] and linearised == [] and engine.calls == [] and notes == []
+        return
+    (q_fitted, x, weight), = handed
+    np.testing.assert_allclose(q_fitted, [[0.6, 1.2], [-0.05, -0.6]], rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(x, [[9.0, 0.0, 0.0, 7.0], [8.0, 0.0, 0.0, 6.0]])
+    assert weight is None
+    assert result is taken
+    if taken:
+        assert linearised == [["J"]] and engine.calls == ["checkpoint", "reset"]
+        assert notes == ["the chosen effects turn the joints far enough that the Jacobian was taken again at the "
+                         f"fitted robot: training RMS {np.sqrt(3e-8 / 12) * 1e3:.4g} -> "
+                         f"{np.sqrt(0.9899 * 3e-8 / 12) * 1e3:.4g} mm per coordinate"]
+    else:
+        assert linearised == [["J"], ["frames-only"]] and engine.calls == ["checkpoint", "reset", ("restore", "state")]
+        assert notes == []
