@@ -229,3 +229,19 @@ def test_the_jacobian_is_taken_again_past_five_percent_and_kept_past_one_percent
     else:
         assert linearised == [["J"], ["frames-only"]] and engine.calls == ["checkpoint", "reset", ("restore", "state")]
         assert notes == []
+
+
+@pytest.mark.parametrize("z, implausible, chosen", [
+    (1.0, 0.0, "geometry"), (0.999, 1.0, "joint_offsets"), (0.5, 1.001, "geometry"), (0.5, 1.9, "geometry")])
+def test_a_step_goes_to_the_more_basic_cause_within_one_standard_error_whose_physics_explains_it(
+        monkeypatch, z, implausible, chosen):
+    """Two trials, geometry's held-out RMS the lower: the joint offsets (first in the vocabulary) take the step
+    when the rows do not rank them one standard error above geometry (paired z below 1, not at 1) and their
+    fitted sizes are within their physics (implausibility at most 1, not 1.001 or 1.9). Seen failing on
+    ``paired_z(...) < 1.0`` turned to ``< 2.0`` and ``< 0.0`` and on ``implausibility(...) > 1.0`` turned to
+    ``> 2.0`` and ``> 0.0`` (planted by hand)."""
+    monkeypatch.setattr(select, "paired_z", lambda a, b: z)
+    monkeypatch.setattr(select, "implausibility", lambda r, bases, e: implausible if e == "joint_offsets" else 0.0)
+    trials = {"joint_offsets": {"heldout_stats": ErrorStats(0.0, 1.01e-4, 0.0, 4), "heldout_squares": np.ones(4)},
+              "geometry": {"heldout_stats": ErrorStats(0.0, 1.0e-4, 0.0, 4), "heldout_squares": np.ones(4)}}
+    assert select._plausible_best(SimpleNamespace(bases={}), trials) == chosen
