@@ -14,6 +14,8 @@ from tcr_accuracy.diagnosis.stages.register import MeasuredFrame, register_measu
 from tcr_accuracy.io.measurement_set import MeasurementSet
 from tcr_accuracy.model.robot import load_robot
 
+from test_mutp_register import _kabsch  # (R, t) with tracker ~ R base + t: Kabsch on numpy's SVD, written out
+
 N = 24
 #: the tracker frame: p_tracker = R p_base + t
 TRACKER_R = Rotation.from_rotvec([0.1, -0.2, 0.3]).as_matrix()
@@ -22,15 +24,6 @@ TRACKER_T = np.array([1.0, -0.5, 0.2])
 VELOCITY = np.array([2e-6, -1e-6, 3e-6])
 #: base references' places in the base frame [m]
 PLACES = np.array([[0.8, 0.1, 0.0], [-0.3, 0.9, 0.05], [0.1, -0.7, 0.4]])
-
-
-def _kabsch(base: np.ndarray, tracker: np.ndarray):
-    """(R, t) with tracker ~ R base + t, least squares (SVD, written out)."""
-    a, b = base - base.mean(axis=0), tracker - tracker.mean(axis=0)
-    u, _, vt = np.linalg.svd(a.T @ b)
-    d = np.sign(np.linalg.det(vt.T @ u.T))
-    rotation = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
-    return rotation, tracker.mean(axis=0) - rotation @ base.mean(axis=0)
 
 
 @pytest.fixture(scope="module")
