@@ -33,6 +33,8 @@ POINT = np.array([0.01, -0.02, 0.05])
 GIVEN = np.array([0.011, -0.02, 0.05])
 TRACKER = pin.SE3(Rotation.from_rotvec([0.05, -0.1, 0.8]).as_matrix(), np.array([2.0, -0.4, 0.3]))
 NOISE_M = 5e-6
+#: how far the reflector moved between two sessions [m]
+RESEATED = np.array([0.003, 0.002, -0.004])
 
 
 @pytest.fixture(scope="module")
@@ -195,3 +197,36 @@ def test_the_fitted_views_in_mm_the_summary_line_and_the_tracker_positions(fitte
         pin.framesForwardKinematics(robot.model, data, robot.to_pinocchio_q(row))
         truth[i] = TRACKER.act(data.oMf[robot.tool_frame_id].act(POINT))
     np.testing.assert_allclose(d.tracker_positions(robot, q), truth, rtol=0, atol=3e-5)
+
+
+@pytest.fixture(scope="module")
+def reseated():
+    """The same UR5 measured in two sessions whose rows alternate (A, B, A, B, ...), the reflector re-seated
+    3.0, 2.0, -4.0 mm further in session B (the tracker not moved)."""
+    robot = load_robot("ur5")
+    rng = np.random.default_rng(8)
+    low, high = robot.joint_bounds()
+    q = rng.uniform(np.maximum(low, -2.5), np.minimum(high, 2.5), (40, robot.n_joints))
+    session = np.array(["A", "B"] * 20)
+    data = robot.model.createData()
+    position = np.empty((40, 3))
+    for i, row in enumerate(q + OFFSETS):
+        pin.framesForwardKinematics(robot.model, data, robot.to_pinocchio_q(row))
+        position[i] = TRACKER.act(data.oMf[robot.tool_frame_id].act(POINT + (RESEATED if session[i] == "B" else 0.0)))
+    position += NOISE_M * rng.standard_normal(position.shape)
+    measured = MeasurementSet(joint_names=robot.joint_names, q=q, position=position, session=session)
+    return robot, GapDiagnosis(robot=robot, effects=["joint_offsets"], folds=5, stability_replays=2).fit(measured).result_
+
+
+def test_the_as_built_tool_is_the_first_rows_session_and_the_second_sessions_offset_its_own(reseated):
+    """A TCP offset per session is chosen; the as-built tool slice is the offset of the first row's session (A:
+    the hidden point, to 30 um), not B's, 5.4 mm away; B's own offset against A in the session sizes is the
+    re-seat, in mm, to 0.03 mm. Seen failing on ``b.per_part[0].basis.errors(full, rows=[0])`` turned to
+    ``rows=[1]`` and to ``rows=[-1]`` (planted by hand: the rows alternate, so row 1 and the last row are B's)."""
+    robot, d = reseated
+    assert d.session_setup["chosen"] == "tool offset per session"
+    tool = pin.exp6(d.as_built_x[ErrorModel(robot).tool_slice]).translation
+    np.testing.assert_allclose(tool, POINT, rtol=0, atol=3e-5)
+    (b,) = d.session_setup["sessions"]
+    assert (b["session"], b["against"]) == ("B", "A")
+    np.testing.assert_allclose(b["tool_offset_mm"], RESEATED * 1e3, rtol=0, atol=0.03)
