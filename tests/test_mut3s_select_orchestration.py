@@ -245,3 +245,12 @@ def test_a_step_goes_to_the_more_basic_cause_within_one_standard_error_whose_phy
     trials = {"joint_offsets": {"heldout_stats": ErrorStats(0.0, 1.01e-4, 0.0, 4), "heldout_squares": np.ones(4)},
               "geometry": {"heldout_stats": ErrorStats(0.0, 1.0e-4, 0.0, 4), "heldout_squares": np.ones(4)}}
     assert select._plausible_best(SimpleNamespace(bases={}), trials) == chosen
+
+
+def test_the_structure_test_reads_the_first_measured_frames_rows():
+    """The late effects' structure test reads the first measured frame's (N, 3) rows: of a (2, N, 3) residual of
+    two frames, the first; a (N, 3) one as it is. Seen failing on ``residual[0]`` turned to ``residual[1]`` (a
+    measuring sample's survivor, seed 4202: budget spent)."""
+    two = np.arange(18.0).reshape(2, 3, 3)
+    np.testing.assert_array_equal(select._first_frame(two), two[0])
+    np.testing.assert_array_equal(select._first_frame(two[1]), two[1])
