@@ -230,3 +230,20 @@ def test_the_as_built_tool_is_the_first_rows_session_and_the_second_sessions_off
     (b,) = d.session_setup["sessions"]
     assert (b["session"], b["against"]) == ("B", "A")
     np.testing.assert_allclose(b["tool_offset_mm"], RESEATED * 1e3, rtol=0, atol=0.03)
+
+
+def test_a_document_without_its_counts_reads_them_as_none_counted(fitted):
+    """The JSON form read back keeps its counts (40 rows, 5 folds, the fits run); a document without
+    ``n_measurements``, ``folds`` and ``n_fits`` (written by an older version) reads them as 0, not as some
+    default count, and one without ``joint_names`` nor ``where`` has no joint names. Seen failing on
+    ``document.get("n_measurements", 0)`` turned to ``1`` (a measuring sample's survivor, seed 4202: budget
+    spent), on ``document.get("folds", 0)`` turned to ``1`` and on ``int(n_fits) if n_fits else 0`` turned to
+    ``else 1`` (planted by hand)."""
+    _, d = fitted
+    doc = json.loads(json.dumps(d.to_dict()))
+    read = Diagnosis.from_dict(doc)
+    assert (read.n_measurements, read.folds, read.n_fits) == (40, 5, d.n_fits) and d.n_fits > 0
+    for key in ("n_measurements", "folds", "n_fits", "joint_names", "where"):
+        del doc[key]
+    old = Diagnosis.from_dict(doc)
+    assert (old.n_measurements, old.folds, old.n_fits, old.joint_names) == (0, 0, 0, [])
