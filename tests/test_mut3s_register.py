@@ -89,8 +89,8 @@ def test_measured_orientation_becomes_the_tool_rotation_in_the_base_frame_and_is
     session's tracker rotation, ``R_station^T R_tracker`` (written out as a matrix product), which is
     Pinocchio's tool rotation to within the registration's error; the note gives the orientation weight, the
     corrected points' RMS spread about their centre, to four digits. Seen failing on
-    ``np.stack([x, y, z, w], axis=1)`` turned to ``axis=2`` and on ``f.measurements.position - drift`` turned
-    to ``+`` (the spread of the note; planted by hand)."""
+    ``np.stack([x, y, z, w], axis=1)`` turned to ``axis=2``, on the spread's ``** 2`` turned to ``** 3`` and on
+    the einsum ``"nji,njk->nik"`` (R^T R_tracker) turned to ``"nij,njk->nik"`` (planted by hand)."""
     _, _, tracker, tracker_rotation, _, registered = campaign
     station = registered.stations[0][0]
     expected = np.array([station.T @ r for r in tracker_rotation])
