@@ -93,20 +93,27 @@ def test_family_shares_without_a_bootstrap_use_the_pose_bootstrap_seeded_zero():
 
 
 def test_the_gap_is_placed_by_the_first_measured_frames_nominal_positions(monkeypatch):
-    """Three measured frames per row, their nominal positions 0.4 m apart (and spread differently): the where-
-    analysis of the gap uses the first frame's -- the octants about its median point, the radius bins at the
-    quantiles of its distance from the base's z axis, the height bins at those of its z (numpy's quantiles
-    here), each bin's RMS error norm and count. Seen failing on ``registered.nominal[0].position`` turned to
-    ``nominal[-1]`` (which a campaign with one measured frame cannot tell)."""
+    """Three measured frames per row, their nominal positions 0.4 m apart (and spread differently), each its
+    own context: the where-analysis of the gap uses the first frame's -- the octants about its median point, the
+    radius bins at the quantiles of its distance from the base's z axis, the height bins at those of its z
+    (numpy's quantiles here), each bin's RMS error norm and count, the temperature bins -- and so do the
+    session's temperature range and what the scatter naming is handed (its temperature, measurement order and
+    time). Seen failing on ``registered.nominal[0].position`` turned to ``nominal[-1]`` (which a campaign with
+    one measured frame cannot tell), and on ``registered.parts[0]`` turned to ``parts[-1]`` where the context
+    values, the session's temperature and the scatter naming's context are read."""
     rng = np.random.default_rng(47)
     q = rng.uniform(-2, 2, (N, 2))
     nominal = [SimpleNamespace(position=rng.normal(size=(N, 3)) * scale + shift)
                for scale, shift in ((0.3, 0.0), (0.5, 0.4), (0.2, -0.4))]
-    context = SimpleNamespace(temperature_c=np.full(N, 20.0), order=None, time_s=None)
+    # each measured frame's context its own (a stand-in): the first frame's is read
+    contexts = [SimpleNamespace(temperature_c=rng.uniform(low, low + 4.0, N), order=order, time_s=time_s)
+                for low, order, time_s in ((19.0, np.arange(N)[::-1], np.linspace(0.0, 60.0, N)),
+                                           (25.0, None, None), (30.0, np.arange(N), None))]
     registered = SimpleNamespace(
-        measurements=SimpleNamespace(q=q, temperature_c=None, payload_kg=None, direction=None),
+        measurements=SimpleNamespace(q=q, temperature_c=contexts[0].temperature_c, payload_kg=None, direction=None),
         robot=SimpleNamespace(joint_names=["a", "b"], joint_kinds=["revolute", "revolute"]), nominal=nominal,
-        gravity_torque=rng.normal(size=(N, 2)), parts=[SimpleNamespace(context=context, label=s) for s in "tuv"],
+        gravity_torque=rng.normal(size=(N, 2)), parts=[SimpleNamespace(context=c, label=s) for c, s in
+                                                       zip(contexts, "tuv")],
         n_rows=N, session_labels=["one"], session_of=np.zeros(N, dtype=int),
         stations=[(np.eye(3), np.zeros(3))], orientation_weight=0.0)
     gap = rng.normal(0, 5e-4, (3, N, 3))
@@ -117,7 +124,8 @@ def test_the_gap_is_placed_by_the_first_measured_frames_nominal_positions(monkey
     monkeypatch.setattr(stage, "stand_in_shapes", lambda *args: {"shape": np.ones((N, 3))})
     monkeypatch.setattr(stage, "smallest_detectable_structure", lambda *args: {
         "smallest_detectable_mm": 1.0, "n_poses": N, "largest_probed_mm": 1.0})
-    monkeypatch.setattr(stage, "name_scatter", lambda *args: None)
+    named = []
+    monkeypatch.setattr(stage, "name_scatter", lambda *args: named.append(args[7]))
     detector = SimpleNamespace(rows=None, shares=lambda residual: {}, test=lambda residual, rng: {"remains": False})
     candidate_set = SimpleNamespace(engine=SimpleNamespace(evaluate=lambda current, exact=False: final),
                                     detector=detector, instrument_noise=None, stochastic=[])
@@ -139,3 +147,11 @@ def test_the_gap_is_placed_by_the_first_measured_frames_nominal_positions(monkey
         assert [b["low"] for b in bins] == pytest.approx(edges[:-1], rel=1e-12)
         assert [b["high"] for b in bins] == pytest.approx(edges[1:], rel=1e-12)
         assert sum(b["count"] for b in bins) == N
+    temperature = contexts[0].temperature_c
+    edges = np.quantile(temperature, np.linspace(0, 1, 6))
+    assert [b["low"] for b in where["temperature_c"]["bins"]] == pytest.approx(edges[:-1], rel=1e-12)
+    assert out.sessions[0].temperature_c == (temperature.min(), temperature.max())
+    (along,) = named
+    assert list(along) == ["temperature_c", "measurement order", "time_s"]
+    np.testing.assert_array_equal(along["measurement order"], np.arange(N)[::-1])
+    np.testing.assert_array_equal(along["time_s"], contexts[0].time_s)
