@@ -111,3 +111,40 @@ def test_the_pose_bootstrap_draws_within_the_first_measured_frames_sessions():
     assert boot.n_parts == 2 and "within each of the 2 sessions" in boot.method
     np.testing.assert_array_equal(boot.counts[:, :5].sum(axis=1), 5)
     np.testing.assert_array_equal(boot.counts[:, 5:].sum(axis=1), 9)
+
+
+def test_the_fixed_point_step_takes_the_first_measured_frames_effects(monkeypatch):
+    """The fixed-point check hands the deflections' motion the first frame's effect objects (with the options
+    they were fitted with), not the second's. Seen failing on ``bases[e].per_part[0].effect`` turned to
+    ``[-1]``."""
+    from tcr_accuracy.diagnosis import attribution
+
+    seen = []
+    monkeypatch.setattr(attribution, "fixed_point_motion", lambda robot, effects, values, q, context:
+                        seen.append(effects) or np.zeros((3, 3)))
+    bases = {e: SimpleNamespace(per_part=[SimpleNamespace(effect=f"{e} of the first frame"),
+                                          SimpleNamespace(effect=f"{e} of the second frame")])
+             for e in ("compliance", "backlash")}
+    attribution.fixed_point_check(SimpleNamespace(robot=None, q=None, context=None), bases,
+                                  {"compliance": np.zeros(2), "backlash": np.zeros(1)}, 1e-4)
+    assert seen == [["compliance of the first frame", "backlash of the first frame"]]
+
+
+def test_joint_function_bands_are_those_of_the_first_measured_frames_effect():
+    """A joint function (harmonics of each joint's angle) whose first frame's effect has the joint basis and
+    whose second's (a stand-in) has none: the bands are the first's, the basis times the parameters. Seen
+    failing on ``bases[e].per_part[0].effect`` turned to ``[-1]``."""
+    from test_mut_diag_uncertainty import _HarmonicEffect
+
+    from tcr_accuracy.diagnosis.uncertainty import joint_function_bands
+
+    q = np.array([[-0.5, 1.0], [0.3, 2.0], [1.2, 1.5]])
+    theta = np.array([1e-4, -2e-4, 5e-5, 3e-5])
+    result = {"phi": theta, "scale": np.ones(4), "phi_std": np.full(4, 1e-5),
+              "names": ["j1_s", "j1_c", "j2_s", "j2_c"]}
+    bases = {"cyclic": SimpleNamespace(per_part=[SimpleNamespace(effect=_HarmonicEffect()),
+                                                 SimpleNamespace(effect=object())])}
+    bands = joint_function_bands(result, bases, ["cyclic"], q)
+    angles = np.linspace(1.0, 2.0, 361)
+    np.testing.assert_allclose(bands["cyclic"]["j2"]["value_rad"], 5e-5 * np.sin(angles) + 3e-5 * np.cos(angles),
+                               rtol=1e-12)
