@@ -47,18 +47,20 @@ class _SessionEngine(_Engine):
         self.parts = [SimpleNamespace(context=SimpleNamespace(session=None))]
 
 
+def _rung(effects, squares):
+    """A rung of the explanation order as the stage reads it: its effects, their fit's held-out squared errors."""
+    return effects[-1], {"effects": list(effects), "n_parameters": 4 * len(effects),
+                         "train_stats": ErrorStats(0.0, 1e-4, 0.0, N), "heldout_squares": squares,
+                         "heldout_stats": ErrorStats(0.0, math.sqrt(squares.mean()), 0.0, N)}
+
+
 @pytest.fixture(scope="module")
 def ladder():
+    """frames -> + geometry -> + compliance, each rung's per-row squared errors a random cut of the one before."""
     rng = np.random.default_rng(41)
-    sq = [rng.gamma(2.0, 3.0, N)]
-    sq.append(sq[0] * rng.uniform(0.3, 0.9, N))
-    sq.append(sq[1] * rng.uniform(0.5, 1.05, N))
-    names = [("frames",), ("frames", "geometry"), ("frames", "geometry", "compliance")]
-    rungs = [(effects[-1], {"effects": list(effects), "n_parameters": 6 + 4 * k,
-                            "train_stats": ErrorStats(0.0, 1e-4, 0.0, N),
-                            "heldout_stats": ErrorStats(0.0, math.sqrt(s.mean()), 0.0, N), "heldout_squares": s})
-             for k, (effects, s) in enumerate(zip(names, sq))]
-    return sq, rungs
+    sq = list(np.cumprod([rng.gamma(2.0, 3.0, N), rng.uniform(0.3, 0.9, N), rng.uniform(0.5, 1.05, N)], axis=0))
+    effects = ["frames", "geometry", "compliance"]
+    return sq, [_rung(effects[:k + 1], s) for k, s in enumerate(sq)]
 
 
 def test_the_shrink_tables_gains_without_a_bootstrap_use_the_pose_bootstrap_seeded_zero(ladder, monkeypatch):
