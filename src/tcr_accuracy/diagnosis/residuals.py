@@ -133,7 +133,7 @@ def where_analysis(robot: RobotModel, q: np.ndarray, nominal: np.ndarray, residu
         return 1.0 - float(np.sum((centred - centred[idx].mean(axis=1)) ** 2)) / total
 
     for j, name in enumerate(robot.joint_names):
-        if np.std(q[:, j]) == 0:
+        if np.ptp(q[:, j]) == 0:  # a joint held still (np.std of equal values is their mean's rounding, not 0)
             continue
         s = semis[j]
         short = s.lags <= np.quantile(s.lags, 0.25)

@@ -43,8 +43,10 @@ def _smooth_features(q: np.ndarray, kinds) -> np.ndarray:
         if kind == "revolute":
             a = [np.sin(v), np.cos(v)]
             cols += a + [np.sin(2 * v), np.cos(2 * v)]
-        else:
-            z = (v - v.mean()) / (v.std() or 1.0)
+        else:  # a joint held still (every value equal) gives zeros: the spread numpy computes for it is the
+            # rounding of its mean (0.4 m on 60 poses: 1.7e-16), which would standardise to +-1
+            spread = v.std()
+            z = (v - v.mean()) / spread if np.ptp(v) > 0 and spread > 0 else np.zeros_like(v)
             a = [z]
             cols += [z, z**2]
         first.append(a)
@@ -130,7 +132,8 @@ class StructureDetector:
             # an unmodelled effect often depends on a few joints: in all of joint space 6-D
             # neighbours are far apart, along one joint or a pair they are close. Test all
             # joints, each joint and each pair; Bonferroni over the subsets.
-            moving = [j for j in range(self.q.shape[1]) if np.std(self.q[:, j]) > 0]
+            # (a joint moves when its values differ: np.std of equal values is the rounding of their mean, not 0)
+            moving = [j for j in range(self.q.shape[1]) if np.ptp(self.q[:, j]) > 0]
             subsets = [tuple(moving)] + [(j,) for j in moving]
             subsets += [(a, b) for i, a in enumerate(moving) for b in moving[i + 1:]]
             banded = []  # per subset, the poses renumbered and the matrix averaging each one's k neighbours
