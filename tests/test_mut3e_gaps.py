@@ -133,3 +133,21 @@ def test_an_instrument_of_one_micrometre_is_described_in_whole_micrometres():
         "bare: MPE 2 um + 3 um/m along the beam, 1 um + 5 um/m across it")
     assert spec.to_dict() == {"name": "unit", "radial_mpe_um": [1.0, 1.0], "transverse_mpe_um": [1.0, 1.0],
                               "mpe_units": "um + um/m x distance", "source": "a test"}
+
+
+def test_a_point_sets_distance_is_from_the_origin_and_a_contribution_in_mm_by_default():
+    """Four points: with no origin given, the distance's RMS is sqrt(mean |p|^2), its bounds the nearest
+    point of the box and its farthest corner from (0, 0, 0), written out here; a contribution's dict
+    with no scale is in mm. Seen failing on the default ``origin=(0.0, 0.0, 0.0)`` with any of its
+    zeros as 1.0 and on the default ``scale: float = 1e3`` as 1001.0."""
+    from tcr_accuracy.frames.uncertainty_budget import Contribution, PointSet
+
+    points = np.array([[0.4, 0.3, 0.2], [0.6, 0.1, 0.5], [0.5, 0.7, 0.3], [0.45, 0.2, 0.9]])
+    rms, least, largest = PointSet.of(points).distance()
+    assert rms == pytest.approx(math.sqrt(np.mean(np.sum(points ** 2, axis=1))), rel=1e-12)
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    assert least == pytest.approx(np.linalg.norm(lo), rel=1e-12)  # the box lies in the positive octant
+    assert largest == pytest.approx(np.linalg.norm(hi), rel=1e-12)
+    doc = Contribution("instrument MPE", 12e-6, "spec").to_dict()
+    assert doc == {"source": "instrument MPE", "standard_uncertainty": pytest.approx(0.012, rel=1e-12),
+                   "how": "spec", "evaluation": "B"}
