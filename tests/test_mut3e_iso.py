@@ -39,3 +39,55 @@ def test_a_whole_turn_is_taken_up_to_the_limit_within_its_tolerance_and_never_pa
         assert np.any(q[:, j] + 2 * math.pi * np.sign(home[j]) < lo[j] - 1e-12) or \
             np.any(q[:, j] + 2 * math.pi * np.sign(home[j]) > hi[j] + 1e-12)
     np.testing.assert_allclose(reach.nearest_home(q), expected, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("name, payload, rated, source", [
+    ("ur3", None, 3.0, "rated load 3 kg (ur3's data sheet)"),
+    ("ur5", None, 5.0, "rated load 5 kg (ur5's data sheet)"),
+    ("ur10", None, 10.0, "rated load 10 kg (ur10's data sheet)"),
+    ("panda", None, 3.0, "rated load 3 kg (panda's data sheet)"),
+    ("tool_changer", 150.0, 150.0, "rated load 150 kg (the robot's design payload)"),
+])
+def test_the_standards_four_conditions_carry_the_rated_load_of_the_makers_data_sheet(name, payload, rated, source):
+    """ISO 9283's four test conditions by default (100 % load at 100, 50 and 10 % speed, then 10 % load
+    at 100 % speed), each payload that share of the rated load: the maker's data sheet for the robots
+    known by name (UR3 3 kg, UR5 5 kg, UR10 10 kg, Panda 3 kg), else the robot's design payload.
+    Seen failing on ``STANDARD_CONDITIONS`` or ``RATED_LOAD_KG`` with a number changed and on
+    ``rated_load_kg * load / 100.0`` as ``/ 101.0``."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.iso9283.plan import plan_conditions
+
+    conditions, said = plan_conditions(SimpleNamespace(name=name, payload_kg=payload))
+    assert said == source
+    assert [(c.load_pct, c.speed_pct) for c in conditions] == [(100.0, 100.0), (100.0, 50.0), (100.0, 10.0),
+                                                              (10.0, 100.0)]
+    assert [c.payload_kg for c in conditions] == pytest.approx([rated, rated, rated, rated / 10], rel=1e-12)
+
+
+def test_a_robot_of_unknown_rated_load_gives_its_conditions_without_payloads():
+    """A robot neither known by name nor with a design payload: the conditions without payloads, said."""
+    from types import SimpleNamespace
+
+    from tcr_accuracy.iso9283.plan import plan_conditions
+
+    conditions, said = plan_conditions(SimpleNamespace(name="arm", payload_kg=None), [(10.0, 100.0)])
+    assert said == "rated load unknown (give it): the loads are percentages only, no payload_kg column"
+    assert [(c.load_pct, c.speed_pct, c.payload_kg) for c in conditions] == [(10.0, 100.0, None)]
+
+
+@pytest.mark.parametrize("skew, taken", [(0.45e-6, True), (0.55e-6, False)])
+def test_a_tool_orientation_off_orthonormal_by_a_millionth_is_taken_and_past_it_refused(skew, taken):
+    """R = I + e (E_xy + E_yx): R R^T differs from I by 2e off the diagonal (and e^2 on it): 0.9e-6 is
+    within the 1e-6 the plan allows, 1.1e-6 is not. Seen failing on ``atol=1e-6`` as ``1.000001``."""
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.iso9283.plan import _tool_rotation
+
+    rotation = np.eye(3)
+    rotation[0, 1] = rotation[1, 0] = skew
+    assert np.max(np.abs(rotation @ rotation.T - np.eye(3))) == pytest.approx(2 * skew, rel=1e-6)
+    if taken:
+        assert np.array_equal(_tool_rotation(rotation), rotation)
+    else:
+        with pytest.raises(InputError, match=r"^tool_rotation: want a \(3, 3\) rotation matrix"):
+            _tool_rotation(rotation)
