@@ -91,3 +91,26 @@ def test_a_tool_orientation_off_orthonormal_by_a_millionth_is_taken_and_past_it_
     else:
         with pytest.raises(InputError, match=r"^tool_rotation: want a \(3, 3\) rotation matrix"):
             _tool_rotation(rotation)
+
+
+def test_the_five_poses_lie_on_the_cubes_diagonal_plane_a_tenth_of_its_diagonal_from_the_corners():
+    """ISO 9283 clause 6.8: P1 at the cube's centre, P2..P5 on the plane through the corners C1 (-,-,-),
+    C2 (+,-,-), C3 (+,+,+), C4 (-,+,+), each 10 % of the plane's diagonal (C1 to C3) from its corner
+    towards the centre; the cube's eight corners at centre +- size / 2; a test of 30 cycles by default
+    (150 visits, P5 first). Written out here for a 0.3 m cube centred at (0.4, -0.2, 0.5). Seen failing
+    on ``CORNER_OFFSET = 0.10`` and ``DEFAULT_CYCLES = 30`` with their numbers changed, ``0.5 * size``
+    as ``1.5 * size`` and a corner of ``PLANE_CORNERS`` or ``CUBE_CORNERS`` changed."""
+    from itertools import product
+
+    from tcr_accuracy.iso9283.plan import cube_corners, cycle_order, iso_points
+
+    centre, size = np.array([0.4, -0.2, 0.5]), 0.3
+    corners = [centre + size / 2 * np.array(s) for s in ([-1, -1, -1], [1, -1, -1], [1, 1, 1], [-1, 1, 1])]
+    diagonal = np.linalg.norm(corners[2] - corners[0])
+    expected = [centre] + [c + 0.1 * diagonal * (centre - c) / np.linalg.norm(centre - c) for c in corners]
+    np.testing.assert_allclose(iso_points(centre, size), expected, rtol=0, atol=1e-15)
+    every = {tuple(np.round(centre + size / 2 * np.array(s), 12)) for s in product((-1, 1), repeat=3)}
+    assert {tuple(np.round(c, 12)) for c in cube_corners(centre, size)} == every
+    assert len(cube_corners(centre, size)) == 8
+    pose, cycle = cycle_order()
+    assert len(pose) == 150 and pose[:5].tolist() == [5, 4, 3, 2, 1] and cycle[-1] == 30
