@@ -114,3 +114,53 @@ def test_the_five_poses_lie_on_the_cubes_diagonal_plane_a_tenth_of_its_diagonal_
     assert len(cube_corners(centre, size)) == 8
     pose, cycle = cycle_order()
     assert len(pose) == 150 and pose[:5].tolist() == [5, 4, 3, 2, 1] and cycle[-1] == 30
+
+
+def _bent_path(first, second, speed=None, start=0.0, dt=0.002):
+    """An L of edges ``first`` along x then ``second`` along y [m]: sampled every mm (points, s), or with
+    a speed [m/s] one cycle's readings (times, positions) from 10 mm before its start to 10 mm past its end."""
+    if speed is None:
+        u = np.linspace(0.0, first + second, int(round((first + second) * 1000)) + 1)
+    else:
+        t = np.arange(0.0, (first + second + 0.02) / speed, dt)
+        u = -0.01 + speed * t
+    points = np.column_stack([np.minimum(u, first), np.maximum(u - first, 0.0), np.zeros_like(u)])
+    return (points, u) if speed is None else (start + t, points)
+
+
+def test_two_planes_either_side_of_one_left_out_at_a_corner_are_no_pair():
+    """An L of 180 mm then 220 mm, 10 normal planes (every 40 mm, at 20 .. 380 mm): the plane at the corner
+    (180 mm) is left out, so 140 and 220 mm are 80 mm apart (twice the spacing, the chord between them
+    across the corner 57 mm): no neighbours. Two cycles at 0.10 and 0.11 m/s, 0.1 m/s commanded: every
+    counted speed is its cycle's, v̄ = 0.105 m/s, AV = 5 %, RV = 3 S(0.10, 0.11) / 0.1, FV = 0, written
+    out. Seen failing on the neighbours' ``1.5 * np.min(np.diff(s_i))`` as ``2.5 *`` (the pair across
+    the corner read at 0.71 of the speed)."""
+    from tcr_accuracy.iso9283.path import path_figures
+
+    points, s = _bent_path(0.18, 0.22)
+    cycles = [_bent_path(0.18, 0.22, 0.10), _bent_path(0.18, 0.22, 0.11, start=10.0)]
+    got = path_figures(points, s, cycles, planes=10, corners=(180,), speed=0.1)
+    np.testing.assert_allclose(got.s, [0.02, 0.06, 0.10, 0.14, 0.22, 0.26, 0.30, 0.34, 0.38], rtol=1e-12)
+    assert got.v_mean == pytest.approx(0.105, rel=1e-9)
+    assert got.av == pytest.approx(0.05, rel=1e-7)
+    assert got.rv == pytest.approx(3 * np.std([0.10, 0.11], ddof=1) / 0.1, rel=1e-7)
+    assert got.fv == pytest.approx(0.0, abs=1e-9)
+
+
+def test_one_cycle_gives_accuracy_but_no_repeatability():
+    """One cycle along the L 1 mm off in z at 0.1 m/s: AT is the 1 mm at every plane, v̄ and AV its
+    speed's, but neither RT nor RV (a repeatability needs two cycles): None, not NaN. Seen failing on
+    ``MIN_CYCLES = 2`` as 1 (RV NaN)."""
+    import warnings
+
+    from tcr_accuracy.iso9283.path import path_figures
+
+    points, s = _bent_path(0.2, 0.2)
+    t, x = _bent_path(0.2, 0.2, 0.1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        got = path_figures(points, s, [(t, x + [0.0, 0.0, 1e-3])], planes=20, corners=(200,), speed=0.1)
+    assert got.n_cycles == 1 and got.at == pytest.approx(1e-3, rel=1e-9)
+    assert got.v_mean == pytest.approx(0.1, rel=1e-9) and got.av == pytest.approx(0.0, abs=1e-7)
+    assert got.rt is None and got.rv is None
+    assert np.isnan(got.rt_planes).all()
