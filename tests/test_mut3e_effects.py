@@ -78,3 +78,28 @@ def test_the_cyclic_orders_count_the_revolute_joints_only(tool_changer, n_poses,
     assert names[-1] == f"cyclic.j6.b{order}"
     np.testing.assert_allclose(sized.parameter_scales(), 5e-5)
     assert sized.parameter_units() == ["rad"] * sized.n_params
+
+
+def test_a_mechanism_reads_only_the_values_beyond_two_standard_errors_and_their_intervals(ur5):
+    """UR5 encoder zeros with standard errors of 0.01 rad: j1 at 2.1 sigma (resolved), j2 at 1.9 sigma (not),
+    j3 at 10 deg + 1.5 sigma (resolved; its interval value +- 2 sigma reaches the 10 deg of an encoder zero),
+    j4 at 10 deg + 2.5 sigma (resolved; its interval starts beyond 10 deg: a joint mastered on the wrong mark),
+    the rest 0. The parameters read are j1, j3, j4 with those mechanisms, weighed by value over the 0.03 deg
+    typical size; each joint named with its share. Seen failing on ``np.abs(values) > significance *
+    finite_std`` as ``+`` (nothing resolved, so all read), on the default ``significance: float = 2.0``
+    changed and on the interval's ``significance * finite_std`` as ``+``."""
+    from tcr_accuracy.effects.mechanisms import read_mechanism
+
+    effect = make_effect("joint_offsets", ur5)
+    sigma, ten = 0.01, math.radians(10.0)
+    values = np.array([2.1 * sigma, 1.9 * sigma, ten + 1.5 * sigma, ten + 2.5 * sigma, 0.0, 0.0])
+    reading = read_mechanism(effect, values, np.full(6, sigma))
+    names = effect.parameter_names()
+    assert [(p["parameter"], p["mechanism"]) for p in reading.parameters] == [
+        (names[0], "encoder_zero"), (names[2], "encoder_zero"), (names[3], "wrong_mark")]
+    weight = np.abs(values[[0, 2, 3]]) / math.radians(0.03)
+    own, wrong = (weight[0] + weight[1]) / weight.sum(), weight[2] / weight.sum()
+    assert reading.keys == ("encoder_zero", "wrong_mark")
+    assert f"shoulder_pan_joint, elbow_joint, {own:.0%} of its TCP motion" in reading.mechanism
+    assert f"wrist_1_joint, {wrong:.0%} of its TCP motion" in reading.mechanism
+    assert reading.physical and not reading.textbook
