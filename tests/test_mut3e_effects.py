@@ -103,3 +103,20 @@ def test_a_mechanism_reads_only_the_values_beyond_two_standard_errors_and_their_
     assert f"shoulder_pan_joint, elbow_joint, {own:.0%} of its TCP motion" in reading.mechanism
     assert f"wrist_1_joint, {wrong:.0%} of its TCP motion" in reading.mechanism
     assert reading.physical and not reading.textbook
+
+
+def test_an_angle_tables_knot_lists_hold_ten_thousand_joints_of_999_knots_at_most():
+    """The schema's bounds on an angle table's ``knots`` option: at most 10 000 joints' lists (10 001
+    refused), each of at most 999 inner knots (1000 refused), one line naming the option. A fast test of
+    its own, so that a mutation run's budget reaches it. Seen failing on ``"maxItems": 10_000`` as 9999
+    and ``"maxItems": 999`` as 998."""
+    from tcr_accuracy.effects.option_schema import check_options
+    from tcr_accuracy.exceptions import InputError
+
+    for knots, taken in (([None] * 10_000, True), ([None] * 10_001, False), ([[0.0] * 999], True),
+                         ([[0.0] * 1000], False)):
+        if taken:
+            assert check_options("angle_table", {"knots": knots}, "d.json") == {"knots": knots}
+        else:
+            with pytest.raises(InputError, match=r"^d\.json\.knots"):
+                check_options("angle_table", {"knots": knots}, "d.json")
