@@ -164,3 +164,21 @@ def test_one_cycle_gives_accuracy_but_no_repeatability():
     assert got.v_mean == pytest.approx(0.1, rel=1e-9) and got.av == pytest.approx(0.0, abs=1e-7)
     assert got.rt is None and got.rv is None
     assert np.isnan(got.rt_planes).all()
+
+
+def test_the_rated_path_speed_names_the_joint_whose_limit_over_its_rate_is_least():
+    """A UR5 path along which the shoulder pan turns 0.50 rad/m and wrist 1 0.52 rad/m (the URDF's limits
+    3.15 and 3.2 rad/s, read here): wrist 1 limits the speed (3.2 / 0.52 < 3.15 / 0.50 m/s) though the
+    pan has less margin in rad/s (3.15 - 0.50 < 3.2 - 0.52): the speed is 3.2 / 0.52 m/s and wrist 1 is
+    named. Seen failing on the named joint's ``limits / np.maximum(rate[k], 1e-12)`` as ``limits - ...``
+    and on its ``1e-12`` as ``1.000000000001``."""
+    from tcr_accuracy.iso9283.path_plan import TestPath, _joint_limited_speed
+
+    ur5 = load_robot("ur5")
+    limits = np.asarray(ur5.model.velocityLimit, dtype=float)
+    assert limits[3] / 0.52 < limits[0] / 0.50 and limits[0] - 0.50 < limits[3] - 0.52
+    s = np.linspace(0.0, 0.2, 21)
+    q = np.outer(s, [0.50, 0.0, 0.0, 0.52, 0.0, 0.0])
+    speed, where = _joint_limited_speed(ur5, [TestPath("line", np.zeros((21, 3)), s, q)])
+    assert speed == pytest.approx(limits[3] / 0.52, rel=1e-9)
+    assert where == f"the largest the joints' velocity limits allow: {ur5.joint_names[3]} on the line at its limit"
