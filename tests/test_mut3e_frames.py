@@ -102,3 +102,24 @@ def test_a_reference_left_with_two_readings_is_refitted_and_one_left_with_one_is
     assert got["drift_mm_per_h"] == pytest.approx((v * 3600 * 1e3).tolist(), rel=1e-6, abs=1e-9)
     assert got["scatter_per_axis_mm"] == pytest.approx(sigma * 1e3, rel=1e-9)
     assert estimate.per_axis == pytest.approx(sigma, rel=1e-9)
+
+
+def test_references_read_identically_show_no_drift_with_z_zero_not_nan():
+    """Two base references read exactly alike on six rows over 50 s (a simulated instrument with no
+    noise): no drift, no scatter, its standard error 0 and z 0 (no evidence of a drift, not 0 / 0),
+    not corrected, nothing left out, the noise 0. Seen failing on ``if 0 < std < math.inf`` as
+    ``-1 < std`` (z NaN)."""
+    import warnings
+
+    from tcr_accuracy.frames.drift import tracker_drift
+
+    times = np.linspace(0.0, 50.0, 6)
+    refs = [(name, np.zeros(3), np.tile(p, (6, 1)), times)
+            for name, p in (("A", [1.0, 0.25, 0.5]), ("B", [-0.5, 1.0, 0.25]))]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        correction, report, estimate = tracker_drift(refs, np.zeros(6, dtype=int), 1, [])
+    got = report[0]
+    assert got["z"] == 0.0 and got["drift_std_mm_per_unit"] == 0.0 and got["scatter_per_axis_mm"] == 0.0
+    assert got["drift_mm_per_h"] == [0.0, 0.0, 0.0] and not got["corrected"] and got["outliers"] == []
+    assert estimate.per_axis == 0.0 and np.all(correction == 0.0)
