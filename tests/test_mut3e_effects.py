@@ -120,3 +120,21 @@ def test_an_angle_tables_knot_lists_hold_ten_thousand_joints_of_999_knots_at_mos
         else:
             with pytest.raises(InputError, match=r"^d\.json\.knots"):
                 check_options("angle_table", {"knots": knots}, "d.json")
+
+
+@pytest.mark.parametrize("name", ["cyclic", "angle_table"])
+def test_values_made_when_read_are_a_two_dimensional_float_array_like(ur5, name):
+    """The compact Jacobian values the diagnosis keeps as rows made when read (a cyclic series', an angle
+    table's): to numpy an (N, k) float array like the one it stands for, np.ndim 2, its rows and
+    columns those of the whole array. Seen failing on ``ndim = 2`` as ``ndim = 1``."""
+    from tcr_accuracy.effects.angle_table import TableValues
+    from tcr_accuracy.effects.joint_columns import RowsWhenRead
+
+    effect = make_effect(name, ur5)
+    q = random_joint_values(ur5, 7, np.random.default_rng(3))
+    whole = effect.joint_columns(q)[0]
+    lazy = RowsWhenRead(effect, q) if name == "cyclic" else TableValues(effect, q)
+    assert np.ndim(lazy) == 2 and np.shape(lazy) == whole.shape and lazy.dtype == np.dtype(float)
+    np.testing.assert_allclose(np.asarray(lazy), whole, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(lazy[[1, 4]], whole[[1, 4]], rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(lazy[2, 3:6], whole[2, 3:6], rtol=1e-12, atol=1e-15)
