@@ -182,3 +182,19 @@ def test_the_rated_path_speed_names_the_joint_whose_limit_over_its_rate_is_least
     speed, where = _joint_limited_speed(ur5, [TestPath("line", np.zeros((21, 3)), s, q)])
     assert speed == pytest.approx(limits[3] / 0.52, rel=1e-9)
     assert where == f"the largest the joints' velocity limits allow: {ur5.joint_names[3]} on the line at its limit"
+
+
+def test_of_two_repeated_times_in_a_streamed_visit_the_first_is_named():
+    """Pose 1, cycle 1 streamed at 0.0, 0.5, 0.5, 0.9, 0.9 s (rows 2 .. 6): refused at row 4, the first
+    reading that repeats a time, not row 6. Seen failing on ``rows[same[0] + 1]`` as ``rows[same[-1] + 1]``."""
+    from tcr_accuracy.exceptions import InputError
+    from tcr_accuracy.iso9283.evaluate import PoseLabels, visits_of
+
+    from test_mute_iso_formulas import _Readings
+
+    ones = np.array(["1"] * 5, dtype=object)
+    mset = _Readings(time_s=np.array([0.0, 0.5, 0.5, 0.9, 0.9]), rows=np.arange(2, 7), source="stream.csv")
+    with pytest.raises(InputError) as refused:
+        visits_of(mset, PoseLabels(ones, ones, None))
+    assert str(refused.value) == ("stream.csv: row 4, column time_s: 0.5 s repeats a time of the same visit (pose 1, "
+                                  "cycle 1); the readings of one visit are a stream in time")
