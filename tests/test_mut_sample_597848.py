@@ -1,9 +1,9 @@
 """Three survivors of a measuring sample of issue 36's mutation run (seed 597848), each pinned by a fast direct
 test against a computation written out here: the fold assignments of the candidate stage (scikit-learn's
-RepeatedKFold seeded by the generator's first draw below 2^31 - 1), the implausibility of an effect with a parameter whose physical
-range is the single value 0 (no bound to compare with: left out, not divided by), and the ridge's
-standardisation of a feature that does not vary beyond rounding (divided by 1, as scikit-learn's StandardScaler
-does for a constant feature). Each test names the planted change it was seen to catch."""
+RepeatedKFold seeded by the generator's first draw below 2^31 - 1), the implausibility of an effect with a
+parameter whose physical range is the single value 0 (no bound to compare with: left out, not divided by), and
+the ridge's standardisation of a feature that does not vary beyond rounding (divided by 1, as scikit-learn's
+StandardScaler does for a constant feature). Each test names the planted change it was seen to catch."""
 
 from __future__ import annotations
 
