@@ -1,13 +1,19 @@
-"""A survivor of a measuring sample of issue 36's mutation run (seed 462196), pinned by a fast direct test against
-a computation written out here: the ISO 9283 rectangle path of a small cube sampled at its perimeter over the
-fewest samples a path takes. The test names the planted change it was seen to catch."""
+"""Two survivors of a measuring sample of issue 36's mutation run (seed 462196), pinned by fast direct tests against
+computations written out here: the ISO 9283 rectangle path of a small cube sampled at its perimeter over the
+fewest samples a path takes, and a series of exactly two test conditions refused by the one-condition evaluation.
+Each test names the planted change it was seen to catch."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
+import pinocchio as pin
+import pytest
 
+import tcr_accuracy as tcr
+from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.iso9283.path_plan import MIN_SAMPLES, SAMPLE_STEP, standard_paths
 from tcr_accuracy.iso9283.plan import iso_points
 
@@ -31,3 +37,20 @@ def test_a_small_cubes_rectangle_is_sampled_at_its_perimeter_over_the_fewest_sam
     assert gaps.max() <= step * (1 + 1e-12)
     diagonal = np.linalg.norm(p[3] - p[1])
     assert len(paths["line"].points) == 1 + math.ceil(diagonal / (diagonal / MIN_SAMPLES))
+
+
+def test_a_series_of_exactly_two_test_conditions_is_refused_by_the_one_condition_evaluation():
+    """A UR5 cube's series at 100 % load and 100 % then 50 % speed, read exactly through Pinocchio (written out
+    here): two conditions, so one set of figures would mix them: refused, naming both (the four-condition case
+    is tested elsewhere; two is the edge). Seen failing on ``len(blocks) > 1`` turned to ``> 2``."""
+    robot = tcr.load_robot("ur5")
+    plan = tcr.plan_iso_cube(robot, random_state=0, centre=[-0.13, -0.44, 0.32], size=0.3)
+    two = plan.series(cycles=2, conditions=[(100, 100), (100, 50)])
+    data, frame = robot.model.createData(), robot.model.getFrameId(robot.tool_frame)
+    positions = []
+    for row in two.q:
+        pin.framesForwardKinematics(robot.model, data, row)
+        positions.append(data.oMf[frame].translation.copy())
+    assert len(two) == 20
+    with pytest.raises(InputError, match=r"2 test conditions \(.*100.*; .*50.*\)"):
+        tcr.evaluate_pose_test(robot, dataclasses.replace(two, position=np.array(positions)))
