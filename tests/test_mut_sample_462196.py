@@ -1,18 +1,21 @@
-"""Two survivors of a measuring sample of issue 36's mutation run (seed 462196), pinned by fast direct tests against
-computations written out here: the ISO 9283 rectangle path of a small cube sampled at its perimeter over the
-fewest samples a path takes, and a series of exactly two test conditions refused by the one-condition evaluation.
-Each test names the planted change it was seen to catch."""
+"""Three survivors of a measuring sample of issue 36's mutation run (seed 462196), pinned by fast direct tests
+against computations written out here: the ISO 9283 rectangle path of a small cube sampled at its perimeter over
+the fewest samples a path takes, a series of exactly two test conditions refused by the one-condition evaluation,
+and the identifiability of a block measured at one pose (its motions worked by hand). Each test names the
+planted change it was seen to catch."""
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pinocchio as pin
 import pytest
 
 import tcr_accuracy as tcr
+from tcr_accuracy.diagnosis.identifiability import identifiability
 from tcr_accuracy.exceptions import InputError
 from tcr_accuracy.iso9283.path_plan import MIN_SAMPLES, SAMPLE_STEP, standard_paths
 from tcr_accuracy.iso9283.plan import iso_points
@@ -54,3 +57,18 @@ def test_a_series_of_exactly_two_test_conditions_is_refused_by_the_one_condition
     assert len(two) == 20
     with pytest.raises(InputError, match=r"2 test conditions \(.*100.*; .*50.*\)"):
         tcr.evaluate_pose_test(robot, dataclasses.replace(two, position=np.array(positions)))
+
+
+def test_a_block_measured_at_one_pose_is_judged_on_that_pose_alone():
+    """One pose, two orthogonal columns moving the TCP 1 mm and 2 mm: their RMS motions over the one pose are
+    1 mm and 2 mm, so with 1.6 mm resolved the 2 mm column is kept and the 1 mm one dropped, its words in um
+    (1e+03 of 1e+03 um); counted as two poses the 2 mm column would move 1.41 mm RMS and be dropped too. Seen
+    failing on ``max(b.g.shape[0], 1)`` turned to ``max(b.g.shape[0], 2)``."""
+    g = np.zeros((1, 3, 2))
+    g[0, 0, 0], g[0, 1, 1] = 1e-3, 2e-3
+    keep, report = identifiability({"e": SimpleNamespace(g=g, scales=np.ones(2), names=["a", "b"])}, ["e"],
+                                   min_motion=1.6e-3)
+    assert keep["e"].tolist() == [1]
+    assert report["effects"]["e"]["removed"] == [
+        {"parameter": "a", "reason": "only 1e+03 um RMS of its 1e+03 um TCP motion (at its typical size) is its own: "
+                                     "below what the measurements resolve", "duplicates": []}]
