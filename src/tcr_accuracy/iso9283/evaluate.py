@@ -145,7 +145,7 @@ class IsoEvaluation:
     orientation_offset: np.ndarray | None
     n_readings: int
     pose_q: dict
-    n_visits: int = 0
+    n_visits: int
     frame_source: str = "base"
     absolute: bool = True
     instrument_distance: dict | None = None
