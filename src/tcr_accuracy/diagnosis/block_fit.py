@@ -30,8 +30,9 @@ from scipy import linalg
 from .gram import Quadratic
 from .least_squares import DampedSolver, FactorCache, cholesky_factor, cholesky_solve
 
-#: lambdas tried for a smoothness penalty, times the penalised columns' median Gram diagonal
-PENALTY_GRID = np.logspace(-5, 3, 9)
+#: lambdas tried for a smoothness penalty, times the penalised columns' median Gram diagonal: the decades
+#: 1e-5 .. 1e3 written out (np.logspace's ends moved by an ulp between numpy releases: 9.999999999999999e-06)
+PENALTY_GRID = np.array([1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0, 1e1, 1e2, 1e3])
 
 
 class SharedBlock:
