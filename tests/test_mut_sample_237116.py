@@ -1,0 +1,105 @@
+"""Survivors of the measuring sample drawn with seed 237116, each pinned against a computation written out
+here: the path test's closest-point iteration stopping at the first step that moves the frame less than
+1e-10; the note that readings were grouped by their joint values said first; a fit with nothing to fit
+counted among the engine's fits; compliance without a payload column read as no payload (Pinocchio's
+generalised gravity)."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pinocchio as pin
+from scipy.spatial.transform import Rotation
+from test_iso9283 import _evaluate_json, _repeat_data, _write
+from test_mutb_path_frame import _square
+
+from tcr_accuracy.effects import make_effect
+from tcr_accuracy.iso9283 import path_evaluate
+from tcr_accuracy.iso9283.path_plan import arc_length
+from tcr_accuracy.model.robot import load_robot
+
+
+def test_the_closest_point_iteration_stops_at_the_first_step_that_moves_the_frame_less_than_its_tolerance(
+        monkeypatch):
+    """Readings 20 um off a helix and a closed square, moved by a hidden frame: the frames the iteration
+    fits, recorded, move by |dt| + |dR|_F from one to the next; the iteration stops at the first that
+    moved less than 1e-10 (before its cap), not later. Catches ``new_translation - translation`` turned
+    to ``//`` (a quotient near 1 a coordinate: it never stops and runs to the cap)."""
+    u = np.linspace(0, 1, 400)
+    helix = np.column_stack([0.2 * np.cos(4 * u), 0.2 * np.sin(4 * u), 0.3 * u]) + [0.5, -0.2, 0.4]
+    runs = [SimpleNamespace(points=p, s=arc_length(p)) for p in (helix, _square())]
+    rotation = Rotation.from_rotvec([0.2, 0.5, -0.9]).as_matrix()
+    translation = np.array([1.7, 0.6, -0.25])
+    rng = np.random.default_rng(237116)
+    positions, cycles, start = [], {}, 0
+    for k, run in enumerate(runs):
+        s = np.sort(rng.uniform(0, run.s[-1], 250))
+        p = np.stack([np.interp(s, run.s, run.points[:, a]) for a in range(3)], axis=1) + rng.normal(0, 20e-6, (250, 3))
+        positions.append(p @ rotation.T + translation)
+        cycles[k] = [np.arange(start, start + len(p))]
+        start += len(p)
+    fitted = []
+    rigid_fit = path_evaluate.rigid_fit
+
+    def recorded(*args):
+        fitted.append(rigid_fit(*args))
+        return fitted[-1]
+
+    monkeypatch.setattr(path_evaluate, "rigid_fit", recorded)
+    frame = path_evaluate.fit_stream_frame(runs, SimpleNamespace(position=np.vstack(positions)), cycles)
+    moves = [np.linalg.norm(t - t_before) + np.linalg.norm(r - r_before)
+             for (r_before, t_before), (r, t) in zip(fitted[:-1], fitted[1:])]
+    first_still = next(i for i, move in enumerate(moves) if move < 1e-10)
+    assert first_still + 1 < path_evaluate.ICP_ITERATIONS  # the tolerance, not the cap, ends it
+    assert len(moves) == first_still + 1
+    np.testing.assert_array_equal(frame.translation, fitted[-1][1])
+    np.testing.assert_allclose(frame.translation, translation, rtol=0, atol=5e-6)
+
+
+def test_without_pose_ids_the_grouping_is_the_first_note_before_what_the_counts_leave_out(tmp_path, capsys):
+    """Five poses read 1, 2, 4, 6 and 5 times, without a pose_id column: the counts leave three notes (a
+    pose read once, one read twice, all below the standard's 30 cycles), and the note that the readings
+    were grouped by their joint values comes before them. Catches its ``insert(0, ...)`` turned to
+    ``insert(-1, ...)`` (then second to last)."""
+    rows = _repeat_data(np.random.default_rng(23), counts=(1, 2, 4, 6, 5), orientation=False)
+    _write(tmp_path / "labelled.csv", rows, orientation=False)
+    lines = (tmp_path / "labelled.csv").read_text().splitlines()
+    (tmp_path / "bare.csv").write_text("\n".join(",".join(line.split(",")[:-2]) for line in lines) + "\n")
+    notes = _evaluate_json(tmp_path / "bare.csv", capsys)["notes"]
+    assert notes[0].startswith("no pose_id column: the readings grouped by their joint values")
+    assert any("read once" in note for note in notes[1:]) and any("read twice" in note for note in notes[1:])
+    assert any("fewer times than the standard's 30 cycles" in note for note in notes[1:])
+
+
+def test_a_fit_with_nothing_identifiable_is_one_fit_and_leaves_the_residual_unchanged():
+    """A model whose effect kept no column (nothing identifiable at this noise): the engine counts one fit
+    (the result's ``n_fits``, what a user reads as the work done), its parameters are empty, and its
+    residual is that of the same effect with every kept column at zero (the engine's own model with the
+    identifiable columns held at the anchor). Catches that fit's count ``+= 1`` turned to ``+= 0``."""
+    from mutd_truth import offset_measurements
+
+    from tcr_accuracy.diagnosis.diagnose import GapDiagnosis
+
+    robot, measured = offset_measurements(12, 237)
+    engine = GapDiagnosis(robot=robot, effects=["joint_offsets"], folds=2, stability_replays=2).fit(measured).engine_
+    before = engine.n_fits
+    nothing = engine.columns(["joint_offsets"], keep={"joint_offsets": np.array([], dtype=int)})
+    phi, residual = engine.fit(nothing, None)
+    assert engine.n_fits == before + 1 and phi.size == 0
+    held = engine.columns(["joint_offsets"])
+    at_zero = engine.predict_residual(held, np.zeros(held.scale.size), np.arange(12))
+    for got, expected in zip(residual, at_zero):
+        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-15)
+
+
+def test_compliance_without_a_payload_column_is_the_arms_own_gravity():
+    """No context (no payload_kg column): the compliance effect's signal is the torque gravity exerts on
+    each joint of the arm alone, minus Pinocchio's generalised gravity of the UR5's model. Catches the
+    payload's default 0.0 kg turned to -1.0 (a kilogram taken off the tool)."""
+    robot = load_robot("ur5")
+    effect = make_effect("compliance", robot)
+    q = np.random.default_rng(237116).uniform(-2.5, 2.5, (8, 6))
+    data = robot.model.createData()
+    expected = -np.array([pin.computeGeneralizedGravity(robot.model, data, row) for row in q])
+    np.testing.assert_allclose(effect.signal(q, None), expected, rtol=1e-12, atol=1e-9)
