@@ -103,3 +103,47 @@ def test_compliance_without_a_payload_column_is_the_arms_own_gravity():
     data = robot.model.createData()
     expected = -np.array([pin.computeGeneralizedGravity(robot.model, data, row) for row in q])
     np.testing.assert_allclose(effect.signal(q, None), expected, rtol=1e-12, atol=1e-9)
+
+
+def test_a_prismatic_joints_tilt_turns_the_tool_about_its_moving_origin():
+    """The tool-changer's telescopic joint (j4, along y) tilted across its axis: the TCP's derivative by each
+    of its two lateral compliances is a central difference of Pinocchio's forward kinematics with that joint's
+    placement turned, by the tilt the gravity moment makes (compliance x moment across the axis), about the
+    point the joint has slid to (q a, in the placement frame), written out here. Catches the tilt's lever
+    ``q a`` turned to ``q + a``."""
+    from tcr_accuracy.effects.compose import prediction_jacobian
+
+    robot = load_robot()
+    effect = make_effect("lateral_compliance", robot)
+    j = robot.joint_kinds.index("prismatic")
+    rng = np.random.default_rng(129)
+    lower, upper = robot.joint_bounds()
+    q = rng.uniform(lower, upper, (5, robot.n_joints))
+    columns = [k for k, (joint, _, _) in enumerate(effect._axes()) if joint == j]
+    jacobian = prediction_jacobian(robot, [effect], [np.zeros(effect.n_params)], q)[:, :, columns]
+    moment = effect.moments(q, None)[:, j]  # (N, 3) in the placement frame [Nm]
+    model = robot.model
+    joint_id = robot.chain_joint_ids[j]
+    placement = model.jointPlacements[joint_id].copy()
+    axis = robot.joint_axis(j)
+    h = 1e-9  # [rad/Nm]: tilts of ~1e-7 rad, second order ~1e-14 m
+
+    def tcp(row, tilt):
+        pivot = q[row, j] * axis
+        turn = pin.exp3(tilt)
+        model.jointPlacements[joint_id] = placement * pin.SE3(turn, pivot - turn @ pivot)
+        data = model.createData()
+        pin.framesForwardKinematics(model, data, q[row])
+        return data.oMf[robot.tool_frame_id].translation.copy()
+
+    try:
+        for c, k in enumerate(columns):
+            e = effect._axes()[k][2]
+            for row in range(q.shape[0]):
+                tilt = (moment[row] @ e) * e
+                difference = (tcp(row, h * tilt) - tcp(row, -h * tilt)) / (2 * h)
+                scale = np.abs(difference).max()
+                assert scale > 1e-3  # [m per rad/Nm]: the moment across the axis tilts the tool
+                np.testing.assert_allclose(jacobian[row, :, c], difference, rtol=0, atol=1e-6 * scale)
+    finally:
+        model.jointPlacements[joint_id] = placement
