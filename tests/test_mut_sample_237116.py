@@ -2,7 +2,7 @@
 here: the path test's closest-point iteration stopping at the first step that moves the frame less than
 1e-10; the note that readings were grouped by their joint values said first; a fit with nothing to fit
 counted among the engine's fits; compliance without a payload column read as no payload (Pinocchio's
-generalised gravity)."""
+generalised gravity); the stop at the noise floor's figures in mm."""
 
 from __future__ import annotations
 
@@ -12,8 +12,10 @@ import numpy as np
 import pinocchio as pin
 from scipy.spatial.transform import Rotation
 from test_iso9283 import _evaluate_json, _repeat_data, _write
+from test_mut_diag_bayes_design import _curve, _design
 from test_mutb_path_frame import _square
 
+from tcr_accuracy.diagnosis.bayes_design import stop_advice
 from tcr_accuracy.effects import make_effect
 from tcr_accuracy.iso9283 import path_evaluate
 from tcr_accuracy.iso9283.path_plan import arc_length
@@ -147,3 +149,18 @@ def test_a_prismatic_joints_tilt_turns_the_tool_about_its_moving_origin():
                 np.testing.assert_allclose(jacobian[row, :, c], difference, rtol=0, atol=1e-6 * scale)
     finally:
         model.jointPlacements[joint_id] = placement
+
+
+def test_the_stop_at_the_noise_floor_states_both_figures_in_millimetres():
+    """A floor of 1.2345 mm and an error now of sqrt(floor^2 + v) = 1.04 x the floor: the advice stops and
+    says both in mm to four places, as written out here (1.2839 against 1.2345). Catches the first figure's
+    ``* 1e3`` turned to ``* 999.0`` (1.2826 mm: the 0.1 % shows at these sizes) and the point read as an
+    end of its interval (``now[1]``, ``now[-1]``)."""
+    floor = 1.2345e-3
+    v = (1.04**2 - 1) * floor**2
+    boot = np.random.default_rng(710).uniform(0.5, 2.0, (20, 2))  # the interval's ends apart from the point
+    advice = stop_advice(_curve(boot, floor), _design(np.sqrt(v), np.sqrt(v) / 2), min_gain_m=None)
+    now_mm = np.sqrt(floor**2 + v) * 1e3
+    assert f"{now_mm:.4f}" == "1.2839"
+    assert advice.stop and advice.reason.startswith(f"stop: the noise floor is reached ({now_mm:.4f} mm against "
+                                                    f"{floor * 1e3:.4f} mm); ")
