@@ -2,7 +2,7 @@
 here: the path test's closest-point iteration stopping at the first step that moves the frame less than
 1e-10; the note that readings were grouped by their joint values said first; a fit with nothing to fit
 counted among the engine's fits; compliance without a payload column read as no payload (Pinocchio's
-generalised gravity); the stop at the noise floor's figures in mm."""
+generalised gravity); the stop at the noise floor's figures in mm; the learning curve's progress."""
 
 from __future__ import annotations
 
@@ -12,10 +12,10 @@ import numpy as np
 import pinocchio as pin
 from scipy.spatial.transform import Rotation
 from test_iso9283 import _evaluate_json, _repeat_data, _write
-from test_mut_diag_bayes_design import _curve, _design
+from test_mut_diag_bayes_design import EFFECTS, _curve, _design, _owner
 from test_mutb_path_frame import _square
 
-from tcr_accuracy.diagnosis.bayes_design import stop_advice
+from tcr_accuracy.diagnosis.bayes_design import DesignColumns, EffectPrior, learning_curve, stop_advice
 from tcr_accuracy.effects import make_effect
 from tcr_accuracy.iso9283 import path_evaluate
 from tcr_accuracy.iso9283.path_plan import arc_length
@@ -164,3 +164,18 @@ def test_the_stop_at_the_noise_floor_states_both_figures_in_millimetres():
     assert f"{now_mm:.4f}" == "1.2839"
     assert advice.stop and advice.reason.startswith(f"stop: the noise floor is reached ({now_mm:.4f} mm against "
                                                     f"{floor * 1e3:.4f} mm); ")
+
+
+def test_the_learning_curve_reports_one_step_of_progress_per_subsample_size():
+    """40 poses and four subsample sizes, round(geomspace(20, 32, 4)) = 20, 23, 27, 32 written out here: the
+    progress callback is called once per size with one step, so a bar of len(sizes) steps ends full.
+    Catches ``progress(1)`` turned to ``progress(2)`` (a bar run past its end)."""
+    rng = np.random.default_rng(648)
+    owner = _owner(2, 5, 5)
+    n = 40
+    g = rng.normal(size=(n, 3, owner.size)) * 1e-4
+    errors = g @ np.concatenate([rng.normal(0, 20, 2), rng.normal(0, 1.0, 10)]) + rng.normal(0, 3e-5, (n, 3))
+    steps = []
+    learning_curve(DesignColumns(g, owner, EFFECTS), errors, EffectPrior({"compliance": 1.0, "transmission": 1.0},
+                   3e-5), np.random.default_rng(1), n_sizes=4, repeats=2, n_boot=10, progress=steps.append)
+    assert steps == [1, 1, 1, 1]
