@@ -10,6 +10,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pinocchio as pin
+import pytest
 from scipy.spatial.transform import Rotation
 from test_iso9283 import _evaluate_json, _repeat_data, _write
 from test_mut_diag_bayes_design import EFFECTS, _curve, _design, _owner
@@ -179,3 +180,24 @@ def test_the_learning_curve_reports_one_step_of_progress_per_subsample_size():
     learning_curve(DesignColumns(g, owner, EFFECTS), errors, EffectPrior({"compliance": 1.0, "transmission": 1.0},
                    3e-5), np.random.default_rng(1), n_sizes=4, repeats=2, n_boot=10, progress=steps.append)
     assert steps == [1, 1, 1, 1]
+
+
+def test_maps_of_different_poses_or_error_vectors_are_not_joined():
+    """Maps side by side sum their errors entry by entry, so they must share their poses and their error
+    vector: a map of 12 entries beside one of 13, or of 50 poses beside one of 49, is refused with both
+    shapes named (the joined size was read off the first map alone, and ``errors`` then failed on the sum or
+    on a row past the shorter map)."""
+    import re
+
+    from tcr_accuracy.diagnosis.error_map import ErrorMap, JoinedMaps
+
+    rng = np.random.default_rng(225)
+
+    def fixed_map(n, size, k=2):
+        return ErrorMap.of(n, size, slice(4, 10), rng.standard_normal((size, k)), None, k)
+
+    for other, named in ((fixed_map(50, 13), "(50, 12), (50, 13)"), (fixed_map(49, 12), "(49, 12), (50, 12)")):
+        with pytest.raises(ValueError, match=re.escape(named)):
+            JoinedMaps([fixed_map(50, 12), other])
+    joined = JoinedMaps([fixed_map(50, 12), fixed_map(50, 12, 3)])
+    assert (joined.n_poses, joined.size) == (50, 12) and joined.bounds == [(0, 2), (2, 5)]

@@ -220,6 +220,10 @@ class JoinedMaps:
 
     def __init__(self, maps: list):
         self.maps = list(maps)
+        # one robot's error model at one set of poses: the errors are summed entry by entry
+        shapes = sorted({(m.n_poses, m.size) for m in self.maps})
+        if len(shapes) != 1:
+            raise ValueError(f"maps joined side by side must share their poses and error vector: (poses, size) {shapes}")
         ends = np.cumsum([m.n_columns for m in self.maps])
         self.bounds = list(zip(np.concatenate([[0], ends[:-1]]).astype(int), ends.astype(int)))
         self.n_poses, self.size = self.maps[0].n_poses, self.maps[0].size
