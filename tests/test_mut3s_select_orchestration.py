@@ -102,7 +102,7 @@ class _Stand_ins:
 def _select(stand_ins, testable, selection_z=0.5):
     engine = _Engine()
     selection = select.select_effects(None, _candidate_set(engine, testable), selection_z=selection_z,
-                                      min_relative_gain=0.002, rng=np.random.default_rng(0))
+                                      min_relative_gain=0.002)
     return engine, selection
 
 
@@ -290,10 +290,9 @@ def test_an_effect_of_last_resort_left_out_is_no_rival_and_one_taken_is(monkeypa
     engine.add_bases = lambda bases: None
     candidate_set = SimpleNamespace(engine=engine, untried=(), testable=("joint_offsets", "geometry"),
                                     late_names=("cyclic", "angle_table"), linearised=lambda: None,
-                                    detector=SimpleNamespace(test=lambda residual, rng: {"remains": True}))
+                                    detector=SimpleNamespace(remains=lambda residual: True))
     registered = SimpleNamespace(parts=(), measured_context=None, session_labels=None)
-    selection = select.select_effects(registered, candidate_set, selection_z=0.5, min_relative_gain=0.002,
-                                      rng=np.random.default_rng(0))
+    selection = select.select_effects(registered, candidate_set, selection_z=0.5, min_relative_gain=0.002)
     assert selection.late == ("cyclic", "angle_table")
     assert selection.selected == ("frames", "joint_offsets", "cyclic")
     assert selection.rivals == ("joint_offsets", "cyclic")
