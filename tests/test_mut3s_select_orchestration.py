@@ -102,7 +102,7 @@ class _Stand_ins:
 def _select(stand_ins, testable, selection_z=0.5):
     engine = _Engine()
     selection = select.select_effects(None, _candidate_set(engine, testable), selection_z=selection_z,
-                                      min_relative_gain=0.002, rng=np.random.default_rng(0))
+                                      min_relative_gain=0.002)
     return engine, selection
 
 
@@ -254,3 +254,47 @@ def test_the_structure_test_reads_the_first_measured_frames_rows():
     two = np.arange(18.0).reshape(2, 3, 3)
     np.testing.assert_array_equal(select._first_frame(two), two[0])
     np.testing.assert_array_equal(select._first_frame(two[1]), two[1])
+
+
+def test_an_effect_of_last_resort_left_out_is_no_rival_and_one_taken_is(monkeypatch):
+    """Where the first selection leaves structure, the effects of last resort are built and tried late; of them,
+    the one forward selection took (cyclic) may still stand in or be swapped, the one it left out (angle_table,
+    its first trial's z 9 above selection_z) is not a rival, as the search beyond the greedy path does not take
+    it either. The rivals, written out: the testable effects whose z exceeds 0.5, less angle_table."""
+    stand_ins = _Stand_ins(monkeypatch, first_step="joint_offsets", grow=[], searched=None, relinearised=False,
+                           harmful=[], z={"joint_offsets": 6.0, "geometry": 0.3})
+    searched_pool = []
+
+    def forward(engine, testable, steps, candidates, say, selection_z, min_relative_gain, start=None):
+        if start is None:
+            for e, value in {"joint_offsets": 6.0, "geometry": 0.3}.items():
+                candidates[e] = Candidate(e, True, heldout_rms=2e-4, gain=1e-5, z=value, n_parameters=3)
+            return ["frames", "joint_offsets"]
+        if "cyclic" in testable and "cyclic" not in candidates:  # the late round: both late effects tried
+            for e, value in {"cyclic": 8.0, "angle_table": 9.0}.items():
+                candidates[e] = Candidate(e, True, heldout_rms=1e-4, gain=1e-5, z=value, n_parameters=300)
+            return list(start) + ["cyclic"]
+        return list(start)
+
+    def search_sets(engine, current, first, testable, *, selection_z, min_relative_gain, say, forward, prune):
+        searched_pool.extend(testable)
+        return list(current), "report"
+
+    monkeypatch.setattr(select, "_forward", forward)
+    monkeypatch.setattr(select, "search_sets", search_sets)
+    monkeypatch.setattr(select, "build_bases", lambda parts, names, context, notes, sessions:
+                        ({name: None for name in names}, [], None))
+    monkeypatch.setattr(select, "relinearise", lambda bases, jacobians: None)
+    monkeypatch.setattr(select, "identifiable_alone", lambda engine, name: True)
+    engine = _Engine()
+    engine.add_bases = lambda bases: None
+    candidate_set = SimpleNamespace(engine=engine, untried=(), testable=("joint_offsets", "geometry"),
+                                    late_names=("cyclic", "angle_table"), linearised=lambda: None,
+                                    detector=SimpleNamespace(remains=lambda residual: True))
+    registered = SimpleNamespace(parts=(), measured_context=None, session_labels=None)
+    selection = select.select_effects(registered, candidate_set, selection_z=0.5, min_relative_gain=0.002)
+    assert selection.late == ("cyclic", "angle_table")
+    assert selection.selected == ("frames", "joint_offsets", "cyclic")
+    assert selection.rivals == ("joint_offsets", "cyclic")
+    assert [entry for entry in stand_ins.log if entry[0] == "swaps"][0] == ("swaps", ("joint_offsets", "cyclic"))
+    assert "angle_table" not in searched_pool and "cyclic" in searched_pool

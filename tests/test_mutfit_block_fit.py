@@ -149,3 +149,38 @@ def test_penalised_fits_with_bounds_are_the_stacked_least_squares_and_lambda_the
     assert chosen.grid_index == 2 and chosen.penalty == pytest.approx(grid[2], rel=1e-12)
     np.testing.assert_allclose(chosen.step, _bounded(jac, residual, low, high, grid[2] * weights, center),
                                rtol=1e-7, atol=1e-9)
+
+
+def test_a_small_models_fold_blocks_are_made_once_per_fit_and_a_large_ones_when_needed(monkeypatch):
+    """A penalised model's lambda search walks several lambdas and then fits each fold: its folds' held-out
+    blocks are asked for once per fit (the search's steps and the fold fits share them) up to
+    ``KEEP_FOLD_BLOCKS`` columns; above, each time they are needed (a fine angle table's are let go). The
+    fits are the stacked least squares solved here either way."""
+    from tcr_accuracy.diagnosis import block_fit
+
+    rng = np.random.default_rng(8)
+    n, k = 150, 7
+    jac = rng.standard_normal((n, k)) * np.logspace(0, -1, k)
+    residual = -(jac @ rng.standard_normal(k)) + 0.3 * rng.standard_normal(n)
+    weights = np.where(np.arange(k) < 2, 0.0, 1.0)
+    center = np.zeros(k)
+    folds = np.array_split(rng.permutation(n), 5)
+    low, high = -np.full(k, 50.0), np.full(k, 50.0)
+    for limit, once in ((k, True), (k - 1, False)):
+        monkeypatch.setattr(block_fit, "KEEP_FOLD_BLOCKS", limit)
+        asked = [0] * len(folds)
+
+        def getter(f):
+            def get():
+                asked[f] += 1
+                return _quadratic(jac, residual, folds[f])
+            return get
+
+        fit = fit_blocks(_quadratic(jac, residual), [[getter(f) for f in range(len(folds))]], low, high, weights,
+                         center, start_index=0)
+        assert (asked == [1] * len(folds)) == once and min(asked) >= 1
+        lam = fit.penalty * weights
+        for rows, d in zip(folds, fit.fold_steps[0]):
+            train = np.setdiff1d(np.arange(n), rows)
+            np.testing.assert_allclose(d, _bounded(jac[train], residual[train], low, high, lam, center),
+                                       rtol=1e-7, atol=1e-9)

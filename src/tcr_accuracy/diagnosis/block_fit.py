@@ -23,6 +23,7 @@ overfits, too much underfits); every fold's fit then takes the chosen lambda.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 from scipy import linalg
@@ -210,6 +211,10 @@ def fit_blocks(total: Quadratic, held: list, low: np.ndarray, high: np.ndarray, 
         (:func:`free_step`): the same fits, fewer factorisations.
     """
     penalised = np.any(weights > 0)
+    if total.gram.shape[0] <= KEEP_FOLD_BLOCKS:
+        # each fold's blocks made once for the whole fit: the penalty search's steps and the fold fits after
+        # it each gathered them again from the store (a model with the cyclic effect: 350 columns, 1 MB a fold)
+        held = [[cache(get) for get in folds] for folds in held]
     lam, index, searched = 0.0, None, {}
     if penalised and chosen_index is not None:
         index, lam = chosen_index, float(penalty_grid(total, weights)[chosen_index])
@@ -238,6 +243,11 @@ def fit_blocks(total: Quadratic, held: list, low: np.ndarray, high: np.ndarray, 
         fold_steps.append(steps)
         ssq.append(scores)
     return BlockFit(step, fold_steps, lam, total.value(step), ssq, index)
+
+
+#: a model of at most this many columns keeps its folds' held-out blocks through its fit (5 x 3 MB at most);
+#: a fine angle table's (1,231 columns at 10^4 poses, 12 MB a fold) are made when needed and let go
+KEEP_FOLD_BLOCKS = 640
 
 
 def penalty_grid(total: Quadratic, weights: np.ndarray) -> np.ndarray:
@@ -301,5 +311,5 @@ def choose_penalty(total: Quadratic, folds: list, weights: np.ndarray, center: n
     return i, float(grid[i])
 
 
-__all__ = ["BlockFit", "FactorCache", "PENALTY_GRID", "SharedBlock", "box_step", "choose_penalty", "fit_blocks",
+__all__ = ["BlockFit", "FactorCache", "KEEP_FOLD_BLOCKS", "PENALTY_GRID", "SharedBlock", "box_step", "choose_penalty", "fit_blocks",
            "free_step", "penalty_grid"]

@@ -404,7 +404,7 @@ class GapDiagnosis(BaseEstimator):
                                           frames_options=setup.options if setup is not None else None)
             say("fitting frames")
             selection = select_effects(registered, candidates, selection_z=self.selection_z,
-                                       min_relative_gain=self.min_relative_gain, rng=rng, say=say)
+                                       min_relative_gain=self.min_relative_gain, say=say)
             if setup is None:
                 return candidates, selection, None
             engine = candidates.engine

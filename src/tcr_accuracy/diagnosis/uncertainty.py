@@ -197,15 +197,29 @@ class PoseBootstrap:
                                        BOOTSTRAP_REPLICATES))
         counts = np.zeros((n_replicates, n_clusters), dtype=np.uint8)
         chunk = max(1, int(4_000_000 // max(n_clusters, 1)))
+        # a block's arrays are made in place, two at a time: its draws, their clusters and the clusters numbered
+        # per replicate were each a new (b, clusters) array of int64, 32 MB at 10^4 poses, and four of them at
+        # once were the diagnosis' peak of memory
         for first in range(0, n_replicates, chunk):
             b = min(chunk, n_replicates - first)
-            block = np.zeros(b * n_clusters, dtype=np.int64)
+            block = None
             for members in strata:  # each stratum draws as many of its clusters as it has
-                picked = members[rng.integers(0, members.size, size=(b, members.size))]
-                block += np.bincount((np.arange(b)[:, None] * n_clusters + picked).ravel(),
-                                     minlength=b * n_clusters)
-            block = block.reshape(b, n_clusters)
-            counts[first:first + b] = np.minimum(block, 255)  # a cluster drawn 255 times in a replicate: never
+                picked = rng.integers(0, members.size, size=(b, members.size))
+                if not np.array_equal(members, np.arange(members.size)):  # one stratum of every cluster: itself
+                    picked = members[picked]
+                picked += (np.arange(b) * n_clusters)[:, None]  # replicate r's clusters at r * n_clusters + ...
+                drawn = np.bincount(picked.ravel(), minlength=b * n_clusters)
+                del picked
+                if block is None:
+                    block = drawn
+                else:
+                    block += drawn
+                del drawn
+            if block is None:
+                block = np.zeros(b * n_clusters, dtype=np.int64)
+            np.minimum(block, 255, out=block)  # a cluster drawn 255 times in a replicate: never
+            counts[first:first + b] = block.reshape(b, n_clusters)
+            del block
         rows_in = np.bincount(cluster_of, minlength=n_clusters).astype(float)
         return cls(counts=counts, cluster_of=cluster_of, rows_in=rows_in, n_parts=int(n_parts),
                    method=f"percentile bootstrap, {n_replicates} replicates: {method}, every measured frame of a "
