@@ -2,7 +2,8 @@
 here: the path test's closest-point iteration stopping at the first step that moves the frame less than
 1e-10; the note that readings were grouped by their joint values said first; a fit with nothing to fit
 counted among the engine's fits; compliance without a payload column read as no payload (Pinocchio's
-generalised gravity); the stop at the noise floor's figures in mm; the learning curve's progress."""
+generalised gravity); the stop at the noise floor's figures in mm; the learning curve's progress;
+the search's empty margin; the factor cache's byte count."""
 
 from __future__ import annotations
 
@@ -201,3 +202,46 @@ def test_maps_of_different_poses_or_error_vectors_are_not_joined():
             JoinedMaps([fixed_map(50, 12), other])
     joined = JoinedMaps([fixed_map(50, 12), fixed_map(50, 12, 3)])
     assert (joined.n_poses, joined.size) == (50, 12) and joined.bounds == [(0, 2), (2, 5)]
+
+
+def test_a_search_whose_paths_all_end_on_one_set_has_no_alternative_and_a_zero_margin():
+    """The restart without joint_offsets grows back to the greedy set itself: one set, no alternative, the
+    margin and its standard error 0.0 m^2 (0.0 mm^2 in the JSON), the chosen set said to beat an alternative
+    it does not have. Catches the empty margin's ``0.0`` turned to ``-1.0`` (-1e6 mm^2 in the JSON)."""
+    from test_mutp2_search import F, J, StandInEngine
+
+    from tcr_accuracy.diagnosis.stages import search
+
+    engine = StandInEngine()
+    chosen, report = search.search_sets(engine, [F, J], J, [J], forward=lambda pool, start: [F, J], prune=list,
+                                        selection_z=3.0, min_relative_gain=0.03, width=0)
+    assert chosen == [F, J] and report.alternative is None
+    assert (report.margin, report.margin_se) == (0.0, 0.0) and report.beats_alternative
+    out = report.to_dict()
+    assert (out["alternative_margin_mm2"], out["alternative_margin_se_mm2"]) == (0.0, 0.0)
+    assert report.note().endswith("every path ended on it")
+
+
+def test_the_factor_caches_byte_count_is_the_sum_of_the_factors_it_holds():
+    """A cache of 100 kB: a system that has no factor (None) is kept at no bytes, two factors of 40 kB are
+    counted at their nbytes, a third pushes out the least recently used, and the count is always the sum of
+    what is held, written out here from the arrays. Catches the None's size ``0`` turned to ``-1``."""
+    from tcr_accuracy.diagnosis.least_squares import FactorCache
+
+    cache = FactorCache(max_bytes=100_000, max_columns=100)
+    held = {}
+
+    def put(key, factor):
+        got = cache.get(key, lambda: factor)
+        assert got is factor
+        held[key] = factor
+
+    put("none", None)
+    assert cache.nbytes() == 0
+    for key in ("a", "b"):
+        put(key, np.ones((5000,)))  # 40,000 bytes
+    assert cache.nbytes() == 80_000
+    put("c", np.ones((5000,)))  # 120,000 > 100,000: the oldest ("none", then "a") go
+    kept = [key for key in ("none", "a", "b", "c") if key in cache._factors]
+    assert kept == ["b", "c"]
+    assert cache.nbytes() == sum(held[key].nbytes for key in kept) == 80_000
